@@ -1,0 +1,81 @@
+"""Parsed NC program: a flat list of moves in machine coordinates (SI units).
+
+This is the contract between :mod:`.gcode` (which produces it) and :mod:`.trajectory`
+(which consumes it). Positions are metres in the program's X, Y, Z frame; feeds are m/s.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+__all__ = ['MoveKind', 'Move', 'Program', 'PROGRAM_AXES']
+
+PROGRAM_AXES = ('X', 'Y', 'Z')
+
+Vec3 = tuple[float, float, float]
+
+
+class MoveKind(IntEnum):
+    """What a move does."""
+
+    RAPID = 0      # G0: traverse at the machine's rapid limits
+    LINEAR = 1     # G1
+    ARC_CW = 2     # G2, seen looking down the plane normal (right-handed)
+    ARC_CCW = 3    # G3
+    DWELL = 4      # G4: stand still for ``dwell_s``
+    STOP = 5       # M0/M1/M2/M30: come to rest; M2/M30 also end the program
+
+
+@dataclass(frozen=True)
+class Move:
+    """One motion (or pause) of the program.
+
+    Attributes
+    ----------
+    kind
+        The :class:`MoveKind`.
+    line
+        1-based source line the move comes from (energy is attributed to it).
+    start, end
+        Tool position before and after the move [m], program X, Y, Z.
+    feed_m_s
+        Path feed [m/s] requested for the move; ``inf`` for rapids (machine limits apply).
+        Under G93 the parser converts the inverse-time F to the feed that finishes on time.
+    exact_stop
+        True when the path must come to rest at the end of the move (G61 modal, G9, a dwell
+        or stop that follows is handled by the planner itself).
+    center
+        Arc centre [m] (for ARC_CW/ARC_CCW), with the plane-normal coordinate equal to
+        ``start``'s; ``None`` otherwise.
+    plane
+        17, 18 or 19 (XY, ZX, YZ): the arc plane.
+    turns
+        Number of full extra turns of a helix/arc (0 for an ordinary arc; a full circle
+        is start == end in the plane with turns == 0 meaning one revolution).
+    dwell_s
+        Dwell time [s] for DWELL moves.
+    length_m
+        Path length [m] (helical arcs included).
+    """
+
+    kind: MoveKind
+    line: int
+    start: Vec3
+    end: Vec3
+    feed_m_s: float = float('inf')
+    exact_stop: bool = False
+    center: Vec3 | None = None
+    plane: int = 17
+    turns: int = 0
+    dwell_s: float = 0.0
+    length_m: float = 0.0
+
+
+@dataclass(frozen=True)
+class Program:
+    """A parsed program: its moves in order and where it came from."""
+
+    file: str
+    moves: tuple[Move, ...]
+    n_lines: int = 0
+    warnings: tuple[str, ...] = field(default_factory=tuple)

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Create or refresh the project's virtual environment from the pinned requirements.
+# Sourced by scripts/demo and scripts/test; re-installs only when a requirements file changed.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="${FAE_VENV:-$ROOT/.venv}"
+PY="${PYTHON:-python3}"
+if [ ! -x "$VENV/bin/python" ]; then
+    echo "[setup] creating virtual environment in $VENV" >&2
+    "$PY" -m venv "$VENV"
+fi
+STAMP="$VENV/.fae-requirements.sha256"
+WANT="$(cat "$ROOT/requirements.txt" "$ROOT/requirements-dev.txt" "$ROOT/constraints.txt" | sha256sum | cut -d' ' -f1)"
+if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
+    echo "[setup] installing pinned requirements (first run takes a minute)" >&2
+    "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check \
+        -r "$ROOT/requirements-dev.txt" -c "$ROOT/constraints.txt"
+    echo "$WANT" > "$STAMP"
+fi
+export PATH="$VENV/bin:$PATH"
+export PYTHONPATH="$ROOT${PYTHONPATH:+:$PYTHONPATH}"
