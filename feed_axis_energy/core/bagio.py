@@ -1,0 +1,265 @@
+"""rosbag2 (MCAP storage) read and write through ``rosbags``: no rclpy needed.
+
+Time series are stored batched as ``trajectory_msgs/msg/JointTrajectory``: one message holds
+up to ``batch`` samples; ``header.stamp`` is the time of the batch's first sample and every
+point's ``time_from_start`` is relative to it. The bag's log time of a message equals its
+header stamp, so recordings compare by simulation time, never by wall-clock receive time.
+Topic names, field meanings and units are listed in ``docs/ARCHITECTURE.md`` and README.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import numpy as np
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.typesys import get_typestore, Stores
+
+from feed_axis_energy.core.errors import DataError
+
+__all__ = [
+    'TOPIC_SETPOINTS', 'TOPIC_AXIS_STATE', 'TOPIC_POWER', 'TOPIC_BLOCK_ENERGY',
+    'TOPIC_MEASURED_POWER', 'TOPIC_MEASURED_KINEMATICS', 'JOINT_TRAJECTORY', 'DIAGNOSTIC_ARRAY',
+    'Series', 'BagWriter', 'read_series', 'read_block_energy', 'read_custom_data', 'bag_topics',
+    'typestore', 'series_to_messages', 'messages_to_series',
+]
+
+TOPIC_SETPOINTS = '/setpoints'
+TOPIC_AXIS_STATE = '/axis_state'
+TOPIC_POWER = '/power'
+TOPIC_BLOCK_ENERGY = '/block_energy'
+TOPIC_MEASURED_POWER = '/measured/power'
+TOPIC_MEASURED_KINEMATICS = '/measured/kinematics'
+
+JOINT_TRAJECTORY = 'trajectory_msgs/msg/JointTrajectory'
+DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+
+_NS = 1_000_000_000
+_TYPESTORE = None
+
+
+def typestore():
+    """Return the (cached) ROS 2 Kilted typestore used for every bag we read or write."""
+    global _TYPESTORE
+    if _TYPESTORE is None:
+        _TYPESTORE = get_typestore(Stores.ROS2_KILTED)
+    return _TYPESTORE
+
+
+@dataclass(frozen=True)
+class Series:
+    """A batched time series on one topic.
+
+    Attributes
+    ----------
+    t
+        Sample times [s], shape ``(n,)``.
+    names
+        Joint names (columns), e.g. ``('X', 'X_screw')`` or ``('X', 'total')``.
+    positions, velocities, accelerations, effort
+        Arrays of shape ``(n, len(names))`` or ``None`` when the field is absent.
+    """
+
+    t: np.ndarray
+    names: tuple[str, ...]
+    positions: np.ndarray | None = None
+    velocities: np.ndarray | None = None
+    accelerations: np.ndarray | None = None
+    effort: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n, m = self.t.shape[0], len(self.names)
+        for field in ('positions', 'velocities', 'accelerations', 'effort'):
+            arr = getattr(self, field)
+            if arr is not None and arr.shape != (n, m):
+                msg = f'Series.{field} has shape {arr.shape}, expected ({n}, {m})'
+                raise ValueError(msg)
+
+
+def _split_ns(t_s: float) -> tuple[int, int]:
+    ns = int(round(t_s * _NS))
+    return ns // _NS, ns % _NS
+
+
+def series_to_messages(series: Series, *, batch: int = 100, frame_id: str = '') -> list:
+    """Cut a series into JointTrajectory messages of at most ``batch`` points.
+
+    Returns a list of ``(stamp_ns, message)`` pairs (rosbags message objects).
+    """
+    ts = typestore()
+    jt_cls = ts.types[JOINT_TRAJECTORY]
+    pt_cls = ts.types['trajectory_msgs/msg/JointTrajectoryPoint']
+    header_cls = ts.types['std_msgs/msg/Header']
+    time_cls = ts.types['builtin_interfaces/msg/Time']
+    dur_cls = ts.types['builtin_interfaces/msg/Duration']
+    empty = np.zeros(0, dtype=np.float64)
+    fields = [getattr(series, f) for f in ('positions', 'velocities', 'accelerations', 'effort')]
+    if np.any(series.t < 0):
+        msg = 'bag time series must not have negative times'
+        raise ValueError(msg)
+    t_ns = np.rint(series.t * _NS).astype(np.int64)
+    out = []
+    names = list(series.names)
+    for i0 in range(0, t_ns.shape[0], batch):
+        i1 = min(i0 + batch, t_ns.shape[0])
+        stamp = int(t_ns[i0])
+        rel = t_ns[i0:i1] - stamp
+        points = []
+        for j in range(i0, i1):
+            vals = [empty if f is None else np.ascontiguousarray(f[j]) for f in fields]
+            r = int(rel[j - i0])
+            points.append(pt_cls(positions=vals[0], velocities=vals[1], accelerations=vals[2],
+                                 effort=vals[3],
+                                 time_from_start=dur_cls(sec=r // _NS, nanosec=r % _NS)))
+        header = header_cls(stamp=time_cls(sec=stamp // _NS, nanosec=stamp % _NS),
+                            frame_id=frame_id)
+        out.append((stamp, jt_cls(header=header, joint_names=names, points=points)))
+    return out
+
+
+def messages_to_series(messages: Iterable) -> Series:
+    """Join JointTrajectory messages (in stamp order) back into one :class:`Series`."""
+    t_parts: list[np.ndarray] = []
+    cols: dict[str, list[np.ndarray]] = {f: [] for f in
+                                         ('positions', 'velocities', 'accelerations', 'effort')}
+    names: tuple[str, ...] | None = None
+    for msg in messages:
+        if names is None:
+            names = tuple(msg.joint_names)
+        stamp = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
+        rel = np.array([p.time_from_start.sec * _NS + p.time_from_start.nanosec
+                        for p in msg.points], dtype=np.int64)
+        t_parts.append((stamp + rel) / _NS)
+        for field, parts in cols.items():
+            rows = [getattr(p, field) for p in msg.points]
+            parts.append(np.array(rows, dtype=np.float64).reshape(len(rows), -1))
+    if names is None:
+        return Series(t=np.zeros(0), names=())
+    m = len(names)
+    arrays = {}
+    for field, parts in cols.items():
+        arr = np.concatenate(parts, axis=0) if parts else np.zeros((0, 0))
+        arrays[field] = arr if arr.shape[1] == m and m > 0 else None
+    return Series(t=np.concatenate(t_parts), names=names, **arrays)
+
+
+class BagWriter:
+    """Write a rosbag2 directory with MCAP storage (context manager).
+
+    Parameters
+    ----------
+    path
+        Bag directory to create; it must not exist yet.
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        if self.path.exists():
+            msg = f'{self.path} exists already; choose a new output directory'
+            raise FileExistsError(msg)
+        self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._connections: dict[str, object] = {}
+
+    def __enter__(self) -> 'BagWriter':
+        self._writer.open()
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self._writer.close()
+        else:
+            self._writer.abort()
+
+    def _connection(self, topic: str, msgtype: str):
+        if topic not in self._connections:
+            self._connections[topic] = self._writer.add_connection(
+                topic, msgtype, typestore=typestore())
+        return self._connections[topic]
+
+    def write_message(self, topic: str, msgtype: str, stamp_ns: int, message) -> None:
+        """Serialize one rosbags message object and write it at ``stamp_ns``."""
+        conn = self._connection(topic, msgtype)
+        self._writer.write(conn, stamp_ns, typestore().serialize_cdr(message, msgtype))
+
+    def write_series(self, topic: str, series: Series, *, batch: int = 100) -> int:
+        """Write a time series as batched JointTrajectory messages; returns the message count."""
+        msgs = series_to_messages(series, batch=batch)
+        for stamp, message in msgs:
+            self.write_message(topic, JOINT_TRAJECTORY, stamp, message)
+        return len(msgs)
+
+    def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
+                           stamp_s: float, program: str = '') -> None:
+        """Write the per-block energy summary as one DiagnosticArray (one status per line)."""
+        ts = typestore()
+        kv = ts.types['diagnostic_msgs/msg/KeyValue']
+        status_cls = ts.types['diagnostic_msgs/msg/DiagnosticStatus']
+        sec, nsec = _split_ns(stamp_s)
+        header = ts.types['std_msgs/msg/Header'](
+            stamp=ts.types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nsec), frame_id='')
+        statuses = [
+            status_cls(level=0, name=f'{program}:{line}', message='block energy',
+                       hardware_id='', values=[kv(key='line', value=str(line)),
+                                               kv(key='energy_j', value=repr(float(e))),
+                                               kv(key='duration_s', value=repr(float(d)))])
+            for line, e, d in blocks]
+        msg = ts.types[DIAGNOSTIC_ARRAY](header=header, status=statuses)
+        self.write_message(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY, sec * _NS + nsec, msg)
+
+    def set_custom_data(self, key: str, value: object) -> None:
+        """Store a JSON-serialisable value in the bag's metadata (``custom_data``)."""
+        self._writer.set_custom_data(key, json.dumps(value))
+
+
+def _open_reader(path: str | Path) -> Reader:
+    path = Path(path)
+    if not (path / 'metadata.yaml').is_file():
+        msg = 'not a rosbag2 directory (no metadata.yaml)'
+        raise DataError(msg, file=str(path))
+    return Reader(path)
+
+
+def bag_topics(path: str | Path) -> dict[str, tuple[str, int]]:
+    """Return ``{topic: (msgtype, message count)}`` of a bag."""
+    with _open_reader(path) as reader:
+        return {c.topic: (c.msgtype, c.msgcount) for c in reader.connections}
+
+
+def read_series(path: str | Path, topic: str) -> Series:
+    """Read all JointTrajectory messages of ``topic`` into one :class:`Series`."""
+    ts = typestore()
+    with _open_reader(path) as reader:
+        conns = [c for c in reader.connections if c.topic == topic]
+        if not conns:
+            have = ', '.join(sorted(c.topic for c in reader.connections)) or 'none'
+            msg = f'topic {topic!r} not in bag (topics: {have})'
+            raise DataError(msg, file=str(path))
+        msgs = [ts.deserialize_cdr(raw, c.msgtype)
+                for c, _, raw in reader.messages(connections=conns)]
+    msgs.sort(key=lambda m: (m.header.stamp.sec, m.header.stamp.nanosec))
+    return messages_to_series(msgs)
+
+
+def read_block_energy(path: str | Path) -> list[tuple[int, float, float]]:
+    """Read the per-block energy summary: ``[(line, energy_j, duration_s), ...]``."""
+    ts = typestore()
+    out = []
+    with _open_reader(path) as reader:
+        conns = [c for c in reader.connections if c.topic == TOPIC_BLOCK_ENERGY]
+        for c, _, raw in reader.messages(connections=conns):
+            msg = ts.deserialize_cdr(raw, c.msgtype)
+            for status in msg.status:
+                vals = {kv.key: kv.value for kv in status.values}
+                out.append((int(vals['line']), float(vals['energy_j']),
+                            float(vals['duration_s'])))
+    return out
+
+
+def read_custom_data(path: str | Path, key: str) -> object:
+    """Read a JSON value stored with :meth:`BagWriter.set_custom_data` (``None`` if absent)."""
+    import yaml
+    meta = yaml.safe_load((Path(path) / 'metadata.yaml').read_text())
+    custom = meta.get('rosbag2_bagfile_information', {}).get('custom_data') or {}
+    return json.loads(custom[key]) if key in custom else None

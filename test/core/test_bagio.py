@@ -1,0 +1,69 @@
+"""Round trips of time series and block summaries through rosbag2/MCAP bags."""
+from pathlib import Path
+
+import numpy as np
+from numpy.testing import assert_allclose, assert_array_equal
+import pytest
+
+from feed_axis_energy.core import bagio
+from feed_axis_energy.core.errors import DataError
+
+
+def _series(n: int, names=('X', 'total')) -> bagio.Series:
+    rng = np.random.default_rng(3)
+    t = np.arange(n) * 1e-3 + 0.5
+    return bagio.Series(t=t, names=names, positions=rng.normal(size=(n, len(names))),
+                        velocities=rng.normal(size=(n, len(names))))
+
+
+@pytest.mark.parametrize('n,batch', [(1, 100), (250, 100), (300, 100), (7, 3)])
+def test_series_round_trip_is_exact(tmp_path: Path, n: int, batch: int) -> None:
+    series = _series(n)
+    with bagio.BagWriter(tmp_path / 'bag') as writer:
+        count = writer.write_series(bagio.TOPIC_POWER, series, batch=batch)
+    assert count == -(-n // batch)
+    back = bagio.read_series(tmp_path / 'bag', bagio.TOPIC_POWER)
+    assert back.names == series.names
+    assert_allclose(back.t, series.t, rtol=0, atol=1e-9)
+    assert_array_equal(back.positions, series.positions)
+    assert_array_equal(back.velocities, series.velocities)
+    assert back.accelerations is None and back.effort is None
+    topics = bagio.bag_topics(tmp_path / 'bag')
+    assert topics[bagio.TOPIC_POWER] == (bagio.JOINT_TRAJECTORY, count)
+    assert list((tmp_path / 'bag').glob('*.mcap'))
+
+
+def test_block_energy_and_custom_data(tmp_path: Path) -> None:
+    blocks = [(3, 12.5, 1.25), (4, -0.125, 0.5)]
+    with bagio.BagWriter(tmp_path / 'bag') as writer:
+        writer.write_block_energy(blocks, stamp_s=2.0, program='p.nc')
+        writer.set_custom_data('feed_axis_energy/summary', {'energy_j': 1.5})
+    assert bagio.read_block_energy(tmp_path / 'bag') == blocks
+    assert bagio.read_custom_data(tmp_path / 'bag', 'feed_axis_energy/summary') == {
+        'energy_j': 1.5}
+
+
+def test_existing_directory_is_not_overwritten(tmp_path: Path) -> None:
+    (tmp_path / 'bag').mkdir()
+    with pytest.raises(FileExistsError, match='exists already'):
+        bagio.BagWriter(tmp_path / 'bag')
+
+
+def test_missing_topic_and_non_bag_are_clear_errors(tmp_path: Path) -> None:
+    with pytest.raises(DataError, match='not a rosbag2 directory'):
+        bagio.read_series(tmp_path, bagio.TOPIC_POWER)
+    with bagio.BagWriter(tmp_path / 'bag') as writer:
+        writer.write_series(bagio.TOPIC_POWER, _series(5))
+    with pytest.raises(DataError, match="topic '/setpoints' not in bag"):
+        bagio.read_series(tmp_path / 'bag', bagio.TOPIC_SETPOINTS)
+
+
+def test_mcap_file_is_readable_by_plain_mcap_reader(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+    with bagio.BagWriter(tmp_path / 'bag') as writer:
+        writer.write_series(bagio.TOPIC_POWER, _series(250), batch=100)
+    (mcap_file,) = (tmp_path / 'bag').glob('*.mcap')
+    with open(mcap_file, 'rb') as f:
+        reader = make_reader(f)
+        topics = [channel.topic for _, channel, _ in reader.iter_messages()]
+    assert topics == [bagio.TOPIC_POWER] * 3
