@@ -1,0 +1,532 @@
+"""Machine model: ball-screw feed axes as frozen dataclasses, loaded and validated from YAML.
+
+A machine file looks like (see ``config/demonstrator.yaml``)::
+
+    name: demonstrator
+    braking: regenerative        # or dissipated
+    load_axis: X                 # the axis whose table carries the clamped workpiece
+    planner: {profile: jerk, corner_tolerance_m: 1.0e-4, rate_hz: 1000.0}
+    axes:
+      X:
+        table_mass_kg: 12.0
+        rides_on: null           # the axis that carries this one
+        inclination_deg: 0.0     # 90: vertical, positive direction upward
+        screw: {diameter_m: 0.02, lead_m: 0.01, length_m: 0.6, starts: 1, efficiency: 1.0}
+        inertias: {motor_kg_m2: 1.1e-4, coupling_kg_m2: 1.0e-5}
+        limits: {velocity_m_s: 0.6, acceleration_m_s2: 2.5, jerk_m_s3: 50.0}
+        loss: {model: power_regression, a: 0.2505, b: 0.3471}
+
+Every missing or invalid value raises :class:`~.errors.ConfigError` naming the file and the
+dotted key (``axes.X.screw.lead_m``); unknown keys are rejected so that typos do not pass.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+import math
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from .errors import ConfigError
+from .losses import LossModel, loss_from_dict
+
+__all__ = ['ScrewSpec', 'InertiaSpec', 'LimitSpec', 'PlannerSettings', 'AxisSpec', 'Machine',
+           'load_machine', 'machine_from_dict', 'machine_to_dict', 'moved_mass_kg',
+           'carried_axes', 'AXIS_NAMES', 'BRAKING_MODES', 'GRAVITY_M_S2']
+
+AXIS_NAMES = ('X', 'Y', 'Z')
+BRAKING_MODES = ('regenerative', 'dissipated')
+PROFILES = ('jerk', 'trapezoid')
+GRAVITY_M_S2 = 9.80665
+STEEL_DENSITY_KG_M3 = 7850.0
+
+
+@dataclass(frozen=True)
+class ScrewSpec:
+    """Ball screw of one axis.
+
+    Attributes
+    ----------
+    diameter_m
+        Nominal diameter [m].
+    lead_m
+        Advance of the nut per screw revolution [m] (= starts x thread pitch).
+    length_m
+        Length of the screw [m] (for its inertia).
+    starts
+        Number of thread starts (informational; ``lead_m`` already includes it).
+    efficiency
+        Mechanical efficiency of screw and nut, ``0 < eta <= 1``. The demonstrator uses 1.0
+        because the paper puts every passive resistance into the loss function.
+    density_kg_m3
+        Density of the screw material [kg/m^3] (steel 7850).
+    """
+
+    diameter_m: float
+    lead_m: float
+    length_m: float
+    starts: int = 1
+    efficiency: float = 1.0
+    density_kg_m3: float = STEEL_DENSITY_KG_M3
+
+    @property
+    def pitch_m(self) -> float:
+        """Thread pitch [m]: lead divided by the number of starts."""
+        return self.lead_m / self.starts
+
+    @property
+    def solid_inertia_kg_m2(self) -> float:
+        """Inertia of the screw as a solid cylinder, ``pi/32·rho·L·d**4`` [kg·m^2]."""
+        return math.pi / 32.0 * self.density_kg_m3 * self.length_m * self.diameter_m ** 4
+
+
+@dataclass(frozen=True)
+class InertiaSpec:
+    """Rotary inertias on the screw axis [kg·m^2] (motor coupled directly, no gearbox).
+
+    ``screw_kg_m2`` is ``None`` when the file leaves it out: then the solid-cylinder value
+    of :class:`ScrewSpec` is used.
+    """
+
+    motor_kg_m2: float
+    coupling_kg_m2: float = 0.0
+    screw_kg_m2: float | None = None
+
+
+@dataclass(frozen=True)
+class LimitSpec:
+    """Kinematic limits of one axis, used by the planner."""
+
+    velocity_m_s: float
+    acceleration_m_s2: float
+    jerk_m_s3: float
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """Default planner settings of the machine (see :class:`.trajectory.PlannerOptions`)."""
+
+    profile: str = 'jerk'
+    corner_tolerance_m: float = 1.0e-4
+    rate_hz: float = 1000.0
+
+    def options(self) -> Any:
+        """Return these settings as a :class:`.trajectory.PlannerOptions`."""
+        from .trajectory import PlannerOptions
+        return PlannerOptions(rate_hz=self.rate_hz, profile=self.profile,
+                              corner_tolerance_m=self.corner_tolerance_m)
+
+
+@dataclass(frozen=True)
+class AxisSpec:
+    """One ball-screw feed axis.
+
+    Attributes
+    ----------
+    name
+        ``'X'``, ``'Y'`` or ``'Z'``.
+    table_mass_kg
+        Mass moved by this axis alone (table, nut, carriages, vice) [kg].
+    screw, inertias, limits
+        See :class:`ScrewSpec`, :class:`InertiaSpec`, :class:`LimitSpec`.
+    loss
+        Loss model (see :mod:`.losses`).
+    rides_on
+        Name of the axis that carries this one (its whole moved mass), or ``None``.
+    inclination_deg
+        Angle of the positive direction above the horizontal [deg]; 90 is vertical upward.
+    """
+
+    name: str
+    table_mass_kg: float
+    screw: ScrewSpec
+    inertias: InertiaSpec
+    limits: LimitSpec
+    loss: LossModel
+    rides_on: str | None = None
+    inclination_deg: float = 0.0
+
+    @property
+    def screw_inertia_kg_m2(self) -> float:
+        """Screw inertia: the configured value, else the solid cylinder [kg·m^2]."""
+        given = self.inertias.screw_kg_m2
+        return self.screw.solid_inertia_kg_m2 if given is None else given
+
+    @property
+    def rotary_inertia_kg_m2(self) -> float:
+        """Motor + coupling + screw inertia [kg·m^2]."""
+        return self.inertias.motor_kg_m2 + self.inertias.coupling_kg_m2 + self.screw_inertia_kg_m2
+
+
+@dataclass(frozen=True)
+class Machine:
+    """A machine: its axes (in order) and how it handles braking energy.
+
+    Attributes
+    ----------
+    name
+        Free text.
+    axes
+        The axes, in the order of the columns of every per-axis array.
+    braking
+        ``'regenerative'``: braking power goes back to the DC link and counts negative (the
+        demonstrator's Beckhoff converters); ``'dissipated'``: negative axis power is burned in
+        a brake resistor and counts as zero draw.
+    load_axis
+        Name of the axis whose table carries the clamped workpiece.
+    planner
+        Default planner settings.
+    """
+
+    name: str
+    axes: tuple[AxisSpec, ...]
+    braking: str = 'regenerative'
+    load_axis: str = 'X'
+    planner: PlannerSettings = PlannerSettings()
+
+    @property
+    def axis_names(self) -> tuple[str, ...]:
+        """Names of the axes, in order."""
+        return tuple(a.name for a in self.axes)
+
+    def axis(self, name: str) -> AxisSpec:
+        """Return the axis called ``name`` (``KeyError`` if the machine has none)."""
+        for spec in self.axes:
+            if spec.name == name:
+                return spec
+        msg = f'machine {self.name!r} has no axis {name!r} (axes: {self.axis_names})'
+        raise KeyError(msg)
+
+    def limits(self) -> dict[str, Any]:
+        """Return the kinematic limits as ``{name: trajectory.AxisLimits}``."""
+        from .trajectory import AxisLimits
+        return {a.name: AxisLimits(velocity_m_s=a.limits.velocity_m_s,
+                                   acceleration_m_s2=a.limits.acceleration_m_s2,
+                                   jerk_m_s3=a.limits.jerk_m_s3) for a in self.axes}
+
+
+def carried_axes(machine: Machine, axis: str) -> tuple[str, ...]:
+    """Return ``axis`` and every axis riding on it, directly or through others.
+
+    Parameters
+    ----------
+    machine
+        The machine.
+    axis
+        Axis name.
+
+    Returns
+    -------
+    tuple of str
+        Names in machine order.
+    """
+    machine.axis(axis)
+    out = []
+    for spec in machine.axes:
+        current: str | None = spec.name
+        seen = set()
+        while current is not None and current not in seen:
+            if current == axis:
+                out.append(spec.name)
+                break
+            seen.add(current)
+            current = machine.axis(current).rides_on
+    return tuple(out)
+
+
+def moved_mass_kg(machine: Machine, axis: str, load_kg: float = 0.0) -> float:
+    """Return the translational mass moved by ``axis`` [kg].
+
+    Its own table, plus the table of every axis riding on it (recursively), plus
+    ``load_kg`` if it is, or carries, the machine's ``load_axis``.
+
+    Parameters
+    ----------
+    machine
+        The machine.
+    axis
+        Axis name.
+    load_kg
+        Mass of the clamped workpiece (and fixtures not in the table mass) [kg].
+
+    Returns
+    -------
+    float
+        Moved mass [kg].
+    """
+    names = carried_axes(machine, axis)
+    mass = sum(machine.axis(n).table_mass_kg for n in names)
+    if machine.load_axis in names:
+        mass += load_kg
+    return float(mass)
+
+
+# ----------------------------------------------------------------------------- YAML I/O
+
+_REQUIRED = object()
+
+
+def _join(key: str, name: str) -> str:
+    return f'{key}.{name}' if key else name
+
+
+def _mapping(value: Any, *, file: str, key: str,
+             allowed: tuple[str, ...] | None) -> Mapping[str, Any]:
+    if not isinstance(value, Mapping):
+        got = 'nothing' if value is None else type(value).__name__
+        msg = f'expected a mapping, got {got}'
+        raise ConfigError(msg, file=file, key=key or '<top>')
+    for name in value:
+        if allowed is not None and name not in allowed:
+            msg = f'unknown key {name!r}; expected one of {", ".join(allowed)}'
+            raise ConfigError(msg, file=file, key=_join(key, str(name)))
+    return value
+
+
+def _float(d: Mapping[str, Any], name: str, *, file: str, key: str, default: Any = _REQUIRED,
+           minimum: float | None = None, strict: bool = True,
+           maximum: float | None = None) -> float:
+    where = _join(key, name)
+    if name not in d:
+        if default is _REQUIRED:
+            msg = 'missing required value; expected a number'
+            raise ConfigError(msg, file=file, key=where)
+        return default
+    value = d[name]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        msg = f'expected a finite number, got {value!r}'
+        raise ConfigError(msg, file=file, key=where)
+    if minimum is not None and (value <= minimum if strict else value < minimum):
+        msg = f'expected a number {">" if strict else ">="} {minimum}, got {value!r}'
+        raise ConfigError(msg, file=file, key=where)
+    if maximum is not None and value > maximum:
+        msg = f'expected a number <= {maximum}, got {value!r}'
+        raise ConfigError(msg, file=file, key=where)
+    return float(value)
+
+
+def _choice(d: Mapping[str, Any], name: str, choices: tuple[Any, ...], *, file: str, key: str,
+            default: Any = _REQUIRED) -> Any:
+    where = _join(key, name)
+    if name not in d:
+        if default is _REQUIRED:
+            msg = f'missing required value; expected one of {", ".join(map(str, choices))}'
+            raise ConfigError(msg, file=file, key=where)
+        return default
+    value = d[name]
+    if value not in choices:
+        shown = ', '.join('null' if c is None else str(c) for c in choices)
+        msg = f'expected one of {shown}, got {value!r}'
+        raise ConfigError(msg, file=file, key=where)
+    return value
+
+
+def _screw(d: Any, *, file: str, key: str) -> ScrewSpec:
+    d = _mapping(d, file=file, key=key, allowed=('diameter_m', 'lead_m', 'length_m', 'starts',
+                                                 'efficiency', 'density_kg_m3'))
+    starts = d.get('starts', 1)
+    if isinstance(starts, bool) or not isinstance(starts, int) or starts < 1:
+        msg = f'expected a whole number >= 1, got {starts!r}'
+        raise ConfigError(msg, file=file, key=_join(key, 'starts'))
+    return ScrewSpec(
+        diameter_m=_float(d, 'diameter_m', file=file, key=key, minimum=0.0),
+        lead_m=_float(d, 'lead_m', file=file, key=key, minimum=0.0),
+        length_m=_float(d, 'length_m', file=file, key=key, minimum=0.0),
+        starts=starts,
+        efficiency=_float(d, 'efficiency', file=file, key=key, default=1.0, minimum=0.0,
+                          maximum=1.0),
+        density_kg_m3=_float(d, 'density_kg_m3', file=file, key=key,
+                             default=STEEL_DENSITY_KG_M3, minimum=0.0))
+
+
+def _inertias(d: Any, *, file: str, key: str) -> InertiaSpec:
+    d = _mapping(d, file=file, key=key,
+                 allowed=('motor_kg_m2', 'coupling_kg_m2', 'screw_kg_m2'))
+    screw = None
+    if d.get('screw_kg_m2') is not None:
+        screw = _float(d, 'screw_kg_m2', file=file, key=key, minimum=0.0, strict=False)
+    return InertiaSpec(
+        motor_kg_m2=_float(d, 'motor_kg_m2', file=file, key=key, minimum=0.0, strict=False),
+        coupling_kg_m2=_float(d, 'coupling_kg_m2', file=file, key=key, default=0.0,
+                              minimum=0.0, strict=False),
+        screw_kg_m2=screw)
+
+
+def _limits(d: Any, *, file: str, key: str) -> LimitSpec:
+    names = ('velocity_m_s', 'acceleration_m_s2', 'jerk_m_s3')
+    d = _mapping(d, file=file, key=key, allowed=names)
+    return LimitSpec(*(_float(d, n, file=file, key=key, minimum=0.0) for n in names))
+
+
+def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
+    key = f'axes.{name}'
+    if name not in AXIS_NAMES:
+        msg = f'unknown axis name {name!r}; expected one of {", ".join(AXIS_NAMES)}'
+        raise ConfigError(msg, file=file, key=key)
+    allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
+               'loss')
+    d = _mapping(d, file=file, key=key, allowed=allowed)
+    for part in ('screw', 'inertias', 'limits', 'loss'):
+        if part not in d:
+            msg = 'missing required section'
+            raise ConfigError(msg, file=file, key=f'{key}.{part}')
+    rides_on = _choice(d, 'rides_on', AXIS_NAMES + (None,), file=file, key=key, default=None)
+    return AxisSpec(
+        name=name,
+        table_mass_kg=_float(d, 'table_mass_kg', file=file, key=key, minimum=0.0, strict=False),
+        screw=_screw(d['screw'], file=file, key=f'{key}.screw'),
+        inertias=_inertias(d['inertias'], file=file, key=f'{key}.inertias'),
+        limits=_limits(d['limits'], file=file, key=f'{key}.limits'),
+        loss=loss_from_dict(d['loss'], file=file, key=f'{key}.loss'),
+        rides_on=rides_on,
+        inclination_deg=_float(d, 'inclination_deg', file=file, key=key, default=0.0,
+                               minimum=-90.0, strict=False, maximum=90.0))
+
+
+def _check_stacking(axes: tuple[AxisSpec, ...], *, file: str) -> None:
+    names = {a.name: a for a in axes}
+    for spec in axes:
+        key = f'axes.{spec.name}.rides_on'
+        if spec.rides_on is None:
+            continue
+        if spec.rides_on not in names:
+            msg = f'axis {spec.rides_on!r} is not defined in axes'
+            raise ConfigError(msg, file=file, key=key)
+        chain = [spec.name]
+        current: str | None = spec.rides_on
+        while current is not None:
+            if current in chain:
+                msg = f'axes ride on each other in a loop: {" -> ".join(chain + [current])}'
+                raise ConfigError(msg, file=file, key=key)
+            chain.append(current)
+            current = names[current].rides_on
+
+
+def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
+    """Build and validate a :class:`Machine` from its YAML form.
+
+    Parameters
+    ----------
+    d
+        The mapping read from a machine file.
+    file
+        Where it came from, for error messages.
+
+    Returns
+    -------
+    Machine
+        The validated machine.
+
+    Raises
+    ------
+    ConfigError
+        A missing, invalid or unknown value; the message names ``file`` and the dotted key.
+    """
+    d = _mapping(d, file=file, key='',
+                 allowed=('name', 'braking', 'load_axis', 'planner', 'axes'))
+    name = d.get('name', Path(file).stem)
+    if not isinstance(name, str) or not name:
+        msg = f'expected a non-empty string, got {name!r}'
+        raise ConfigError(msg, file=file, key='name')
+    # axis names are checked one by one in _axis, with a message naming the axis
+    axes_d = _mapping(d.get('axes'), file=file, key='axes', allowed=None)
+    if not axes_d:
+        msg = 'expected at least one axis'
+        raise ConfigError(msg, file=file, key='axes')
+    axes = tuple(_axis(n, v, file=file) for n, v in axes_d.items())
+    _check_stacking(axes, file=file)
+    planner_d = _mapping(d.get('planner', {}), file=file, key='planner',
+                         allowed=('profile', 'corner_tolerance_m', 'rate_hz'))
+    planner = PlannerSettings(
+        profile=_choice(planner_d, 'profile', PROFILES, file=file, key='planner',
+                        default='jerk'),
+        corner_tolerance_m=_float(planner_d, 'corner_tolerance_m', file=file, key='planner',
+                                  default=1.0e-4, minimum=0.0, strict=False),
+        rate_hz=_float(planner_d, 'rate_hz', file=file, key='planner', default=1000.0,
+                       minimum=0.0))
+    return Machine(
+        name=name,
+        axes=axes,
+        braking=_choice(d, 'braking', BRAKING_MODES, file=file, key=''),
+        load_axis=_choice(d, 'load_axis', tuple(a.name for a in axes), file=file, key=''),
+        planner=planner)
+
+
+def load_machine(path: str | Path) -> Machine:
+    """Read and validate a machine YAML file.
+
+    Parameters
+    ----------
+    path
+        The file.
+
+    Returns
+    -------
+    Machine
+        The validated machine.
+
+    Raises
+    ------
+    ConfigError
+        Unreadable file, YAML syntax error, or any invalid value (named by dotted key).
+    """
+    file = str(path)
+    try:
+        text = Path(path).read_text(encoding='utf-8')
+    except OSError as err:
+        msg = f'cannot read machine file: {err.strerror or err}'
+        raise ConfigError(msg, file=file) from err
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        mark = getattr(err, 'problem_mark', None)
+        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
+        msg = f'invalid YAML{where}: {getattr(err, "problem", None) or err}'
+        raise ConfigError(msg, file=file) from err
+    return machine_from_dict(data, file=file)
+
+
+def machine_to_dict(machine: Machine) -> dict[str, Any]:
+    """Return the YAML form of ``machine`` (``machine_from_dict`` of it gives it back).
+
+    Parameters
+    ----------
+    machine
+        The machine.
+
+    Returns
+    -------
+    dict
+        Plain Python types only, ready for ``yaml.safe_dump``.
+    """
+    axes: dict[str, Any] = {}
+    for a in machine.axes:
+        inertias: dict[str, Any] = {'motor_kg_m2': a.inertias.motor_kg_m2,
+                                    'coupling_kg_m2': a.inertias.coupling_kg_m2}
+        if a.inertias.screw_kg_m2 is not None:
+            inertias['screw_kg_m2'] = a.inertias.screw_kg_m2
+        axes[a.name] = {
+            'table_mass_kg': a.table_mass_kg,
+            'rides_on': a.rides_on,
+            'inclination_deg': a.inclination_deg,
+            'screw': {'diameter_m': a.screw.diameter_m, 'lead_m': a.screw.lead_m,
+                      'length_m': a.screw.length_m, 'starts': a.screw.starts,
+                      'efficiency': a.screw.efficiency,
+                      'density_kg_m3': a.screw.density_kg_m3},
+            'inertias': inertias,
+            'limits': {'velocity_m_s': a.limits.velocity_m_s,
+                       'acceleration_m_s2': a.limits.acceleration_m_s2,
+                       'jerk_m_s3': a.limits.jerk_m_s3},
+            'loss': dict(a.loss.to_dict()),
+        }
+    return {
+        'name': machine.name,
+        'braking': machine.braking,
+        'load_axis': machine.load_axis,
+        'planner': {'profile': machine.planner.profile,
+                    'corner_tolerance_m': machine.planner.corner_tolerance_m,
+                    'rate_hz': machine.planner.rate_hz},
+        'axes': axes,
+    }

@@ -1,0 +1,146 @@
+"""Offline simulation: program -> motion -> dynamics -> power and energy, plus a summary."""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+import math
+from typing import Any
+
+import numpy as np
+
+from .dynamics import AxisDynamics, compute_dynamics
+from .energy import PowerResult, compute_power, energy_by_line
+from .machine import Machine
+from .motion import Motion
+from .program import Program
+
+__all__ = ['SimulationResult', 'simulate_program', 'simulate_motion', 'summarize']
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Everything one simulation produced.
+
+    Attributes
+    ----------
+    program
+        Program file (or motion source) the result comes from.
+    machine
+        The machine model used.
+    load_kg
+        Workpiece mass [kg].
+    motion, dynamics, power
+        The three stages of the pipeline.
+    """
+
+    program: str
+    machine: Machine
+    load_kg: float
+    motion: Motion
+    dynamics: AxisDynamics
+    power: PowerResult
+
+
+def simulate_motion(motion: Motion, machine: Machine, *, load_kg: float = 0.0) -> SimulationResult:
+    """Dynamics and power of a given motion (planned or measured).
+
+    Parameters
+    ----------
+    motion
+        Sampled motion; its axes must exist in ``machine``.
+    machine
+        The machine model (its ``braking`` rule is applied).
+    load_kg
+        Workpiece mass on the ``load_axis`` table [kg].
+
+    Returns
+    -------
+    SimulationResult
+        Motion, dynamics and power.
+    """
+    dyn = compute_dynamics(motion, machine, load_kg=load_kg)
+    power = compute_power(dyn, braking=machine.braking)
+    return SimulationResult(program=motion.source, machine=machine, load_kg=float(load_kg),
+                            motion=motion, dynamics=dyn, power=power)
+
+
+def simulate_program(program: Program, machine: Machine, *, load_kg: float = 0.0,
+                     options: Any | None = None,
+                     progress: Callable[..., Any] | None = None) -> SimulationResult:
+    """Plan ``program`` with the machine's limits, then compute dynamics and power.
+
+    Parameters
+    ----------
+    program
+        Parsed NC program (:func:`.gcode.parse_gcode`).
+    machine
+        The machine model: its limits feed the planner, its ``planner`` settings are the
+        default ``options``.
+    load_kg
+        Workpiece mass on the ``load_axis`` table [kg].
+    options
+        :class:`.trajectory.PlannerOptions`; ``None`` uses ``machine.planner``.
+    progress
+        Passed on to :func:`.trajectory.plan`.
+
+    Returns
+    -------
+    SimulationResult
+        Motion, dynamics and power; ``program`` is ``program.file``.
+    """
+    from .trajectory import plan
+    if options is None:
+        options = machine.planner.options()
+    motion = plan(program, machine.limits(), options=options, progress=progress)
+    result = simulate_motion(motion, machine, load_kg=load_kg)
+    return SimulationResult(program=program.file, machine=machine, load_kg=result.load_kg,
+                            motion=motion, dynamics=result.dynamics, power=result.power)
+
+
+def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any]:
+    """Summarise a simulation as plain, JSON-able values.
+
+    Parameters
+    ----------
+    result
+        A simulation result.
+    top_blocks
+        How many source lines to list, by energy (largest first).
+
+    Returns
+    -------
+    dict
+        ``program`` (str), ``machine`` (name), ``load_kg``, ``duration_s`` (last minus first
+        sample time), ``samples`` (count), ``rate_hz`` (1 / median sample interval, 0 for
+        fewer than 2 samples), ``braking``, ``energy_j`` ({axis: J, ..., 'total': J} at the
+        end), ``peak_power_w`` ({axis: W, ..., 'total': W}, the maximum drawn power),
+        ``regenerated_energy_j`` (J returned by braking axes, see
+        :attr:`.energy.PowerResult.regenerated_energy_j`), ``loss_energy_j`` (J spent on passive
+        resistances), ``top_blocks`` (list of ``{'line', 'energy_j', 'duration_s'}``).
+    """
+    p = result.power
+    n = int(p.t.shape[0])
+    dt = np.diff(p.t)
+    rate = float(1.0 / np.median(dt)) if n >= 2 else 0.0
+    energy = {a: float(p.energy_j[-1, j]) if n else 0.0 for j, a in enumerate(p.axes)}
+    energy['total'] = float(p.total_energy_j[-1]) if n else 0.0
+    peak = {a: float(np.max(p.power_w[:, j])) if n else 0.0 for j, a in enumerate(p.axes)}
+    peak['total'] = float(np.max(p.total_w)) if n else 0.0
+    loss_total = p.loss_power_w.sum(axis=1)
+    loss_energy = float(np.sum(0.5 * (loss_total[1:] + loss_total[:-1]) * dt)) if n else 0.0
+    blocks = sorted(energy_by_line(p), key=lambda b: -abs(b[1]))[:max(0, int(top_blocks))]
+    duration = float(p.t[-1] - p.t[0]) if n else 0.0
+    return {
+        'program': result.program,
+        'machine': result.machine.name,
+        'load_kg': float(result.load_kg),
+        'duration_s': duration,
+        'samples': n,
+        'rate_hz': rate if math.isfinite(rate) else 0.0,
+        'braking': p.braking,
+        'energy_j': energy,
+        'peak_power_w': peak,
+        'regenerated_energy_j': p.regenerated_energy_j,
+        'loss_energy_j': loss_energy,
+        'top_blocks': [{'line': ln, 'energy_j': e, 'duration_s': d} for ln, e, d in blocks],
+    }
