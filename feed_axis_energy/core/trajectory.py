@@ -1,0 +1,608 @@
+"""Trajectory planner: NC program -> sampled axis motion (path-parameter method).
+
+Method
+------
+1. *Geometry.* Every move is a curve parameterised by its path length ``s``. Lines are
+   ``p0 + u s``. Arcs and helices are ``centre + r(theta) e_r(theta) + c(theta) n`` in the arc
+   plane (G17 XY, G18 ZX, G19 YZ) with ``theta = theta0 + sweep s / L``; the radius is
+   interpolated linearly from the start to the end radius so that the end point is met
+   exactly even when the program's radii differ slightly, and the helix coordinate ``c``
+   is linear in ``theta``.
+2. *Path limits per move.* A line with unit direction ``u`` gets
+   ``v <= min_k vmax_k / |u_k|`` (and ``<= feed``), likewise acceleration and jerk. On an arc
+   the direction turns, so the in-plane axes' smallest limits apply: tangential acceleration
+   ``<= a/2`` and centripetal ``v^2 / r <= a/2`` (their sum stays inside the axis limit), so
+   ``v <= sqrt(a r / 2)``; path jerk ``<= j/2`` and the centripetal jerk ``v^3 / r^2 <= j/2``.
+   The helix axis adds ``limit_c / |u_c|``. Rapids (``feed = inf``) use the axis limits only.
+3. *Look-ahead.* The speed at each junction is capped by the junction-deviation rule: the
+   speed at which a circular blend that deviates ``corner_tolerance_m`` from the corner would
+   reach the smaller path acceleration of the two moves,
+   ``v^2 = a delta sin(theta/2) / (1 - sin(theta/2))`` with ``theta`` the angle between the
+   reversed incoming and the outgoing tangents (tangent junctions: no cap; reversals: 0).
+   It is zero at program start and end, at exact stops and around dwells and stops. A backward
+   and a forward pass then lower every junction speed to what the neighbouring move can reach
+   in its length (closed-form minimum distance, zero acceleration at both ends, see
+   :mod:`.profiles`).
+4. *Profiles.* Each move gets a seven-phase constant-jerk profile (``profile='jerk'``) or a
+   constant-acceleration trapezoid (``profile='trapezoid'``), see :mod:`.profiles`.
+5. *Sampling.* The program becomes one table of constant-jerk phases (start time, duration,
+   ``s0``, ``v0``, ``a0``, ``j``, move). Uniform sample times are located with
+   ``numpy.searchsorted`` and the cubic is evaluated vectorised; ``s`` is mapped to axis
+   position, velocity and acceleration per move kind (arcs include the centripetal term).
+   The last sample is the program end.
+
+A non-tangent junction passed at speed ``v`` changes each axis velocity by ``v |du_k|`` in one
+step (the junction-deviation model does not sample the blend itself).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from .errors import DataError, PlanningError
+from .motion import Motion
+from .profiles import plan_profiles, reach_speed
+from .program import Move, MoveKind, Program, PROGRAM_AXES
+
+__all__ = ['AxisLimits', 'PlannerOptions', 'plan', 'motion_from_samples']
+
+_TWO_PI = 2.0 * math.pi
+_MIN_LENGTH_M = 1e-12      # shorter moves are dropped (their exact stop is kept)
+_GAP_TOLERANCE_M = 1e-6    # allowed mismatch between a move's start and the previous end
+_CHUNK = 1 << 18           # samples evaluated per vectorised block
+# arc plane -> (first in-plane axis, second in-plane axis, normal axis), right-handed
+_PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
+_LINE, _ARC, _REST = 0, 1, 2
+# plain ints: attribute look-ups on the enum class are slow in a per-move loop
+_DWELL, _STOP = int(MoveKind.DWELL), int(MoveKind.STOP)
+_ARC_CW, _ARC_CCW = int(MoveKind.ARC_CW), int(MoveKind.ARC_CCW)
+
+
+@dataclass(frozen=True)
+class AxisLimits:
+    """Kinematic limits of one machine axis.
+
+    Attributes
+    ----------
+    velocity_m_s, acceleration_m_s2, jerk_m_s3
+        Maximum speed [m/s], acceleration [m/s^2] and jerk [m/s^3]; all must be > 0.
+    """
+
+    velocity_m_s: float
+    acceleration_m_s2: float
+    jerk_m_s3: float
+
+    def __post_init__(self) -> None:
+        for name in ('velocity_m_s', 'acceleration_m_s2', 'jerk_m_s3'):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and value > 0.0 and math.isfinite(value)):
+                msg = f'AxisLimits.{name} must be a finite number > 0, got {value!r}'
+                raise ValueError(msg)
+
+
+@dataclass(frozen=True)
+class PlannerOptions:
+    """Options of :func:`plan`.
+
+    Attributes
+    ----------
+    rate_hz
+        Sample rate of the output [Hz]; default 1000 (1 ms, a typical interpolation cycle).
+    profile
+        ``'jerk'`` (default; seven-phase S-curve, jerk-limited) or ``'trapezoid'``
+        (constant acceleration phases, jerk limit ignored).
+    corner_tolerance_m
+        Path deviation allowed at a non-tangent corner for the junction-deviation rule [m];
+        default 1e-4 (0.1 mm). 0 makes every non-tangent corner an exact stop.
+    """
+
+    rate_hz: float = 1000.0
+    profile: str = 'jerk'
+    corner_tolerance_m: float = 0.0001
+
+    def __post_init__(self) -> None:
+        if not (self.rate_hz > 0.0 and math.isfinite(self.rate_hz)):
+            msg = f'PlannerOptions.rate_hz must be > 0, got {self.rate_hz!r}'
+            raise ValueError(msg)
+        if self.profile not in ('jerk', 'trapezoid'):
+            msg = f"PlannerOptions.profile must be 'jerk' or 'trapezoid', got {self.profile!r}"
+            raise ValueError(msg)
+        if not self.corner_tolerance_m >= 0.0:
+            value = self.corner_tolerance_m
+            msg = f'PlannerOptions.corner_tolerance_m must be >= 0, got {value!r}'
+            raise ValueError(msg)
+
+
+@dataclass
+class _Segments:
+    """Per-segment arrays (a segment is a move with length, a dwell or a stop)."""
+
+    kind: np.ndarray        # _LINE, _ARC or _REST
+    move: list[Move]
+    p0: np.ndarray          # (m, 3) start point
+    p1: np.ndarray          # (m, 3) end point
+    dwell: np.ndarray       # rest duration [s]
+    stop_after: np.ndarray  # bool: must be at rest at the end
+
+
+def _collect(program: Program) -> _Segments:
+    """Walk the moves once: drop empty moves, turn dwells/stops into rests, check continuity."""
+    kinds: list[int] = []
+    moves: list[Move] = []
+    p0: list[tuple[float, float, float]] = []
+    p1: list[tuple[float, float, float]] = []
+    dwell: list[float] = []
+    stop: list[bool] = []
+    here: tuple[float, float, float] | None = None
+    for mv in program.moves:
+        k = int(mv.kind)
+        if k == _DWELL or k == _STOP:
+            pos = here if here is not None else mv.start
+            if stop:
+                stop[-1] = True
+            kinds.append(_REST)
+            moves.append(mv)
+            p0.append(pos)
+            p1.append(pos)
+            dwell.append(max(float(mv.dwell_s), 0.0) if k == _DWELL else 0.0)
+            stop.append(True)
+            continue
+        start = mv.start
+        end = mv.end
+        if here is not None and start != here and max(
+                abs(start[0] - here[0]), abs(start[1] - here[1]),
+                abs(start[2] - here[2])) > _GAP_TOLERANCE_M:
+            msg = f'move starts at {start} but the previous move ended at {here}'
+            raise PlanningError(msg, file=program.file, line=mv.line)
+        is_arc = k == _ARC_CW or k == _ARC_CCW
+        if is_arc and mv.center is None:
+            raise PlanningError('arc move without a centre', file=program.file, line=mv.line)
+        here = end
+        if not is_arc and math.dist(start, end) < _MIN_LENGTH_M:
+            if mv.exact_stop and stop:
+                stop[-1] = True
+            continue
+        kinds.append(_ARC if is_arc else _LINE)
+        moves.append(mv)
+        p0.append(start)
+        p1.append(end)
+        dwell.append(0.0)
+        stop.append(bool(mv.exact_stop))
+    if stop:
+        stop[-1] = True
+    m = len(kinds)
+    return _Segments(kind=np.asarray(kinds, dtype=np.int8), move=moves,
+                     p0=np.asarray(p0, dtype=float).reshape(m, 3),
+                     p1=np.asarray(p1, dtype=float).reshape(m, 3),
+                     dwell=np.asarray(dwell, dtype=float), stop_after=np.asarray(stop, bool))
+
+
+@dataclass
+class _Geometry:
+    length: np.ndarray
+    u: np.ndarray            # (m, 3) line direction (0 for rests and arcs)
+    tan0: np.ndarray         # (m, 3) unit tangent at the start
+    tan1: np.ndarray         # (m, 3) unit tangent at the end
+    centre: np.ndarray       # (m, 3)
+    perm: np.ndarray         # (m, 3) axis indices (in-plane a, b, normal c) for arcs
+    plane_ref: np.ndarray    # (m, 3) arc centre a, b and start normal coordinate c
+    theta0: np.ndarray
+    sweep: np.ndarray
+    r0: np.ndarray
+    kr: np.ndarray           # dr / dtheta
+    kc: np.ndarray           # dc / dtheta (helix)
+    r_min: np.ndarray
+
+
+def _geometry(seg: _Segments, file: str) -> _Geometry:
+    m = seg.kind.shape[0]
+    d = seg.p1 - seg.p0
+    length = np.zeros(m)
+    u = np.zeros((m, 3))
+    is_line = seg.kind == _LINE
+    ln = np.linalg.norm(d[is_line], axis=1)
+    length[is_line] = ln
+    u[is_line] = d[is_line] / ln[:, None]
+    tan0 = u.copy()
+    tan1 = u.copy()
+    centre = seg.p0.copy()
+    perm = np.tile(np.arange(3), (m, 1))
+    plane_ref = np.zeros((m, 3))
+    theta0 = np.zeros(m)
+    sweep = np.zeros(m)
+    r0 = np.zeros(m)
+    kr = np.zeros(m)
+    kc = np.zeros(m)
+    r_min = np.full(m, np.inf)
+    arcs = np.nonzero(seg.kind == _ARC)[0]
+    if arcs.size:
+        mv = [seg.move[i] for i in arcs]
+        try:
+            perm[arcs] = [_PLANE_AXES[x.plane] for x in mv]
+        except KeyError as err:
+            bad = next(x for x in mv if x.plane not in _PLANE_AXES)
+            msg = f'arc plane must be 17, 18 or 19, got {bad.plane!r}'
+            raise PlanningError(msg, file=file, line=bad.line) from err
+        centre[arcs] = [x.center for x in mv]
+        ccw = np.array([int(x.kind) == _ARC_CCW for x in mv])
+        turns = np.array([max(int(x.turns), 0) for x in mv], dtype=float)
+        s = np.take_along_axis(seg.p0[arcs], perm[arcs], axis=1)
+        e = np.take_along_axis(seg.p1[arcs], perm[arcs], axis=1)
+        c = np.take_along_axis(centre[arcs], perm[arcs], axis=1)
+        plane_ref[arcs] = np.stack([c[:, 0], c[:, 1], s[:, 2]], axis=1)
+        ra = np.hypot(s[:, 0] - c[:, 0], s[:, 1] - c[:, 1])
+        rb = np.hypot(e[:, 0] - c[:, 0], e[:, 1] - c[:, 1])
+        bad = np.nonzero((ra < _MIN_LENGTH_M) | (rb < _MIN_LENGTH_M))[0]
+        if bad.size:
+            msg = 'arc with zero radius (centre on the start or end point)'
+            raise PlanningError(msg, file=file, line=mv[bad[0]].line)
+        th0 = np.arctan2(s[:, 1] - c[:, 1], s[:, 0] - c[:, 0])
+        th1 = np.arctan2(e[:, 1] - c[:, 1], e[:, 0] - c[:, 0])
+        raw = np.where(ccw, th1 - th0, th0 - th1) % _TWO_PI
+        # start == end in the plane is a full circle
+        raw = np.where(raw < 1e-9, _TWO_PI, raw) + _TWO_PI * turns
+        sw = np.where(ccw, raw, -raw)
+        theta0[arcs] = th0
+        sweep[arcs] = sw
+        r0[arcs] = ra
+        kr[arcs] = (rb - ra) / sw
+        kc[arcs] = (e[:, 2] - s[:, 2]) / sw
+        r_min[arcs] = np.minimum(ra, rb)
+        rm = 0.5 * (ra + rb)
+        length[arcs] = np.abs(sw) * np.sqrt(rm ** 2 + kr[arcs] ** 2 + kc[arcs] ** 2)
+        for which, th, rr in ((tan0, th0, ra), (tan1, th0 + sw, rb)):
+            cs, sn = np.cos(th), np.sin(th)
+            # d p / d theta in (a, b, c), times the direction of travel
+            loc = np.stack([kr[arcs] * cs - rr * sn, kr[arcs] * sn + rr * cs, kc[arcs]], axis=1)
+            loc *= np.sign(sw)[:, None]
+            loc /= np.linalg.norm(loc, axis=1)[:, None]
+            out = np.zeros((arcs.size, 3))
+            np.put_along_axis(out, perm[arcs], loc, axis=1)
+            which[arcs] = out
+    return _Geometry(length=length, u=u, tan0=tan0, tan1=tan1, centre=centre, perm=perm,
+                     plane_ref=plane_ref,
+                     theta0=theta0, sweep=sweep, r0=r0, kr=kr, kc=kc, r_min=r_min)
+
+
+def _path_limits(seg: _Segments, geo: _Geometry, lim: np.ndarray,
+                 file: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Path speed, acceleration and jerk limits per segment; ``lim`` is (3 kinds, 3 axes)."""
+    m = seg.kind.shape[0]
+    feed = np.array([x.feed_m_s if x.feed_m_s > 0 else math.inf for x in seg.move])
+    missing = ~np.isfinite(lim[0])
+    moved = np.abs(seg.p1 - seg.p0) > _GAP_TOLERANCE_M
+    arcs = np.nonzero(seg.kind == _ARC)[0]
+    moved[arcs, geo.perm[arcs, 0]] = True       # an arc always moves both in-plane axes
+    moved[arcs, geo.perm[arcs, 1]] = True
+    bad = np.nonzero(np.any(moved & missing[None, :], axis=1))[0]
+    if bad.size:
+        mv = seg.move[bad[0]]
+        names = [PROGRAM_AXES[k] for k in range(3) if missing[k] and moved[bad[0], k]]
+        msg = f'move on axis {", ".join(names)} which the machine does not have'
+        raise PlanningError(msg, file=file, line=mv.line)
+
+    vmax = np.zeros(m)
+    amax = np.ones(m)
+    jmax = np.ones(m)
+    with np.errstate(divide='ignore'):
+        is_line = seg.kind == _LINE
+        au = np.abs(geo.u[is_line])
+        vmax[is_line] = np.minimum(np.min(lim[0] / au, axis=1), feed[is_line])
+        amax[is_line] = np.min(lim[1] / au, axis=1)
+        jmax[is_line] = np.min(lim[2] / au, axis=1)
+        arcs = seg.kind == _ARC
+        if np.any(arcs):
+            pa = geo.perm[arcs]
+            in_plane = np.minimum(lim[:, pa[:, 0]], lim[:, pa[:, 1]])   # (3, n_arc)
+            rm = geo.r0[arcs] + 0.5 * geo.kr[arcs] * geo.sweep[arcs]
+            uc = np.abs(geo.kc[arcs]) / np.sqrt(rm ** 2 + geo.kr[arcs] ** 2 + geo.kc[arcs] ** 2)
+            helix = lim[:, pa[:, 2]] / uc                                 # inf when planar
+            r = geo.r_min[arcs]
+            vmax[arcs] = np.minimum.reduce([
+                feed[arcs], in_plane[0], helix[0], np.sqrt(0.5 * in_plane[1] * r),
+                np.cbrt(0.5 * in_plane[2] * r * r)])
+            amax[arcs] = np.minimum(0.5 * in_plane[1], helix[1])
+            jmax[arcs] = np.minimum(0.5 * in_plane[2], helix[2])
+    return vmax, amax, jmax
+
+
+def _junction_speeds(seg: _Segments, geo: _Geometry, vmax: np.ndarray, amax: np.ndarray,
+                     delta: float) -> np.ndarray:
+    """Speed caps at the m + 1 segment boundaries before the look-ahead passes."""
+    m = seg.kind.shape[0]
+    vj = np.zeros(m + 1)
+    if m < 2:
+        return vj
+    cos_t = -np.einsum('ij,ij->i', geo.tan1[:-1], geo.tan0[1:])
+    sin_half = np.sqrt(np.clip(0.5 * (1.0 - cos_t), 0.0, 1.0))
+    a = np.minimum(amax[:-1], amax[1:])
+    with np.errstate(divide='ignore', invalid='ignore'):
+        v2 = np.where(sin_half > 1.0 - 1e-12, np.inf,
+                      a * delta * sin_half / (1.0 - sin_half))
+    v = np.minimum(np.sqrt(v2), np.minimum(vmax[:-1], vmax[1:]))
+    stop = seg.stop_after[:-1] | (seg.kind[:-1] == _REST) | (seg.kind[1:] == _REST)
+    vj[1:-1] = np.where(stop, 0.0, v)
+    return vj
+
+
+def _look_ahead(vj: np.ndarray, length: np.ndarray, amax: np.ndarray, jmax: np.ndarray) -> None:
+    """Backward then forward pass (in place) so every move can reach its boundary speeds."""
+    m = length.shape[0]
+    # a hair shorter so the profile solver always finds the pair reachable despite rounding
+    usable = (length * (1.0 - 1e-9)).tolist()
+    a = amax.tolist()
+    j = jmax.tolist()
+    v = vj.tolist()
+    for i in range(m - 1, -1, -1):
+        if v[i] > v[i + 1]:
+            v[i] = min(v[i], reach_speed(v[i + 1], usable[i], a[i], j[i]))
+    for i in range(m):
+        if v[i + 1] > v[i]:
+            v[i + 1] = min(v[i + 1], reach_speed(v[i], usable[i], a[i], j[i]))
+    vj[:] = v
+
+
+def _check_limits(limits: Mapping[str, AxisLimits], program: Program) -> np.ndarray:
+    lim = np.full((3, 3), np.inf)
+    for name, al in limits.items():
+        if name not in PROGRAM_AXES:
+            msg = f'unknown machine axis {name!r}; expected one of {PROGRAM_AXES}'
+            raise PlanningError(msg, file=program.file)
+        if not isinstance(al, AxisLimits):
+            msg = f'limits[{name!r}] must be an AxisLimits, got {type(al).__name__}'
+            raise PlanningError(msg, file=program.file)
+        k = PROGRAM_AXES.index(name)
+        lim[:, k] = (al.velocity_m_s, al.acceleration_m_s2, al.jerk_m_s3)
+    if not limits:
+        raise PlanningError('no machine axes given in limits', file=program.file)
+    return lim
+
+
+def plan(program: Program, limits: Mapping[str, AxisLimits], *,
+         options: PlannerOptions = PlannerOptions(),
+         progress: Callable[[float], None] | None = None) -> Motion:
+    """Plan and sample the motion of the machine axes for a program.
+
+    Parameters
+    ----------
+    program
+        The parsed program (SI units).
+    limits
+        Kinematic limits per machine axis; its keys (among ``X``, ``Y``, ``Z``), in order,
+        become ``Motion.axes``.
+    options
+        Sample rate, profile type and corner tolerance.
+    progress
+        Called with the completed fraction (0..1) a few times, not per sample.
+
+    Returns
+    -------
+    Motion
+        Uniformly sampled positions, velocities and accelerations; every sample carries the
+        source line of its move; the last sample is the end of the program.
+
+    Raises
+    ------
+    PlanningError
+        A move on an axis missing from ``limits``, a discontinuous or degenerate move.
+    """
+    lim = _check_limits(limits, program)
+    axes = tuple(limits)
+    cols = [PROGRAM_AXES.index(a) for a in axes]
+    seg = _collect(program)
+    m = seg.kind.shape[0]
+    if m == 0:
+        start = program.moves[0].start if program.moves else (0.0, 0.0, 0.0)
+        pos = np.asarray(start, dtype=float)[cols][None, :]
+        return Motion(t=np.zeros(1), axes=axes, pos=pos, vel=np.zeros_like(pos),
+                      acc=np.zeros_like(pos), line=np.zeros(1, np.int32), source=program.file)
+    geo = _geometry(seg, program.file)
+    vmax, amax, jmax = _path_limits(seg, geo, lim, program.file)
+    if options.profile == 'trapezoid':
+        jmax = np.full(m, np.inf)
+    _report(progress, 0.05)
+    vj = _junction_speeds(seg, geo, vmax, amax, options.corner_tolerance_m)
+    _look_ahead(vj, geo.length, amax, jmax)
+    _report(progress, 0.15)
+    prof = plan_profiles(geo.length, vj[:-1], vj[1:], vmax, amax, jmax)
+    dur = prof.duration.copy()
+    dur[:, 3] += seg.dwell
+    # integrate the seven phases of every segment to get s and v at each phase start
+    v_start = np.empty((m, 7))
+    s_start = np.empty((m, 7))
+    v_start[:, 0] = vj[:-1]
+    s_start[:, 0] = 0.0
+    for k in range(6):
+        T, a0, j = dur[:, k], prof.a_start[:, k], prof.jerk[:, k]
+        v_start[:, k + 1] = v_start[:, k] + a0 * T + 0.5 * j * T * T
+        s_start[:, k + 1] = s_start[:, k] + (v_start[:, k] + (0.5 * a0 + j * T / 6.0) * T) * T
+    flat_dur = dur.ravel()
+    t_start = np.concatenate(([0.0], np.cumsum(flat_dur)))
+    t_end = float(t_start[-1])
+    keep = np.nonzero(flat_dur > 0.0)[0]
+    if keep.size == 0:
+        keep = np.array([0])
+    phases = (t_start[keep], flat_dur[keep], s_start.ravel()[keep], v_start.ravel()[keep],
+              prof.a_start.ravel()[keep], prof.jerk.ravel()[keep], keep // 7)
+    _report(progress, 0.25)
+
+    n = int(math.floor(t_end * options.rate_hz + 1e-9))
+    t = np.arange(n + 1, dtype=float) / options.rate_hz
+    if t_end - t[-1] > 1e-9:
+        t = np.append(t, t_end)
+    else:
+        t[-1] = t_end
+    lines = np.array([x.line for x in seg.move], dtype=np.int32)
+    # t is uniform: each phase owns the samples from the first one at or after its start
+    first = np.searchsorted(t, phases[0], side='left')
+    owner_phase = np.repeat(np.arange(first.size), np.diff(np.append(first, t.size)))
+    pos = np.empty((t.size, len(axes)))
+    vel = np.empty_like(pos)
+    acc = np.empty_like(pos)
+    line = np.empty(t.size, dtype=np.int32)
+    p0c, uc = seg.p0[:, cols], geo.u[:, cols]
+    for lo in range(0, t.size, _CHUNK):
+        hi = min(lo + _CHUNK, t.size)
+        mi = _sample(t[lo:hi], owner_phase[lo:hi], phases, seg, geo, cols, p0c, uc,
+                     out=(pos[lo:hi], vel[lo:hi], acc[lo:hi]))
+        line[lo:hi] = lines[mi]
+        _report(progress, 0.25 + 0.75 * hi / t.size)
+    return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line, source=program.file)
+
+
+def _report(progress: Callable[[float], None] | None, fraction: float) -> None:
+    if progress is not None:
+        progress(float(min(max(fraction, 0.0), 1.0)))
+
+
+def _sample(t: np.ndarray, k: np.ndarray, phases: tuple[np.ndarray, ...], seg: _Segments,
+            geo: _Geometry, cols: list[int], p0c: np.ndarray, uc: np.ndarray, *,
+            out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+    """Evaluate phases ``k`` at times ``t`` into ``out`` (pos, vel, acc of ``cols``).
+
+    Returns the segment index of every sample.
+    """
+    t0, dur, s0, v0, a0, jk, owner = phases
+    tau = np.minimum(t - t0[k], dur[k])
+    jj = jk[k]
+    aa = a0[k]
+    vv = v0[k]
+    a = aa + jj * tau
+    v = vv + (aa + 0.5 * jj * tau) * tau
+    s = s0[k] + (vv + (0.5 * aa + (1.0 / 6.0) * jj * tau) * tau) * tau
+    mi = owner[k]
+    pos, vel, acc = out
+    u = np.take(uc, mi, axis=0)
+    np.multiply(u, s[:, None], out=pos)
+    pos += np.take(p0c, mi, axis=0)
+    np.multiply(u, v[:, None], out=vel)
+    np.multiply(u, a[:, None], out=acc)
+    on_arc = np.nonzero(seg.kind[mi] == _ARC)[0]
+    if on_arc.size:
+        _sample_arcs(on_arc, mi[on_arc], s[on_arc], v[on_arc], a[on_arc], geo, cols, out)
+    return mi
+
+
+def _sample_arcs(rows: np.ndarray, ma: np.ndarray, s: np.ndarray, v: np.ndarray,
+                 a: np.ndarray, geo: _Geometry, cols: list[int],
+                 out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+    """Overwrite ``rows`` of ``out`` with the arc/helix motion of segments ``ma``."""
+    length = np.take(geo.length, ma)
+    frac = np.take(geo.sweep, ma) / length         # dtheta / ds
+    dth = frac * np.clip(s, 0.0, length)
+    th = np.take(geo.theta0, ma) + dth
+    w = frac * v                                   # dtheta / dt
+    w_dot = frac * a
+    kr = np.take(geo.kr, ma)
+    kc = np.take(geo.kc, ma)
+    r = np.take(geo.r0, ma) + kr * dth
+    cs, sn = np.cos(th), np.sin(th)
+    ref = np.take(geo.plane_ref, ma, axis=0)
+    d1a, d1b = kr * cs - r * sn, kr * sn + r * cs     # dp/dtheta (in-plane)
+    d2a, d2b = -2.0 * kr * sn - r * cs, 2.0 * kr * cs - r * sn
+    w2 = w * w
+    local = (
+        (ref[:, 0] + r * cs, d1a * w, d2a * w2 + d1a * w_dot),
+        (ref[:, 1] + r * sn, d1b * w, d2b * w2 + d1b * w_dot),
+        (ref[:, 2] + kc * dth, kc * w, kc * w_dot),
+    )
+    first_axis = np.take(geo.perm[:, 0], ma)
+    for plane_axes in set(_PLANE_AXES.values()):
+        sel = np.nonzero(first_axis == plane_axes[0])[0]
+        if sel.size == 0:
+            continue
+        whole = sel.size == rows.size
+        dst_rows = rows if whole else rows[sel]
+        for j, axis in enumerate(cols):
+            role = plane_axes.index(axis)
+            for dst, src in zip(out, local[role]):
+                dst[dst_rows, j] = src if whole else src[sel]
+
+
+def motion_from_samples(t: np.ndarray, pos: np.ndarray, *, axes: tuple[str, ...],
+                        line: np.ndarray | None = None, source: str = '',
+                        smooth_samples: int = 1) -> Motion:
+    """Build a :class:`Motion` from a measured or commanded trajectory.
+
+    Velocity and acceleration are central finite differences on the (possibly non-uniform)
+    time base, ``numpy.gradient(pos, t, axis=0)`` (second order inside, first order at the
+    ends), applied once for velocity and again for acceleration. With ``smooth_samples > 1``
+    each derivative is smoothed by a centred moving average of that many samples (odd; the
+    window shrinks at the ends) before it is used.
+
+    Parameters
+    ----------
+    t
+        Sample times [s], shape ``(n,)``, finite and strictly increasing, ``n >= 2``.
+    pos
+        Positions [m], shape ``(n, k)`` (or ``(n,)`` for a single axis).
+    axes
+        Axis names, ``k`` of them.
+    line
+        Source line per sample (default 0).
+    source
+        Where the data came from; used in error messages and as ``Motion.source``.
+    smooth_samples
+        Moving-average window for the derivatives (1: no smoothing).
+
+    Returns
+    -------
+    Motion
+        The motion with differentiated velocity and acceleration.
+
+    Raises
+    ------
+    DataError
+        Wrong shapes, non-finite values or a time base that is not strictly increasing.
+    """
+    where = source or '<samples>'
+    t = np.asarray(t, dtype=float)
+    pos = np.asarray(pos, dtype=float)
+    axes = tuple(axes)
+    if pos.ndim == 1:
+        pos = pos[:, None]
+    if t.ndim != 1 or t.size < 2:
+        raise DataError(f'time must be 1-D with at least 2 samples, got shape {t.shape}',
+                        file=where, column='t')
+    if pos.shape != (t.size, len(axes)):
+        msg = f'positions have shape {pos.shape}, expected ({t.size}, {len(axes)})'
+        raise DataError(msg, file=where)
+    bad = np.nonzero(~np.isfinite(t))[0]
+    if bad.size:
+        raise DataError('time is not finite', file=where, column='t', row=int(bad[0]) + 1)
+    bad = np.nonzero(np.diff(t) <= 0.0)[0]
+    if bad.size:
+        msg = f'time is not strictly increasing ({t[bad[0]]!r} then {t[bad[0] + 1]!r})'
+        raise DataError(msg, file=where, column='t', row=int(bad[0]) + 2)
+    bad_rows, bad_cols = np.nonzero(~np.isfinite(pos))
+    if bad_rows.size:
+        raise DataError('position is not finite', file=where, column=axes[bad_cols[0]],
+                        row=int(bad_rows[0]) + 1)
+    if smooth_samples < 1 or smooth_samples % 2 == 0:
+        raise DataError(f'smooth_samples must be a positive odd number, got {smooth_samples}',
+                        file=where)
+    if line is None:
+        line_arr = np.zeros(t.size, dtype=np.int32)
+    else:
+        line_arr = np.asarray(line).astype(np.int32)
+        if line_arr.shape != t.shape:
+            msg = f'line has shape {line_arr.shape}, expected {t.shape}'
+            raise DataError(msg, file=where, column='line')
+    vel = _smooth(np.gradient(pos, t, axis=0), smooth_samples)
+    acc = _smooth(np.gradient(vel, t, axis=0), smooth_samples)
+    return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line_arr, source=source)
+
+
+def _smooth(x: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average along axis 0; the window shrinks symmetrically at the ends."""
+    if window <= 1 or x.shape[0] < 3:
+        return x
+    half = window // 2
+    n = x.shape[0]
+    cum = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    idx = np.arange(n)
+    h = np.minimum(np.minimum(idx, n - 1 - idx), half)
+    return (cum[idx + h + 1] - cum[idx - h]) / (2 * h + 1)[:, None]
