@@ -1,0 +1,304 @@
+"""Load one measured run from CSV into SI arrays, all or nothing.
+
+The file is read once with the :mod:`csv` module; rows matching the manifest's
+``rows.exclude_where`` filters are dropped first, then every mapped column is parsed, checked
+(numbers, finite, no empty cells) and converted to SI once. Time is either a column or the
+original row index times ``period_s``, so rows removed by a filter leave a visible gap.
+Errors are :class:`~feed_axis_energy.core.errors.DataError` naming file, column and the
+1-based data row as counted in the file (row 1 is the first line after the header).
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+import difflib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import DataError
+from ..units import to_si
+from .manifest import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, ColumnSpec, RowFilter, RunSpec
+
+__all__ = ['GAP_FACTOR', 'MeasuredRun', 'load_run']
+
+GAP_FACTOR = 1.5
+"""A time step longer than this many median periods is a gap."""
+
+_FIELD = {
+    'position': 'position_m',
+    'velocity': 'velocity_m_s',
+    'acceleration': 'acceleration_m_s2',
+    'command_position': 'command_position_m',
+    'command_velocity': 'command_velocity_m_s',
+    'command_acceleration': 'command_acceleration_m_s2',
+}
+
+
+@dataclass(frozen=True)
+class MeasuredRun:
+    """A measured run in SI units; arrays follow ``(n_samples, n_axes)``.
+
+    Attributes
+    ----------
+    name
+        Run name from the manifest.
+    file
+        The data file.
+    t
+        Sample times [s], strictly increasing, starting at 0 (the original start is
+        ``extra['t0_s']``), shape ``(n,)``.
+    axes
+        All axes of the run, in manifest order (``k`` of them).
+    power_axes
+        The axes that have measured power (a subset of ``axes``, same order).
+    power_w
+        Measured power [W], shape ``(n, len(power_axes))``.
+    position_m, velocity_m_s, acceleration_m_s2
+        Actual kinematics, shape ``(n, k)``, or ``None`` if not mapped.
+    command_position_m, command_velocity_m_s, command_acceleration_m_s2
+        Commanded kinematics, shape ``(n, k)``, or ``None`` if not mapped.
+    load_kg
+        Load on the table [kg].
+    extra
+        ``excluded_rows`` (count), ``rows`` (1-based file data row of each sample),
+        ``t0_s``, ``current_a`` / ``voltage_v`` (axis -> ``(n,)``) when mapped.
+    """
+
+    name: str
+    file: str
+    t: np.ndarray
+    axes: tuple[str, ...]
+    power_axes: tuple[str, ...]
+    power_w: np.ndarray
+    load_kg: float
+    position_m: np.ndarray | None = None
+    velocity_m_s: np.ndarray | None = None
+    acceleration_m_s2: np.ndarray | None = None
+    command_position_m: np.ndarray | None = None
+    command_velocity_m_s: np.ndarray | None = None
+    command_acceleration_m_s2: np.ndarray | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def total_power_w(self) -> np.ndarray:
+        """Sum of the measured axis powers [W], shape ``(n,)``."""
+        return self.power_w.sum(axis=1)
+
+    def positions(self, source: str) -> np.ndarray:
+        """Positions to rebuild the motion from: ``source`` is ``'actual'`` or ``'commanded'``.
+
+        Parameters
+        ----------
+        source
+            ``'actual'`` or ``'commanded'``.
+
+        Returns
+        -------
+        numpy.ndarray
+            Positions [m], shape ``(n, k)``.
+
+        Raises
+        ------
+        DataError
+            If the run has no such position columns.
+        """
+        arr = {'actual': self.position_m, 'commanded': self.command_position_m}.get(source)
+        if arr is None:
+            msg = f'run {self.name!r} has no {source} position columns'
+            raise DataError(msg, file=self.file)
+        return arr
+
+
+def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredRun:
+    """Read the run's CSV file, filter rows, validate and convert to SI.
+
+    Parameters
+    ----------
+    spec
+        The run from :func:`~feed_axis_energy.core.measured.manifest.load_campaign`.
+    min_duration_s
+        Reject runs shorter than this [s]; default ``spec.min_duration_s``.
+
+    Returns
+    -------
+    MeasuredRun
+        The run; nothing is returned half-loaded.
+
+    Raises
+    ------
+    DataError
+        Naming file, column and 1-based data row: missing column (with the closest header
+        name), non-numeric, empty, NaN or infinite cell, duplicate or decreasing time, a gap
+        longer than 1.5 median periods (unless ``spec.allow_gaps``), an empty file or one
+        with a header only, or a run shorter than ``min_duration_s``.
+    """
+    file = str(spec.data)
+    if spec.data_kind != 'csv':
+        msg = 'load_run reads CSV files only; rosbag2 input is not implemented yet'
+        raise DataError(msg, file=file)
+    header, rows, numbers = _read_csv(spec.data)
+    index = _column_index(header, spec, file)
+    # Position among data rows (blank lines skipped): the sample index when time = i * period.
+    sample = np.arange(len(rows))
+    keep = np.ones(len(rows), dtype=bool)
+    for filt in spec.exclude:
+        keep &= ~_matches(filt, rows, index[filt.column], numbers, file)
+    kept = [row for row, k in zip(rows, keep) if k]
+    numbers = numbers[keep]
+    sample = sample[keep]
+    excluded = len(rows) - len(kept)
+    if len(kept) < 2:
+        msg = (f'needs at least 2 data rows, has {len(kept)} '
+               f'({len(rows)} in the file, {excluded} excluded by the manifest filter)')
+        raise DataError(msg, file=file)
+
+    def column(cs: ColumnSpec, quantity: str) -> np.ndarray:
+        raw = _parse(kept, index[cs.column], numbers, file, cs.column)
+        return to_si(raw, cs.unit, quantity=quantity)
+
+    t = _time(spec, sample, numbers, file, column)
+    duration = float(t[-1] - t[0])
+    limit = spec.min_duration_s if min_duration_s is None else min_duration_s
+    if duration < limit:
+        msg = f'run lasts {duration:.6g} s after filtering, shorter than the minimum {limit:g} s'
+        raise DataError(msg, file=file)
+
+    axes = spec.axis_names
+    power_axes = spec.power_axes
+    power = np.column_stack([column(spec.axes[a]['power'], 'power') for a in power_axes])
+    kin: dict[str, np.ndarray] = {}
+    for q in KINEMATIC_QUANTITIES:
+        if q in spec.axes[axes[0]]:
+            kin[_FIELD[q]] = np.column_stack(
+                [column(spec.axes[a][q], AXIS_QUANTITIES[q]) for a in axes])
+    extra: dict[str, Any] = {
+        'excluded_rows': excluded, 'rows': numbers, 't0_s': float(t[0]),
+    }
+    for q, key in (('current', 'current_a'), ('voltage', 'voltage_v')):
+        got = {a: column(cols[q], q) for a, cols in spec.axes.items() if q in cols}
+        if got:
+            extra[key] = got
+    return MeasuredRun(name=spec.name, file=file, t=t - t[0], axes=axes,
+                       power_axes=power_axes, power_w=power, load_kg=spec.load_kg,
+                       extra=extra, **kin)
+
+
+def _read_csv(path: Path) -> tuple[list[str], list[list[str]], np.ndarray]:
+    file = str(path)
+    try:
+        with open(path, newline='', encoding='utf-8-sig') as fh:
+            reader = csv.reader(fh)
+            header = next(reader, None)
+            if header is None:
+                raise DataError('empty file; expected a header line', file=file)
+            header = [h.strip() for h in header]
+            rows = []
+            lines = []
+            for row in reader:
+                if not row or (len(row) == 1 and not row[0].strip()):
+                    continue
+                if len(row) != len(header):
+                    msg = f'has {len(row)} fields, the header has {len(header)}'
+                    raise DataError(msg, file=file, row=reader.line_num - 1)
+                rows.append(row)
+                lines.append(reader.line_num - 1)
+    except OSError as err:
+        msg = f'cannot read: {err.strerror or err}'
+        raise DataError(msg, file=file) from err
+    except (csv.Error, UnicodeDecodeError) as err:
+        msg = f'not a readable CSV file: {err}'
+        raise DataError(msg, file=file) from err
+    if not rows:
+        raise DataError('header only, no data rows', file=file)
+    return header, rows, np.array(lines, dtype=np.int64)
+
+
+def _column_index(header: list[str], spec: RunSpec, file: str) -> dict[str, int]:
+    wanted = [cs.column for cols in spec.axes.values() for cs in cols.values()]
+    wanted += [f.column for f in spec.exclude]
+    if spec.time is not None:
+        wanted.append(spec.time.column)
+    index: dict[str, int] = {}
+    for name in wanted:
+        hits = [i for i, h in enumerate(header) if h == name]
+        if not hits:
+            lower = {h.lower(): h for h in header}
+            close = difflib.get_close_matches(name.lower(), list(lower), n=1, cutoff=0.5)
+            hint = f'; did you mean {lower[close[0]]!r}?' if close else ''
+            msg = f'no such column in the header{hint}'
+            raise DataError(msg, file=file, column=name)
+        if len(hits) > 1:
+            msg = f'the header has this column {len(hits)} times (fields {hits[0] + 1}, ' \
+                  f'{hits[1] + 1}); cannot tell which one is meant'
+            raise DataError(msg, file=file, column=name)
+        index[name] = hits[0]
+    return index
+
+
+def _parse(rows: list[list[str]], j: int, numbers: np.ndarray, file: str,
+           name: str) -> np.ndarray:
+    cells = [row[j] for row in rows]
+    try:
+        values = np.array(cells, dtype=np.float64)
+    except ValueError:
+        values = None
+    if values is not None and np.isfinite(values).all():
+        return values
+    for i, cell in enumerate(cells):
+        text = cell.strip()
+        if not text:
+            raise DataError('empty cell; expected a number', file=file, column=name,
+                            row=int(numbers[i]))
+        try:
+            value = float(text)
+        except ValueError:
+            msg = f'{text!r} is not a number'
+            raise DataError(msg, file=file, column=name, row=int(numbers[i])) from None
+        if not np.isfinite(value):
+            msg = f'{text!r} is not a finite number'
+            raise DataError(msg, file=file, column=name, row=int(numbers[i]))
+    raise AssertionError('unreachable: a bad cell must have been found')  # pragma: no cover
+
+
+def _matches(filt: RowFilter, rows: list[list[str]], j: int, numbers: np.ndarray,
+             file: str) -> np.ndarray:
+    if isinstance(filt.value, str):
+        text = np.array([row[j].strip() for row in rows], dtype=object)
+        eq = text == filt.value
+        return eq if filt.op == 'equal' else ~eq
+    values = _parse(rows, j, numbers, file, filt.column)
+    if filt.op == 'equal':
+        return values == filt.value
+    if filt.op == 'not_equal':
+        return values != filt.value
+    if filt.op == 'greater':
+        return values > filt.value
+    return values < filt.value
+
+
+def _time(spec: RunSpec, sample: np.ndarray, numbers: np.ndarray, file: str,
+          column: Any) -> np.ndarray:
+    if spec.time is not None:
+        name = spec.time.column
+        t = column(spec.time, 'time')
+    else:
+        name = '<row index>'
+        t = sample * float(spec.period_s)
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt <= 0.0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        what = 'repeats the previous time' if dt[i - 1] == 0.0 else 'goes back in time'
+        msg = f'{what} ({t[i - 1]:.9g} s then {t[i]:.9g} s); time must increase strictly'
+        raise DataError(msg, file=file, column=name, row=int(numbers[i]))
+    if not spec.allow_gaps:
+        median = float(np.median(dt))
+        gaps = np.flatnonzero(dt > GAP_FACTOR * median)
+        if gaps.size:
+            i = int(gaps[0]) + 1
+            msg = (f'gap of {dt[i - 1]:.6g} s before this row, more than {GAP_FACTOR:g} x the '
+                   f'median period {median:.6g} s (set allow_gaps: true to accept it)')
+            raise DataError(msg, file=file, column=name, row=int(numbers[i]))
+    return t
