@@ -72,7 +72,8 @@ class PowerResult:
         if self.t.shape[0] < 2:
             return 0.0
         dt = np.diff(self.t)[:, None]
-        return float(-np.sum(0.5 * (negative[1:] + negative[:-1]) * dt))
+        # max() also turns the -0.0 of a motion that never brakes into 0.0
+        return max(0.0, float(-np.sum(0.5 * (negative[1:] + negative[:-1]) * dt)))
 
 
 def apply_braking(mechanical_w: np.ndarray, *, braking: str) -> np.ndarray:

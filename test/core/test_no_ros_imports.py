@@ -1,0 +1,59 @@
+"""The numerical core must never pull in rclpy or any *_msgs package."""
+import ast
+import json
+from pathlib import Path
+import pkgutil
+import subprocess
+import sys
+
+import feed_axis_energy.core as core
+
+CORE_DIR = Path(core.__file__).resolve().parent
+REPO = CORE_DIR.parents[1]
+
+
+def _forbidden(name: str) -> bool:
+    top = name.split('.')[0]
+    return top == 'rclpy' or any(part.endswith('_msgs') for part in name.split('.'))
+
+
+def _core_modules() -> list[str]:
+    found = pkgutil.walk_packages([str(CORE_DIR)], prefix='feed_axis_energy.core.')
+    return sorted(m.name for m in found)
+
+
+def test_importing_every_core_module_loads_no_ros():
+    modules = _core_modules()
+    assert {'feed_axis_energy.core.machine', 'feed_axis_energy.core.energy'} <= set(modules)
+    code = (
+        'import importlib, json, sys\n'
+        f'for name in {modules!r}:\n'
+        '    importlib.import_module(name)\n'
+        'print(json.dumps(sorted(sys.modules)))\n')
+    out = subprocess.run([sys.executable, '-c', code], cwd=REPO, capture_output=True,
+                         text=True, timeout=120, check=True)
+    loaded = json.loads(out.stdout.strip().splitlines()[-1])
+    assert set(modules) <= set(loaded)
+    assert [m for m in loaded if _forbidden(m)] == []
+
+
+def test_no_ros_import_statement_in_core_sources():
+    found = []
+    files = sorted(CORE_DIR.rglob('*.py'))
+    assert files
+    for path in files:
+        tree = ast.parse(path.read_text(encoding='utf-8'), filename=str(path))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module]
+            else:
+                continue
+            found += [f'{path.name}:{node.lineno}: {n}' for n in names if _forbidden(n)]
+    assert found == []
+
+
+def test_forbidden_names():
+    assert _forbidden('rclpy.node') and _forbidden('std_msgs.msg') and _forbidden('rclpy')
+    assert not _forbidden('rosbags.typesys') and not _forbidden('numpy')
