@@ -170,7 +170,7 @@ def _correlation(y: np.ndarray, model: np.ndarray) -> np.ndarray:
 
 def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_sim: ArrayLike,
                     *, max_lag_s: float, window_s: float, min_correlation: float = 0.5,
-                    ambiguity_margin: float = 0.02) -> OffsetResult:
+                    ambiguity_margin: float = 0.1) -> OffsetResult:
     """Find the time offset of the measured record by cross-correlation.
 
     The measured power is correlated with the interval-averaged simulated power shifted by
