@@ -31,6 +31,7 @@ import yaml
 
 from .errors import ConfigError
 from .losses import LossModel, loss_from_dict
+from .trajectory import AxisLimits, PlannerOptions
 
 __all__ = ['ScrewSpec', 'InertiaSpec', 'LimitSpec', 'PlannerSettings', 'AxisSpec', 'Machine',
            'load_machine', 'machine_from_dict', 'machine_to_dict', 'moved_mass_kg',
@@ -112,9 +113,8 @@ class PlannerSettings:
     corner_tolerance_m: float = 1.0e-4
     rate_hz: float = 1000.0
 
-    def options(self) -> Any:
+    def options(self) -> PlannerOptions:
         """Return these settings as a :class:`.trajectory.PlannerOptions`."""
-        from .trajectory import PlannerOptions
         return PlannerOptions(rate_hz=self.rate_hz, profile=self.profile,
                               corner_tolerance_m=self.corner_tolerance_m)
 
@@ -199,9 +199,8 @@ class Machine:
         msg = f'machine {self.name!r} has no axis {name!r} (axes: {self.axis_names})'
         raise KeyError(msg)
 
-    def limits(self) -> dict[str, Any]:
+    def limits(self) -> dict[str, AxisLimits]:
         """Return the kinematic limits as ``{name: trajectory.AxisLimits}``."""
-        from .trajectory import AxisLimits
         return {a.name: AxisLimits(velocity_m_s=a.limits.velocity_m_s,
                                    acceleration_m_s2=a.limits.acceleration_m_s2,
                                    jerk_m_s3=a.limits.jerk_m_s3) for a in self.axes}

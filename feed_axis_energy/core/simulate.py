@@ -13,6 +13,7 @@ from .energy import PowerResult, compute_power, energy_by_line
 from .machine import Machine
 from .motion import Motion
 from .program import Program
+from .trajectory import plan, PlannerOptions
 
 __all__ = ['SimulationResult', 'simulate_program', 'simulate_motion', 'summarize']
 
@@ -65,8 +66,8 @@ def simulate_motion(motion: Motion, machine: Machine, *, load_kg: float = 0.0) -
 
 
 def simulate_program(program: Program, machine: Machine, *, load_kg: float = 0.0,
-                     options: Any | None = None,
-                     progress: Callable[..., Any] | None = None) -> SimulationResult:
+                     options: PlannerOptions | None = None,
+                     progress: Callable[[float], None] | None = None) -> SimulationResult:
     """Plan ``program`` with the machine's limits, then compute dynamics and power.
 
     Parameters
@@ -88,7 +89,6 @@ def simulate_program(program: Program, machine: Machine, *, load_kg: float = 0.0
     SimulationResult
         Motion, dynamics and power; ``program`` is ``program.file``.
     """
-    from .trajectory import plan
     if options is None:
         options = machine.planner.options()
     motion = plan(program, machine.limits(), options=options, progress=progress)
