@@ -4,7 +4,7 @@
     end, feeds 100..500 mm/s, exact stop; X limits v = 0.6 m/s, a = 2.5 m/s^2, j = 50 m/s^3.
 (b) a dense 10-minute contour of short G1/G2/G3 moves (~20 moves per second of program time)
     on X/Y/Z.
-Prints planning+sampling time, samples per second and the real-time factor at 1 kHz.
+Prints planning+sampling time (best of 3), samples per second and the real-time factor at 1 kHz.
 """
 from __future__ import annotations
 
@@ -70,9 +70,11 @@ def contour(rng: np.random.Generator) -> Program:
 
 
 def run(name: str, program: Program, limits: dict, options: PlannerOptions) -> None:
-    t0 = time.perf_counter()
-    motion = plan(program, limits, options=options)
-    dt = time.perf_counter() - t0
+    dt = math.inf
+    for _ in range(3):      # best of three: the machine is shared
+        t0 = time.perf_counter()
+        motion = plan(program, limits, options=options)
+        dt = min(dt, time.perf_counter() - t0)
     print(f'{name}: {len(program.moves)} moves, program {motion.duration_s:.1f} s, '
           f'{motion.n_samples} samples, plan+sample {dt:.3f} s, '
           f'{motion.n_samples / dt:.3g} samples/s, real-time factor {motion.duration_s / dt:.0f}x')

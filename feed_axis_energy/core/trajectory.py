@@ -466,14 +466,14 @@ def _sample(t: np.ndarray, k: np.ndarray, phases: tuple[np.ndarray, ...], seg: _
     Returns the segment index of every sample.
     """
     t0, dur, s0, v0, a0, jk, owner = phases
-    tau = np.minimum(t - t0[k], dur[k])
-    jj = jk[k]
-    aa = a0[k]
-    vv = v0[k]
-    a = aa + jj * tau
-    v = vv + (aa + 0.5 * jj * tau) * tau
-    s = s0[k] + (vv + (0.5 * aa + (1.0 / 6.0) * jj * tau) * tau) * tau
-    mi = owner[k]
+    tau = np.minimum(t - np.take(t0, k), np.take(dur, k))
+    jt = np.take(jk, k) * tau
+    aa = np.take(a0, k)
+    vv = np.take(v0, k)
+    a = aa + jt
+    v = vv + (aa + 0.5 * jt) * tau
+    s = np.take(s0, k) + (vv + (0.5 * aa + (1.0 / 6.0) * jt) * tau) * tau
+    mi = np.take(owner, k)
     pos, vel, acc = out
     u = np.take(uc, mi, axis=0)
     np.multiply(u, s[:, None], out=pos)
