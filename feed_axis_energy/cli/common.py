@@ -1,0 +1,91 @@
+"""Options and output shared by the subcommands."""
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from pathlib import Path
+
+from feed_axis_energy.core.errors import ConfigError
+from feed_axis_energy.core.machine import load_machine, Machine
+from feed_axis_energy.core.trajectory import PlannerOptions
+from feed_axis_energy.paths import default_machine
+
+__all__ = ['add_machine_options', 'load_machine_and_options', 'print_summary',
+           'program_text_lines', 'format_table']
+
+
+def add_machine_options(p: argparse.ArgumentParser) -> None:
+    """Add ``--machine``, ``--load-kg``, ``--rate-hz`` and ``--profile``."""
+    p.add_argument('--machine', type=Path, metavar='YAML', default=None,
+                   help='machine config (default: the paper\'s demonstrator, '
+                        'config/demonstrator.yaml)')
+    p.add_argument('--load-kg', type=float, default=0.0, metavar='KG',
+                   help='mass clamped on the table [kg] (default: 0)')
+    p.add_argument('--rate-hz', type=float, default=None, metavar='HZ',
+                   help='sampling rate of the simulation [Hz] (default: machine config, 1000)')
+    p.add_argument('--profile', choices=('jerk', 'trapezoid'), default=None,
+                   help='velocity profile (default: machine config)')
+
+
+def load_machine_and_options(args: argparse.Namespace) -> tuple[Machine, PlannerOptions]:
+    """Load the machine config and the planner options the command line asks for."""
+    path = args.machine if args.machine is not None else default_machine()
+    machine = load_machine(path)
+    if args.load_kg < 0:
+        msg = f'--load-kg must be >= 0, got {args.load_kg}'
+        raise ConfigError(msg, file='command line', key='load-kg')
+    options = machine.planner.options()
+    if args.rate_hz is not None:
+        if not args.rate_hz > 0:
+            msg = f'--rate-hz must be > 0, got {args.rate_hz}'
+            raise ConfigError(msg, file='command line', key='rate-hz')
+        options = replace(options, rate_hz=args.rate_hz)
+    if args.profile is not None:
+        options = replace(options, profile=args.profile)
+    return machine, options
+
+
+def program_text_lines(path: Path) -> list[str]:
+    """Return the program's lines (for showing block texts), or [] if unreadable."""
+    try:
+        return Path(path).read_text(errors='replace').splitlines()
+    except OSError:
+        return []
+
+
+def format_table(header: list[str], rows: list[list[str]]) -> str:
+    """Return a plain-text table with right-aligned numeric columns."""
+    widths = [max(len(str(r[i])) for r in [header] + rows) for i in range(len(header))]
+    lines = ['  '.join(h.rjust(w) if i else h.ljust(w) for i, (h, w) in
+                       enumerate(zip(header, widths)))]
+    lines.append('  '.join('-' * w for w in widths))
+    for r in rows:
+        lines.append('  '.join(str(c).rjust(w) if i else str(c).ljust(w)
+                               for i, (c, w) in enumerate(zip(r, widths))))
+    return '\n'.join(lines)
+
+
+def print_summary(summary: dict, *, source_lines: list[str]) -> None:
+    """Print a simulation summary (see README for the keys) as readable tables."""
+    print(f'program   {summary["program"]}')
+    print(f'machine   {summary["machine"]} (braking: {summary["braking"]})')
+    print(f'load      {summary["load_kg"]:.3f} kg')
+    print(f'duration  {summary["duration_s"]:.3f} s   '
+          f'({summary["samples"]} samples at {summary["rate_hz"]:g} Hz)')
+    print()
+    axes = [k for k in summary['energy_j'] if k != 'total']
+    rows = [[axis, f'{summary["energy_j"][axis]:.2f}', f'{summary["peak_power_w"][axis]:.1f}']
+            for axis in axes + ['total']]
+    print(format_table(['axis', 'energy [J]', 'peak power [W]'], rows))
+    print(f'passive-resistance (loss) energy {summary["loss_energy_j"]:.2f} J; '
+          f'energy returned while braking {summary["regenerated_energy_j"]:.2f} J')
+    if summary.get('top_blocks'):
+        print()
+        print('blocks with the most energy:')
+        rows = []
+        for b in summary['top_blocks']:
+            text = source_lines[b['line'] - 1].strip() if 0 < b['line'] <= len(
+                source_lines) else ''
+            rows.append([str(b['line']), f'{b["energy_j"]:.2f}', f'{b["duration_s"]:.3f}',
+                         text[:48]])
+        print(format_table(['line', 'energy [J]', 'duration [s]', 'block'], rows))

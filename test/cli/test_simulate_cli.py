@@ -1,0 +1,95 @@
+"""The ``feed-axis-energy simulate`` and ``demo`` commands, run as a user runs them."""
+import json
+from pathlib import Path
+import subprocess
+import sys
+
+import numpy as np
+from numpy.testing import assert_allclose
+import pytest
+
+from feed_axis_energy.cli import main
+from feed_axis_energy.core import bagio
+from feed_axis_energy.core.recording import SUMMARY_KEY
+
+ROOT = Path(__file__).resolve().parents[2]
+PROGRAM = ROOT / 'config' / 'programs' / 'demonstrator_f300.nc'
+
+
+def _run(*argv: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, '-m', 'feed_axis_energy', *argv], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize('command', ['simulate', 'demo'])
+def test_help_exits_zero(command: str) -> None:
+    proc = _run(command, '--help')
+    assert proc.returncode == 0
+    assert 'usage: feed-axis-energy ' + command in proc.stdout
+
+
+def test_simulate_bag_round_trip_matches_printed_energies(tmp_path: Path, capsys) -> None:
+    out = tmp_path / 'run'
+    assert main(['simulate', str(PROGRAM), '--load-kg', '17.336', '--out', str(out),
+                 '--json', '--quiet']) == 0
+    summary = json.loads(capsys.readouterr().out)
+    power = bagio.read_series(out, bagio.TOPIC_POWER)
+    assert power.names == ('X', 'total')
+    assert power.t.shape[0] == summary['samples']
+    # The last cumulative energy in the bag is the printed energy, per axis and in total.
+    assert_allclose(power.positions[-1, 0], summary['energy_j']['X'], rtol=1e-12)
+    assert_allclose(power.positions[-1, 1], summary['energy_j']['total'], rtol=1e-12)
+    assert_allclose(np.max(power.velocities[:, 1]), summary['peak_power_w']['total'],
+                    rtol=1e-12)
+    blocks = bagio.read_block_energy(out)
+    assert_allclose(sum(e for _, e, _ in blocks), summary['energy_j']['total'], rtol=1e-9)
+    assert bagio.read_custom_data(out, SUMMARY_KEY)['energy_j'] == summary['energy_j']
+    setpoints = bagio.read_series(out, bagio.TOPIC_SETPOINTS)
+    assert setpoints.t.shape[0] == summary['samples']
+    # The program strokes 400 mm: the commanded position spans exactly that.
+    assert_allclose(setpoints.positions[:, 0].max() - setpoints.positions[:, 0].min(), 0.4,
+                    atol=1e-9)
+    state = bagio.read_series(out, bagio.TOPIC_AXIS_STATE)
+    assert state.names == ('X', 'X_screw')
+
+
+def test_simulate_table_output_has_units() -> None:
+    proc = _run('simulate', str(PROGRAM), '--quiet')
+    assert proc.returncode == 0, proc.stderr
+    for text in ('energy [J]', 'peak power [W]', 'duration', ' s ', 'blocks with the most'):
+        assert text in proc.stdout
+
+
+def test_bad_program_names_file_line_column(tmp_path: Path) -> None:
+    bad = tmp_path / 'bad.nc'
+    bad.write_text('G21 G90\nG1 X10 Q5 F100\n')
+    proc = _run('simulate', str(bad))
+    assert proc.returncode == 1
+    assert f'{bad}:2:' in proc.stderr
+    assert 'Traceback' not in proc.stderr
+
+
+def test_missing_program_and_existing_out_fail_cleanly(tmp_path: Path) -> None:
+    proc = _run('simulate', str(tmp_path / 'nope.nc'))
+    assert proc.returncode == 1 and 'nope.nc' in proc.stderr
+    (tmp_path / 'out').mkdir()
+    proc = _run('simulate', str(PROGRAM), '--out', str(tmp_path / 'out'))
+    assert proc.returncode == 1 and 'exists already' in proc.stderr
+
+
+def test_negative_load_is_rejected() -> None:
+    proc = _run('simulate', str(PROGRAM), '--load-kg', '-1')
+    assert proc.returncode == 1 and 'load-kg' in proc.stderr
+
+
+def test_load_changes_peak_power_but_not_regenerative_cycle_energy(capsys) -> None:
+    # The paper's loss function depends on feed only, and a regenerative converter returns the
+    # kinetic energy of every stroke: the cycle energy must not depend on the clamped mass,
+    # while the acceleration peaks must grow with it.
+    results = []
+    for load in ('0', '22.711'):
+        assert main(['simulate', str(PROGRAM), '--load-kg', load, '--json', '--quiet']) == 0
+        results.append(json.loads(capsys.readouterr().out))
+    assert_allclose(results[1]['energy_j']['total'], results[0]['energy_j']['total'],
+                    rtol=1e-3)
+    assert results[1]['peak_power_w']['total'] > results[0]['peak_power_w']['total']
