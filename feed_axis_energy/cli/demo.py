@@ -82,15 +82,17 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(summaries, indent=2))
         return 0
     by_key = {(s['feed_mm_s'], s['load_kg']): s for s in summaries}
-    header = ['feed [mm/s]', 'duration [s]'] + [f'E @ {load:g} kg [J]' for load in
-                                                 PAPER_LOADS_KG] + ['peak P @ 22.711 kg [W]']
+    header = (['feed [mm/s]', 'duration [s]']
+              + [f'E @ {load:g} kg [J]' for load in PAPER_LOADS_KG]
+              + [f'peak P @ {load:g} kg [W]' for load in PAPER_LOADS_KG])
     rows = []
     for feed in PAPER_FEEDS_MM_S:
-        row = [str(feed), f'{by_key[(feed, 0.0)]["duration_s"]:.3f}']
-        row += [f'{by_key[(feed, load)]["energy_j"]["total"]:.1f}' for load in PAPER_LOADS_KG]
-        row.append(f'{by_key[(feed, PAPER_LOADS_KG[-1])]["peak_power_w"]["total"]:.1f}')
-        rows.append(row)
-    print(f'machine: {machine.name} ({default_machine() if args.machine is None else args.machine})')
+        runs_at = [by_key[(feed, load)] for load in PAPER_LOADS_KG]
+        rows.append([str(feed), f'{runs_at[0]["duration_s"]:.3f}']
+                    + [f'{s["energy_j"]["total"]:.1f}' for s in runs_at]
+                    + [f'{s["peak_power_w"]["total"]:.1f}' for s in runs_at])
+    source = default_machine() if args.machine is None else args.machine
+    print(f'machine: {machine.name} ({source}), braking: {machine.braking}')
     print('program: reciprocating 400 mm stroke, 1 s dwell (config/programs/demonstrator_f*.nc)')
     print()
     print(format_table(header, rows))

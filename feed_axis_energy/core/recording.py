@@ -58,7 +58,7 @@ def power_series(power) -> bagio.Series:
 
 
 def simulation_series(result, leads_m: dict[str, float]) -> dict[str, bagio.Series]:
-    """Return ``{topic: Series}`` for a :class:`~feed_axis_energy.core.simulate.SimulationResult`."""
+    """Return ``{topic: Series}`` for a ``simulate.SimulationResult``."""
     return {
         bagio.TOPIC_SETPOINTS: setpoint_series(result.motion),
         bagio.TOPIC_AXIS_STATE: axis_state_series(result.motion, result.dynamics, leads_m),
