@@ -1,0 +1,485 @@
+"""Pure helpers of the node graph: batching, flow control, pacing and crash-safe recording.
+
+Nothing here imports rclpy: every piece is tested without DDS. The nodes in
+:mod:`feed_axis_energy.nodes` are thin shells that call these helpers and the physics core.
+
+Time is integer nanoseconds at this boundary (message stamps, bag log times); the physics
+core sees float seconds rebuilt from those integers.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+import math
+import os
+from pathlib import Path
+import shutil
+import struct
+from typing import Iterable, Sequence
+
+import numpy as np
+from rosbags.rosbag2 import StoragePlugin, Writer
+import yaml
+
+from .energy import apply_braking, energy_by_line, EnergyIntegrator, PowerResult
+from .errors import DataError
+
+__all__ = ['NS_PER_S', 'seconds_to_ns', 'ns_to_seconds', 'batch_bounds', 'FlowWindow',
+           'pacing_delay_s', 'block_starts', 'lines_at', 'StreamingPower', 'header_stamp_ns',
+           'ProgramEnd', 'EndTracker', 'ChunkedBagWriter', 'merge_bag_metadata',
+           'latency_stats']
+
+NS_PER_S = 1_000_000_000
+
+
+def seconds_to_ns(t_s: np.ndarray) -> np.ndarray:
+    """Round float seconds to integer nanoseconds (the rounding :mod:`.bagio` uses)."""
+    return np.rint(np.asarray(t_s, dtype=np.float64) * NS_PER_S).astype(np.int64)
+
+
+def ns_to_seconds(t_ns: np.ndarray) -> np.ndarray:
+    """Integer nanoseconds to float seconds (the inverse :mod:`.bagio` uses)."""
+    return np.asarray(t_ns, dtype=np.int64) / NS_PER_S
+
+
+def batch_bounds(n: int, batch: int) -> list[tuple[int, int]]:
+    """Cut ``n`` samples into ``[i0, i1)`` ranges of at most ``batch`` samples."""
+    if batch < 1:
+        msg = f'batch must be >= 1, got {batch}'
+        raise ValueError(msg)
+    return [(i0, min(i0 + batch, n)) for i0 in range(0, n, batch)]
+
+
+class FlowWindow:
+    """At most ``window`` batches in flight between a producer and its slowest consumer.
+
+    The producer calls :meth:`sent` with each batch's stamp; every consumer (a named
+    acknowledgement source) reports the newest stamp it has fully handled with :meth:`ack`.
+    A batch counts as done once every source has acknowledged a stamp at or after it.
+
+    Parameters
+    ----------
+    window
+        Maximum number of unacknowledged batches (``>= 1``).
+    sources
+        Names of the acknowledgement sources that must all catch up.
+    """
+
+    def __init__(self, window: int, sources: Sequence[str]) -> None:
+        if window < 1:
+            msg = f'flow window must be >= 1 batch, got {window}'
+            raise ValueError(msg)
+        if not sources:
+            msg = 'flow window needs at least one acknowledgement source'
+            raise ValueError(msg)
+        self.window = int(window)
+        self._acked = {s: -1 for s in sources}
+        self._in_flight: deque[int] = deque()
+
+    @property
+    def acked_ns(self) -> int:
+        """Newest stamp every source has acknowledged (-1 before the first)."""
+        return min(self._acked.values())
+
+    @property
+    def in_flight(self) -> int:
+        """Number of sent batches not yet acknowledged by every source."""
+        return len(self._in_flight)
+
+    def can_send(self) -> bool:
+        """Whether another batch may be sent now."""
+        return len(self._in_flight) < self.window
+
+    def sent(self, stamp_ns: int) -> None:
+        """Record a batch sent with header stamp ``stamp_ns`` (stamps increase)."""
+        if self._in_flight and stamp_ns <= self._in_flight[-1]:
+            msg = f'batch stamps must increase: {stamp_ns} after {self._in_flight[-1]}'
+            raise ValueError(msg)
+        self._in_flight.append(int(stamp_ns))
+
+    def ack(self, source: str, stamp_ns: int) -> int:
+        """Record that ``source`` handled everything up to ``stamp_ns``; returns batches freed."""
+        if source not in self._acked:
+            return 0
+        self._acked[source] = max(self._acked[source], int(stamp_ns))
+        done = self.acked_ns
+        freed = 0
+        while self._in_flight and self._in_flight[0] <= done:
+            self._in_flight.popleft()
+            freed += 1
+        return freed
+
+
+def pacing_delay_s(sample_time_s: float, start_sample_s: float, wall_elapsed_s: float, *,
+                   speed: float = 1.0) -> float:
+    """Seconds to wait before a sample at ``sample_time_s`` is due (<= 0: due now).
+
+    Real-time pacing: the sample at simulation time ``t`` is due ``(t - t0) / speed`` seconds
+    of wall-clock time after streaming started.
+    """
+    return (sample_time_s - start_sample_s) / speed - wall_elapsed_s
+
+
+def block_starts(t_ns: np.ndarray, line: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Run-length code of the source line of every sample.
+
+    Returns
+    -------
+    (starts_ns, lines)
+        Stamp of the first sample of each run and the run's line number.
+    """
+    line = np.asarray(line, dtype=np.int64)
+    if line.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    change = np.flatnonzero(np.diff(line)) + 1
+    idx = np.concatenate(([0], change))
+    return np.asarray(t_ns, dtype=np.int64)[idx], line[idx]
+
+
+def lines_at(t_ns: np.ndarray, starts_ns: np.ndarray, lines: np.ndarray) -> np.ndarray:
+    """Source line of each stamp, from the run-length code of :func:`block_starts`."""
+    if starts_ns.shape[0] == 0:
+        return np.zeros(np.shape(t_ns), dtype=np.int64)
+    idx = np.searchsorted(starts_ns, np.asarray(t_ns, dtype=np.int64), side='right') - 1
+    return np.where(idx >= 0, lines[np.clip(idx, 0, None)], 0).astype(np.int64)
+
+
+class StreamingPower:
+    """Actual power and cumulative energy from screw torque and speed, batch after batch.
+
+    Applies the same operations as :func:`.energy.compute_power` in the same order
+    (``M·omega``, braking rule, sum over axes, :class:`.energy.EnergyIntegrator` over axes +
+    total), so the numbers equal the offline result for the same samples. Every batch is kept
+    so that the per-block summary at the end comes from :func:`.energy.energy_by_line` itself.
+
+    Parameters
+    ----------
+    axes
+        Axis names (column order of ``torque_nm`` and ``omega_rad_s``).
+    braking
+        ``'regenerative'`` or ``'dissipated'``.
+    """
+
+    def __init__(self, axes: Sequence[str], *, braking: str) -> None:
+        apply_braking(np.zeros((0, len(axes))), braking=braking)  # validate early
+        self.axes = tuple(axes)
+        self.braking = braking
+        self._integrator = EnergyIntegrator(len(self.axes) + 1)
+        self._t: list[np.ndarray] = []
+        self._mech: list[np.ndarray] = []
+        self._power: list[np.ndarray] = []
+        self._energy: list[np.ndarray] = []
+
+    @property
+    def last_time_s(self) -> float | None:
+        """Time of the newest sample integrated, or ``None``."""
+        return self._integrator.last_time_s
+
+    @property
+    def n_samples(self) -> int:
+        """Samples integrated so far."""
+        return int(sum(t.shape[0] for t in self._t))
+
+    def update(self, t_s: np.ndarray, torque_nm: np.ndarray,
+               omega_rad_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Integrate one batch.
+
+        Returns
+        -------
+        (power_w, energy_j)
+            Both ``(m, k + 1)``: per axis then total; power [W], cumulative energy [J].
+        """
+        mechanical = np.asarray(torque_nm, dtype=float) * np.asarray(omega_rad_s, dtype=float)
+        power = apply_braking(mechanical, braking=self.braking)
+        total = power.sum(axis=1)
+        both = np.column_stack((power, total))
+        energy = self._integrator.update(t_s, both)
+        self._t.append(np.asarray(t_s, dtype=float))
+        self._mech.append(mechanical)
+        self._power.append(both)
+        self._energy.append(energy)
+        return both, energy
+
+    def result(self, line: np.ndarray | None = None) -> PowerResult:
+        """Everything integrated so far as a :class:`.energy.PowerResult`.
+
+        ``line`` gives the source line of every sample (zeros if ``None``). Loss power is not
+        carried on ``axis_state`` and is ``NaN`` here.
+        """
+        k = len(self.axes)
+        t = np.concatenate(self._t) if self._t else np.zeros(0)
+        both = np.vstack(self._power) if self._power else np.zeros((0, k + 1))
+        energy = np.vstack(self._energy) if self._energy else np.zeros((0, k + 1))
+        mech = np.vstack(self._mech) if self._mech else np.zeros((0, k))
+        lines = np.zeros(t.shape[0], dtype=np.int64) if line is None else np.asarray(line)
+        return PowerResult(t=t, axes=self.axes, power_w=both[:, :k], total_w=both[:, k],
+                           energy_j=energy[:, :k], total_energy_j=energy[:, k],
+                           mechanical_w=mech, loss_power_w=np.full_like(mech, np.nan),
+                           line=lines, braking=self.braking)
+
+    def block_energy(self, starts_ns: np.ndarray,
+                     lines: np.ndarray) -> list[tuple[int, float, float]]:
+        """Per-line ``(line, energy_j, duration_s)`` via :func:`.energy.energy_by_line`."""
+        t = np.concatenate(self._t) if self._t else np.zeros(0)
+        return energy_by_line(self.result(lines_at(seconds_to_ns(t), starts_ns, lines)))
+
+
+_STAMP = struct.Struct('<iI')
+
+
+def header_stamp_ns(cdr: bytes | memoryview) -> int:
+    """Header stamp of a serialized message whose first field is a ``std_msgs/Header``.
+
+    Also right for ``rosgraph_msgs/Clock`` (first field ``builtin_interfaces/Time``). CDR
+    data starts with a 4-byte encapsulation header, then ``int32 sec``, ``uint32 nanosec``.
+    """
+    if len(cdr) < 12:
+        msg = f'serialized message of {len(cdr)} bytes is too short for a header stamp'
+        raise DataError(msg, file='<cdr>')
+    if cdr[1] != 1:
+        msg = 'only little-endian CDR is supported'
+        raise DataError(msg, file='<cdr>')
+    sec, nsec = _STAMP.unpack_from(cdr, 4)
+    return sec * NS_PER_S + nsec
+
+
+@dataclass(frozen=True)
+class ProgramEnd:
+    """The end-of-program marker (see docs/nodes.md, topic ``program/end``).
+
+    Attributes
+    ----------
+    program
+        Program file.
+    samples, batches
+        Number of samples and of messages per stream.
+    first_ns, last_ns
+        Stamp of the first sample and of the last batch's header.
+    """
+
+    program: str
+    samples: int
+    batches: int
+    first_ns: int
+    last_ns: int
+
+    def to_pairs(self) -> list[tuple[str, str]]:
+        """Key/value strings (for a ``diagnostic_msgs/KeyValue`` list)."""
+        return [('program', self.program), ('samples', str(self.samples)),
+                ('batches', str(self.batches)), ('first_stamp_ns', str(self.first_ns)),
+                ('last_stamp_ns', str(self.last_ns))]
+
+    @classmethod
+    def from_pairs(cls, pairs: Iterable[tuple[str, str]]) -> 'ProgramEnd':
+        """Inverse of :meth:`to_pairs` (``DataError`` on a missing or bad value)."""
+        d = dict(pairs)
+        try:
+            return cls(program=d['program'], samples=int(d['samples']),
+                       batches=int(d['batches']), first_ns=int(d['first_stamp_ns']),
+                       last_ns=int(d['last_stamp_ns']))
+        except (KeyError, ValueError) as err:
+            msg = f'bad end-of-program marker {d!r}: {err}'
+            raise DataError(msg, file='program/end') from err
+
+
+class EndTracker:
+    """Knows when every stream has delivered its last batch of the program.
+
+    Parameters
+    ----------
+    streams
+        Topics that must each reach the end marker's last stamp.
+    extra
+        Topics of which at least one message must have arrived (e.g. ``block_energy``).
+    """
+
+    def __init__(self, streams: Iterable[str], extra: Iterable[str] = ()) -> None:
+        self._last = {s: -1 for s in streams}
+        self._extra = {e: False for e in extra}
+        self.end: ProgramEnd | None = None
+
+    def seen(self, topic: str, stamp_ns: int) -> None:
+        """Record a message of ``topic`` with header stamp ``stamp_ns``."""
+        if topic in self._last:
+            self._last[topic] = max(self._last[topic], stamp_ns)
+        if topic in self._extra:
+            self._extra[topic] = True
+
+    def min_stamp_ns(self) -> int:
+        """Newest stamp that every stream has reached (-1 before)."""
+        return min(self._last.values()) if self._last else -1
+
+    @property
+    def done(self) -> bool:
+        """True once the marker arrived and every stream and extra topic caught up."""
+        return (self.end is not None and self.min_stamp_ns() >= self.end.last_ns
+                and all(self._extra.values()))
+
+
+def merge_bag_metadata(parts: Sequence[dict]) -> dict:
+    """Merge the ``metadata.yaml`` contents of single-file rosbag2 bags into one bag.
+
+    Topics are matched by name; counts, file lists and the time span are combined.
+    """
+    if not parts:
+        msg = 'nothing to merge'
+        raise ValueError(msg)
+    infos = [p['rosbag2_bagfile_information'] for p in parts]
+    topics: dict[str, dict] = {}
+    files: list[dict] = []
+    start = min(i['starting_time']['nanoseconds_since_epoch'] for i in infos)
+    end = max(i['starting_time']['nanoseconds_since_epoch'] + i['duration']['nanoseconds']
+              for i in infos)
+    for info in infos:
+        for entry in info['topics_with_message_count']:
+            name = entry['topic_metadata']['name']
+            if name in topics:
+                topics[name]['message_count'] += entry['message_count']
+            else:
+                topics[name] = {'topic_metadata': dict(entry['topic_metadata']),
+                                'message_count': entry['message_count']}
+        files.extend(info['files'])
+    merged = dict(infos[-1])
+    merged.update({
+        'relative_file_paths': [f['path'] for f in files],
+        'files': files,
+        'duration': {'nanoseconds': max(0, end - start)},
+        'starting_time': {'nanoseconds_since_epoch': start},
+        'message_count': sum(i['message_count'] for i in infos),
+        'topics_with_message_count': list(topics.values()),
+    })
+    return {'rosbag2_bagfile_information': merged}
+
+
+class ChunkedBagWriter:
+    """A rosbag2 directory (MCAP storage) that stays readable if the writer is killed.
+
+    Messages are buffered; :meth:`flush` writes them as one complete, closed MCAP file
+    (``<bag>_<i>.mcap``, written by rosbags into a scratch directory, then renamed into the
+    bag) and atomically replaces ``metadata.yaml`` with one that lists every flushed file.
+    A crash (even SIGKILL) loses at most the messages buffered since the last flush.
+
+    Parameters
+    ----------
+    path
+        Bag directory to create; must not exist.
+    typestore
+        rosbags typestore for the message definitions.
+    """
+
+    def __init__(self, path: str | Path, *, typestore) -> None:
+        self.path = Path(path)
+        if self.path.exists():
+            msg = f'{self.path} exists already; choose a new output directory'
+            raise FileExistsError(msg)
+        self.path.mkdir(parents=True)
+        self._typestore = typestore
+        self._types: dict[str, str] = {}
+        self._buffer: list[tuple[str, int, bytes]] = []
+        self._parts: list[dict] = []
+        self._custom: dict[str, str] = {}
+        self.counts: dict[str, int] = {}
+        self.closed = False
+
+    @property
+    def buffered(self) -> int:
+        """Messages waiting for the next flush."""
+        return len(self._buffer)
+
+    @property
+    def files(self) -> int:
+        """Number of chunk files written."""
+        return len(self._parts)
+
+    def add_topic(self, topic: str, msgtype: str) -> None:
+        """Declare a topic and its message type (before writing to it)."""
+        self._types[topic] = msgtype
+
+    def write(self, topic: str, stamp_ns: int, data: bytes) -> None:
+        """Buffer one serialized (CDR) message logged at ``stamp_ns``."""
+        if topic not in self._types:
+            msg = f'topic {topic!r} was not declared with add_topic'
+            raise KeyError(msg)
+        self._buffer.append((topic, int(stamp_ns), data))
+
+    def set_custom_data(self, key: str, value: str) -> None:
+        """Store a string in the bag's metadata (written with the next flush)."""
+        self._custom[key] = value
+
+    def flush(self) -> int:
+        """Write the buffered messages as one chunk file; returns how many were written."""
+        if not self._buffer:
+            return 0
+        buffer, self._buffer = self._buffer, []
+        name = f'{self.path.name}_{len(self._parts)}'
+        scratch = self.path / f'.{name}.tmp'
+        if scratch.exists():
+            shutil.rmtree(scratch)
+        writer = Writer(scratch, version=9, storage_plugin=StoragePlugin.MCAP)
+        writer.open()
+        conns = {}
+        for topic in sorted({b[0] for b in buffer}):
+            conns[topic] = writer.add_connection(topic, self._types[topic],
+                                                 typestore=self._typestore)
+        for key, value in self._custom.items():
+            writer.set_custom_data(key, value)
+        for topic, stamp, data in buffer:
+            writer.write(conns[topic], stamp, data)
+            self.counts[topic] = self.counts.get(topic, 0) + 1
+        writer.close()
+        (scratch / f'.{name}.tmp.mcap').replace(self.path / f'{name}.mcap')
+        part = yaml.safe_load((scratch / 'metadata.yaml').read_text())
+        info = part['rosbag2_bagfile_information']
+        info['relative_file_paths'] = [f'{name}.mcap']
+        for f in info['files']:
+            f['path'] = f'{name}.mcap'
+        shutil.rmtree(scratch)
+        self._parts.append(part)
+        self._write_metadata()
+        return len(buffer)
+
+    def _write_metadata(self) -> None:
+        merged = merge_bag_metadata(self._parts)
+        if self._custom:
+            merged['rosbag2_bagfile_information']['custom_data'] = dict(self._custom)
+        tmp = self.path / 'metadata.yaml.tmp'
+        with open(tmp, 'w', encoding='utf8') as fh:
+            yaml.safe_dump(merged, fh, default_flow_style=False)
+            fh.flush()
+            os.fsync(fh.fileno())
+        tmp.replace(self.path / 'metadata.yaml')
+
+    def close(self) -> None:
+        """Flush what is left; an empty recording still gets a valid (empty) bag."""
+        if self.closed:
+            return
+        self.flush()
+        if not self._parts:
+            # An empty bag: write a single empty chunk so that readers accept the directory.
+            writer = Writer(self.path / '.empty.tmp', version=9,
+                            storage_plugin=StoragePlugin.MCAP)
+            writer.open()
+            for topic, msgtype in self._types.items():
+                writer.add_connection(topic, msgtype, typestore=self._typestore)
+            writer.close()
+            name = f'{self.path.name}_0'
+            (self.path / '.empty.tmp' / '.empty.tmp.mcap').replace(self.path / f'{name}.mcap')
+            part = yaml.safe_load((self.path / '.empty.tmp' / 'metadata.yaml').read_text())
+            info = part['rosbag2_bagfile_information']
+            info['relative_file_paths'] = [f'{name}.mcap']
+            info['starting_time'] = {'nanoseconds_since_epoch': 0}
+            for f in info['files']:
+                f['path'] = f'{name}.mcap'
+            shutil.rmtree(self.path / '.empty.tmp')
+            self._parts.append(part)
+            self._write_metadata()
+        self.closed = True
+
+
+def latency_stats(latencies_s: Sequence[float]) -> dict[str, float]:
+    """Median, 99th percentile and maximum of latencies [s] (NaN when empty)."""
+    arr = np.asarray(latencies_s, dtype=float)
+    if arr.shape[0] == 0:
+        return {'median_s': math.nan, 'p99_s': math.nan, 'max_s': math.nan, 'n': 0}
+    return {'median_s': float(np.median(arr)), 'p99_s': float(np.percentile(arr, 99)),
+            'max_s': float(arr.max()), 'n': int(arr.shape[0])}

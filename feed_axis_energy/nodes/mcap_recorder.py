@@ -1,0 +1,147 @@
+"""``mcap_recorder``: records the graph's topics into a crash-safe rosbag2/MCAP directory.
+
+Subscribes serialized (``raw=True``); the log time of every message is its own header stamp
+(simulation time), never the receive time. Messages are flushed as complete MCAP chunk files
+with a refreshed ``metadata.yaml`` (:class:`core.graph.ChunkedBagWriter`), so SIGKILL leaves a
+readable bag holding everything up to the last flush. Topics are stored under their logical
+name (``/setpoints`` ...), whatever namespace or remapping the node runs with, so the bag reads
+like an offline ``simulate --out`` recording.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Header
+from trajectory_msgs.msg import JointTrajectory
+
+from feed_axis_energy.core import bagio
+from feed_axis_energy.core.errors import FeedAxisError
+from feed_axis_energy.core.graph import ChunkedBagWriter, EndTracker, header_stamp_ns
+from feed_axis_energy.nodes import convert
+from feed_axis_energy.nodes.qos import clock_qos, latched_qos, stream_qos
+from feed_axis_energy.nodes.runner import declare, run, StartupError
+
+__all__ = ['McapRecorder', 'main', 'KNOWN_TOPICS']
+
+# logical topic -> (message class, ROS type name, latched)
+KNOWN_TOPICS = {
+    'setpoints': (JointTrajectory, bagio.JOINT_TRAJECTORY, False),
+    'axis_state': (JointTrajectory, bagio.JOINT_TRAJECTORY, False),
+    'power': (JointTrajectory, bagio.JOINT_TRAJECTORY, False),
+    'measured/power': (JointTrajectory, bagio.JOINT_TRAJECTORY, False),
+    'measured/kinematics': (JointTrajectory, bagio.JOINT_TRAJECTORY, False),
+    'program/lines': (JointTrajectory, bagio.JOINT_TRAJECTORY, True),
+    'block_energy': (DiagnosticArray, bagio.DIAGNOSTIC_ARRAY, True),
+    'program/end': (DiagnosticArray, bagio.DIAGNOSTIC_ARRAY, True),
+    '/clock': (Clock, 'rosgraph_msgs/msg/Clock', False),
+}
+DEFAULT_TOPICS = ['setpoints', 'axis_state', 'power', 'block_energy', 'program/end']
+
+
+class McapRecorder(Node):
+    """Serialized subscriptions -> chunked MCAP bag, stamped with header stamps."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('mcap_recorder', **kwargs)
+        self.exit_code: int | None = None
+        out = declare(self, 'output', '', 'bag directory to create (must not exist)')
+        topics = declare(self, 'topics', DEFAULT_TOPICS, 'logical topics to record')
+        self.chunk_period_s = declare(self, 'chunk_period_s', 1.0,
+                                      'flush a chunk file at least this often [s]')
+        self.chunk_messages = declare(self, 'chunk_messages', 5000,
+                                      'flush a chunk file after this many messages')
+        self.exit_at_end = declare(self, 'exit_at_end', False,
+                                   'close the bag and exit (code 0) when the program has '
+                                   'ended and every stream delivered its last batch')
+        end_streams = declare(self, 'end_streams', ['setpoints', 'axis_state', 'power'],
+                              'streams that must reach program/end\'s last stamp')
+        end_extra = declare(self, 'end_extra', ['block_energy'],
+                            'topics of which one message must arrive before the end')
+        if not out:
+            raise StartupError('parameter output (the bag directory) is required')
+        unknown = [t for t in topics if t not in KNOWN_TOPICS]
+        if unknown:
+            msg = f'unknown topics {unknown}; known: {sorted(KNOWN_TOPICS)}'
+            raise StartupError(msg)
+        if self.chunk_period_s <= 0 or self.chunk_messages < 1:
+            raise StartupError('chunk_period_s must be > 0 and chunk_messages >= 1')
+        self.bag = ChunkedBagWriter(out, typestore=bagio.typestore())
+        self.tracker = EndTracker([t for t in end_streams if t in topics],
+                                  [t for t in end_extra if t in topics])
+        self.pub_progress = self.create_publisher(Header, 'recorder/progress', stream_qos())
+        self._acked = -1
+        self.received = 0
+        for topic in topics:
+            cls, msgtype, latched = KNOWN_TOPICS[topic]
+            name = topic if topic.startswith('/') else '/' + topic
+            self.bag.add_topic(name, msgtype)
+            qos = latched_qos() if latched else (clock_qos() if topic == '/clock'
+                                                 else stream_qos())
+            self.create_subscription(cls, topic, self._callback(topic, name), qos, raw=True)
+        self._last_flush = time.monotonic()
+        self.create_timer(min(self.chunk_period_s, 0.2), self._on_timer)
+        self.get_logger().info(f'recording {", ".join(topics)} to {out}')
+
+    def _callback(self, topic: str, name: str):
+        def on_message(data: bytes) -> None:
+            try:
+                stamp = header_stamp_ns(data)
+            except FeedAxisError as err:
+                self.get_logger().error(f'{topic}: {err}')
+                return
+            self.bag.write(name, stamp, data)
+            self.received += 1
+            self.tracker.seen(topic, stamp)
+            if topic == 'program/end':
+                self._on_end(data)
+            low = self.tracker.min_stamp_ns()
+            if low > self._acked:
+                self._acked = low
+                self.pub_progress.publish(convert.stamp_msg(low))
+            if self.bag.buffered >= self.chunk_messages:
+                self._flush()
+            self._check_end()
+        return on_message
+
+    def _on_end(self, data: bytes) -> None:
+        from rclpy.serialization import deserialize_message
+        try:
+            self.tracker.end = convert.program_end_from_msg(
+                deserialize_message(data, DiagnosticArray))
+        except FeedAxisError as err:
+            self.get_logger().error(str(err))
+
+    def _flush(self) -> None:
+        self.bag.flush()
+        self._last_flush = time.monotonic()
+
+    def _on_timer(self) -> None:
+        if time.monotonic() - self._last_flush >= self.chunk_period_s:
+            self._flush()
+        self._check_end()
+
+    def _check_end(self) -> None:
+        if self.exit_at_end and self.tracker.done and self.exit_code is None:
+            self.close()
+            self.exit_code = 0
+
+    def close(self) -> None:
+        """Flush the last chunk and finish the bag (idempotent)."""
+        if self.bag.closed:
+            return
+        self.bag.close()
+        counts = ', '.join(f'{t} {n}' for t, n in sorted(self.bag.counts.items()))
+        self.get_logger().info(f'closed {self.bag.path}: {counts or "no messages"}')
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the node."""
+    sys.exit(run(McapRecorder, args, name='mcap_recorder'))
+
+
+if __name__ == '__main__':
+    main()
