@@ -1,0 +1,179 @@
+"""G-code (RS-274 / ISO 6983, milling) to a :class:`~.program.Program` of moves in SI units.
+
+One pass over the text: each line is lexed with two precompiled regular expressions and
+interpreted against the full modal state. Parsing either returns a whole program or raises
+:class:`~.errors.GcodeError` naming ``file:line:column`` and the offending word.
+
+Dialect (LinuxCNC semantics where dialects differ)
+--------------------------------------------------
+* Motion: G0, G1, G2/G3 (I/J/K centre or R radius; negative R = arc over 180 degrees;
+  IJK with end == start = full circle; P = number of turns; the axis normal to the plane
+  moves linearly = helix), G4 dwell (P in seconds), G80 (motion mode off).
+* Modes, with their start-up values in brackets: plane G17/G18/G19 [G17], units G20/G21
+  [G21, mm], distance G90/G91 [G90], arc centres G90.1/G91.1 [G91.1, incremental], feed
+  G93/G94 [G94], path control G61 (and G61.1, treated the same)/G64 [G64; G64 P/Q
+  tolerances are accepted and ignored], G9 (exact stop for this line), motion [G80: axis
+  words before the first G0/G1/G2/G3 are an error].
+* F is read in the units in force *after* the line's G20/G21 and keeps its physical speed
+  when the units change later. Switching between G93 and G94 clears F (a new F is
+  required). Under G93 every feed move needs F on its line; F is 1/minutes, so the move
+  takes 60/F s and ``feed_m_s = length_m * F / 60``.
+* Accepted and ignored for the feed axes: N, O (a bare program number), S, T, M3-M9,
+  G40, G49, G54-G59 (motion stays in program coordinates; a change of coordinate system
+  after the first move is reported as a warning), G8, G96/G97, G98/G99.
+* M0/M1 give a STOP move; M2/M30 give a STOP move and end the program: later lines are
+  ignored (with a warning if any of them holds code). A ``%`` line after code also ends it.
+* Comments ``( ... )`` (no nesting, must close on the line) and ``;`` to end of line;
+  a line whose first non-blank character is ``/`` is skipped (block delete switch on).
+* Blanks and tabs are ignored between and inside words (LinuxCNC rule): ``X 10`` and even
+  ``X1 0`` (= X10) are read. Letters may be lower case. Numbers: ``X.5``, ``X-1.``,
+  ``X+2``; ``X1.2.3`` and ``Xabc`` are errors.
+* Refused with "not supported": G28/G30, G41/G42, G43, G52/G53, G92, canned cycles
+  (G73-G89), G95, G33, G38.x, G5.x, A/B/C/U/V/W, D/H/L words, parameters and expressions
+  (``#``, ``[...]``), O-word control flow, unknown G/M codes and letters.
+* Arc end check: the end must lie on the start circle within
+  ``max(arc_tolerance_m, 0.1 % of the radius)``; the default ``arc_tolerance_m`` is 0.002 mm.
+  An R smaller than half the chord by no more than the same tolerance gives a half circle.
+  A spiral within tolerance is kept: its length uses the mean of the start and end radii.
+* Zero-length G0/G1 moves produce no move (they would have no duration to plan).
+"""
+from __future__ import annotations
+
+from os import PathLike
+
+from .errors import GcodeError
+from .gcode_interp import Interpreter
+from .gcode_lex import blank_comments, diagnose_line, LINE_RE, WORD_RE
+from .program import Program
+
+__all__ = ['parse_gcode', 'load_gcode', 'DEFAULT_ARC_TOLERANCE_M']
+
+DEFAULT_ARC_TOLERANCE_M = 2e-6
+
+
+def parse_gcode(text: str, *, file: str = '<string>',
+                start: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                arc_tolerance_m: float = DEFAULT_ARC_TOLERANCE_M) -> Program:
+    """Parse an NC program into moves in SI units.
+
+    Parameters
+    ----------
+    text
+        The program text.
+    file
+        Name used in error messages and stored in the result.
+    start
+        Tool position [m] before the first line.
+    arc_tolerance_m
+        Absolute tolerance [m] of the arc end-point check; the effective tolerance is the
+        larger of this and 0.1 % of the radius.
+
+    Returns
+    -------
+    Program
+        The moves in order, ``n_lines`` and any warnings (``file:line: message``).
+
+    Raises
+    ------
+    GcodeError
+        For anything that cannot be simulated exactly; names file, line, column and word.
+    """
+    if '\r' in text:
+        text = text.replace('\r\n', '\n')
+    lines = text.split('\n')
+    if lines and lines[-1] == '':
+        lines.pop()
+    # Upper-casing the whole text once keeps lines aligned: it never adds or removes '\n'.
+    upper_lines = text.upper().split('\n')
+    ascii_text = text.isascii()
+    p = Interpreter(file, start, arc_tolerance_m, lines=lines)
+    line_re = LINE_RE.fullmatch
+    findall = WORD_RE.findall
+    interpret = p.line
+    seen_code = False
+    end_at = 0
+    for lineno, code in enumerate(upper_lines[:len(lines)], 1):
+        if '(' in code or ';' in code:
+            code = blank_comments(code, file=file, line=lineno)
+        if line_re(code) is None or not (ascii_text or lines[lineno - 1].isascii()):
+            # Not plain words: block delete, a % marker, non-ASCII text or an error.
+            code = blank_comments(lines[lineno - 1], file=file, line=lineno)
+            stripped = code.strip()
+            if stripped[:1] == '/':
+                continue
+            if stripped == '%':
+                if seen_code:
+                    end_at = lineno
+                    break
+                seen_code = True
+                continue
+            if not code.isascii() or line_re(code.upper()) is None:
+                raise diagnose_line(code, file=file, line=lineno)
+            code = code.upper()
+        words = findall(code)
+        if not words:
+            continue
+        seen_code = True
+        p.lineno = lineno
+        interpret(words)
+        if p.ended:
+            end_at = lineno
+            break
+    if end_at:
+        _warn_trailing(p, lines, end_at)
+    return Program(file=file, moves=tuple(p.moves), n_lines=len(lines),
+                   warnings=tuple(p.warnings))
+
+
+def _warn_trailing(p: Interpreter, lines: list[str], end_at: int) -> None:
+    """Warn once if code follows the end of the program."""
+    for lineno in range(end_at + 1, len(lines) + 1):
+        raw = lines[lineno - 1]
+        try:
+            code = blank_comments(raw, file=p.file, line=lineno).strip()
+        except GcodeError:
+            code = raw.strip()
+        if code and code != '%':
+            p.warnings.append(f'{p.file}:{lineno}: lines after the end of the program '
+                              f'(line {end_at}) are ignored')
+            return
+
+
+def load_gcode(path: str | PathLike[str], *,
+               start: tuple[float, float, float] = (0.0, 0.0, 0.0),
+               arc_tolerance_m: float = DEFAULT_ARC_TOLERANCE_M) -> Program:
+    """Read a UTF-8 program file and parse it (see :func:`parse_gcode`).
+
+    Parameters
+    ----------
+    path
+        The program file; its path is used as ``file`` in messages and in the result.
+    start, arc_tolerance_m
+        As for :func:`parse_gcode`.
+
+    Returns
+    -------
+    Program
+        The parsed program.
+
+    Raises
+    ------
+    GcodeError
+        Also when the file cannot be read (line 0, column 0, chained from the ``OSError``)
+        or is not UTF-8 text (line 0, column 0; the message gives the line of the bad byte).
+    """
+    name = str(path)
+    try:
+        with open(path, 'rb') as fh:
+            data = fh.read()
+    except OSError as err:
+        msg = f'cannot read the program: {err.strerror or err}'
+        raise GcodeError(msg, file=name, line=0, column=0) from err
+    try:
+        text = data.decode('utf-8-sig')
+    except UnicodeDecodeError as err:
+        bad_line = data.count(b'\n', 0, err.start) + 1
+        msg = (f'not UTF-8 text: byte 0x{data[err.start]:02x} at offset {err.start} '
+               f'(line {bad_line})')
+        raise GcodeError(msg, file=name, line=0, column=0) from err
+    return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m)

@@ -1,0 +1,461 @@
+"""Modal interpreter of the G-code parser: words of one line -> moves in SI units.
+
+The dialect is documented in :mod:`.gcode`. :class:`Interpreter` keeps the whole modal state;
+:meth:`Interpreter.line` handles the common contour line (one motion G word, axis, centre, F
+and N words) inline and hands anything rarer to small helpers, so the hot path allocates
+little more than the :class:`~.program.Move` it produces.
+"""
+from __future__ import annotations
+
+import math
+
+from .errors import GcodeError
+from .gcode_lex import (ALLOWED_LETTERS, blank_comments, G_CODES, G_UNSUPPORTED, locate_word,
+                        M_CODES, UNSUPPORTED_LETTERS)
+from .program import Move, MoveKind
+
+__all__ = ['Interpreter']
+
+_REL_ARC_TOLERANCE = 1e-3
+_TWO_PI = 2.0 * math.pi
+_INF = float('inf')
+
+# Plane -> (first in-plane axis, second in-plane axis, normal axis), right-handed.
+_PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
+_CENTRE_LETTERS = ('I', 'J', 'K')
+_AXIS_LETTERS = ('X', 'Y', 'Z')
+_MOTION_KIND = (MoveKind.RAPID, MoveKind.LINEAR, MoveKind.ARC_CW, MoveKind.ARC_CCW)
+_MOTION_TEXT = {t: int(t) for t in ('0', '00', '1', '01', '2', '02', '3', '03')}
+# Letters that need no check beyond the motion itself.
+_STRAIGHT_WORDS = frozenset('XYZFNST')
+_ARC_WORDS = frozenset('XYZIJKRPFNST')
+
+
+class Interpreter:
+    """Modal state of a program being parsed and the interpretation of its lines.
+
+    Parameters
+    ----------
+    file
+        Name used in errors and warnings.
+    start
+        Tool position [m] before the first line.
+    arc_tolerance_m
+        Absolute part of the arc end-point tolerance [m].
+    lines
+        The source lines (as split by the caller), to show the offending word in errors.
+    """
+
+    __slots__ = ('file', 'arc_tol', 'pos', 'motion', 'plane', 'scale', 'absolute',
+                 'arc_absolute', 'inverse_time', 'feed', 'exact', 'coord', 'moves',
+                 'warnings', 'lineno', 'lines', 'ended', 'g_cache')
+
+    def __init__(self, file: str, start: tuple[float, float, float], arc_tolerance_m: float,
+                 *, lines: list[str]):
+        self.file = file
+        self.arc_tol = float(arc_tolerance_m)
+        self.pos = (float(start[0]), float(start[1]), float(start[2]))
+        self.motion: int | None = None      # G80 at start-up
+        self.plane = 17
+        self.scale = 0.001                  # G21: program units are mm
+        self.absolute = True                # G90
+        self.arc_absolute = False           # G91.1
+        self.inverse_time = False           # G94
+        self.feed: float | None = None      # m/s under G94, 1/min (this line only) under G93
+        self.exact = False                  # G64
+        self.coord = 54
+        self.moves: list[Move] = []
+        self.warnings: list[str] = []
+        self.lineno = 0
+        self.lines = lines
+        self.ended = False
+        self.g_cache: dict[str, tuple[str, object, int]] = {}
+
+    # -- errors ---------------------------------------------------------------------------
+    def fail(self, msg: str, letter: str, *, value: float | None = None, nth: int = 0):
+        """Raise a :class:`GcodeError` at the word ``letter`` (``value``, ``nth``) of the line."""
+        code = blank_comments(self.lines[self.lineno - 1], file=self.file, line=self.lineno)
+        column, text = locate_word(code, letter, value=value, nth=nth)
+        raise GcodeError(msg, file=self.file, line=self.lineno, column=column, text=text)
+
+    def num(self, letter: str, text: str) -> float:
+        """Value of a word; blanks inside the number are ignored (LinuxCNC rule)."""
+        try:
+            return float(text)
+        except ValueError:
+            pass
+        try:
+            return float(''.join(text.split()))
+        except ValueError:
+            self.fail(f'{letter}{"".join(text.split())} is not a number', letter)
+
+    def first_axis(self, d: dict[str, str]) -> str:
+        return next(a for a in _AXIS_LETTERS if a in d)
+
+    # -- one line -------------------------------------------------------------------------
+    def line(self, words: list[tuple[str, str]]) -> None:
+        """Interpret the ``(letter, number text)`` words of one line (letters upper case)."""
+        d = dict(words)
+        dwell = g9 = g64 = False
+        if len(d) == len(words):
+            g = d.pop('G', None)
+            ml = d.pop('M', None)
+            if ml is not None:
+                ml = (ml,)
+            if g is None:
+                motion = None
+            else:
+                motion = _MOTION_TEXT.get(g)
+                if motion is None:
+                    motion, dwell, g9, g64 = self.g_words((g,))
+        else:
+            gl, ml = self.split_repeated(words, d)
+            motion = None
+            if gl:
+                motion, dwell, g9, g64 = self.g_words(gl)
+        if not d.keys() <= ALLOWED_LETTERS:
+            self.unknown_letter(d)
+        if 'F' in d:
+            self.set_feed(d['F'])
+        if motion is not None:
+            self.motion = motion
+        mode = self.motion
+        has_axes = 'X' in d or 'Y' in d or 'Z' in d
+        is_arc = mode == 2 or mode == 3
+        if dwell or g64 or not d.keys() <= (_ARC_WORDS if is_arc and has_axes
+                                            else _STRAIGHT_WORDS):
+            self.check_extras(d, is_arc, has_axes, dwell, g64)
+        if has_axes:
+            if mode is None:
+                self.fail('axis words but no motion mode (G0/G1/G2/G3) is active',
+                          self.first_axis(d))
+            if is_arc:
+                self.arc(d, mode, g9, motion is not None)
+            else:
+                self.straight(d, mode, g9, motion is not None)
+        if ml:
+            self.m_words(ml)
+
+    def unknown_letter(self, d: dict[str, str]) -> None:
+        for letter in d:
+            if letter not in ALLOWED_LETTERS:
+                self.fail(UNSUPPORTED_LETTERS.get(letter, f'unknown word letter {letter!r}'),
+                          letter)
+
+    def split_repeated(self, words: list[tuple[str, str]],
+                       d: dict[str, str]) -> tuple[list[str], list[str]]:
+        """G and M words of a line with several of them; other letters must not repeat."""
+        gl: list[str] = []
+        ml: list[str] = []
+        seen: set[str] = set()
+        for letter, text in words:
+            if letter == 'G':
+                gl.append(text)
+            elif letter == 'M':
+                ml.append(text)
+            elif letter in seen:
+                self.fail(f'{letter} word repeated on one line', letter, nth=1)
+            else:
+                seen.add(letter)
+        d.pop('G', None)
+        d.pop('M', None)
+        return gl, ml
+
+    def check_extras(self, d: dict[str, str], is_arc: bool, has_axes: bool, dwell: bool,
+                     g64: bool) -> None:
+        """Words other than axes/F/N/S/T: run the dwell, refuse words nothing uses."""
+        if 'O' in d:
+            o = self.num('O', d['O'])
+            if len(d) > 1 or o != int(o):
+                self.fail('O-word subroutines and control flow are not supported', 'O')
+        if 'Q' in d and not g64:
+            self.fail('Q words (canned cycles) are not supported', 'Q')
+        arc_move = is_arc and has_axes
+        if is_arc and not has_axes:
+            for letter in 'IJKR':
+                if letter in d:
+                    self.fail('arc without an end point: give at least one axis word '
+                              '(repeat the start point for a full circle)', letter)
+        if not arc_move:
+            for letter in 'IJKR':
+                if letter in d:
+                    self.fail(f'{letter} word with no G2/G3 arc to use it', letter)
+        if dwell:
+            if arc_move:
+                self.fail('G4 and an arc on one line would share the P word', 'G', value=4.0)
+            self.dwell(d)
+        elif 'P' in d and not (arc_move or g64):
+            self.fail('P word with no G4, G2/G3 or G64 to use it', 'P')
+
+    def g_words(self, gl) -> tuple[int | None, bool, bool, bool]:
+        """Apply the modal G codes of a line; return (motion, dwell, G9, G64 present)."""
+        seen: dict[str, int] = {}
+        motion = None
+        dwell = g9 = g64 = False
+        cache = self.g_cache
+        for text in gl:
+            entry = cache.get(text)
+            if entry is None:
+                entry = self.g_lookup(text)
+                cache[text] = entry
+            group, arg, code = entry
+            if group in seen:
+                same = seen[group] == code
+                self.fail(f'G{seen[group] / 10:g} and G{code / 10:g} are in the same modal '
+                          f'group ({group}) on one line', 'G', value=code / 10, nth=int(same))
+            seen[group] = code
+            if group == 'motion':
+                motion = -1 if arg is None else arg
+            elif group == 'nonmodal':
+                dwell = arg == 'dwell'
+                g9 = arg == 'exact'
+            elif group == 'plane':
+                self.plane = arg
+            elif group == 'units':
+                self.scale = arg
+            elif group == 'distance':
+                self.absolute = arg
+            elif group == 'arc_distance':
+                self.arc_absolute = arg
+            elif group == 'feed_mode':
+                if arg != self.inverse_time:
+                    self.inverse_time = arg
+                    self.feed = None
+            elif group == 'control':
+                self.exact = arg
+                g64 = code == 640
+            elif group == 'coord':
+                if arg != self.coord and self.moves:
+                    self.warnings.append(
+                        f'{self.file}:{self.lineno}: G{arg} changes the work offset after '
+                        'motion; offsets are not simulated (motion stays in program '
+                        'coordinates)')
+                self.coord = arg
+        if motion == -1:
+            # G80: no motion mode until the next G0/G1/G2/G3.
+            self.motion = None
+            motion = None
+        return motion, dwell, g9, g64
+
+    def g_lookup(self, text: str) -> tuple[str, object, int]:
+        value = self.num('G', text)
+        code = round(value * 10.0)
+        whole = abs(value * 10.0 - code) <= 1e-6
+        if whole and code in G_CODES:
+            group, arg = G_CODES[code]
+            return group, arg, code
+        if whole and code in G_UNSUPPORTED:
+            self.fail(f'G{value:g} is not supported ({G_UNSUPPORTED[code]})', 'G', value=value)
+        self.fail(f'unknown G code G{value:g}', 'G', value=value)
+
+    def set_feed(self, text: str) -> None:
+        f = self.num('F', text)
+        if f < 0.0:
+            self.fail('negative feed rate', 'F')
+        # Under G93 the raw number (1/min) is kept; it is used only on this line.
+        self.feed = f if self.inverse_time else f * self.scale / 60.0
+
+    def dwell(self, d: dict[str, str]) -> None:
+        if 'P' not in d:
+            self.fail('G4 dwell needs a P word (seconds)', 'G', value=4.0)
+        seconds = self.num('P', d['P'])
+        if seconds < 0.0:
+            self.fail('negative dwell time', 'P')
+        p = self.pos
+        self.moves.append(Move(kind=MoveKind.DWELL, line=self.lineno, start=p, end=p,
+                               dwell_s=seconds))
+
+    def m_words(self, ml) -> None:
+        groups: dict[str, int] = {}
+        actions = []
+        for text in ml:
+            value = self.num('M', text)
+            code = int(value)
+            if code != value or code not in M_CODES:
+                self.fail(f'M{value:g} is not supported', 'M', value=value)
+            group, action = M_CODES[code]
+            if group in groups and {groups[group], code} != {7, 8}:
+                self.fail(f'M{groups[group]} and M{code} are in the same modal group on one '
+                          'line', 'M', value=value)
+            groups[group] = code
+            if action is not None:
+                actions.append(action)
+        for action in actions:
+            p = self.pos
+            self.moves.append(Move(kind=MoveKind.STOP, line=self.lineno, start=p, end=p))
+            if action == 'end':
+                self.ended = True
+
+    # -- motion ---------------------------------------------------------------------------
+    def target(self, d: dict[str, str]) -> tuple[float, float, float]:
+        """End point [m] of a move from the axis words of the line."""
+        x, y, z = pos = self.pos
+        s = self.scale
+        try:
+            if self.absolute:
+                if 'X' in d:
+                    x = float(d['X']) * s
+                if 'Y' in d:
+                    y = float(d['Y']) * s
+                if 'Z' in d:
+                    z = float(d['Z']) * s
+            else:
+                if 'X' in d:
+                    x += float(d['X']) * s
+                if 'Y' in d:
+                    y += float(d['Y']) * s
+                if 'Z' in d:
+                    z += float(d['Z']) * s
+        except ValueError:
+            # Rare: blanks inside a number, or not a number at all.
+            new = list(pos)
+            for i, letter in enumerate(_AXIS_LETTERS):
+                if letter in d:
+                    v = self.num(letter, d[letter]) * s
+                    new[i] = v if self.absolute else pos[i] + v
+            x, y, z = new
+        return (x, y, z)
+
+    def feed_for(self, d: dict[str, str], length: float, explicit: bool) -> float:
+        """Path feed [m/s] of a feed move of ``length`` metres on this line."""
+        feed = self.feed
+        if self.inverse_time:
+            if 'F' not in d:
+                self.fail('G93 inverse time: every feed move needs F on its line',
+                          *self.motion_word(explicit, d))
+            if feed == 0.0:
+                self.fail('F0 in G93: the move would never finish', 'F')
+            return length * feed / 60.0
+        if feed is None:
+            self.fail('no feed rate: give F before (or on) the first feed move',
+                      *self.motion_word(explicit, d))
+        if feed == 0.0:
+            self.fail('feed rate is zero', *(('F',) if 'F' in d
+                                             else self.motion_word(explicit, d)))
+        return feed
+
+    def motion_word(self, explicit: bool, d: dict[str, str]) -> tuple:
+        """Letter (and value) of the word to blame for this line's motion."""
+        if explicit:
+            return ('G', float(self.motion))
+        return (self.first_axis(d),)
+
+    def straight(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
+        start = self.pos
+        end = self.target(d)
+        length = math.dist(start, end)
+        if mode == 0:
+            feed = _INF
+        else:
+            feed = self.feed
+            if not feed or self.inverse_time:
+                feed = self.feed_for(d, length, explicit)
+        if length == 0.0:
+            return
+        self.moves.append(Move(kind=_MOTION_KIND[mode], line=self.lineno, start=start,
+                               end=end, feed_m_s=feed, exact_stop=self.exact or g9,
+                               length_m=length))
+        self.pos = end
+
+    def arc(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
+        start = self.pos
+        end = self.target(d)
+        a, b, n = _PLANE_AXES[self.plane]
+        turns = 0
+        if 'P' in d:
+            p = self.num('P', d['P'])
+            if p != int(p) or p < 1:
+                self.fail('P on G2/G3 is the number of turns: a whole number >= 1', 'P')
+            turns = int(p) - 1
+        if 'R' in d:
+            if 'I' in d or 'J' in d or 'K' in d:
+                self.fail('give either R or I/J/K for an arc, not both', 'R')
+            ca, cb = self.centre_from_radius(d, start, end, a, b, mode == 3)
+        else:
+            la = _CENTRE_LETTERS[a]
+            lb = _CENTRE_LETTERS[b]
+            try:
+                if _CENTRE_LETTERS[n] in d or self.arc_absolute:
+                    raise ValueError
+                ca = start[a] + float(d[la]) * self.scale if la in d else start[a]
+                cb = start[b] + float(d[lb]) * self.scale if lb in d else start[b]
+                if la not in d and lb not in d:
+                    raise ValueError
+            except ValueError:
+                # The checking (and absolute-centre) path.
+                ca, cb = self.centre_from_offsets(d, start, a, b, n)
+        sa = start[a] - ca
+        sb = start[b] - cb
+        ea = end[a] - ca
+        eb = end[b] - cb
+        r0 = math.hypot(sa, sb)
+        r1 = math.hypot(ea, eb)
+        if r0 == 0.0:
+            self.fail('arc radius is zero (centre at the start point)',
+                      *self.motion_word(explicit, d))
+        tol = max(self.arc_tol, _REL_ARC_TOLERANCE * r0)
+        if abs(r1 - r0) > tol:
+            self.fail(f'arc end is not on the circle: radius {r0 * 1e3:.4f} mm at the start, '
+                      f'{r1 * 1e3:.4f} mm at the end (tolerance {tol * 1e3:.4f} mm)',
+                      self.first_axis(d))
+        if math.hypot(ea - sa, eb - sb) <= tol:
+            sweep = _TWO_PI
+        else:
+            # Signed angle from start to end vector, in (-pi, pi], then taken the arc's way.
+            ang = math.atan2(sa * eb - sb * ea, sa * ea + sb * eb)
+            sweep = ang % _TWO_PI if mode == 3 else (-ang) % _TWO_PI
+        sweep += _TWO_PI * turns
+        length = math.hypot(sweep * 0.5 * (r0 + r1), end[n] - start[n])
+        feed = self.feed
+        if not feed or self.inverse_time:
+            feed = self.feed_for(d, length, explicit)
+        if n == 2:
+            centre = (ca, cb, start[2])
+        else:
+            c = [0.0, 0.0, 0.0]
+            c[a] = ca
+            c[b] = cb
+            c[n] = start[n]
+            centre = tuple(c)
+        self.moves.append(Move(kind=_MOTION_KIND[mode], line=self.lineno, start=start,
+                               end=end, feed_m_s=feed, exact_stop=self.exact or g9,
+                               center=centre, plane=self.plane, turns=turns,
+                               length_m=length))
+        self.pos = end
+
+    def centre_from_offsets(self, d: dict[str, str], start: tuple[float, float, float],
+                            a: int, b: int, n: int) -> tuple[float, float]:
+        normal = _CENTRE_LETTERS[n]
+        if normal in d:
+            self.fail(f'{normal} is not an in-plane centre word for G{self.plane}', normal)
+        la = _CENTRE_LETTERS[a]
+        lb = _CENTRE_LETTERS[b]
+        if la not in d and lb not in d:
+            self.fail(f'arc needs {la}/{lb} (centre) or R (radius) in G{self.plane}',
+                      self.first_axis(d))
+        oa = self.num(la, d[la]) * self.scale if la in d else 0.0
+        ob = self.num(lb, d[lb]) * self.scale if lb in d else 0.0
+        if self.arc_absolute:
+            return oa, ob
+        return start[a] + oa, start[b] + ob
+
+    def centre_from_radius(self, d: dict[str, str], start: tuple[float, float, float],
+                           end: tuple[float, float, float], a: int, b: int,
+                           ccw: bool) -> tuple[float, float]:
+        r = self.num('R', d['R']) * self.scale
+        if r == 0.0:
+            self.fail('R0: an arc needs a non-zero radius', 'R')
+        da = end[a] - start[a]
+        db = end[b] - start[b]
+        chord = math.hypot(da, db)
+        tol = max(self.arc_tol, _REL_ARC_TOLERANCE * abs(r))
+        if chord <= tol:
+            self.fail('R-form arc ending where it starts: use I/J/K for a full circle', 'R')
+        half = 0.5 * chord
+        if abs(r) < half - tol:
+            self.fail(f'R {abs(r) * 1e3:.4f} mm is smaller than half the chord '
+                      f'({half * 1e3:.4f} mm)', 'R')
+        h = math.sqrt(max(r * r - half * half, 0.0))
+        # The centre lies left of the chord for a CCW arc of at most 180 degrees.
+        side = (1.0 if ccw else -1.0) * (1.0 if r > 0.0 else -1.0) * h / chord
+        return (start[a] + 0.5 * da - side * db, start[b] + 0.5 * db + side * da)
