@@ -27,7 +27,7 @@ from .errors import DataError
 __all__ = ['NS_PER_S', 'seconds_to_ns', 'ns_to_seconds', 'batch_bounds', 'FlowWindow',
            'pacing_delay_s', 'block_starts', 'lines_at', 'StreamingPower', 'header_stamp_ns',
            'ProgramEnd', 'EndTracker', 'ChunkedBagWriter', 'merge_bag_metadata',
-           'latency_stats']
+           'latency_stats', 'read_raw']
 
 NS_PER_S = 1_000_000_000
 
@@ -483,3 +483,24 @@ def latency_stats(latencies_s: Sequence[float]) -> dict[str, float]:
         return {'median_s': math.nan, 'p99_s': math.nan, 'max_s': math.nan, 'n': 0}
     return {'median_s': float(np.median(arr)), 'p99_s': float(np.percentile(arr, 99)),
             'max_s': float(arr.max()), 'n': int(arr.shape[0])}
+
+
+def read_raw(path: str | Path, topics: Sequence[str]) -> list[tuple[str, int, bytes]]:
+    """Serialized messages of ``topics`` in a bag, by log time: ``[(topic, log_ns, cdr)]``.
+
+    Topics missing from the bag are skipped; ``DataError`` if none of them is present.
+    """
+    from rosbags.rosbag2 import Reader
+    path = Path(path)
+    if not (path / 'metadata.yaml').is_file():
+        msg = 'not a rosbag2 directory (no metadata.yaml)'
+        raise DataError(msg, file=str(path))
+    with Reader(path) as reader:
+        conns = [c for c in reader.connections if c.topic in topics]
+        if not conns:
+            have = ', '.join(sorted(c.topic for c in reader.connections)) or 'none'
+            msg = f'none of the topics {list(topics)} is in the bag (topics: {have})'
+            raise DataError(msg, file=str(path))
+        out = [(c.topic, int(t), bytes(raw)) for c, t, raw in reader.messages(connections=conns)]
+    out.sort(key=lambda m: m[1])
+    return out

@@ -20,7 +20,7 @@ from feed_axis_energy.core.graph import EndTracker, seconds_to_ns, StreamingPowe
 from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import latched_qos, stream_qos
-from feed_axis_energy.nodes.runner import declare, run
+from feed_axis_energy.nodes.runner import declare, run, steady_timer
 from feed_axis_energy.paths import default_machine
 
 __all__ = ['EnergyEstimator', 'main']
@@ -48,7 +48,7 @@ class EnergyEstimator(Node):
         self.create_subscription(JointTrajectory, 'program/lines', self._on_lines,
                                  latched_qos(), raw=True)
         self.create_subscription(DiagnosticArray, 'program/end', self._on_end, latched_qos())
-        self.create_timer(0.1, self._check_exit)
+        steady_timer(self, 0.1, self._check_exit)
 
     def _on_state(self, data: bytes) -> None:
         try:

@@ -26,7 +26,7 @@ from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.trajectory import plan
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import clock_qos, latched_qos, stream_qos
-from feed_axis_energy.nodes.runner import declare, run, STARTUP_ERRORS, StartupError
+from feed_axis_energy.nodes.runner import declare, run, STARTUP_ERRORS, StartupError, steady_timer
 from feed_axis_energy.paths import default_machine
 
 __all__ = ['GcodeTrajectory', 'main']
@@ -137,7 +137,7 @@ class GcodeTrajectory(LifecycleNode):
         """Start (or resume) streaming once the graph is matched."""
         self._streaming = True
         period = 0.002 if self.mode == 'realtime' else 0.01
-        self._timer = self.create_timer(period, self._pump)
+        self._timer = steady_timer(self, period, self._pump)
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:

@@ -23,7 +23,7 @@ from feed_axis_energy.core.errors import FeedAxisError
 from feed_axis_energy.core.graph import ChunkedBagWriter, EndTracker, header_stamp_ns
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import clock_qos, latched_qos, stream_qos
-from feed_axis_energy.nodes.runner import declare, run, StartupError
+from feed_axis_energy.nodes.runner import declare, run, StartupError, steady_timer
 
 __all__ = ['McapRecorder', 'main', 'KNOWN_TOPICS']
 
@@ -83,7 +83,7 @@ class McapRecorder(Node):
                                                  else stream_qos())
             self.create_subscription(cls, topic, self._callback(topic, name), qos, raw=True)
         self._last_flush = time.monotonic()
-        self.create_timer(min(self.chunk_period_s, 0.2), self._on_timer)
+        steady_timer(self, min(self.chunk_period_s, 0.2), self._on_timer)
         self.get_logger().info(f'recording {", ".join(topics)} to {out}')
 
     def _callback(self, topic: str, name: str):

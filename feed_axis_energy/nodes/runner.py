@@ -16,7 +16,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 
 from feed_axis_energy.core.errors import FeedAxisError
 
-__all__ = ['StartupError', 'run', 'declare', 'STARTUP_ERRORS']
+__all__ = ['StartupError', 'run', 'declare', 'steady_timer', 'STARTUP_ERRORS']
 
 
 class StartupError(RuntimeError):
@@ -31,6 +31,12 @@ def declare(node, name: str, default, description: str):
     value = node.declare_parameter(
         name, default, ParameterDescriptor(description=description)).value
     return value
+
+
+def steady_timer(node, period_s: float, callback):
+    """A timer on the steady clock: it keeps running with ``use_sim_time`` after /clock stops."""
+    from rclpy.clock import Clock, ClockType
+    return node.create_timer(period_s, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
 
 def run(factory: Callable[[], object], args: list[str] | None, *, name: str) -> int:

@@ -1,0 +1,238 @@
+"""``feed-axis-energy launch``: run the node graph as separate processes, without ros2 launch.
+
+Starts ``gcode_trajectory``, ``axis_dynamics``, ``energy_estimator`` (and ``mcap_recorder``
+with ``--record``) as ``python -m feed_axis_energy.nodes.<name> --ros-args ...`` with
+``config/graph.yaml`` plus the options given here, waits until the energy estimator has
+published the block energies (and the recorder has closed its bag), then stops the rest.
+If any node dies, every other node is stopped and the exit code is 1.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+from feed_axis_energy.paths import config_dir, program_path
+
+__all__ = ['add_parser', 'run', 'node_command', 'Supervisor']
+
+NODES = ('mcap_recorder', 'axis_dynamics', 'energy_estimator', 'gcode_trajectory')
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the subcommand."""
+    p = sub.add_parser(
+        'launch', help='run the ROS 2 node graph on an NC program (separate processes)',
+        description='Start the node graph (gcode_trajectory -> axis_dynamics -> '
+                    'energy_estimator, optionally mcap_recorder) on PROGRAM, wait for the '
+                    'program to finish and print where the recording is and what it holds.')
+    p.add_argument('--program', type=Path, default=None, metavar='NC',
+                   help='NC program (default: config/programs/demonstrator_f100.nc)')
+    p.add_argument('--machine', type=Path, default=None, metavar='YAML',
+                   help='machine config (default: the demonstrator)')
+    p.add_argument('--load-kg', type=float, default=0.0, metavar='KG',
+                   help='workpiece mass on the load axis [kg] (default: 0)')
+    p.add_argument('--mode', choices=('fast', 'realtime'), default='fast',
+                   help='fast: simulated time, as fast as possible (default); '
+                        'realtime: paced by the wall clock')
+    p.add_argument('--record', type=Path, default=None, metavar='DIR',
+                   help='record the graph into this rosbag2/MCAP directory (must not exist)')
+    p.add_argument('--domain-id', type=int, default=None, metavar='N',
+                   help='ROS_DOMAIN_ID for the graph (default: inherited)')
+    p.add_argument('--params', type=Path, default=None, metavar='YAML',
+                   help='node parameter file (default: config/graph.yaml)')
+    p.add_argument('--timeout', type=float, default=None, metavar='S',
+                   help='give up (exit 1) after this many seconds')
+    p.set_defaults(run=run)
+
+
+def _package_root() -> str:
+    return str(Path(__file__).resolve().parent.parent.parent)
+
+
+def node_command(name: str, params: dict[str, object], *,
+                 params_file: Path | None = None) -> list[str]:
+    """Command line that starts one node: ``python -m feed_axis_energy.nodes.<name> ...``."""
+    cmd = [sys.executable, '-u', '-m', f'feed_axis_energy.nodes.{name}', '--ros-args']
+    if params_file is not None:
+        cmd += ['--params-file', str(params_file)]
+    for key, value in params.items():
+        if isinstance(value, bool):
+            text = 'true' if value else 'false'
+        elif isinstance(value, str):
+            text = value if value else "''"
+        else:
+            text = repr(value)
+        cmd += ['-p', f'{key}:={text}']
+    return cmd
+
+
+def graph_commands(args: argparse.Namespace) -> dict[str, list[str]]:
+    """The command of every node of the graph for the parsed options."""
+    params_file = args.params if args.params is not None else config_dir() / 'graph.yaml'
+    if not params_file.is_file():
+        params_file = None
+    machine = {'machine': str(args.machine.resolve())} if args.machine is not None else {}
+    program = args.program if args.program is not None else program_path(
+        'demonstrator_f100.nc')
+    # Nodes stamp from the data and their timers run on the steady clock, so use_sim_time
+    # is not needed (it works if set in the parameter file).
+    sim_time: dict[str, object] = {}
+    cmds = {
+        'gcode_trajectory': node_command('gcode_trajectory', {
+            **machine, 'program': str(Path(program).resolve()), 'mode': args.mode,
+            'ack_recorder': args.record is not None}, params_file=params_file),
+        'axis_dynamics': node_command('axis_dynamics', {
+            **machine, 'load_kg': float(args.load_kg), **sim_time}, params_file=params_file),
+        'energy_estimator': node_command('energy_estimator', {
+            **machine, 'exit_at_end': True, **sim_time}, params_file=params_file),
+    }
+    if args.record is not None:
+        cmds['mcap_recorder'] = node_command('mcap_recorder', {
+            'output': str(args.record.resolve()), 'exit_at_end': True, **sim_time},
+            params_file=params_file)
+    return cmds
+
+
+class Supervisor:
+    """Child processes of the graph: start, watch, stop.
+
+    Parameters
+    ----------
+    commands
+        ``{name: argv}``.
+    finishers
+        Names whose exit with code 0 means "done"; any other exit is a failure.
+    env
+        Environment of the children.
+    """
+
+    def __init__(self, commands: dict[str, list[str]], *, finishers: set[str],
+                 env: dict[str, str], echo: bool = True) -> None:
+        self.commands = commands
+        self.finishers = set(finishers)
+        self.env = env
+        self.echo = echo
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.logs: dict[str, list[str]] = {name: [] for name in commands}
+        self._threads: list[threading.Thread] = []
+
+    def start(self) -> None:
+        """Start every child in its own session (Ctrl-C reaches only the launcher)."""
+        for name, cmd in self.commands.items():
+            proc = subprocess.Popen(cmd, env=self.env, stdout=subprocess.PIPE,
+                                    stderr=subprocess.STDOUT, text=True,
+                                    start_new_session=True)
+            self.procs[name] = proc
+            thread = threading.Thread(target=self._pump, args=(name, proc), daemon=True)
+            thread.start()
+            self._threads.append(thread)
+
+    def _pump(self, name: str, proc: subprocess.Popen) -> None:
+        for line in proc.stdout:
+            line = line.rstrip('\n')
+            self.logs[name].append(line)
+            if self.echo:
+                print(f'[{name}] {line}', flush=True)
+
+    def poll(self) -> tuple[str, str | None]:
+        """``('running', None)``, ``('done', None)`` or ``('failed', reason)``."""
+        finished = 0
+        for name, proc in self.procs.items():
+            code = proc.poll()
+            if code is None:
+                continue
+            if code != 0:
+                return 'failed', f'{name} exited with code {code}'
+            if name not in self.finishers:
+                return 'failed', f'{name} exited before the program finished'
+            finished += 1
+        return ('done', None) if finished == len(self.finishers) else ('running', None)
+
+    def stop(self, *, timeout_s: float = 5.0) -> None:
+        """SIGINT every running child, then SIGKILL what is left after ``timeout_s``."""
+        for proc in self.procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + timeout_s
+        for proc in self.procs.values():
+            try:
+                proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        for thread in self._threads:
+            thread.join(timeout=1.0)
+
+
+def _describe_bag(path: Path) -> None:
+    from feed_axis_energy.core import bagio
+    topics = bagio.bag_topics(path)
+    print(f'recording: {path}')
+    for topic, (msgtype, count) in sorted(topics.items()):
+        print(f'  {topic:<16} {msgtype:<38} {count} messages')
+    if bagio.TOPIC_POWER in topics:
+        power = bagio.read_series(path, bagio.TOPIC_POWER)
+        if power.t.shape[0]:
+            energies = ', '.join(f'{n} {e:.3f} J' for n, e in
+                                 zip(power.names, power.positions[-1]))
+            print(f'  {power.t.shape[0]} samples, {power.t[-1] - power.t[0]:.3f} s; '
+                  f'energy: {energies}')
+    blocks = bagio.read_block_energy(path) if bagio.TOPIC_BLOCK_ENERGY in topics else []
+    if blocks:
+        print(f'  block energy of {len(blocks)} source lines (topic /block_energy)')
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand."""
+    if args.record is not None and args.record.exists():
+        msg = f'{args.record} exists already; choose a new output directory'
+        raise FileExistsError(msg)
+    if args.program is not None and not args.program.is_file():
+        print(f'error: {args.program}: no such program file', file=sys.stderr)
+        return 1
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join(
+        [_package_root()] + ([env['PYTHONPATH']] if env.get('PYTHONPATH') else []))
+    if args.domain_id is not None:
+        env['ROS_DOMAIN_ID'] = str(args.domain_id)
+    finishers = {'energy_estimator'} | ({'mcap_recorder'} if args.record is not None else set())
+    sup = Supervisor(graph_commands(args), finishers=finishers, env=env)
+    stop_reason: list[str] = []
+
+    def on_signal(signum, frame) -> None:
+        stop_reason.append(signal.Signals(signum).name)
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    t0 = time.monotonic()
+    try:
+        sup.start()
+        while True:
+            state, reason = sup.poll()
+            if state != 'running' or stop_reason:
+                break
+            if args.timeout is not None and time.monotonic() - t0 > args.timeout:
+                state, reason = 'failed', f'timeout after {args.timeout:g} s'
+                break
+            time.sleep(0.1)
+    finally:
+        sup.stop()
+        for s, handler in old.items():
+            signal.signal(s, handler)
+    if stop_reason:
+        print(f'stopped by {stop_reason[0]}; all nodes shut down', file=sys.stderr)
+        if args.record is not None and (args.record / 'metadata.yaml').is_file():
+            _describe_bag(args.record)
+        return 130
+    if state == 'failed':
+        print(f'error: {reason}; all nodes stopped', file=sys.stderr)
+        return 1
+    print(f'graph finished in {time.monotonic() - t0:.2f} s')
+    if args.record is not None:
+        _describe_bag(args.record)
+    return 0
