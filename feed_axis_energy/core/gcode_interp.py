@@ -115,6 +115,8 @@ class Interpreter:
                 motion, dwell, g9, g64 = self.g_words(gl)
         if not d.keys() <= ALLOWED_LETTERS:
             self.unknown_letter(d)
+        if ml:
+            ml = self.m_words(ml)
         if 'F' in d:
             self.set_feed(d['F'])
         if motion is not None:
@@ -134,7 +136,7 @@ class Interpreter:
             else:
                 self.straight(d, mode, g9, motion is not None)
         if ml:
-            self.m_words(ml)
+            self.stop(ml)
 
     def unknown_letter(self, d: dict[str, str]) -> None:
         for letter in d:
@@ -265,7 +267,8 @@ class Interpreter:
         self.moves.append(Move(kind=MoveKind.DWELL, line=self.lineno, start=p, end=p,
                                dwell_s=seconds))
 
-    def m_words(self, ml) -> None:
+    def m_words(self, ml) -> list[str]:
+        """Check the M words of a line; return the stop actions (run after the motion)."""
         groups: dict[str, int] = {}
         actions = []
         for text in ml:
@@ -280,6 +283,10 @@ class Interpreter:
             groups[group] = code
             if action is not None:
                 actions.append(action)
+        return actions
+
+    def stop(self, actions: list[str]) -> None:
+        """STOP moves for M0/M1/M2/M30; M2/M30 end the program."""
         for action in actions:
             p = self.pos
             self.moves.append(Move(kind=MoveKind.STOP, line=self.lineno, start=p, end=p))
@@ -321,24 +328,25 @@ class Interpreter:
         feed = self.feed
         if self.inverse_time:
             if 'F' not in d:
-                self.fail('G93 inverse time: every feed move needs F on its line',
-                          *self.motion_word(explicit, d))
+                self.fail_motion('G93 inverse time: every feed move needs F on its line',
+                                 explicit, d)
             if feed == 0.0:
                 self.fail('F0 in G93: the move would never finish', 'F')
             return length * feed / 60.0
         if feed is None:
-            self.fail('no feed rate: give F before (or on) the first feed move',
-                      *self.motion_word(explicit, d))
+            self.fail_motion('no feed rate: give F before (or on) the first feed move',
+                             explicit, d)
         if feed == 0.0:
-            self.fail('feed rate is zero', *(('F',) if 'F' in d
-                                             else self.motion_word(explicit, d)))
+            if 'F' in d:
+                self.fail('feed rate is zero', 'F')
+            self.fail_motion('feed rate is zero', explicit, d)
         return feed
 
-    def motion_word(self, explicit: bool, d: dict[str, str]) -> tuple:
-        """Letter (and value) of the word to blame for this line's motion."""
+    def fail_motion(self, msg: str, explicit: bool, d: dict[str, str]):
+        """Fail at the word that asked for this line's motion (its G word or first axis)."""
         if explicit:
-            return ('G', float(self.motion))
-        return (self.first_axis(d),)
+            self.fail(msg, 'G', value=float(self.motion))
+        self.fail(msg, self.first_axis(d))
 
     def straight(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
         start = self.pos
@@ -391,8 +399,7 @@ class Interpreter:
         r0 = math.hypot(sa, sb)
         r1 = math.hypot(ea, eb)
         if r0 == 0.0:
-            self.fail('arc radius is zero (centre at the start point)',
-                      *self.motion_word(explicit, d))
+            self.fail_motion('arc radius is zero (centre at the start point)', explicit, d)
         tol = max(self.arc_tol, _REL_ARC_TOLERANCE * r0)
         if abs(r1 - r0) > tol:
             self.fail(f'arc end is not on the circle: radius {r0 * 1e3:.4f} mm at the start, '

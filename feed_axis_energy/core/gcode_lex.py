@@ -164,6 +164,11 @@ def diagnose_line(code: str, *, file: str, line: int) -> GcodeError:
                 msg = f'unexpected character {ch!r}; expected a letter (G, X, F, ...)'
             return GcodeError(msg, file=file, line=line, column=col + 1, text=code[col:col + 12])
         if m.group(2) is None:
+            after = code[m.end():].lstrip()
+            if after[:1] in ('#', '['):
+                col = len(code) - len(after) + 1
+                msg = 'parameters and expressions (#, [...]) are not supported'
+                return GcodeError(msg, file=file, line=line, column=col, text=after[:12])
             col = m.start(1) + 1
             letter = m.group(1).upper()
             msg = f'expected a number after {letter!r}'
