@@ -90,6 +90,7 @@ class Interpreter:
             self.fail(f'{letter}{"".join(text.split())} is not a number', letter)
 
     def first_axis(self, d: dict[str, str]) -> str:
+        """First axis letter present on the line (for error places)."""
         return next(a for a in _AXIS_LETTERS if a in d)
 
     # -- one line -------------------------------------------------------------------------
@@ -139,6 +140,7 @@ class Interpreter:
             self.stop(ml)
 
     def unknown_letter(self, d: dict[str, str]) -> None:
+        """Fail at the first letter the interpreter does not accept."""
         for letter in d:
             if letter not in ALLOWED_LETTERS:
                 self.fail(UNSUPPORTED_LETTERS.get(letter, f'unknown word letter {letter!r}'),
@@ -240,6 +242,7 @@ class Interpreter:
         return motion, dwell, g9, g64
 
     def g_lookup(self, text: str) -> tuple[str, object, int]:
+        """(group, argument, 10 x code) of a G word, or fail naming why it is refused."""
         value = self.num('G', text)
         code = round(value * 10.0)
         whole = abs(value * 10.0 - code) <= 1e-6
@@ -251,6 +254,7 @@ class Interpreter:
         self.fail(f'unknown G code G{value:g}', 'G', value=value)
 
     def set_feed(self, text: str) -> None:
+        """Read F: m/s under G94 (in the units now in force), 1/min under G93."""
         f = self.num('F', text)
         if f < 0.0:
             self.fail('negative feed rate', 'F')
@@ -258,6 +262,7 @@ class Interpreter:
         self.feed = f if self.inverse_time else f * self.scale / 60.0
 
     def dwell(self, d: dict[str, str]) -> None:
+        """Append the G4 dwell of P seconds."""
         if 'P' not in d:
             self.fail('G4 dwell needs a P word (seconds)', 'G', value=4.0)
         seconds = self.num('P', d['P'])
@@ -349,6 +354,7 @@ class Interpreter:
         self.fail(msg, self.first_axis(d))
 
     def straight(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
+        """Append a G0/G1 move (none if it has zero length)."""
         start = self.pos
         end = self.target(d)
         length = math.dist(start, end)
@@ -366,6 +372,7 @@ class Interpreter:
         self.pos = end
 
     def arc(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
+        """Append a G2/G3 arc or helix after checking its end lies on the circle."""
         start = self.pos
         end = self.target(d)
         a, b, n = _PLANE_AXES[self.plane]
@@ -432,6 +439,7 @@ class Interpreter:
 
     def centre_from_offsets(self, d: dict[str, str], start: tuple[float, float, float],
                             a: int, b: int, n: int) -> tuple[float, float]:
+        """In-plane centre [m] from I/J/K (incremental under G91.1, absolute under G90.1)."""
         normal = _CENTRE_LETTERS[n]
         if normal in d:
             self.fail(f'{normal} is not an in-plane centre word for G{self.plane}', normal)
@@ -449,6 +457,7 @@ class Interpreter:
     def centre_from_radius(self, d: dict[str, str], start: tuple[float, float, float],
                            end: tuple[float, float, float], a: int, b: int,
                            ccw: bool) -> tuple[float, float]:
+        """In-plane centre [m] from R (negative R: the arc over 180 degrees)."""
         r = self.num('R', d['R']) * self.scale
         if r == 0.0:
             self.fail('R0: an arc needs a non-zero radius', 'R')
