@@ -75,6 +75,7 @@ class FlowWindow:
         self.window = int(window)
         self._acked = {s: -1 for s in sources}
         self._in_flight: deque[int] = deque()
+        self._last_sent = -1
 
     @property
     def acked_ns(self) -> int:
@@ -92,9 +93,10 @@ class FlowWindow:
 
     def sent(self, stamp_ns: int) -> None:
         """Record a batch sent with header stamp ``stamp_ns`` (stamps increase)."""
-        if self._in_flight and stamp_ns <= self._in_flight[-1]:
-            msg = f'batch stamps must increase: {stamp_ns} after {self._in_flight[-1]}'
+        if stamp_ns <= self._last_sent:
+            msg = f'batch stamps must increase: {stamp_ns} after {self._last_sent}'
             raise ValueError(msg)
+        self._last_sent = int(stamp_ns)
         self._in_flight.append(int(stamp_ns))
 
     def ack(self, source: str, stamp_ns: int) -> int:

@@ -1,0 +1,225 @@
+"""The node graph over real DDS (loopback), each test in its own ROS domain."""
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip('rclpy')
+
+from feed_axis_energy.core import bagio  # noqa: E402
+from feed_axis_energy.core.energy import energy_by_line  # noqa: E402
+from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
+from feed_axis_energy.core.machine import load_machine  # noqa: E402
+from feed_axis_energy.core.recording import simulation_series  # noqa: E402
+from feed_axis_energy.core.simulate import simulate_program  # noqa: E402
+from feed_axis_energy.paths import default_machine  # noqa: E402
+
+PY = sys.executable
+
+
+def _node(name, params, env, **kw):
+    cmd = [PY, '-m', f'feed_axis_energy.nodes.{name}', '--ros-args']
+    for k, v in params.items():
+        cmd += ['-p', f'{k}:={v}']
+    return subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True, **kw)
+
+
+def test_launch_recording_equals_offline_simulation(tmp_path, short_program, node_env,
+                                                    domain_id):
+    bag = tmp_path / 'graph_bag'
+    out = subprocess.run(
+        [PY, '-m', 'feed_axis_energy', 'launch', '--program', str(short_program),
+         '--record', str(bag), '--domain-id', str(domain_id), '--load-kg', '5',
+         '--timeout', '40'], env=node_env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert f'recording: {bag}' in out.stdout
+    machine = load_machine(default_machine())
+    result = simulate_program(load_gcode(short_program), machine, load_kg=5.0)
+    offline = simulation_series(result, {a.name: a.screw.lead_m for a in machine.axes})
+    for topic, ref in offline.items():
+        got = bagio.read_series(bag, topic)
+        assert got.names == ref.names
+        assert got.t.shape == ref.t.shape
+        np.testing.assert_allclose(got.t, ref.t, rtol=0, atol=1e-9)
+        for field in ('positions', 'velocities', 'accelerations', 'effort'):
+            a, b = getattr(ref, field), getattr(got, field)
+            assert (a is None) == (b is None), (topic, field)
+            if a is not None:
+                np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-12)
+    power = bagio.read_series(bag, bagio.TOPIC_POWER)
+    np.testing.assert_allclose(power.positions[-1, -1], result.power.total_energy_j[-1],
+                               rtol=1e-9)
+    ref_blocks = energy_by_line(result.power)
+    got_blocks = bagio.read_block_energy(bag)
+    assert [b[0] for b in got_blocks] == [b[0] for b in ref_blocks]
+    np.testing.assert_allclose([b[1] for b in got_blocks], [b[1] for b in ref_blocks],
+                               rtol=1e-9, atol=1e-9)
+
+
+def _measured_bag(path, n=3000, batch=10):
+    t = np.arange(n) * 1e-3 + 1.0
+    power = bagio.Series(t=t, names=('X', 'total'),
+                         positions=np.column_stack((t, t)), velocities=np.ones((n, 2)))
+    with bagio.BagWriter(path) as w:
+        w.write_series(bagio.TOPIC_MEASURED_POWER, power, batch=batch)
+    return power
+
+
+def _collect(domain_id, topic, until_n, timeout_s, started):
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from trajectory_msgs.msg import JointTrajectory
+    from feed_axis_energy.core.graph import header_stamp_ns
+    from feed_axis_energy.nodes.qos import stream_qos
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    node = rclpy.create_node('collector', context=ctx)
+    got = []
+    node.create_subscription(JointTrajectory, topic,
+                             lambda d: got.append((header_stamp_ns(d), time.monotonic(), d)),
+                             stream_qos(), raw=True)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(node)
+    proc = started()
+    try:
+        deadline = time.monotonic() + timeout_s
+        while len(got) < until_n and time.monotonic() < deadline:
+            ex.spin_once(timeout_sec=0.05)
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+    return got, proc
+
+
+@pytest.mark.parametrize('rate', [0.0, 2.0])
+def test_replay_complete_and_in_order(tmp_path, node_env, domain_id, rate):
+    from feed_axis_energy.nodes import convert
+    n = 3000 if rate == 0 else 1000
+    ref = _measured_bag(tmp_path / 'measured', n=n)
+    got, proc = _collect(domain_id, 'measured/power', n // 10, 30, lambda: _node(
+        'measured_replay', {'bag': tmp_path / 'measured', 'rate': rate}, node_env))
+    try:
+        assert proc.wait(timeout=15) == 0
+    finally:
+        proc.kill()
+    stamps = [g[0] for g in got]
+    assert len(got) == n // 10
+    assert stamps == sorted(stamps)
+    t = np.concatenate([convert.cdr_to_series(g[2]).t for g in got])
+    np.testing.assert_allclose(t, ref.t, rtol=0, atol=1e-12)
+    if rate > 0:   # 1 s of data at twice the speed: about 0.5 s from first to last
+        span = got[-1][1] - got[0][1]
+        assert 0.4 < span < 1.5
+
+
+def test_recorder_survives_sigkill(tmp_path, node_env, domain_id):
+    import rclpy
+    from rclpy.context import Context
+    from trajectory_msgs.msg import JointTrajectory
+    from feed_axis_energy.nodes import convert
+    from feed_axis_energy.nodes.qos import stream_qos
+    bag = tmp_path / 'rec'
+    rec = _node('mcap_recorder', {'output': bag, 'topics': '[power]', 'chunk_period_s': 0.2},
+                node_env, start_new_session=True)
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    node = rclpy.create_node('writer', context=ctx)
+    pub = node.create_publisher(JointTrajectory, 'power', stream_qos())
+    sent = []
+    try:
+        deadline = time.monotonic() + 20
+        while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.3)
+        for i in range(150):   # 1.5 s of 10-sample batches
+            s = bagio.Series(t=(i * 10 + np.arange(10)) * 1e-3, names=('X', 'total'),
+                             positions=np.ones((10, 2)), velocities=np.ones((10, 2)))
+            ((stamp, cdr),) = convert.series_to_cdr(s, batch=10)
+            pub.publish(cdr)
+            sent.append(stamp)
+            time.sleep(0.01)
+        time.sleep(0.1)
+        os.kill(rec.pid, signal.SIGKILL)
+        rec.wait(timeout=5)
+    finally:
+        rec.kill()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+    got = bagio.read_series(bag, bagio.TOPIC_POWER)   # readable without a clean close
+    n = got.t.shape[0] // 10
+    assert 10 <= n <= len(sent)
+    np.testing.assert_allclose(got.t[::10], np.array(sent[:n]) / 1e9, atol=1e-12)
+
+
+@pytest.mark.parametrize('name,params,expect', [
+    ('gcode_trajectory', {'program': '/nonexistent/prog.nc'}, 'prog.nc'),
+    ('gcode_trajectory', {'program': 'x.nc', 'mode': 'warp'}, 'mode'),
+    ('axis_dynamics', {'load_kg': -1.0}, 'load_kg'),
+    ('axis_dynamics', {'load_kg': 'heavy'}, 'load_kg'),
+    ('mcap_recorder', {}, 'output'),
+])
+def test_bad_parameters_exit_nonzero_with_a_clear_line(name, params, expect, node_env):
+    proc = _node(name, params, node_env)
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 1, out
+    assert 'Traceback' not in out
+    assert expect in out and 'cannot start' in out
+
+
+def test_bad_machine_config_exits_nonzero(tmp_path, node_env):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('name: bad\naxes: {X: {table_mass_kg: -3}}\n')
+    proc = _node('energy_estimator', {'machine': bad}, node_env)
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 1 and 'Traceback' not in out and 'bad.yaml' in out
+
+
+def _children(pid):
+    kids = []
+    for entry in Path('/proc').iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / 'stat').read_text()
+                cmd = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
+            except OSError:
+                continue
+            if int(stat.rsplit(')', 1)[1].split()[1]) == pid:
+                kids.append((int(entry.name), cmd))
+    return kids
+
+
+def test_launcher_stops_everything_when_a_node_dies(tmp_path, node_env, domain_id):
+    prog = tmp_path / 'long.nc'
+    prog.write_text('G21 G90 G94 G61\nG0 X0\nG1 X300 F600\n')   # 30 s in real time
+    launcher = subprocess.Popen(
+        [PY, '-m', 'feed_axis_energy', 'launch', '--program', str(prog), '--mode', 'realtime',
+         '--domain-id', str(domain_id), '--timeout', '60'], env=node_env,
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        deadline = time.monotonic() + 20
+        kids = []
+        while time.monotonic() < deadline:
+            kids = _children(launcher.pid)
+            if len(kids) == 3:
+                break
+            time.sleep(0.2)
+        assert len(kids) == 3
+        time.sleep(2.0)
+        victim = next(pid for pid, cmd in kids if 'nodes.axis_dynamics' in cmd)
+        os.kill(victim, signal.SIGKILL)
+        out, _ = launcher.communicate(timeout=20)
+    finally:
+        launcher.kill()
+    assert launcher.returncode == 1
+    assert 'axis_dynamics exited with code' in out
+    for pid, _ in kids:
+        assert not Path(f'/proc/{pid}').exists() or 'Z' in Path(
+            f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
