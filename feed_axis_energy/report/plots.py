@@ -1,0 +1,131 @@
+"""The paper's three plots per run (Figs 6-8 kind), drawn with matplotlib's Agg canvas only.
+
+* power: actual power over time, measured vs simulated (Fig 6 kind), one panel for the sum of
+  the measured axes and one per axis when there are several;
+* energy: consumed energy over time, measured vs simulated (Fig 7 kind);
+* error: differential error ``P_meas - P_sim`` [W] and percentual error
+  ``100 |dP| / |P_meas|`` [%] over time (Fig 8 kind); the percentual error is drawn only where
+  ``|P_meas|`` is above the run's floor, as in the metrics.
+
+No pyplot: figures are :class:`matplotlib.figure.Figure` objects on an Agg canvas, so nothing
+touches a display or global state.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+import numpy as np
+
+from feed_axis_energy.core.measured.compare import RunComparison
+
+__all__ = ['PLOT_KINDS', 'plot_energy', 'plot_error', 'plot_power', 'write_run_plots']
+
+PLOT_KINDS = ('power', 'energy', 'error')
+
+_MEAS = dict(color='#1f4e9a', lw=1.1, label='measured')
+_SIM = dict(color='#d9480f', lw=1.1, ls='--', label='simulated')
+
+
+def _title(run: RunComparison, what: str) -> str:
+    return f'{run.name}: {what}, load {run.load_kg:g} kg'
+
+
+def _offset_note(run: RunComparison) -> str:
+    return (f'simulation shifted by {run.offset_used_s:+.3f} s (offset {run.offset.status}); '
+            f'simulated power averaged over {run.window_s * 1e3:.0f} ms intervals')
+
+
+def _save(fig: Figure, path: Path, dpi: int) -> Path:
+    FigureCanvasAgg(fig)
+    fig.savefig(path, dpi=dpi)
+    return path
+
+
+def plot_power(run: RunComparison, path: Path, *, dpi: int = 100) -> Path:
+    """Actual power over time, measured vs simulated (Fig 6 kind); returns ``path``."""
+    panels = [('sum of ' + ', '.join(run.axes) if len(run.axes) > 1 else f'axis {run.axes[0]}',
+               run.total_meas_w, run.total_sim_w)]
+    if len(run.axes) > 1:
+        panels += [(f'axis {a}', run.power_meas_w[:, j], run.power_sim_w[:, j])
+                   for j, a in enumerate(run.axes)]
+    fig = Figure(figsize=(10, 2.2 + 2.0 * len(panels)), layout='constrained')
+    axs = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, (label, meas, sim) in zip(axs, panels):
+        ax.plot(run.t, meas, **_MEAS)
+        ax.plot(run.t, sim, **_SIM)
+        ax.set_ylabel(f'power [W]\n{label}')
+        ax.grid(True, alpha=0.3)
+    axs[0].legend(loc='upper right')
+    axs[-1].set_xlabel('time [s]')
+    fig.suptitle(f'{_title(run, "actual power")}\n{_offset_note(run)}', fontsize=10)
+    return _save(fig, path, dpi)
+
+
+def plot_energy(run: RunComparison, path: Path, *, dpi: int = 100) -> Path:
+    """Consumed energy over time, measured vs simulated (Fig 7 kind); returns ``path``."""
+    e_meas = run.energy_meas_j()
+    e_sim = run.energy_sim_j()
+    fig = Figure(figsize=(10, 4.2), layout='constrained')
+    ax = fig.subplots()
+    ax.plot(run.t, e_meas, **_MEAS)
+    ax.plot(run.t, e_sim, **_SIM)
+    m = run.metrics
+    pct = f'{m.energy_error_pct:+.1f} %' if np.isfinite(m.energy_error_pct) else 'n/a'
+    ax.set_title(f'at the end: measured {m.energy_meas_j:.1f} J, simulated '
+                 f'{m.energy_sim_j:.1f} J, error {m.energy_error_j:+.1f} J ({pct})',
+                 fontsize=9)
+    ax.set_xlabel('time [s]')
+    ax.set_ylabel('energy [J]')
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc='upper left')
+    what = 'consumed energy' + (f' (sum of {", ".join(run.axes)})' if len(run.axes) > 1 else '')
+    fig.suptitle(_title(run, what), fontsize=10)
+    return _save(fig, path, dpi)
+
+
+def plot_error(run: RunComparison, path: Path, *, dpi: int = 100) -> Path:
+    """Differential [W] and percentual [%] error over time (Fig 8 kind); returns ``path``."""
+    meas = run.total_meas_w
+    diff = meas - run.total_sim_w
+    m = run.metrics
+    above = (np.abs(meas) >= m.pct_floor_w) & (np.abs(meas) > 0.0)
+    pct = np.full(meas.shape, np.nan)
+    pct[above] = 100.0 * np.abs(diff[above]) / np.abs(meas[above])
+    fig = Figure(figsize=(10, 5.6), layout='constrained')
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    ax1.plot(run.t, diff, color='#5f3dc4', lw=1.0, label='P_meas - P_sim')
+    ax1.axhline(0.0, color='k', lw=0.6)
+    for sign in (1.0, -1.0):
+        ax1.axhline(sign * m.avg_diff_error_w, color='#2b8a3e', lw=0.9, ls=':',
+                    label=f'± average |dP| = {m.avg_diff_error_w:.2f} W' if sign > 0 else None)
+    ax1.set_ylabel('differential error [W]')
+    ax1.legend(loc='upper right', fontsize=8)
+    ax1.grid(True, alpha=0.3)
+    ax2.plot(run.t, pct, color='#c92a2a', lw=1.0, marker='.', ms=2.5,
+             label=f'100 |dP| / |P_meas| where |P_meas| ≥ {m.pct_floor_w:.3g} W')
+    if np.isfinite(m.avg_pct_error_pct):
+        ax2.axhline(m.avg_pct_error_pct, color='#2b8a3e', lw=0.9, ls=':',
+                    label=f'average {m.avg_pct_error_pct:.2f} %')
+    ax2.set_ylabel('percentual error [%]')
+    ax2.set_xlabel('time [s]')
+    ax2.set_ylim(bottom=0.0)
+    ax2.legend(loc='best', fontsize=8)
+    ax2.grid(True, alpha=0.3)
+    what = 'differential and percentual error'
+    if len(run.axes) > 1:
+        what += f' (sum of {", ".join(run.axes)})'
+    fig.suptitle(f'{_title(run, what)}\n{_offset_note(run)}', fontsize=10)
+    return _save(fig, path, dpi)
+
+
+def write_run_plots(run: RunComparison, out_dir: Path, stem: str, *,
+                    dpi: int = 100) -> dict[str, str]:
+    """Write the three plots of one run as ``{stem}_{kind}.png``; return kind -> file name."""
+    out = {}
+    for kind, fn in (('power', plot_power), ('energy', plot_energy), ('error', plot_error)):
+        name = f'{stem}_{kind}.png'
+        fn(run, Path(out_dir) / name, dpi=dpi)
+        out[kind] = name
+    return out
