@@ -1,0 +1,269 @@
+"""Effect catalog machinery: parameters, the state effects are computed from, the registry.
+
+An *effect* is a physical phenomenon the declared machine model may be missing. Each effect
+adds an extra actual power ``power_w(state, params)`` [W], shape ``(n, k)``, on top of the
+declared model's per-axis power. ``state`` is an :class:`EffectState` built from a simulation
+of the declared model (:func:`effect_state`). Where the power is linear in the parameters,
+``basis(state, params)`` returns ``(n, k, p)`` columns with
+``power_w == sum_i basis[..., i] * value_i`` over the effect's *linear* parameters (in
+declaration order); *shape* parameters (e.g. a Stribeck speed) are held fixed by ``params``
+and searched for outside the regression.
+
+Parameter values are floats, or arrays broadcastable to ``(k,)`` for one value per axis.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..machine import GRAVITY_M_S2, Machine
+
+__all__ = ['Param', 'EffectState', 'Effect', 'EFFECTS', 'register_effect', 'get_effect',
+           'effect_state', 'state_from_simulation', 'effects_power_w', 'ParamValue']
+
+ParamValue = float | np.ndarray
+
+
+@dataclass(frozen=True)
+class Param:
+    """One named effect parameter.
+
+    Attributes
+    ----------
+    name
+        Name, carrying its unit where that helps (``f_pos_n``).
+    unit
+        SI unit as text (``'N'``, ``'W/(N*m)^2'``, ``'-'``).
+    default
+        Value meaning "effect absent" (or, for shape parameters, a typical value).
+    low, high
+        Plausible bounds (for searches and sanity checks; not enforced).
+    example
+        A typical non-zero value, used when an effect is requested without values.
+    description
+        One line.
+    linear
+        ``True`` when the power is linear in this parameter (it gets a basis column).
+    """
+
+    name: str
+    unit: str
+    default: float
+    low: float
+    high: float
+    example: float
+    description: str
+    linear: bool = True
+
+
+@dataclass(frozen=True)
+class EffectState:
+    """What effects are computed from: one simulation of the declared model (SI units).
+
+    Attributes
+    ----------
+    t
+        Time since program start [s], ``(n,)``.
+    axes
+        Axis names (columns).
+    position_m, velocity_m_s, acceleration_m_s2
+        Carriage kinematics, ``(n, k)``.
+    angle_rad, omega_rad_s
+        Screw angle and angular velocity, ``(n, k)``.
+    force_n, torque_nm
+        Declared model's nut force and screw torque, ``(n, k)``.
+    mass_kg
+        Moved mass per axis (tables + load) [kg], ``(k,)``.
+    load_kg
+        Workpiece mass [kg].
+    normal_force_n
+        Guideway normal force ``m·g·|cos(incl)|`` per axis [N], ``(k,)``.
+    lead_m
+        Screw lead per axis [m], ``(k,)``.
+    mechanical_w
+        Declared ``M·omega`` per axis before the braking rule [W], ``(n, k)``.
+    power_w
+        Declared actual power per axis after the braking rule [W], ``(n, k)``.
+    """
+
+    t: np.ndarray
+    axes: tuple[str, ...]
+    position_m: np.ndarray
+    velocity_m_s: np.ndarray
+    acceleration_m_s2: np.ndarray
+    angle_rad: np.ndarray
+    omega_rad_s: np.ndarray
+    force_n: np.ndarray
+    torque_nm: np.ndarray
+    mass_kg: np.ndarray
+    load_kg: float
+    normal_force_n: np.ndarray
+    lead_m: np.ndarray
+    mechanical_w: np.ndarray
+    power_w: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(n, k)``: samples and axes."""
+        return (int(self.t.shape[0]), len(self.axes))
+
+
+def effect_state(dyn, power, *, machine: Machine) -> EffectState:
+    """Build an :class:`EffectState` from dynamics and power of the declared model.
+
+    Parameters
+    ----------
+    dyn
+        :class:`~feed_axis_energy.core.dynamics.AxisDynamics`.
+    power
+        :class:`~feed_axis_energy.core.energy.PowerResult` of the same samples.
+    machine
+        The machine (for the inclination that sets the guideway normal force).
+
+    Returns
+    -------
+    EffectState
+        The state.
+    """
+    incl = np.radians([machine.axis(a).inclination_deg for a in dyn.axes])
+    mass = np.asarray(dyn.mass_kg, dtype=float)
+    return EffectState(
+        t=np.asarray(dyn.t, dtype=float), axes=tuple(dyn.axes), position_m=dyn.position_m,
+        velocity_m_s=dyn.velocity_m_s, acceleration_m_s2=dyn.acceleration_m_s2,
+        angle_rad=dyn.angle_rad, omega_rad_s=dyn.omega_rad_s, force_n=dyn.force_n,
+        torque_nm=dyn.torque_nm, mass_kg=mass, load_kg=float(dyn.load_kg),
+        normal_force_n=mass * GRAVITY_M_S2 * np.abs(np.cos(incl)), lead_m=dyn.lead_m,
+        mechanical_w=power.mechanical_w, power_w=power.power_w)
+
+
+def state_from_simulation(result) -> EffectState:
+    """:func:`effect_state` of a :class:`~feed_axis_energy.core.simulate.SimulationResult`."""
+    return effect_state(result.dynamics, result.power, machine=result.machine)
+
+
+class Effect:
+    """Base of every catalog effect; subclasses set the class attributes and ``_basis``.
+
+    Class attributes
+    ----------------
+    id
+        Registry name.
+    description
+        One line: the physics.
+    formula
+        The extra power as text (for the catalog table).
+    params
+        The parameters, linear ones first in basis order.
+    exact_basis
+        ``True`` when ``power_w == basis · linear values`` holds exactly; ``False`` when the
+        basis is a first-order approximation (see ``time_offset``).
+    """
+
+    id: ClassVar[str] = ''
+    description: ClassVar[str] = ''
+    formula: ClassVar[str] = ''
+    params: ClassVar[tuple[Param, ...]] = ()
+    exact_basis: ClassVar[bool] = True
+
+    @classmethod
+    def param_names(cls) -> tuple[str, ...]:
+        """All parameter names."""
+        return tuple(p.name for p in cls.params)
+
+    @classmethod
+    def linear_params(cls) -> tuple[str, ...]:
+        """Names of the parameters with a basis column, in basis order."""
+        return tuple(p.name for p in cls.params if p.linear)
+
+    @classmethod
+    def shape_params(cls) -> tuple[str, ...]:
+        """Names of the parameters the power is non-linear in (found by a 1-D search)."""
+        return tuple(p.name for p in cls.params if not p.linear)
+
+    @classmethod
+    def resolve(cls, params: Mapping[str, ParamValue] | None = None) -> dict[str, ParamValue]:
+        """Return every parameter's value: given ones, defaults for the rest.
+
+        Raises
+        ------
+        ConfigError
+            An unknown parameter name or a non-finite value, naming the effect.
+        """
+        out: dict[str, ParamValue] = {p.name: p.default for p in cls.params}
+        for name, value in (params or {}).items():
+            if name not in out:
+                msg = (f'effect {cls.id!r} has no parameter {name!r}; '
+                       f'expected one of {", ".join(out) or "(none)"}')
+                raise ConfigError(msg, key=f'effects.{cls.id}.{name}')
+            arr = np.asarray(value, dtype=float)
+            if not np.all(np.isfinite(arr)):
+                msg = f'parameter {name!r} of effect {cls.id!r} must be finite, got {value!r}'
+                raise ConfigError(msg, key=f'effects.{cls.id}.{name}')
+            out[name] = float(arr) if arr.ndim == 0 else arr
+        return out
+
+    def basis(self, state: EffectState,
+              params: Mapping[str, ParamValue] | None = None) -> np.ndarray:
+        """Basis columns ``(n, k, p)`` of the linear parameters (shape ones from ``params``)."""
+        values = self.resolve(params)
+        cols = self._basis(state, values)
+        n, k = state.shape
+        return np.stack([np.broadcast_to(c, (n, k)) for c in cols], axis=-1)
+
+    def power_w(self, state: EffectState,
+                params: Mapping[str, ParamValue] | None = None) -> np.ndarray:
+        """Extra actual power per axis [W], ``(n, k)``."""
+        values = self.resolve(params)
+        n, k = state.shape
+        total = np.zeros((n, k))
+        for col, name in zip(self._basis(state, values), self.linear_params()):
+            total = total + np.asarray(col) * np.broadcast_to(values[name], (k,))
+        return total
+
+    def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
+        raise NotImplementedError
+
+
+EFFECTS: dict[str, type] = {}
+
+
+def register_effect(cls: type) -> type:
+    """Class decorator: add ``cls`` to :data:`EFFECTS` under ``cls.id``."""
+    if not cls.id or cls.id in EFFECTS:
+        msg = f'effect id {cls.id!r} is empty or registered twice'
+        raise ValueError(msg)
+    names = [p.name for p in cls.params]
+    linear = [p.linear for p in cls.params]
+    # Linear parameters first keeps the basis order equal to the declaration order.
+    if linear != sorted(linear, reverse=True) or len(set(names)) != len(names):
+        msg = f'effect {cls.id!r}: parameters must be unique, linear ones first'
+        raise ValueError(msg)
+    EFFECTS[cls.id] = cls
+    return cls
+
+
+def get_effect(effect_id: str) -> Effect:
+    """Return an instance of the registered effect ``effect_id``.
+
+    Raises
+    ------
+    ConfigError
+        Unknown id, naming it and the known ones.
+    """
+    if effect_id not in EFFECTS:
+        msg = f'unknown effect {effect_id!r}; expected one of {", ".join(EFFECTS)}'
+        raise ConfigError(msg, key='effects')
+    return EFFECTS[effect_id]()
+
+
+def effects_power_w(state: EffectState,
+                    effects: Sequence[tuple[str, Mapping[str, ParamValue]]]) -> np.ndarray:
+    """Sum of the extra power of several effects ``[(id, params), ...]`` [W], ``(n, k)``."""
+    total = np.zeros(state.shape)
+    for effect_id, params in effects:
+        total = total + get_effect(effect_id).power_w(state, params)
+    return total

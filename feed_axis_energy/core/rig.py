@@ -1,0 +1,479 @@
+"""Virtual test rig: "measured" campaigns made from a truth model, for testing the analysis.
+
+Truth = the declared machine (its loss model, its braking rule) + catalog effects the
+analysed model does not declare (:mod:`.effects`) + optionally one effect that is *not* in
+the catalog (``outside``: a periodic disturbance at a frequency unrelated to the screw, or a
+power step at a position), so that an analyser can be checked for honesty. Per axis::
+
+    P_truth = P_declared + sum(effect.power_w(state, params)) [+ outside]
+
+computed at the simulation rate (1 kHz) on the program's motion padded with rest before and
+after. The instrument then
+
+* stamps a sample every ``period_s`` (file time ``tau = 0, period, ...``) with the mean of
+  ``P_truth`` over ``[tau - offset_s - window_s, tau - offset_s]`` (simulated time; the
+  convention of :mod:`.measured.align`: ``offset_s`` is how much later the record is);
+* applies a slow drift ``P·(1 + gain_drift·tau) + offset_drift·tau``;
+* adds Gaussian noise (``noise_w``, independent per axis and sample);
+* quantises to ``quantum_w``.
+
+Output directory (:func:`make_campaign`)::
+
+    manifest.yaml      campaign manifest read by measured.load_campaign
+    machine.yaml       copy of the declared machine file
+    programs/f<F>.nc   reciprocating stroke at F mm/s on the machine's load axis
+    runs/<run>.csv     one CSV per run (layout below)
+    truth.json         true effects, parameters and offsets (for tests only)
+
+CSV layout, one row per instrument stamp: ``time_ms`` (instrument clock [ms], starts at
+``CLOCK_START_MS``), then per axis ``<A>_power_kW`` [kW], ``<A>_position_mm`` [mm] and
+``<A>_velocity_mm_s`` [mm/s] (instantaneous values at the stamp). The same seed gives
+byte-identical files.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+import json
+import math
+from pathlib import Path
+import shutil
+from typing import Any
+
+import numpy as np
+import yaml
+
+from .effects import EffectState, get_effect, state_from_simulation
+from .errors import ConfigError
+from .gcode import parse_gcode
+from .machine import load_machine, Machine
+from .measured.align import interval_average
+from .motion import Motion
+from .simulate import simulate_motion, simulate_program, SimulationResult
+
+__all__ = ['PAPER_LOADS_KG', 'PAPER_FEEDS_MM_S', 'OUTSIDE_KINDS', 'CLOCK_START_MS',
+           'EffectSpec', 'Instrument', 'RigConfig', 'RigRun', 'parse_effects',
+           'paper_scenario', 'stroke_program', 'outside_power_w', 'truth_power_w',
+           'instrument_record', 'simulate_run', 'make_campaign']
+
+PAPER_LOADS_KG = (0.0, 17.336, 22.711)
+PAPER_FEEDS_MM_S = (100.0, 200.0, 300.0, 400.0, 500.0)
+CLOCK_START_MS = 60000.0
+MARKER = '.feed_axis_energy_rig'
+
+# Effects deliberately absent from the catalog, with their fixed parameters.
+OUTSIDE_KINDS: dict[str, dict[str, float]] = {
+    # e.g. a coolant pump on the same supply: 3.7 Hz has nothing to do with the screw.
+    'periodic': {'amplitude_w': 20.0, 'frequency_hz': 3.7},
+    # e.g. a cable chain that starts dragging beyond a position: a step, not a cosine.
+    'position_step': {'step_w': 25.0, 'position_m': 0.25},
+}
+
+
+@dataclass(frozen=True)
+class EffectSpec:
+    """One truth effect: catalog id and parameter values (missing ones take defaults)."""
+
+    id: str
+    params: Mapping[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Instrument:
+    """The power meter: averaging window, report period, noise, quantisation, drift."""
+
+    window_s: float = 0.05
+    period_s: float = 0.05
+    noise_w: float = 0.0
+    quantum_w: float = 1.0
+    gain_drift_per_s: float = 0.0
+    offset_drift_w_per_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ('window_s', 'period_s'):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                msg = f'{name} must be a finite number > 0, got {value!r}'
+                raise ConfigError(msg, key=f'instrument.{name}')
+        for name in ('noise_w', 'quantum_w'):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                msg = f'{name} must be a finite number >= 0, got {value!r}'
+                raise ConfigError(msg, key=f'instrument.{name}')
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """A virtual campaign.
+
+    Attributes
+    ----------
+    machine
+        Declared machine file (also the truth's base).
+    loads_kg, feeds_mm_s
+        One run per (feed, load).
+    effects
+        Truth effects the declared model lacks.
+    instrument
+        Measurement artefacts.
+    seed
+        Seed of every random draw (offsets, noise).
+    offset_s
+        Start offset of every record [s]; ``None`` draws one per run in [0.2, 0.8) s.
+    outside
+        ``None`` or a key of :data:`OUTSIDE_KINDS`.
+    stroke_mm, cycles, dwell_s
+        The reciprocating program (paper: 400 mm, 1 s dwell).
+    tail_s
+        Recording after the program ends [s].
+    """
+
+    machine: Path
+    loads_kg: tuple[float, ...] = PAPER_LOADS_KG
+    feeds_mm_s: tuple[float, ...] = PAPER_FEEDS_MM_S
+    effects: tuple[EffectSpec, ...] = ()
+    instrument: Instrument = Instrument()
+    seed: int = 0
+    offset_s: float | None = None
+    outside: str | None = None
+    stroke_mm: float = 400.0
+    cycles: int = 3
+    dwell_s: float = 1.0
+    tail_s: float = 1.0
+
+
+@dataclass(frozen=True)
+class RigRun:
+    """One virtual run: the truth at the simulation rate and what the instrument recorded.
+
+    Attributes
+    ----------
+    result
+        Simulation of the declared model on the padded motion.
+    truth_w
+        True power per axis [W], ``(n, k)`` on ``result.power.t``.
+    stamps_s
+        Instrument stamps [s] from the first sample, ``(m,)``.
+    measured_w
+        Recorded power per axis [W], ``(m, k)``.
+    offset_s
+        How much later the record is than the simulation [s].
+    """
+
+    result: SimulationResult
+    truth_w: np.ndarray
+    stamps_s: np.ndarray
+    measured_w: np.ndarray
+    offset_s: float
+
+
+def parse_effects(text: str) -> tuple[EffectSpec, ...]:
+    """Parse ``ID=PARAM:VALUE,PARAM:VALUE,ID2=...`` (or ``ID`` alone for example values).
+
+    ``''`` or ``'none'`` gives no effect. An id without ``=`` takes every parameter's
+    example value; with ``=``, unnamed parameters take their defaults.
+
+    Raises
+    ------
+    ConfigError
+        Unknown effect id or parameter (named), or a value that is not a number.
+    """
+    text = text.strip()
+    if text in ('', 'none'):
+        return ()
+    out: list[tuple[str, dict[str, float]]] = []
+    for item in (part.strip() for part in text.split(',')):
+        if not item:
+            continue
+        if '=' in item or ':' not in item:
+            effect_id, _, rest = item.partition('=')
+            effect = get_effect(effect_id.strip())
+            values = {} if '=' in item else {p.name: p.example for p in effect.params}
+            out.append((effect.id, values))
+            item = rest.strip()
+            if not item:
+                continue
+        if not out:
+            msg = f'{item!r} names no effect; expected ID=PARAM:VALUE'
+            raise ConfigError(msg, key='effects')
+        name, _, value = item.partition(':')
+        effect_id, values = out[-1]
+        try:
+            number = float(value)
+        except ValueError:
+            msg = f'value of {effect_id}.{name.strip()} is not a number: {value!r}'
+            raise ConfigError(msg, key='effects') from None
+        values[name.strip()] = number
+    specs = []
+    for effect_id, values in out:
+        get_effect(effect_id).resolve(values)
+        specs.append(EffectSpec(effect_id, dict(values)))
+    return tuple(specs)
+
+
+def paper_scenario(machine: str | Path, *, seed: int = 0, mu: float = 0.1,
+                   noise_w: float = 2.0, outside: str | None = None) -> RigConfig:
+    """The paper's verification campaign with load-dependent friction in the truth.
+
+    Declared loss function as in ``machine``; runs at 0, 17.336 and 22.711 kg and 100 ... 500
+    mm/s; truth adds ``load_friction`` with ``mu``; 50 ms averaging meter with noise and 1 W
+    quantisation; a random start offset per run. With ``mu = 0.1`` the 22.711 kg load adds
+    2.2 W at 100 mm/s and 11 W at 500 mm/s of friction power over the empty table.
+    """
+    return RigConfig(machine=Path(machine), effects=(EffectSpec('load_friction', {'mu': mu}),),
+                     instrument=Instrument(noise_w=noise_w), seed=seed, outside=outside)
+
+
+def stroke_program(feed_mm_s: float, *, axis: str, stroke_mm: float = 400.0,
+                   cycles: int = 3, dwell_s: float = 1.0) -> str:
+    """NC text of the paper's reciprocating stroke: ``cycles`` back-and-forth moves."""
+    feed = f'{feed_mm_s * 60.0:g}'
+    lines = [f'( virtual rig: reciprocating {stroke_mm:g} mm stroke on {axis} at '
+             f'{feed_mm_s:g} mm/s, {dwell_s:g} s dwell )', 'G21 G90 G94 G61',
+             f'G0 {axis}0', f'G4 P{dwell_s:g}']
+    for _ in range(cycles):
+        lines += [f'G1 {axis}{stroke_mm:g} F{feed}', f'G4 P{dwell_s:g}',
+                  f'{axis}0', f'G4 P{dwell_s:g}']
+    lines.append('M30')
+    return '\n'.join(lines) + '\n'
+
+
+def outside_power_w(kind: str, state: EffectState) -> np.ndarray:
+    """Extra power of an effect outside the catalog [W], ``(n, k)`` (see OUTSIDE_KINDS)."""
+    if kind not in OUTSIDE_KINDS:
+        known = ', '.join(OUTSIDE_KINDS)
+        msg = f'unknown outside-catalog effect {kind!r}; expected one of {known}'
+        raise ConfigError(msg, key='outside')
+    p = OUTSIDE_KINDS[kind]
+    n, k = state.shape
+    if kind == 'periodic':
+        wave = p['amplitude_w'] * np.sin(2.0 * np.pi * p['frequency_hz'] * state.t)
+        return np.broadcast_to(wave[:, None], (n, k)).copy()
+    moving = state.velocity_m_s != 0.0
+    return p['step_w'] * (moving & (state.position_m > p['position_m']))
+
+
+def truth_power_w(result: SimulationResult, effects: Sequence[EffectSpec], *,
+                  outside: str | None = None) -> np.ndarray:
+    """Declared power after braking + truth effects (+ outside effect) per axis [W]."""
+    state = state_from_simulation(result)
+    total = np.array(result.power.power_w, dtype=float)
+    for spec in effects:
+        total += get_effect(spec.id).power_w(state, spec.params)
+    if outside is not None:
+        total += outside_power_w(outside, state)
+    return total
+
+
+def instrument_record(t: np.ndarray, power_w: np.ndarray, *, instrument: Instrument,
+                      offset_s: float, end_s: float,
+                      rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """What the meter records of ``power_w`` (sampled at ``t``), see the module docstring.
+
+    Parameters
+    ----------
+    t, power_w
+        True power [W], ``(n,)`` or ``(n, k)``, at times ``t`` [s] (held outside).
+    instrument
+        The meter.
+    offset_s
+        How much later the record is than ``t``: the first stamp averages up to
+        ``-offset_s`` of ``t``'s time.
+    end_s
+        Last time of ``t``'s scale to cover; stamps stop at or before it.
+    rng
+        Noise source (required when ``instrument.noise_w > 0``).
+
+    Returns
+    -------
+    stamps, recorded
+        File times from 0 [s] ``(m,)`` and recorded power [W], ``(m,)`` or ``(m, k)``.
+    """
+    count = int(math.floor((end_s + offset_s) / instrument.period_s + 1e-9)) + 1
+    if count < 2:
+        msg = f'record too short: end {end_s!r} s with offset {offset_s!r} s'
+        raise ConfigError(msg, key='offset_s')
+    stamps = np.arange(count) * instrument.period_s
+    y = interval_average(t, power_w, stamps - offset_s, window_s=instrument.window_s)
+    drift = stamps if y.ndim == 1 else stamps[:, None]
+    y = y * (1.0 + instrument.gain_drift_per_s * drift) + instrument.offset_drift_w_per_s * drift
+    if instrument.noise_w > 0.0:
+        if rng is None:
+            raise ConfigError('instrument noise needs a random generator', key='rng')
+        y = y + rng.normal(0.0, instrument.noise_w, size=y.shape)
+    if instrument.quantum_w > 0.0:
+        y = np.round(y / instrument.quantum_w) * instrument.quantum_w
+    return stamps, y
+
+
+def _pad(motion: Motion, *, before_s: float, after_s: float, rate_hz: float) -> Motion:
+    dt = 1.0 / rate_hz
+    n_pre = int(math.ceil(before_s / dt))
+    n_post = int(math.ceil(after_s / dt))
+    t = np.concatenate([motion.t[0] - dt * np.arange(n_pre, 0, -1), motion.t,
+                        motion.t[-1] + dt * np.arange(1, n_post + 1)])
+    k = len(motion.axes)
+    pos = np.vstack([np.repeat(motion.pos[:1], n_pre, axis=0), motion.pos,
+                     np.repeat(motion.pos[-1:], n_post, axis=0)])
+    rest = (np.zeros((n_pre, k)), np.zeros((n_post, k)))
+    vel = np.vstack([rest[0], motion.vel, rest[1]])
+    acc = np.vstack([rest[0], motion.acc, rest[1]])
+    line = np.concatenate([np.zeros(n_pre, dtype=motion.line.dtype), motion.line,
+                           np.zeros(n_post, dtype=motion.line.dtype)])
+    return Motion(t=t, axes=motion.axes, pos=pos, vel=vel, acc=acc, line=line,
+                  source=motion.source)
+
+
+def simulate_run(machine: Machine, program_text: str, *, load_kg: float,
+                 effects: Sequence[EffectSpec], instrument: Instrument, offset_s: float,
+                 outside: str | None = None, tail_s: float = 1.0,
+                 rng: np.random.Generator | None = None, file: str = '<rig>') -> RigRun:
+    """Simulate one run of the truth model and record it with the instrument.
+
+    The planned motion is padded with rest so that the first window (before the program
+    starts when ``offset_s > 0``) and ``tail_s`` after its end are covered by the truth.
+    """
+    program = parse_gcode(program_text, file=file)
+    options = machine.planner.options()
+    planned = simulate_program(program, machine, load_kg=load_kg, options=options)
+    margin = 3.0 / options.rate_hz
+    motion = _pad(planned.motion, before_s=max(offset_s, 0.0) + instrument.window_s + margin,
+                  after_s=tail_s + margin, rate_hz=options.rate_hz)
+    result = simulate_motion(motion, machine, load_kg=load_kg)
+    truth = truth_power_w(result, effects, outside=outside)
+    stamps, measured = instrument_record(result.power.t, truth, instrument=instrument,
+                                         offset_s=offset_s,
+                                         end_s=float(planned.motion.t[-1]) + tail_s, rng=rng)
+    return RigRun(result=result, truth_w=truth, stamps_s=stamps, measured_w=measured,
+                  offset_s=float(offset_s))
+
+
+def _prepare_out(out: Path) -> None:
+    if out.exists():
+        if any(out.iterdir()) and not (out / MARKER).exists():
+            msg = f'{out} exists, is not empty and was not written by the rig; choose another'
+            raise ConfigError(msg, file='rig', key='out')
+        shutil.rmtree(out)
+    (out / 'programs').mkdir(parents=True)
+    (out / 'runs').mkdir()
+    (out / MARKER).write_text('written by the feed_axis_energy virtual rig\n')
+
+
+def _write_csv(path: Path, run: RigRun, axes: tuple[str, ...]) -> None:
+    motion_t = run.result.motion.t
+    sim_t = run.stamps_s - run.offset_s
+    header = ['time_ms']
+    cols = [CLOCK_START_MS + run.stamps_s * 1000.0]
+    fmt = ['{:.3f}']
+    for j, axis in enumerate(axes):
+        pos = np.interp(sim_t, motion_t, run.result.motion.pos[:, j])
+        vel = np.interp(sim_t, motion_t, run.result.motion.vel[:, j])
+        header += [f'{axis}_power_kW', f'{axis}_position_mm', f'{axis}_velocity_mm_s']
+        cols += [run.measured_w[:, j] / 1000.0, pos * 1000.0, vel * 1000.0]
+        fmt += ['{:.12g}', '{:.4f}', '{:.4f}']
+    lines = [','.join(header)]
+    for row in zip(*cols):
+        # '+ 0.0' turns -0.0 into 0.0 so that files do not depend on rounding signs.
+        lines.append(','.join(f.format(float(v) + 0.0) for f, v in zip(fmt, row)))
+    path.write_text('\n'.join(lines) + '\n', encoding='utf-8')
+
+
+def _manifest(config: RigConfig, axes: tuple[str, ...],
+              runs: list[dict[str, Any]]) -> dict[str, Any]:
+    columns = {a: {'power': {'column': f'{a}_power_kW', 'unit': 'kW'},
+                   'position': {'column': f'{a}_position_mm', 'unit': 'mm'},
+                   'velocity': {'column': f'{a}_velocity_mm_s', 'unit': 'mm/s'}}
+               for a in axes}
+    return {
+        'name': 'virtual_rig',
+        'description': (f'virtual test rig, seed {config.seed}: time_ms [ms], per axis '
+                        '<A>_power_kW [kW] (50 ms interval average), <A>_position_mm [mm], '
+                        '<A>_velocity_mm_s [mm/s]'),
+        'machine': 'machine.yaml',
+        'defaults': {'time': {'column': 'time_ms', 'unit': 'ms'}, 'axes': columns},
+        'runs': [{'name': r['name'], 'notes': r['notes'], 'load_kg': r['load_kg'],
+                  'motion': {'program': r['program']}, 'data': r['data'], 'role': r['role']}
+                 for r in runs],
+    }
+
+
+def make_campaign(out: str | Path, config: RigConfig) -> Path:
+    """Write a virtual campaign (manifest, machine, programs, CSVs, truth) into ``out``.
+
+    ``out`` must not exist, be empty, or hold an earlier rig output (which is replaced).
+
+    Returns
+    -------
+    pathlib.Path
+        The manifest file.
+    """
+    out = Path(out)
+    machine = load_machine(config.machine)
+    for spec in config.effects:
+        get_effect(spec.id).resolve(spec.params)
+    if config.outside is not None and config.outside not in OUTSIDE_KINDS:
+        msg = f'unknown outside-catalog effect {config.outside!r}; ' \
+              f'expected one of {", ".join(OUTSIDE_KINDS)}'
+        raise ConfigError(msg, key='outside')
+    if not config.loads_kg or not config.feeds_mm_s:
+        raise ConfigError('the rig needs at least one load and one feed', key='loads/feeds')
+    if any(not (math.isfinite(f) and f > 0.0) for f in config.feeds_mm_s):
+        msg = f'feeds must be finite numbers > 0 mm/s, got {list(config.feeds_mm_s)}'
+        raise ConfigError(msg, key='feeds')
+    _prepare_out(out)
+    shutil.copyfile(config.machine, out / 'machine.yaml')
+    rng = np.random.default_rng(config.seed)
+    runs: list[dict[str, Any]] = []
+    axes: tuple[str, ...] = ()
+    for i, feed in enumerate(config.feeds_mm_s):
+        program_rel = f'programs/f{feed:g}.nc'
+        text = stroke_program(feed, axis=machine.load_axis, stroke_mm=config.stroke_mm,
+                              cycles=config.cycles, dwell_s=config.dwell_s)
+        (out / program_rel).write_text(text, encoding='utf-8')
+        for load in config.loads_kg:
+            name = f'f{feed:g}_load{load:g}kg'
+            offset = (float(rng.uniform(0.2, 0.8)) if config.offset_s is None
+                      else float(config.offset_s))
+            run = simulate_run(machine, text, load_kg=load, effects=config.effects,
+                               instrument=config.instrument, offset_s=offset,
+                               outside=config.outside, tail_s=config.tail_s, rng=rng,
+                               file=program_rel)
+            axes = run.result.power.axes
+            data_rel = f'runs/{name}.csv'
+            _write_csv(out / data_rel, run, axes)
+            runs.append({'name': name, 'load_kg': float(load), 'feed_mm_s': float(feed),
+                         'offset_s': offset, 'program': program_rel, 'data': data_rel,
+                         'role': 'calibrate' if i % 2 == 0 else 'validate',
+                         'notes': f'feed {feed:g} mm/s, load {load:g} kg'})
+    manifest = out / 'manifest.yaml'
+    manifest.write_text(yaml.safe_dump(_manifest(config, axes, runs), sort_keys=False),
+                        encoding='utf-8')
+    truth = {
+        'note': 'truth of the virtual rig: for tests only, an analyser must not read it',
+        'machine': Path(config.machine).name, 'seed': config.seed,
+        'effects': [{'id': s.id, 'params': get_effect(s.id).resolve(s.params)}
+                    for s in config.effects],
+        'outside': None if config.outside is None else {
+            'kind': config.outside, 'params': OUTSIDE_KINDS[config.outside]},
+        'instrument': asdict(config.instrument),
+        'offset_convention': 'offset_s: how much later the record is than the simulation '
+                             '(measured.align); file time 0 = first row',
+        'clock_start_ms': CLOCK_START_MS,
+        'runs': [{k: r[k] for k in ('name', 'load_kg', 'feed_mm_s', 'offset_s', 'program',
+                                    'data', 'role')} for r in runs],
+    }
+    (out / 'truth.json').write_text(json.dumps(_jsonable(truth), indent=2, sort_keys=True)
+                                    + '\n', encoding='utf-8')
+    return manifest
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
