@@ -15,7 +15,7 @@ from feed_axis_energy.core.errors import FeedAxisError
 __all__ = ['main', 'build_parser']
 
 # Order is the order shown in --help.
-SUBCOMMANDS = ('simulate', 'demo', 'launch')
+SUBCOMMANDS = ('simulate', 'demo', 'compare', 'launch')
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,133 @@
+"""``feed-axis-energy compare``: measured runs of a campaign against the simulation (Table 1)."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+from feed_axis_energy.cli.common import format_table
+from feed_axis_energy.cli.progress import Progress
+from feed_axis_energy.core.errors import ConfigError
+from feed_axis_energy.core.machine import load_machine
+from feed_axis_energy.core.measured.compare import (CampaignComparison, compare_campaign,
+                                                    DEFAULT_MAX_LAG_S)
+from feed_axis_energy.core.measured.manifest import load_campaign
+from feed_axis_energy.core.measured.metrics import Metrics
+
+__all__ = ['add_parser', 'run']
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the subcommand."""
+    p = sub.add_parser(
+        'compare', help='compare measured runs of a campaign with the simulation (Table 1)',
+        description='Load every run of the campaign MANIFEST, simulate it (from its NC program '
+                    'or from the positions in its data) with its load, find the time offset '
+                    'of the measured record by cross-correlation, average the simulated power '
+                    'over each measuring interval and print the paper\'s Table-1 metrics '
+                    '(average/maximum differential [W] and percentual [%] error), the energy '
+                    'error and the RMSE per run and per load. See docs/compare.md.')
+    p.add_argument('manifest', type=Path, metavar='MANIFEST', help='campaign manifest (YAML)')
+    p.add_argument('--json', action='store_true',
+                   help='print one JSON object instead of the tables (keys in docs/compare.md)')
+    p.add_argument('--report', type=Path, metavar='DIR',
+                   help='write plots (power, energy, error per run) and index.html to DIR '
+                        '(replaced if it holds an earlier report)')
+    p.add_argument('--runs', metavar='NAME,...',
+                   help='compare only these runs, in this order (default: all)')
+    p.add_argument('--role', choices=('calibrate', 'validate'),
+                   help='compare only the runs with this role')
+    p.add_argument('--machine', type=Path, metavar='YAML',
+                   help="machine config (default: the manifest's machine)")
+    p.add_argument('--max-lag-s', type=float, default=DEFAULT_MAX_LAG_S, metavar='S',
+                   help=f'largest time offset searched, either way [s] '
+                        f'(default: {DEFAULT_MAX_LAG_S:g})')
+    p.add_argument('--quiet', action='store_true', help='no progress indication')
+    p.set_defaults(run=run)
+
+
+def _selected(args: argparse.Namespace, campaign) -> list[str] | None:
+    names = None
+    if args.runs is not None:
+        names = [n.strip() for n in args.runs.split(',') if n.strip()]
+        if not names:
+            raise ConfigError('--runs needs at least one run name', file='command line',
+                              key='runs')
+    if args.role is not None:
+        with_role = [r.name for r in campaign.runs_with_role(args.role)]
+        names = with_role if names is None else [n for n in names if n in with_role]
+        if not names:
+            msg = f'no selected run has role {args.role!r}'
+            raise ConfigError(msg, file=str(campaign.file), key='role')
+    return names
+
+
+def _f(value: float, fmt: str) -> str:
+    return format(value, fmt) if math.isfinite(value) else '-'
+
+
+def _metric_cells(m: Metrics) -> list[str]:
+    return [_f(m.avg_diff_error_w, '.2f'), _f(m.avg_pct_error_pct, '.2f'),
+            _f(m.max_diff_error_w, '.2f'), _f(m.max_pct_error_pct, '.2f'),
+            _f(m.energy_error_j, '+.1f'), _f(m.energy_error_pct, '+.2f'), _f(m.rmse_w, '.2f')]
+
+
+_METRIC_HEAD = ['avg dP [W]', 'avg dP [%]', 'max dP [W]', 'max dP [%]', 'dE [J]', 'dE [%]',
+                'RMSE [W]']
+
+
+def _print_tables(cmp: CampaignComparison) -> None:
+    print(f'campaign  {cmp.campaign} ({cmp.manifest})')
+    print(f'machine   {cmp.machine}' + (f' ({cmp.machine_file})' if cmp.machine_file else ''))
+    print()
+    rows = []
+    for r in cmp.runs:
+        found = f'{r.offset.offset_s:+.3f}' if math.isfinite(r.offset.offset_s) else '-'
+        rows.append([r.name, f'{r.load_kg:g}', found, r.offset.status,
+                     f'{r.offset_used_s:+.3f}'] + _metric_cells(r.metrics))
+    print('per run (sum of the measured axes; dP = measured - simulated power, '
+          'dE = simulated - measured energy):')
+    print(format_table(['run', 'load [kg]', 'offset [s]', 'status', 'used [s]']
+                       + _METRIC_HEAD, rows))
+    print()
+    rows = [[f'{g.load_kg:g}', str(len(g.runs))] + _metric_cells(g.metrics) for g in cmp.groups]
+    print('per load (runs pooled):')
+    print(format_table(['load [kg]', 'runs'] + _METRIC_HEAD, rows))
+    if cmp.offset_warnings:
+        print()
+        print('offset warnings (compared anyway):')
+        for w in cmp.offset_warnings:
+            print(f'  {w}')
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand."""
+    if not (math.isfinite(args.max_lag_s) and args.max_lag_s >= 0.0):
+        msg = f'--max-lag-s must be a number >= 0, got {args.max_lag_s}'
+        raise ConfigError(msg, file='command line', key='max-lag-s')
+    if args.report is not None and args.report.exists() and not args.report.is_dir():
+        raise FileExistsError(f'{args.report} exists and is not a directory')
+    campaign = load_campaign(args.manifest)
+    names = _selected(args, campaign)
+    machine = load_machine(args.machine) if args.machine is not None else None
+    progress = Progress('compare', enabled=not args.quiet)
+    result = compare_campaign(campaign, machine=machine, runs=names, max_lag_s=args.max_lag_s,
+                              progress=progress)
+    progress.done()
+    index = None
+    if args.report is not None:
+        # imported here: matplotlib is only needed for reports
+        from feed_axis_energy.report import write_report
+        index = write_report(result, args.report)
+    if args.json:
+        out = result.to_dict()
+        if index is not None:
+            out['report'] = str(index)
+        print(json.dumps(out, indent=2, allow_nan=False))
+        return 0
+    _print_tables(result)
+    if index is not None:
+        print()
+        print(f'report: {index}')
+    return 0

@@ -1,0 +1,94 @@
+"""The ``feed-axis-energy compare`` command, run as a user runs it."""
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+import subprocess
+import sys
+
+import pytest
+
+from feed_axis_energy.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+_HELPER = ROOT / 'test' / 'core' / 'measured' / 'test_compare.py'
+
+
+def _run(*argv: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, '-m', 'feed_axis_energy', *argv], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+
+
+@pytest.fixture(scope='module')
+def manifest(tmp_path_factory) -> Path:
+    spec = importlib.util.spec_from_file_location('_synthetic_campaign', _HELPER)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.write_campaign(tmp_path_factory.mktemp('campaign'), [
+        {'name': 'a', 'load_kg': 0.0, 'offset_ms': 300, 'noise_w': 0.2, 'role': 'calibrate'},
+        {'name': 'b', 'load_kg': 17.336, 'offset_ms': 150, 'factor': 1.1, 'noise_w': 0.2,
+         'role': 'validate'},
+    ])
+
+
+def test_help_exits_zero():
+    proc = _run('compare', '--help')
+    assert proc.returncode == 0
+    assert 'usage: feed-axis-energy compare' in proc.stdout
+    for option in ('--json', '--report', '--runs', '--max-lag-s', '--quiet'):
+        assert option in proc.stdout
+
+
+def test_json_keys_and_values(manifest, capsys):
+    assert main(['compare', str(manifest), '--json', '--quiet', '--max-lag-s', '1']) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {'campaign', 'manifest', 'machine', 'machine_file', 'max_lag_s', 'runs',
+                        'groups', 'warnings'}
+    assert out['max_lag_s'] == 1.0 and out['warnings'] == []
+    run_b = out['runs'][1]
+    assert set(run_b) == {'name', 'role', 'load_kg', 'data_file', 'motion_source', 'axes',
+                          'window_s', 'duration_meas_s', 'duration_sim_s', 'excluded_rows',
+                          'offset', 'metrics'}
+    assert run_b['offset']['used_s'] == pytest.approx(0.150, abs=0.002)
+    assert run_b['metrics']['total']['avg_pct_error_pct'] == pytest.approx(
+        100.0 * (1.0 - 1.0 / 1.1), abs=0.25)
+    assert [g['load_kg'] for g in out['groups']] == [0.0, 17.336]
+
+
+def test_table_report_and_selection(manifest, tmp_path, capsys):
+    report = tmp_path / 'rep'
+    assert main(['compare', str(manifest), '--runs', 'b', '--report', str(report),
+                 '--quiet', '--max-lag-s', '1']) == 0
+    out = capsys.readouterr().out
+    assert 'per run' in out and 'per load' in out and 'avg dP [%]' in out
+    lines = [ln for ln in out.splitlines() if ln.startswith(('a ', 'b '))]
+    assert len(lines) == 1 and lines[0].split()[0] == 'b'
+    assert f'report: {report / "index.html"}' in out
+    assert len(list(report.glob('*.png'))) == 3
+
+
+def test_role_selection(manifest, capsys):
+    assert main(['compare', str(manifest), '--role', 'validate', '--json', '--quiet',
+                 '--max-lag-s', '1']) == 0
+    assert [r['name'] for r in json.loads(capsys.readouterr().out)['runs']] == ['b']
+
+
+@pytest.mark.parametrize('argv, expect', [
+    (['compare', 'no/such/manifest.yaml'], 'no/such/manifest.yaml'),
+    (['compare', '{manifest}', '--runs', 'zzz'], "no run named 'zzz'"),
+    (['compare', '{manifest}', '--max-lag-s', '-1'], '--max-lag-s must be'),
+])
+def test_bad_input_exits_1_naming_the_problem(manifest, argv, expect, capsys):
+    argv = [a.replace('{manifest}', str(manifest)) for a in argv]
+    assert main(argv + ['--quiet']) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('error: ') and expect in err
+
+
+def test_bad_manifest_in_a_subprocess(tmp_path):
+    bad = tmp_path / 'campaign.yaml'
+    bad.write_text('machine: m.yaml\nruns: []\n')
+    proc = _run('compare', str(bad), '--quiet')
+    assert proc.returncode == 1
+    assert str(bad) in proc.stderr and proc.stdout == ''
