@@ -15,7 +15,9 @@ from feed_axis_energy.core.errors import FeedAxisError
 __all__ = ['main', 'build_parser']
 
 # Order is the order shown in --help.
-SUBCOMMANDS = ('simulate', 'demo', 'compare', 'launch')
+SUBCOMMANDS = ('simulate', 'demo', 'compare', 'launch', 'import', 'fit-loss', 'rig')
+# Subcommands whose module is not named after them ('import' is a Python keyword).
+_MODULES = {'import': 'import_run'}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -28,7 +30,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--version', action='version', version=f'%(prog)s {__version__}')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
     for name in SUBCOMMANDS:
-        module = importlib.import_module(f'feed_axis_energy.cli.{name.replace("-", "_")}')
+        module_name = _MODULES.get(name, name.replace('-', '_'))
+        module = importlib.import_module(f'feed_axis_energy.cli.{module_name}')
         module.add_parser(sub)
     return parser
 

@@ -136,8 +136,9 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
     """
     file = str(spec.data)
     if spec.data_kind != 'csv':
-        msg = 'load_run reads CSV files only; rosbag2 input is not implemented yet'
-        raise DataError(msg, file=file)
+        # imported here: bagload builds on this module
+        from .bagload import load_run_from_bag
+        return load_run_from_bag(spec, min_duration_s=min_duration_s)
     header, rows, numbers = _read_csv(spec.data)
     index = _column_index(header, spec, file)
     # Position among data rows (blank lines skipped): the sample index when time = i * period.

@@ -1,0 +1,149 @@
+"""``feed-axis-energy fit-loss``: the paper's loss function (section 2.1) from measured runs."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+import sys
+
+import yaml
+
+from feed_axis_energy.cli.common import format_table
+from feed_axis_energy.cli.import_run import split_names
+from feed_axis_energy.core.identify import fit_loss, machine_with_losses, SteadyOptions
+from feed_axis_energy.core.identify.lossfit import VELOCITY_SOURCES
+from feed_axis_energy.core.machine import load_machine, machine_to_dict
+from feed_axis_energy.core.measured import load_campaign, load_run
+
+__all__ = ['add_parser', 'run']
+
+_D = SteadyOptions()
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the subcommand."""
+    p = sub.add_parser(
+        'fit-loss', help='fit the loss function y = a*x^b from no-load runs at several feeds',
+        description='Find the steady-motion segments of the runs (constant speed, no '
+                    'acceleration), average the actual power there, divide by the feed '
+                    '(loss coefficient y [W/(mm/s)] at feed x [mm/s]) and fit the power '
+                    'regression y = a*x^b per axis by least squares in log-log space '
+                    '(paper, section 2.1). Exits 1 when an axis has too few distinct feeds '
+                    'or cannot be fitted.')
+    p.add_argument('manifest', type=Path, help='campaign manifest (YAML)')
+    p.add_argument('--runs', metavar='NAME,...',
+                   help='runs to use (default: those with role calibrate, else all)')
+    p.add_argument('--machine', type=Path, metavar='YAML',
+                   help='machine config (default: the manifest\'s machine)')
+    p.add_argument('--axes', metavar='AXIS,...', help='axes to fit (default: all with power)')
+    p.add_argument('--out-machine', type=Path, metavar='YAML',
+                   help='write the machine config with the fitted loss functions (only when '
+                        'every fitted axis is ok; must not exist yet)')
+    p.add_argument('--json', action='store_true', help='print one JSON object')
+    g = p.add_argument_group('steady segments')
+    g.add_argument('--velocity', choices=VELOCITY_SOURCES, default=_D.velocity,
+                   help='velocity columns that define steady motion (default: auto = '
+                        'commanded, else actual)')
+    g.add_argument('--speed-tol', type=float, default=_D.rel_speed_tol, metavar='FRAC',
+                   help=f'speeds within this fraction of the segment mean '
+                        f'(default: {_D.rel_speed_tol:g})')
+    g.add_argument('--max-accel', type=float, default=_D.max_accel_m_s2, metavar='M_S2',
+                   help=f'largest |acceleration| [m/s^2] (default: {_D.max_accel_m_s2:g})')
+    g.add_argument('--min-speed', type=float, default=_D.min_speed_m_s, metavar='M_S',
+                   help=f'slowest speed that counts [m/s] (default: {_D.min_speed_m_s:g})')
+    g.add_argument('--min-duration-s', type=float, default=_D.min_duration_s, metavar='S',
+                   help=f'shortest segment [s] (default: {_D.min_duration_s:g})')
+    g.add_argument('--trim-s', type=float, default=_D.trim_s, metavar='S',
+                   help=f'cut from both ends of a segment [s] (default: {_D.trim_s:g})')
+    g.add_argument('--min-power-w', type=float, default=_D.min_loss_power_w, metavar='W',
+                   help=f'exclude segments with less loss power [W] '
+                        f'(default: {_D.min_loss_power_w:g})')
+    g.add_argument('--min-feeds', type=int, default=_D.min_feeds, metavar='N',
+                   help=f'distinct feeds needed (default: {_D.min_feeds})')
+    p.set_defaults(run=run)
+
+
+def _options(args: argparse.Namespace) -> SteadyOptions:
+    return SteadyOptions(rel_speed_tol=args.speed_tol, max_accel_m_s2=args.max_accel,
+                         min_speed_m_s=args.min_speed, min_duration_s=args.min_duration_s,
+                         trim_s=args.trim_s, min_loss_power_w=args.min_power_w,
+                         min_feeds=args.min_feeds, velocity=args.velocity)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand."""
+    options = _options(args)
+    campaign = load_campaign(args.manifest)
+    machine_path = args.machine if args.machine is not None else campaign.machine
+    machine = load_machine(machine_path)
+    if args.out_machine is not None and args.out_machine.exists():
+        msg = f'{args.out_machine} exists already; choose a new file'
+        raise FileExistsError(msg)
+    names = split_names(args.runs)
+    try:
+        specs = ([campaign.run(n) for n in names] if names
+                 else list(campaign.runs_with_role('calibrate') or campaign.runs))
+    except KeyError as err:
+        print(f'error: {err.args[0]}', file=sys.stderr)
+        return 1
+    runs = [load_run(s) for s in specs]
+    axes = split_names(args.axes)
+    for axis in axes or ():
+        if axis not in machine.axis_names:
+            print(f'error: machine {machine.name!r} has no axis {axis!r}', file=sys.stderr)
+            return 1
+    fits = fit_loss(runs, machine=machine, axes=axes, options=options)
+    loaded = [r.name for r in runs if r.load_kg > 0]
+    if not fits:
+        print('error: no run has power for an axis of the machine', file=sys.stderr)
+        return 1
+    all_ok = all(f.ok for f in fits.values())
+    if all_ok and args.out_machine is not None:
+        _write_machine(args.out_machine, machine_with_losses(machine, fits), runs=specs,
+                       manifest=args.manifest)
+    if args.json:
+        print(json.dumps({'manifest': str(args.manifest), 'machine': str(machine_path),
+                          'runs': [s.name for s in specs],
+                          'fits': {a: f.to_dict() for a, f in fits.items()},
+                          'out_machine': str(args.out_machine) if all_ok and
+                          args.out_machine is not None else None}, indent=2))
+    else:
+        _print(fits, specs, loaded)
+        if all_ok and args.out_machine is not None:
+            print(f'machine with the fitted loss functions: {args.out_machine}')
+    if not all_ok:
+        for axis, f in fits.items():
+            if not f.ok:
+                print(f'error: axis {axis}: fit {f.status}: {f.message}', file=sys.stderr)
+        if args.out_machine is not None:
+            print(f'error: {args.out_machine} not written', file=sys.stderr)
+        return 1
+    return 0
+
+
+def _print(fits: dict, specs: list, loaded: list[str]) -> None:
+    print(f'runs: {", ".join(s.name for s in specs)}')
+    if loaded:
+        print(f'note: runs with a load on the table: {", ".join(loaded)} (the paper fits '
+              'no-load runs)')
+    rows = []
+    for axis, f in fits.items():
+        num = (lambda v, fmt: '-' if v is None else format(v, fmt))
+        excluded = ', '.join(f'{n} {r}' for r, n in f.excluded.items()) or '0'
+        rows.append([axis, f.status, num(f.a, '.4g'), num(f.b, '.4g'), num(f.r2_log, '.4f'),
+                     num(f.r2_linear, '.4f'), str(len(f.used)), excluded,
+                     ' '.join(f'{x:.3g}' for x in f.feeds_mm_s) or '-'])
+    print(format_table(['axis', 'status', 'a', 'b', 'R2 log-log', 'R2 linear', 'segments',
+                        'excluded', 'feeds [mm/s]'], rows))
+    print('y = a*x^b: x = feed [mm/s], y = steady loss power / feed [W/(mm/s)]')
+
+
+def _write_machine(path: Path, machine, *, runs: list, manifest: Path) -> None:
+    head = (f'# Written by feed-axis-energy fit-loss: loss functions fitted on runs '
+            f'{", ".join(s.name for s in runs)} of {manifest}.\n')
+    text = head + yaml.safe_dump(machine_to_dict(machine), sort_keys=False, width=99)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f'.{path.name}.partial')
+    tmp.write_text(text, encoding='utf-8')
+    os.replace(tmp, path)
