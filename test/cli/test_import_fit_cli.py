@@ -1,0 +1,107 @@
+"""The ``import`` and ``fit-loss`` commands, run as a user runs them."""
+import json
+import math
+from pathlib import Path
+import subprocess
+import sys
+
+import numpy as np
+from numpy.testing import assert_allclose
+import pytest
+import yaml
+
+from feed_axis_energy.cli import main
+from feed_axis_energy.core.machine import load_machine
+from feed_axis_energy.core.measured import load_campaign, load_run
+
+ROOT = Path(__file__).resolve().parents[2]
+FIXTURES = ROOT / 'test' / 'fixtures' / 'measured'
+SAMPLES = ROOT / 'bags' / 'umich_samples.yaml'
+
+
+@pytest.mark.parametrize('command', ['import', 'fit-loss'])
+def test_help_exits_zero(command):
+    proc = subprocess.run([sys.executable, '-m', 'feed_axis_energy', command, '--help'],
+                          cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0
+    assert 'usage: feed-axis-energy ' + command in proc.stdout
+
+
+def test_import_writes_bags_and_manifest(tmp_path, capsys):
+    out = tmp_path / 'bags'
+    assert main(['import', str(FIXTURES / 'campaign.yaml'), '--out', str(out), '--json',
+                 '--quiet']) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert [r['name'] for r in report['runs']] == ['a', 'b']
+    campaign = load_campaign(report['manifest'])
+    run = load_run(campaign.run('b'))
+    assert_allclose(run.t, [0.0, 0.05, 0.10, 0.15])
+    # a second import into the same place is refused and changes nothing
+    assert main(['import', str(FIXTURES / 'campaign.yaml'), '--out', str(out),
+                 '--quiet']) == 1
+    assert 'exists already' in capsys.readouterr().err
+    assert main(['import', str(FIXTURES / 'campaign.yaml'), '--out', str(tmp_path / 'x'),
+                 '--runs', 'nope']) == 1
+    assert "no run 'nope'" in capsys.readouterr().err
+
+
+def _campaign(tmp_path, feeds_mm_s, a=0.3, b=0.4):
+    """A CSV campaign: one run per feed, strokes back and forth, power a·x^(1+b) when steady."""
+    runs = []
+    for feed in feeds_mm_s:
+        v = np.concatenate([np.zeros(20), np.linspace(0, feed, 10), np.full(300, feed),
+                            np.linspace(feed, 0, 10), np.zeros(20)])
+        v = np.concatenate([v, -v])
+        t = np.arange(v.shape[0]) * 0.01
+        x = np.cumsum(v) * 0.01
+        acc = np.gradient(v, t)
+        p = a * np.abs(v) ** (1 + b) + 0.02 * acc * v
+        rows = [f'{pi:.17g},{xi:.17g},{vi:.17g}' for pi, xi, vi in zip(p, x, v)]
+        lines = ['P_W,X_mm,V_mm_s'] + rows
+        (tmp_path / f'f{feed}.csv').write_text('\n'.join(lines) + '\n')
+        runs.append({'name': f'f{feed}', 'data': f'f{feed}.csv'})
+    doc = {'machine': str(ROOT / 'config' / 'demonstrator.yaml'),
+           'defaults': {'load_kg': 0.0, 'period_s': 0.01, 'motion': {'from_data': 'actual'},
+                        'axes': {'X': {'power': {'column': 'P_W', 'unit': 'W'},
+                                       'position': {'column': 'X_mm', 'unit': 'mm'},
+                                       'velocity': {'column': 'V_mm_s', 'unit': 'mm/s'}}}},
+           'runs': runs}
+    (tmp_path / 'c.yaml').write_text(yaml.safe_dump(doc))
+    return tmp_path / 'c.yaml'
+
+
+def test_fit_loss_writes_a_machine_that_loads(tmp_path, capsys):
+    manifest = _campaign(tmp_path, [50, 150, 300])
+    out = tmp_path / 'fitted.yaml'
+    assert main(['fit-loss', str(manifest), '--json', '--out-machine', str(out)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    fit = report['fits']['X']
+    assert fit['status'] == 'ok' and fit['r2_space'].startswith('log-log')
+    assert_allclose([fit['a'], fit['b']], [0.3, 0.4], rtol=1e-6)
+    assert sorted(round(f) for f in fit['feeds_mm_s']) == [50, 150, 300]
+    loss = load_machine(out).axis('X').loss
+    assert_allclose([loss.a, loss.b], [fit['a'], fit['b']])
+    # the table form names the units
+    assert main(['fit-loss', str(manifest)]) == 0
+    assert 'W/(mm/s)' in capsys.readouterr().out
+
+
+def test_fit_loss_with_too_few_feeds_exits_1_and_writes_nothing(tmp_path, capsys):
+    manifest = _campaign(tmp_path, [50, 150])
+    out = tmp_path / 'fitted.yaml'
+    assert main(['fit-loss', str(manifest), '--out-machine', str(out)]) == 1
+    err = capsys.readouterr().err
+    assert 'insufficient' in err and '2 distinct feed' in err and 'not written' in err
+    assert not out.exists()
+    assert main(['fit-loss', str(manifest), '--min-feeds', '2', '--out-machine',
+                 str(out)]) == 0
+
+
+@pytest.mark.skipif(not SAMPLES.is_file(), reason='sample bags not generated')
+def test_fit_loss_on_the_sample_bags(capsys):
+    assert main(['fit-loss', str(SAMPLES), '--json']) in (0, 1)
+    report = json.loads(capsys.readouterr().out)
+    assert set(report['fits']) == {'X', 'Y'}
+    for fit in report['fits'].values():
+        if fit['status'] != 'insufficient':
+            assert math.isfinite(fit['r2_log'])
