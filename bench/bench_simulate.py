@@ -56,7 +56,7 @@ def contour_gcode(seconds: float, *, seed: int = 2, blocks_per_s: float = 20.0) 
     step = feed_mm_s / blocks_per_s                          # mm per block
     out = ['(bench: dense contour)', 'G21 G90 G94 G17 G64', 'G0 X100 Y100 Z50',
            f'G1 X100 Y100 Z50 F{feed_mm_s * 60:.0f}']
-    x, y, z, heading = 100.0, 100.0, 50.0, 0.0
+    x, y, heading = 100.0, 100.0, 0.0
     for i in range(int(seconds * blocks_per_s)):
         if rng.random() < 0.5:
             heading += rng.gauss(0.0, 0.3)
@@ -64,7 +64,7 @@ def contour_gcode(seconds: float, *, seed: int = 2, blocks_per_s: float = 20.0) 
             ny = min(max(y + step * math.sin(heading), 0.0), 200.0)
             nz = 50.0 + 10.0 * math.sin(i / 50.0)
             out.append(f'G1 X{nx:.4f} Y{ny:.4f} Z{nz:.4f}')
-            x, y, z = nx, ny, nz
+            x, y = nx, ny
         else:
             ccw = rng.random() < 0.5
             sign = 1.0 if ccw else -1.0

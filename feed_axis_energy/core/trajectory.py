@@ -14,15 +14,17 @@ Method
    ``<= a/2`` and centripetal ``v^2 / r <= a/2`` (their sum stays inside the axis limit), so
    ``v <= sqrt(a r / 2)``; path jerk ``<= j/2`` and the centripetal jerk ``v^3 / r^2 <= j/2``.
    The helix axis adds ``limit_c / |u_c|``. Rapids (``feed = inf``) use the axis limits only.
-3. *Look-ahead.* The speed at each junction is capped by the junction-deviation rule: the
-   speed at which a circular blend that deviates ``corner_tolerance_m`` from the corner would
-   reach the smaller path acceleration of the two moves,
+3. *Look-ahead.* The speed at each junction is capped by two rules. The junction-deviation
+   rule: the speed at which a circular blend that deviates ``corner_tolerance_m`` from the
+   corner would reach the smaller path acceleration of the two moves,
    ``v^2 = a delta sin(theta/2) / (1 - sin(theta/2))`` with ``theta`` the angle between the
    reversed incoming and the outgoing tangents (tangent junctions: no cap; reversals: 0).
-   It is zero at program start and end, at exact stops and around dwells and stops. A backward
-   and a forward pass then lower every junction speed to what the neighbouring move can reach
-   in its length (closed-form minimum distance, zero acceleration at both ends, see
-   :mod:`.profiles`).
+   The velocity-step rule (see *Corners* below): ``v |du_k| <= a_k T`` for every axis ``k``,
+   with ``du = tangent_out - tangent_in`` and ``T = 1 / rate_hz`` the interpolation cycle.
+   The speed is zero at program start and end, at exact stops and around dwells and stops.
+   A backward and a forward pass then lower every junction speed to what the neighbouring
+   move can reach in its length (closed-form minimum distance, zero acceleration at both
+   ends, see :mod:`.profiles`).
 4. *Profiles.* Each move gets a seven-phase constant-jerk profile (``profile='jerk'``) or a
    constant-acceleration trapezoid (``profile='trapezoid'``), see :mod:`.profiles`.
 5. *Sampling.* The program becomes one table of constant-jerk phases (start time, duration,
@@ -31,8 +33,30 @@ Method
    position, velocity and acceleration per move kind (arcs include the centripetal term).
    The last sample is the program end.
 
-A non-tangent junction passed at speed ``v`` changes each axis velocity by ``v |du_k|`` in one
-step (the junction-deviation model does not sample the blend itself).
+6. *Corners.* A non-tangent junction passed at speed ``v`` changes the axis velocities by
+   ``dv = v (tangent_out - tangent_in)`` within one interpolation cycle ``T``, as on a control
+   that limits the per-axis velocity step per cycle (the blend itself is not sampled). The
+   look-ahead keeps ``|dv_k| <= a_k T``. The step is put into the samples so that the
+   dynamics sees the force that changes the kinetic energy: the sample nearest to the
+   junction carries half the step in its velocity (the mean of the velocities just before and
+   just after the junction, plus the path's own change) and ``dv / T`` in addition to its path
+   acceleration. Read with the piecewise-linear (trapezoid) convention, the acceleration is a
+   triangle of area ``dv`` and ``vel[i+1] - vel[i] = (acc[i] + acc[i+1]) T / 2`` holds on
+   both intervals next to the junction, so ``integral F v dt`` by the trapezoid rule gets the
+   kinetic energy change ``m dv (v_in + v_out) / 2`` of the step exactly.
+
+Sampling conventions: ``Motion.acc`` integrates to ``Motion.vel`` by the trapezoid rule,
+interval by interval. Inside a phase the acceleration is linear in time (lines), so the rule is
+exact; the residuals are ``<= |dj| T^2 / 8`` where the jerk switches inside an interval,
+``<= |da| T / 4`` where a trapezoid profile switches acceleration, ``O(T^3)`` on arcs, and
+``<= a_path T |du| / 4`` at a corner. With the jerk profile the path acceleration at the
+junction is zero, so the sampled axis acceleration stays within ``a_k + j_k T / 2`` at a
+corner sample and the finite-difference acceleration ``(vel[i+1] - vel[i]) / T`` within
+``a_k / 2 + j_k T`` next to it. With the trapezoid profile (infinite jerk) the step and a full
+path acceleration can fall into the same cycle: up to ``2 a_k`` (sampled) or ``1.5 a_k``
+(finite difference). Junctions less than a cycle apart put their steps into the same or
+neighbouring samples; the sums are still consistent, but the per-cycle bound then holds per
+junction, not per sample.
 """
 from __future__ import annotations
 
@@ -310,8 +334,12 @@ def _path_limits(seg: _Segments, geo: _Geometry, lim: np.ndarray,
 
 
 def _junction_speeds(seg: _Segments, geo: _Geometry, vmax: np.ndarray, amax: np.ndarray,
-                     delta: float) -> np.ndarray:
-    """Speed caps at the m + 1 segment boundaries before the look-ahead passes."""
+                     delta: float, axis_acc: np.ndarray, cycle_s: float) -> np.ndarray:
+    """Speed caps at the m + 1 segment boundaries before the look-ahead passes.
+
+    ``axis_acc`` holds the acceleration limit of each program axis (``inf`` if absent);
+    ``cycle_s`` is the interpolation cycle in which a corner's velocity step happens.
+    """
     m = seg.kind.shape[0]
     vj = np.zeros(m + 1)
     if m < 2:
@@ -319,10 +347,13 @@ def _junction_speeds(seg: _Segments, geo: _Geometry, vmax: np.ndarray, amax: np.
     cos_t = -np.einsum('ij,ij->i', geo.tan1[:-1], geo.tan0[1:])
     sin_half = np.sqrt(np.clip(0.5 * (1.0 - cos_t), 0.0, 1.0))
     a = np.minimum(amax[:-1], amax[1:])
+    du = np.abs(geo.tan0[1:] - geo.tan1[:-1])
     with np.errstate(divide='ignore', invalid='ignore'):
         v2 = np.where(sin_half > 1.0 - 1e-12, np.inf,
                       a * delta * sin_half / (1.0 - sin_half))
-    v = np.minimum(np.sqrt(v2), np.minimum(vmax[:-1], vmax[1:]))
+        # per-axis velocity step of the corner within one cycle: v |du_k| <= a_k T
+        v_step = np.min(np.where(du > 0.0, axis_acc * cycle_s / du, np.inf), axis=1)
+    v = np.minimum.reduce([np.sqrt(v2), v_step, vmax[:-1], vmax[1:]])
     stop = seg.stop_after[:-1] | (seg.kind[:-1] == _REST) | (seg.kind[1:] == _REST)
     vj[1:-1] = np.where(stop, 0.0, v)
     return vj
@@ -404,7 +435,8 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
     if options.profile == 'trapezoid':
         jmax = np.full(m, np.inf)
     _report(progress, 0.05)
-    vj = _junction_speeds(seg, geo, vmax, amax, options.corner_tolerance_m)
+    cycle_s = 1.0 / options.rate_hz
+    vj = _junction_speeds(seg, geo, vmax, amax, options.corner_tolerance_m, lim[1], cycle_s)
     _look_ahead(vj, geo.length, amax, jmax)
     _report(progress, 0.15)
     prof = plan_profiles(geo.length, vj[:-1], vj[1:], vmax, amax, jmax)
@@ -450,7 +482,30 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
                      out=(pos[lo:hi], vel[lo:hi], acc[lo:hi]))
         line[lo:hi] = lines[mi]
         _report(progress, 0.25 + 0.75 * hi / t.size)
+    _corner_steps(t, t_start[7:-1:7], vj[1:-1], geo, cols, cycle_s, vel=vel, acc=acc)
     return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line, source=program.file)
+
+
+def _corner_steps(t: np.ndarray, t_junction: np.ndarray, v_junction: np.ndarray,
+                  geo: _Geometry, cols: list[int], cycle_s: float, *, vel: np.ndarray,
+                  acc: np.ndarray) -> None:
+    """Put the velocity steps of non-tangent junctions into ``vel`` and ``acc`` (in place).
+
+    The sample nearest to a junction gets ``+dv / T`` acceleration and half the step in its
+    velocity (see the module docstring, *Corners*).
+    """
+    dv = v_junction[:, None] * (geo.tan0[1:] - geo.tan1[:-1])[:, cols]
+    hit = np.nonzero((v_junction > 0.0) & np.any(dv != 0.0, axis=1))[0]
+    if hit.size == 0:
+        return
+    dv = dv[hit]
+    tc = t_junction[hit]
+    idx = np.clip(np.rint(tc / cycle_s).astype(np.int64), 0, t.size - 1)
+    # the sample already shows the whole step if it lies at or after the junction
+    # (phases own the samples from the first one at or after their start)
+    half = np.where(t[idx] >= tc, -0.5, 0.5)
+    np.add.at(vel, idx, dv * half[:, None])
+    np.add.at(acc, idx, dv * (1.0 / cycle_s))
 
 
 def _report(progress: Callable[[float], None] | None, fraction: float) -> None:
