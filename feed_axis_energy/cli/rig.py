@@ -61,6 +61,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'the default) or position_step (25 W beyond 250 mm while moving)')
     p.add_argument('--cycles', type=int, default=3, metavar='N',
                    help='back-and-forth strokes per run (default: 3)')
+    p.add_argument('--bags', action='store_true',
+                   help='also write each run as a rosbag2/MCAP bag (/measured/power, '
+                        '/measured/kinematics)')
     p.add_argument('--list-effects', action='store_true',
                    help='print the effect catalog and exit')
     p.set_defaults(run=run)
@@ -115,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
     machine = args.machine if args.machine is not None else default_machine()
     config = RigConfig(machine=machine, loads_kg=loads, feeds_mm_s=feeds, effects=effects,
                        instrument=instrument, seed=args.seed, offset_s=args.offset_s,
-                       outside=args.outside_catalog, cycles=args.cycles)
+                       outside=args.outside_catalog, cycles=args.cycles,
+                       bags=args.bags)
     manifest = make_campaign(args.out, config)
     shown = ', '.join(f'{e.id}({", ".join(f"{k}={v:g}" for k, v in e.params.items())})'
                       for e in effects) or 'none'

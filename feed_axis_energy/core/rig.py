@@ -24,6 +24,7 @@ Output directory (:func:`make_campaign`)::
     programs/f<F>.nc   reciprocating stroke at F mm/s on the machine's load axis
     runs/<run>.csv     one CSV per run (layout below)
     truth.json         true effects, parameters and offsets (for tests only)
+    bags/<run>/        optional rosbag2/MCAP of the same record (RigConfig.bags)
 
 CSV layout, one row per instrument stamp: ``time_ms`` (instrument clock [ms], starts at
 ``CLOCK_START_MS``), then per axis ``<A>_power_kW`` [kW], ``<A>_position_mm`` [mm] and
@@ -126,6 +127,9 @@ class RigConfig:
         The reciprocating program (paper: 400 mm, 1 s dwell).
     tail_s
         Recording after the program ends [s].
+    bags
+        Also write ``bags/<run>/`` (rosbag2/MCAP, topics ``/measured/power`` and
+        ``/measured/kinematics``, file time); not byte-reproducible, so off by default.
     """
 
     machine: Path
@@ -140,6 +144,7 @@ class RigConfig:
     cycles: int = 3
     dwell_s: float = 1.0
     tail_s: float = 1.0
+    bags: bool = False
 
 
 @dataclass(frozen=True)
@@ -378,6 +383,26 @@ def _write_csv(path: Path, run: RigRun, axes: tuple[str, ...]) -> None:
     path.write_text('\n'.join(lines) + '\n', encoding='utf-8')
 
 
+def _write_bag(path: Path, run: RigRun, axes: tuple[str, ...]) -> None:
+    from . import bagio
+    power = run.measured_w
+    total = power.sum(axis=1)
+    both = np.column_stack([power, total])
+    dt = np.diff(run.stamps_s)[:, None]
+    energy = np.vstack([np.zeros((1, both.shape[1])),
+                        np.cumsum(0.5 * (both[1:] + both[:-1]) * dt, axis=0)])
+    sim_t = run.stamps_s - run.offset_s
+    motion = run.result.motion
+    pos = np.column_stack([np.interp(sim_t, motion.t, motion.pos[:, j]) for j in range(len(axes))])
+    vel = np.column_stack([np.interp(sim_t, motion.t, motion.vel[:, j]) for j in range(len(axes))])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with bagio.BagWriter(path) as writer:
+        writer.write_series(bagio.TOPIC_MEASURED_POWER, bagio.Series(
+            t=run.stamps_s, names=tuple(axes) + ('total',), positions=energy, velocities=both))
+        writer.write_series(bagio.TOPIC_MEASURED_KINEMATICS, bagio.Series(
+            t=run.stamps_s, names=tuple(axes), positions=pos, velocities=vel))
+
+
 def _manifest(config: RigConfig, axes: tuple[str, ...],
               runs: list[dict[str, Any]]) -> dict[str, Any]:
     columns = {a: {'power': {'column': f'{a}_power_kW', 'unit': 'kW'},
@@ -441,6 +466,8 @@ def make_campaign(out: str | Path, config: RigConfig) -> Path:
             axes = run.result.power.axes
             data_rel = f'runs/{name}.csv'
             _write_csv(out / data_rel, run, axes)
+            if config.bags:
+                _write_bag(out / 'bags' / name, run, axes)
             runs.append({'name': name, 'load_kg': float(load), 'feed_mm_s': float(feed),
                          'offset_s': offset, 'program': program_rel, 'data': data_rel,
                          'role': 'calibrate' if i % 2 == 0 else 'validate',

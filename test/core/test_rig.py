@@ -227,3 +227,18 @@ def test_paper_scenario_errors_grow_with_load(tmp_path: Path) -> None:
     covered = mean_speed * duration / (run.t[-1] + 0.05)
     assert_allclose(mean_error[2] - mean_error[0], 0.1 * 22.711 * GRAVITY_M_S2 * covered,
                     rtol=0.1)
+
+
+def test_optional_bags_hold_the_same_record(tmp_path: Path) -> None:
+    from feed_axis_energy.core import bagio
+    out = tmp_path / 'rig'
+    make_campaign(out, _small(bags=True, instrument=Instrument(noise_w=1.0)))
+    run = load_run(load_campaign(out / 'manifest.yaml').run('f300_load0kg'))
+    power = bagio.read_series(out / 'bags' / 'f300_load0kg', bagio.TOPIC_MEASURED_POWER)
+    assert power.names == ('X', 'total')
+    assert_allclose(power.t - power.t[0], run.t, atol=1e-9)
+    assert_allclose(power.velocities[:, 0], run.power_w[:, 0], atol=1e-6)
+    # energy is the trapezoid integral of the recorded power
+    assert_allclose(power.positions[-1, 1], np.trapezoid(run.power_w[:, 0], run.t), rtol=1e-9)
+    kin = bagio.read_series(out / 'bags' / 'f300_load0kg', bagio.TOPIC_MEASURED_KINEMATICS)
+    assert_allclose(kin.positions[:, 0], run.position_m[:, 0], atol=1e-6)
