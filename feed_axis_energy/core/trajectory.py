@@ -48,12 +48,16 @@ Method
 Sampling conventions: ``Motion.acc`` integrates to ``Motion.vel`` by the trapezoid rule,
 interval by interval. Inside a phase the acceleration is linear in time (lines), so the rule is
 exact; the residuals are ``<= |dj| T^2 / 8`` where the jerk switches inside an interval,
-``<= |da| T / 4`` where a trapezoid profile switches acceleration, ``O(T^3)`` on arcs, and
+``<= |da| T / 2`` where a trapezoid profile switches acceleration (so its energy balance is
+off by up to ``m |da| T |v| / 2`` per switch), ``O(T^3)`` on arcs, and
 ``<= a_path T |du| / 4`` at a corner. With the jerk profile the path acceleration at the
 junction is zero, so the sampled axis acceleration stays within ``a_k + j_k T / 2`` at a
 corner sample and the finite-difference acceleration ``(vel[i+1] - vel[i]) / T`` within
-``a_k / 2 + j_k T`` next to it. With the trapezoid profile (infinite jerk) the step and a full
-path acceleration can fall into the same cycle: up to ``2 a_k`` (sampled) or ``1.5 a_k``
+``a_k / 2 + 1.5 j_k T`` next to it (plus the centripetal term of an arc at the corner
+speed). A corner sample lies up to ``T / 2`` from its junction while its position stays on
+the path, so positions and velocities there disagree by up to ``|dv| T / 2``. With the
+trapezoid profile (infinite jerk) the step and a full path acceleration can fall into the
+same cycle: up to ``2 a_k`` (sampled) or ``1.5 a_k``
 (finite difference). Junctions less than a cycle apart put their steps into the same or
 neighbouring samples; the sums are still consistent, but the per-cycle bound then holds per
 junction, not per sample.
