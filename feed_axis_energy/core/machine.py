@@ -15,6 +15,13 @@ A machine file looks like (see ``config/demonstrator.yaml``)::
         inertias: {motor_kg_m2: 1.1e-4, coupling_kg_m2: 1.0e-5}
         limits: {velocity_m_s: 0.6, acceleration_m_s2: 2.5, jerk_m_s3: 50.0}
         loss: {model: power_regression, a: 0.2505, b: 0.3471}
+    effects:                     # optional: catalog effects added on top of the power
+      - {id: load_friction, axis: X, params: {mu: 0.012}}
+
+``effects`` lists effects of the catalog (:mod:`.effects`, ``docs/effects.md``) that the
+model declares in addition to the loss function, usually written by ``feed-axis-energy
+analyze --out-machine``; each adds its extra power to the named axis (every axis when
+``axis`` is left out) after the braking rule. Parameters left out take the catalog default.
 
 Every missing or invalid value raises :class:`~.errors.ConfigError` naming the file and the
 dotted key (``axes.X.screw.lead_m``); unknown keys are rejected so that typos do not pass.
@@ -34,6 +41,7 @@ from .losses import LossModel, loss_from_dict
 from .trajectory import AxisLimits, PlannerOptions
 
 __all__ = ['ScrewSpec', 'InertiaSpec', 'LimitSpec', 'PlannerSettings', 'AxisSpec', 'Machine',
+           'DeclaredEffect',
            'load_machine', 'machine_from_dict', 'machine_to_dict', 'moved_mass_kg',
            'carried_axes', 'AXIS_NAMES', 'BRAKING_MODES', 'GRAVITY_M_S2']
 
@@ -161,6 +169,30 @@ class AxisSpec:
 
 
 @dataclass(frozen=True)
+class DeclaredEffect:
+    """A catalog effect the machine model declares (see :mod:`.effects`).
+
+    Attributes
+    ----------
+    id
+        Catalog id (``'load_friction'``).
+    axis
+        The axis it acts on, or ``None`` for every axis.
+    params
+        ``(name, value)`` pairs in SI units; parameters not given take the catalog default.
+    """
+
+    id: str
+    axis: str | None = None
+    params: tuple[tuple[str, float], ...] = ()
+
+    @property
+    def values(self) -> dict[str, float]:
+        """Parameters as a dict."""
+        return dict(self.params)
+
+
+@dataclass(frozen=True)
 class Machine:
     """A machine: its axes (in order) and how it handles braking energy.
 
@@ -178,6 +210,8 @@ class Machine:
         Name of the axis whose table carries the clamped workpiece.
     planner
         Default planner settings.
+    effects
+        Catalog effects added on top of the power (empty for the paper's model).
     """
 
     name: str
@@ -185,6 +219,7 @@ class Machine:
     braking: str = 'regenerative'
     load_axis: str = 'X'
     planner: PlannerSettings = PlannerSettings()
+    effects: tuple[DeclaredEffect, ...] = ()
 
     @property
     def axis_names(self) -> tuple[str, ...]:
@@ -403,6 +438,33 @@ def _check_stacking(axes: tuple[AxisSpec, ...], *, file: str) -> None:
             current = names[current].rides_on
 
 
+def _effects(value: Any, axis_names: tuple[str, ...], *,
+             file: str) -> tuple[DeclaredEffect, ...]:
+    # imported here: the effect catalog itself imports this module
+    from .effects import EFFECTS
+    if value is None:
+        return ()
+    if not isinstance(value, list):
+        msg = f'expected a list of effects, got {type(value).__name__}'
+        raise ConfigError(msg, file=file, key='effects')
+    out = []
+    for i, item in enumerate(value):
+        key = f'effects[{i}]'
+        item = _mapping(item, file=file, key=key, allowed=('id', 'axis', 'params'))
+        effect_id = item.get('id')
+        if effect_id not in EFFECTS:
+            msg = f'unknown effect {effect_id!r}; expected one of {", ".join(EFFECTS)}'
+            raise ConfigError(msg, file=file, key=f'{key}.id')
+        axis = _choice(item, 'axis', axis_names + (None,), file=file, key=key, default=None)
+        cls = EFFECTS[effect_id]
+        params_d = _mapping(item.get('params', {}) or {}, file=file, key=f'{key}.params',
+                            allowed=cls.param_names())
+        params = tuple((name, _float(params_d, name, file=file, key=f'{key}.params'))
+                       for name in cls.param_names() if name in params_d)
+        out.append(DeclaredEffect(id=effect_id, axis=axis, params=params))
+    return tuple(out)
+
+
 def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
     """Build and validate a :class:`Machine` from its YAML form.
 
@@ -424,7 +486,7 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
         A missing, invalid or unknown value; the message names ``file`` and the dotted key.
     """
     d = _mapping(d, file=file, key='',
-                 allowed=('name', 'braking', 'load_axis', 'planner', 'axes'))
+                 allowed=('name', 'braking', 'load_axis', 'planner', 'axes', 'effects'))
     name = d.get('name', Path(file).stem)
     if not isinstance(name, str) or not name:
         msg = f'expected a non-empty string, got {name!r}'
@@ -450,7 +512,8 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
         axes=axes,
         braking=_choice(d, 'braking', BRAKING_MODES, file=file, key=''),
         load_axis=_choice(d, 'load_axis', tuple(a.name for a in axes), file=file, key=''),
-        planner=planner)
+        planner=planner,
+        effects=_effects(d.get('effects'), tuple(a.name for a in axes), file=file))
 
 
 def load_machine(path: str | Path) -> Machine:
@@ -520,7 +583,7 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
                        'jerk_m_s3': a.limits.jerk_m_s3},
             'loss': dict(a.loss.to_dict()),
         }
-    return {
+    out = {
         'name': machine.name,
         'braking': machine.braking,
         'load_axis': machine.load_axis,
@@ -529,3 +592,9 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
                     'rate_hz': machine.planner.rate_hz},
         'axes': axes,
     }
+    if machine.effects:
+        # only when present, so that the paper's model keeps its plain form
+        out['effects'] = [{'id': e.id, 'axis': e.axis,
+                           'params': {n: float(v) for n, v in e.params}}
+                          for e in machine.effects]
+    return out

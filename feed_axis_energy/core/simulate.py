@@ -1,4 +1,9 @@
-"""Offline simulation: program -> motion -> dynamics -> power and energy, plus a summary."""
+"""Offline simulation: program -> motion -> dynamics -> power and energy, plus a summary.
+
+Effects the machine declares (``Machine.effects``, e.g. written by ``analyze
+--out-machine``) add their extra power to the named axis after the braking rule; energies
+are integrated from the sum (:func:`apply_declared_effects`).
+"""
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -9,13 +14,14 @@ from typing import Any
 import numpy as np
 
 from .dynamics import AxisDynamics, compute_dynamics
-from .energy import PowerResult, compute_power, energy_by_line
+from .energy import EnergyIntegrator, PowerResult, compute_power, energy_by_line
 from .machine import Machine
 from .motion import Motion
 from .program import Program
 from .trajectory import plan, PlannerOptions
 
-__all__ = ['SimulationResult', 'simulate_program', 'simulate_motion', 'summarize']
+__all__ = ['SimulationResult', 'apply_declared_effects', 'simulate_program', 'simulate_motion',
+           'summarize']
 
 
 @dataclass(frozen=True)
@@ -42,6 +48,47 @@ class SimulationResult:
     power: PowerResult
 
 
+def apply_declared_effects(dyn: AxisDynamics, power: PowerResult,
+                           machine: Machine) -> PowerResult:
+    """Add the extra power of the machine's declared effects to ``power``.
+
+    Parameters
+    ----------
+    dyn, power
+        Dynamics and power of the model without the effects.
+    machine
+        The machine; its ``effects`` act on their axis (every axis when ``axis`` is None).
+
+    Returns
+    -------
+    PowerResult
+        ``power`` itself when no declared effect acts on its axes; otherwise power, total
+        and energies include the effects (``mechanical_w`` and ``loss_power_w`` do not).
+    """
+    active = [e for e in machine.effects if e.axis is None or e.axis in power.axes]
+    if not active:
+        return power
+    # imported here: the effect catalog imports the machine module, not the other way round
+    from .effects import effect_state, get_effect
+    state = effect_state(dyn, power, machine=machine)
+    extra = np.zeros(state.shape)
+    for decl in active:
+        contribution = get_effect(decl.id).power_w(state, decl.values)
+        if decl.axis is None:
+            extra += contribution
+        else:
+            j = power.axes.index(decl.axis)
+            extra[:, j] += contribution[:, j]
+    drawn = power.power_w + extra
+    total = drawn.sum(axis=1)
+    k = drawn.shape[1]
+    energy = EnergyIntegrator(k + 1).update(power.t, np.column_stack((drawn, total)))
+    return PowerResult(t=power.t, axes=power.axes, power_w=drawn, total_w=total,
+                       energy_j=energy[:, :k], total_energy_j=energy[:, k],
+                       mechanical_w=power.mechanical_w, loss_power_w=power.loss_power_w,
+                       line=power.line, braking=power.braking)
+
+
 def simulate_motion(motion: Motion, machine: Machine, *, load_kg: float = 0.0) -> SimulationResult:
     """Dynamics and power of a given motion (planned or measured).
 
@@ -50,7 +97,7 @@ def simulate_motion(motion: Motion, machine: Machine, *, load_kg: float = 0.0) -
     motion
         Sampled motion; its axes must exist in ``machine``.
     machine
-        The machine model (its ``braking`` rule is applied).
+        The machine model (its ``braking`` rule is applied, then its declared effects).
     load_kg
         Workpiece mass on the ``load_axis`` table [kg].
 
@@ -60,7 +107,7 @@ def simulate_motion(motion: Motion, machine: Machine, *, load_kg: float = 0.0) -
         Motion, dynamics and power.
     """
     dyn = compute_dynamics(motion, machine, load_kg=load_kg)
-    power = compute_power(dyn, braking=machine.braking)
+    power = apply_declared_effects(dyn, compute_power(dyn, braking=machine.braking), machine)
     return SimulationResult(program=motion.source, machine=machine, load_kg=float(load_kg),
                             motion=motion, dynamics=dyn, power=power)
 
