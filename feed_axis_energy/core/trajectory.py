@@ -583,7 +583,8 @@ def _sample_arcs(rows: np.ndarray, ma: np.ndarray, s: np.ndarray, v: np.ndarray,
 
 def motion_from_samples(t: np.ndarray, pos: np.ndarray, *, axes: tuple[str, ...],
                         line: np.ndarray | None = None, source: str = '',
-                        smooth_samples: int = 1) -> Motion:
+                        smooth_samples: int = 1, vel: np.ndarray | None = None,
+                        acc: np.ndarray | None = None) -> Motion:
     """Build a :class:`Motion` from a measured or commanded trajectory.
 
     Velocity and acceleration are central finite differences on the (possibly non-uniform)
@@ -606,6 +607,11 @@ def motion_from_samples(t: np.ndarray, pos: np.ndarray, *, axes: tuple[str, ...]
         Where the data came from; used in error messages and as ``Motion.source``.
     smooth_samples
         Moving-average window for the derivatives (1: no smoothing).
+    vel, acc
+        Measured velocities [m/s] and accelerations [m/s^2], shape ``(n, k)``, used instead
+        of the finite differences where given (a measured velocity is usually far cleaner
+        than differentiated, coarsely rounded positions). Without ``acc`` the acceleration
+        is the finite difference of the velocity used.
 
     Returns
     -------
@@ -650,9 +656,27 @@ def motion_from_samples(t: np.ndarray, pos: np.ndarray, *, axes: tuple[str, ...]
         if line_arr.shape != t.shape:
             msg = f'line has shape {line_arr.shape}, expected {t.shape}'
             raise DataError(msg, file=where, column='line')
-    vel = _smooth(np.gradient(pos, t, axis=0), smooth_samples)
-    acc = _smooth(np.gradient(vel, t, axis=0), smooth_samples)
+    vel = (_smooth(np.gradient(pos, t, axis=0), smooth_samples) if vel is None
+           else _measured(vel, 'velocity', t=t, axes=axes, where=where))
+    acc = (_smooth(np.gradient(vel, t, axis=0), smooth_samples) if acc is None
+           else _measured(acc, 'acceleration', t=t, axes=axes, where=where))
     return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line_arr, source=source)
+
+
+def _measured(values: np.ndarray, what: str, *, t: np.ndarray, axes: tuple[str, ...],
+              where: str) -> np.ndarray:
+    """Validate a measured derivative given to :func:`motion_from_samples`."""
+    arr = np.asarray(values, dtype=float)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.shape != (t.size, len(axes)):
+        msg = f'{what} has shape {arr.shape}, expected ({t.size}, {len(axes)})'
+        raise DataError(msg, file=where)
+    bad_rows, bad_cols = np.nonzero(~np.isfinite(arr))
+    if bad_rows.size:
+        raise DataError(f'{what} is not finite', file=where, column=axes[bad_cols[0]],
+                        row=int(bad_rows[0]) + 1)
+    return arr
 
 
 def _smooth(x: np.ndarray, window: int) -> np.ndarray:

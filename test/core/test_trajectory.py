@@ -466,6 +466,25 @@ def test_motion_from_samples_sine():
     assert m.source == 'sine.csv' and np.all(m.line == 0)
 
 
+def test_motion_from_samples_prefers_measured_derivatives():
+    t = np.linspace(0.0, 1.0, 11)
+    pos = np.round(0.3 * t**2, 2)[:, None]          # coarsely rounded positions
+    vel = (0.6 * t)[:, None]                          # the exact measured velocity
+    m = motion_from_samples(t, pos, axes=('X',), vel=vel)
+    np.testing.assert_array_equal(m.vel, vel)
+    np.testing.assert_allclose(m.acc[1:-1], 0.6, rtol=1e-12)   # gradient of the given velocity
+    acc = np.full((11, 1), 0.6)
+    m = motion_from_samples(t, pos, axes=('X',), vel=vel, acc=acc)
+    np.testing.assert_array_equal(m.acc, acc)
+    bad = vel.copy()
+    bad[4, 0] = np.nan
+    with pytest.raises(DataError, match='velocity is not finite') as err:
+        motion_from_samples(t, pos, axes=('X',), vel=bad, source='run.csv')
+    assert err.value.row == 5 and err.value.column == 'X'
+    with pytest.raises(DataError, match='acceleration has shape'):
+        motion_from_samples(t, pos, axes=('X',), vel=vel, acc=acc[:5])
+
+
 def test_motion_from_samples_rejects_bad_input():
     t = np.array([0.0, 0.1, 0.1, 0.3])
     with pytest.raises(DataError, match=r'row 3.*strictly increasing'):

@@ -263,8 +263,10 @@ def _simulate(spec: RunSpec, run: MeasuredRun, machine: Machine,
         source = str(spec.motion_program)
     else:
         kind = spec.motion_from_data or 'commanded'
+        # Measured velocity/acceleration columns, where mapped, beat differentiated positions.
+        vel, acc = run.derivatives(kind)
         motion = motion_from_samples(run.t, run.positions(kind), axes=run.axes,
-                                     source=f'{run.file} ({kind} positions)')
+                                     source=f'{run.file} ({kind} positions)', vel=vel, acc=acc)
         source = f'data:{kind}'
     return simulate_motion(motion, machine, load_kg=spec.load_kg), source
 

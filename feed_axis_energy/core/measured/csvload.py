@@ -86,6 +86,15 @@ class MeasuredRun:
         """Sum of the measured axis powers [W], shape ``(n,)``."""
         return self.power_w.sum(axis=1)
 
+    def derivatives(self, source: str) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Measured velocity [m/s] and acceleration [m/s^2] of ``source``, ``None`` if unmapped.
+
+        ``source`` is ``'actual'`` or ``'commanded'``, as for :meth:`positions`.
+        """
+        if source == 'commanded':
+            return self.command_velocity_m_s, self.command_acceleration_m_s2
+        return self.velocity_m_s, self.acceleration_m_s2
+
     def positions(self, source: str) -> np.ndarray:
         """Positions to rebuild the motion from: ``source`` is ``'actual'`` or ``'commanded'``.
 

@@ -293,7 +293,11 @@ def test_umich_validate_runs_compare():
         assert run.axes == ('X', 'Y')              # Z has no power column
         assert run.motion_source == 'data:commanded'
         assert run.window_s == pytest.approx(0.1)
-        assert run.offset.status in ('ok', 'weak', 'edge', 'ambiguous')
+        # The motion uses the measured commanded velocities (not positions rounded to ~1 mm
+        # and glitching to the home position), so the records align clearly and the
+        # simulated power follows the measured one to about a watt.
+        assert run.offset.status == 'ok'
+        assert run.metrics.avg_diff_error_w < 2.0
         assert run.metrics.n_samples == run.t.size
         assert math.isfinite(run.metrics.rmse_w) and run.metrics.energy_meas_j > 0.0
     assert [g.load_kg for g in result.groups] == [0.0]
