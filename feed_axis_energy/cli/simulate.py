@@ -9,8 +9,9 @@ from feed_axis_energy.cli.common import (add_machine_options, load_machine_and_o
                                          print_summary, program_text_lines)
 from feed_axis_energy.cli.progress import Progress
 from feed_axis_energy.core.gcode import load_gcode
+from feed_axis_energy.core.measured.trajcsv import load_trajectory_csv
 from feed_axis_energy.core.recording import write_simulation_bag
-from feed_axis_energy.core.simulate import simulate_program, summarize
+from feed_axis_energy.core.simulate import simulate_motion, simulate_program, summarize
 
 __all__ = ['add_parser', 'run']
 
@@ -23,7 +24,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     'limits, compute screw torques, actual power P = sum M*omega (eq. 1) and '
                     'energy E = integral P dt (eq. 2). Prints duration, energy per axis and '
                     'total, peak power and the blocks with the most energy.')
-    p.add_argument('program', type=Path, help='NC program (G-code) file')
+    p.add_argument('program', type=Path,
+                   help='NC program (G-code) file, or a trajectory CSV (*.csv) with a header '
+                        '"time [s],X [mm],..." as the motion source instead of G-code')
     add_machine_options(p)
     p.add_argument('--out', type=Path, metavar='BAG_DIR',
                    help='write the full time series as a rosbag2 directory (MCAP storage); '
@@ -42,12 +45,18 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None and args.out.exists():
         msg = f'{args.out} exists already; choose a new output directory'
         raise FileExistsError(msg)
-    program = load_gcode(args.program)
     progress = Progress('simulate', enabled=not args.quiet)
-    result = simulate_program(program, machine, load_kg=args.load_kg, options=options,
-                              progress=progress)
+    trajectory = args.program.suffix.lower() == '.csv'
+    if trajectory:
+        motion = load_trajectory_csv(args.program, axes=machine.axis_names)
+        result = simulate_motion(motion, machine, load_kg=args.load_kg)
+    else:
+        program = load_gcode(args.program)
+        result = simulate_program(program, machine, load_kg=args.load_kg, options=options,
+                                  progress=progress)
     progress.done()
-    summary = summarize(result, top_blocks=args.top)
+    # A trajectory has no source lines to attribute energy to.
+    summary = summarize(result, top_blocks=0 if trajectory else args.top)
     if args.out is not None:
         write_simulation_bag(args.out, result, summary=summary,
                              progress=Progress('write bag', enabled=not args.quiet))
