@@ -19,7 +19,8 @@ Dialect (LinuxCNC semantics where dialects differ)
   required). Under G93 every feed move needs F on its line; F is 1/minutes, so the move
   takes 60/F s and ``feed_m_s = length_m * F / 60``.
 * Accepted and ignored for the feed axes: N, O (a bare program number), S, T, M3-M9,
-  G40, G49, G54-G59 (motion stays in program coordinates; a change of coordinate system
+  G40, G43 H (tool length offset: unknown tool length, so Z moves as programmed; a warning
+  says so), G49, G54-G59 (motion stays in program coordinates; a change of coordinate system
   after the first move is reported as a warning), G8, G96/G97, G98/G99.
 * M0/M1 give a STOP move; M2/M30 give a STOP move and end the program: later lines are
   ignored (with a warning if any of them holds code). A ``%`` line after code also ends it.
@@ -28,9 +29,9 @@ Dialect (LinuxCNC semantics where dialects differ)
 * Blanks and tabs are ignored between and inside words (LinuxCNC rule): ``X 10`` and even
   ``X1 0`` (= X10) are read. Letters may be lower case. Numbers: ``X.5``, ``X-1.``,
   ``X+2``; ``X1.2.3`` and ``Xabc`` are errors.
-* Refused with "not supported": G28/G30, G41/G42, G43, G52/G53, G92, canned cycles
-  (G73-G89), G95, G33, G38.x, G5.x, A/B/C/U/V/W, D/H/L words, parameters and expressions
-  (``#``, ``[...]``), O-word control flow, unknown G/M codes and letters.
+* Refused with "not supported": G28/G30, G41/G42, G43.1/G43.2, G52/G53, G92, canned cycles
+  (G73-G89), G95, G33, G38.x, G5.x, A/B/C/U/V/W, D/L words (H only with G43), parameters
+  and expressions (``#``, ``[...]``), O-word control flow, unknown G/M codes and letters.
 * Arc end check: the end must lie on the start circle within
   ``max(arc_tolerance_m, 0.1 % of the radius)``; the default ``arc_tolerance_m`` is 0.002 mm.
   An R smaller than half the chord by no more than the same tolerance gives a half circle.

@@ -48,7 +48,7 @@ class Interpreter:
 
     __slots__ = ('file', 'arc_tol', 'pos', 'motion', 'plane', 'scale', 'absolute',
                  'arc_absolute', 'inverse_time', 'feed', 'exact', 'coord', 'moves',
-                 'warnings', 'lineno', 'lines', 'ended', 'g_cache')
+                 'warnings', 'lineno', 'lines', 'ended', 'g_cache', 'g43_lineno')
 
     def __init__(self, file: str, start: tuple[float, float, float], arc_tolerance_m: float,
                  *, lines: list[str]):
@@ -70,6 +70,7 @@ class Interpreter:
         self.lines = lines
         self.ended = False
         self.g_cache: dict[str, tuple[str, object, int]] = {}
+        self.g43_lineno = -1                # line of the last G43 (its H word is legal there)
 
     # -- errors ---------------------------------------------------------------------------
     def fail(self, msg: str, letter: str, *, value: float | None = None, nth: int = 0):
@@ -172,6 +173,8 @@ class Interpreter:
             o = self.num('O', d['O'])
             if len(d) > 1 or o != int(o):
                 self.fail('O-word subroutines and control flow are not supported', 'O')
+        if 'H' in d and self.g43_lineno != self.lineno:
+            self.fail('H word with no G43 to use it', 'H')
         if 'Q' in d and not g64:
             self.fail('Q words (canned cycles) are not supported', 'Q')
         arc_move = is_arc and has_axes
@@ -228,6 +231,12 @@ class Interpreter:
             elif group == 'control':
                 self.exact = arg
                 g64 = code == 640
+            elif group == 'tool_length' and code == 430:
+                if self.g43_lineno < 0:
+                    self.warnings.append(
+                        f'{self.file}:{self.lineno}: G43 tool length offset is not simulated '
+                        '(the tool length is unknown): Z moves as programmed')
+                self.g43_lineno = self.lineno
             elif group == 'coord':
                 if arg != self.coord and self.moves:
                     self.warnings.append(

@@ -32,7 +32,7 @@ G_CODES: dict[int, tuple[str, object]] = {
     901: ('arc_distance', True), 911: ('arc_distance', False),
     930: ('feed_mode', True), 940: ('feed_mode', False),
     610: ('control', True), 611: ('control', True), 640: ('control', False),
-    400: ('cutter', None), 490: ('tool_length', None),
+    400: ('cutter', None), 430: ('tool_length', 'G43'), 490: ('tool_length', None),
     540: ('coord', 54), 550: ('coord', 55), 560: ('coord', 56), 570: ('coord', 57),
     580: ('coord', 58), 590: ('coord', 59),
     980: ('retract', None), 990: ('retract', None),
@@ -48,7 +48,7 @@ G_UNSUPPORTED: dict[int, str] = {
     331: 'rigid tapping', 382: 'probing', 383: 'probing', 384: 'probing', 385: 'probing',
     410: 'cutter radius compensation', 420: 'cutter radius compensation',
     411: 'cutter radius compensation', 421: 'cutter radius compensation',
-    430: 'tool length offset', 431: 'tool length offset', 432: 'tool length offset',
+    431: 'tool length offset from the tool table', 432: 'dynamic tool length offset',
     520: 'local coordinate offsets', 530: 'machine coordinate moves',
     730: 'canned cycles', 740: 'canned cycles', 760: 'canned cycles',
     **{c * 10: 'canned cycles' for c in range(81, 90)},
@@ -66,11 +66,10 @@ M_CODES: dict[int, tuple[str, str | None]] = {
 }
 
 # Letters the interpreter understands (D/H/L/Q and the extra axes are refused with a reason).
-ALLOWED_LETTERS = frozenset('GMXYZIJKRFPSTNOQ')
+ALLOWED_LETTERS = frozenset('GMXYZIJKRFPSTNOQH')
 UNSUPPORTED_LETTERS: dict[str, str] = {
     **{a: f'axis {a} is not supported (only X, Y, Z are simulated)' for a in 'ABCUVW'},
     'D': 'D words (cutter compensation) are not supported',
-    'H': 'H words (tool length offset) are not supported',
     'L': 'L words (G10, canned cycle repeats) are not supported',
 }
 

@@ -307,6 +307,15 @@ def test_bad_fixture_place(name):
     assert str(err).startswith(f'{path}:{line}:{column}: ')
 
 
+def test_g43_tool_length_offset_is_accepted_with_a_warning():
+    # CAM headers set the tool length offset; its value is unknown here, so Z moves as
+    # programmed and the user is told once.
+    prog = parse_gcode('G21 G90\nG0 G43 H1 Z50\nG1 Z10 F600\nG43 H2\nG49\n', file='t.nc')
+    assert [m.end[2] for m in prog.moves] == pytest.approx([0.05, 0.01])
+    assert len(prog.warnings) == 1 and 't.nc:2:' in prog.warnings[0]
+    assert 'not simulated' in prog.warnings[0]
+
+
 @pytest.mark.parametrize('text, line, column, reason', [
     ('G1 X1 F100\nG2 X3 Y0 R0', 2, 10, 'R0'),
     ('F100\nG2 X0 Y0 R5', 2, 10, 'full circle'),
@@ -323,7 +332,8 @@ def test_bad_fixture_place(name):
     ('G93 G1 X1 F0', 1, 11, 'never finish'),
     ('G28', 1, 1, 'reference return'),
     ('G41 D1', 1, 1, 'cutter radius compensation'),
-    ('G43 H1 Z5', 1, 1, 'tool length offset'),
+    ('G43.1 Z5', 1, 1, 'tool length offset'),
+    ('G0 X1 H1', 1, 7, 'no G43'),
     ('G5.5', 1, 1, 'unknown G code'),
     ('M3 M5', 1, 4, 'same modal group'),
     ('M98 P100', 1, 1, 'not supported'),
