@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from feed_axis_energy.cli.common import (add_machine_options, load_machine_and_options,
@@ -52,6 +53,8 @@ def run(args: argparse.Namespace) -> int:
         result = simulate_motion(motion, machine, load_kg=args.load_kg)
     else:
         program = load_gcode(args.program)
+        for warning in program.warnings:
+            print(f'warning: {warning}', file=sys.stderr)
         result = simulate_program(program, machine, load_kg=args.load_kg, options=options,
                                   progress=progress)
     progress.done()
