@@ -373,3 +373,13 @@ def test_load_errors(tmp_path):
     with pytest.raises(GcodeError, match='line 2') as info:
         load_gcode(bad)
     assert info.value.line == 0 and str(bad) in str(info.value)
+
+
+def test_garbage_collection_is_resumed_after_parsing_and_after_an_error():
+    import gc
+    assert gc.isenabled()
+    parse_gcode('G1 X1 F100\n', file='t.nc')
+    assert gc.isenabled()
+    with pytest.raises(GcodeError):
+        parse_gcode('G1 X1 Q5 F100\n', file='t.nc')
+    assert gc.isenabled()
