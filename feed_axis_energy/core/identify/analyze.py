@@ -1,0 +1,766 @@
+"""Residual analysis: which catalog effect is the declared model missing, and what it is worth.
+
+:func:`analyze_campaign`:
+
+1. *Baseline*: :func:`.measured.compare.compare_campaign` (simulation, offset, interval
+   averaging, Table-1 metrics); the residual of each run is measured minus aligned simulated
+   power per measured axis.
+2. *Candidates*: for every catalog effect and measured axis, the effect's basis is computed
+   on the 1 kHz simulated state of each run and aligned onto the measured stamps with the
+   run's offset and window (:func:`.measured.align.align_simulated`, the same instrument
+   model). Shape parameters (Stribeck speed, stroke of position friction) get a grid of
+   variants; the selected variant is refined by a bounded 1-D search.
+3. *Selection* (:mod:`.selection`): forward selection scored by held-out error
+   (leave-one-run-out, or the manifest's calibrate/validate roles) together with BIC.
+4. *Honesty*: a selected effect must be consistent across runs (its per-run refit may not
+   explain much more than the pooled one: ``heterogeneity`` below ``max_heterogeneity``);
+   an inconsistent one is removed, selection is redone without it and the structure is
+   reported in ``unexplained``. The final residual is tested for structure against velocity,
+   position, acceleration and time and in its spectrum (:mod:`.diagnostics`).
+5. *Before/after*: Table-1 metrics on held-out runs; each run's *after* adds the effects
+   fitted without it (its fold), at the baseline offset.
+
+Uncertainties of linear parameters: jackknife over runs (leave one run out). Shape
+parameters are found by a profile search and carry no uncertainty (``None``).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+import math
+from typing import Any
+
+import numpy as np
+from scipy import stats
+from scipy.optimize import minimize_scalar
+
+from ..effects import EFFECTS, EffectState, get_effect, state_from_simulation
+from ..errors import ConfigError
+from ..machine import DeclaredEffect, load_machine, Machine
+from ..measured.align import align_simulated
+from ..measured.compare import (_MotionCache, _simulate, compare_campaign, json_clean,
+                                RunComparison)
+from ..measured.csvload import load_run
+from ..measured.manifest import Campaign
+from ..measured.metrics import group_metrics, Metrics, table1_metrics
+from .diagnostics import binned_structure, Diagnostic, noise_sigma, spectrum_structure
+from .selection import Block, Design, forward_select, loro_folds, Step
+
+__all__ = ['AnalyzeOptions', 'AnalysisResult', 'FittedEffect', 'ParamEstimate', 'RunOutcome',
+           'analyze_campaign', 'HOLDOUTS', 'STATE_NAMES']
+
+HOLDOUTS = ('loro', 'roles')
+STATE_NAMES = ('velocity', 'position', 'acceleration', 'time')
+
+
+@dataclass(frozen=True)
+class AnalyzeOptions:
+    """Settings of :func:`analyze_campaign`.
+
+    Attributes
+    ----------
+    holdout
+        ``'loro'`` (leave one run out) or ``'roles'`` (fit on ``calibrate`` runs, score on
+        ``validate`` runs of the manifest).
+    effects
+        Catalog ids to consider (default: all).
+    se_factor, min_gain
+        Acceptance: mean relative held-out gain above ``se_factor`` standard errors and
+        above ``min_gain`` (see :func:`.selection.forward_select`).
+    max_effects
+        Most effects added.
+    max_heterogeneity, heterogeneity_alpha
+        An effect is inconsistent across runs when per-run refits add more than
+        ``max_heterogeneity`` of what it explains and that improvement is significant
+        against the noise (chi-square probability below ``heterogeneity_alpha``).
+    min_share
+        Smallest share of the structured baseline residual an effect must explain to stay
+        (pruning after the forward pass; see :func:`_prune`).
+    min_explained
+        The selected effects together must explain at least this share of the structured
+        baseline residual; otherwise none is claimed (the structure is reported instead).
+    shape_grid_points
+        Grid size of each shape parameter before the refinement.
+    """
+
+    holdout: str = 'loro'
+    effects: tuple[str, ...] | None = None
+    se_factor: float = 2.0
+    min_gain: float = 0.01
+    max_effects: int = 4
+    max_heterogeneity: float = 0.05
+    heterogeneity_alpha: float = 1e-3
+    min_share: float = 0.01
+    min_explained: float = 0.5
+    shape_grid_points: int = 8
+
+
+@dataclass(frozen=True)
+class ParamEstimate:
+    """A fitted effect parameter: value, unit and standard uncertainty (``None``: none)."""
+
+    name: str
+    value: float
+    unit: str
+    uncertainty: float | None
+    method: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict."""
+        return {'name': self.name, 'value': self.value, 'unit': self.unit,
+                'uncertainty': self.uncertainty, 'method': self.method}
+
+
+@dataclass(frozen=True)
+class FittedEffect:
+    """A selected effect.
+
+    Attributes
+    ----------
+    id, axis
+        Catalog id and measured axis.
+    params
+        Linear parameters (jackknife uncertainty) then shape parameters.
+    share_of_residual
+        Drop in the in-sample residual sum of squares when the effect is added last,
+        relative to the baseline residual sum of squares.
+    share_of_structured
+        The same relative to the structured part of the baseline residual
+        (``SSE - N sigma²``), clipped to [0, 1].
+    heldout_gain_w2, heldout_gain_rel
+        Mean over held-out runs of ``mse(without it) - mse(with it)`` [W²] and of the same
+        relative to ``mse(without it)``.
+    heterogeneity
+        Share of its explained variance per-run refits would add (0: same on every run).
+    aliases
+        Candidates that fit nearly as well in its place (``id@axis``).
+    """
+
+    id: str
+    axis: str
+    params: tuple[ParamEstimate, ...]
+    share_of_residual: float
+    share_of_structured: float
+    heldout_gain_w2: float
+    heldout_gain_rel: float
+    heterogeneity: float
+    aliases: tuple[str, ...] = ()
+
+    def values(self) -> dict[str, float]:
+        """Parameter values by name."""
+        return {p.name: p.value for p in self.params}
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict (keys in docs/analyze.md)."""
+        return {'id': self.id, 'axis': self.axis,
+                'parameters': [p.to_dict() for p in self.params],
+                'share_of_residual': self.share_of_residual,
+                'share_of_structured_residual': self.share_of_structured,
+                'heldout_gain_w2': self.heldout_gain_w2,
+                'heldout_gain_rel': self.heldout_gain_rel,
+                'heterogeneity': self.heterogeneity,
+                'aliases': list(self.aliases)}
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """One run before and after (series on the measured stamps, sums of measured axes).
+
+    ``heldout`` is ``False`` for ``calibrate`` runs with ``holdout='roles'``: their
+    ``after`` is in-sample and they are left out of the overall before/after.
+    """
+
+    name: str
+    load_kg: float
+    role: str | None
+    heldout: bool
+    before: Metrics
+    after: Metrics
+    t: np.ndarray = field(repr=False)
+    meas_w: np.ndarray = field(repr=False)
+    sim_w: np.ndarray = field(repr=False)
+    after_w: np.ndarray = field(repr=False)
+    residual_before_w: np.ndarray = field(repr=False)
+    residual_after_w: np.ndarray = field(repr=False)
+    states: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+
+
+@dataclass(frozen=True)
+class AnalysisResult:
+    """Outcome of :func:`analyze_campaign`; a poor fit or no finding is a result.
+
+    Attributes
+    ----------
+    status
+        ``'effects'`` (effects found, no structure left), ``'partial'`` (effects found,
+        structure left), ``'unexplained'`` (structure, no catalog effect explains it),
+        ``'clean'`` (no effect, no structure), ``'too_few_runs'``.
+    message
+        One sentence.
+    """
+
+    status: str
+    message: str
+    campaign: str
+    manifest: str
+    machine: Machine
+    machine_file: str
+    holdout: str
+    axes: tuple[str, ...]
+    noise_sigma_w: dict[str, float]
+    runs: tuple[RunOutcome, ...]
+    effects: tuple[FittedEffect, ...]
+    unexplained: tuple[dict[str, Any], ...]
+    diagnostics_before: tuple[Diagnostic, ...]
+    diagnostics_after: tuple[Diagnostic, ...]
+    steps: tuple[Step, ...]
+    spectra: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
+        repr=False, default_factory=dict)
+
+    @property
+    def heldout_runs(self) -> tuple[RunOutcome, ...]:
+        """Runs scored by a fit without them."""
+        return tuple(r for r in self.runs if r.heldout)
+
+    @property
+    def before(self) -> Metrics:
+        """Pooled baseline metrics of the held-out runs."""
+        return group_metrics([r.before for r in self.heldout_runs])
+
+    @property
+    def after(self) -> Metrics:
+        """Pooled held-out metrics with the selected effects."""
+        return group_metrics([r.after for r in self.heldout_runs])
+
+    def by_load(self) -> list[tuple[float, Metrics, Metrics]]:
+        """``[(load_kg, before, after), ...]`` of held-out runs, by increasing load."""
+        loads = sorted({r.load_kg for r in self.heldout_runs})
+        return [(load, group_metrics([r.before for r in self.heldout_runs
+                                      if r.load_kg == load]),
+                 group_metrics([r.after for r in self.heldout_runs if r.load_kg == load]))
+                for load in loads]
+
+    def augmented_machine(self) -> Machine:
+        """The declared machine plus the selected effects with their fitted parameters."""
+        added = tuple(DeclaredEffect(id=e.id, axis=e.axis,
+                                     params=tuple((p.name, float(p.value)) for p in e.params))
+                      for e in self.effects)
+        return replace(self.machine, effects=self.machine.effects + added)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able summary (keys in docs/analyze.md); NaN becomes ``None``."""
+        def metrics(which: str) -> dict[str, Any]:
+            held = self.heldout_runs
+            return {
+                'total': (self.before if which == 'before' else self.after).to_dict(),
+                'loads': [{'load_kg': load, 'metrics': (b if which == 'before' else a).to_dict()}
+                          for load, b, a in self.by_load()],
+                'runs': [{'name': r.name, 'load_kg': r.load_kg, 'role': r.role,
+                          'metrics': getattr(r, which).to_dict()} for r in held],
+            }
+        return json_clean({
+            'campaign': self.campaign,
+            'manifest': self.manifest,
+            'machine': self.machine.name,
+            'machine_file': self.machine_file,
+            'holdout': self.holdout,
+            'status': self.status,
+            'message': self.message,
+            'noise_sigma_w': self.noise_sigma_w,
+            'before': metrics('before'),
+            'after': metrics('after'),
+            'effects': [e.to_dict() for e in self.effects],
+            'unexplained': [dict(u) for u in self.unexplained],
+            'diagnostics': {'before': [d.to_dict() for d in self.diagnostics_before],
+                            'after': [d.to_dict() for d in self.diagnostics_after]},
+            'selection': [{'effect': s.key[0], 'axis': s.key[1],
+                           'shape': {k: float(v) for k, v in s.shape.items()},
+                           'heldout_gain_rel': s.mean_gain, 'heldout_gain_se': s.se_gain,
+                           'bic_before': s.bic_before, 'bic_after': s.bic_after,
+                           'accepted': s.accepted, 'reason': s.reason}
+                          for s in self.steps],
+        })
+
+
+# ----------------------------------------------------------------------------- run data
+
+@dataclass
+class _Run:
+    cmp: RunComparison
+    state: EffectState
+    sim_index: list[int | None]     # measured axis j -> column of the simulation or None
+    residual: np.ndarray            # (m, k_meas)
+    states: dict[str, np.ndarray]   # name -> (m, k_meas) on the stamps
+
+    def aligned(self, cols: np.ndarray) -> np.ndarray:
+        """Align 1 kHz columns ``(n, c)`` onto the measured stamps: ``(m, c)``."""
+        return align_simulated(self.state.t, cols, self.cmp.t,
+                               offset_s=self.cmp.offset_used_s, window_s=self.cmp.window_s)
+
+
+def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
+             machine: Machine) -> list[_Run]:
+    cache = _MotionCache(machine)
+    out = []
+    for r in cmp_runs:
+        spec = campaign.run(r.name)
+        measured = load_run(spec)
+        sim, _ = _simulate(spec, measured, machine, cache)
+        state = state_from_simulation(sim)
+        idx = [state.axes.index(a) if a in state.axes else None for a in r.axes]
+        n = state.t.shape[0]
+        cols = []
+        for j in idx:
+            for arr in (state.velocity_m_s, state.position_m, state.acceleration_m_s2):
+                cols.append(arr[:, j] if j is not None else np.zeros(n))
+        run = _Run(cmp=r, state=state, sim_index=idx,
+                   residual=r.power_meas_w - r.power_sim_w, states={})
+        on = run.aligned(np.column_stack(cols))
+        k = len(idx)
+        mid = r.t - r.offset_used_s - 0.5 * r.window_s
+        run.states = {'velocity': on[:, 0::3], 'position': on[:, 1::3],
+                      'acceleration': on[:, 2::3],
+                      'time': np.repeat(mid[:, None], k, axis=1)}
+        out.append(run)
+    return out
+
+
+def _columns(run: _Run, effect_id: str, axis_j: int, shape: Mapping[str, float]) -> np.ndarray:
+    """Aligned basis of one effect on measured axis ``axis_j``, flattened: ``(m*k, p)``."""
+    effect = get_effect(effect_id)
+    p = len(effect.linear_params())
+    m, k = run.residual.shape
+    out = np.zeros((m, k, p))
+    j = run.sim_index[axis_j]
+    if j is not None:
+        basis = effect.basis(run.state, dict(shape))[:, j, :]
+        out[:, axis_j, :] = run.aligned(basis)
+    return out.reshape(m * k, p)
+
+
+def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
+                points: int) -> list[dict[str, float]]:
+    effect = get_effect(effect_id)
+    shapes = [p for p in effect.params if not p.linear]
+    if not shapes:
+        return [{}]
+    if len(shapes) > 1:
+        return [{p.name: p.default for p in shapes}]
+    par = shapes[0]
+    if par.name == 'stroke_m':
+        # the cosine terms span the travelled range: a few multiples of it
+        span = max(float(np.ptp(r.states['position'][:, axis_j])) for r in runs)
+        span = span if span > 0.0 else par.default
+        grid = np.clip(span * np.array([1.0, 1.25, 1.5, 2.0]), par.low, par.high)
+    else:
+        grid = np.geomspace(max(par.low, 1e-12), par.high, points)
+    return [{par.name: float(v)} for v in np.unique(grid)]
+
+
+def _folds(runs: Sequence[_Run], holdout: str, file: str) -> list[tuple[list[int], list[int]]]:
+    if holdout == 'loro':
+        return loro_folds(len(runs))
+    if holdout == 'roles':
+        train = [i for i, r in enumerate(runs) if r.cmp.role == 'calibrate']
+        test = [i for i, r in enumerate(runs) if r.cmp.role == 'validate']
+        if not train or not test:
+            msg = ('holdout "roles" needs runs with role calibrate and runs with role '
+                   'validate in the manifest')
+            raise ConfigError(msg, file=file, key='role')
+        return [(train, test)]
+    msg = f'holdout must be one of {", ".join(HOLDOUTS)}, got {holdout!r}'
+    raise ConfigError(msg, file=file, key='holdout')
+
+
+# ----------------------------------------------------------------------------- fitting
+
+def _sse_with(design: Design, cols: list[int], extra: Sequence[np.ndarray]) -> float:
+    """In-sample SSE of ``cols`` plus extra per-run columns, pooled over every run."""
+    g_parts, b_parts = [], []
+    for r, c in enumerate(extra):
+        x = np.hstack([design.x[r][:, cols], c])
+        g_parts.append(x.T @ x)
+        b_parts.append(x.T @ design.y[r])
+    g, b = sum(g_parts), sum(b_parts)
+    d = np.sqrt(np.clip(np.diag(g), 0.0, None))
+    d[d == 0.0] = 1.0
+    sol, *_ = np.linalg.lstsq(g / np.outer(d, d), b / d, rcond=1e-10)
+    theta = sol / d
+    return float(design.yy.sum() - 2.0 * theta @ b + theta @ g @ theta)
+
+
+def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
+                  others: list[int]) -> Block:
+    """1-D bounded search of a block's single shape parameter around its grid value."""
+    effect = get_effect(block.key[0])
+    shapes = [p for p in effect.params if not p.linear]
+    if len(shapes) != 1:
+        return block
+    par = shapes[0]
+    axis_j = _axis_index(runs, block.key[1])
+    grid = sorted(float(b.shape[par.name]) for b in design.blocks if b.key == block.key)
+    value = float(block.shape[par.name])
+    i = grid.index(value)
+    lo = grid[i - 1] if i > 0 else max(par.low, value / 2.0)
+    hi = grid[i + 1] if i + 1 < len(grid) else min(par.high, value * 2.0)
+    if not hi > lo:
+        return block
+
+    def cost(log_v: float) -> float:
+        cols = [_columns(r, block.key[0], axis_j, {par.name: math.exp(log_v)}) for r in runs]
+        return _sse_with(design, others, cols)
+
+    res = minimize_scalar(cost, bounds=(math.log(lo), math.log(hi)), method='bounded',
+                          options={'xatol': 1e-3, 'maxiter': 30})
+    best = math.exp(float(res.x))
+    if not float(res.fun) < _sse_with(design, others, [design.x[r][:, list(block.cols)]
+                                                       for r in range(design.runs)]):
+        return block
+    cols = [_columns(r, block.key[0], axis_j, {par.name: best}) for r in runs]
+    return design.add_block(block.key, {par.name: best}, block.names, cols)
+
+
+def _axis_index(runs: Sequence[_Run], axis: str) -> int:
+    return list(runs[0].cmp.axes).index(axis)
+
+
+def _prune(design: Design, blocks: list[Block], folds, options: AnalyzeOptions,
+           structured: float) -> list[Block]:
+    """Backward pass: drop, one at a time, the weakest effect that no longer earns its place.
+
+    An effect stays when, added last, its mean relative held-out gain still exceeds
+    ``se_factor`` standard errors and ``min_gain``, and it explains at least ``min_share`` of
+    the structured baseline residual (an effect picked early can be made redundant by a
+    later one; a tiny timing correction is not a missing physical effect).
+    """
+    blocks = list(blocks)
+    while blocks:
+        cols = [c for b in blocks for c in b.cols]
+        full = design.heldout_mse(cols, folds)
+        sse_full = design.total_sse(cols)
+        worst, worst_score = None, math.inf
+        for i in range(len(blocks)):
+            without = [c for k, b in enumerate(blocks) if k != i for c in b.cols]
+            wo = design.heldout_mse(without, folds)
+            gains = np.array([1.0 - full[r] / wo[r] if wo[r] > 0.0 else 0.0 for r in full])
+            se = (float(np.std(gains, ddof=1) / math.sqrt(gains.size)) if gains.size > 1
+                  else math.inf)
+            share = ((design.total_sse(without) - sse_full) / structured if structured > 0.0
+                     else 0.0)
+            mean = float(np.mean(gains))
+            # time_offset corrects the baseline alignment (biased by whatever the declared
+            # model misses); its worth is the held-out gain, not a share of the structure
+            if blocks[i].key[0] == 'time_offset':
+                share = max(share, options.min_share)
+            keep = (mean > options.se_factor * se and mean > options.min_gain
+                    and share >= options.min_share)
+            score = min(mean - options.se_factor * se, share - options.min_share)
+            if not keep and score < worst_score:
+                worst, worst_score = i, score
+        if worst is None:
+            break
+        del blocks[worst]
+    return blocks
+
+
+def _heterogeneity(design: Design, blocks: Sequence[Block], which: int,
+                   sigma2: float) -> tuple[float, float]:
+    """How much better per-run refits of one block fit than its pooled parameters.
+
+    Returns ``(share, p_value)``: the share of the block's explained variance that per-run
+    refits add, and the chi-square probability of that improvement if the parameters were
+    the same on every run (improvement / ``sigma2`` with ``(R - 1) p`` degrees of freedom).
+    """
+    cols = [c for b in blocks for c in b.cols]
+    theta = design.fit(cols, range(design.runs))
+    own = list(blocks[which].cols)
+    pos = [cols.index(c) for c in own]
+    rest = [i for i in range(len(cols)) if i not in pos]
+    pooled = free = none = 0.0
+    for r in range(design.runs):
+        base = design.y[r] - design.x[r][:, [cols[i] for i in rest]] @ theta[rest]
+        xe = design.x[r][:, own]
+        none += float(base @ base)
+        pooled_res = base - xe @ theta[pos]
+        pooled += float(pooled_res @ pooled_res)
+        if np.any(xe):
+            sol, *_ = np.linalg.lstsq(xe, base, rcond=1e-10)
+            free_res = base - xe @ sol
+            free += float(free_res @ free_res)
+        else:
+            free += float(base @ base)
+    explained = none - free
+    share = float((pooled - free) / explained) if explained > 0.0 else 0.0
+    dof = max((design.runs - 1) * len(own), 1)
+    p = float(stats.chi2.sf((pooled - free) / sigma2, dof)) if sigma2 > 0.0 else math.nan
+    return share, p
+
+
+def _label(key: tuple[str, str]) -> str:
+    return f'{key[0]}@{key[1]}'
+
+
+# ----------------------------------------------------------------------------- diagnostics
+
+def _diagnose(runs: Sequence[_Run], residuals: Sequence[np.ndarray],
+              sigmas: Mapping[str, float]) -> tuple[list[Diagnostic], dict]:
+    out: list[Diagnostic] = []
+    spectra = {}
+    axes = runs[0].cmp.axes
+    for j, axis in enumerate(axes):
+        y = np.concatenate([res[:, j] for res in residuals])
+        for name in STATE_NAMES:
+            x = np.concatenate([r.states[name][:, j] for r in runs])
+            out.append(binned_structure(y, x, sigma=sigmas[axis], name=name, axis=axis))
+        period = float(np.median([r.cmp.window_s for r in runs]))
+        out.append(spectrum_structure([res[:, j] for res in residuals], period_s=period,
+                                      sigma=sigmas[axis], axis=axis))
+        spectra[axis] = _avg_spectrum([res[:, j] for res in residuals], period)
+    return out, spectra
+
+
+def _avg_spectrum(series: Sequence[np.ndarray], period: float) -> tuple[np.ndarray, np.ndarray]:
+    from scipy import signal
+    runs = [s for s in series if s.size >= 16]
+    if not runs:
+        return np.zeros(0), np.zeros(0)
+    seg = int(min(256, min(s.size for s in runs)))
+    psd = [signal.welch(s, fs=1.0 / period, nperseg=seg, scaling='spectrum')[1] for s in runs]
+    f = signal.welch(runs[0], fs=1.0 / period, nperseg=seg)[0]
+    return f, np.mean(psd, axis=0)
+
+
+# ----------------------------------------------------------------------------- main
+
+def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
+                     runs: Sequence[str] | None = None,
+                     options: AnalyzeOptions = AnalyzeOptions(),
+                     progress: Callable[[float], None] | None = None) -> AnalysisResult:
+    """Find the catalog effects the declared model misses; before/after on held-out runs.
+
+    Parameters
+    ----------
+    campaign
+        From :func:`.measured.manifest.load_campaign`.
+    machine
+        The declared model; default: the manifest's machine config.
+    runs
+        Names of the runs to use (default: all).
+    options
+        See :class:`AnalyzeOptions`.
+    progress
+        Called with the finished fraction (0..1).
+
+    Returns
+    -------
+    AnalysisResult
+        Effects, unexplained structure, diagnostics, before/after metrics.
+
+    Raises
+    ------
+    ConfigError, DataError, GcodeError, PlanningError
+        Unusable inputs (never for a poor fit or for finding nothing).
+    """
+    machine_file = ''
+    if machine is None:
+        machine = load_machine(campaign.machine)
+        machine_file = str(campaign.machine)
+    ids = tuple(EFFECTS) if options.effects is None else tuple(options.effects)
+    for effect_id in ids:
+        get_effect(effect_id)
+
+    def report(x: float) -> None:
+        if progress is not None:
+            progress(x)
+
+    cmp = compare_campaign(campaign, machine=machine, runs=runs,
+                           progress=lambda f: report(0.4 * f))
+    data = _prepare(campaign, cmp.runs, machine)
+    axes = cmp.runs[0].axes
+    if any(r.cmp.axes != axes for r in data):
+        msg = 'analyze needs the same measured axes in every run'
+        raise ConfigError(msg, file=str(campaign.file), key='axes')
+    folds = _folds(data, options.holdout, str(campaign.file))
+    report(0.5)
+
+    design = Design([r.residual.reshape(-1) for r in data])
+    for effect_id in ids:
+        effect = get_effect(effect_id)
+        for j, axis in enumerate(axes):
+            for shape in _shape_grid(effect_id, data, j, options.shape_grid_points):
+                cols = [_columns(r, effect_id, j, shape) for r in data]
+                if not any(np.any(c) for c in cols):
+                    continue
+                design.add_block((effect_id, axis), shape, effect.linear_params(), cols)
+    report(0.7)
+
+    sigmas = {a: noise_sigma([r.residual[:, j] for r in data]) for j, a in enumerate(axes)}
+    n_total = float(design.n.sum())
+    sse0 = float(design.yy.sum())
+    noise_ss = sum(sigmas[a] ** 2 * sum(r.residual.shape[0] for r in data) for a in axes)
+    structured0 = max(sse0 - noise_ss, 0.0)
+    # one noise variance for the whole design (axes pooled by their sample counts)
+    sigma2 = noise_ss / n_total if n_total > 0 else math.nan
+
+    excluded: list[tuple[str, str]] = []
+    rejected: list[dict[str, Any]] = []
+    steps: tuple[Step, ...] = ()
+    blocks: list[Block] = []
+    for _ in range(6):
+        sel = forward_select(design, folds, exclude=excluded, se_factor=options.se_factor,
+                             min_gain=options.min_gain, max_effects=options.max_effects)
+        steps = sel.steps
+        blocks = list(sel.blocks)
+        for i in range(len(blocks)):
+            others = [c for k, b in enumerate(blocks) if k != i for c in b.cols]
+            blocks[i] = _refine_shape(design, data, blocks[i], others)
+        blocks = _prune(design, blocks, folds, options, structured0)
+        het = [_heterogeneity(design, blocks, i, sigma2) for i in range(len(blocks))]
+        bad = [i for i, (h, p) in enumerate(het)
+               if h > options.max_heterogeneity and p < options.heterogeneity_alpha]
+        if not bad:
+            break
+        for i in bad:
+            excluded.append(blocks[i].key)
+            rejected.append({
+                'diagnostic': 'inconsistent_across_runs', 'axis': blocks[i].key[1],
+                'effect': blocks[i].key[0], 'statistic': het[i][0],
+                'message': (f'{_label(blocks[i].key)} would fit, but not with one set of '
+                            f'parameters: per-run refits add {100 * het[i][0]:.0f} % to what it '
+                            f'explains (limit {100 * options.max_heterogeneity:.0f} %); '
+                            'the structure is not this effect')})
+    else:
+        blocks = []
+    if blocks and structured0 > 0.0:
+        cols = [c for b in blocks for c in b.cols]
+        share = 1.0 - (design.total_sse(cols) - noise_ss) / structured0
+        if share < options.min_explained:
+            rejected.append({
+                'diagnostic': 'weak_attribution',
+                'axis': ','.join(sorted({b.key[1] for b in blocks})),
+                'effect': ','.join(b.key[0] for b in blocks), 'statistic': share,
+                'message': (f'{", ".join(_label(b.key) for b in blocks)} would explain only '
+                            f'{100 * share:.0f} % of the structured residual (at least '
+                            f'{100 * options.min_explained:.0f} % needed): not claimed')})
+            blocks = []
+    report(0.85)
+
+    cols = [c for b in blocks for c in b.cols]
+    all_runs = list(range(design.runs))
+    theta = design.fit(cols, all_runs)
+    jack = np.array([design.fit(cols, [q for q in all_runs if q != r]) for r in all_runs])
+    if len(all_runs) > 1 and cols:
+        se = np.sqrt((len(all_runs) - 1) / len(all_runs)
+                     * np.sum((jack - jack.mean(axis=0)) ** 2, axis=0))
+    else:
+        se = np.full(len(cols), math.nan)
+    mse_full = design.heldout_mse(cols, folds)
+    sse_full = design.total_sse(cols)
+
+    # per-effect figures
+    fitted: list[FittedEffect] = []
+    pos = 0
+    for i, block in enumerate(blocks):
+        effect = get_effect(block.key[0])
+        params = []
+        for name in block.names:
+            unit = next(p.unit for p in effect.params if p.name == name)
+            params.append(ParamEstimate(name, float(theta[pos]), unit,
+                                        float(se[pos]) if math.isfinite(se[pos]) else None,
+                                        'jackknife over runs'))
+            pos += 1
+        for name, value in block.shape.items():
+            unit = next(p.unit for p in effect.params if p.name == name)
+            params.append(ParamEstimate(name, float(value), unit, None, 'profile search'))
+        without = [c for k, b in enumerate(blocks) if k != i for c in b.cols]
+        drop = design.total_sse(without) - sse_full
+        mse_wo = design.heldout_mse(without, folds)
+        gain = float(np.mean([mse_wo[r] - mse_full[r] for r in mse_full]))
+        rel = float(np.mean([(mse_wo[r] - mse_full[r]) / mse_wo[r] for r in mse_full
+                             if mse_wo[r] > 0.0]))
+        aliases = []
+        seen = set()
+        for other in design.blocks:
+            if other.key in seen or other.key in {b.key for b in blocks}:
+                continue
+            alt = design.heldout_mse(without + list(other.cols), folds)
+            alt_mean = float(np.mean(list(alt.values())))
+            full_mean = float(np.mean(list(mse_full.values())))
+            wo_mean = float(np.mean(list(mse_wo.values())))
+            if alt_mean <= full_mean + 0.1 * (wo_mean - full_mean):
+                aliases.append(_label(other.key))
+                seen.add(other.key)
+        fitted.append(FittedEffect(
+            id=block.key[0], axis=block.key[1], params=tuple(params),
+            share_of_residual=drop / sse0 if sse0 > 0 else 0.0,
+            share_of_structured=min(max(drop / structured0, 0.0), 1.0) if structured0 > 0
+            else 0.0,
+            heldout_gain_w2=gain, heldout_gain_rel=rel,
+            heterogeneity=_heterogeneity(design, blocks, i, sigma2)[0],
+            aliases=tuple(aliases)))
+
+    # held-out predictions per run, in-sample residual after
+    pred = {}
+    for train, test in folds:
+        th = design.fit(cols, train)
+        for r in test:
+            pred[r] = design.predict(cols, th, r)
+    outcomes = []
+    residual_after = []
+    for r, run in enumerate(data):
+        m, k = run.residual.shape
+        insample = design.predict(cols, theta, r).reshape(m, k)
+        residual_after.append(run.residual - insample)
+        held = r in pred
+        add = (pred[r] if held else design.predict(cols, theta, r)).reshape(m, k)
+        c = run.cmp
+        meas = c.total_meas_w
+        sim = c.total_sim_w
+        after = sim + add.sum(axis=1)
+        outcomes.append(RunOutcome(
+            name=c.name, load_kg=c.load_kg, role=c.role, heldout=held, before=c.metrics,
+            after=table1_metrics(c.t, meas, after), t=c.t, meas_w=meas, sim_w=sim,
+            after_w=after, residual_before_w=run.residual, residual_after_w=residual_after[-1],
+            states=run.states))
+
+    diag_before, _ = _diagnose(data, [r.residual for r in data], sigmas)
+    diag_after, spectra_after = _diagnose(data, residual_after, sigmas)
+    _, spectra_before = _diagnose(data, [r.residual for r in data], sigmas)
+    spectra = {a: (spectra_before[a][0], spectra_before[a][1], spectra_after[a][1])
+               for a in axes}
+    unexplained = list(rejected)
+    for d in diag_after:
+        if d.structured:
+            unexplained.append({'diagnostic': d.name, 'axis': d.axis, 'effect': None,
+                                'statistic': d.statistic, 'message': d.message})
+    explained = (min(max(1.0 - (sse_full - noise_ss) / structured0, 0.0), 1.0)
+                 if structured0 > 0 else math.nan)
+    status, message = _verdict(fitted, unexplained, steps, data, folds, explained)
+    report(1.0)
+    return AnalysisResult(
+        status=status, message=message, campaign=cmp.campaign, manifest=cmp.manifest,
+        machine=machine, machine_file=machine_file, holdout=options.holdout, axes=axes,
+        noise_sigma_w=sigmas, runs=tuple(outcomes), effects=tuple(fitted),
+        unexplained=tuple(unexplained), diagnostics_before=tuple(diag_before),
+        diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra)
+
+
+def _verdict(fitted, unexplained, steps, data, folds, explained) -> tuple[str, str]:
+    n_test = len({r for _, test in folds for r in test})
+    names = ', '.join(f'{e.id} on {e.axis}' for e in fitted)
+    share = (f' ({100 * explained:.0f} % of the structured residual explained)'
+             if math.isfinite(explained) else '')
+    if n_test < 2:
+        return 'too_few_runs', ('fewer than 2 held-out runs: no effect can be shown to '
+                                'improve held-out error')
+    if fitted and unexplained:
+        return 'partial', (f'added {names}{share}; structure remains that no catalog effect '
+                           f'explains: {"; ".join(u["diagnostic"] for u in unexplained)}')
+    if fitted:
+        return 'effects', f'added {names}{share}; no structure left beyond the noise'
+    if unexplained:
+        return 'unexplained', ('the residual has structure ('
+                               + '; '.join(u['diagnostic'] for u in unexplained)
+                               + ') that no catalog effect explains consistently')
+    last = steps[-1].reason if steps else 'no candidate'
+    return 'clean', f'no effect added ({last}); no structure beyond the noise'

@@ -1,0 +1,281 @@
+"""Forward selection of effects by held-out error: the linear algebra behind ``analyze``.
+
+The residual of each run (measured minus simulated power, flattened over the measured axes)
+is regressed on *blocks* of basis columns, one block per candidate (effect, axis, shape
+values). Per run the cross products ``X'X``, ``X'y`` and ``y'y`` of every column are kept,
+so a fit on any set of runs and columns is a small solve; held-out errors per run come from
+fits on the other runs (*folds*).
+
+Acceptance of a candidate (:func:`forward_select`): the mean relative held-out gain
+``g_r = 1 - mse_r(S + c) / mse_r(S)`` over held-out runs must exceed ``se_factor`` standard
+errors of the mean and ``min_gain``, and the BIC of the in-sample fit must drop.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+__all__ = ['Block', 'Design', 'Step', 'SelectionResult', 'forward_select', 'loro_folds']
+
+
+@dataclass(frozen=True)
+class Block:
+    """Basis columns of one candidate.
+
+    Attributes
+    ----------
+    key
+        ``(effect_id, axis)``: the candidate; variants of shape values share it.
+    shape
+        Shape parameter values the columns were computed with.
+    names
+        Linear parameter names, one per column.
+    cols
+        Column indices in the design.
+    """
+
+    key: tuple[str, str]
+    shape: Mapping[str, float]
+    names: tuple[str, ...]
+    cols: tuple[int, ...]
+
+
+class Design:
+    """Per-run cross products of the residual and every candidate column.
+
+    Parameters
+    ----------
+    y
+        Residual of each run, flattened, ``[(n_r,), ...]``.
+    """
+
+    def __init__(self, y: Sequence[np.ndarray]) -> None:
+        self.y = [np.asarray(v, dtype=float) for v in y]
+        self.n = np.array([v.size for v in self.y])
+        self.yy = np.array([float(v @ v) for v in self.y])
+        self.x: list[np.ndarray] = [np.zeros((v.size, 0)) for v in self.y]
+        self.gram: list[np.ndarray] = [np.zeros((0, 0)) for _ in self.y]
+        self.xy: list[np.ndarray] = [np.zeros(0) for _ in self.y]
+        self.blocks: list[Block] = []
+
+    @property
+    def runs(self) -> int:
+        """Number of runs."""
+        return len(self.y)
+
+    def add_block(self, key: tuple[str, str], shape: Mapping[str, float],
+                  names: Sequence[str], columns: Sequence[np.ndarray]) -> Block:
+        """Add one candidate's columns (``columns[r]`` of shape ``(n_r, p)``) to every run."""
+        p = len(names)
+        start = self.x[0].shape[1]
+        for r, c in enumerate(columns):
+            c = np.asarray(c, dtype=float).reshape(self.n[r], p)
+            old = self.x[r]
+            cross = old.T @ c
+            g = np.zeros((start + p, start + p))
+            g[:start, :start] = self.gram[r]
+            g[:start, start:] = cross
+            g[start:, :start] = cross.T
+            g[start:, start:] = c.T @ c
+            self.gram[r] = g
+            self.xy[r] = np.concatenate([self.xy[r], c.T @ self.y[r]])
+            self.x[r] = np.hstack([old, c])
+        block = Block(key=key, shape=dict(shape), names=tuple(names),
+                      cols=tuple(range(start, start + p)))
+        self.blocks.append(block)
+        return block
+
+    def fit(self, cols: Sequence[int], runs: Sequence[int]) -> np.ndarray:
+        """Least-squares coefficients of ``cols`` on the pooled ``runs``.
+
+        Columns are scaled to unit norm before the solve; collinear columns share the fit
+        (minimum-norm solution) instead of failing.
+        """
+        cols = list(cols)
+        if not cols:
+            return np.zeros(0)
+        idx = np.ix_(cols, cols)
+        g = sum(self.gram[r][idx] for r in runs)
+        b = sum(self.xy[r][cols] for r in runs)
+        d = np.sqrt(np.clip(np.diag(g), 0.0, None))
+        d[d == 0.0] = 1.0
+        sol, *_ = np.linalg.lstsq(g / np.outer(d, d), b / d, rcond=1e-10)
+        return sol / d
+
+    def sse(self, cols: Sequence[int], theta: np.ndarray, run: int) -> float:
+        """Residual sum of squares of ``run`` after subtracting ``X theta``."""
+        cols = list(cols)
+        if not cols:
+            return float(self.yy[run])
+        idx = np.ix_(cols, cols)
+        g = self.gram[run][idx]
+        b = self.xy[run][cols]
+        return max(0.0, float(self.yy[run] - 2.0 * theta @ b + theta @ g @ theta))
+
+    def predict(self, cols: Sequence[int], theta: np.ndarray, run: int) -> np.ndarray:
+        """``X theta`` of one run, flattened like its residual."""
+        cols = list(cols)
+        if not cols:
+            return np.zeros(self.n[run])
+        return self.x[run][:, cols] @ theta
+
+    def heldout_mse(self, cols: Sequence[int],
+                    folds: Sequence[tuple[Sequence[int], Sequence[int]]]) -> dict[int, float]:
+        """Mean squared held-out residual of every test run: ``{run: mse}``."""
+        out = {}
+        for train, test in folds:
+            theta = self.fit(cols, train)
+            for r in test:
+                out[r] = self.sse(cols, theta, r) / self.n[r]
+        return out
+
+    def total_sse(self, cols: Sequence[int]) -> float:
+        """In-sample residual sum of squares of a fit on every run."""
+        runs = range(self.runs)
+        theta = self.fit(cols, runs)
+        return float(sum(self.sse(cols, theta, r) for r in runs))
+
+    def bic(self, cols: Sequence[int]) -> float:
+        """``N ln(SSE/N) + p ln N`` of the in-sample fit on every run."""
+        n = float(self.n.sum())
+        sse = max(self.total_sse(cols), 1e-300)
+        return n * math.log(sse / n) + len(list(cols)) * math.log(n)
+
+
+def loro_folds(runs: int) -> list[tuple[list[int], list[int]]]:
+    """Leave-one-run-out folds ``[(train, [test]), ...]``."""
+    return [([i for i in range(runs) if i != r], [r]) for r in range(runs)]
+
+
+@dataclass(frozen=True)
+class Step:
+    """One round of forward selection: the best candidate and whether it was added.
+
+    Attributes
+    ----------
+    key
+        ``(effect_id, axis)`` of the best candidate of the round.
+    shape
+        Its best shape values.
+    mean_gain, se_gain
+        Mean relative held-out gain over held-out runs and its standard error.
+    bic_before, bic_after
+        BIC without and with it.
+    accepted
+        Whether it was added.
+    reason
+        Why (not).
+    ranking
+        ``[(key, mean held-out mse), ...]`` of every candidate of the round, best first.
+    """
+
+    key: tuple[str, str]
+    shape: Mapping[str, float]
+    mean_gain: float
+    se_gain: float
+    bic_before: float
+    bic_after: float
+    accepted: bool
+    reason: str
+    ranking: list[tuple[tuple[str, str], float]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class SelectionResult:
+    """Outcome of :func:`forward_select`: the chosen blocks, in order, and every round."""
+
+    blocks: tuple[Block, ...]
+    steps: tuple[Step, ...]
+
+    @property
+    def cols(self) -> list[int]:
+        """Design columns of the chosen blocks."""
+        return [c for b in self.blocks for c in b.cols]
+
+
+def _score(design: Design, cols: list[int], folds, base: dict[int, float]):
+    mse = design.heldout_mse(cols, folds)
+    runs = sorted(mse)
+    gains = np.array([1.0 - mse[r] / base[r] if base[r] > 0.0 else 0.0 for r in runs])
+    return float(np.mean([mse[r] for r in runs])), gains
+
+
+def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence[int]]], *,
+                   exclude: Sequence[tuple[str, str]] = (), se_factor: float = 2.0,
+                   min_gain: float = 0.01, max_effects: int = 4) -> SelectionResult:
+    """Add candidates one at a time while each improves the held-out error beyond its noise.
+
+    Parameters
+    ----------
+    design
+        Residuals and candidate blocks (several blocks with the same key are variants of
+        one candidate with different shape values; the best variant represents it).
+    folds
+        ``[(train runs, test runs), ...]``; every test run is scored by a fit on its train
+        runs.
+    exclude
+        Candidate keys not to consider.
+    se_factor
+        The mean relative held-out gain must exceed this many standard errors.
+    min_gain
+        ... and this fraction of the held-out mean squared error.
+    max_effects
+        Stop after this many.
+
+    Returns
+    -------
+    SelectionResult
+        The chosen blocks and the record of every round.
+    """
+    chosen: list[Block] = []
+    steps: list[Step] = []
+    n_test = len({r for _, test in folds for r in test})
+    while len(chosen) < max_effects:
+        cols = [c for b in chosen for c in b.cols]
+        base = design.heldout_mse(cols, folds)
+        taken = {b.key for b in chosen} | set(exclude)
+        best: dict[tuple[str, str], tuple[float, Block, np.ndarray]] = {}
+        for block in design.blocks:
+            if block.key in taken:
+                continue
+            mean_mse, gains = _score(design, cols + list(block.cols), folds, base)
+            if block.key not in best or mean_mse < best[block.key][0]:
+                best[block.key] = (mean_mse, block, gains)
+        if not best:
+            break
+        ranking = sorted(((k, v[0]) for k, v in best.items()), key=lambda kv: kv[1])
+        top = ranking[0][1]
+        spread = top - float(np.mean(list(base.values())))
+        # Candidates that fit as well as the best (collinear ones) are ties: the one with
+        # the lowest BIC (fewest parameters) wins, then catalog order.
+        ties = [k for k, m in ranking if m - top <= 1e-3 * abs(spread) + 1e-12 * abs(top)]
+        bics = {k: design.bic(cols + list(best[k][1].cols)) for k in ties}
+        key = min(ties, key=lambda k: bics[k])
+        _, block, gains = best[key]
+        mean_gain = float(np.mean(gains))
+        se = float(np.std(gains, ddof=1) / math.sqrt(gains.size)) if gains.size > 1 else math.inf
+        bic_before = design.bic(cols)
+        bic_after = bics[key]
+        if n_test < 2:
+            ok, reason = False, 'fewer than 2 held-out runs: the gain has no standard error'
+        elif not mean_gain > se_factor * se:
+            ok, reason = False, (f'held-out gain {100 * mean_gain:.2f} % is within '
+                                 f'{se_factor:g} standard errors ({100 * se:.2f} %)')
+        elif not mean_gain > min_gain:
+            ok, reason = False, (f'held-out gain {100 * mean_gain:.2f} % is below '
+                                 f'{100 * min_gain:g} %')
+        elif not bic_after < bic_before:
+            ok, reason = False, f'BIC does not drop ({bic_before:.1f} -> {bic_after:.1f})'
+        else:
+            ok, reason = True, (f'held-out gain {100 * mean_gain:.2f} % +- {100 * se:.2f} %, '
+                                f'BIC {bic_before:.1f} -> {bic_after:.1f}')
+        steps.append(Step(key=key, shape=block.shape, mean_gain=mean_gain, se_gain=se,
+                          bic_before=bic_before, bic_after=bic_after, accepted=ok,
+                          reason=reason, ranking=ranking))
+        if not ok:
+            break
+        chosen.append(block)
+    return SelectionResult(blocks=tuple(chosen), steps=tuple(steps))
