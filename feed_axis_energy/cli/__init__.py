@@ -15,7 +15,8 @@ from feed_axis_energy.core.errors import FeedAxisError
 __all__ = ['main', 'build_parser']
 
 # Order is the order shown in --help.
-SUBCOMMANDS = ('simulate', 'demo', 'compare', 'launch', 'import', 'fit-loss', 'rig')
+SUBCOMMANDS = ('simulate', 'demo', 'compare', 'launch', 'import', 'fit-loss', 'rig',
+               'analyze')
 # Subcommands whose module is not named after them ('import' is a Python keyword).
 _MODULES = {'import': 'import_run'}
 

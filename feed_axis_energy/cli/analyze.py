@@ -1,0 +1,138 @@
+"""``feed-axis-energy analyze``: which effect does the declared model miss (docs/analyze.md)."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import yaml
+
+from feed_axis_energy.cli.common import format_table
+from feed_axis_energy.cli.progress import Progress
+from feed_axis_energy.core.errors import ConfigError
+from feed_axis_energy.core.identify.analyze import (AnalysisResult, analyze_campaign,
+                                                    AnalyzeOptions, HOLDOUTS)
+from feed_axis_energy.core.machine import load_machine, machine_to_dict
+from feed_axis_energy.core.measured.manifest import load_campaign
+from feed_axis_energy.core.measured.metrics import Metrics
+
+__all__ = ['add_parser', 'run']
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the subcommand."""
+    p = sub.add_parser(
+        'analyze', help='find the catalog effect(s) the model misses; error before/after',
+        description='Compare every run of MANIFEST with the declared model (as compare does), '
+                    'regress the residual on the bases of the effect catalog, add effects by '
+                    'forward selection scored on held-out runs (leave one run out, or the '
+                    'manifest\'s calibrate/validate roles) and BIC, test what remains for '
+                    'structure, and print the Table-1 metrics before and after on held-out '
+                    'runs. See docs/analyze.md.')
+    p.add_argument('manifest', type=Path, metavar='MANIFEST', help='campaign manifest (YAML)')
+    p.add_argument('--json', action='store_true',
+                   help='print one JSON object (keys in docs/analyze.md)')
+    p.add_argument('--report', type=Path, metavar='DIR',
+                   help='write an HTML report with plots to DIR')
+    p.add_argument('--out-machine', type=Path, metavar='YAML',
+                   help='write the machine config with the selected effects added')
+    p.add_argument('--runs', metavar='NAME,...', help='use only these runs (default: all)')
+    p.add_argument('--machine', type=Path, metavar='YAML',
+                   help="declared machine config (default: the manifest's machine)")
+    p.add_argument('--holdout', choices=HOLDOUTS, default='loro',
+                   help='held-out scheme: leave one run out (default) or the manifest roles')
+    p.add_argument('--quiet', action='store_true', help='no progress indication')
+    p.set_defaults(run=run)
+
+
+def _f(value: float, fmt: str) -> str:
+    return format(value, fmt) if math.isfinite(value) else '-'
+
+
+def _cells(m: Metrics) -> list[str]:
+    return [_f(m.avg_diff_error_w, '.2f'), _f(m.avg_pct_error_pct, '.2f'),
+            _f(m.max_diff_error_w, '.2f'), _f(m.max_pct_error_pct, '.2f'),
+            _f(m.energy_error_j, '+.1f'), _f(m.energy_error_pct, '+.2f'), _f(m.rmse_w, '.2f')]
+
+
+_HEAD = ['avg dP [W]', 'avg dP [%]', 'max dP [W]', 'max dP [%]', 'dE [J]', 'dE [%]',
+         'RMSE [W]']
+
+
+def _print(res: AnalysisResult) -> None:
+    print(f'campaign  {res.campaign} ({res.manifest})')
+    where = f' ({res.machine_file})' if res.machine_file else ''
+    print(f'machine   {res.machine.name}{where}')
+    noise = ', '.join(f'{a} {s:.2f} W' for a, s in res.noise_sigma_w.items())
+    print(f'held out  {res.holdout}; noise level {noise}')
+    print()
+    print(f'status: {res.status}: {res.message}')
+    print()
+    if res.effects:
+        rows = []
+        for e in res.effects:
+            for p in e.params:
+                unc = f'{p.uncertainty:.3g}' if p.uncertainty is not None else '-'
+                rows.append([f'{e.id}@{e.axis}', p.name, f'{p.value:.5g}', unc, p.unit,
+                             f'{100 * e.share_of_structured:.1f}',
+                             f'{100 * e.heldout_gain_rel:.1f}', ', '.join(e.aliases)])
+        print('effects added (uncertainty: jackknife over runs):')
+        print(format_table(['effect', 'parameter', 'value', '+-', 'unit',
+                            'share of structure [%]', 'held-out gain [%]', 'aliases'], rows))
+    else:
+        print('effects added: none')
+    if res.unexplained:
+        print()
+        print('unexplained structure:')
+        for u in res.unexplained:
+            print(f'  [{u["diagnostic"]}] {u["message"]}')
+    print()
+    rows = []
+    for r in res.heldout_runs:
+        rows.append([r.name, f'{r.load_kg:g}', 'before'] + _cells(r.before))
+        rows.append(['', '', 'after'] + _cells(r.after))
+    for load, b, a in res.by_load():
+        rows.append([f'load {load:g} kg', '', 'before'] + _cells(b))
+        rows.append(['', '', 'after'] + _cells(a))
+    rows.append(['all held-out runs', '', 'before'] + _cells(res.before))
+    rows.append(['', '', 'after'] + _cells(res.after))
+    print('held-out runs, before and after (after: effects fitted without the run):')
+    print(format_table(['run', 'load [kg]', ''] + _HEAD, rows))
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand."""
+    if args.report is not None and args.report.exists() and not args.report.is_dir():
+        raise FileExistsError(f'{args.report} exists and is not a directory')
+    campaign = load_campaign(args.manifest)
+    names = None
+    if args.runs is not None:
+        names = [n.strip() for n in args.runs.split(',') if n.strip()]
+        if not names:
+            raise ConfigError('--runs needs at least one run name', file='command line',
+                              key='runs')
+    machine = load_machine(args.machine) if args.machine is not None else None
+    progress = Progress('analyze', enabled=not args.quiet)
+    result = analyze_campaign(campaign, machine=machine, runs=names,
+                              options=AnalyzeOptions(holdout=args.holdout), progress=progress)
+    progress.done()
+    extra = {}
+    if args.out_machine is not None:
+        text = yaml.safe_dump(machine_to_dict(result.augmented_machine()), sort_keys=False)
+        args.out_machine.parent.mkdir(parents=True, exist_ok=True)
+        args.out_machine.write_text(text, encoding='utf-8')
+        extra['out_machine'] = str(args.out_machine)
+    if args.report is not None:
+        # imported here: matplotlib is only needed for reports
+        from feed_axis_energy.report.analyze_report import write_analyze_report
+        extra['report'] = str(write_analyze_report(result, args.report))
+    if args.json:
+        out = result.to_dict()
+        out.update(extra)
+        print(json.dumps(out, indent=2, allow_nan=False))
+        return 0
+    _print(result)
+    for key, value in extra.items():
+        print(f'{key.replace("_", " ")}: {value}')
+    return 0
