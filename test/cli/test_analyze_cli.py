@@ -1,0 +1,73 @@
+"""The ``feed-axis-energy analyze`` command on a small virtual-rig campaign."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+import subprocess
+import sys
+
+import pytest
+
+from feed_axis_energy.cli import main
+from feed_axis_energy.core.machine import load_machine
+from feed_axis_energy.core.rig import Instrument, make_campaign, parse_effects, RigConfig
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope='module')
+def manifest(tmp_path_factory) -> Path:
+    cfg = RigConfig(machine=ROOT / 'config' / 'demonstrator.yaml', loads_kg=(0.0, 22.711),
+                    feeds_mm_s=(200.0, 400.0), cycles=1,
+                    effects=parse_effects('load_friction=mu:0.2'),
+                    instrument=Instrument(noise_w=1.0), seed=5)
+    return make_campaign(tmp_path_factory.mktemp('rig') / 'rig', cfg)
+
+
+def test_help_lists_the_options() -> None:
+    proc = subprocess.run([sys.executable, '-m', 'feed_axis_energy', 'analyze', '--help'],
+                          cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0
+    for option in ('--json', '--report', '--out-machine', '--runs', '--quiet', '--holdout'):
+        assert option in proc.stdout
+
+
+def test_json_out_machine_and_report(manifest, tmp_path, capsys) -> None:
+    out_machine = tmp_path / 'augmented.yaml'
+    report = tmp_path / 'report'
+    code = main(['analyze', str(manifest), '--json', '--quiet', '--out-machine',
+                 str(out_machine), '--report', str(report)])
+    assert code == 0
+    d = json.loads(capsys.readouterr().out)
+    assert [e['id'] for e in d['effects'] if e['id'] != 'time_offset'] == ['load_friction']
+    mu = d['effects'][0]['parameters'][0]
+    assert mu['name'] == 'mu' and mu['value'] == pytest.approx(0.2, rel=0.05)
+    assert d['after']['total']['avg_pct_error_pct'] < 0.5 * d['before']['total'][
+        'avg_pct_error_pct']
+    assert len(d['before']['runs']) == 4
+    m = load_machine(out_machine)
+    assert m.effects[0].id == 'load_friction'
+    assert d['out_machine'] == str(out_machine)
+    index = Path(d['report'])
+    html = index.read_text()
+    assert 'load_friction' in html
+    for name in ('residual_states.png', 'spectrum.png'):
+        assert (report / name).stat().st_size > 1000
+    assert len(list(report.glob('*_after.png'))) == 4
+    # the augmented config feeds simulate unchanged
+    program = manifest.parent / 'programs' / 'f200.nc'
+    assert main(['simulate', str(program), '--machine', str(out_machine), '--json']) == 0
+    with_effect = json.loads(capsys.readouterr().out)['energy_j']['total']
+    assert main(['simulate', str(program), '--machine', str(manifest.parent / 'machine.yaml'),
+                 '--json']) == 0
+    plain = json.loads(capsys.readouterr().out)['energy_j']['total']
+    assert with_effect > plain
+
+
+def test_tables_and_bad_run_name(manifest, capsys) -> None:
+    assert main(['analyze', str(manifest), '--quiet']) == 0
+    text = capsys.readouterr().out
+    assert 'load_friction@X' in text
+    assert 'all held-out runs' in text and 'after' in text
+    assert main(['analyze', str(manifest), '--quiet', '--runs', 'nope']) == 1
+    assert 'nope' in capsys.readouterr().err
