@@ -22,16 +22,27 @@ Method
    The velocity-step rule (see *Corners* below): ``v |du_k| <= a_k T`` for every axis ``k``,
    with ``du = tangent_out - tangent_in`` and ``T = 1 / rate_hz`` the interpolation cycle.
    The speed is zero at program start and end, at exact stops and around dwells and stops.
-   A backward and a forward pass then lower every junction speed to what the neighbouring
-   move can reach in its length (closed-form minimum distance, zero acceleration at both
+   *Groups* (see :mod:`.lookahead`): junctions between two short blocks (too short to reach
+   their own speed limit from rest) that are tangent or nearly so are passed *through*: the
+   blocks joined by them form one group, and the group gets one profile over its total length
+   with the smallest limits of its blocks, its speed ceiling lowered to the through junctions'
+   caps and its acceleration to what each through junction's velocity step leaves of the axis
+   limits. All other junctions are *anchors* (stops, sharp corners, ceiling changes).
+   A backward and a forward pass then lower every anchor speed to what the neighbouring
+   group can reach in its length (closed-form minimum distance, zero acceleration at both
    ends, see :mod:`.profiles`).
-4. *Profiles.* Each move gets a seven-phase constant-jerk profile (``profile='jerk'``) or a
-   constant-acceleration trapezoid (``profile='trapezoid'``), see :mod:`.profiles`.
+4. *Profiles.* Each group gets a seven-phase constant-jerk profile (``profile='jerk'``) or a
+   constant-acceleration trapezoid (``profile='trapezoid'``), see :mod:`.profiles`: the
+   acceleration is zero at anchors only, so a run of short collinear or nearly tangent blocks
+   (CAM polylines) reaches the feed as one long line would, with the acceleration continuous
+   across its block boundaries.
 5. *Sampling.* The program becomes one table of constant-jerk phases (start time, duration,
-   ``s0``, ``v0``, ``a0``, ``j``, move). Uniform sample times are located with
-   ``numpy.searchsorted`` and the cubic is evaluated vectorised; ``s`` is mapped to axis
-   position, velocity and acceleration per move kind (arcs include the centripetal term).
-   The last sample is the program end.
+   ``s0``, ``v0``, ``a0``, ``j``, group). Uniform sample times are located with
+   ``numpy.searchsorted`` and the cubic is evaluated vectorised; the group's ``s`` is mapped
+   to the block containing it (a second ``searchsorted`` on the blocks' start lengths) and
+   then to axis position, velocity and acceleration per block kind (arcs include the
+   centripetal term). The last sample is the program end. A junction inside a group is
+   timed by bisection of the group's monotone ``s(t)`` in the phase that contains it.
 
 6. *Corners.* A non-tangent junction passed at speed ``v`` changes the axis velocities by
    ``dv = v (tangent_out - tangent_in)`` within one interpolation cycle ``T``, as on a control
@@ -50,12 +61,14 @@ interval by interval. Inside a phase the acceleration is linear in time (lines),
 exact; the residuals are ``<= |dj| T^2 / 8`` where the jerk switches inside an interval,
 ``<= |da| T / 2`` where a trapezoid profile switches acceleration (so its energy balance is
 off by up to ``m |da| T |v| / 2`` per switch), ``O(T^3)`` on arcs, and
-``<= a_path T |du| / 4`` at a corner. With the jerk profile the path acceleration at the
+``<= a_path T |du| / 4`` at a corner. With the jerk profile the path acceleration at an anchor
 junction is zero, so the sampled axis acceleration stays within ``a_k + j_k T / 2`` at a
 corner sample and the finite-difference acceleration ``(vel[i+1] - vel[i]) / T`` within
 ``a_k / 2 + 1.5 j_k T`` next to it (plus the centripetal term of an arc at the corner
-speed). A corner sample lies up to ``T / 2`` from its junction while its position stays on
-the path, so positions and velocities there disagree by up to ``|dv| T / 2``. With the
+speed). At a through junction the group's acceleration limit leaves room for the step, so
+both stay within ``a_k`` (the trapezoid-rule residual there is ``<= a_group T |du| / 4``).
+A corner sample lies up to ``T / 2`` from its junction while its position stays on the path,
+so positions and velocities there disagree by up to ``|dv| T / 2``. With the
 trapezoid profile (infinite jerk) the step and a full path acceleration can fall into the
 same cycle: up to ``2 a_k`` (sampled) or ``1.5 a_k``
 (finite difference). Junctions less than a cycle apart put their steps into the same or
@@ -72,7 +85,8 @@ import numpy as np
 
 from .errors import DataError, PlanningError
 from .motion import Motion
-from .profiles import plan_profiles, reach_speed
+from .lookahead import BlockGroups, group_blocks, look_ahead, through_acceleration
+from .profiles import plan_profiles
 from .program import Move, MoveKind, Program, PROGRAM_AXES
 
 __all__ = ['AxisLimits', 'PlannerOptions', 'plan', 'motion_from_samples']
@@ -81,6 +95,7 @@ _TWO_PI = 2.0 * math.pi
 _MIN_LENGTH_M = 1e-12      # shorter moves are dropped (their exact stop is kept)
 _GAP_TOLERANCE_M = 1e-6    # allowed mismatch between a move's start and the previous end
 _CHUNK = 1 << 18           # samples evaluated per vectorised block
+_JUNCTION_BISECT = 60      # bisection steps for the time of a junction inside a group
 # arc plane -> (first in-plane axis, second in-plane axis, normal axis), right-handed
 _PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 _LINE, _ARC, _REST = 0, 1, 2
@@ -363,23 +378,6 @@ def _junction_speeds(seg: _Segments, geo: _Geometry, vmax: np.ndarray, amax: np.
     return vj
 
 
-def _look_ahead(vj: np.ndarray, length: np.ndarray, amax: np.ndarray, jmax: np.ndarray) -> None:
-    """Backward then forward pass (in place) so every move can reach its boundary speeds."""
-    m = length.shape[0]
-    # a hair shorter so the profile solver always finds the pair reachable despite rounding
-    usable = (length * (1.0 - 1e-9)).tolist()
-    a = amax.tolist()
-    j = jmax.tolist()
-    v = vj.tolist()
-    for i in range(m - 1, -1, -1):
-        if v[i] > v[i + 1]:
-            v[i] = min(v[i], reach_speed(v[i + 1], usable[i], a[i], j[i]))
-    for i in range(m):
-        if v[i + 1] > v[i]:
-            v[i + 1] = min(v[i + 1], reach_speed(v[i], usable[i], a[i], j[i]))
-    vj[:] = v
-
-
 def _check_limits(limits: Mapping[str, AxisLimits], program: Program) -> np.ndarray:
     lim = np.full((3, 3), np.inf)
     for name, al in limits.items():
@@ -441,15 +439,20 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
     _report(progress, 0.05)
     cycle_s = 1.0 / options.rate_hz
     vj = _junction_speeds(seg, geo, vmax, amax, options.corner_tolerance_m, lim[1], cycle_s)
-    _look_ahead(vj, geo.length, amax, jmax)
+    a_through = through_acceleration(geo.tan1[:-1], geo.tan0[1:], geo.r_min[:-1],
+                                     geo.r_min[1:], vj[1:-1], lim[1], cycle_s)
+    grp = group_blocks(geo.length, vmax, amax, jmax, vj, a_through, rest=seg.kind == _REST)
+    gv = grp.v_junction
+    look_ahead(gv, grp.length, grp.amax, grp.jmax)
     _report(progress, 0.15)
-    prof = plan_profiles(geo.length, vj[:-1], vj[1:], vmax, amax, jmax)
+    prof = plan_profiles(grp.length, gv[:-1], gv[1:], grp.vmax, grp.amax, grp.jmax)
+    g = grp.first.size
     dur = prof.duration.copy()
-    dur[:, 3] += seg.dwell
-    # integrate the seven phases of every segment to get s and v at each phase start
-    v_start = np.empty((m, 7))
-    s_start = np.empty((m, 7))
-    v_start[:, 0] = vj[:-1]
+    dur[:, 3] += seg.dwell[grp.first]      # a rest is a group of its own
+    # integrate the seven phases of every group to get s and v at each phase start
+    v_start = np.empty((g, 7))
+    s_start = np.empty((g, 7))
+    v_start[:, 0] = gv[:-1]
     s_start[:, 0] = 0.0
     for k in range(6):
         T, a0, j = dur[:, k], prof.a_start[:, k], prof.jerk[:, k]
@@ -480,14 +483,83 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
     acc = np.empty_like(pos)
     line = np.empty(t.size, dtype=np.int32)
     p0c, uc = seg.p0[:, cols], geo.u[:, cols]
+    locate = _BlockLocator(grp, geo.length)
     for lo in range(0, t.size, _CHUNK):
         hi = min(lo + _CHUNK, t.size)
-        mi = _sample(t[lo:hi], owner_phase[lo:hi], phases, seg, geo, cols, p0c, uc,
+        mi = _sample(t[lo:hi], owner_phase[lo:hi], phases, locate, seg, geo, cols, p0c, uc,
                      out=(pos[lo:hi], vel[lo:hi], acc[lo:hi]))
         line[lo:hi] = lines[mi]
         _report(progress, 0.25 + 0.75 * hi / t.size)
-    _corner_steps(t, t_start[7:-1:7], vj[1:-1], geo, cols, cycle_s, vel=vel, acc=acc)
+    t_junction, v_junction = _junction_times(grp, t_start, gv, phases)
+    _corner_steps(t, t_junction, v_junction, geo, cols, cycle_s, vel=vel, acc=acc)
     return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line, source=program.file)
+
+
+class _BlockLocator:
+    """Maps a path length inside a group to the block containing it."""
+
+    def __init__(self, grp: BlockGroups, length: np.ndarray) -> None:
+        cum = np.cumsum(length) - length
+        self.group_first = grp.first
+        self.group_last = np.append(grp.first[1:], length.shape[0]) - 1
+        self.group_start = cum[grp.first]     # program path length at each group's start
+        self.block_start = cum                # ... at each block's start
+        self.offset = grp.offset              # block start within its group
+
+    def __call__(self, group: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Block index and path length inside that block for group-local ``s``."""
+        b = np.searchsorted(self.block_start, np.take(self.group_start, group) + s,
+                            side='right') - 1
+        b = np.clip(b, np.take(self.group_first, group), np.take(self.group_last, group))
+        return b, s - np.take(self.offset, b)
+
+
+def _junction_times(grp: BlockGroups, t_start: np.ndarray, gv: np.ndarray,
+                    phases: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Time and path speed at each of the m - 1 block junctions.
+
+    Group boundaries start a group's first phase; a junction inside a group is where the
+    group's ``s(t)`` (monotone) reaches the block's offset, found by vectorised bisection
+    inside the phase that contains it.
+    """
+    m = grp.group_of.shape[0]
+    t_j = np.zeros(max(m - 1, 0))
+    v_j = np.zeros_like(t_j)
+    if m < 2:
+        return t_j, v_j
+    boundary = ~grp.through
+    gb = grp.group_of[1:][boundary]
+    t_j[boundary] = t_start[7 * gb]
+    v_j[boundary] = gv[gb]
+    inner = np.nonzero(grp.through)[0] + 1          # blocks that start inside their group
+    if inner.size == 0:
+        return t_j, v_j
+    t0, dur, s0, v0, a0, jk, owner = phases
+    target = grp.offset[inner]
+    gi = grp.group_of[inner]
+    # phases are sorted by (group, s): search on a combined key (group, then s)
+    lo_ph = np.searchsorted(owner, gi, side='left')
+    hi_ph = np.searchsorted(owner, gi, side='right')
+    k = lo_ph.copy()
+    # the last phase of the group that starts at or before the target: a short loop over
+    # the (at most 7) phases of a group
+    for _ in range(7):
+        nxt = k + 1
+        step = (nxt < hi_ph) & (np.take(s0, np.minimum(nxt, s0.size - 1)) <= target)
+        k = np.where(step, nxt, k)
+    tau_lo = np.zeros(inner.size)
+    tau_hi = dur[k].copy()
+    sk, vk, ak, jj = s0[k], v0[k], a0[k], jk[k]
+    for _ in range(_JUNCTION_BISECT):
+        mid = 0.5 * (tau_lo + tau_hi)
+        s_mid = sk + (vk + (0.5 * ak + jj * mid / 6.0) * mid) * mid
+        below = s_mid < target
+        tau_lo = np.where(below, mid, tau_lo)
+        tau_hi = np.where(below, tau_hi, mid)
+    tau = 0.5 * (tau_lo + tau_hi)
+    t_j[inner - 1] = t0[k] + tau
+    v_j[inner - 1] = vk + (ak + 0.5 * jj * tau) * tau
+    return t_j, v_j
 
 
 def _corner_steps(t: np.ndarray, t_junction: np.ndarray, v_junction: np.ndarray,
@@ -517,12 +589,13 @@ def _report(progress: Callable[[float], None] | None, fraction: float) -> None:
         progress(float(min(max(fraction, 0.0), 1.0)))
 
 
-def _sample(t: np.ndarray, k: np.ndarray, phases: tuple[np.ndarray, ...], seg: _Segments,
-            geo: _Geometry, cols: list[int], p0c: np.ndarray, uc: np.ndarray, *,
+def _sample(t: np.ndarray, k: np.ndarray, phases: tuple[np.ndarray, ...],
+            locate: _BlockLocator, seg: _Segments, geo: _Geometry, cols: list[int],
+            p0c: np.ndarray, uc: np.ndarray, *,
             out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
     """Evaluate phases ``k`` at times ``t`` into ``out`` (pos, vel, acc of ``cols``).
 
-    Returns the segment index of every sample.
+    Returns the segment (block) index of every sample.
     """
     t0, dur, s0, v0, a0, jk, owner = phases
     tau = np.minimum(t - np.take(t0, k), np.take(dur, k))
@@ -531,8 +604,8 @@ def _sample(t: np.ndarray, k: np.ndarray, phases: tuple[np.ndarray, ...], seg: _
     vv = np.take(v0, k)
     a = aa + jt
     v = vv + (aa + 0.5 * jt) * tau
-    s = np.take(s0, k) + (vv + (0.5 * aa + (1.0 / 6.0) * jt) * tau) * tau
-    mi = np.take(owner, k)
+    s_group = np.take(s0, k) + (vv + (0.5 * aa + (1.0 / 6.0) * jt) * tau) * tau
+    mi, s = locate(np.take(owner, k), s_group)
     pos, vel, acc = out
     u = np.take(uc, mi, axis=0)
     np.multiply(u, s[:, None], out=pos)

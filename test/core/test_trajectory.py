@@ -493,3 +493,102 @@ def test_motion_from_samples_rejects_bad_input():
         motion_from_samples(np.arange(4.0), np.zeros((4, 2)), axes=('X',))
     with pytest.raises(DataError, match='at least 2'):
         motion_from_samples(np.zeros(1), np.zeros(1), axes=('X',))
+
+
+# --- groups of short blocks: one speed profile across tangent junctions ---------------------
+
+def _short_collinear(n=200, step=0.0015, feed=0.3):
+    return [_line(i + 1, (i * step, 0, 0), ((i + 1) * step, 0, 0), feed=feed) for i in range(n)]
+
+
+@pytest.mark.parametrize('profile', ['jerk', 'trapezoid'])
+def test_short_collinear_blocks_move_like_one_long_line(profile):
+    # 200 blocks of 1.5 mm at 0.3 m/s: a block alone could add only ~0.1 m/s with zero
+    # acceleration at both ends, the 0.3 m long line reaches the feed after 24 mm
+    opts = PlannerOptions(profile=profile)
+    many = plan(_prog(*_short_collinear()), LIM_X, options=opts)
+    one = plan(_prog(_line(1, (0, 0, 0), (0.3, 0, 0), feed=0.3)), LIM_X, options=opts)
+    # same profile up to the rounding of the summed block lengths
+    assert_allclose(many.duration_s, one.duration_s, rtol=1e-9)
+    assert_allclose(many.pos[:, 0], one.pos[:, 0], atol=1e-12)
+    assert_allclose(many.vel, one.vel, atol=1e-9)
+    assert_allclose(_speed(many).max(), 0.3, rtol=1e-12)
+    assert_allclose(many.pos[-1], [0.3], atol=1e-12)
+    # each sample names the block that contains it (a sample at a junction: the next block)
+    x = many.pos[:, 0]
+    expected = np.minimum(np.floor(x / 0.0015 + 1e-9).astype(int) + 1, 200)
+    inner = np.abs(x / 0.0015 - np.rint(x / 0.0015)) > 1e-6
+    assert np.array_equal(many.line[inner], expected[inner])
+    assert np.all(np.diff(many.line) >= 0)
+
+
+def test_acceleration_is_continuous_across_tangent_block_boundaries():
+    # collinear 1.5 mm blocks along (0.6, 0.8, 0): the ramp crosses several junctions while
+    # accelerating; the path jerk limit is min_k j_k / |u_k| = 40 / 0.8 = 50 m/s^3
+    u = np.array([0.6, 0.8, 0.0])
+    moves = [_line(i + 1, tuple(0.0015 * i * u), tuple(0.0015 * (i + 1) * u), feed=0.3)
+             for i in range(100)]
+    m = plan(_prog(*moves), LIM_XYZ)
+    T = 1e-3
+    jmax = np.array([a.jerk_m_s3 for a in LIM_XYZ.values()])
+    amax = np.array([a.acceleration_m_s2 for a in LIM_XYZ.values()])
+    fd_j = np.diff(m.acc, axis=0) / np.diff(m.t)[:, None]
+    assert np.all(np.abs(fd_j) <= jmax * (1 + 1e-6))
+    assert np.all(np.abs(m.acc) <= amax * (1 + 1e-9))
+    change = np.nonzero(np.diff(m.line) != 0)[0]
+    a_path = m.acc @ u
+    # during the ramp-up the path acceleration at a junction is far from 0 (the S-curve per
+    # block would bring it back to 0 at every junction): 2 m/s^2 = path limit 2 / 0.8 = 2.5
+    # reached after a / j = 0.05 s, i.e. beyond the 3rd junction
+    ramp_up = change[m.t[change] < 0.1]
+    assert ramp_up.size >= 3
+    assert np.max(a_path[ramp_up]) > 2.0
+    # no jump at the junction: the neighbours differ by at most the jerk times T
+    assert np.all(np.abs(a_path[ramp_up + 1] - a_path[ramp_up]) <= 50.0 * T * (1 + 1e-9))
+    assert_allclose(m.pos[-1], 0.15 * u, atol=1e-12)
+
+
+def _quarter_polygon(n=200, r=0.2, feed=0.3):
+    moves, here = [], (0.0, 0.0, 0.0)
+    for i in range(1, n + 1):
+        ang = -0.5 * math.pi + 0.5 * math.pi * i / n
+        q = (r * math.cos(ang), r + r * math.sin(ang), 0.0)
+        moves.append(_line(i, here, q, feed=feed))
+        here = q
+    return moves, 2 * n * r * math.sin(0.25 * math.pi / n)
+
+
+@pytest.mark.parametrize('profile', ['jerk', 'trapezoid'])
+def test_near_tangent_polygon_reaches_the_feed(profile):
+    """200 chords of 1.57 mm, 0.45 deg corners, rest to rest at F = 0.3 m/s (X, Y: a = 3).
+
+    The corners allow 0.38 m/s (step rule) and the chords' speed is feed-limited, so the
+    polygon is one group. Its acceleration keeps at least a quarter of the path limit
+    (3 m/s^2 along an axis): the duration is at most L / F + F / (0.25 * 3) + 0.75 / 50
+    (one ramp at the lowest acceleration the grouping allows, rest to rest).
+    Limits as in ``test_finite_difference_acceleration_with_corners`` (jerk): finite
+    differences within 1e-6 relative; sampled acceleration within a_k + j_k T / 2.
+    """
+    lim = {'X': AxisLimits(0.5, 3.0, 50.0), 'Y': AxisLimits(0.5, 3.0, 50.0)}
+    moves, length = _quarter_polygon()
+    m = plan(_prog(*moves), lim, options=PlannerOptions(profile=profile))
+    T = 1e-3
+    feed = 0.3
+    assert m.duration_s <= length / feed + feed / (0.25 * 3.0) + 0.75 / 50.0
+    assert m.duration_s >= length / feed
+    speed = _speed(m)
+    # the samples away from the corner steps run at the feed for most of the time
+    at_feed = np.abs(speed - feed) < 1e-9
+    assert at_feed.sum() * T > 0.5 * length / feed
+    assert speed.max() <= feed * (1 + 1e-9)
+    vmax = np.array([0.5, 0.5])
+    amax = np.array([3.0, 3.0])
+    dt = np.diff(m.t)
+    fd_v = np.diff(m.pos, axis=0) / dt[:, None]
+    fd_a = np.diff(m.vel, axis=0) / dt[:, None]
+    assert np.all(np.abs(fd_v) <= vmax * (1 + 1e-6))
+    assert np.all(np.abs(fd_a) <= amax * (1 + 1e-6))
+    assert np.all(np.abs(m.acc) <= amax + 50.0 * T / 2)
+    assert_allclose(m.pos[-1], [0.2, 0.2], atol=1e-12)
+    assert_allclose(m.vel[[0, -1]], 0.0, atol=1e-12)
+    assert list(np.unique(m.line)) == list(range(1, 201))
