@@ -154,3 +154,32 @@ def test_inverse_time_limited_by_the_machine():
     _, m = _run('G21 G90 G93\nG1 X300 F200\n')
     assert m.duration_s > 0.3 / 0.5 * 1.0
     assert _speed(m).max() <= 0.5 * (1 + 1e-12)
+
+
+def test_cam_polyline_reaches_the_programmed_feed():
+    """A full circle of R 30 mm as 360 G1 chords of 0.52 mm (1 deg corners) at F6000.
+
+    One chord from rest could reach only ~0.04 m/s with zero acceleration at both ends, but
+    the corners allow a_k T / |du| >= 3e-3 / (2 sin 0.5 deg) = 0.17 m/s, so the chords form
+    one group whose acceleration keeps at least a quarter of the path limit (>= 3 m/s^2):
+    the time on the circle is at most L / F + F / 0.75 + 0.75 / 60 (one rest-to-rest
+    S-curve at that acceleration and the path jerk limit >= 60 m/s^3).
+    """
+    r, n, feed = 30.0, 360, 0.1
+    pts = [(r * math.cos(2 * math.pi * i / n), r * math.sin(2 * math.pi * i / n))
+           for i in range(n + 1)]
+    text = ['G21 G90 G94 G17 G64', f'G0 X{pts[0][0]:.4f} Y0', f'G1 F{feed * 60000:.0f}']
+    text += [f'G1 X{x:.4f} Y{y:.4f}' for x, y in pts[1:]]
+    text.append('M30')
+    _, m = _run('\n'.join(text) + '\n', corner_tolerance_m=1e-4)
+    length = 2 * n * r * math.sin(math.pi / n) * 1e-3
+    speed = _speed(m)
+    on_circle = m.line >= 4
+    assert_allclose(m.pos[-1], [0.03, 0.0, 0.0], atol=1e-7)
+    # most of the circle at the feed: the ~2 s on it hold 360 corner samples (the mean of the
+    # in and out velocities, slower) and the two ramps of ~0.15 s
+    assert np.mean(np.abs(speed[on_circle] - feed) < 1e-6) > 0.6
+    assert speed[on_circle].max() <= feed * (1 + 1e-9)
+    t_circle = np.count_nonzero(on_circle) * T
+    assert length / feed <= t_circle <= length / feed + feed / 0.75 + 0.75 / 60.0 + T
+    assert list(np.unique(m.line[on_circle])) == list(range(4, 4 + n))
