@@ -17,5 +17,14 @@ if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
         -r "$ROOT/requirements-dev.txt" -c "$ROOT/constraints.txt"
     echo "$WANT" > "$STAMP"
 fi
+# The package itself, editable, so `feed-axis-energy` and the node executables are on PATH.
+# Redone when the checkout moved or setup.py changed (cheap: no dependencies, no network).
+LINK="$VENV/.fae-editable"
+LINK_WANT="$ROOT $(sha256sum "$ROOT/setup.py" | cut -d' ' -f1)"
+if [ ! -f "$LINK" ] || [ "$(cat "$LINK")" != "$LINK_WANT" ]; then
+    "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
+        --no-build-isolation -e "$ROOT"
+    echo "$LINK_WANT" > "$LINK"
+fi
 export PATH="$VENV/bin:$PATH"
 export PYTHONPATH="$ROOT${PYTHONPATH:+:$PYTHONPATH}"
