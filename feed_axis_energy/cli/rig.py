@@ -12,6 +12,7 @@ from pathlib import Path
 from feed_axis_energy.cli.common import format_table
 from feed_axis_energy.core.effects import EFFECTS
 from feed_axis_energy.core.errors import ConfigError
+from feed_axis_energy.cli.progress import Progress
 from feed_axis_energy.core.rig import (Instrument, make_campaign, OUTSIDE_KINDS,
                                        PAPER_FEEDS_MM_S, PAPER_LOADS_KG, parse_effects,
                                        RigConfig)
@@ -64,6 +65,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--bags', action='store_true',
                    help='also write each run as a rosbag2/MCAP bag (/measured/power, '
                         '/measured/kinematics)')
+    p.add_argument('--quiet', action='store_true', help='no progress indication')
     p.add_argument('--list-effects', action='store_true',
                    help='print the effect catalog and exit')
     p.set_defaults(run=run)
@@ -120,7 +122,9 @@ def run(args: argparse.Namespace) -> int:
                        instrument=instrument, seed=args.seed, offset_s=args.offset_s,
                        outside=args.outside_catalog, cycles=args.cycles,
                        bags=args.bags)
-    manifest = make_campaign(args.out, config)
+    progress = Progress('rig', enabled=not args.quiet)
+    manifest = make_campaign(args.out, config, progress=progress)
+    progress.done()
     shown = ', '.join(f'{e.id}({", ".join(f"{k}={v:g}" for k, v in e.params.items())})'
                       for e in effects) or 'none'
     print(f'virtual campaign: {manifest} ({len(loads) * len(feeds)} runs)')

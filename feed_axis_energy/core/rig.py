@@ -39,7 +39,7 @@ import json
 import math
 from pathlib import Path
 import shutil
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import yaml
@@ -422,7 +422,8 @@ def _manifest(config: RigConfig, axes: tuple[str, ...],
     }
 
 
-def make_campaign(out: str | Path, config: RigConfig) -> Path:
+def make_campaign(out: str | Path, config: RigConfig, *,
+                  progress: Callable[[float], None] | None = None) -> Path:
     """Write a virtual campaign (manifest, machine, programs, CSVs, truth) into ``out``.
 
     ``out`` must not exist, be empty, or hold an earlier rig output (which is replaced).
@@ -468,6 +469,8 @@ def make_campaign(out: str | Path, config: RigConfig) -> Path:
             _write_csv(out / data_rel, run, axes)
             if config.bags:
                 _write_bag(out / 'bags' / name, run, axes)
+            if progress is not None:
+                progress((len(runs) + 1) / (len(config.feeds_mm_s) * len(config.loads_kg)))
             runs.append({'name': name, 'load_kg': float(load), 'feed_mm_s': float(feed),
                          'offset_s': offset, 'program': program_rel, 'data': data_rel,
                          'role': 'calibrate' if i % 2 == 0 else 'validate',
