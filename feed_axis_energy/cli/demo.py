@@ -92,6 +92,10 @@ def run(args: argparse.Namespace) -> int:
                     + [f'{s["energy_j"]["total"]:.1f}' for s in runs_at]
                     + [f'{s["peak_power_w"]["total"]:.1f}' for s in runs_at])
     source = default_machine() if args.machine is None else args.machine
+    try:
+        source = source.resolve().relative_to(Path.cwd().resolve())
+    except ValueError:
+        pass  # outside the working directory: keep the full path
     print(f'machine: {machine.name} ({source}), braking: {machine.braking}')
     print('program: reciprocating 400 mm stroke, 1 s dwell (config/programs/demonstrator_f*.nc)')
     print()
