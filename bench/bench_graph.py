@@ -74,10 +74,10 @@ def bench_fast(minutes: float, domain: int) -> None:
 def bench_realtime(seconds: float, domain: int) -> None:
     import rclpy
     from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
     from trajectory_msgs.msg import JointTrajectory
     from feed_axis_energy.core.graph import header_stamp_ns
     from feed_axis_energy.nodes.qos import stream_qos
+    from feed_axis_energy.nodes.runner import make_executor
     with tempfile.TemporaryDirectory() as tmp:
         prog = _program(Path(tmp) / 'rt.nc', seconds)
         ctx = Context()
@@ -89,7 +89,7 @@ def bench_realtime(seconds: float, domain: int) -> None:
             header_stamp_ns(d), time.monotonic()), stream_qos(), raw=True)
         node.create_subscription(JointTrajectory, 'power', lambda d: got.setdefault(
             header_stamp_ns(d), time.monotonic()), stream_qos(), raw=True)
-        ex = SingleThreadedExecutor(context=ctx)
+        ex = make_executor(context=ctx)
         ex.add_node(node)
         launcher = subprocess.Popen(
             [sys.executable, '-m', 'feed_axis_energy', 'launch', '--program', str(prog),
@@ -115,10 +115,16 @@ def bench_realtime(seconds: float, domain: int) -> None:
               f'p99 {st["p99_s"] * 1e3:.2f} ms, max {st["max_s"] * 1e3:.2f} ms')
 
 
-def bench_recorder(messages: int, domain: int) -> None:
+def _cpu_s(pid: int) -> float:
+    """User + system CPU time of a process [s] (Linux /proc)."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def bench_recorder(messages: int, domain: int, window: int = 90) -> None:
     import rclpy
     from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
+    from feed_axis_energy.nodes.runner import make_executor
     from std_msgs.msg import Header
     from trajectory_msgs.msg import JointTrajectory
     from feed_axis_energy.nodes import convert
@@ -147,23 +153,25 @@ def bench_recorder(messages: int, domain: int) -> None:
         node = rclpy.create_node('blaster', context=ctx)
         pub = node.create_publisher(JointTrajectory, 'power', stream_qos())
         acked = [-1]
-        node.create_subscription(Header, 'recorder/progress', lambda m: acked.__setitem__(
-            0, convert.time_to_ns(m.stamp)), stream_qos())
-        ex = SingleThreadedExecutor(context=ctx)
+        node.create_subscription(Header, 'recorder/progress', lambda m: m.frame_id or (
+            acked.__setitem__(0, convert.time_to_ns(m.stamp))), stream_qos())
+        ex = make_executor(context=ctx)
         ex.add_node(node)
         while pub.get_subscription_count() < 1 or node.count_publishers(
                 '/recorder/progress') < 1:
             ex.spin_once(timeout_sec=0.05)
         time.sleep(0.5)
         t0 = time.perf_counter()
-        window = 50   # the recorder's own acks: same flow control as the graph
+        cpu0 = _cpu_s(rec.pid), time.process_time()
         for i, (stamp, cdr) in enumerate(data):
+            # the recorder's own acks, same flow control as the graph (window < depth 100)
             while i >= window and acked[0] < data[i - window][0]:
-                ex.spin_once(timeout_sec=0.0)
+                ex.spin_once(timeout_sec=0.01)
             pub.publish(cdr)
         while acked[0] < data[-1][0]:
             ex.spin_once(timeout_sec=0.01)
         sent_s = time.perf_counter() - t0
+        rec_cpu, own_cpu = _cpu_s(rec.pid) - cpu0[0], time.process_time() - cpu0[1]
         rec.send_signal(2)
         rec.wait(timeout=30)
         ex.shutdown()
@@ -171,8 +179,10 @@ def bench_recorder(messages: int, domain: int) -> None:
         rclpy.shutdown(context=ctx)
         n = bagio.bag_topics(f'{tmp}/bag').get('/power', ('', 0))[1]
         print(f'recorder: bag writer alone {direct:,.0f} msgs/s; over DDS {messages} messages '
-              f'recorded in {sent_s:.2f} s ({messages / sent_s:,.0f} msgs/s, window 50 on '
-              f'recorder/progress acks), {n} in the bag')
+              f'recorded in {sent_s:.2f} s ({messages / sent_s:,.0f} msgs/s, window {window} on '
+              f'recorder/progress acks), {n} in the bag; CPU per message: recorder process '
+              f'{rec_cpu / messages * 1e6:.1f} us (one core: {messages / rec_cpu:,.0f} msgs/s), '
+              f'publisher process {own_cpu / messages * 1e6:.1f} us')
 
 
 def main() -> None:
@@ -181,6 +191,8 @@ def main() -> None:
     p.add_argument('--minutes', type=float, default=10.0)
     p.add_argument('--seconds', type=float, default=60.0)
     p.add_argument('--messages', type=int, default=50000)
+    p.add_argument('--window', type=int, default=90,
+                   help='recorder bench: messages in flight (< stream depth 100)')
     p.add_argument('--domain-id', type=int, default=97)
     a = p.parse_args()
     if a.which in ('fast', 'all'):
@@ -188,7 +200,7 @@ def main() -> None:
     if a.which in ('realtime', 'all'):
         bench_realtime(a.seconds, a.domain_id)
     if a.which in ('recorder', 'all'):
-        bench_recorder(a.messages, a.domain_id)
+        bench_recorder(a.messages, a.domain_id, a.window)
 
 
 if __name__ == '__main__':

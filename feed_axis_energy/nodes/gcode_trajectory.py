@@ -167,6 +167,8 @@ class GcodeTrajectory(LifecycleNode):
         self._ack('power', header_stamp_ns(data))
 
     def _on_progress(self, msg: Header) -> None:
+        if msg.frame_id:
+            return   # a per-stream ack; the empty frame_id one covers every recorded stream
         self._ack('recorder', convert.time_to_ns(msg.stamp))
 
     def _ack(self, source: str, stamp_ns: int) -> None:

@@ -6,6 +6,12 @@ with a refreshed ``metadata.yaml`` (:class:`core.graph.ChunkedBagWriter`), so SI
 readable bag holding everything up to the last flush. Topics are stored under their logical
 name (``/setpoints`` ...), whatever namespace or remapping the node runs with, so the bag reads
 like an offline ``simulate --out`` recording.
+
+Flow control: ``recorder/progress`` (``std_msgs/Header``) acknowledges what has been taken off
+the DDS queues, at most every ``ack_every`` messages or ``ack_period_s``. A header with an
+empty ``frame_id`` carries the newest stamp every ``end_streams`` topic has reached (what
+``gcode_trajectory`` waits for); one whose ``frame_id`` names a recorded stream (``/power``,
+``/measured/power`` ...) carries that stream's newest stamp (what ``measured_replay`` waits for).
 """
 from __future__ import annotations
 
@@ -61,6 +67,10 @@ class McapRecorder(Node):
                               'streams that must reach program/end\'s last stamp')
         end_extra = declare(self, 'end_extra', ['block_energy'],
                             'topics of which one message must arrive before the end')
+        self.ack_every = declare(self, 'ack_every', 10,
+                                 'write and acknowledge after at most this many messages')
+        self.ack_period_s = declare(self, 'ack_period_s', 0.005,
+                                    'write and acknowledge what arrived at least this often [s]')
         if not out:
             raise StartupError('parameter output (the bag directory) is required')
         unknown = [t for t in topics if t not in KNOWN_TOPICS]
@@ -69,11 +79,17 @@ class McapRecorder(Node):
             raise StartupError(msg)
         if self.chunk_period_s <= 0 or self.chunk_messages < 1:
             raise StartupError('chunk_period_s must be > 0 and chunk_messages >= 1')
+        if self.ack_every < 1 or self.ack_period_s <= 0:
+            raise StartupError('ack_every must be >= 1 and ack_period_s > 0')
         self.bag = ChunkedBagWriter(out, typestore=bagio.typestore())
         self.tracker = EndTracker([t for t in end_streams if t in topics],
                                   [t for t in end_extra if t in topics])
         self.pub_progress = self.create_publisher(Header, 'recorder/progress', stream_qos())
-        self._acked = -1
+        self._rx: list[tuple[tuple[str, str], bytes]] = []
+        self._newest: dict[str, int] = {}
+        self._acked: dict[str, int] = {}
+        self._acked_all = -1
+        self._streams = {t for t in topics if not KNOWN_TOPICS[t][2] and t != '/clock'}
         self.received = 0
         for topic in topics:
             cls, msgtype, latched = KNOWN_TOPICS[topic]
@@ -83,29 +99,52 @@ class McapRecorder(Node):
                                                  else stream_qos())
             self.create_subscription(cls, topic, self._callback(topic, name), qos, raw=True)
         self._last_flush = time.monotonic()
+        steady_timer(self, self.ack_period_s, self._drain)
         steady_timer(self, min(self.chunk_period_s, 0.2), self._on_timer)
         self.get_logger().info(f'recording {", ".join(topics)} to {out}')
 
     def _callback(self, topic: str, name: str):
+        # The callback only queues the bytes: parsing, writing and acknowledging happen in
+        # _drain, once per ack_every messages, which keeps the per-message Python work small.
+        key = (topic, name)
+
         def on_message(data: bytes) -> None:
+            self._rx.append((key, data))
+            if len(self._rx) >= self.ack_every:
+                self._drain()
+        return on_message
+
+    def _drain(self) -> None:
+        """Write what arrived into the bag buffer, then acknowledge it on recorder/progress."""
+        if not self._rx or self.bag.closed:
+            self._rx.clear()
+            return
+        rx, self._rx = self._rx, []
+        newest = self._newest
+        for (topic, name), data in rx:
             try:
                 stamp = header_stamp_ns(data)
             except FeedAxisError as err:
                 self.get_logger().error(f'{topic}: {err}')
-                return
+                continue
             self.bag.write(name, stamp, data)
-            self.received += 1
-            self.tracker.seen(topic, stamp)
+            if stamp > newest.get(topic, -1):
+                newest[topic] = stamp
             if topic == 'program/end':
                 self._on_end(data)
-            low = self.tracker.min_stamp_ns()
-            if low > self._acked:
-                self._acked = low
-                self.pub_progress.publish(convert.stamp_msg(low))
-            if self.bag.buffered >= self.chunk_messages:
-                self._flush()
-            self._check_end()
-        return on_message
+        self.received += len(rx)
+        for topic, stamp in newest.items():
+            self.tracker.seen(topic, stamp)
+            if topic in self._streams and stamp > self._acked.get(topic, -1):
+                self._acked[topic] = stamp
+                self.pub_progress.publish(convert.stamp_msg(stamp, '/' + topic.lstrip('/')))
+        low = self.tracker.min_stamp_ns()
+        if low > self._acked_all:
+            self._acked_all = low
+            self.pub_progress.publish(convert.stamp_msg(low))
+        if self.bag.buffered >= self.chunk_messages:
+            self._flush()
+        self._check_end()
 
     def _on_end(self, data: bytes) -> None:
         from rclpy.serialization import deserialize_message
@@ -120,6 +159,7 @@ class McapRecorder(Node):
         self._last_flush = time.monotonic()
 
     def _on_timer(self) -> None:
+        self._drain()
         if time.monotonic() - self._last_flush >= self.chunk_period_s:
             self._flush()
         self._check_end()
@@ -132,6 +172,9 @@ class McapRecorder(Node):
     def close(self) -> None:
         """Flush the last chunk and finish the bag (idempotent)."""
         if self.bag.closed:
+            return
+        self._drain()
+        if self.bag.closed:   # _drain reached the end and closed the bag already
             return
         self.bag.close()
         counts = ', '.join(f'{t} {n}' for t, n in sorted(self.bag.counts.items()))

@@ -2,10 +2,13 @@
 
 Messages are published unchanged (serialized, original header stamps) on the relative topics
 ``measured/power`` and ``measured/kinematics``, with the original timing scaled by ``rate``
-(2.0 = twice as fast) or, with ``rate`` 0, as fast as possible. In the fast case the node
-publishes ``burst`` messages per topic at most, then waits until every matched subscriber has
-acknowledged them, so a subscriber that keeps up loses nothing. At the end it publishes
-``program/end`` (same marker as ``gcode_trajectory``).
+(2.0 = twice as fast) or, with ``rate`` 0, as fast as the consumer acknowledges them: at most
+``burst`` messages per topic are in flight, and a message is done when a consumer ack on
+``ack_topic`` (``std_msgs/Header``, ``frame_id`` = the bag topic, e.g. ``/measured/power``, stamp
+= newest stamp taken) has reached its stamp. ``mcap_recorder`` publishes such acks on
+``recorder/progress``. Since ``burst`` is below the stream depth, keep-last never overwrites an
+unread message. At the end the node publishes ``program/end`` (same marker as
+``gcode_trajectory``).
 """
 from __future__ import annotations
 
@@ -15,10 +18,11 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.duration import Duration
 from rclpy.node import Node
+from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
 from feed_axis_energy.core import bagio
-from feed_axis_energy.core.graph import ProgramEnd, read_raw
+from feed_axis_energy.core.graph import FlowWindow, ProgramEnd, read_raw
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import latched_qos, stream_qos
 from feed_axis_energy.nodes.runner import declare, run, StartupError, steady_timer
@@ -37,8 +41,13 @@ class MeasuredReplay(Node):
         bag = declare(self, 'bag', '', 'measured run bag directory (rosbag2/MCAP)')
         self.rate = declare(self, 'rate', 1.0,
                             'time scale: 1.0 original timing, 2.0 twice as fast, '
-                            '0 as fast as possible')
-        self.burst = declare(self, 'burst', 50, 'fast mode: messages between waits for acks')
+                            '0 as fast as the consumer acknowledges')
+        self.burst = declare(self, 'burst', 50,
+                             'rate 0: messages per topic in flight before waiting for acks')
+        ack_topic = declare(self, 'ack_topic', 'recorder/progress',
+                            'rate 0: consumer acks (std_msgs/Header, frame_id = bag topic)')
+        self.stall_timeout_s = declare(self, 'stall_timeout_s', 30.0,
+                                       'rate 0: exit 1 if no ack arrives for this long [s]')
         self.min_subscribers = declare(self, 'min_subscribers', 1,
                                        'matched subscribers per topic before playing')
         self.exit_at_end = declare(self, 'exit_at_end', True, 'exit (code 0) when done')
@@ -52,16 +61,46 @@ class MeasuredReplay(Node):
             raise StartupError(msg)
         self.messages = read_raw(bag, BAG_TOPICS)
         self.bag = bag
+        self._check_stamps()
+        topics = sorted({m[0] for m in self.messages})
         self.pubs = {t: self.create_publisher(JointTrajectory, t.lstrip('/'), stream_qos())
-                     for t in sorted({m[0] for m in self.messages})}
+                     for t in topics}
         self.pub_end = self.create_publisher(DiagnosticArray, 'program/end', latched_qos())
+        self.flows = {t: FlowWindow(self.burst, ['ack']) for t in topics}
+        self.sub_ack = None
+        if self.rate == 0:
+            self.sub_ack = self.create_subscription(Header, ack_topic, self._on_ack,
+                                                    stream_qos())
         self._next = 0
-        self._since_wait = 0
         self._t0_wall: float | None = None
+        self._last_ack = time.monotonic()
+        self._end_sent = False
         self._exit_after: float | None = None
-        steady_timer(self, 0.002 if self.rate > 0 else 0.0, self._tick)
+        steady_timer(self, 0.002 if self.rate > 0 else 0.01, self._tick)
         counts = {t: sum(1 for m in self.messages if m[0] == t) for t in self.pubs}
         self.get_logger().info(f'replaying {bag}: {counts} at rate {self.rate:g}')
+
+    def _check_stamps(self) -> None:
+        if self.rate > 0:
+            return
+        last: dict[str, int] = {}
+        for topic, log_ns, _ in self.messages:
+            if log_ns <= last.get(topic, -1):
+                msg = (f'{self.bag}: {topic} log times must increase for rate 0 (acks are '
+                       f'by stamp), got {log_ns} after {last[topic]}')
+                raise StartupError(msg)
+            last[topic] = log_ns
+
+    def _on_ack(self, msg: Header) -> None:
+        flow = self.flows.get('/' + msg.frame_id.lstrip('/')) if msg.frame_id else None
+        if flow is not None and flow.ack('ack', convert.time_to_ns(msg.stamp)):
+            self._last_ack = time.monotonic()
+            self._tick()
+
+    def _matched(self) -> bool:
+        if any(p.get_subscription_count() < self.min_subscribers for p in self.pubs.values()):
+            return False
+        return self.sub_ack is None or self.sub_ack.get_publisher_count() >= 1
 
     def _tick(self) -> None:
         now = time.monotonic()
@@ -70,9 +109,10 @@ class MeasuredReplay(Node):
                 self.exit_code = 0
             return
         if self._t0_wall is None:
-            if any(p.get_subscription_count() < self.min_subscribers for p in self.pubs.values()):
+            if not self._matched():
                 return
             self._t0_wall = now + 0.3  # let the remote side finish matching
+            self._last_ack = self._t0_wall
         if now < self._t0_wall:
             return
         t0_log = self.messages[0][1]
@@ -81,24 +121,39 @@ class MeasuredReplay(Node):
             topic, log_ns, data = self.messages[self._next]
             if self.rate > 0 and (log_ns - t0_log) / 1e9 / self.rate > now - self._t0_wall:
                 break
+            if self.rate == 0:
+                flow = self.flows[topic]
+                if not flow.can_send():
+                    break
+                flow.sent(log_ns)
             self.pubs[topic].publish(data)
             self._next += 1
-            self._since_wait += 1
-            if self.rate == 0 and self._since_wait >= self.burst:
-                self._wait_acked()
-        if self._next == len(self.messages):
-            self._wait_acked()
-            end = ProgramEnd(program=str(self.bag), samples=len(self.messages),
-                             batches=len(self.messages), first_ns=self.messages[0][1],
-                             last_ns=self.messages[-1][1])
-            self.pub_end.publish(convert.program_end_msg(end))
-            self.get_logger().info(f'replayed {len(self.messages)} messages')
-            self._exit_after = now + (0.5 if self.exit_at_end else float('inf'))
+        if self._next < len(self.messages) or self._end_sent:
+            self._check_stall(now)
+            return
+        if self.rate == 0 and any(f.in_flight for f in self.flows.values()):
+            self._check_stall(now)
+            return
+        if self.rate > 0:  # nobody acknowledges timed replay: wait for DDS delivery
+            for pub in self.pubs.values():
+                pub.wait_for_all_acked(Duration(seconds=5.0))
+        end = ProgramEnd(program=str(self.bag), samples=len(self.messages),
+                         batches=len(self.messages), first_ns=self.messages[0][1],
+                         last_ns=self.messages[-1][1])
+        self.pub_end.publish(convert.program_end_msg(end))
+        self._end_sent = True
+        self.get_logger().info(f'replayed {len(self.messages)} messages')
+        self._exit_after = now + (0.5 if self.exit_at_end else float('inf'))
 
-    def _wait_acked(self) -> None:
-        for pub in self.pubs.values():
-            pub.wait_for_all_acked(Duration(seconds=10.0))
-        self._since_wait = 0
+    def _check_stall(self, now: float) -> None:
+        if (self.rate == 0 and self.exit_code is None
+                and any(f.in_flight for f in self.flows.values())
+                and now - self._last_ack > self.stall_timeout_s):
+            self.get_logger().error(
+                f'no acknowledgement on {self.sub_ack.topic_name} for {self.stall_timeout_s} s '
+                f'after {self._next} of {len(self.messages)} messages: is a consumer '
+                '(e.g. mcap_recorder) acknowledging them?')
+            self.exit_code = 1
 
 
 def main(args: list[str] | None = None) -> None:

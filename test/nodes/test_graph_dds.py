@@ -71,21 +71,28 @@ def _measured_bag(path, n=3000, batch=10):
     return power
 
 
-def _collect(domain_id, topic, until_n, timeout_s, started):
+def _collect(domain_id, topic, until_n, timeout_s, started, *, ack_topic=None):
+    """Subscribe to ``topic``; with ``ack_topic`` acknowledge every message like a consumer."""
     import rclpy
     from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
+    from std_msgs.msg import Header
     from trajectory_msgs.msg import JointTrajectory
     from feed_axis_energy.core.graph import header_stamp_ns
+    from feed_axis_energy.nodes import convert
     from feed_axis_energy.nodes.qos import stream_qos
+    from feed_axis_energy.nodes.runner import make_executor
     ctx = Context()
     rclpy.init(context=ctx, domain_id=domain_id)
     node = rclpy.create_node('collector', context=ctx)
     got = []
-    node.create_subscription(JointTrajectory, topic,
-                             lambda d: got.append((header_stamp_ns(d), time.monotonic(), d)),
-                             stream_qos(), raw=True)
-    ex = SingleThreadedExecutor(context=ctx)
+    ack = None if ack_topic is None else node.create_publisher(Header, ack_topic, stream_qos())
+
+    def on_message(data):
+        got.append((header_stamp_ns(data), time.monotonic(), data))
+        if ack is not None:
+            ack.publish(convert.stamp_msg(got[-1][0], '/' + topic))
+    node.create_subscription(JointTrajectory, topic, on_message, stream_qos(), raw=True)
+    ex = make_executor(context=ctx)
     ex.add_node(node)
     proc = started()
     try:
@@ -104,8 +111,11 @@ def test_replay_complete_and_in_order(tmp_path, node_env, domain_id, rate):
     from feed_axis_energy.nodes import convert
     n = 3000 if rate == 0 else 1000
     ref = _measured_bag(tmp_path / 'measured', n=n)
+    params = {'bag': tmp_path / 'measured', 'rate': rate, 'ack_topic': 'measured/ack',
+              'burst': 20}
+    t0 = time.monotonic()
     got, proc = _collect(domain_id, 'measured/power', n // 10, 30, lambda: _node(
-        'measured_replay', {'bag': tmp_path / 'measured', 'rate': rate}, node_env))
+        'measured_replay', params, node_env), ack_topic='measured/ack' if rate == 0 else None)
     try:
         assert proc.wait(timeout=15) == 0
     finally:
@@ -118,6 +128,29 @@ def test_replay_complete_and_in_order(tmp_path, node_env, domain_id, rate):
     if rate > 0:   # 1 s of data at twice the speed: about 0.5 s from first to last
         span = got[-1][1] - got[0][1]
         assert 0.4 < span < 1.5
+    else:   # paced by acks, not by waits for DDS delivery (that took ~16 s)
+        assert time.monotonic() - t0 < 10
+
+
+def test_fast_replay_into_recorder_is_lossless(tmp_path, node_env, domain_id):
+    """rate 0 paced by the recorder's per-stream acks; a tiny depth-sized burst is enough."""
+    ref = _measured_bag(tmp_path / 'measured', n=5000, batch=5)
+    bag = tmp_path / 'rec'
+    rec = _node('mcap_recorder', {'output': bag, 'topics': '[measured/power, program/end]',
+                                  'end_streams': '[measured/power]', 'end_extra': '[""]',
+                                  'exit_at_end': True}, node_env)
+    replay = _node('measured_replay', {'bag': tmp_path / 'measured', 'rate': 0.0,
+                                       'burst': 5}, node_env)
+    try:
+        assert replay.wait(timeout=30) == 0, replay.communicate()[0]
+        out, _ = rec.communicate(timeout=15)
+        assert rec.returncode == 0, out
+    finally:
+        replay.kill()
+        rec.kill()
+    got = bagio.read_series(bag, bagio.TOPIC_MEASURED_POWER)
+    np.testing.assert_allclose(got.t, ref.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got.positions, ref.positions, rtol=0, atol=0)
 
 
 def test_recorder_survives_sigkill(tmp_path, node_env, domain_id):
