@@ -121,7 +121,8 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
-def bench_recorder(messages: int, domain: int, window: int = 90) -> None:
+def bench_recorder(messages: int, domain: int, window: int = 90,
+                   params: list[str] | None = None) -> None:
     import rclpy
     from rclpy.context import Context
     from feed_axis_energy.nodes.runner import make_executor
@@ -146,7 +147,8 @@ def bench_recorder(messages: int, domain: int, window: int = 90) -> None:
         direct = messages / (time.perf_counter() - t0)
         rec = subprocess.Popen(
             [sys.executable, '-m', 'feed_axis_energy.nodes.mcap_recorder', '--ros-args', '-p',
-             f'output:={tmp}/bag', '-p', 'topics:=[power]'], env=_env(domain),
+             f'output:={tmp}/bag', '-p', 'topics:=[power]']
+            + [a for p in params or [] for a in ('-p', p)], env=_env(domain),
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         ctx = Context()
         rclpy.init(context=ctx, domain_id=domain)
@@ -193,6 +195,8 @@ def main() -> None:
     p.add_argument('--messages', type=int, default=50000)
     p.add_argument('--window', type=int, default=90,
                    help='recorder bench: messages in flight (< stream depth 100)')
+    p.add_argument('--recorder-param', action='append', default=[], metavar='NAME:=VALUE',
+                   help='recorder bench: extra mcap_recorder parameter (repeatable)')
     p.add_argument('--domain-id', type=int, default=97)
     a = p.parse_args()
     if a.which in ('fast', 'all'):
@@ -200,7 +204,7 @@ def main() -> None:
     if a.which in ('realtime', 'all'):
         bench_realtime(a.seconds, a.domain_id)
     if a.which in ('recorder', 'all'):
-        bench_recorder(a.messages, a.domain_id, a.window)
+        bench_recorder(a.messages, a.domain_id, a.window, a.recorder_param)
 
 
 if __name__ == '__main__':

@@ -7,11 +7,13 @@ readable bag holding everything up to the last flush. Topics are stored under th
 name (``/setpoints`` ...), whatever namespace or remapping the node runs with, so the bag reads
 like an offline ``simulate --out`` recording.
 
-Flow control: ``recorder/progress`` (``std_msgs/Header``) acknowledges what has been taken off
-the DDS queues, at most every ``ack_every`` messages or ``ack_period_s``. A header with an
-empty ``frame_id`` carries the newest stamp every ``end_streams`` topic has reached (what
-``gcode_trajectory`` waits for); one whose ``frame_id`` names a recorded stream (``/power``,
-``/measured/power`` ...) carries that stream's newest stamp (what ``measured_replay`` waits for).
+Flow control: acknowledgements (``std_msgs/Header``) of what has been taken off the DDS
+queues, published once per ``ack_every`` messages or ``ack_period_s``, and only while someone
+subscribes (each costs both sides tens of microseconds). ``recorder/progress`` carries the
+newest stamp every ``end_streams`` topic has reached (what ``gcode_trajectory`` waits for);
+``recorder/stream_progress`` carries one header per recorded stream, ``frame_id`` = its bag
+topic (``/power``, ``/measured/power`` ...), stamp = its newest stamp (what ``measured_replay``
+waits for).
 """
 from __future__ import annotations
 
@@ -85,6 +87,8 @@ class McapRecorder(Node):
         self.tracker = EndTracker([t for t in end_streams if t in topics],
                                   [t for t in end_extra if t in topics])
         self.pub_progress = self.create_publisher(Header, 'recorder/progress', stream_qos())
+        self.pub_streams = self.create_publisher(Header, 'recorder/stream_progress',
+                                                 stream_qos())
         self._rx: list[tuple[tuple[str, str], bytes]] = []
         self._newest: dict[str, int] = {}
         self._acked: dict[str, int] = {}
@@ -133,13 +137,14 @@ class McapRecorder(Node):
             if topic == 'program/end':
                 self._on_end(data)
         self.received += len(rx)
+        per_stream = self.pub_streams.get_subscription_count() > 0
         for topic, stamp in newest.items():
             self.tracker.seen(topic, stamp)
-            if topic in self._streams and stamp > self._acked.get(topic, -1):
+            if per_stream and topic in self._streams and stamp > self._acked.get(topic, -1):
                 self._acked[topic] = stamp
-                self.pub_progress.publish(convert.stamp_msg(stamp, '/' + topic.lstrip('/')))
+                self.pub_streams.publish(convert.stamp_msg(stamp, '/' + topic.lstrip('/')))
         low = self.tracker.min_stamp_ns()
-        if low > self._acked_all:
+        if low > self._acked_all and self.pub_progress.get_subscription_count() > 0:
             self._acked_all = low
             self.pub_progress.publish(convert.stamp_msg(low))
         if self.bag.buffered >= self.chunk_messages:

@@ -5,9 +5,9 @@ Messages are published unchanged (serialized, original header stamps) on the rel
 (2.0 = twice as fast) or, with ``rate`` 0, as fast as the consumer acknowledges them: at most
 ``burst`` messages per topic are in flight, and a message is done when a consumer ack on
 ``ack_topic`` (``std_msgs/Header``, ``frame_id`` = the bag topic, e.g. ``/measured/power``, stamp
-= newest stamp taken) has reached its stamp. ``mcap_recorder`` publishes such acks on
-``recorder/progress``. Since ``burst`` is below the stream depth, keep-last never overwrites an
-unread message. At the end the node publishes ``program/end`` (same marker as
+= newest stamp taken) has reached its stamp; ``mcap_recorder`` publishes such acks on
+``recorder/stream_progress``. Since ``burst`` is below the stream depth, keep-last never
+overwrites an unread message. At the end the node publishes ``program/end`` (same marker as
 ``gcode_trajectory``).
 """
 from __future__ import annotations
@@ -44,7 +44,7 @@ class MeasuredReplay(Node):
                             '0 as fast as the consumer acknowledges')
         self.burst = declare(self, 'burst', 50,
                              'rate 0: messages per topic in flight before waiting for acks')
-        ack_topic = declare(self, 'ack_topic', 'recorder/progress',
+        ack_topic = declare(self, 'ack_topic', 'recorder/stream_progress',
                             'rate 0: consumer acks (std_msgs/Header, frame_id = bag topic)')
         self.stall_timeout_s = declare(self, 'stall_timeout_s', 30.0,
                                        'rate 0: exit 1 if no ack arrives for this long [s]')
