@@ -71,8 +71,13 @@ def _measured_bag(path, n=3000, batch=10):
     return power
 
 
-def _collect(domain_id, topic, until_n, timeout_s, started, *, ack_topic=None):
-    """Subscribe to ``topic``; with ``ack_topic`` acknowledge every message like a consumer."""
+def _collect(domain_id, topic, until_n, timeout_s, started, *, ack_topic=None,
+             ack_limit=None, until_exit=False):
+    """Subscribe to ``topic``; with ``ack_topic`` acknowledge messages like a consumer.
+
+    With ``ack_limit`` only the first ``ack_limit`` messages are acknowledged (a stuck consumer);
+    with ``until_exit`` collection goes on until the started process exits.
+    """
     import rclpy
     from rclpy.context import Context
     from std_msgs.msg import Header
@@ -89,7 +94,7 @@ def _collect(domain_id, topic, until_n, timeout_s, started, *, ack_topic=None):
 
     def on_message(data):
         got.append((header_stamp_ns(data), time.monotonic(), data))
-        if ack is not None:
+        if ack is not None and (ack_limit is None or len(got) <= ack_limit):
             ack.publish(convert.stamp_msg(got[-1][0], '/' + topic))
     node.create_subscription(JointTrajectory, topic, on_message, stream_qos(), raw=True)
     ex = make_executor(context=ctx)
@@ -97,7 +102,8 @@ def _collect(domain_id, topic, until_n, timeout_s, started, *, ack_topic=None):
     proc = started()
     try:
         deadline = time.monotonic() + timeout_s
-        while len(got) < until_n and time.monotonic() < deadline:
+        while time.monotonic() < deadline and (
+                proc.poll() is None if until_exit else len(got) < until_n):
             ex.spin_once(timeout_sec=0.05)
     finally:
         ex.shutdown()
@@ -130,6 +136,22 @@ def test_replay_complete_and_in_order(tmp_path, node_env, domain_id, rate):
         assert 0.4 < span < 1.5
     else:   # paced by acks, not by waits for DDS delivery (that took ~16 s)
         assert time.monotonic() - t0 < 10
+
+
+def test_fast_replay_waits_for_a_stuck_consumer_then_exits_1(tmp_path, node_env, domain_id):
+    _measured_bag(tmp_path / 'measured', n=1000)
+    params = {'bag': tmp_path / 'measured', 'rate': 0.0, 'ack_topic': 'measured/ack',
+              'burst': 20, 'stall_timeout_s': 1.0}
+    got, proc = _collect(domain_id, 'measured/power', 100, 15, lambda: _node(
+        'measured_replay', params, node_env), ack_topic='measured/ack', ack_limit=30,
+        until_exit=True)
+    try:
+        out, _ = proc.communicate(timeout=10)
+    finally:
+        proc.kill()
+    assert len(got) == 30 + 20   # acknowledged plus one window in flight, nothing more
+    assert proc.returncode == 1
+    assert 'no acknowledgement on /measured/ack' in out and 'Traceback' not in out
 
 
 def test_fast_replay_into_recorder_is_lossless(tmp_path, node_env, domain_id):
