@@ -12,7 +12,7 @@ class Progress:
     """Callable that reports a fraction in [0, 1] of a named stage.
 
     Nothing is printed during the first ``delay_s`` seconds, so short jobs stay silent;
-    after that a line per 10 % step (or an updating line on a terminal).
+    after that an updating line on a terminal, or a line per 25 % in a log.
     """
 
     def __init__(self, label: str, *, enabled: bool = True, delay_s: float = 0.5,
@@ -29,18 +29,20 @@ class Progress:
         """Report progress ``fraction`` (0..1)."""
         if not self.enabled or time.monotonic() - self._t0 < self.delay_s:
             return
-        step = int(max(0.0, min(1.0, fraction)) * 10)
+        tty = self.stream.isatty()
+        # An updating line on a terminal; a line per quarter in logs, which keep every line.
+        per = 10 if tty else 4
+        step = int(max(0.0, min(1.0, fraction)) * per)
         if step == self._last_step:
             return
         self._last_step = step
-        tty = self.stream.isatty()
-        end = '' if tty and step < 10 else '\n'
+        end = '' if tty and step < per else '\n'
         prefix = '\r' if tty else ''
-        self.stream.write(f'{prefix}[{self.label}] {step * 10:3d} %{end}')
+        self.stream.write(f'{prefix}[{self.label}] {step * 100 // per:3d} %{end}')
         self.stream.flush()
         self._shown = True
 
     def done(self) -> None:
         """Finish the line if anything was shown."""
-        if self._shown and self._last_step < 10:
+        if self._shown:
             self(1.0)
