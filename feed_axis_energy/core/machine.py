@@ -455,8 +455,12 @@ def _effects(value: Any, axis_names: tuple[str, ...], *,
         if effect_id not in EFFECTS:
             msg = f'unknown effect {effect_id!r}; expected one of {", ".join(EFFECTS)}'
             raise ConfigError(msg, file=file, key=f'{key}.id')
-        axis = _choice(item, 'axis', axis_names + (None,), file=file, key=key, default=None)
         cls = EFFECTS[effect_id]
+        if not cls.machine_property:
+            msg = (f'effect {effect_id!r} describes how a measured and a simulated record line '
+                   'up, not the machine; compare estimates it for every run')
+            raise ConfigError(msg, file=file, key=f'{key}.id')
+        axis = _choice(item, 'axis', axis_names + (None,), file=file, key=key, default=None)
         params_d = _mapping(item.get('params', {}) or {}, file=file, key=f'{key}.params',
                             allowed=cls.param_names())
         params = tuple((name, _float(params_d, name, file=file, key=f'{key}.params'))

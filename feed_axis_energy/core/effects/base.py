@@ -161,6 +161,13 @@ class Effect:
     exact_basis
         ``True`` when ``power_w == basis · linear values`` holds exactly; ``False`` when the
         basis is a first-order approximation (see ``time_offset``).
+    machine_property
+        ``True`` for a physical property of the machine, which belongs in an augmented
+        machine config; ``False`` for an artefact of comparing two records (``time_offset``),
+        which ``analyze`` reports but does not write into the machine.
+    sample_local
+        ``True`` when the power of a sample depends only on that sample's state, so the
+        effect can be applied batch by batch in the node graph with offline-equal results.
     """
 
     id: ClassVar[str] = ''
@@ -168,6 +175,8 @@ class Effect:
     formula: ClassVar[str] = ''
     params: ClassVar[tuple[Param, ...]] = ()
     exact_basis: ClassVar[bool] = True
+    machine_property: ClassVar[bool] = True
+    sample_local: ClassVar[bool] = True
 
     @classmethod
     def param_names(cls) -> tuple[str, ...]:

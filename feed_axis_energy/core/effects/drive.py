@@ -110,6 +110,9 @@ class TimeOffset(Effect):
     formula = 'P = P_decl(t - delta) - P_decl(t)  ~=  -delta · dP_decl/dt'
     params = (Param('delta_s', 's', 0.0, -1.0, 1.0, 0.02, 'time shift (later is positive)'),)
     exact_basis = False
+    # Describes how two records line up, not the machine; needs neighbouring samples.
+    machine_property = False
+    sample_local = False
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
         if state.t.shape[0] < 2:

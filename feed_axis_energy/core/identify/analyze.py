@@ -241,10 +241,14 @@ class AnalysisResult:
                 for load in loads]
 
     def augmented_machine(self) -> Machine:
-        """The declared machine plus the selected effects with their fitted parameters."""
+        """The declared machine plus the selected effects with their fitted parameters.
+
+        Effects that describe the comparison rather than the machine (``time_offset``: how
+        the two records line up, which ``compare`` estimates anew for every run) are left out.
+        """
         added = tuple(DeclaredEffect(id=e.id, axis=e.axis,
                                      params=tuple((p.name, float(p.value)) for p in e.params))
-                      for e in self.effects)
+                      for e in self.effects if get_effect(e.id).machine_property)
         return replace(self.machine, effects=self.machine.effects + added)
 
     def to_dict(self) -> dict[str, Any]:
