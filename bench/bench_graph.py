@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/bench_graph.py fast --minutes 10      # real-time factor, fast mode
     .venv/bin/python bench/bench_graph.py realtime --seconds 60  # latency setpoint -> power
-    .venv/bin/python bench/bench_graph.py recorder --messages 50000
+    .venv/bin/python bench/bench_graph.py recorder --messages 20000 [--window 90]
     .venv/bin/python bench/bench_graph.py all
 
 fast: a reciprocating 400 mm program at 100 mm/s with 1 s dwells, sampled at 1 kHz, through
@@ -11,8 +11,10 @@ whole run's wall time (process start-up and discovery included).
 realtime: the same graph paced by the wall clock; a listener in this process stamps the
 arrival of every ``setpoints`` and ``power`` batch and reports the latency per batch
 (median, p99, max) and batches that never arrived.
-recorder: publishes 1-sample ``power`` messages as fast as possible to a recorder process and
-counts what the bag holds; also the bag writer alone (no DDS).
+recorder: publishes 1-sample ``power`` messages to a recorder process as fast as its
+``recorder/progress`` acks allow (``--window`` in flight), counts what the bag holds and the CPU
+time per message of both processes; also the bag writer alone (no DDS).
+``--recorder-param ack_every:=40`` passes a parameter to the recorder.
 """
 from __future__ import annotations
 

@@ -137,9 +137,19 @@ class McapRecorder(Node):
             if topic == 'program/end':
                 self._on_end(data)
         self.received += len(rx)
-        per_stream = self.pub_streams.get_subscription_count() > 0
         for topic, stamp in newest.items():
             self.tracker.seen(topic, stamp)
+        self._publish_acks()
+        if self.bag.buffered >= self.chunk_messages:
+            self._flush()
+        self._check_end()
+
+    def _publish_acks(self) -> None:
+        # Also called by the slow timer: an ack skipped while its subscriber was still being
+        # discovered goes out then, even if no further message arrives.
+        newest = self._newest
+        per_stream = self.pub_streams.get_subscription_count() > 0
+        for topic, stamp in newest.items():
             if per_stream and topic in self._streams and stamp > self._acked.get(topic, -1):
                 self._acked[topic] = stamp
                 self.pub_streams.publish(convert.stamp_msg(stamp, '/' + topic.lstrip('/')))
@@ -147,9 +157,6 @@ class McapRecorder(Node):
         if low > self._acked_all and self.pub_progress.get_subscription_count() > 0:
             self._acked_all = low
             self.pub_progress.publish(convert.stamp_msg(low))
-        if self.bag.buffered >= self.chunk_messages:
-            self._flush()
-        self._check_end()
 
     def _on_end(self, data: bytes) -> None:
         from rclpy.serialization import deserialize_message
@@ -165,6 +172,7 @@ class McapRecorder(Node):
 
     def _on_timer(self) -> None:
         self._drain()
+        self._publish_acks()
         if time.monotonic() - self._last_flush >= self.chunk_period_s:
             self._flush()
         self._check_end()
