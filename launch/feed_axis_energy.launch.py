@@ -30,7 +30,8 @@ def _graph(context):
     machine = {'machine': arg['machine']} if arg['machine'] else {}
     record = arg['record']
     energy = Node(package=PACKAGE, executable='energy_estimator', name='energy_estimator',
-                  parameters=[params, {**machine, 'exit_at_end': True}], output='screen')
+                  parameters=[params, {**machine, 'load_kg': float(arg['load_kg']),
+                                       'exit_at_end': True}], output='screen')
     nodes = [
         Node(package=PACKAGE, executable='gcode_trajectory', name='gcode_trajectory',
              parameters=[params, {**machine, 'program': program, 'mode': arg['mode'],

@@ -90,7 +90,8 @@ def graph_commands(args: argparse.Namespace) -> dict[str, list[str]]:
         'axis_dynamics': node_command('axis_dynamics', {
             **machine, 'load_kg': float(args.load_kg), **sim_time}, params_file=params_file),
         'energy_estimator': node_command('energy_estimator', {
-            **machine, 'exit_at_end': True, **sim_time}, params_file=params_file),
+            **machine, 'load_kg': float(args.load_kg), 'exit_at_end': True, **sim_time},
+            params_file=params_file),
     }
     if args.record is not None:
         cmds['mcap_recorder'] = node_command('mcap_recorder', {

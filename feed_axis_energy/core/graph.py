@@ -21,8 +21,12 @@ import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 import yaml
 
-from .energy import apply_braking, energy_by_line, EnergyIntegrator, PowerResult
-from .errors import DataError
+from .dynamics import compute_dynamics
+from .energy import apply_braking, compute_power, energy_by_line, EnergyIntegrator, PowerResult
+from .errors import ConfigError, DataError
+from .machine import Machine
+from .motion import Motion
+from .simulate import declared_effects_power_w
 
 __all__ = ['NS_PER_S', 'seconds_to_ns', 'ns_to_seconds', 'batch_bounds', 'FlowWindow',
            'pacing_delay_s', 'block_starts', 'lines_at', 'StreamingPower', 'header_stamp_ns',
@@ -154,18 +158,37 @@ class StreamingPower:
     total), so the numbers equal the offline result for the same samples. Every batch is kept
     so that the per-block summary at the end comes from :func:`.energy.energy_by_line` itself.
 
+    With a ``machine`` that declares effects (``effects:`` in its YAML, e.g. written by
+    ``analyze``), their extra power is added after the braking rule, as
+    :func:`.simulate.apply_declared_effects` does offline; the batch's dynamics are rebuilt
+    from its carriage motion with the core (:func:`.dynamics.compute_dynamics`), and every
+    declarable effect is sample-local, so batches give the offline numbers.
+
     Parameters
     ----------
     axes
         Axis names (column order of ``torque_nm`` and ``omega_rad_s``).
     braking
         ``'regenerative'`` or ``'dissipated'``.
+    machine
+        The machine model, needed only for declared effects.
+    load_kg
+        Workpiece mass [kg] (declared effects such as load-dependent friction use it).
     """
 
-    def __init__(self, axes: Sequence[str], *, braking: str) -> None:
+    def __init__(self, axes: Sequence[str], *, braking: str, machine: Machine | None = None,
+                 load_kg: float = 0.0) -> None:
         apply_braking(np.zeros((0, len(axes))), braking=braking)  # validate early
         self.axes = tuple(axes)
         self.braking = braking
+        self.machine = machine if machine is not None and machine.effects else None
+        self.load_kg = float(load_kg)
+        if self.machine is not None:
+            from .effects import get_effect
+            local = [e.id for e in self.machine.effects if not get_effect(e.id).sample_local]
+            if local:
+                msg = f'declared effects {local} need whole records; the graph cannot stream them'
+                raise ConfigError(msg, file=self.machine.name, key='effects')
         self._integrator = EnergyIntegrator(len(self.axes) + 1)
         self._t: list[np.ndarray] = []
         self._mech: list[np.ndarray] = []
@@ -182,9 +205,12 @@ class StreamingPower:
         """Samples integrated so far."""
         return int(sum(t.shape[0] for t in self._t))
 
-    def update(self, t_s: np.ndarray, torque_nm: np.ndarray,
-               omega_rad_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def update(self, t_s: np.ndarray, torque_nm: np.ndarray, omega_rad_s: np.ndarray, *,
+               motion: Motion | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Integrate one batch.
+
+        ``motion`` (the batch's carriage positions, velocities, accelerations) is required
+        when the machine declares effects.
 
         Returns
         -------
@@ -193,6 +219,14 @@ class StreamingPower:
         """
         mechanical = np.asarray(torque_nm, dtype=float) * np.asarray(omega_rad_s, dtype=float)
         power = apply_braking(mechanical, braking=self.braking)
+        if self.machine is not None:
+            if motion is None:
+                raise ValueError('the machine declares effects: update() needs the motion')
+            dyn = compute_dynamics(motion, self.machine, load_kg=self.load_kg)
+            extra = declared_effects_power_w(
+                dyn, compute_power(dyn, braking=self.braking), self.machine)
+            if extra is not None:
+                power = power + extra
         total = power.sum(axis=1)
         both = np.column_stack((power, total))
         energy = self._integrator.update(t_s, both)

@@ -20,8 +20,8 @@ from .motion import Motion
 from .program import Program
 from .trajectory import plan, PlannerOptions
 
-__all__ = ['SimulationResult', 'apply_declared_effects', 'simulate_program', 'simulate_motion',
-           'summarize']
+__all__ = ['SimulationResult', 'apply_declared_effects', 'declared_effects_power_w',
+           'simulate_program', 'simulate_motion', 'summarize']
 
 
 @dataclass(frozen=True)
@@ -48,6 +48,39 @@ class SimulationResult:
     power: PowerResult
 
 
+def declared_effects_power_w(dyn: AxisDynamics, power: PowerResult,
+                             machine: Machine) -> np.ndarray | None:
+    """Extra power [W] per axis, ``(n, k)``, of the machine's declared effects.
+
+    Parameters
+    ----------
+    dyn, power
+        Dynamics and power of the model without the effects (``power`` after braking).
+    machine
+        The machine; its ``effects`` act on their axis (every axis when ``axis`` is None).
+
+    Returns
+    -------
+    numpy.ndarray or None
+        ``None`` when no declared effect acts on the axes of ``power``.
+    """
+    active = [e for e in machine.effects if e.axis is None or e.axis in power.axes]
+    if not active:
+        return None
+    # imported here: the effect catalog imports the machine module, not the other way round
+    from .effects import effect_state, get_effect
+    state = effect_state(dyn, power, machine=machine)
+    extra = np.zeros(state.shape)
+    for decl in active:
+        contribution = get_effect(decl.id).power_w(state, decl.values)
+        if decl.axis is None:
+            extra += contribution
+        else:
+            j = power.axes.index(decl.axis)
+            extra[:, j] += contribution[:, j]
+    return extra
+
+
 def apply_declared_effects(dyn: AxisDynamics, power: PowerResult,
                            machine: Machine) -> PowerResult:
     """Add the extra power of the machine's declared effects to ``power``.
@@ -65,20 +98,9 @@ def apply_declared_effects(dyn: AxisDynamics, power: PowerResult,
         ``power`` itself when no declared effect acts on its axes; otherwise power, total
         and energies include the effects (``mechanical_w`` and ``loss_power_w`` do not).
     """
-    active = [e for e in machine.effects if e.axis is None or e.axis in power.axes]
-    if not active:
+    extra = declared_effects_power_w(dyn, power, machine)
+    if extra is None:
         return power
-    # imported here: the effect catalog imports the machine module, not the other way round
-    from .effects import effect_state, get_effect
-    state = effect_state(dyn, power, machine=machine)
-    extra = np.zeros(state.shape)
-    for decl in active:
-        contribution = get_effect(decl.id).power_w(state, decl.values)
-        if decl.axis is None:
-            extra += contribution
-        else:
-            j = power.axes.index(decl.axis)
-            extra[:, j] += contribution[:, j]
     drawn = power.power_w + extra
     total = drawn.sum(axis=1)
     k = drawn.shape[1]

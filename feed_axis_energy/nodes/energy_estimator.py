@@ -9,6 +9,8 @@ from __future__ import annotations
 import sys
 import time
 
+import numpy as np
+
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -18,9 +20,10 @@ from feed_axis_energy.core import bagio, recording
 from feed_axis_energy.core.errors import FeedAxisError
 from feed_axis_energy.core.graph import EndTracker, seconds_to_ns, StreamingPower
 from feed_axis_energy.core.machine import load_machine
+from feed_axis_energy.core.motion import Motion
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import latched_qos, stream_qos
-from feed_axis_energy.nodes.runner import declare, run, steady_timer
+from feed_axis_energy.nodes.runner import declare, run, StartupError, steady_timer
 from feed_axis_energy.paths import default_machine
 
 __all__ = ['EnergyEstimator', 'main']
@@ -35,6 +38,11 @@ class EnergyEstimator(Node):
         path = declare(self, 'machine', '', 'machine config YAML (its braking rule is used)')
         self.exit_at_end = declare(self, 'exit_at_end', False,
                                    'exit (code 0) once block_energy is published and acked')
+        self.load_kg = declare(self, 'load_kg', 0.0,
+                               'workpiece mass [kg]; used by declared effects of the machine')
+        if not self.load_kg >= 0.0:
+            msg = f'parameter load_kg must be >= 0, got {self.load_kg}'
+            raise StartupError(msg)
         self.machine = load_machine(path or default_machine())
         self.power: StreamingPower | None = None
         self.lines = None
@@ -60,8 +68,13 @@ class EnergyEstimator(Node):
                 msg = f'axis_state joints {s.names} are not axes followed by their screws'
                 raise ValueError(msg)
             if self.power is None:
-                self.power = StreamingPower(axes, braking=self.machine.braking)
-            both, energy = self.power.update(s.t, s.effort[:, k:], s.velocities[:, k:])
+                self.power = StreamingPower(axes, braking=self.machine.braking,
+                                            machine=self.machine, load_kg=self.load_kg)
+            n = s.t.shape[0]
+            motion = Motion(t=s.t, axes=axes, pos=s.positions[:, :k], vel=s.velocities[:, :k],
+                            acc=s.accelerations[:, :k], line=np.zeros(n, dtype=np.int32))
+            both, energy = self.power.update(s.t, s.effort[:, k:], s.velocities[:, k:],
+                                             motion=motion)
             out = bagio.Series(t=s.t, names=axes + ('total',), positions=energy,
                                velocities=both)
             ((_, cdr),) = convert.series_to_cdr(out, batch=max(s.t.shape[0], 1))
