@@ -7,6 +7,8 @@ traceback. A node asks to stop by setting ``exit_code``. SIGINT/SIGTERM shut dow
 """
 from __future__ import annotations
 
+import inspect
+import sys
 from typing import Callable
 
 import rclpy
@@ -15,6 +17,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rcl_interfaces.msg import ParameterDescriptor
 
 from feed_axis_energy.core.errors import FeedAxisError
+from feed_axis_energy.paths import config_dir
 
 __all__ = ['StartupError', 'run', 'make_executor', 'declare', 'steady_timer', 'STARTUP_ERRORS']
 
@@ -53,8 +56,39 @@ def make_executor(*, context=None):
     return EventsExecutor(context=context)
 
 
+def node_help(factory: Callable[[], object], *, name: str) -> str:
+    """Usage, the node module's docstring and its parameters from ``config/graph.yaml``."""
+    module = sys.modules.get(getattr(factory, '__module__', ''), None)
+    doc = inspect.cleandoc(module.__doc__ or '') if module is not None else ''
+    params = []
+    graph = config_dir() / 'graph.yaml'
+    if graph.is_file():
+        lines = graph.read_text(encoding='utf-8').splitlines()
+        inside = False
+        for line in lines:
+            if line and not line.startswith(' '):
+                inside = line.startswith(f'{name}:')
+                continue
+            if inside and line.startswith('    ') and not line.strip().startswith('#'):
+                params.append('  ' + line.strip())
+    text = [f'usage: ros2 run feed_axis_energy {name} [--ros-args -p NAME:=VALUE ...]',
+            f'   or: python -m feed_axis_energy.nodes.{name} [--ros-args ...]', '', doc]
+    if params:
+        text += ['', f'parameters (defaults from {graph}):'] + params
+    text += ['', 'Topics, QoS and flow control: docs/nodes.md. Exit code 1 on bad parameters.']
+    return '\n'.join(text)
+
+
 def run(factory: Callable[[], object], args: list[str] | None, *, name: str) -> int:
-    """Create the node with ``factory`` and spin it until it exits; returns the exit code."""
+    """Create the node with ``factory`` and spin it until it exits; returns the exit code.
+
+    ``-h``/``--help`` before any ``--ros-args`` prints :func:`node_help` and returns 0.
+    """
+    argv = list(sys.argv[1:] if args is None else args)
+    own = argv[:argv.index('--ros-args')] if '--ros-args' in argv else argv
+    if '-h' in own or '--help' in own:
+        print(node_help(factory, name=name))
+        return 0
     rclpy.init(args=args)
     logger = rclpy.logging.get_logger(name)
     try:
