@@ -167,6 +167,15 @@ def _row_ranges(rows: np.ndarray) -> list[list[int]]:
     return [[int(rows[s]), int(e - s)] for s, e in zip(starts, ends)]
 
 
+def _relative(path: str | Path, base: Path | None = None) -> str:
+    """``path`` relative to ``base`` (default: the working directory), POSIX style."""
+    base = Path.cwd().resolve() if base is None else base
+    try:
+        return Path(os.path.relpath(Path(path).resolve(), base)).as_posix()
+    except ValueError:  # pragma: no cover - another drive on Windows
+        return Path(path).as_posix()
+
+
 def _sha256(path: Path) -> str:
     digest = hashlib.sha256()
     with open(path, 'rb') as fh:
@@ -197,8 +206,13 @@ def run_metadata(run: MeasuredRun, spec: RunSpec, *,
         ``excluded_rows``, ``rows`` (``[[first, count], ...]`` 1-based data rows of the
         source), ``excerpt``, ``energy`` (integration rule).
     """
-    source: dict[str, Any] = {'file': spec.data.name, 'path': str(spec.data),
-                              'kind': spec.data_kind, 'manifest': spec.manifest,
+    # Paths are kept relative to the manifest (and the manifest to the working directory
+    # where possible), so a bag does not carry one machine's directory layout.
+    manifest_dir = Path(spec.manifest).resolve().parent
+    source: dict[str, Any] = {'file': spec.data.name,
+                              'path': _relative(spec.data, manifest_dir),
+                              'path_base': 'manifest directory',
+                              'kind': spec.data_kind, 'manifest': _relative(spec.manifest),
                               'key': spec.key}
     if spec.data.is_file():
         source['sha256'] = _sha256(spec.data)

@@ -73,6 +73,9 @@ def test_bag_topics_energy_and_metadata(tmp_path):
     src = FIXTURES / 'run_a.csv'
     assert meta['source']['file'] == 'run_a.csv'
     assert meta['source']['sha256'] == hashlib.sha256(src.read_bytes()).hexdigest()
+    # The data path is kept relative to the manifest, as the manifest wrote it.
+    assert meta['source']['path'] == 'run_a.csv'
+    assert not meta['source']['manifest'].startswith('/')
     assert meta['columns']['X']['power'] == {'column': 'PX_kW', 'unit': 'kW', 'si_unit': 'W'}
     assert meta['columns']['X']['velocity']['unit'] == 'mm/min'
     assert meta['load_kg'] == 2.5 and meta['excluded_rows'] == 1
