@@ -77,8 +77,10 @@ def print_summary(summary: dict, *, source_lines: list[str]) -> None:
     rows = [[axis, f'{summary["energy_j"][axis]:.2f}', f'{summary["peak_power_w"][axis]:.1f}']
             for axis in axes + ['total']]
     print(format_table(['axis', 'energy [J]', 'peak power [W]'], rows))
+    fate = ('returned to the supply' if summary['braking'] == 'regenerative'
+            else 'burned in the brake resistor, not counted above')
     print(f'passive-resistance (loss) energy {summary["loss_energy_j"]:.2f} J; '
-          f'energy returned while braking {summary["regenerated_energy_j"]:.2f} J')
+          f'braking energy {summary["regenerated_energy_j"]:.2f} J ({fate})')
     if summary.get('top_blocks'):
         print()
         print('blocks with the most energy:')
