@@ -10,8 +10,6 @@ from __future__ import annotations
 from html import escape
 import os
 from pathlib import Path
-import shutil
-import tempfile
 
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -19,7 +17,7 @@ import numpy as np
 
 from feed_axis_energy.core.identify.analyze import AnalysisResult, STATE_NAMES
 
-from . import _check_target, _stem, MARKER
+from . import _stem, staged_report
 from .html import METRIC_ROWS
 
 __all__ = ['write_analyze_report']
@@ -161,10 +159,7 @@ def write_analyze_report(res: AnalysisResult, out_dir: str | os.PathLike[str], *
         If ``out_dir`` is a file or a non-empty directory that is not an earlier report.
     """
     out = Path(out_dir)
-    _check_target(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f'.{out.name}.tmp-', dir=out.parent))
-    try:
+    with staged_report(out, written_by='feed-axis-energy analyze --report') as tmp:
         _residual_states(res, tmp / 'residual_states.png', dpi)
         _spectrum(res, tmp / 'spectrum.png', dpi)
         images = {}
@@ -173,12 +168,4 @@ def write_analyze_report(res: AnalysisResult, out_dir: str | os.PathLike[str], *
             _run_plot(run, tmp / name, dpi)
             images[run.name] = name
         (tmp / 'index.html').write_text(_html(res, images), encoding='utf-8')
-        (tmp / MARKER).write_text('written by feed-axis-energy analyze --report\n')
-        os.chmod(tmp, 0o755)
-        if out.exists():
-            shutil.rmtree(out)
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return out / 'index.html'
