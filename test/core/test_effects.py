@@ -27,6 +27,7 @@ M = [[0.5, -1.0], [-2.0, 0.0], [1.5, 0.25], [0.0, 0.3]]
 P = [[40.0, -30.0], [-80.0, 0.0], [120.0, 10.0], [0.0, -5.0]]
 MASS = [20.0, 8.0]
 NORMAL = [20.0 * GRAVITY_M_S2, 0.5 * 8.0 * GRAVITY_M_S2]   # axis 2 inclined by 60 deg
+LOAD_NORMAL = [5.0 * GRAVITY_M_S2, 0.0]   # the 5 kg load rides on axis 1 only
 
 
 def _state() -> EffectState:
@@ -37,7 +38,8 @@ def _state() -> EffectState:
         acceleration_m_s2=np.array(A), angle_rad=2 * math.pi * x / LEAD,
         omega_rad_s=2 * math.pi * v / LEAD, force_n=np.zeros((4, 2)), torque_nm=np.array(M),
         mass_kg=np.array(MASS), load_kg=5.0, normal_force_n=np.array(NORMAL),
-        lead_m=np.array([LEAD, LEAD]), mechanical_w=np.array(P), power_w=np.array(P))
+        lead_m=np.array([LEAD, LEAD]), mechanical_w=np.array(P), power_w=np.array(P),
+        load_normal_force_n=np.array(LOAD_NORMAL))
 
 
 def _w(v: float) -> float:
@@ -55,6 +57,8 @@ HAND = {
                 lambda i, j: 20.0 * V[i][j] if V[i][j] > 0 else -25.0 * V[i][j]),
     'viscous': ({'c_n_s_m': 100.0}, lambda i, j: 100.0 * V[i][j] ** 2),
     'load_friction': ({'mu': 0.05}, lambda i, j: 0.05 * NORMAL[j] * abs(V[i][j])),
+    'clamped_load_friction': ({'mu_l': 0.05},
+                              lambda i, j: 0.05 * LOAD_NORMAL[j] * abs(V[i][j])),
     'stribeck': ({'f_s_n': 40.0, 'v_s_m_s': 0.2},
                  lambda i, j: 40.0 * math.exp(-(V[i][j] / 0.2) ** 2) * abs(V[i][j])),
     'copper': ({'k_w_nm2': 3.0}, lambda i, j: 3.0 * M[i][j] ** 2),
@@ -215,3 +219,26 @@ def test_every_effect_is_documented_with_its_parameters() -> None:
         for p in cls.params:
             assert f'`{p.name}`' in rows[effect_id], f'{effect_id}.{p.name} undocumented'
             assert p.unit in rows[effect_id], f'{effect_id}.{p.name} unit undocumented'
+
+
+def test_load_share_of_the_normal_force_follows_the_stacking():
+    # three_axis_mill: the load sits on the Y table, Y rides on X, Z carries neither.
+    from pathlib import Path
+
+    from feed_axis_energy.core.effects import state_from_simulation
+    from feed_axis_energy.core.gcode import parse_gcode
+    from feed_axis_energy.core.machine import load_machine
+    from feed_axis_energy.core.simulate import simulate_program
+
+    machine = load_machine(Path(__file__).resolve().parents[2] / 'config' / 'three_axis_mill.yaml')
+    program = parse_gcode('G21 G90 G1 X10 Y10 Z10 F600\n', file='p.nc')
+    state = state_from_simulation(simulate_program(program, machine, load_kg=50.0))
+    assert state.axes == ('X', 'Y', 'Z')
+    assert_allclose(state.load_normal_force_n, [50.0 * GRAVITY_M_S2, 50.0 * GRAVITY_M_S2, 0.0])
+
+
+def test_clamped_load_friction_without_a_load_share_uses_the_whole_load():
+    state = _state()
+    fallback = EffectState(**{**state.__dict__, 'load_normal_force_n': None})
+    got = get_effect('clamped_load_friction').power_w(fallback, {'mu_l': 0.1})
+    assert_allclose(got, 0.1 * 5.0 * GRAVITY_M_S2 * np.abs(np.array(V)), rtol=1e-12)

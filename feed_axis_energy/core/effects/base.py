@@ -20,7 +20,7 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import ConfigError
-from ..machine import GRAVITY_M_S2, Machine
+from ..machine import GRAVITY_M_S2, Machine, moved_mass_kg
 
 __all__ = ['Param', 'EffectState', 'Effect', 'EFFECTS', 'register_effect', 'get_effect',
            'effect_state', 'state_from_simulation', 'effects_power_w', 'ParamValue']
@@ -88,6 +88,9 @@ class EffectState:
         Declared ``M·omega`` per axis before the braking rule [W], ``(n, k)``.
     power_w
         Declared actual power per axis after the braking rule [W], ``(n, k)``.
+    load_normal_force_n
+        The clamped load's share of ``normal_force_n`` [N], ``(k,)``: zero on axes that do not
+        carry the load. ``None`` means ``load_kg·g`` on every axis.
     """
 
     t: np.ndarray
@@ -105,6 +108,7 @@ class EffectState:
     lead_m: np.ndarray
     mechanical_w: np.ndarray
     power_w: np.ndarray
+    load_normal_force_n: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -131,13 +135,18 @@ def effect_state(dyn, power, *, machine: Machine) -> EffectState:
     """
     incl = np.radians([machine.axis(a).inclination_deg for a in dyn.axes])
     mass = np.asarray(dyn.mass_kg, dtype=float)
+    load = float(dyn.load_kg)
+    # The load's share of each axis's moved mass: the load where the axis carries it, else 0.
+    load_mass = np.array([moved_mass_kg(machine, a, load) - moved_mass_kg(machine, a, 0.0)
+                          for a in dyn.axes])
     return EffectState(
         t=np.asarray(dyn.t, dtype=float), axes=tuple(dyn.axes), position_m=dyn.position_m,
         velocity_m_s=dyn.velocity_m_s, acceleration_m_s2=dyn.acceleration_m_s2,
         angle_rad=dyn.angle_rad, omega_rad_s=dyn.omega_rad_s, force_n=dyn.force_n,
         torque_nm=dyn.torque_nm, mass_kg=mass, load_kg=float(dyn.load_kg),
         normal_force_n=mass * GRAVITY_M_S2 * np.abs(np.cos(incl)), lead_m=dyn.lead_m,
-        mechanical_w=power.mechanical_w, power_w=power.power_w)
+        mechanical_w=power.mechanical_w, power_w=power.power_w,
+        load_normal_force_n=load_mass * GRAVITY_M_S2 * np.abs(np.cos(incl)))
 
 
 def state_from_simulation(result) -> EffectState:

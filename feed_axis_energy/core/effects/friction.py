@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..machine import GRAVITY_M_S2
 from .base import Effect, EffectState, Param, ParamValue, register_effect
 
 __all__ = ['Coulomb', 'Viscous', 'LoadFriction', 'Stribeck', 'PositionFriction',
@@ -55,6 +56,27 @@ class LoadFriction(Effect):
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
         return [np.abs(state.velocity_m_s) * state.normal_force_n]
+
+
+@register_effect
+class ClampedLoadFriction(Effect):
+    """Friction proportional to the clamped load's weight only.
+
+    What a loss function fitted on no-load runs (the paper's section 2.1) misses when the
+    guideway friction grows with the normal force: the table's share is already inside the
+    fitted loss, only the workpiece's is not. ``load_friction`` would count the table twice.
+    """
+
+    id = 'clamped_load_friction'
+    description = ('guideway friction of the clamped load only (the rest is in a loss '
+                   'function fitted at no load)')
+    formula = 'P = mu_l · N_l · |v|,  N_l = m_load · g · |cos(incl)| on axes carrying the load'
+    params = (Param('mu_l', '-', 0.0, -0.1, 0.5, 0.05, 'friction coefficient of the load'),)
+
+    def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
+        n_load = (np.full(len(state.axes), state.load_kg * GRAVITY_M_S2)
+                  if state.load_normal_force_n is None else state.load_normal_force_n)
+        return [np.abs(state.velocity_m_s) * n_load]
 
 
 @register_effect
