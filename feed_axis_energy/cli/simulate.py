@@ -55,6 +55,8 @@ def run(args: argparse.Namespace) -> int:
         program = load_gcode(args.program)
         for warning in program.warnings:
             print(f'warning: {warning}', file=sys.stderr)
+        if not program.moves:
+            print(f'warning: {args.program}: the program has no motion', file=sys.stderr)
         result = simulate_program(program, machine, load_kg=args.load_kg, options=options,
                                   progress=progress)
     progress.done()
