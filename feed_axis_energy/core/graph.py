@@ -9,7 +9,7 @@ core sees float seconds rebuilt from those integers.
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 import os
 from pathlib import Path
@@ -291,6 +291,10 @@ class ProgramEnd:
         Number of samples and of messages per stream.
     first_ns, last_ns
         Stamp of the first sample and of the last batch's header.
+    topic_last_ns
+        Producers whose streams end at different stamps (``measured_replay``): last header
+        stamp per topic (``{'measured/power': ns}``, no leading slash). When given, a topic
+        that is not listed has no message to wait for. Empty: every stream ends at ``last_ns``.
     """
 
     program: str
@@ -298,24 +302,37 @@ class ProgramEnd:
     batches: int
     first_ns: int
     last_ns: int
+    topic_last_ns: dict[str, int] = field(default_factory=dict)
+
+    def last_ns_of(self, topic: str) -> int:
+        """Last stamp stream ``topic`` must reach (-1: nothing to wait for)."""
+        if not self.topic_last_ns:
+            return self.last_ns
+        return self.topic_last_ns.get(topic.lstrip('/'), -1)
 
     def to_pairs(self) -> list[tuple[str, str]]:
         """Key/value strings (for a ``diagnostic_msgs/KeyValue`` list)."""
         return [('program', self.program), ('samples', str(self.samples)),
                 ('batches', str(self.batches)), ('first_stamp_ns', str(self.first_ns)),
-                ('last_stamp_ns', str(self.last_ns))]
+                ('last_stamp_ns', str(self.last_ns))] + [
+                    (f'{_TOPIC_LAST}{t}', str(ns)) for t, ns in sorted(self.topic_last_ns.items())]
 
     @classmethod
     def from_pairs(cls, pairs: Iterable[tuple[str, str]]) -> 'ProgramEnd':
         """Inverse of :meth:`to_pairs` (``DataError`` on a missing or bad value)."""
         d = dict(pairs)
         try:
+            per_topic = {k[len(_TOPIC_LAST):].lstrip('/'): int(v) for k, v in d.items()
+                         if k.startswith(_TOPIC_LAST)}
             return cls(program=d['program'], samples=int(d['samples']),
                        batches=int(d['batches']), first_ns=int(d['first_stamp_ns']),
-                       last_ns=int(d['last_stamp_ns']))
+                       last_ns=int(d['last_stamp_ns']), topic_last_ns=per_topic)
         except (KeyError, ValueError) as err:
             msg = f'bad end-of-program marker {d!r}: {err}'
             raise DataError(msg, file='program/end') from err
+
+
+_TOPIC_LAST = 'last_stamp_ns:'
 
 
 class EndTracker:
@@ -347,8 +364,14 @@ class EndTracker:
 
     @property
     def done(self) -> bool:
-        """True once the marker arrived and every stream and extra topic caught up."""
-        return (self.end is not None and self.min_stamp_ns() >= self.end.last_ns
+        """True once the marker arrived and every stream and extra topic caught up.
+
+        A stream has caught up when it reached the marker's last stamp for it
+        (:meth:`ProgramEnd.last_ns_of`).
+        """
+        end = self.end
+        return (end is not None and all(last >= end.last_ns_of(topic)
+                                        for topic, last in self._last.items())
                 and all(self._extra.values()))
 
 

@@ -1,9 +1,13 @@
 """``mcap_recorder``: records the graph's topics into a crash-safe rosbag2/MCAP directory.
 
-Subscribes serialized (``raw=True``); the log time of every message is its own header stamp
-(simulation time), never the receive time. Messages are flushed as complete MCAP chunk files
-with a refreshed ``metadata.yaml`` (:class:`core.graph.ChunkedBagWriter`), so SIGKILL leaves a
-readable bag holding everything up to the last flush. Topics are stored under their logical
+Subscribes serialized; the log time of every message is its own header stamp (simulation
+time), never the receive time. The subscriptions are not handed to the executor: :meth:`poll`
+(called by :func:`runner.run` between executor turns) waits on an rclpy wait set and drains
+every ready subscription with repeated ``take_message`` calls, so a message costs one take
+and one list append instead of an executor dispatch and a Python callback. Messages are
+flushed as complete MCAP chunk files with a refreshed ``metadata.yaml``
+(:class:`core.graph.ChunkedBagWriter`), so SIGKILL leaves a readable bag holding everything up
+to the last flush. Topics are stored under their logical
 name (``/setpoints`` ...), whatever namespace or remapping the node runs with, so the bag reads
 like an offline ``simulate --out`` recording.
 
@@ -21,7 +25,9 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.type_support import check_is_valid_msg_type
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
@@ -95,28 +101,60 @@ class McapRecorder(Node):
         self._acked_all = -1
         self._streams = {t for t in topics if not KNOWN_TOPICS[t][2] and t != '/clock'}
         self.received = 0
+        self._closing = False
+        # (handle, message class, (logical topic, bag topic)) of each serialized subscription
+        self._subs: list[tuple[object, type, tuple[str, str]]] = []
         for topic in topics:
             cls, msgtype, latched = KNOWN_TOPICS[topic]
             name = topic if topic.startswith('/') else '/' + topic
             self.bag.add_topic(name, msgtype)
             qos = latched_qos() if latched else (clock_qos() if topic == '/clock'
                                                  else stream_qos())
-            self.create_subscription(cls, topic, self._callback(topic, name), qos, raw=True)
+            self._subs.append((self._raw_subscription(cls, topic, qos), cls, (topic, name)))
+        self._waitset = _rclpy.WaitSet(len(self._subs), 0, 0, 0, 0, 0, self.context.handle)
         self._last_flush = time.monotonic()
-        steady_timer(self, self.ack_period_s, self._drain)
+        self._last_ack = time.monotonic()
         steady_timer(self, min(self.chunk_period_s, 0.2), self._on_timer)
         self.get_logger().info(f'recording {", ".join(topics)} to {out}')
 
-    def _callback(self, topic: str, name: str):
-        # The callback only queues the bytes: parsing, writing and acknowledging happen in
-        # _drain, once per ack_every messages, which keeps the per-message Python work small.
-        key = (topic, name)
+    def _raw_subscription(self, cls: type, topic: str, qos):
+        """An rcl subscription the executor does not know about (only :meth:`poll` takes)."""
+        check_is_valid_msg_type(cls)
+        with self.handle:
+            return _rclpy.Subscription(self.handle, cls, topic, qos.get_c_qos_profile(), None)
 
-        def on_message(data: bytes) -> None:
-            self._rx.append((key, data))
-            if len(self._rx) >= self.ack_every:
-                self._drain()
-        return on_message
+    def poll(self, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` (at most ``ack_period_s``) for messages and take them all.
+
+        Every ready subscription is drained until its queue is empty (take returns ``None``);
+        then what arrived is written and acknowledged (:meth:`_drain`) once per ``ack_every``
+        messages taken, and at least every ``ack_period_s``.
+        """
+        if self.bag.closed:
+            time.sleep(min(timeout_s, self.ack_period_s))
+            return
+        ws = self._waitset
+        ws.clear_entities()
+        for handle, _, _ in self._subs:
+            ws.add_subscription(handle)
+        ws.wait(int(min(timeout_s, self.ack_period_s) * 1e9))
+        ready = ws.get_ready_entities('subscription')   # handle pointers
+        rx = self._rx
+        every = self.ack_every
+        for handle, cls, key in self._subs:
+            if handle.pointer not in ready:
+                continue
+            take = handle.take_message
+            while True:
+                got = take(cls, True)
+                if got is None:
+                    break
+                rx.append((key, got[0]))
+                if len(rx) >= every:
+                    self._drain()
+                    rx = self._rx
+        if rx and time.monotonic() - self._last_ack >= self.ack_period_s:
+            self._drain()
 
     def _drain(self) -> None:
         """Write what arrived into the bag buffer, then acknowledge it on recorder/progress."""
@@ -140,6 +178,7 @@ class McapRecorder(Node):
         for topic, stamp in newest.items():
             self.tracker.seen(topic, stamp)
         self._publish_acks()
+        self._last_ack = time.monotonic()
         if self.bag.buffered >= self.chunk_messages:
             self._flush()
         self._check_end()
@@ -184,12 +223,17 @@ class McapRecorder(Node):
 
     def close(self) -> None:
         """Flush the last chunk and finish the bag (idempotent)."""
-        if self.bag.closed:
+        if self.bag.closed or self._closing:
             return
+        self._closing = True
+        self.poll(0.0)   # what is still queued in DDS
         self._drain()
         if self.bag.closed:   # _drain reached the end and closed the bag already
             return
         self.bag.close()
+        for handle, _, _ in self._subs:
+            handle.destroy_when_not_in_use()
+        self._subs = []
         counts = ', '.join(f'{t} {n}' for t, n in sorted(self.bag.counts.items()))
         self.get_logger().info(f'closed {self.bag.path}: {counts or "no messages"}')
 

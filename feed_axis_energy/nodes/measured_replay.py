@@ -8,7 +8,7 @@ Messages are published unchanged (serialized, original header stamps) on the rel
 = newest stamp taken) has reached its stamp; ``mcap_recorder`` publishes such acks on
 ``recorder/stream_progress``. Since ``burst`` is below the stream depth, keep-last never
 overwrites an unread message. At the end the node publishes ``program/end`` (same marker as
-``gcode_trajectory``).
+``gcode_trajectory``, plus the last stamp of each topic, keys ``last_stamp_ns:<topic>``).
 """
 from __future__ import annotations
 
@@ -137,9 +137,12 @@ class MeasuredReplay(Node):
         if self.rate > 0:  # nobody acknowledges timed replay: wait for DDS delivery
             for pub in self.pubs.values():
                 pub.wait_for_all_acked(Duration(seconds=5.0))
+        # per-topic last stamps: the topics end at different stamps, and a consumer waiting
+        # for the overall last stamp on each would never finish the one that ends earlier
+        last = {topic.lstrip('/'): log_ns for topic, log_ns, _ in self.messages}
         end = ProgramEnd(program=str(self.bag), samples=len(self.messages),
                          batches=len(self.messages), first_ns=self.messages[0][1],
-                         last_ns=self.messages[-1][1])
+                         last_ns=self.messages[-1][1], topic_last_ns=last)
         self.pub_end.publish(convert.program_end_msg(end))
         self._end_sent = True
         self.get_logger().info(f'replayed {len(self.messages)} messages')

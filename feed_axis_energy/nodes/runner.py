@@ -2,18 +2,23 @@
 
 A node class raises :class:`StartupError` (or a core ``FeedAxisError``) from ``__init__`` when
 its parameters are bad; :func:`run` logs one clear line and returns exit code 1 instead of a
-traceback. A node asks to stop by setting ``exit_code``. SIGINT/SIGTERM shut down cleanly
-(exit 0) after the node's ``close()`` (the recorder flushes its bag there).
+traceback. A node asks to stop by setting ``exit_code``. A node with a ``poll(timeout_s)``
+method takes its own messages (``mcap_recorder``): the loop alternates ``poll`` and one
+non-blocking executor turn. SIGINT/SIGTERM set a flag (no exception in the middle of a bag
+flush) and shut down cleanly (exit 0) after the node's ``close()`` (the recorder flushes its
+bag there).
 """
 from __future__ import annotations
 
 import inspect
+import signal
 import sys
 from typing import Callable
 
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
 from rcl_interfaces.msg import ParameterDescriptor
 
 from feed_axis_energy.core.errors import FeedAxisError
@@ -89,7 +94,20 @@ def run(factory: Callable[[], object], args: list[str] | None, *, name: str) -> 
     if '-h' in own or '--help' in own:
         print(node_help(factory, name=name))
         return 0
-    rclpy.init(args=args)
+    # SIGINT/SIGTERM only set a flag that the spin loop checks (every <= 0.2 s): an exception
+    # raised wherever the signal lands (e.g. in the middle of a bag flush) could lose data.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, frame: stop.append(signum))
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return _spin(factory, name=name, stop=stop)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _spin(factory: Callable[[], object], *, name: str, stop: list[int]) -> int:
     logger = rclpy.logging.get_logger(name)
     try:
         node = factory()
@@ -100,9 +118,16 @@ def run(factory: Callable[[], object], args: list[str] | None, *, name: str) -> 
     code = getattr(node, 'exit_code', None)
     executor = make_executor()
     executor.add_node(node)
+    poll = getattr(node, 'poll', None)
     try:
-        while code is None and rclpy.ok():
-            executor.spin_once(timeout_sec=0.2)
+        while code is None and rclpy.ok() and not stop:
+            if poll is None:
+                executor.spin_once(timeout_sec=0.2)
+            else:
+                # The node takes its own messages in poll (which waits at most a few ms);
+                # the executor only runs timers, services and the rest in between.
+                poll(0.2)
+                executor.spin_once(timeout_sec=0.0)
             code = getattr(node, 'exit_code', None)
     except (KeyboardInterrupt, ExternalShutdownException):
         code = 0

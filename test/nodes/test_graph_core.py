@@ -96,3 +96,22 @@ def test_chunked_writer_empty_bag(tmp_path):
     bag.add_topic('/power', bagio.JOINT_TRAJECTORY)
     bag.close()
     assert bagio.bag_topics(tmp_path / 'bag') == {'/power': (bagio.JOINT_TRAJECTORY, 0)}
+
+
+def test_end_tracker_per_topic_last_stamps():
+    """A replay whose topics end at different stamps: each must reach only its own end."""
+    per_topic = {'measured/power': 300, 'measured/kinematics': 200}
+    end = graph.ProgramEnd('p', 5, 5, 0, 300, topic_last_ns=per_topic)
+    back = graph.ProgramEnd.from_pairs(end.to_pairs())
+    assert back == end
+    assert back.last_ns_of('/measured/kinematics') == 200
+    assert back.last_ns_of('measured/other') == -1   # listed topics only: nothing to wait for
+    tr = graph.EndTracker(['measured/power', 'measured/kinematics'])
+    tr.end = back
+    tr.seen('measured/power', 300)
+    tr.seen('measured/kinematics', 100)
+    assert not tr.done
+    tr.seen('measured/kinematics', 200)   # never reaches 300, and need not
+    assert tr.done
+    old = graph.ProgramEnd('p', 2, 2, 0, 100)   # gcode_trajectory's marker: one last stamp
+    assert graph.ProgramEnd.from_pairs(old.to_pairs()).last_ns_of('power') == 100

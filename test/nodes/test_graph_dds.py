@@ -175,6 +175,39 @@ def test_fast_replay_into_recorder_is_lossless(tmp_path, node_env, domain_id):
     np.testing.assert_allclose(got.positions, ref.positions, rtol=0, atol=0)
 
 
+def test_replay_of_two_topics_into_recorder_exits_at_end(tmp_path, node_env, domain_id):
+    """Power ends later than kinematics; the recorder must still see the end of both."""
+    n_power, n_kin = 1000, 600
+    t = np.arange(n_power) * 1e-3 + 1.0
+    power = bagio.Series(t=t, names=('X', 'total'), positions=np.column_stack((t, t)),
+                         velocities=np.ones((n_power, 2)))
+    tk = t[:n_kin]
+    kin = bagio.Series(t=tk, names=('X',), positions=tk[:, None], velocities=np.ones((n_kin, 1)))
+    with bagio.BagWriter(tmp_path / 'measured') as w:
+        w.write_series(bagio.TOPIC_MEASURED_POWER, power, batch=10)
+        w.write_series(bagio.TOPIC_MEASURED_KINEMATICS, kin, batch=10)
+    bag = tmp_path / 'rec'
+    rec = _node('mcap_recorder', {
+        'output': bag, 'topics': '[measured/power, measured/kinematics, program/end]',
+        'end_streams': '[measured/power, measured/kinematics]', 'end_extra': '[""]',
+        'exit_at_end': True}, node_env)
+    replay = _node('measured_replay', {'bag': tmp_path / 'measured', 'rate': 0.0,
+                                       'burst': 20}, node_env)
+    try:
+        assert replay.wait(timeout=30) == 0, replay.communicate()[0]
+        out, _ = rec.communicate(timeout=15)
+        assert rec.returncode == 0, out
+    finally:
+        replay.kill()
+        rec.kill()
+    for topic, ref in ((bagio.TOPIC_MEASURED_POWER, power),
+                       (bagio.TOPIC_MEASURED_KINEMATICS, kin)):
+        got = bagio.read_series(bag, topic)
+        np.testing.assert_allclose(got.t, ref.t, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(got.positions, ref.positions, rtol=0, atol=0)
+    assert bagio.bag_topics(bag)['/program/end'][1] == 1
+
+
 def test_recorder_survives_sigkill(tmp_path, node_env, domain_id):
     import rclpy
     from rclpy.context import Context
