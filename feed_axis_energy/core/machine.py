@@ -120,11 +120,12 @@ class PlannerSettings:
     profile: str = 'jerk'
     corner_tolerance_m: float = 1.0e-4
     rate_hz: float = 1000.0
+    cycle_s: float = 1.0e-3
 
     def options(self) -> PlannerOptions:
         """Return these settings as a :class:`.trajectory.PlannerOptions`."""
         return PlannerOptions(rate_hz=self.rate_hz, profile=self.profile,
-                              corner_tolerance_m=self.corner_tolerance_m)
+                              corner_tolerance_m=self.corner_tolerance_m, cycle_s=self.cycle_s)
 
 
 @dataclass(frozen=True)
@@ -503,13 +504,15 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
     axes = tuple(_axis(n, v, file=file) for n, v in axes_d.items())
     _check_stacking(axes, file=file)
     planner_d = _mapping(d.get('planner', {}), file=file, key='planner',
-                         allowed=('profile', 'corner_tolerance_m', 'rate_hz'))
+                         allowed=('profile', 'corner_tolerance_m', 'rate_hz', 'cycle_s'))
     planner = PlannerSettings(
         profile=_choice(planner_d, 'profile', PROFILES, file=file, key='planner',
                         default='jerk'),
         corner_tolerance_m=_float(planner_d, 'corner_tolerance_m', file=file, key='planner',
                                   default=1.0e-4, minimum=0.0, strict=False),
         rate_hz=_float(planner_d, 'rate_hz', file=file, key='planner', default=1000.0,
+                       minimum=0.0),
+        cycle_s=_float(planner_d, 'cycle_s', file=file, key='planner', default=1.0e-3,
                        minimum=0.0))
     return Machine(
         name=name,
@@ -593,7 +596,8 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
         'load_axis': machine.load_axis,
         'planner': {'profile': machine.planner.profile,
                     'corner_tolerance_m': machine.planner.corner_tolerance_m,
-                    'rate_hz': machine.planner.rate_hz},
+                    'rate_hz': machine.planner.rate_hz,
+                    'cycle_s': machine.planner.cycle_s},
         'axes': axes,
     }
     if machine.effects:

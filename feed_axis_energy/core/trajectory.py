@@ -20,7 +20,9 @@ Method
    ``v^2 = a delta sin(theta/2) / (1 - sin(theta/2))`` with ``theta`` the angle between the
    reversed incoming and the outgoing tangents (tangent junctions: no cap; reversals: 0).
    The velocity-step rule (see *Corners* below): ``v |du_k| <= a_k T`` for every axis ``k``,
-   with ``du = tangent_out - tangent_in`` and ``T = 1 / rate_hz`` the interpolation cycle.
+   with ``du = tangent_out - tangent_in`` and ``T`` the control's interpolation cycle
+   (``PlannerOptions.cycle_s``, 1 ms by default; independent of the output ``rate_hz``, so
+   the planned motion is the same at every sample rate).
    The speed is zero at program start and end, at exact stops and around dwells and stops.
    *Groups* (see :mod:`.lookahead`): junctions between two short blocks (too short to reach
    their own speed limit from rest) that are tangent or nearly so are passed *through*: the
@@ -47,10 +49,11 @@ Method
 6. *Corners.* A non-tangent junction passed at speed ``v`` changes the axis velocities by
    ``dv = v (tangent_out - tangent_in)`` within one interpolation cycle ``T``, as on a control
    that limits the per-axis velocity step per cycle (the blend itself is not sampled). The
-   look-ahead keeps ``|dv_k| <= a_k T``. The step is put into the samples so that the
+   look-ahead keeps ``|dv_k| <= a_k T``. In the samples (period ``T_s = 1 / rate_hz``; the
+   bounds below are stated for ``T_s = T``, the default) the step is put so that the
    dynamics sees the force that changes the kinetic energy: the sample nearest to the
    junction carries half the step in its velocity (the mean of the velocities just before and
-   just after the junction, plus the path's own change) and ``dv / T`` in addition to its path
+   just after the junction, plus the path's own change) and ``dv / T_s`` in addition to its path
    acceleration. Read with the piecewise-linear (trapezoid) convention, the acceleration is a
    triangle of area ``dv`` and ``vel[i+1] - vel[i] = (acc[i] + acc[i+1]) T / 2`` holds on
    both intervals next to the junction, so ``integral F v dt`` by the trapezoid rule gets the
@@ -140,11 +143,16 @@ class PlannerOptions:
     corner_tolerance_m
         Path deviation allowed at a non-tangent corner for the junction-deviation rule [m];
         default 1e-4 (0.1 mm). 0 makes every non-tangent corner an exact stop.
+    cycle_s
+        Interpolation cycle of the control [s], default 1 ms: a corner's per-axis velocity
+        step must fit into one cycle (``v |du_k| <= a_k cycle_s``). A property of the
+        control, not of the output, so the planned motion does not depend on ``rate_hz``.
     """
 
     rate_hz: float = 1000.0
     profile: str = 'jerk'
     corner_tolerance_m: float = 0.0001
+    cycle_s: float = 0.001
 
     def __post_init__(self) -> None:
         if not (self.rate_hz > 0.0 and math.isfinite(self.rate_hz)):
@@ -152,6 +160,9 @@ class PlannerOptions:
             raise ValueError(msg)
         if self.profile not in ('jerk', 'trapezoid'):
             msg = f"PlannerOptions.profile must be 'jerk' or 'trapezoid', got {self.profile!r}"
+            raise ValueError(msg)
+        if not (self.cycle_s > 0.0 and math.isfinite(self.cycle_s)):
+            msg = f'PlannerOptions.cycle_s must be > 0, got {self.cycle_s!r}'
             raise ValueError(msg)
         if not self.corner_tolerance_m >= 0.0:
             value = self.corner_tolerance_m
@@ -437,7 +448,7 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
     if options.profile == 'trapezoid':
         jmax = np.full(m, np.inf)
     _report(progress, 0.05)
-    cycle_s = 1.0 / options.rate_hz
+    cycle_s = options.cycle_s
     vj = _junction_speeds(seg, geo, vmax, amax, options.corner_tolerance_m, lim[1], cycle_s)
     a_through = through_acceleration(geo.tan1[:-1], geo.tan0[1:], geo.r_min[:-1],
                                      geo.r_min[1:], vj[1:-1], lim[1], cycle_s)
@@ -491,7 +502,8 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
         line[lo:hi] = lines[mi]
         _report(progress, 0.25 + 0.75 * hi / t.size)
     t_junction, v_junction = _junction_times(grp, t_start, gv, phases)
-    _corner_steps(t, t_junction, v_junction, geo, cols, cycle_s, vel=vel, acc=acc)
+    _corner_steps(t, t_junction, v_junction, geo, cols, 1.0 / options.rate_hz, vel=vel,
+                  acc=acc)
     return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line, source=program.file)
 
 
@@ -563,11 +575,12 @@ def _junction_times(grp: BlockGroups, t_start: np.ndarray, gv: np.ndarray,
 
 
 def _corner_steps(t: np.ndarray, t_junction: np.ndarray, v_junction: np.ndarray,
-                  geo: _Geometry, cols: list[int], cycle_s: float, *, vel: np.ndarray,
+                  geo: _Geometry, cols: list[int], sample_s: float, *, vel: np.ndarray,
                   acc: np.ndarray) -> None:
     """Put the velocity steps of non-tangent junctions into ``vel`` and ``acc`` (in place).
 
-    The sample nearest to a junction gets ``+dv / T`` acceleration and half the step in its
+    The sample nearest to a junction gets ``+dv / T`` acceleration (``T`` the sample period,
+    so that acceleration integrates to velocity on the samples) and half the step in its
     velocity (see the module docstring, *Corners*).
     """
     dv = v_junction[:, None] * (geo.tan0[1:] - geo.tan1[:-1])[:, cols]
@@ -576,12 +589,12 @@ def _corner_steps(t: np.ndarray, t_junction: np.ndarray, v_junction: np.ndarray,
         return
     dv = dv[hit]
     tc = t_junction[hit]
-    idx = np.clip(np.rint(tc / cycle_s).astype(np.int64), 0, t.size - 1)
+    idx = np.clip(np.rint(tc / sample_s).astype(np.int64), 0, t.size - 1)
     # the sample already shows the whole step if it lies at or after the junction
     # (phases own the samples from the first one at or after their start)
     half = np.where(t[idx] >= tc, -0.5, 0.5)
     np.add.at(vel, idx, dv * half[:, None])
-    np.add.at(acc, idx, dv * (1.0 / cycle_s))
+    np.add.at(acc, idx, dv * (1.0 / sample_s))
 
 
 def _report(progress: Callable[[float], None] | None, fraction: float) -> None:

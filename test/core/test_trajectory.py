@@ -209,6 +209,21 @@ def _corner_sample(m, axis):
     return int(np.argmax(np.abs(m.acc[:, axis])))
 
 
+def test_planned_motion_does_not_depend_on_the_sample_rate():
+    # A polyline with few-degree corners: the velocity-step cap (interpolation cycle 1 ms)
+    # sets the corner speeds. Sampling at 250 Hz, 1 kHz or 4 kHz must not change the plan.
+    pts = [(0.01 * i, 0.02 * math.sin(0.3 * i), 0.0) for i in range(40)]
+    prog = _prog(*[_line(i + 1, pts[i], pts[i + 1], feed=0.2) for i in range(len(pts) - 1)])
+    lim = {'X': AxisLimits(0.6, 2.5, 50.0), 'Y': AxisLimits(0.6, 2.5, 50.0)}
+    rates = (250.0, 1000.0, 4000.0)
+    motions = [plan(prog, lim, options=PlannerOptions(rate_hz=r)) for r in rates]
+    durations = [m.t[-1] for m in motions]
+    assert_allclose(durations, durations[1], rtol=0, atol=1e-9)
+    # ... and a different interpolation cycle does change it (the cap really binds here)
+    slow = plan(prog, lim, options=PlannerOptions(cycle_s=0.25e-3))
+    assert slow.t[-1] > durations[1] + 0.01
+
+
 def test_corner_speed_follows_junction_deviation():
     # 0.1 rad corner, tolerance 0.1 um: the deviation rule binds (its speed is about half of
     # the velocity-step cap a T / |du_y| = 0.025 m/s)
@@ -233,8 +248,10 @@ def test_corner_velocity_step_is_limited_per_cycle(rate_hz):
     lim = {'X': AxisLimits(0.6, 2.5, 50.0), 'Y': AxisLimits(0.6, 1.0, 50.0)}
     prog = _prog(_line(1, (0, 0, 0), (0.1, 0, 0), feed=0.2),
                  _line(2, (0.1, 0, 0), (0.1, 0.1, 0), feed=0.2))
-    m = plan(prog, lim, options=PlannerOptions(corner_tolerance_m=1e-4, rate_hz=rate_hz))
     T = 1.0 / rate_hz
+    # the control's interpolation cycle equal to the sample period
+    m = plan(prog, lim, options=PlannerOptions(corner_tolerance_m=1e-4, rate_hz=rate_hz,
+                                               cycle_s=T))
     v_step = 1.0 * T                           # a_y T / |du_y|
     i = _corner_sample(m, 1)
     # the corner sample holds half of the step of each axis and dv / T in its acceleration;
