@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         motion = load_trajectory_csv(args.program, axes=machine.axis_names)
         result = simulate_motion(motion, machine, load_kg=args.load_kg)
     else:
-        program = load_gcode(args.program)
+        program = load_gcode(args.program, home=machine.home_point())
         for warning in program.warnings:
             print(f'warning: {warning}', file=sys.stderr)
         if not program.moves:

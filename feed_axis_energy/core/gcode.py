@@ -22,6 +22,9 @@ Dialect (LinuxCNC semantics where dialects differ)
   G40, G43 H (tool length offset: unknown tool length, so Z moves as programmed; a warning
   says so), G49, G54-G59 (motion stays in program coordinates; a change of coordinate system
   after the first move is reported as a warning), G8, G96/G97, G98/G99.
+* G28 (needs the machine's ``home_m``, in program coordinates since work offsets are not
+  simulated): a rapid to the intermediate point of the line's axis words, then those axes
+  (all axes without axis words) rapid to the reference point; both stop at their end.
 * M0/M1 give a STOP move; M2/M30 give a STOP move and end the program: later lines are
   ignored (with a warning if any of them holds code). A ``%`` line after code also ends it.
 * Comments ``( ... )`` (no nesting, must close on the line) and ``;`` to end of line;
@@ -29,9 +32,10 @@ Dialect (LinuxCNC semantics where dialects differ)
 * Blanks and tabs are ignored between and inside words (LinuxCNC rule): ``X 10`` and even
   ``X1 0`` (= X10) are read. Letters may be lower case. Numbers: ``X.5``, ``X-1.``,
   ``X+2``; ``X1.2.3`` and ``Xabc`` are errors.
-* Refused with "not supported": G28/G30, G41/G42, G43.1/G43.2, G52/G53, G92, canned cycles
-  (G73-G89), G95, G33, G38.x, G5.x, A/B/C/U/V/W, D/L words (H only with G43), parameters
-  and expressions (``#``, ``[...]``), O-word control flow, unknown G/M codes and letters.
+* Refused with "not supported": G28 without a reference point, G28.1, G30, G41/G42,
+  G43.1/G43.2, G52/G53, G92, canned cycles (G73-G89), G95, G33, G38.x, G5.x, A/B/C/U/V/W,
+  D/L words (H only with G43), parameters and expressions (``#``, ``[...]``), O-word
+  control flow, unknown G/M codes and letters.
 * Arc end check: the end must lie on the start circle within
   ``max(arc_tolerance_m, 0.1 % of the radius)``; the default ``arc_tolerance_m`` is 0.002 mm.
   An R smaller than half the chord by no more than the same tolerance gives a half circle.
@@ -55,7 +59,8 @@ DEFAULT_ARC_TOLERANCE_M = 2e-6
 
 def parse_gcode(text: str, *, file: str = '<string>',
                 start: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                arc_tolerance_m: float = DEFAULT_ARC_TOLERANCE_M) -> Program:
+                arc_tolerance_m: float = DEFAULT_ARC_TOLERANCE_M,
+                home: tuple[float, float, float] | None = None) -> Program:
     """Parse an NC program into moves in SI units.
 
     Parameters
@@ -69,6 +74,9 @@ def parse_gcode(text: str, *, file: str = '<string>',
     arc_tolerance_m
         Absolute tolerance [m] of the arc end-point check; the effective tolerance is the
         larger of this and 0.1 % of the radius.
+    home
+        The G28 reference point [m] in program coordinates (a machine's ``home_m``); without
+        it G28 is an error.
 
     Returns
     -------
@@ -92,19 +100,20 @@ def parse_gcode(text: str, *, file: str = '<string>',
     gc.disable()
     try:
         return _parse_lines(text, lines, file=file, start=start,
-                            arc_tolerance_m=arc_tolerance_m)
+                            arc_tolerance_m=arc_tolerance_m, home=home)
     finally:
         if gc_was_enabled:
             gc.enable()
 
 
 def _parse_lines(text: str, lines: list[str], *, file: str,
-                 start: tuple[float, float, float], arc_tolerance_m: float) -> Program:
+                 start: tuple[float, float, float], arc_tolerance_m: float,
+                 home: tuple[float, float, float] | None) -> Program:
     """Interpret ``lines`` (``text`` split at newlines) into a :class:`Program`."""
     # Upper-casing the whole text once keeps lines aligned: it never adds or removes '\n'.
     upper_lines = text.upper().split('\n')
     ascii_text = text.isascii()
-    p = Interpreter(file, start, arc_tolerance_m, lines=lines)
+    p = Interpreter(file, start, arc_tolerance_m, lines=lines, home=home)
     line_re = LINE_RE.fullmatch
     findall = WORD_RE.findall
     interpret = p.line
@@ -159,14 +168,15 @@ def _warn_trailing(p: Interpreter, lines: list[str], end_at: int) -> None:
 
 def load_gcode(path: str | PathLike[str], *,
                start: tuple[float, float, float] = (0.0, 0.0, 0.0),
-               arc_tolerance_m: float = DEFAULT_ARC_TOLERANCE_M) -> Program:
+               arc_tolerance_m: float = DEFAULT_ARC_TOLERANCE_M,
+               home: tuple[float, float, float] | None = None) -> Program:
     """Read a UTF-8 program file and parse it (see :func:`parse_gcode`).
 
     Parameters
     ----------
     path
         The program file; its path is used as ``file`` in messages and in the result.
-    start, arc_tolerance_m
+    start, arc_tolerance_m, home
         As for :func:`parse_gcode`.
 
     Returns
@@ -194,4 +204,5 @@ def load_gcode(path: str | PathLike[str], *,
         msg = (f'not UTF-8 text: byte 0x{data[err.start]:02x} at offset {err.start} '
                f'(line {bad_line})')
         raise GcodeError(msg, file=name, line=0, column=0) from err
-    return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m)
+    return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
+                       home=home)

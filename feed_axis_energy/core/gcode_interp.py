@@ -44,14 +44,17 @@ class Interpreter:
         Absolute part of the arc end-point tolerance [m].
     lines
         The source lines (as split by the caller), to show the offending word in errors.
+    home
+        The G28 reference point [m] in program coordinates, or ``None`` (G28 refused).
     """
 
     __slots__ = ('file', 'arc_tol', 'pos', 'motion', 'plane', 'scale', 'absolute',
                  'arc_absolute', 'inverse_time', 'feed', 'exact', 'coord', 'moves',
-                 'warnings', 'lineno', 'lines', 'ended', 'g_cache', 'g43_lineno')
+                 'warnings', 'lineno', 'lines', 'ended', 'g_cache', 'g43_lineno', 'home',
+                 'g28_lineno')
 
     def __init__(self, file: str, start: tuple[float, float, float], arc_tolerance_m: float,
-                 *, lines: list[str]):
+                 *, lines: list[str], home: tuple[float, float, float] | None = None):
         self.file = file
         self.arc_tol = float(arc_tolerance_m)
         self.pos = (float(start[0]), float(start[1]), float(start[2]))
@@ -71,6 +74,8 @@ class Interpreter:
         self.ended = False
         self.g_cache: dict[str, tuple[str, object, int]] = {}
         self.g43_lineno = -1                # line of the last G43 (its H word is legal there)
+        self.home = None if home is None else tuple(float(v) for v in home)
+        self.g28_lineno = -1                # line of the last G28 (its axis words are special)
 
     # -- errors ---------------------------------------------------------------------------
     def fail(self, msg: str, letter: str, *, value: float | None = None, nth: int = 0):
@@ -129,7 +134,9 @@ class Interpreter:
         if dwell or g64 or not d.keys() <= (_ARC_WORDS if is_arc and has_axes
                                             else _STRAIGHT_WORDS):
             self.check_extras(d, is_arc, has_axes, dwell, g64)
-        if has_axes:
+        if self.g28_lineno == self.lineno:
+            self.go_home(d, g9)
+        elif has_axes:
             if mode is None:
                 self.fail('axis words but no motion mode (G0/G1/G2/G3) is active',
                           self.first_axis(d))
@@ -216,6 +223,11 @@ class Interpreter:
             elif group == 'nonmodal':
                 dwell = arg == 'dwell'
                 g9 = arg == 'exact'
+                if arg == 'home':
+                    if self.home is None:
+                        self.fail('G28 needs the reference point: set home_m in the machine '
+                                  'config', 'G', value=28.0)
+                    self.g28_lineno = self.lineno
             elif group == 'plane':
                 self.plane = arg
             elif group == 'units':
@@ -361,6 +373,25 @@ class Interpreter:
         if explicit:
             self.fail(msg, 'G', value=float(self.motion))
         self.fail(msg, self.first_axis(d))
+
+    def go_home(self, d: dict[str, str], g9: bool) -> None:
+        """G28: rapid to the intermediate point of the axis words, then those axes home.
+
+        Without axis words every axis goes home directly (LinuxCNC semantics). Both moves are
+        rapids that stop at their end.
+        """
+        named = [i for i, letter in enumerate(_AXIS_LETTERS) if letter in d]
+        via = self.target(d)
+        home = list(via)
+        for i in (named or range(3)):
+            home[i] = self.home[i]
+        for end in (via, tuple(home)):
+            length = math.dist(self.pos, end)
+            if length > 0.0:
+                self.moves.append(Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos,
+                                       end=end, feed_m_s=_INF, exact_stop=True,
+                                       length_m=length))
+                self.pos = end
 
     def straight(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
         """Append a G0/G1 move (none if it has zero length)."""

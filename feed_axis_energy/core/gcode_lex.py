@@ -25,7 +25,7 @@ LINE_RE = re.compile(r'\s*+(?:[A-Z]\s*+[-+]?+\s*+[0-9.]++(?:\s++[0-9.]++)*+\s*+)
 G_CODES: dict[int, tuple[str, object]] = {
     0: ('motion', 0), 10: ('motion', 1), 20: ('motion', 2), 30: ('motion', 3),
     800: ('motion', None),
-    40: ('nonmodal', 'dwell'), 90: ('nonmodal', 'exact'),
+    40: ('nonmodal', 'dwell'), 90: ('nonmodal', 'exact'), 280: ('nonmodal', 'home'),
     170: ('plane', 17), 180: ('plane', 18), 190: ('plane', 19),
     200: ('units', 0.0254), 210: ('units', 0.001),
     900: ('distance', True), 910: ('distance', False),
@@ -43,7 +43,7 @@ G_CODES: dict[int, tuple[str, object]] = {
 # Codes we know and refuse, with the reason shown to the user.
 G_UNSUPPORTED: dict[int, str] = {
     50: 'spline moves', 51: 'spline moves', 52: 'spline moves', 70: 'lathe diameter mode',
-    100: 'G10 data setting', 280: 'reference return', 281: 'reference return',
+    100: 'G10 data setting', 281: 'setting the reference point',
     300: 'reference return', 301: 'reference return', 330: 'spindle-synchronised motion',
     331: 'rigid tapping', 382: 'probing', 383: 'probing', 384: 'probing', 385: 'probing',
     410: 'cutter radius compensation', 420: 'cutter radius compensation',

@@ -213,6 +213,9 @@ class Machine:
         Default planner settings.
     effects
         Catalog effects added on top of the power (empty for the paper's model).
+    home_m
+        The reference point G28 moves to, ``((axis, position [m]), ...)`` in program
+        coordinates (work offsets are not simulated); empty: G28 is refused.
     """
 
     name: str
@@ -221,6 +224,14 @@ class Machine:
     load_axis: str = 'X'
     planner: PlannerSettings = PlannerSettings()
     effects: tuple[DeclaredEffect, ...] = ()
+    home_m: tuple[tuple[str, float], ...] = ()
+
+    def home_point(self) -> tuple[float, float, float] | None:
+        """The G28 reference point as program ``(X, Y, Z)`` [m] (0 for other axes), or None."""
+        if not self.home_m:
+            return None
+        home = dict(self.home_m)
+        return (home.get('X', 0.0), home.get('Y', 0.0), home.get('Z', 0.0))
 
     @property
     def axis_names(self) -> tuple[str, ...]:
@@ -491,7 +502,8 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
         A missing, invalid or unknown value; the message names ``file`` and the dotted key.
     """
     d = _mapping(d, file=file, key='',
-                 allowed=('name', 'braking', 'load_axis', 'planner', 'axes', 'effects'))
+                 allowed=('name', 'braking', 'load_axis', 'planner', 'axes', 'effects',
+                          'home_m'))
     name = d.get('name', Path(file).stem)
     if not isinstance(name, str) or not name:
         msg = f'expected a non-empty string, got {name!r}'
@@ -520,7 +532,17 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
         braking=_choice(d, 'braking', BRAKING_MODES, file=file, key=''),
         load_axis=_choice(d, 'load_axis', tuple(a.name for a in axes), file=file, key=''),
         planner=planner,
-        effects=_effects(d.get('effects'), tuple(a.name for a in axes), file=file))
+        effects=_effects(d.get('effects'), tuple(a.name for a in axes), file=file),
+        home_m=_home(d.get('home_m'), tuple(a.name for a in axes), file=file))
+
+
+def _home(value: Any, axis_names: tuple[str, ...], *,
+          file: str) -> tuple[tuple[str, float], ...]:
+    if value is None:
+        return ()
+    home_d = _mapping(value, file=file, key='home_m', allowed=axis_names)
+    return tuple((a, _float(home_d, a, file=file, key='home_m', strict=False))
+                 for a in axis_names if a in home_d)
 
 
 def load_machine(path: str | Path) -> Machine:
@@ -600,6 +622,8 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
                     'cycle_s': machine.planner.cycle_s},
         'axes': axes,
     }
+    if machine.home_m:
+        out['home_m'] = {a: float(v) for a, v in machine.home_m}
     if machine.effects:
         # only when present, so that the paper's model keeps its plain form
         out['effects'] = [{'id': e.id, 'axis': e.axis,

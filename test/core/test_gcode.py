@@ -330,7 +330,8 @@ def test_g43_tool_length_offset_is_accepted_with_a_warning():
     ('G1 X1 F-5', 1, 7, 'negative feed'),
     ('G1 X1 F0', 1, 7, 'zero'),
     ('G93 G1 X1 F0', 1, 11, 'never finish'),
-    ('G28', 1, 1, 'reference return'),
+    ('G28', 1, 1, 'home_m'),
+    ('G30', 1, 1, 'reference return'),
     ('G41 D1', 1, 1, 'cutter radius compensation'),
     ('G43.1 Z5', 1, 1, 'tool length offset'),
     ('G0 X1 H1', 1, 7, 'no G43'),
@@ -383,3 +384,33 @@ def test_garbage_collection_is_resumed_after_parsing_and_after_an_error():
     with pytest.raises(GcodeError):
         parse_gcode('G1 X1 Q5 F100\n', file='t.nc')
     assert gc.isenabled()
+
+
+HOME = (0.0, 0.0, 0.1)
+
+
+def test_g28_goes_home_through_the_intermediate_point():
+    # Fanuc-style program end: incremental Z0 = the current point, then Z to the reference.
+    prog = parse_gcode('G21 G90\nG1 X10 Y20 Z5 F600\nG91 G28 Z0\nG90 G28 X30\n',
+                       file='t.nc', home=HOME)
+    kinds = [m.kind for m in prog.moves]
+    assert kinds == [MoveKind.LINEAR, MoveKind.RAPID, MoveKind.RAPID, MoveKind.RAPID]
+    up = prog.moves[1]
+    assert up.line == 3 and up.start == pytest.approx((0.01, 0.02, 0.005))
+    assert up.end == pytest.approx((0.01, 0.02, 0.1)) and up.exact_stop
+    via, home_x = prog.moves[2:]
+    assert via.end == pytest.approx((0.03, 0.02, 0.1))     # intermediate X30 (absolute)
+    assert home_x.end == pytest.approx((0.0, 0.02, 0.1))   # only X goes home
+    assert home_x.length_m == pytest.approx(0.03)
+
+
+def test_g28_without_axis_words_sends_every_axis_home():
+    prog = parse_gcode('G1 X10 Y20 Z5 F600\nG28\n', file='t.nc', home=HOME)
+    assert prog.moves[-1].end == pytest.approx(HOME)
+    assert prog.moves[-1].kind == MoveKind.RAPID
+
+
+def test_g28_does_not_change_the_motion_mode():
+    prog = parse_gcode('G1 X10 F600\nG28 Y0\nX20\n', file='t.nc', home=HOME)
+    assert prog.moves[-1].kind == MoveKind.LINEAR and prog.moves[-1].end[0] == \
+        pytest.approx(0.02)
