@@ -43,6 +43,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--max-lag-s', type=float, default=DEFAULT_MAX_LAG_S, metavar='S',
                    help=f'largest time offset searched, either way [s] '
                         f'(default: {DEFAULT_MAX_LAG_S:g})')
+    p.add_argument('--pct-floor', type=float, default=0.05, metavar='FRACTION',
+                   help='percentual errors are taken only where |measured power| >= this '
+                        "fraction of the run's peak |measured power| (default: 0.05)")
     p.add_argument('--quiet', action='store_true', help='no progress indication')
     p.set_defaults(run=run)
 
@@ -106,6 +109,9 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.max_lag_s) and args.max_lag_s >= 0.0):
         msg = f'--max-lag-s must be a number >= 0, got {args.max_lag_s}'
         raise ConfigError(msg, file='command line', key='max-lag-s')
+    if not (math.isfinite(args.pct_floor) and 0.0 <= args.pct_floor < 1.0):
+        msg = f'--pct-floor must be a fraction in [0, 1), got {args.pct_floor}'
+        raise ConfigError(msg, file='command line', key='pct-floor')
     if args.report is not None and args.report.exists() and not args.report.is_dir():
         raise FileExistsError(f'{args.report} exists and is not a directory')
     campaign = load_campaign(args.manifest)
@@ -113,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
     machine = load_machine(args.machine) if args.machine is not None else None
     progress = Progress('compare', enabled=not args.quiet)
     result = compare_campaign(campaign, machine=machine, runs=names, max_lag_s=args.max_lag_s,
-                              progress=progress)
+                              floor_fraction=args.pct_floor, progress=progress)
     progress.done()
     index = None
     if args.report is not None:

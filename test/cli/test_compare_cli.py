@@ -78,6 +78,7 @@ def test_role_selection(manifest, capsys):
     (['compare', 'no/such/manifest.yaml'], 'no/such/manifest.yaml'),
     (['compare', '{manifest}', '--runs', 'zzz'], "no run named 'zzz'"),
     (['compare', '{manifest}', '--max-lag-s', '-1'], '--max-lag-s must be'),
+    (['compare', '{manifest}', '--pct-floor', '1.5'], '--pct-floor must be'),
 ])
 def test_bad_input_exits_1_naming_the_problem(manifest, argv, expect, capsys):
     argv = [a.replace('{manifest}', str(manifest)) for a in argv]
@@ -92,3 +93,16 @@ def test_bad_manifest_in_a_subprocess(tmp_path):
     proc = _run('compare', str(bad), '--quiet')
     assert proc.returncode == 1
     assert str(bad) in proc.stderr and proc.stdout == ''
+
+
+def test_pct_floor_selects_the_samples_of_the_percentual_error(manifest, capsys):
+    floors = {}
+    for floor in ('0.05', '0.5'):
+        assert main(['compare', str(manifest), '--json', '--quiet', '--pct-floor', floor]) == 0
+        total = json.loads(capsys.readouterr().out)['runs'][1]['metrics']['total']
+        floors[floor] = total
+    # a higher floor keeps fewer samples; the floor in watts follows the fraction
+    assert floors['0.5']['n_pct_samples'] < floors['0.05']['n_pct_samples']
+    assert floors['0.5']['pct_floor_w'] == pytest.approx(10.0 * floors['0.05']['pct_floor_w'])
+    # differential errors do not depend on the floor
+    assert floors['0.5']['avg_diff_error_w'] == floors['0.05']['avg_diff_error_w']
