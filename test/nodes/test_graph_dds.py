@@ -154,15 +154,15 @@ def test_fast_replay_waits_for_a_stuck_consumer_then_exits_1(tmp_path, node_env,
     assert 'no acknowledgement on /measured/ack' in out and 'Traceback' not in out
 
 
-def test_fast_replay_into_recorder_is_lossless(tmp_path, node_env, domain_id):
-    """rate 0 paced by the recorder's per-stream acks; a tiny depth-sized burst is enough."""
-    ref = _measured_bag(tmp_path / 'measured', n=5000, batch=5)
+def _replay_into_recorder(tmp_path, node_env, streams, *, burst):
+    """Replay ``tmp_path/measured`` at full speed into an ``exit_at_end`` recorder."""
     bag = tmp_path / 'rec'
-    rec = _node('mcap_recorder', {'output': bag, 'topics': '[measured/power, program/end]',
-                                  'end_streams': '[measured/power]', 'end_extra': '[""]',
+    listed = ', '.join(streams)
+    rec = _node('mcap_recorder', {'output': bag, 'topics': f'[{listed}, program/end]',
+                                  'end_streams': f'[{listed}]', 'end_extra': '[""]',
                                   'exit_at_end': True}, node_env)
     replay = _node('measured_replay', {'bag': tmp_path / 'measured', 'rate': 0.0,
-                                       'burst': 5}, node_env)
+                                       'burst': burst}, node_env)
     try:
         assert replay.wait(timeout=30) == 0, replay.communicate()[0]
         out, _ = rec.communicate(timeout=15)
@@ -170,6 +170,13 @@ def test_fast_replay_into_recorder_is_lossless(tmp_path, node_env, domain_id):
     finally:
         replay.kill()
         rec.kill()
+    return bag
+
+
+def test_fast_replay_into_recorder_is_lossless(tmp_path, node_env, domain_id):
+    """rate 0 paced by the recorder's per-stream acks; a tiny depth-sized burst is enough."""
+    ref = _measured_bag(tmp_path / 'measured', n=5000, batch=5)
+    bag = _replay_into_recorder(tmp_path, node_env, ['measured/power'], burst=5)
     got = bagio.read_series(bag, bagio.TOPIC_MEASURED_POWER)
     np.testing.assert_allclose(got.t, ref.t, rtol=0, atol=1e-12)
     np.testing.assert_allclose(got.positions, ref.positions, rtol=0, atol=0)
@@ -186,20 +193,8 @@ def test_replay_of_two_topics_into_recorder_exits_at_end(tmp_path, node_env, dom
     with bagio.BagWriter(tmp_path / 'measured') as w:
         w.write_series(bagio.TOPIC_MEASURED_POWER, power, batch=10)
         w.write_series(bagio.TOPIC_MEASURED_KINEMATICS, kin, batch=10)
-    bag = tmp_path / 'rec'
-    rec = _node('mcap_recorder', {
-        'output': bag, 'topics': '[measured/power, measured/kinematics, program/end]',
-        'end_streams': '[measured/power, measured/kinematics]', 'end_extra': '[""]',
-        'exit_at_end': True}, node_env)
-    replay = _node('measured_replay', {'bag': tmp_path / 'measured', 'rate': 0.0,
-                                       'burst': 20}, node_env)
-    try:
-        assert replay.wait(timeout=30) == 0, replay.communicate()[0]
-        out, _ = rec.communicate(timeout=15)
-        assert rec.returncode == 0, out
-    finally:
-        replay.kill()
-        rec.kill()
+    bag = _replay_into_recorder(tmp_path, node_env, ['measured/power', 'measured/kinematics'],
+                                burst=20)
     for topic, ref in ((bagio.TOPIC_MEASURED_POWER, power),
                        (bagio.TOPIC_MEASURED_KINEMATICS, kin)):
         got = bagio.read_series(bag, topic)
