@@ -117,4 +117,6 @@ def test_lifecycle_services_under_the_nodes_executor(tmp_path, short_program, no
         node.destroy_node()
         for proc in procs:
             proc.kill()
-            proc.wait(timeout=5)
+            out, _ = proc.communicate(timeout=5)
+            # shown by pytest only when the test fails: what each node logged
+            print(f'--- {proc.args[2]} (exit {proc.returncode}) ---\n{out or ""}')
