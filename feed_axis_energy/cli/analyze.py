@@ -3,19 +3,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 
 import yaml
 
-from feed_axis_energy.cli.common import format_table
+from feed_axis_energy.cli.common import format_table, metric_cells, METRIC_HEADER
 from feed_axis_energy.cli.progress import Progress
 from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.identify.analyze import (AnalysisResult, analyze_campaign,
                                                     AnalyzeOptions, HOLDOUTS)
 from feed_axis_energy.core.machine import load_machine, machine_to_dict
 from feed_axis_energy.core.measured.manifest import load_campaign
-from feed_axis_energy.core.measured.metrics import Metrics
 
 __all__ = ['add_parser', 'run']
 
@@ -44,20 +42,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='held-out scheme: leave one run out (default) or the manifest roles')
     p.add_argument('--quiet', action='store_true', help='no progress indication')
     p.set_defaults(run=run)
-
-
-def _f(value: float, fmt: str) -> str:
-    return format(value, fmt) if math.isfinite(value) else '-'
-
-
-def _cells(m: Metrics) -> list[str]:
-    return [_f(m.avg_diff_error_w, '.2f'), _f(m.avg_pct_error_pct, '.2f'),
-            _f(m.max_diff_error_w, '.2f'), _f(m.max_pct_error_pct, '.2f'),
-            _f(m.energy_error_j, '+.1f'), _f(m.energy_error_pct, '+.2f'), _f(m.rmse_w, '.2f')]
-
-
-_HEAD = ['avg dP [W]', 'avg dP [%]', 'max dP [W]', 'max dP [%]', 'dE [J]', 'dE [%]',
-         'RMSE [W]']
 
 
 def _print(res: AnalysisResult) -> None:
@@ -90,15 +74,15 @@ def _print(res: AnalysisResult) -> None:
     print()
     rows = []
     for r in res.heldout_runs:
-        rows.append([r.name, f'{r.load_kg:g}', 'before'] + _cells(r.before))
-        rows.append(['', '', 'after'] + _cells(r.after))
+        rows.append([r.name, f'{r.load_kg:g}', 'before'] + metric_cells(r.before))
+        rows.append(['', '', 'after'] + metric_cells(r.after))
     for load, b, a in res.by_load():
-        rows.append([f'load {load:g} kg', '', 'before'] + _cells(b))
-        rows.append(['', '', 'after'] + _cells(a))
-    rows.append(['all held-out runs', '', 'before'] + _cells(res.before))
-    rows.append(['', '', 'after'] + _cells(res.after))
+        rows.append([f'load {load:g} kg', '', 'before'] + metric_cells(b))
+        rows.append(['', '', 'after'] + metric_cells(a))
+    rows.append(['all held-out runs', '', 'before'] + metric_cells(res.before))
+    rows.append(['', '', 'after'] + metric_cells(res.after))
     print('held-out runs, before and after (after: effects fitted without the run):')
-    print(format_table(['run', 'load [kg]', ''] + _HEAD, rows))
+    print(format_table(['run', 'load [kg]', ''] + METRIC_HEADER, rows))
 
 
 def run(args: argparse.Namespace) -> int:

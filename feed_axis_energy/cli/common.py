@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import replace
+import math
 from pathlib import Path
 
 from feed_axis_energy.core.errors import ConfigError
@@ -11,7 +12,12 @@ from feed_axis_energy.core.trajectory import PlannerOptions
 from feed_axis_energy.paths import default_machine
 
 __all__ = ['add_machine_options', 'load_machine_and_options', 'print_summary',
-           'program_text_lines', 'format_table']
+           'program_text_lines', 'format_table', 'METRIC_HEADER', 'metric_cells']
+
+# Column heads of the paper's Table-1 metrics plus energy error and RMSE, as printed by the
+# commands that compare measured and simulated power (compare, analyze).
+METRIC_HEADER = ['avg dP [W]', 'avg dP [%]', 'max dP [W]', 'max dP [%]', 'dE [J]', 'dE [%]',
+                 'RMSE [W]']
 
 
 def add_machine_options(p: argparse.ArgumentParser) -> None:
@@ -51,6 +57,18 @@ def program_text_lines(path: Path) -> list[str]:
         return Path(path).read_text(errors='replace').splitlines()
     except OSError:
         return []
+
+
+def _finite(value: float, fmt: str) -> str:
+    return format(value, fmt) if math.isfinite(value) else '-'
+
+
+def metric_cells(m) -> list[str]:
+    """Cells of :data:`METRIC_HEADER` for a ``measured.metrics.Metrics`` ('-' where NaN)."""
+    return [_finite(m.avg_diff_error_w, '.2f'), _finite(m.avg_pct_error_pct, '.2f'),
+            _finite(m.max_diff_error_w, '.2f'), _finite(m.max_pct_error_pct, '.2f'),
+            _finite(m.energy_error_j, '+.1f'), _finite(m.energy_error_pct, '+.2f'),
+            _finite(m.rmse_w, '.2f')]
 
 
 def format_table(header: list[str], rows: list[list[str]]) -> str:

@@ -6,14 +6,13 @@ import json
 import math
 from pathlib import Path
 
-from feed_axis_energy.cli.common import format_table
+from feed_axis_energy.cli.common import format_table, metric_cells, METRIC_HEADER
 from feed_axis_energy.cli.progress import Progress
 from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.measured.compare import (CampaignComparison, compare_campaign,
                                                     DEFAULT_MAX_LAG_S)
 from feed_axis_energy.core.measured.manifest import load_campaign
-from feed_axis_energy.core.measured.metrics import Metrics
 
 __all__ = ['add_parser', 'run']
 
@@ -66,20 +65,6 @@ def _selected(args: argparse.Namespace, campaign) -> list[str] | None:
     return names
 
 
-def _f(value: float, fmt: str) -> str:
-    return format(value, fmt) if math.isfinite(value) else '-'
-
-
-def _metric_cells(m: Metrics) -> list[str]:
-    return [_f(m.avg_diff_error_w, '.2f'), _f(m.avg_pct_error_pct, '.2f'),
-            _f(m.max_diff_error_w, '.2f'), _f(m.max_pct_error_pct, '.2f'),
-            _f(m.energy_error_j, '+.1f'), _f(m.energy_error_pct, '+.2f'), _f(m.rmse_w, '.2f')]
-
-
-_METRIC_HEAD = ['avg dP [W]', 'avg dP [%]', 'max dP [W]', 'max dP [%]', 'dE [J]', 'dE [%]',
-                'RMSE [W]']
-
-
 def _print_tables(cmp: CampaignComparison) -> None:
     print(f'campaign  {cmp.campaign} ({cmp.manifest})')
     print(f'machine   {cmp.machine}' + (f' ({cmp.machine_file})' if cmp.machine_file else ''))
@@ -88,15 +73,15 @@ def _print_tables(cmp: CampaignComparison) -> None:
     for r in cmp.runs:
         found = f'{r.offset.offset_s:+.3f}' if math.isfinite(r.offset.offset_s) else '-'
         rows.append([r.name, f'{r.load_kg:g}', found, r.offset.status,
-                     f'{r.offset_used_s:+.3f}'] + _metric_cells(r.metrics))
+                     f'{r.offset_used_s:+.3f}'] + metric_cells(r.metrics))
     print('per run (sum of the measured axes; dP = measured - simulated power, '
           'dE = simulated - measured energy):')
     print(format_table(['run', 'load [kg]', 'offset [s]', 'status', 'used [s]']
-                       + _METRIC_HEAD, rows))
+                       + METRIC_HEADER, rows))
     print()
-    rows = [[f'{g.load_kg:g}', str(len(g.runs))] + _metric_cells(g.metrics) for g in cmp.groups]
+    rows = [[f'{g.load_kg:g}', str(len(g.runs))] + metric_cells(g.metrics) for g in cmp.groups]
     print('per load (runs pooled):')
-    print(format_table(['load [kg]', 'runs'] + _METRIC_HEAD, rows))
+    print(format_table(['load [kg]', 'runs'] + METRIC_HEADER, rows))
     if cmp.offset_warnings:
         print()
         print('offset warnings (compared anyway):')
