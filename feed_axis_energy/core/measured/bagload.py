@@ -33,7 +33,7 @@ import numpy as np
 from .. import bagio
 from ..errors import ConfigError, DataError
 from ..units import si_unit_of
-from .csvload import GAP_FACTOR, MeasuredRun
+from .csvload import check_duration, GAP_FACTOR, MeasuredRun
 from .manifest import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, RunSpec
 
 __all__ = [
@@ -151,11 +151,7 @@ def load_run_from_bag(spec: RunSpec, *, min_duration_s: float | None = None) -> 
         return np.column_stack(cols).astype(np.float64)
 
     _check_time(t, spec, file)
-    duration = float(t[-1] - t[0])
-    limit = spec.min_duration_s if min_duration_s is None else min_duration_s
-    if duration < limit:
-        msg = f'run lasts {duration:.6g} s, shorter than the minimum {limit:g} s'
-        raise DataError(msg, file=file)
+    check_duration(t, spec, min_duration_s, file=file)
 
     axes = spec.axis_names
     power_axes = spec.power_axes

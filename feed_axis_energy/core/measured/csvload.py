@@ -169,11 +169,7 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
         return to_si(raw, cs.unit, quantity=quantity)
 
     t = _time(spec, sample, numbers, file, column)
-    duration = float(t[-1] - t[0])
-    limit = spec.min_duration_s if min_duration_s is None else min_duration_s
-    if duration < limit:
-        msg = f'run lasts {duration:.6g} s after filtering, shorter than the minimum {limit:g} s'
-        raise DataError(msg, file=file)
+    check_duration(t, spec, min_duration_s, file=file, after=' after filtering')
 
     axes = spec.axis_names
     power_axes = spec.power_axes
@@ -193,6 +189,20 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
     return MeasuredRun(name=spec.name, file=file, t=t - t[0], axes=axes,
                        power_axes=power_axes, power_w=power, load_kg=spec.load_kg,
                        extra=extra, **kin)
+
+
+def check_duration(t: np.ndarray, spec: RunSpec, min_duration_s: float | None, *, file: str,
+                   after: str = '') -> None:
+    """Raise :class:`DataError` if the run is shorter than ``min_duration_s``.
+
+    ``None`` means the run's own ``spec.min_duration_s``; ``after`` qualifies the duration
+    in the message (e.g. ``' after filtering'``).
+    """
+    duration = float(t[-1] - t[0])
+    limit = spec.min_duration_s if min_duration_s is None else min_duration_s
+    if duration < limit:
+        msg = f'run lasts {duration:.6g} s{after}, shorter than the minimum {limit:g} s'
+        raise DataError(msg, file=file)
 
 
 def _read_csv(path: Path) -> tuple[list[str], list[list[str]], np.ndarray]:
