@@ -5,7 +5,6 @@ so a recording made by either has the same layout (see the topic table in README
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Callable
 
@@ -31,18 +30,16 @@ def setpoint_series(motion: Motion) -> bagio.Series:
                         velocities=motion.vel, accelerations=motion.acc)
 
 
-def axis_state_series(motion: Motion, dyn, leads_m: dict[str, float]) -> bagio.Series:
+def axis_state_series(motion: Motion, dyn) -> bagio.Series:
     """Carriage joints (m, m/s, m/s^2, load force N) and screw joints (rad, rad/s, rad/s^2, N·m).
 
     Columns: all carriage joints in axis order, then all screw joints in axis order.
     """
     axes = tuple(motion.axes)
-    lead = np.array([leads_m[a] for a in axes])
-    angle = motion.pos * (2.0 * math.pi / lead)
     names = axes + tuple(screw_joint(a) for a in axes)
     return bagio.Series(
         t=motion.t, names=names,
-        positions=np.hstack([motion.pos, angle]),
+        positions=np.hstack([motion.pos, dyn.angle_rad]),
         velocities=np.hstack([motion.vel, dyn.omega_rad_s]),
         accelerations=np.hstack([motion.acc, dyn.alpha_rad_s2]),
         effort=np.hstack([dyn.force_n, dyn.torque_nm]))
@@ -57,11 +54,11 @@ def power_series(power) -> bagio.Series:
         velocities=np.hstack([power.power_w, power.total_w[:, None]]))
 
 
-def simulation_series(result, leads_m: dict[str, float]) -> dict[str, bagio.Series]:
+def simulation_series(result) -> dict[str, bagio.Series]:
     """Return ``{topic: Series}`` for a ``simulate.SimulationResult``."""
     return {
         bagio.TOPIC_SETPOINTS: setpoint_series(result.motion),
-        bagio.TOPIC_AXIS_STATE: axis_state_series(result.motion, result.dynamics, leads_m),
+        bagio.TOPIC_AXIS_STATE: axis_state_series(result.motion, result.dynamics),
         bagio.TOPIC_POWER: power_series(result.power),
     }
 
@@ -70,8 +67,7 @@ def write_simulation_bag(path: str | Path, result, *, summary: dict, batch: int 
                          progress: Callable[[float], None] | None = None) -> None:
     """Write a whole simulation as a rosbag2/MCAP directory (topics in README)."""
     from feed_axis_energy.core.energy import energy_by_line
-    leads = {a.name: a.screw.lead_m for a in result.machine.axes}
-    series = simulation_series(result, leads)
+    series = simulation_series(result)
     with bagio.BagWriter(path) as writer:
         for i, (topic, s) in enumerate(series.items()):
             writer.write_series(topic, s, batch=batch)

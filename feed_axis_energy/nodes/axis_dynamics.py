@@ -36,7 +36,6 @@ class AxisDynamicsNode(Node):
             msg = f'parameter load_kg must be >= 0, got {self.load_kg}'
             raise StartupError(msg)
         self.machine = load_machine(path or default_machine())
-        self.leads = {a.name: a.screw.lead_m for a in self.machine.axes}
         self.pub = self.create_publisher(JointTrajectory, 'axis_state', stream_qos())
         self.sub = self.create_subscription(JointTrajectory, 'setpoints', self._on_setpoints,
                                             stream_qos(), raw=True)
@@ -49,7 +48,7 @@ class AxisDynamicsNode(Node):
             motion = Motion(t=s.t, axes=s.names, pos=s.positions, vel=s.velocities,
                             acc=s.accelerations, line=np.zeros(n, dtype=np.int32))
             dyn = compute_dynamics(motion, self.machine, load_kg=self.load_kg)
-            out = recording.axis_state_series(motion, dyn, self.leads)
+            out = recording.axis_state_series(motion, dyn)
             ((_, cdr),) = convert.series_to_cdr(out, batch=max(n, 1))
         except (FeedAxisError, ValueError, TypeError) as err:
             self.get_logger().error(f'dropped a setpoints batch: {err}')

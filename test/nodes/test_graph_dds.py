@@ -41,7 +41,7 @@ def test_launch_recording_equals_offline_simulation(tmp_path, short_program, nod
     assert f'recording: {bag}' in out.stdout
     machine = load_machine(default_machine())
     result = simulate_program(load_gcode(short_program), machine, load_kg=5.0)
-    offline = simulation_series(result, {a.name: a.screw.lead_m for a in machine.axes})
+    offline = simulation_series(result)
     for topic, ref in offline.items():
         got = bagio.read_series(bag, topic)
         assert got.names == ref.names
