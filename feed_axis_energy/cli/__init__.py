@@ -11,6 +11,7 @@ import sys
 
 from feed_axis_energy import __version__
 from feed_axis_energy.core.errors import FeedAxisError
+from feed_axis_energy.core.outputs import terminate_on_signals
 
 __all__ = ['main', 'build_parser']
 
@@ -42,7 +43,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args.run(args) or 0)
+        # SIGTERM raises SystemExit(143) inside the command so that staged outputs are
+        # removed (core/outputs.py); SIGINT raises KeyboardInterrupt as usual.
+        with terminate_on_signals():
+            return int(args.run(args) or 0)
     except FeedAxisError as err:
         print(f'error: {err}', file=sys.stderr)
         return 1

@@ -14,6 +14,7 @@ from feed_axis_energy.core.identify.analyze import (AnalysisResult, analyze_camp
                                                     AnalyzeOptions, HOLDOUTS)
 from feed_axis_energy.core.machine import load_machine, machine_to_dict
 from feed_axis_energy.core.measured.manifest import load_campaign
+from feed_axis_energy.core.outputs import check_target, write_text_atomic
 
 __all__ = ['add_parser', 'run']
 
@@ -34,7 +35,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--report', type=Path, metavar='DIR',
                    help='write an HTML report with plots to DIR')
     p.add_argument('--out-machine', type=Path, metavar='YAML',
-                   help='write the machine config with the selected effects added')
+                   help='write the machine config with the selected effects added (must not '
+                        'exist unless --force)')
+    p.add_argument('--force', action='store_true',
+                   help='replace an existing --out-machine file (never through a symbolic '
+                        'link)')
     p.add_argument('--runs', metavar='NAME,...', help='use only these runs (default: all)')
     p.add_argument('--machine', type=Path, metavar='YAML',
                    help="declared machine config (default: the manifest's machine)")
@@ -89,6 +94,9 @@ def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     if args.report is not None and args.report.exists() and not args.report.is_dir():
         raise FileExistsError(f'{args.report} exists and is not a directory')
+    if args.out_machine is not None:
+        # refused before the analysis runs, not after it
+        check_target(args.out_machine, option='--out-machine', force=args.force)
     campaign = load_campaign(args.manifest)
     names = None
     if args.runs is not None:
@@ -104,8 +112,7 @@ def run(args: argparse.Namespace) -> int:
     extra = {}
     if args.out_machine is not None:
         text = yaml.safe_dump(machine_to_dict(result.augmented_machine()), sort_keys=False)
-        args.out_machine.parent.mkdir(parents=True, exist_ok=True)
-        args.out_machine.write_text(text, encoding='utf-8')
+        write_text_atomic(args.out_machine, text, option='--out-machine', force=args.force)
         extra['out_machine'] = str(args.out_machine)
     if args.report is not None:
         # imported here: matplotlib is only needed for reports

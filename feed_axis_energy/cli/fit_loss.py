@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 from pathlib import Path
 import sys
 
@@ -15,6 +14,7 @@ from feed_axis_energy.core.identify import fit_loss, machine_with_losses, Steady
 from feed_axis_energy.core.identify.lossfit import VELOCITY_SOURCES
 from feed_axis_energy.core.machine import load_machine, machine_to_dict
 from feed_axis_energy.core.measured import load_campaign, load_run
+from feed_axis_energy.core.outputs import check_target, write_text_atomic
 
 __all__ = ['add_parser', 'run']
 
@@ -39,7 +39,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--axes', metavar='AXIS,...', help='axes to fit (default: all with power)')
     p.add_argument('--out-machine', type=Path, metavar='YAML',
                    help='write the machine config with the fitted loss functions (only when '
-                        'every fitted axis is ok; must not exist yet)')
+                        'every fitted axis is ok; must not exist unless --force)')
+    p.add_argument('--force', action='store_true',
+                   help='replace an existing --out-machine file (never through a symbolic '
+                        'link)')
     p.add_argument('--json', action='store_true', help='print one JSON object')
     g = p.add_argument_group('steady segments')
     g.add_argument('--velocity', choices=VELOCITY_SOURCES, default=_D.velocity,
@@ -77,9 +80,8 @@ def run(args: argparse.Namespace) -> int:
     campaign = load_campaign(args.manifest)
     machine_path = args.machine if args.machine is not None else campaign.machine
     machine = load_machine(machine_path)
-    if args.out_machine is not None and args.out_machine.exists():
-        msg = f'{args.out_machine} exists already; choose a new file'
-        raise FileExistsError(msg)
+    if args.out_machine is not None:
+        check_target(args.out_machine, option='--out-machine', force=args.force)
     names = split_names(args.runs)
     try:
         specs = ([campaign.run(n) for n in names] if names
@@ -101,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     all_ok = all(f.ok for f in fits.values())
     if all_ok and args.out_machine is not None:
         _write_machine(args.out_machine, machine_with_losses(machine, fits), runs=specs,
-                       manifest=args.manifest)
+                       manifest=args.manifest, force=args.force)
     if args.json:
         print(json.dumps({'manifest': str(args.manifest), 'machine': str(machine_path),
                           'runs': [s.name for s in specs],
@@ -139,11 +141,8 @@ def _print(fits: dict, specs: list, loaded: list[str]) -> None:
     print('y = a*x^b: x = feed [mm/s], y = steady loss power / feed [W/(mm/s)]')
 
 
-def _write_machine(path: Path, machine, *, runs: list, manifest: Path) -> None:
+def _write_machine(path: Path, machine, *, runs: list, manifest: Path, force: bool) -> None:
     head = (f'# Written by feed-axis-energy fit-loss: loss functions fitted on runs '
             f'{", ".join(s.name for s in runs)} of {manifest}.\n')
     text = head + yaml.safe_dump(machine_to_dict(machine), sort_keys=False, width=99)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f'.{path.name}.partial')
-    tmp.write_text(text, encoding='utf-8')
-    os.replace(tmp, path)
+    write_text_atomic(path, text, option='--out-machine', force=force)
