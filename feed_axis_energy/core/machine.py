@@ -34,10 +34,9 @@ import math
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from .errors import ConfigError
+from .errors import ConfigError, describe, shorten
 from .losses import LossModel, loss_from_dict
+from .safeyaml import load_yaml_file
 from .trajectory import AxisLimits, PlannerOptions
 
 __all__ = ['ScrewSpec', 'InertiaSpec', 'LimitSpec', 'PlannerSettings', 'AxisSpec', 'Machine',
@@ -321,13 +320,12 @@ def _join(key: str, name: str) -> str:
 def _mapping(value: Any, *, file: str, key: str,
              allowed: tuple[str, ...] | None) -> Mapping[str, Any]:
     if not isinstance(value, Mapping):
-        got = 'nothing' if value is None else type(value).__name__
-        msg = f'expected a mapping, got {got}'
+        msg = f'expected a mapping, got {describe(value)}'
         raise ConfigError(msg, file=file, key=key or '<top>')
     for name in value:
         if allowed is not None and name not in allowed:
-            msg = f'unknown key {name!r}; expected one of {", ".join(allowed)}'
-            raise ConfigError(msg, file=file, key=_join(key, str(name)))
+            msg = f'unknown key {shorten(str(name))!r}; expected one of {", ".join(allowed)}'
+            raise ConfigError(msg, file=file, key=_join(key, shorten(str(name))))
     return value
 
 
@@ -342,13 +340,13 @@ def _float(d: Mapping[str, Any], name: str, *, file: str, key: str, default: Any
         return default
     value = d[name]
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        msg = f'expected a finite number, got {value!r}'
+        msg = f'expected a finite number, got {describe(value)}'
         raise ConfigError(msg, file=file, key=where)
     if minimum is not None and (value <= minimum if strict else value < minimum):
-        msg = f'expected a number {">" if strict else ">="} {minimum}, got {value!r}'
+        msg = f'expected a number {">" if strict else ">="} {minimum}, got {describe(value)}'
         raise ConfigError(msg, file=file, key=where)
     if maximum is not None and value > maximum:
-        msg = f'expected a number <= {maximum}, got {value!r}'
+        msg = f'expected a number <= {maximum}, got {describe(value)}'
         raise ConfigError(msg, file=file, key=where)
     return float(value)
 
@@ -364,7 +362,7 @@ def _choice(d: Mapping[str, Any], name: str, choices: tuple[Any, ...], *, file: 
     value = d[name]
     if value not in choices:
         shown = ', '.join('null' if c is None else str(c) for c in choices)
-        msg = f'expected one of {shown}, got {value!r}'
+        msg = f'expected one of {shown}, got {describe(value)}'
         raise ConfigError(msg, file=file, key=where)
     return value
 
@@ -374,7 +372,7 @@ def _screw(d: Any, *, file: str, key: str) -> ScrewSpec:
                                                  'efficiency', 'density_kg_m3'))
     starts = d.get('starts', 1)
     if isinstance(starts, bool) or not isinstance(starts, int) or starts < 1:
-        msg = f'expected a whole number >= 1, got {starts!r}'
+        msg = f'expected a whole number >= 1, got {describe(starts)}'
         raise ConfigError(msg, file=file, key=_join(key, 'starts'))
     return ScrewSpec(
         diameter_m=_float(d, 'diameter_m', file=file, key=key, minimum=0.0),
@@ -407,9 +405,9 @@ def _limits(d: Any, *, file: str, key: str) -> LimitSpec:
 
 
 def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
-    key = f'axes.{name}'
+    key = f'axes.{shorten(str(name))}'
     if name not in AXIS_NAMES:
-        msg = f'unknown axis name {name!r}; expected one of {", ".join(AXIS_NAMES)}'
+        msg = f'unknown axis name {shorten(str(name))!r}; expected one of {", ".join(AXIS_NAMES)}'
         raise ConfigError(msg, file=file, key=key)
     allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
                'loss')
@@ -457,15 +455,15 @@ def _effects(value: Any, axis_names: tuple[str, ...], *,
     if value is None:
         return ()
     if not isinstance(value, list):
-        msg = f'expected a list of effects, got {type(value).__name__}'
+        msg = f'expected a list of effects, got {describe(value)}'
         raise ConfigError(msg, file=file, key='effects')
     out = []
     for i, item in enumerate(value):
         key = f'effects[{i}]'
         item = _mapping(item, file=file, key=key, allowed=('id', 'axis', 'params'))
         effect_id = item.get('id')
-        if effect_id not in EFFECTS:
-            msg = f'unknown effect {effect_id!r}; expected one of {", ".join(EFFECTS)}'
+        if not isinstance(effect_id, str) or effect_id not in EFFECTS:
+            msg = f'unknown effect {describe(effect_id)}; expected one of {", ".join(EFFECTS)}'
             raise ConfigError(msg, file=file, key=f'{key}.id')
         cls = EFFECTS[effect_id]
         if not cls.machine_property:
@@ -506,7 +504,7 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
                           'home_m'))
     name = d.get('name', Path(file).stem)
     if not isinstance(name, str) or not name:
-        msg = f'expected a non-empty string, got {name!r}'
+        msg = f'expected a non-empty string, got {describe(name)}'
         raise ConfigError(msg, file=file, key='name')
     # axis names are checked one by one in _axis, with a message naming the axis
     axes_d = _mapping(d.get('axes'), file=file, key='axes', allowed=None)
@@ -564,18 +562,7 @@ def load_machine(path: str | Path) -> Machine:
         Unreadable file, YAML syntax error, or any invalid value (named by dotted key).
     """
     file = str(path)
-    try:
-        text = Path(path).read_text(encoding='utf-8')
-    except OSError as err:
-        msg = f'cannot read machine file: {err.strerror or err}'
-        raise ConfigError(msg, file=file) from err
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, 'problem_mark', None)
-        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
-        msg = f'invalid YAML{where}: {getattr(err, "problem", None) or err}'
-        raise ConfigError(msg, file=file) from err
+    data = load_yaml_file(path, error=ConfigError, what='machine file')
     return machine_from_dict(data, file=file)
 
 

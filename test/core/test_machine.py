@@ -131,7 +131,7 @@ def test_file_errors(tmp_path):
         load_machine(tmp_path / 'missing.yaml')
     bad = tmp_path / 'bad.yaml'
     bad.write_text('name: x\naxes: [\n')
-    with pytest.raises(ConfigError, match='invalid YAML at line'):
+    with pytest.raises(ConfigError, match='line 3, column 1: not valid YAML'):
         load_machine(bad)
     empty = tmp_path / 'empty.yaml'
     empty.write_text('')
