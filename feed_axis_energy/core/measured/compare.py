@@ -347,9 +347,13 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
         found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')
     aligned = align_simulated(sim.power.t, sim_w, run.t, offset_s=used, window_s=window)
     meas = run.power_w
+    where = {'file': run.file, 'rows': run.extra.get('rows'), 'floor_fraction': floor_fraction}
     total = table1_metrics(run.t, meas.sum(axis=1), aligned.sum(axis=1),
-                           floor_fraction=floor_fraction)
-    per_axis = {a: table1_metrics(run.t, meas[:, j], aligned[:, j], floor_fraction=floor_fraction)
+                           columns=('time', 'measured total power', 'simulated total power'),
+                           **where)
+    per_axis = {a: table1_metrics(run.t, meas[:, j], aligned[:, j],
+                                  columns=('time', f'measured {a} power',
+                                           f'simulated {a} power'), **where)
                 for j, a in enumerate(spec.power_axes)}
     return RunComparison(
         name=spec.name, role=spec.role, load_kg=spec.load_kg, data_file=run.file,

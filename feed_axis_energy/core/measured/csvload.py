@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
-from ..units import to_si
+from ..units import check_si_values, to_si
 from .manifest import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, ColumnSpec, RowFilter, RunSpec
 
 __all__ = ['GAP_FACTOR', 'MeasuredRun', 'load_run']
@@ -166,7 +166,8 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
 
     def column(cs: ColumnSpec, quantity: str) -> np.ndarray:
         raw = _parse(kept, index[cs.column], numbers, file, cs.column)
-        return to_si(raw, cs.unit, quantity=quantity)
+        return check_si_values(to_si(raw, cs.unit, quantity=quantity), file=file,
+                               column=cs.column, rows=numbers)
 
     t = _time(spec, sample, numbers, file, column)
     check_duration(t, spec, min_duration_s, file=file, after=' after filtering')
