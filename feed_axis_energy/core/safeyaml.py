@@ -216,11 +216,11 @@ def read_text_file(path: str | Path, *, error: type = ConfigError, what: str = '
     """
     file = str(path)
     try:
+        # checked before opening: open() of a FIFO would wait for a writer forever
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            msg = f'cannot read {what}: not a regular file'
+            raise _make(error, msg, file)
         with open(path, 'rb') as fh:
-            mode = os.fstat(fh.fileno()).st_mode
-            if not stat.S_ISREG(mode):
-                msg = f'cannot read {what}: not a regular file'
-                raise _make(error, msg, file)
             data = fh.read(max_bytes + 1)
     except OSError as err:
         msg = f'cannot read {what}: {err.strerror or type(err).__name__}'
@@ -236,7 +236,7 @@ def read_text_file(path: str | Path, *, error: type = ConfigError, what: str = '
         line = data.count(b'\n', 0, err.start) + 1
         column = err.start - (data.rfind(b'\n', 0, err.start) + 1) + 1
         msg = (f'line {line}, column {column}: byte 0x{data[err.start]:02x} is not valid '
-               f'UTF-8; expected a UTF-8 text {what}')
+               f'UTF-8; the {what} must be UTF-8 text')
         raise _make(error, msg, file) from None
 
 
