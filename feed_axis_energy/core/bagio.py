@@ -21,6 +21,7 @@ from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
 from feed_axis_energy.core.errors import DataError, describe, shorten
+from feed_axis_energy.core.mcapcheck import check_mcap
 from feed_axis_energy.core.safeyaml import load_yaml_file
 
 __all__ = [
@@ -293,7 +294,12 @@ def read_metadata(path: str | Path) -> dict:
 @contextmanager
 def _open_reader(path: str | Path) -> Iterator[Reader]:
     path = Path(path)
-    read_metadata(path)  # bounded parse and layout check before rosbags parses it again
+    info = read_metadata(path)  # bounded parse and layout check before rosbags parses it
+    files = info.get('relative_file_paths')
+    for name in files if isinstance(files, list) else []:
+        storage = path / Path(str(name)).name
+        if str(name).endswith('.mcap') and storage.is_file():
+            check_mcap(storage, bag=path)
     with _guard(path, doing='open the bag'):
         reader = Reader(path)
         reader.open()
