@@ -60,7 +60,8 @@ def register_loss(cls: type) -> type:
 
 
 def _number(d: Mapping[str, Any], name: str, *, file: str, key: str, default: Any = None,
-            minimum: float | None = None, strict: bool = False) -> float:
+            minimum: float | None = None, strict: bool = False,
+            maximum: float = 1.0e12) -> float:
     where = f'{key}.{name}' if key else name
     if name not in d:
         if default is None:
@@ -74,6 +75,9 @@ def _number(d: Mapping[str, Any], name: str, *, file: str, key: str, default: An
     if minimum is not None and (value <= minimum if strict else value < minimum):
         relation = '>' if strict else '>='
         msg = f'expected a number {relation} {minimum}, got {describe(value)}'
+        raise ConfigError(msg, file=file, key=where)
+    if value > maximum:
+        msg = f'expected a number <= {maximum:g}, got {describe(value)}'
         raise ConfigError(msg, file=file, key=where)
     return float(value)
 
@@ -191,8 +195,9 @@ class PowerRegressionLoss:
     def from_dict(cls, d: Mapping[str, Any], *, file: str, key: str) -> 'PowerRegressionLoss':
         """Build from the YAML form (``model`` already checked); errors name ``key``."""
         _check_keys(d, ('model', 'a', 'b', 'x_unit', 'y_unit'), file=file, key=key)
-        a = _number(d, 'a', file=file, key=key, minimum=0.0)
-        b = _number(d, 'b', file=file, key=key, minimum=0.0)
+        # bounded so that a * x**b stays finite for any feed the limits allow
+        a = _number(d, 'a', file=file, key=key, minimum=0.0, maximum=1.0e6)
+        b = _number(d, 'b', file=file, key=key, minimum=0.0, maximum=10.0)
         units = {}
         for name, allowed, default in (('x_unit', tuple(X_UNITS), 'mm/s'),
                                        ('y_unit', Y_UNITS, 'W/(mm/s)')):

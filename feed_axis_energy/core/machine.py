@@ -311,6 +311,9 @@ def moved_mass_kg(machine: Machine, axis: str, load_kg: float = 0.0) -> float:
 # ----------------------------------------------------------------------------- YAML I/O
 
 _REQUIRED = object()
+# Accepted ranges of values that the dynamics divide by or raise to powers: far outside any
+# machine tool, and narrow enough that no simulated quantity can overflow (docs/measured.md).
+_LIMIT_RANGES = ((1.0e-3, 1.0e3), (1.0e-3, 1.0e5), (1.0e-3, 1.0e8))
 
 
 def _join(key: str, name: str) -> str:
@@ -375,14 +378,15 @@ def _screw(d: Any, *, file: str, key: str) -> ScrewSpec:
         msg = f'expected a whole number >= 1, got {describe(starts)}'
         raise ConfigError(msg, file=file, key=_join(key, 'starts'))
     return ScrewSpec(
-        diameter_m=_float(d, 'diameter_m', file=file, key=key, minimum=0.0),
-        lead_m=_float(d, 'lead_m', file=file, key=key, minimum=0.0),
-        length_m=_float(d, 'length_m', file=file, key=key, minimum=0.0),
+        diameter_m=_float(d, 'diameter_m', file=file, key=key, minimum=0.0, maximum=10.0),
+        lead_m=_float(d, 'lead_m', file=file, key=key, minimum=1.0e-6, strict=False,
+                      maximum=10.0),
+        length_m=_float(d, 'length_m', file=file, key=key, minimum=0.0, maximum=1.0e3),
         starts=starts,
-        efficiency=_float(d, 'efficiency', file=file, key=key, default=1.0, minimum=0.0,
-                          maximum=1.0),
+        efficiency=_float(d, 'efficiency', file=file, key=key, default=1.0, minimum=0.01,
+                          strict=False, maximum=1.0),
         density_kg_m3=_float(d, 'density_kg_m3', file=file, key=key,
-                             default=STEEL_DENSITY_KG_M3, minimum=0.0))
+                             default=STEEL_DENSITY_KG_M3, minimum=0.0, maximum=1.0e5))
 
 
 def _inertias(d: Any, *, file: str, key: str) -> InertiaSpec:
@@ -390,18 +394,21 @@ def _inertias(d: Any, *, file: str, key: str) -> InertiaSpec:
                  allowed=('motor_kg_m2', 'coupling_kg_m2', 'screw_kg_m2'))
     screw = None
     if d.get('screw_kg_m2') is not None:
-        screw = _float(d, 'screw_kg_m2', file=file, key=key, minimum=0.0, strict=False)
+        screw = _float(d, 'screw_kg_m2', file=file, key=key, minimum=0.0, strict=False,
+                       maximum=1.0e3)
     return InertiaSpec(
-        motor_kg_m2=_float(d, 'motor_kg_m2', file=file, key=key, minimum=0.0, strict=False),
+        motor_kg_m2=_float(d, 'motor_kg_m2', file=file, key=key, minimum=0.0, strict=False,
+                           maximum=1.0e3),
         coupling_kg_m2=_float(d, 'coupling_kg_m2', file=file, key=key, default=0.0,
-                              minimum=0.0, strict=False),
+                              minimum=0.0, strict=False, maximum=1.0e3),
         screw_kg_m2=screw)
 
 
 def _limits(d: Any, *, file: str, key: str) -> LimitSpec:
     names = ('velocity_m_s', 'acceleration_m_s2', 'jerk_m_s3')
     d = _mapping(d, file=file, key=key, allowed=names)
-    return LimitSpec(*(_float(d, n, file=file, key=key, minimum=0.0) for n in names))
+    return LimitSpec(*(_float(d, n, file=file, key=key, minimum=low, strict=False, maximum=high)
+                       for n, (low, high) in zip(names, _LIMIT_RANGES)))
 
 
 def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
@@ -419,7 +426,8 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
     rides_on = _choice(d, 'rides_on', AXIS_NAMES + (None,), file=file, key=key, default=None)
     return AxisSpec(
         name=name,
-        table_mass_kg=_float(d, 'table_mass_kg', file=file, key=key, minimum=0.0, strict=False),
+        table_mass_kg=_float(d, 'table_mass_kg', file=file, key=key, minimum=0.0, strict=False,
+                             maximum=1.0e6),
         screw=_screw(d['screw'], file=file, key=f'{key}.screw'),
         inertias=_inertias(d['inertias'], file=file, key=f'{key}.inertias'),
         limits=_limits(d['limits'], file=file, key=f'{key}.limits'),
@@ -473,7 +481,8 @@ def _effects(value: Any, axis_names: tuple[str, ...], *,
         axis = _choice(item, 'axis', axis_names + (None,), file=file, key=key, default=None)
         params_d = _mapping(item.get('params', {}) or {}, file=file, key=f'{key}.params',
                             allowed=cls.param_names())
-        params = tuple((name, _float(params_d, name, file=file, key=f'{key}.params'))
+        params = tuple((name, _float(params_d, name, file=file, key=f'{key}.params',
+                                     minimum=-1.0e12, strict=False, maximum=1.0e12))
                        for name in cls.param_names() if name in params_d)
         out.append(DeclaredEffect(id=effect_id, axis=axis, params=params))
     return tuple(out)
@@ -519,11 +528,11 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
         profile=_choice(planner_d, 'profile', PROFILES, file=file, key='planner',
                         default='jerk'),
         corner_tolerance_m=_float(planner_d, 'corner_tolerance_m', file=file, key='planner',
-                                  default=1.0e-4, minimum=0.0, strict=False),
+                                  default=1.0e-4, minimum=0.0, strict=False, maximum=1.0),
         rate_hz=_float(planner_d, 'rate_hz', file=file, key='planner', default=1000.0,
-                       minimum=0.0),
+                       minimum=0.0, maximum=1.0e6),
         cycle_s=_float(planner_d, 'cycle_s', file=file, key='planner', default=1.0e-3,
-                       minimum=0.0))
+                       minimum=0.0, maximum=10.0))
     return Machine(
         name=name,
         axes=axes,

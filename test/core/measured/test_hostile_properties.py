@@ -13,6 +13,7 @@ import tempfile
 from hostile_inputs import (bag_campaign, check_outcome, csv_campaign, csv_text, MACHINE,
                             manifest_text, mcap_file, run_cli, SHORT_PROGRAM)
 from hypothesis import given, HealthCheck, settings, strategies as st
+import yaml
 
 FUZZ = settings(derandomize=True, database=None, deadline=None, print_blob=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
@@ -120,5 +121,105 @@ def test_damaged_bag_bytes(damage: tuple) -> None:
         storage.write_bytes(bytes(data))
         check_outcome(*run_cli(['compare', '--quiet', '--json',
                                 str(root / 'c' / template.name)]), json_output=True)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+# ----------------------------------------------------------------------------- wrong values
+
+_VALUES = st.recursive(
+    st.none() | st.booleans() | st.integers(-2**70, 2**70)
+    | st.floats(allow_nan=True, allow_infinity=True) | st.text(max_size=12)
+    | st.sampled_from([0, -1, 1e308, -1e-320, 'mm', 'kW', 'X', 'm/s^2', '.inf', '']),
+    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=5), inner,
+                                                                max_size=3),
+    max_leaves=6)
+
+
+def _paths(doc: object, prefix: tuple = ()) -> list[tuple]:
+    out = [prefix]
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            out += _paths(v, prefix + (k,))
+    elif isinstance(doc, list):
+        for i, v in enumerate(doc):
+            out += _paths(v, prefix + (i,))
+    return out
+
+
+@st.composite
+def one_value_replaced(draw: st.DrawFn, text: str) -> str:
+    """The YAML document ``text`` with the value at one random key replaced."""
+    doc = yaml.safe_load(text)
+    path = draw(st.sampled_from(_paths(doc)[1:]))
+    value = draw(_VALUES)
+    node = doc
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    return yaml.safe_dump(doc, allow_unicode=True)
+
+
+@settings(FUZZ, max_examples=80)
+@given(one_value_replaced(MACHINE.read_text()))
+def test_machine_with_one_wrong_value(text: str) -> None:
+    root = _workdir()
+    try:
+        (root / 'machine.yaml').write_text(text)
+        (root / 'p.nc').write_text(SHORT_PROGRAM)
+        check_outcome(*run_cli(['simulate', str(root / 'p.nc'), '--machine',
+                                str(root / 'machine.yaml'), '--json', '--rate-hz', '200']),
+                      json_output=True)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+@settings(FUZZ, max_examples=60)
+@given(one_value_replaced(manifest_text(['r0', 'r1']) + 'split: {calibrate: [r0]}\n'))
+def test_manifest_with_one_wrong_value(text: str) -> None:
+    root = _workdir()
+    try:
+        manifest = csv_campaign(root, runs=2, n=30)
+        manifest.write_text(text)
+        check_outcome(*run_cli(['compare', '--quiet', '--json', str(manifest)]),
+                      json_output=True)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+def _number_paths(doc: object) -> list[tuple]:
+    return [p for p in _paths(doc)[1:] if _get(doc, p) is not True and _get(doc, p) is not False
+            and isinstance(_get(doc, p), (int, float))]
+
+
+def _get(doc: object, path: tuple) -> object:
+    for key in path:
+        doc = doc[key]
+    return doc
+
+
+@st.composite
+def one_number_replaced(draw: st.DrawFn, text: str) -> str:
+    """The YAML document ``text`` with one number replaced by a finite number of any size."""
+    doc = yaml.safe_load(text)
+    path = draw(st.sampled_from(_number_paths(doc)))
+    exponent = draw(st.integers(-320, 308))
+    mantissa = draw(st.sampled_from([1.0, 2.5, 9.9, -1.0]))
+    value = mantissa * 10.0 ** exponent if exponent > -308 else 5e-324
+    _get(doc, path[:-1])[path[-1]] = value
+    return yaml.safe_dump(doc)
+
+
+@settings(FUZZ, max_examples=80)
+@given(one_number_replaced(MACHINE.read_text()))
+def test_machine_with_one_number_of_any_size(text: str) -> None:
+    # numbers that pass validation must not overflow the simulation to inf or NaN
+    root = _workdir()
+    try:
+        (root / 'machine.yaml').write_text(text)
+        (root / 'p.nc').write_text(SHORT_PROGRAM)
+        check_outcome(*run_cli(['simulate', str(root / 'p.nc'), '--machine',
+                                str(root / 'machine.yaml'), '--json', '--rate-hz', '200']),
+                      json_output=True)
     finally:
         shutil.rmtree(root, ignore_errors=True)
