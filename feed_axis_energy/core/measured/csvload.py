@@ -21,10 +21,12 @@ from ..errors import DataError
 from ..units import check_si_values, to_si
 from .manifest import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, ColumnSpec, RowFilter, RunSpec
 
-__all__ = ['GAP_FACTOR', 'MeasuredRun', 'load_run']
+__all__ = ['GAP_FACTOR', 'MIN_STEP_S', 'MeasuredRun', 'load_run']
 
 GAP_FACTOR = 1.5
 """A time step longer than this many median periods is a gap."""
+MIN_STEP_S = 1.0e-9
+"""Shortest time step accepted [s]: bags and topics stamp in whole nanoseconds."""
 
 _FIELD = {
     'position': 'position_m',
@@ -308,11 +310,17 @@ def _time(spec: RunSpec, sample: np.ndarray, numbers: np.ndarray, file: str,
         name = '<row index>'
         t = sample * float(spec.period_s)
     dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0.0)
+    bad = np.flatnonzero(dt < MIN_STEP_S)
     if bad.size:
         i = int(bad[0]) + 1
-        what = 'repeats the previous time' if dt[i - 1] == 0.0 else 'goes back in time'
-        msg = f'{what} ({t[i - 1]:.9g} s then {t[i]:.9g} s); time must increase strictly'
+        if dt[i - 1] == 0.0:
+            what = 'repeats the previous time'
+        elif dt[i - 1] < 0.0:
+            what = 'goes back in time'
+        else:
+            what = f'follows the previous time after only {dt[i - 1]:.3g} s'
+        msg = (f'{what} ({t[i - 1]:.9g} s then {t[i]:.9g} s); time must increase by at '
+               f'least {MIN_STEP_S:g} s (stamps are whole nanoseconds)')
         raise DataError(msg, file=file, column=name, row=int(numbers[i]))
     if not spec.allow_gaps:
         median = float(np.median(dt))

@@ -21,7 +21,7 @@ from ..errors import ConfigError, DataError, shorten
 from ..motion import Motion
 from ..trajectory import motion_from_samples
 from ..units import check_si_values, to_si
-from .csvload import _parse, _read_csv
+from .csvload import _parse, _read_csv, MIN_STEP_S
 
 __all__ = ['load_trajectory_csv', 'TIME_NAMES']
 
@@ -91,9 +91,9 @@ def load_trajectory_csv(path: str | Path, *, axes: tuple[str, ...]) -> Motion:
         return check_si_values(si, file=file, column=name, rows=numbers)
 
     t = values(time_name, 'time')
-    bad = np.nonzero(np.diff(t) <= 0.0)[0]
+    bad = np.nonzero(np.diff(t) < MIN_STEP_S)[0]
     if bad.size:
-        msg = 'time is not strictly increasing'
+        msg = f'time is not strictly increasing by at least {MIN_STEP_S:g} s per row'
         raise DataError(msg, file=file, column=time_name, row=int(numbers[bad[0] + 1]))
     missing = [a for a in axes if a not in cols]
     if missing:

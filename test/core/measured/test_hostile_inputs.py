@@ -205,3 +205,18 @@ def test_replay_reader_names_topic_and_message(valid_bags: Path, tmp_path: Path)
     BAG_DAMAGES['topics without messages'](work / 'r1')
     with pytest.raises(DataError, match='the topic has no messages'):
         bagio.read_raw_messages(work / 'r1', [bagio.TOPIC_MEASURED_POWER])
+
+
+@pytest.mark.parametrize('step', ['1e-300', '1e-12'])
+def test_time_steps_below_a_nanosecond(tmp_path: Path, step: str) -> None:
+    # a 1e-300 s step made simulate's sample rate 1e300 Hz and its JSON non-finite
+    rows = ['time [s],X [mm]'] + [f'{i * float(step)!r},{i % 2}' for i in range(5)]
+    (tmp_path / 't.csv').write_text('\n'.join(rows) + '\n')
+    code, out, err = run_cli(['simulate', str(tmp_path / 't.csv'), '--json'])
+    check_outcome(code, out, err, json_output=True)
+    assert code == 1 and 'at least 1e-09 s' in _error_line(err)
+    manifest = csv_campaign(tmp_path / 'm', runs=2)
+    text = (tmp_path / 'm' / 'r0.csv').read_text().replace('\n0.100,', f'\n{step},')
+    (tmp_path / 'm' / 'r0.csv').write_text(text)
+    code, _, err = _run('compare', manifest, tmp_path)
+    assert code == 1 and "column 't', row 2" in _error_line(err)
