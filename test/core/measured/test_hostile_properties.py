@@ -223,3 +223,19 @@ def test_machine_with_one_number_of_any_size(text: str) -> None:
                       json_output=True)
     finally:
         shutil.rmtree(root, ignore_errors=True)
+
+
+_TRAJECTORY = 'time [s],X [mm],X_vel [mm/s]\n' + ''.join(
+    f'{i * 0.01:.2f},{20.0 * (1 - abs(1 - i / 20)):.3f},{(200.0 if i < 20 else -200.0):.1f}\n'
+    for i in range(41))
+
+
+@settings(FUZZ, max_examples=60)
+@given(mutated(_TRAJECTORY))
+def test_mutated_trajectory_csv(text: str) -> None:
+    root = _workdir()
+    try:
+        (root / 't.csv').write_text(text)
+        check_outcome(*run_cli(['simulate', str(root / 't.csv'), '--json']), json_output=True)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
