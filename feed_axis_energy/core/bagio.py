@@ -20,6 +20,7 @@ import numpy as np
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
+from feed_axis_energy.core.bagcheck import check_trajectory, field_layout, guard
 from feed_axis_energy.core.errors import DataError, describe, shorten
 from feed_axis_energy.core.mcapcheck import check_mcap
 from feed_axis_energy.core.safeyaml import load_yaml_file
@@ -43,7 +44,6 @@ JOINT_TRAJECTORY = 'trajectory_msgs/msg/JointTrajectory'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 
 _NS = 1_000_000_000
-_FIELDS = ('positions', 'velocities', 'accelerations', 'effort')
 _TYPESTORE = None
 
 
@@ -227,33 +227,6 @@ class BagWriter:
 # decoded message is checked (type, array lengths, finite values) before it is used, so a
 # damaged bag ends in one DataError naming the bag, the topic and the message index.
 
-_MAX_FAILURE_TEXT = 100
-
-
-@contextmanager
-def _guard(path: Path, *, topic: str = '', index: int | None = None,
-           doing: str = 'read') -> Iterator[None]:
-    """Turn whatever rosbags raises on damaged content into a :class:`DataError`."""
-    try:
-        yield
-    except DataError:
-        raise
-    except RecursionError:
-        msg = f'cannot {doing}: the data is nested too deeply; the bag is damaged'
-        raise DataError(msg, file=str(path), topic=topic, index=index) from None
-    except MemoryError:
-        msg = f'cannot {doing}: a size field asks for more memory than exists; the bag is damaged'
-        raise DataError(msg, file=str(path), topic=topic, index=index) from None
-    # the reader's own errors, and what its decoders raise on corrupt bytes (struct.error,
-    # IndexError, UnicodeDecodeError, KeyError, sqlite3 errors, ...): the bag is damaged
-    except Exception as err:  # noqa: B902
-        text = shorten(str(err), limit=_MAX_FAILURE_TEXT) or type(err).__name__
-        if isinstance(err, OSError) and err.strerror:
-            text = err.strerror
-        msg = f'cannot {doing}: {text} (the bag is damaged or not a rosbag2 bag)'
-        raise DataError(msg, file=str(path), topic=topic, index=index) from None
-
-
 def read_metadata(path: str | Path) -> dict:
     """Return the parsed ``metadata.yaml`` of a bag directory (the bounded YAML loader).
 
@@ -300,7 +273,7 @@ def _open_reader(path: str | Path) -> Iterator[Reader]:
         storage = path / Path(str(name)).name
         if str(name).endswith('.mcap') and storage.is_file():
             check_mcap(storage, bag=path)
-    with _guard(path, doing='open the bag'):
+    with guard(path, doing='open the bag'):
         reader = Reader(path)
         reader.open()
     try:
@@ -337,7 +310,7 @@ def _messages(reader: Reader, path: Path, conns: list) -> Iterator[tuple[str, in
     counts: dict[str, int] = {}
     it = reader.messages(connections=conns)
     while True:
-        with _guard(path, doing='read the messages'):
+        with guard(path, doing='read the messages'):
             item = next(it, None)
         if item is None:
             return
@@ -348,47 +321,8 @@ def _messages(reader: Reader, path: Path, conns: list) -> Iterator[tuple[str, in
 
 
 def _decode(path: Path, topic: str, index: int, raw: bytes, msgtype: str):
-    with _guard(path, topic=topic, index=index, doing='decode the message'):
+    with guard(path, topic=topic, index=index, doing='decode the message'):
         return typestore().deserialize_cdr(raw, msgtype)
-
-
-def check_trajectory(msg, *, file: str, topic: str, index: int) -> int:
-    """Check one decoded JointTrajectory; return its number of joints.
-
-    Every point's ``positions``, ``velocities``, ``accelerations`` and ``effort`` must be
-    empty or have one value per joint name, all values and the stamps must be finite and
-    non-negative where they are times, and joint names must be unique.
-
-    Raises
-    ------
-    DataError
-        Naming the bag, the topic and the 0-based message index.
-    """
-    names = list(msg.joint_names)
-    m = len(names)
-    where = {'file': file, 'topic': topic, 'index': index}
-    if len(set(names)) != m:
-        msg_ = 'joint names repeat; expected one name per column'
-        raise DataError(msg_, **where)
-    stamp = msg.header.stamp
-    if stamp.sec < 0 or not 0 <= stamp.nanosec < _NS:
-        msg_ = f'header stamp {stamp.sec} s {stamp.nanosec} ns is not a valid time'
-        raise DataError(msg_, **where)
-    for j, point in enumerate(msg.points):
-        dur = point.time_from_start
-        if dur.sec < 0 or not 0 <= dur.nanosec < _NS:
-            msg_ = f'point {j}: time_from_start {dur.sec} s {dur.nanosec} ns is not valid'
-            raise DataError(msg_, **where)
-        for field in _FIELDS:
-            arr = getattr(point, field)
-            if len(arr) not in (0, m):
-                msg_ = (f'point {j}: {field} has {len(arr)} values for {m} joint names; '
-                        'expected one per joint or none')
-                raise DataError(msg_, **where)
-            if len(arr) and not np.isfinite(arr).all():
-                msg_ = f'point {j}: {field} holds NaN or infinite values; expected finite ones'
-                raise DataError(msg_, **where)
-    return m
 
 
 def read_series(path: str | Path, topic: str) -> Series:
@@ -414,7 +348,7 @@ def read_series(path: str | Path, topic: str) -> Series:
         for _, index, _, raw in _messages(reader, path, conns):
             message = _decode(path, topic, index, raw, JOINT_TRAJECTORY)
             check_trajectory(message, file=str(path), topic=topic, index=index)
-            shape = (tuple(message.joint_names), _field_layout(message))
+            shape = (tuple(message.joint_names), field_layout(message))
             if first is None:
                 first = shape
             elif shape != first and message.points:
@@ -424,18 +358,6 @@ def read_series(path: str | Path, topic: str) -> Series:
             msgs.append(message)
     msgs.sort(key=lambda m: (m.header.stamp.sec, m.header.stamp.nanosec))
     return messages_to_series(msgs)
-
-
-def _field_layout(message) -> tuple[bool, ...]:
-    """Which of the four fields the message fills (from its first point)."""
-    if not message.points:
-        return ()
-    point = message.points[0]
-    layout = tuple(len(getattr(point, f)) > 0 for f in _FIELDS)
-    for p in message.points[1:]:
-        if tuple(len(getattr(p, f)) > 0 for f in _FIELDS) != layout:
-            return ('mixed',)
-    return layout
 
 
 def read_raw_messages(path: str | Path,

@@ -18,7 +18,7 @@ import shutil
 from typing import Callable
 
 import numpy as np
-from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 import yaml
 
 from feed_axis_energy.cli import main
@@ -154,7 +154,7 @@ def _rewrite(bag: Path, make: Callable[[str, int, object], list]) -> None:
     ``[(topic, msgtype, stamp_ns, message)]``; custom_data is kept."""
     ts = bagio.typestore()
     info = bagio.read_metadata(bag)
-    with bagio._open_reader(bag) as reader:
+    with Reader(bag) as reader:
         items = [(c.topic, t, ts.deserialize_cdr(raw, c.msgtype))
                  for c, t, raw in reader.messages()]
     tmp = bag.with_name(bag.name + '.new')
