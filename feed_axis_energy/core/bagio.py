@@ -340,7 +340,8 @@ def read_series(path: str | Path, topic: str) -> Series:
     with _open_reader(path) as reader:
         conns = _connections(reader, path, [topic], msgtype=None)
         if not conns:
-            have = ', '.join(sorted(shorten(c.topic) for c in reader.connections)) or 'none'
+            have = shorten(', '.join(sorted(c.topic for c in reader.connections)),
+                           limit=200) or 'none'
             msg = f'topic {topic!r} not in bag (topics: {have})'
             raise DataError(msg, file=str(path))
         _connections(reader, path, [topic], msgtype=JOINT_TRAJECTORY)
@@ -378,7 +379,8 @@ def read_raw_messages(path: str | Path,
     with _open_reader(path) as reader:
         conns = _connections(reader, path, topics, msgtype=None)
         if not conns:
-            have = ', '.join(sorted(shorten(c.topic) for c in reader.connections)) or 'none'
+            have = shorten(', '.join(sorted(c.topic for c in reader.connections)),
+                           limit=200) or 'none'
             msg = f'none of the topics {list(topics)} is in the bag (topics: {have})'
             raise DataError(msg, file=str(path))
         _connections(reader, path, topics, msgtype=JOINT_TRAJECTORY)

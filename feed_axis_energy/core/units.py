@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .errors import ConfigError, DataError
+from .errors import ConfigError, DataError, shorten
 
 __all__ = ['QUANTITIES', 'MAX_ABS_SI', 'check_si_values', 'known_units', 'quantity_of',
            'si_unit_of', 'to_si']
@@ -92,10 +92,10 @@ def _lookup(unit: str, quantity: str | None) -> tuple[str, float]:
     if found is None or (quantity is not None and found[0] != quantity):
         if quantity is None:
             listing = '; '.join(f'{q}: {", ".join(t)}' for q, (_, t) in QUANTITIES.items())
-            msg = f'unknown unit {unit!r}; known units are {listing}'
+            msg = f'unknown unit {shorten(str(unit))!r}; known units are {listing}'
         else:
             listing = ', '.join(QUANTITIES[quantity][1])
-            msg = f'unknown {quantity} unit {unit!r}; expected one of {listing}'
+            msg = f'unknown {quantity} unit {shorten(str(unit))!r}; expected one of {listing}'
         raise ConfigError(msg, file='<units>')
     return found
 

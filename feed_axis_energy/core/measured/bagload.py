@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from .. import bagio
-from ..errors import ConfigError, DataError, describe
+from ..errors import ConfigError, DataError, describe, shorten
 from ..units import check_si_values, si_unit_of
 from .csvload import check_duration, GAP_FACTOR, MeasuredRun
 from .manifest import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, RunSpec
@@ -119,7 +119,7 @@ def load_run_from_bag(spec: RunSpec, *, min_duration_s: float | None = None) -> 
     def series(topic: str) -> bagio.Series:
         if topic not in cache:
             if topic not in topics:
-                have = ', '.join(sorted(topics)) or 'none'
+                have = shorten(', '.join(sorted(topics)), limit=200) or 'none'
                 msg = f'topic {topic!r} is not in the bag (topics: {have})'
                 raise DataError(msg, file=file, column=topic)
             cache[topic] = bagio.read_series(spec.data, topic)
@@ -146,7 +146,8 @@ def load_run_from_bag(spec: RunSpec, *, min_duration_s: float | None = None) -> 
         cols = []
         for joint in joints:
             if joint not in s.names:
-                msg = f'no joint {joint!r} (joints: {", ".join(s.names)})'
+                joints = shorten(', '.join(s.names), limit=200)
+                msg = f'no joint {shorten(joint)!r} (joints: {joints})'
                 raise DataError(msg, file=file, column=topic)
             cols.append(arr[:, s.names.index(joint)])
         out = np.column_stack(cols).astype(np.float64)
@@ -226,11 +227,11 @@ def _check_spec(spec: RunSpec) -> None:
             key = f'{spec.key}.axes.{axis}.{q}'
             si = si_unit_of(cs.unit, quantity=AXIS_QUANTITIES[q])
             if cs.unit != si:
-                msg = f'a rosbag2 run is in SI: the unit must be {si!r}, got {cs.unit!r}'
+                msg = f'a rosbag2 run is in SI: the unit must be {si!r}, got {shorten(cs.unit)!r}'
                 raise ConfigError(msg, file=spec.manifest, key=f'{key}.unit')
             if cs.column != QUANTITY_TOPIC[q]:
                 msg = (f'for a rosbag2 run the column names the topic; {q} is on '
-                       f'{QUANTITY_TOPIC[q]!r}, got {cs.column!r}')
+                       f'{QUANTITY_TOPIC[q]!r}, got {shorten(cs.column)!r}')
                 raise ConfigError(msg, file=spec.manifest, key=f'{key}.column')
 
 

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DataError
+from ..errors import DataError, shorten
 from ..units import check_si_values, to_si
 from .manifest import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, ColumnSpec, RowFilter, RunSpec
 
@@ -117,7 +117,7 @@ class MeasuredRun:
         """
         arr = {'actual': self.position_m, 'commanded': self.command_position_m}.get(source)
         if arr is None:
-            msg = f'run {self.name!r} has no {source} position columns'
+            msg = f'run {shorten(self.name)!r} has no {source} position columns'
             raise DataError(msg, file=self.file)
         return arr
 
@@ -249,7 +249,7 @@ def _column_index(header: list[str], spec: RunSpec, file: str) -> dict[str, int]
         if not hits:
             lower = {h.lower(): h for h in header}
             close = difflib.get_close_matches(name.lower(), list(lower), n=1, cutoff=0.5)
-            hint = f'; did you mean {lower[close[0]]!r}?' if close else ''
+            hint = f'; did you mean {shorten(lower[close[0]])!r}?' if close else ''
             msg = f'no such column in the header{hint}'
             raise DataError(msg, file=file, column=name)
         if len(hits) > 1:
@@ -277,10 +277,10 @@ def _parse(rows: list[list[str]], j: int, numbers: np.ndarray, file: str,
         try:
             value = float(text)
         except ValueError:
-            msg = f'{text!r} is not a number'
+            msg = f'{shorten(text)!r} is not a number'
             raise DataError(msg, file=file, column=name, row=int(numbers[i])) from None
         if not np.isfinite(value):
-            msg = f'{text!r} is not a finite number'
+            msg = f'{shorten(text)!r} is not a finite number'
             raise DataError(msg, file=file, column=name, row=int(numbers[i]))
     raise AssertionError('unreachable: a bad cell must have been found')  # pragma: no cover
 

@@ -371,6 +371,8 @@ class _Ctx:
                     self.fail(key, f'no such file: {shorten(str(p), limit=200)}')
                 if p.is_dir() and not directory_ok:
                     self.fail(key, f'expected a file, got the directory {p}')
+                if not (p.is_file() or p.is_dir()):  # reading a FIFO would block
+                    self.fail(key, f'expected a regular file, got {shorten(str(p), limit=200)}')
         except (OSError, RuntimeError) as err:  # too long a name, a symlink loop
             msg = f'cannot use {describe(text)} as a file: {getattr(err, "strerror", None) or err}'
             raise ConfigError(msg, file=str(self.file), key=key) from None

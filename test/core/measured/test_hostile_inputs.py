@@ -1,5 +1,6 @@
 """Regression cases of issue 9 (hostile and broken input): every one ends in exit 1 with one
 clear line naming the place, or exit 0 with finite output, never a traceback."""
+import os
 from pathlib import Path
 import shutil
 
@@ -220,3 +221,20 @@ def test_time_steps_below_a_nanosecond(tmp_path: Path, step: str) -> None:
     (tmp_path / 'm' / 'r0.csv').write_text(text)
     code, _, err = _run('compare', manifest, tmp_path)
     assert code == 1 and "column 't', row 2" in _error_line(err)
+
+
+def test_data_that_is_a_fifo_is_refused_without_blocking(tmp_path: Path) -> None:
+    manifest = csv_campaign(tmp_path, runs=2)
+    (tmp_path / 'r0.csv').unlink()
+    os.mkfifo(tmp_path / 'r0.csv')
+    code, _, err = _run('compare', manifest, tmp_path)
+    assert code == 1 and 'runs[0].data: expected a regular file' in _error_line(err)
+
+
+def test_huge_cells_and_names_stay_bounded(tmp_path: Path) -> None:
+    manifest = csv_campaign(tmp_path, runs=2, cell='9' * 100_000 + 'x')
+    code, _, err = _run('compare', manifest, tmp_path)
+    assert code == 1 and "row 10: '999" in _error_line(err) and len(err) < 400
+    manifest.write_text(manifest.read_text().replace('unit: kW', 'unit: ' + 'k' * 100_000))
+    code, _, err = _run('compare', manifest, tmp_path)
+    assert code == 1 and 'unknown power unit' in _error_line(err) and len(err) < 600
