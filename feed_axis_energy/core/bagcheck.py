@@ -7,6 +7,7 @@ their arrays are used, so corrupt CDR that still decodes is not passed on.
 from __future__ import annotations
 
 from contextlib import contextmanager
+import math
 from pathlib import Path
 from typing import Iterator
 
@@ -46,12 +47,13 @@ def guard(path: Path, *, topic: str = '', index: int | None = None,
         raise DataError(msg, file=str(path), topic=topic, index=index) from None
 
 
-def check_trajectory(msg, *, file: str, topic: str, index: int) -> int:
+def check_trajectory(msg, *, file: str, topic: str, index: int,
+                     max_abs: float = math.inf) -> int:
     """Check one decoded JointTrajectory; return its number of joints.
 
     Every point's ``positions``, ``velocities``, ``accelerations`` and ``effort`` must be
-    empty or have one value per joint name, all values and the stamps must be finite and
-    non-negative where they are times, and joint names must be unique.
+    empty or have one value per joint name, all values and the stamps must be finite (and
+    values at most ``max_abs`` in magnitude), times non-negative, joint names unique.
 
     Raises
     ------
@@ -81,6 +83,10 @@ def check_trajectory(msg, *, file: str, topic: str, index: int) -> int:
                 raise DataError(msg_, **where)
             if len(arr) and not np.isfinite(arr).all():
                 msg_ = f'point {j}: {field} holds NaN or infinite values; expected finite ones'
+                raise DataError(msg_, **where)
+            if len(arr) and np.abs(arr).max() > max_abs:
+                msg_ = (f'point {j}: {field} holds {float(np.abs(arr).max()):.3g}; expected '
+                        f'magnitudes of at most {max_abs:g}')
                 raise DataError(msg_, **where)
     return m
 

@@ -24,6 +24,7 @@ from feed_axis_energy.core.bagcheck import check_trajectory, field_layout, guard
 from feed_axis_energy.core.errors import DataError, describe, shorten
 from feed_axis_energy.core.mcapcheck import check_mcap
 from feed_axis_energy.core.safeyaml import load_yaml_file
+from feed_axis_energy.core.units import MAX_ABS_SI
 
 __all__ = [
     'TOPIC_SETPOINTS', 'TOPIC_AXIS_STATE', 'TOPIC_POWER', 'TOPIC_BLOCK_ENERGY',
@@ -361,12 +362,14 @@ def read_series(path: str | Path, topic: str) -> Series:
     return messages_to_series(msgs)
 
 
-def read_raw_messages(path: str | Path,
-                      topics: Sequence[str]) -> list[tuple[str, int, bytes]]:
+def read_raw_messages(path: str | Path, topics: Sequence[str], *,
+                      max_abs: float = MAX_ABS_SI) -> list[tuple[str, int, bytes]]:
     """Serialized JointTrajectory messages of ``topics``, by log time: ``[(topic, ns, cdr)]``.
 
-    Each message is decoded once and checked (:func:`check_trajectory`) so that corrupt CDR
-    is refused here rather than published. Topics missing from the bag are skipped.
+    Each message is decoded once and checked (:func:`check_trajectory`, values at most
+    ``max_abs``: by default the bound of measured SI values, as when a run is loaded) so
+    that corrupt CDR is refused here rather than published. Topics missing from the bag are
+    skipped.
 
     Raises
     ------
@@ -386,7 +389,8 @@ def read_raw_messages(path: str | Path,
         _connections(reader, path, topics, msgtype=JOINT_TRAJECTORY)
         for topic, index, log_ns, raw in _messages(reader, path, conns):
             message = _decode(path, topic, index, raw, JOINT_TRAJECTORY)
-            check_trajectory(message, file=str(path), topic=topic, index=index)
+            check_trajectory(message, file=str(path), topic=topic, index=index,
+                             max_abs=max_abs)
             out.append((topic, log_ns, bytes(raw)))
     for topic in sorted({c.topic for c in conns} - {m[0] for m in out}):
         msg = 'the topic has no messages; expected a recorded run'
