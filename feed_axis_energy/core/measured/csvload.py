@@ -310,7 +310,7 @@ def _time(spec: RunSpec, sample: np.ndarray, numbers: np.ndarray, file: str,
         name = '<row index>'
         t = sample * float(spec.period_s)
     dt = np.diff(t)
-    bad = np.flatnonzero(dt < MIN_STEP_S)
+    bad = np.flatnonzero(dt < 0.999 * MIN_STEP_S)  # 0.999: rounding of decimal times
     if bad.size:
         i = int(bad[0]) + 1
         if dt[i - 1] == 0.0:

@@ -238,3 +238,15 @@ def test_huge_cells_and_names_stay_bounded(tmp_path: Path) -> None:
     manifest.write_text(manifest.read_text().replace('unit: kW', 'unit: ' + 'k' * 100_000))
     code, _, err = _run('compare', manifest, tmp_path)
     assert code == 1 and 'unknown power unit' in _error_line(err) and len(err) < 600
+
+
+def test_nanosecond_period_against_the_default_lag_range(tmp_path: Path) -> None:
+    # 1 ns samples with the default +-max lag once asked estimate_offset for 10^10 lags
+    # (74.5 GiB); positions of 10^12 m stay inside the bound and must give finite output
+    for k in range(2):
+        rows = ['t,P,X'] + [f'{i * 1e-9!r},0.05,{1e15 * (i % 2)!r}' for i in range(40)]
+        (tmp_path / f'r{k}.csv').write_text('\n'.join(rows) + '\n')
+    (tmp_path / 'm.yaml').write_text(manifest_text(['r0', 'r1']))
+    for command in ('compare', 'analyze'):
+        code, _, err = _run(command, tmp_path / 'm.yaml', tmp_path)
+        assert code == 0, err
