@@ -250,3 +250,15 @@ def test_nanosecond_period_against_the_default_lag_range(tmp_path: Path) -> None
     for command in ('compare', 'analyze'):
         code, _, err = _run(command, tmp_path / 'm.yaml', tmp_path)
         assert code == 0, err
+
+
+def test_analyze_runs_of_two_samples(tmp_path: Path) -> None:
+    # two samples per run make the acceleration constant: one quantile bin, which the
+    # residual diagnostics indexed past (IndexError, found by random numeric CSVs)
+    for k in range(2):
+        (tmp_path / f'r{k}.csv').write_text('t,P,X\n0.0,-3.5e-12,-16.15\n'
+                                            '0.42,135280129.3,-696515.1\n')
+    (tmp_path / 'm.yaml').write_text(manifest_text(['r0', 'r1']))
+    code, out, err = _run('analyze', tmp_path / 'm.yaml', tmp_path)
+    assert code == 0, err
+    assert 'is constant; nothing to bin' in out
