@@ -239,3 +239,33 @@ def test_mutated_trajectory_csv(text: str) -> None:
         check_outcome(*run_cli(['simulate', str(root / 't.csv'), '--json']), json_output=True)
     finally:
         shutil.rmtree(root, ignore_errors=True)
+
+
+@st.composite
+def numeric_runs(draw: st.DrawFn) -> list[str]:
+    """Two CSV runs of well-formed numbers of any size the bound allows, any time step."""
+    def number(low: int, high: int) -> float:
+        return draw(st.sampled_from([1.0, -1.0, 3.7])) * 10.0 ** draw(st.integers(low, high))
+    n = draw(st.sampled_from([2, 3, 7, 30]))
+    runs = []
+    for _ in range(2):
+        step = 10.0 ** draw(st.integers(-9, 5))
+        rows = ['t,P,X'] + [f'{i * step!r},{number(-12, 9)!r},{number(-12, 15)!r}'
+                            for i in range(n)]
+        runs.append('\n'.join(rows) + '\n')
+    return runs
+
+
+@settings(FUZZ, max_examples=25)
+@given(numeric_runs())
+def test_numeric_runs_of_any_size(runs: list[str]) -> None:
+    root = _workdir()
+    try:
+        for k, text in enumerate(runs):
+            (root / f'r{k}.csv').write_text(text)
+        (root / 'm.yaml').write_text(manifest_text(['r0', 'r1']))
+        for command in (['compare', '--quiet', '--json'], ['analyze', '--quiet', '--json'],
+                        ['fit-loss', '--json']):
+            check_outcome(*run_cli(command + [str(root / 'm.yaml')]), json_output=True)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
