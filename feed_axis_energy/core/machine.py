@@ -548,7 +548,8 @@ def _home(value: Any, axis_names: tuple[str, ...], *,
     if value is None:
         return ()
     home_d = _mapping(value, file=file, key='home_m', allowed=axis_names)
-    return tuple((a, _float(home_d, a, file=file, key='home_m', strict=False))
+    return tuple((a, _float(home_d, a, file=file, key='home_m', strict=False,
+                            minimum=-1.0e3, maximum=1.0e3))
                  for a in axis_names if a in home_d)
 
 
