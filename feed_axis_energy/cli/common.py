@@ -37,13 +37,14 @@ def load_machine_and_options(args: argparse.Namespace) -> tuple[Machine, Planner
     """Load the machine config and the planner options the command line asks for."""
     path = args.machine if args.machine is not None else default_machine()
     machine = load_machine(path)
-    if args.load_kg < 0:
-        msg = f'--load-kg must be >= 0, got {args.load_kg}'
+    if not 0.0 <= args.load_kg <= 1.0e6:  # also refuses nan and inf
+        msg = f'--load-kg must be a number of 0 to 1e6 kg, got {args.load_kg}'
         raise ConfigError(msg, file='command line', key='load-kg')
     options = machine.planner.options()
     if args.rate_hz is not None:
-        if not args.rate_hz > 0:
-            msg = f'--rate-hz must be > 0, got {args.rate_hz}'
+        # the machine config's bound: more would allocate beyond any memory
+        if not 0.0 < args.rate_hz <= 1.0e6:
+            msg = f'--rate-hz must be > 0 and <= 1e6 Hz, got {args.rate_hz}'
             raise ConfigError(msg, file='command line', key='rate-hz')
         options = replace(options, rate_hz=args.rate_hz)
     if args.profile is not None:

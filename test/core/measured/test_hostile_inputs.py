@@ -5,7 +5,7 @@ from pathlib import Path
 import shutil
 
 from hostile_inputs import (BAG_DAMAGES, bag_campaign, check_outcome, csv_campaign, MACHINE,
-                            manifest_text, run_cli)
+                            manifest_text, run_cli, SHORT_PROGRAM)
 import pytest
 
 from feed_axis_energy.core import bagio
@@ -262,3 +262,15 @@ def test_analyze_runs_of_two_samples(tmp_path: Path) -> None:
     code, out, err = _run('analyze', tmp_path / 'm.yaml', tmp_path)
     assert code == 0, err
     assert 'is constant; nothing to bin' in out
+
+
+@pytest.mark.parametrize('option, value', [
+    ('--rate-hz', 'inf'), ('--rate-hz', 'nan'), ('--rate-hz', '1e300'),
+    ('--load-kg', 'nan'), ('--load-kg', 'inf'), ('--load-kg', '1e300'),
+])
+def test_simulate_numeric_options(tmp_path: Path, option: str, value: str) -> None:
+    # --rate-hz inf escaped as a ValueError, 1e300 as "Maximum allowed size exceeded"
+    (tmp_path / 'p.nc').write_text(SHORT_PROGRAM)
+    code, out, err = run_cli(['simulate', str(tmp_path / 'p.nc'), '--json', option, value])
+    check_outcome(code, out, err, json_output=True)
+    assert code == 1 and f'command line: {option[2:]}: ' in _error_line(err)
