@@ -26,9 +26,10 @@ def add_machine_options(p: argparse.ArgumentParser) -> None:
                    help='machine config (default: the paper\'s demonstrator, '
                         'config/demonstrator.yaml)')
     p.add_argument('--load-kg', type=float, default=0.0, metavar='KG',
-                   help='mass clamped on the table [kg] (default: 0)')
+                   help='mass clamped on the table [kg] (default: 0; 0 to 1e6)')
     p.add_argument('--rate-hz', type=float, default=None, metavar='HZ',
-                   help='sampling rate of the simulation [Hz] (default: machine config, 1000)')
+                   help='sampling rate of the simulation [Hz] (default: machine config, 1000; '
+                        'at most 1e6)')
     p.add_argument('--profile', choices=('jerk', 'trapezoid'), default=None,
                    help='velocity profile (default: machine config)')
 
