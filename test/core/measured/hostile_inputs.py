@@ -174,6 +174,33 @@ def _rewrite(bag: Path, make: Callable[[str, int, object], list]) -> None:
     tmp.rename(bag)
 
 
+def to_sqlite3(bag: Path) -> None:
+    """Rewrite a bag with the same messages and custom_data in sqlite3 storage (valid)."""
+    info = bagio.read_metadata(bag)
+    with Reader(bag) as reader:
+        items = [(c.topic, c.msgtype, t, bytes(raw)) for c, t, raw in reader.messages()]
+    tmp = bag.with_name(bag.name + '.new')
+    writer = Writer(tmp, version=9, storage_plugin=StoragePlugin.SQLITE3)
+    writer.open()
+    conns: dict[str, object] = {}
+    for topic, msgtype, stamp, raw in items:
+        if topic not in conns:
+            conns[topic] = writer.add_connection(topic, msgtype, typestore=bagio.typestore())
+        writer.write(conns[topic], stamp, raw)
+    for key, value in (info.get('custom_data') or {}).items():
+        writer.set_custom_data(key, value)
+    writer.close()
+    shutil.rmtree(bag)
+    tmp.rename(bag)
+
+
+def _sqlite3_truncated(bag: Path) -> None:
+    to_sqlite3(bag)
+    db = next(bag.glob('*.db3'))
+    data = db.read_bytes()
+    db.write_bytes(data[:len(data) // 2])
+
+
 def _wrong_type(bag: Path) -> None:
     string = bagio.typestore().types['std_msgs/msg/String']
 
@@ -229,7 +256,8 @@ BAG_DAMAGES: dict[str, Callable[[Path], None]] = {
     'empty metadata.yaml': lambda bag: (bag / 'metadata.yaml').write_text(''),
     'broken metadata.yaml': lambda bag: (bag / 'metadata.yaml').write_text('{[: x\n'),
     'metadata.yaml not UTF-8': lambda bag: (bag / 'metadata.yaml').write_bytes(b'\xff\xfe'),
-    'sqlite3 storage': _sqlite3_storage,
+    'sqlite3 storage (an MCAP file)': _sqlite3_storage,
+    'sqlite3 storage, truncated': _sqlite3_truncated,
     'symlink loop (storage file)': _symlink_loop,
     'symlink loop (metadata.yaml)': _metadata_loop,
     'topics without messages': _no_messages,

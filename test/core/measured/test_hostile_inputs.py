@@ -5,7 +5,7 @@ from pathlib import Path
 import shutil
 
 from hostile_inputs import (BAG_DAMAGES, bag_campaign, check_outcome, csv_campaign, MACHINE,
-                            manifest_text, run_cli, SHORT_PROGRAM)
+                            manifest_text, run_cli, SHORT_PROGRAM, to_sqlite3)
 import pytest
 
 from feed_axis_energy.core import bagio
@@ -162,6 +162,15 @@ def test_valid_bags_work(valid_bags: Path, tmp_path: Path) -> None:
     for command in COMMANDS:
         if command != 'fit-loss':   # these runs have too few feeds for a fit
             assert _run(command, valid_bags, tmp_path)[0] == 0
+
+
+def test_valid_sqlite3_bags_work(valid_bags: Path, tmp_path: Path) -> None:
+    work = tmp_path / 'campaign'
+    shutil.copytree(valid_bags.parent, work)
+    to_sqlite3(work / 'r0')
+    assert list((work / 'r0').glob('*.db3'))
+    for command in ('compare', 'analyze', 'import'):
+        assert _run(command, work / valid_bags.name, tmp_path)[0] == 0
 
 
 @pytest.mark.parametrize('damage', list(BAG_DAMAGES))
