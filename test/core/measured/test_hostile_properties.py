@@ -6,6 +6,7 @@ output, or exit 1 with clear ``error:`` lines, never a traceback). Examples are 
 a fixed seed (``derandomize=True``, no example database), so CI sees the same cases every
 run; the example counts keep the whole module well under a minute.
 """
+import json
 from pathlib import Path
 import shutil
 import tempfile
@@ -23,13 +24,16 @@ _ALPHABET = list('0123456789.eE+-, \n\t:[]{}&*#"\'') + [
     '\x00', '\xe9', 'nan', 'inf', '1e308', '1e300', '-', 'mm', 'kW', 'null']
 
 
-@st.composite
-def mutated(draw: st.DrawFn, text: str, *, max_edits: int = 6) -> str:
-    """``text`` with a few characters replaced, inserted or deleted, or cut short."""
-    edits = draw(st.lists(st.tuples(st.sampled_from(['replace', 'insert', 'delete', 'cut']),
-                                    st.floats(0.0, 1.0), st.sampled_from(_ALPHABET)),
-                          min_size=1, max_size=max_edits))
-    for op, where, piece in edits:
+def edits(max_edits: int = 6) -> st.SearchStrategy:
+    """A few edits: ``(operation, where as a fraction of the text, piece)``."""
+    return st.lists(st.tuples(st.sampled_from(['replace', 'insert', 'delete', 'cut']),
+                              st.floats(0.0, 1.0), st.sampled_from(_ALPHABET)),
+                    min_size=1, max_size=max_edits)
+
+
+def apply_edits(text: str, changes: list) -> str:
+    """``text`` with characters replaced, inserted or deleted, or cut short."""
+    for op, where, piece in changes:
         i = min(int(where * len(text)), max(len(text) - 1, 0))
         if op == 'replace':
             text = text[:i] + piece + text[i + 1:]
@@ -40,6 +44,11 @@ def mutated(draw: st.DrawFn, text: str, *, max_edits: int = 6) -> str:
         else:
             text = text[:i]
     return text
+
+
+def mutated(text: str, *, max_edits: int = 6) -> st.SearchStrategy:
+    """``text`` with a few edits (:func:`apply_edits`)."""
+    return edits(max_edits).map(lambda changes: apply_edits(text, changes))
 
 
 def _workdir() -> Path:
@@ -267,5 +276,35 @@ def test_numeric_runs_of_any_size(runs: list[str]) -> None:
         for command in (['compare', '--quiet', '--json'], ['analyze', '--quiet', '--json'],
                         ['fit-loss', '--json']):
             check_outcome(*run_cli(command + [str(root / 'm.yaml')]), json_output=True)
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+_JSON = st.recursive(
+    st.none() | st.booleans() | st.integers(-2**70, 2**70) | st.floats(allow_nan=False)
+    | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(
+        st.sampled_from(['t0_s', 'excluded_rows', 'rows', 'name', 'x']), inner, max_size=3),
+    max_leaves=8)
+
+
+@settings(FUZZ, max_examples=60)
+@given(st.one_of(edits(5).map(lambda e: ('text', e)), _JSON.map(lambda v: ('custom', v))))
+def test_damaged_bag_metadata(damage: tuple) -> None:
+    template = _bag_template()
+    root = _workdir()
+    try:
+        shutil.copytree(template.parent, root / 'c')
+        meta = root / 'c' / 'r0' / 'metadata.yaml'
+        kind, value = damage
+        if kind == 'text':
+            meta.write_text(apply_edits(meta.read_text(), value))
+        else:
+            doc = yaml.safe_load(meta.read_text())
+            doc['rosbag2_bagfile_information']['custom_data'][
+                'feed_axis_energy/measured_run'] = json.dumps(value)
+            meta.write_text(yaml.safe_dump(doc))
+        check_outcome(*run_cli(['compare', '--quiet', '--json',
+                                str(root / 'c' / template.name)]), json_output=True)
     finally:
         shutil.rmtree(root, ignore_errors=True)
