@@ -8,22 +8,30 @@ Topic names, field meanings and units are listed in ``docs/ARCHITECTURE.md`` and
 """
 from __future__ import annotations
 
-import json
+import contextlib
+from contextlib import contextmanager
 from dataclasses import dataclass
+import json
+import math
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Iterable, Iterator, Sequence
 
 import numpy as np
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
-from feed_axis_energy.core.errors import DataError
+from feed_axis_energy.core.bagcheck import check_trajectory, field_layout, guard
+from feed_axis_energy.core.errors import DataError, describe, shorten
+from feed_axis_energy.core.mcapcheck import check_mcap
+from feed_axis_energy.core.safeyaml import load_yaml_file
+from feed_axis_energy.core.units import MAX_ABS_SI
 
 __all__ = [
     'TOPIC_SETPOINTS', 'TOPIC_AXIS_STATE', 'TOPIC_POWER', 'TOPIC_BLOCK_ENERGY',
     'TOPIC_MEASURED_POWER', 'TOPIC_MEASURED_KINEMATICS', 'JOINT_TRAJECTORY', 'DIAGNOSTIC_ARRAY',
     'Series', 'BagWriter', 'read_series', 'read_block_energy', 'read_custom_data', 'bag_topics',
-    'typestore', 'series_to_messages', 'messages_to_series',
+    'typestore', 'series_to_messages', 'messages_to_series', 'read_metadata',
+    'read_raw_messages', 'check_trajectory',
 ]
 
 TOPIC_SETPOINTS = '/setpoints'
@@ -213,53 +221,239 @@ class BagWriter:
         self._writer.set_custom_data(key, json.dumps(value))
 
 
-def _open_reader(path: str | Path) -> Reader:
+# ----------------------------------------------------------------------------- reading
+#
+# Everything read from a bag passes through here: the metadata is parsed by the bounded
+# YAML loader first, every rosbags call that touches file content is guarded, and every
+# decoded message is checked (type, array lengths, finite values) before it is used, so a
+# damaged bag ends in one DataError naming the bag, the topic and the message index.
+
+def read_metadata(path: str | Path) -> dict:
+    """Return the parsed ``metadata.yaml`` of a bag directory (the bounded YAML loader).
+
+    Parameters
+    ----------
+    path
+        The bag directory.
+
+    Returns
+    -------
+    dict
+        The ``rosbag2_bagfile_information`` mapping.
+
+    Raises
+    ------
+    DataError
+        Not a directory, no or unreadable ``metadata.yaml``, not valid YAML, or not the
+        rosbag2 layout.
+    """
     path = Path(path)
-    if not (path / 'metadata.yaml').is_file():
+    meta_file = path / 'metadata.yaml'
+    try:
+        is_bag = path.is_dir() and meta_file.is_file()
+    except OSError:  # a name too long, a loop in the path
+        is_bag = False
+    if not is_bag:
         msg = 'not a rosbag2 directory (no metadata.yaml)'
         raise DataError(msg, file=str(path))
-    return Reader(path)
+    meta = load_yaml_file(meta_file, error=DataError, what='bag metadata')
+    info = meta.get('rosbag2_bagfile_information') if isinstance(meta, dict) else None
+    if not isinstance(info, dict):
+        msg = (f'expected a mapping with the key rosbag2_bagfile_information, got '
+               f'{describe(meta)}')
+        raise DataError(msg, file=str(meta_file))
+    return info
+
+
+@contextmanager
+def _open_reader(path: str | Path) -> Iterator[Reader]:
+    path = Path(path)
+    info = read_metadata(path)  # bounded parse and layout check before rosbags parses it
+    files = info.get('relative_file_paths')
+    for name in files if isinstance(files, list) else []:
+        storage = path / Path(str(name)).name
+        if str(name).endswith('.mcap') and storage.is_file():
+            check_mcap(storage, bag=path)
+    with guard(path, doing='open the bag'):
+        reader = Reader(path)
+        reader.open()
+    try:
+        yield reader
+    finally:
+        with contextlib.suppress(Exception):
+            reader.close()
 
 
 def bag_topics(path: str | Path) -> dict[str, tuple[str, int]]:
-    """Return ``{topic: (msgtype, message count)}`` of a bag."""
+    """Return ``{topic: (msgtype, message count)}`` of a bag.
+
+    Raises
+    ------
+    DataError
+        Not a bag, or a bag whose metadata or storage cannot be read.
+    """
     with _open_reader(path) as reader:
-        return {c.topic: (c.msgtype, c.msgcount) for c in reader.connections}
+        return {c.topic: (c.msgtype, max(int(c.msgcount), 0)) for c in reader.connections}
+
+
+def _connections(reader: Reader, path: Path, topics: Sequence[str], *,
+                 msgtype: str | None) -> list:
+    conns = [c for c in reader.connections if c.topic in topics]
+    for c in conns:
+        if msgtype is not None and c.msgtype != msgtype:
+            msg = f'has type {shorten(c.msgtype)}, expected {msgtype}'
+            raise DataError(msg, file=str(path), topic=c.topic)
+    return conns
+
+
+def _messages(reader: Reader, path: Path, conns: list) -> Iterator[tuple[str, int, int, bytes]]:
+    """``(topic, index within the topic, log time [ns], raw CDR)`` with guarded reading."""
+    counts: dict[str, int] = {}
+    it = reader.messages(connections=conns)
+    while True:
+        with guard(path, doing='read the messages'):
+            item = next(it, None)
+        if item is None:
+            return
+        conn, log_ns, raw = item
+        index = counts.get(conn.topic, 0)
+        counts[conn.topic] = index + 1
+        yield conn.topic, index, int(log_ns), raw
+
+
+def _decode(path: Path, topic: str, index: int, raw: bytes, msgtype: str):
+    with guard(path, topic=topic, index=index, doing='decode the message'):
+        return typestore().deserialize_cdr(raw, msgtype)
 
 
 def read_series(path: str | Path, topic: str) -> Series:
-    """Read all JointTrajectory messages of ``topic`` into one :class:`Series`."""
-    ts = typestore()
+    """Read all JointTrajectory messages of ``topic`` into one :class:`Series`.
+
+    Raises
+    ------
+    DataError
+        Not a bag, the topic is missing or of another type, a message cannot be decoded,
+        or the decoded messages do not fit together (:func:`check_trajectory`, the same
+        joint names and fields in every message); naming the topic and message index.
+    """
+    path = Path(path)
+    msgs = []
     with _open_reader(path) as reader:
-        conns = [c for c in reader.connections if c.topic == topic]
+        conns = _connections(reader, path, [topic], msgtype=None)
         if not conns:
-            have = ', '.join(sorted(c.topic for c in reader.connections)) or 'none'
+            have = shorten(', '.join(sorted(c.topic for c in reader.connections)),
+                           limit=200) or 'none'
             msg = f'topic {topic!r} not in bag (topics: {have})'
             raise DataError(msg, file=str(path))
-        msgs = [ts.deserialize_cdr(raw, c.msgtype)
-                for c, _, raw in reader.messages(connections=conns)]
+        _connections(reader, path, [topic], msgtype=JOINT_TRAJECTORY)
+        first = None
+        for _, index, _, raw in _messages(reader, path, conns):
+            message = _decode(path, topic, index, raw, JOINT_TRAJECTORY)
+            check_trajectory(message, file=str(path), topic=topic, index=index)
+            shape = (tuple(message.joint_names), field_layout(message))
+            if first is None:
+                first = shape
+            elif shape != first and message.points:
+                msg = ('joint names or filled fields differ from those of message 0; '
+                       'expected the same columns in every message of a topic')
+                raise DataError(msg, file=str(path), topic=topic, index=index)
+            msgs.append(message)
     msgs.sort(key=lambda m: (m.header.stamp.sec, m.header.stamp.nanosec))
     return messages_to_series(msgs)
 
 
-def read_block_energy(path: str | Path) -> list[tuple[int, float, float]]:
-    """Read the per-block energy summary: ``[(line, energy_j, duration_s), ...]``."""
-    ts = typestore()
+def read_raw_messages(path: str | Path, topics: Sequence[str], *,
+                      max_abs: float = MAX_ABS_SI) -> list[tuple[str, int, bytes]]:
+    """Serialized JointTrajectory messages of ``topics``, by log time: ``[(topic, ns, cdr)]``.
+
+    Each message is decoded once and checked (:func:`check_trajectory`, values at most
+    ``max_abs``: by default the bound of measured SI values, as when a run is loaded) so
+    that corrupt CDR is refused here rather than published. Topics missing from the bag are
+    skipped.
+
+    Raises
+    ------
+    DataError
+        Not a bag; none of ``topics`` in it; a topic of another type; a present topic
+        without messages; a message that cannot be decoded or fails the checks.
+    """
+    path = Path(path)
     out = []
     with _open_reader(path) as reader:
-        conns = [c for c in reader.connections if c.topic == TOPIC_BLOCK_ENERGY]
-        for c, _, raw in reader.messages(connections=conns):
-            msg = ts.deserialize_cdr(raw, c.msgtype)
+        conns = _connections(reader, path, topics, msgtype=None)
+        if not conns:
+            have = shorten(', '.join(sorted(c.topic for c in reader.connections)),
+                           limit=200) or 'none'
+            msg = f'none of the topics {list(topics)} is in the bag (topics: {have})'
+            raise DataError(msg, file=str(path))
+        _connections(reader, path, topics, msgtype=JOINT_TRAJECTORY)
+        for topic, index, log_ns, raw in _messages(reader, path, conns):
+            message = _decode(path, topic, index, raw, JOINT_TRAJECTORY)
+            check_trajectory(message, file=str(path), topic=topic, index=index,
+                             max_abs=max_abs)
+            out.append((topic, log_ns, bytes(raw)))
+    for topic in sorted({c.topic for c in conns} - {m[0] for m in out}):
+        msg = 'the topic has no messages; expected a recorded run'
+        raise DataError(msg, file=str(path), topic=topic)
+    out.sort(key=lambda m: m[1])
+    return out
+
+
+def read_block_energy(path: str | Path) -> list[tuple[int, float, float]]:
+    """Read the per-block energy summary: ``[(line, energy_j, duration_s), ...]``.
+
+    Raises
+    ------
+    DataError
+        Not a bag, a message that cannot be decoded, or a status without a whole-number
+        ``line`` and finite ``energy_j`` and ``duration_s``.
+    """
+    path = Path(path)
+    out = []
+    with _open_reader(path) as reader:
+        conns = _connections(reader, path, [TOPIC_BLOCK_ENERGY], msgtype=DIAGNOSTIC_ARRAY)
+        for topic, index, _, raw in _messages(reader, path, conns):
+            msg = _decode(path, topic, index, raw, DIAGNOSTIC_ARRAY)
             for status in msg.status:
                 vals = {kv.key: kv.value for kv in status.values}
-                out.append((int(vals['line']), float(vals['energy_j']),
-                            float(vals['duration_s'])))
+                try:
+                    row = (int(vals['line']), float(vals['energy_j']),
+                           float(vals['duration_s']))
+                except (KeyError, ValueError) as err:
+                    text = f'status {shorten(status.name)!r}: expected line, energy_j and ' \
+                           f'duration_s numbers ({shorten(str(err))})'
+                    raise DataError(text, file=str(path), topic=topic, index=index) from None
+                if not (math.isfinite(row[1]) and math.isfinite(row[2])):
+                    text = f'status {shorten(status.name)!r}: energy or duration not finite'
+                    raise DataError(text, file=str(path), topic=topic, index=index)
+                out.append(row)
     return out
 
 
 def read_custom_data(path: str | Path, key: str) -> object:
-    """Read a JSON value stored with :meth:`BagWriter.set_custom_data` (``None`` if absent)."""
-    import yaml
-    meta = yaml.safe_load((Path(path) / 'metadata.yaml').read_text())
-    custom = meta.get('rosbag2_bagfile_information', {}).get('custom_data') or {}
-    return json.loads(custom[key]) if key in custom else None
+    """Read a JSON value stored with :meth:`BagWriter.set_custom_data` (``None`` if absent).
+
+    Raises
+    ------
+    DataError
+        Not a bag, metadata that cannot be read, or a value that is not valid JSON,
+        naming the bag and the key.
+    """
+    info = read_metadata(path)
+    custom = info.get('custom_data') or {}
+    where = str(Path(path) / 'metadata.yaml')
+    if not isinstance(custom, dict):
+        msg = f'custom_data: expected a mapping, got {describe(custom)}'
+        raise DataError(msg, file=where)
+    if key not in custom:
+        return None
+    text = custom[key]
+    if not isinstance(text, str):
+        msg = f'custom_data.{key}: expected JSON text, got {describe(text)}'
+        raise DataError(msg, file=where)
+    try:
+        return json.loads(text)
+    except (ValueError, RecursionError) as err:
+        reason = 'nested too deeply' if isinstance(err, RecursionError) else shorten(str(err))
+        msg = f'custom_data.{key}: not valid JSON ({reason})'
+        raise DataError(msg, file=where) from None
