@@ -80,8 +80,7 @@ def main() -> None:
     ap.add_argument('--out', action='store_true', help='also write the bag (--out)')
     args = ap.parse_args()
     cases = ('demonstrator', 'contour') if args.case == 'both' else (args.case,)
-    with tempfile.TemporaryDirectory(dir=ROOT.parent if os.access(ROOT.parent, os.W_OK)
-                                     else None) as tmp:
+    with tempfile.TemporaryDirectory() as tmp:
         for case in cases:
             text = (demonstrator_program if case == 'demonstrator' else contour_program)(
                 args.hours)

@@ -118,9 +118,11 @@ def _run_stream(args, machine, options, program, progress) -> dict:
     from feed_axis_energy.core.planstream import estimate_plan
     from feed_axis_energy.core.simstream import simulate_stream
     limits = machine.limits()
-    estimate = estimate_plan(program.moves, limits, options=options, file=program.file)
-    _check_cost(args, estimate, n_axes=len(limits), rate_hz=options.rate_hz,
-                file=program.file)
+    if args.max_samples or args.out is not None:
+        # a planning pass without samples (cost: per block) to refuse before any output
+        estimate = estimate_plan(program.moves, limits, options=options, file=program.file)
+        _check_cost(args, estimate, n_axes=len(limits), rate_hz=options.rate_hz,
+                    file=program.file)
     top = args.top
     total = len(program.moves)
     if args.out is None:

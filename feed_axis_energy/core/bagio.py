@@ -17,6 +17,7 @@ import numpy as np
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
+from feed_axis_energy.core.cdr import joint_trajectory_cdr
 from feed_axis_energy.core.errors import DataError
 
 __all__ = [
@@ -184,11 +185,23 @@ class BagWriter:
         self._writer.write(conn, stamp_ns, typestore().serialize_cdr(message, msgtype))
 
     def write_series(self, topic: str, series: Series, *, batch: int = 100) -> int:
-        """Write a time series as batched JointTrajectory messages; returns the message count."""
-        msgs = series_to_messages(series, batch=batch)
-        for stamp, message in msgs:
-            self.write_message(topic, JOINT_TRAJECTORY, stamp, message)
-        return len(msgs)
+        """Write a time series as batched JointTrajectory messages; returns the message count.
+
+        The messages are those of :func:`series_to_messages`, serialised all at once by
+        :func:`.cdr.joint_trajectory_cdr` (same bytes, without a Python object per point).
+        """
+        if np.any(series.t < 0):
+            msg = 'bag time series must not have negative times'
+            raise ValueError(msg)
+        t_ns = np.rint(series.t * _NS).astype(np.int64)
+        fields = [getattr(series, f) for f in ('positions', 'velocities', 'accelerations',
+                                               'effort')]
+        raw = joint_trajectory_cdr(t_ns, tuple(series.names), fields, batch=batch)
+        conn = self._connection(topic, JOINT_TRAJECTORY)
+        write = self._writer.write
+        for stamp, data in raw:
+            write(conn, stamp, data)
+        return len(raw)
 
     def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
                            stamp_s: float, program: str = '') -> None:

@@ -49,7 +49,7 @@ __all__ = ['DEFAULT_CHUNK_SAMPLES', 'WINDOW_BLOCKS', 'PlannedWindow', 'iter_plan
            'iter_motion', 'concat_motion', 'PlanEstimate', 'estimate_plan']
 
 DEFAULT_CHUNK_SAMPLES = 1 << 16   # samples per Motion chunk (65 536: 65.5 s at 1 kHz)
-WINDOW_BLOCKS = 256               # blocks read before the first commit attempt of a window
+WINDOW_BLOCKS = 4096              # blocks read before the first commit attempt of a window
 _SATURATION_MARGIN = 1e-9         # relative margin for "the cap holds whatever follows"
 
 
@@ -386,7 +386,9 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
             vel = np.empty((n, k))
             acc = np.empty((n, k))
             if n:
-                owner = np.maximum(np.searchsorted(t0_phase, t, side='right') - 1, 0)
+                # each phase owns the samples from the first one at or after its start
+                first = np.searchsorted(t, t0_phase, side='left')
+                owner = np.repeat(np.arange(first.size), np.diff(np.append(first, n)))
                 mi = _sample(t, owner, win.phases, locate, seg, geo, cols, p0c, uc,
                              out=(pos, vel, acc))
                 buf.extend(t, pos, vel, acc, lines[mi])

@@ -27,6 +27,14 @@ from .trajectory import PlannerOptions
 __all__ = ['streamable', 'iter_simulation', 'SummaryAccumulator', 'simulate_stream']
 
 
+def _row_sum(a: np.ndarray) -> np.ndarray:
+    """Sum over the (few) columns, added in column order as ``a.sum(axis=1)`` adds them."""
+    out = a[:, 0].copy()
+    for j in range(1, a.shape[1]):
+        out += a[:, j]
+    return out
+
+
 def streamable(machine: Machine) -> bool:
     """True when every declared effect of ``machine`` is sample-local (can run per chunk)."""
     if not machine.effects:
@@ -72,14 +80,14 @@ def iter_simulation(motions: Iterable[Motion], machine: Machine, *, load_kg: flo
         k = drawn.shape[1]
         if integrator is None:
             integrator = EnergyIntegrator(k + 1)
-        base = PowerResult(t=dyn.t, axes=dyn.axes, power_w=drawn, total_w=drawn.sum(axis=1),
+        base = PowerResult(t=dyn.t, axes=dyn.axes, power_w=drawn, total_w=drawn[:, 0],
                            energy_j=drawn, total_energy_j=drawn[:, 0],
                            mechanical_w=mechanical, loss_power_w=dyn.loss_power_w,
                            line=dyn.line, braking=machine.braking)
         extra = declared_effects_power_w(dyn, base, machine)
         if extra is not None:
             drawn = drawn + extra
-        total = drawn.sum(axis=1)
+        total = _row_sum(drawn)
         energy = integrator.update(dyn.t, np.column_stack((drawn, total)))
         power = PowerResult(t=dyn.t, axes=dyn.axes, power_w=drawn, total_w=total,
                             energy_j=energy[:, :k], total_energy_j=energy[:, k],
@@ -101,7 +109,7 @@ class SummaryAccumulator:
         self.n = 0
         self.t_first = 0.0
         self.t_last = 0.0
-        self.p_last: np.ndarray | None = None      # (power_w, total_w) of the last sample
+        self.total_last = 0.0
         self.loss_last: float = 0.0
         self.neg_last: np.ndarray | None = None
         self.line_last = 0
@@ -112,6 +120,7 @@ class SummaryAccumulator:
         self.energy: np.ndarray | None = None
         self.braking = 'regenerative'
         self.dt_counts: dict[float, int] = {}
+        self._recent: list[float] = []
         self.lines: dict[int, list[float]] = {}
         self.first: SimulationResult | None = None
 
@@ -126,43 +135,69 @@ class SummaryAccumulator:
             self.axes = tuple(p.axes)
             self.braking = p.braking
             self.t_first = float(p.t[0])
-        drawn = np.column_stack((p.power_w, p.total_w))
-        peak = drawn.max(axis=0)
+        # column by column: a reduction along axis 0 of a narrow array is slow in numpy
+        peak = np.array([p.power_w[:, j].max() for j in range(p.power_w.shape[1])]
+                        + [p.total_w.max()])
         self.peak = peak if self.peak is None else np.maximum(self.peak, peak)
-        loss = p.loss_power_w.sum(axis=1)
+        loss = _row_sum(p.loss_power_w)
         neg = np.minimum(p.mechanical_w, 0.0)
-        if self.n:
-            t = np.concatenate(([self.t_last], p.t))
-            loss = np.concatenate(([self.loss_last], loss))
-            neg = np.vstack((self.neg_last[None, :], neg))
-            total = np.concatenate(([self.p_last[-1]], p.total_w))
-            lines = p.line
-        else:
-            t, total, lines = p.t, p.total_w, p.line[1:]
+        t, total, lines = p.t, p.total_w, p.line[1:]
         dt = np.diff(t)
+        if self.n:
+            # the interval from the previous chunk's last sample to this chunk's first
+            d0 = float(t[0] - self.t_last)
+            self.loss_energy += 0.5 * (loss[0] + self.loss_last) * d0
+            self.regenerated += float(np.sum(0.5 * (neg[0] + self.neg_last) * d0))
+            self._count_dt(np.array([d0]))
+            self._add_lines(np.array([p.line[0]]),
+                            np.array([0.5 * (total[0] + self.total_last) * d0]),
+                            np.array([d0]))
         if dt.size:
             self.loss_energy += float(np.sum(0.5 * (loss[1:] + loss[:-1]) * dt))
             self.regenerated += float(np.sum(0.5 * (neg[1:] + neg[:-1]) * dt[:, None]))
-            values, counts = np.unique(dt, return_counts=True)
-            for v, c in zip(values.tolist(), counts.tolist()):
-                self.dt_counts[v] = self.dt_counts.get(v, 0) + c
-            de = 0.5 * (total[1:] + total[:-1]) * dt
-            keys, inverse = np.unique(np.asarray(lines, dtype=np.int64), return_inverse=True)
-            e = np.bincount(inverse, weights=de, minlength=keys.shape[0])
-            d = np.bincount(inverse, weights=dt, minlength=keys.shape[0])
-            for key, ee, dd in zip(keys.tolist(), e.tolist(), d.tolist()):
-                acc = self.lines.get(key)
-                if acc is None:
-                    self.lines[key] = [ee, dd]
-                else:
-                    acc[0] += ee
-                    acc[1] += dd
+            self._count_dt(dt)
+            self._add_lines(lines, 0.5 * (total[1:] + total[:-1]) * dt, dt)
         self.n += m
         self.t_last = float(p.t[-1])
-        self.p_last = drawn[-1].copy()
+        self.total_last = float(total[-1])
         self.loss_last = float(loss[-1])
         self.neg_last = neg[-1].copy()
         self.energy = np.append(p.energy_j[-1], p.total_energy_j[-1])
+
+    def _count_dt(self, dt: np.ndarray) -> None:
+        """Count the sample intervals by value (few distinct values on a uniform grid)."""
+        rest = dt
+        # values seen in the previous chunk first: a comparison is far cheaper than a sort
+        for value in self._recent:
+            hit = rest == value
+            c = int(np.count_nonzero(hit))
+            if c:
+                self.dt_counts[value] += c
+                rest = rest[~hit] if c < rest.size else rest[:0]
+            if rest.size == 0:
+                return
+        values, counts = np.unique(rest, return_counts=True)
+        for v, c in zip(values.tolist(), counts.tolist()):
+            self.dt_counts[v] = self.dt_counts.get(v, 0) + c
+        self._recent = values.tolist()
+
+    def _add_lines(self, lines: np.ndarray, de: np.ndarray, dt: np.ndarray) -> None:
+        """Add energy and time per source line (interval -> line of its end sample)."""
+        lines = np.asarray(lines, dtype=np.int64)
+        if lines.size and lines[0] == lines[-1] and np.all(lines == lines[0]):
+            keys, e, d = [int(lines[0])], [float(de.sum())], [float(dt.sum())]
+        else:
+            uk, inverse = np.unique(lines, return_inverse=True)
+            keys = uk.tolist()
+            e = np.bincount(inverse, weights=de, minlength=uk.shape[0]).tolist()
+            d = np.bincount(inverse, weights=dt, minlength=uk.shape[0]).tolist()
+        for key, ee, dd in zip(keys, e, d):
+            acc = self.lines.get(key)
+            if acc is None:
+                self.lines[key] = [ee, dd]
+            else:
+                acc[0] += ee
+                acc[1] += dd
 
     def block_energy(self) -> list[tuple[int, float, float]]:
         """``(line, energy [J], duration [s])`` by line, as :func:`.energy.energy_by_line`."""
