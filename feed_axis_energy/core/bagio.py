@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Iterable, Sequence
 
 import numpy as np
-from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
 from feed_axis_energy.core.cdr import joint_trajectory_cdr
@@ -24,7 +24,7 @@ __all__ = [
     'TOPIC_SETPOINTS', 'TOPIC_AXIS_STATE', 'TOPIC_POWER', 'TOPIC_BLOCK_ENERGY',
     'TOPIC_MEASURED_POWER', 'TOPIC_MEASURED_KINEMATICS', 'JOINT_TRAJECTORY', 'DIAGNOSTIC_ARRAY',
     'Series', 'BagWriter', 'read_series', 'read_block_energy', 'read_custom_data', 'bag_topics',
-    'typestore', 'series_to_messages', 'messages_to_series',
+    'typestore', 'series_to_messages', 'messages_to_series', 'BAG_COMPRESSIONS',
 ]
 
 TOPIC_SETPOINTS = '/setpoints'
@@ -38,6 +38,7 @@ JOINT_TRAJECTORY = 'trajectory_msgs/msg/JointTrajectory'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 
 _NS = 1_000_000_000
+BAG_COMPRESSIONS = ('none', 'zstd')
 _TYPESTORE = None
 
 
@@ -153,14 +154,23 @@ class BagWriter:
     ----------
     path
         Bag directory to create; it must not exist yet.
+    compression
+        ``'none'`` (default) or ``'zstd'``: MCAP chunks compressed with zstd (about 8x
+        smaller for simulated series, about 2.5x slower to write).
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, *, compression: str = 'none'):
         self.path = Path(path)
         if self.path.exists():
             msg = f'{self.path} exists already; choose a new output directory'
             raise FileExistsError(msg)
+        if compression not in BAG_COMPRESSIONS:
+            msg = f'compression must be one of {", ".join(BAG_COMPRESSIONS)}, got {compression!r}'
+            raise ValueError(msg)
         self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        if compression == 'zstd':
+            # MCAP chunk compression: read by rosbags, the mcap library and Foxglove
+            self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         self._connections: dict[str, object] = {}
 
     def __enter__(self) -> 'BagWriter':

@@ -92,10 +92,12 @@ class SimulationBagWriter:
         Bag directory to create; it must not exist yet.
     batch
         Samples per JointTrajectory message.
+    compression
+        ``'none'`` or ``'zstd'`` (MCAP chunk compression, see :class:`.bagio.BagWriter`).
     """
 
-    def __init__(self, path: str | Path, *, batch: int = 100) -> None:
-        self._bag = bagio.BagWriter(path)
+    def __init__(self, path: str | Path, *, batch: int = 100, compression: str = 'none') -> None:
+        self._bag = bagio.BagWriter(path, compression=compression)
         self.batch = int(batch)
         self._rest: dict[str, bagio.Series | None] = {}
         self.messages = 0
@@ -130,10 +132,11 @@ class SimulationBagWriter:
 
 
 def write_simulation_bag(path: str | Path, result, *, summary: dict, batch: int = 100,
-                         progress: Callable[[float], None] | None = None) -> None:
+                         progress: Callable[[float], None] | None = None,
+                         compression: str = 'none') -> None:
     """Write a whole simulation as a rosbag2/MCAP directory (topics in README)."""
     from feed_axis_energy.core.energy import energy_by_line
-    with SimulationBagWriter(path, batch=batch) as writer:
+    with SimulationBagWriter(path, batch=batch, compression=compression) as writer:
         writer.write(result)
         if progress is not None:
             progress(0.9)

@@ -121,7 +121,10 @@ class SummaryAccumulator:
         self.braking = 'regenerative'
         self.dt_counts: dict[float, int] = {}
         self._recent: list[float] = []
-        self.lines: dict[int, list[float]] = {}
+        # energy, time and presence per source line, indexed by line number
+        self._line_e = np.zeros(1024)
+        self._line_d = np.zeros(1024)
+        self._line_seen = np.zeros(1024, dtype=bool)
         self.first: SimulationResult | None = None
 
     def add(self, chunk: SimulationResult) -> None:
@@ -184,24 +187,38 @@ class SummaryAccumulator:
     def _add_lines(self, lines: np.ndarray, de: np.ndarray, dt: np.ndarray) -> None:
         """Add energy and time per source line (interval -> line of its end sample)."""
         lines = np.asarray(lines, dtype=np.int64)
-        if lines.size and lines[0] == lines[-1] and np.all(lines == lines[0]):
-            keys, e, d = [int(lines[0])], [float(de.sum())], [float(dt.sum())]
+        if lines.size == 0:
+            return
+        if lines[0] == lines[-1] and np.all(lines == lines[0]):
+            keys = lines[:1]
+            e, d = np.array([de.sum()]), np.array([dt.sum()])
         else:
-            uk, inverse = np.unique(lines, return_inverse=True)
-            keys = uk.tolist()
-            e = np.bincount(inverse, weights=de, minlength=uk.shape[0]).tolist()
-            d = np.bincount(inverse, weights=dt, minlength=uk.shape[0]).tolist()
-        for key, ee, dd in zip(keys, e, d):
-            acc = self.lines.get(key)
-            if acc is None:
-                self.lines[key] = [ee, dd]
-            else:
-                acc[0] += ee
-                acc[1] += dd
+            keys, inverse = np.unique(lines, return_inverse=True)
+            e = np.bincount(inverse, weights=de, minlength=keys.shape[0])
+            d = np.bincount(inverse, weights=dt, minlength=keys.shape[0])
+        top = int(keys[-1])
+        if top >= self._line_e.shape[0]:
+            size = max(2 * self._line_e.shape[0], top + 1)
+            for name in ('_line_e', '_line_d', '_line_seen'):
+                old = getattr(self, name)
+                new = np.zeros(size, dtype=old.dtype)
+                new[:old.shape[0]] = old
+                setattr(self, name, new)
+        self._line_e[keys] += e          # keys are unique: no repeated index
+        self._line_d[keys] += d
+        self._line_seen[keys] = True
 
     def block_energy(self) -> list[tuple[int, float, float]]:
         """``(line, energy [J], duration [s])`` by line, as :func:`.energy.energy_by_line`."""
-        return [(k, v[0], v[1]) for k, v in sorted(self.lines.items())]
+        idx = np.nonzero(self._line_seen)[0]
+        return list(zip(idx.tolist(), self._line_e[idx].tolist(), self._line_d[idx].tolist()))
+
+    def top_blocks(self, count: int) -> list[tuple[int, float, float]]:
+        """The ``count`` lines with the largest ``|energy|`` (ties: lower line first)."""
+        idx = np.nonzero(self._line_seen)[0]
+        order = np.argsort(-np.abs(self._line_e[idx]), kind='stable')[:max(0, int(count))]
+        pick = idx[order]
+        return list(zip(pick.tolist(), self._line_e[pick].tolist(), self._line_d[pick].tolist()))
 
     def _median_dt(self) -> float:
         total = sum(self.dt_counts.values())
@@ -229,7 +246,7 @@ class SummaryAccumulator:
         energy['total'] = float(self.energy[-1]) if n else 0.0
         peak = {a: float(self.peak[j]) if n else 0.0 for j, a in enumerate(axes)}
         peak['total'] = float(self.peak[-1]) if n else 0.0
-        blocks = sorted(self.block_energy(), key=lambda b: -abs(b[1]))[:max(0, int(top_blocks))]
+        blocks = self.top_blocks(top_blocks)
         return {
             'program': program,
             'machine': machine.name,

@@ -76,3 +76,21 @@ def test_bag_written_chunk_by_chunk(tmp_path):
     np.testing.assert_allclose(power.velocities[:, -1], whole.power.total_w, rtol=1e-12,
                                atol=1e-9)
     assert [b[0] for b in read_block_energy(out)] == [b[0] for b in blocks]
+
+
+def test_compressed_bag_reads_back_the_same(tmp_path):
+    machine = load_machine(REPO / 'config' / 'demonstrator.yaml')
+    prog = load_gcode(REPO / 'config' / 'programs' / 'demonstrator_f300.nc')
+    series = {}
+    sizes = {}
+    for compression in ('none', 'zstd'):
+        out = tmp_path / compression
+        with SimulationBagWriter(out, compression=compression) as writer:
+            summary, blocks = simulate_stream(prog.moves, machine, file=prog.file,
+                                              on_chunk=writer.write)
+            writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
+        series[compression] = read_series(out, TOPIC_POWER)
+        sizes[compression] = sum(f.stat().st_size for f in out.rglob('*.mcap'))
+    np.testing.assert_array_equal(series['zstd'].t, series['none'].t)
+    np.testing.assert_array_equal(series['zstd'].velocities, series['none'].velocities)
+    assert sizes['zstd'] < sizes['none'] / 2
