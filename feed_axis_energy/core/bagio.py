@@ -17,7 +17,7 @@ import numpy as np
 from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
-from feed_axis_energy.core.cdr import joint_trajectory_cdr
+from feed_axis_energy.core.cdr import diagnostic_array_cdr, joint_trajectory_cdr
 from feed_axis_energy.core.errors import DataError
 
 __all__ = [
@@ -215,21 +215,20 @@ class BagWriter:
 
     def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
                            stamp_s: float, program: str = '') -> None:
-        """Write the per-block energy summary as one DiagnosticArray (one status per line)."""
-        ts = typestore()
-        kv = ts.types['diagnostic_msgs/msg/KeyValue']
-        status_cls = ts.types['diagnostic_msgs/msg/DiagnosticStatus']
+        """Write the per-block energy summary as one DiagnosticArray (one status per line).
+
+        Serialised status by status (:func:`.cdr.diagnostic_array_cdr`), so a program of a
+        million lines costs the message's bytes, not a million message objects.
+        """
         sec, nsec = _split_ns(stamp_s)
-        header = ts.types['std_msgs/msg/Header'](
-            stamp=ts.types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nsec), frame_id='')
-        statuses = [
-            status_cls(level=0, name=f'{program}:{line}', message='block energy',
-                       hardware_id='', values=[kv(key='line', value=str(line)),
-                                               kv(key='energy_j', value=repr(float(e))),
-                                               kv(key='duration_s', value=repr(float(d)))])
-            for line, e, d in blocks]
-        msg = ts.types[DIAGNOSTIC_ARRAY](header=header, status=statuses)
-        self.write_message(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY, sec * _NS + nsec, msg)
+        stamp = sec * _NS + nsec
+        statuses = ((0, f'{program}:{line}', 'block energy', '',
+                     (('line', str(line)), ('energy_j', repr(float(e))),
+                      ('duration_s', repr(float(d)))))
+                    for line, e, d in blocks)
+        raw = diagnostic_array_cdr(stamp, len(blocks), statuses)
+        conn = self._connection(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY)
+        self._writer.write(conn, stamp, raw)
 
     def set_custom_data(self, key: str, value: object) -> None:
         """Store a JSON-serialisable value in the bag's metadata (``custom_data``)."""

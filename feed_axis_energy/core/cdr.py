@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ['joint_trajectory_cdr']
+__all__ = ['joint_trajectory_cdr', 'diagnostic_array_cdr']
 
 _NS = 1_000_000_000
 _ENCAPSULATION = b'\x00\x01\x00\x00'
@@ -137,3 +137,60 @@ def _messages(t_ns: np.ndarray, values: list[np.ndarray | None], row0: int, n_ms
         f64[:, cols] = block.reshape(n_msgs, n_points, w)
     stamps_list = first.tolist()
     return [(stamps_list[i], rows[i, 4:8 + end].tobytes()) for i in range(n_msgs)]
+
+
+def _put_string(buf: bytearray, text: str) -> None:
+    """Append a CDR string to ``buf`` (whose first 4 bytes are the encapsulation header)."""
+    buf += b'\x00' * (-(len(buf) - 4) % 4)
+    raw = text.encode('utf-8')
+    buf += (len(raw) + 1).to_bytes(4, 'little')
+    buf += raw
+    buf += b'\x00'
+
+
+def _put_u32(buf: bytearray, value: int) -> None:
+    buf += b'\x00' * (-(len(buf) - 4) % 4)
+    buf += int(value).to_bytes(4, 'little')
+
+
+def diagnostic_array_cdr(stamp_ns: int, count: int, statuses, *,
+                         frame_id: str = '') -> bytearray:
+    """Serialised ``diagnostic_msgs/msg/DiagnosticArray`` without building message objects.
+
+    Parameters
+    ----------
+    stamp_ns
+        Header stamp [ns], >= 0.
+    count
+        Number of statuses.
+    statuses
+        Iterable (e.g. a generator: memory is the bytes only) of ``count`` tuples
+        ``(level, name, message, hardware_id, [(key, value), ...])``.
+    frame_id
+        ``header.frame_id``.
+
+    Returns
+    -------
+    bytearray
+        The CDR bytes (equal to ``typestore.serialize_cdr`` of the message object).
+    """
+    buf = bytearray(_ENCAPSULATION)
+    _put_u32(buf, stamp_ns // _NS)
+    _put_u32(buf, stamp_ns % _NS)
+    _put_string(buf, frame_id)
+    _put_u32(buf, count)
+    written = 0
+    for level, name, message, hardware_id, values in statuses:
+        buf.append(int(level) & 0xFF)
+        _put_string(buf, name)
+        _put_string(buf, message)
+        _put_string(buf, hardware_id)
+        _put_u32(buf, len(values))
+        for key, value in values:
+            _put_string(buf, key)
+            _put_string(buf, value)
+        written += 1
+    if written != count:
+        msg = f'diagnostic_array_cdr: {written} statuses given, {count} announced'
+        raise ValueError(msg)
+    return buf

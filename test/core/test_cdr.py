@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from feed_axis_energy.core import bagio
-from feed_axis_energy.core.cdr import joint_trajectory_cdr
+from feed_axis_energy.core.cdr import diagnostic_array_cdr, joint_trajectory_cdr
 
 
 @pytest.mark.parametrize('names', [('X',), ('X', 'total'), ('X', 'Y', 'Z', 'X_screw', 'Y_s')])
@@ -22,3 +22,21 @@ def test_bytes_equal_rosbags_serializer(names, present, n, batch):
     got = joint_trajectory_cdr(t_ns, names, list(arrays.values()), batch=batch)
     assert [s for s, _ in got] == [s for s, _ in ref]
     assert [b for _, b in got] == [b for _, b in ref]
+
+
+@pytest.mark.parametrize('n', [0, 1, 7])
+def test_diagnostic_array_bytes_equal_rosbags_serializer(n):
+    ts = bagio.typestore()
+    kv = ts.types['diagnostic_msgs/msg/KeyValue']
+    status_cls = ts.types['diagnostic_msgs/msg/DiagnosticStatus']
+    rows = [(i % 3, f'prog.nc:{i * 17}', 'block energy' if i % 2 else 'é', '' if i else 'hw',
+             [('line', str(i)), ('energy_j', repr(i * 0.1))][:i % 3]) for i in range(n)]
+    stamp = 12_345 * 1_000_000_000 + 678
+    header = ts.types['std_msgs/msg/Header'](
+        stamp=ts.types['builtin_interfaces/msg/Time'](sec=12_345, nanosec=678), frame_id='f')
+    msg = ts.types[bagio.DIAGNOSTIC_ARRAY](header=header, status=[
+        status_cls(level=lv, name=nm, message=ms, hardware_id=hw,
+                   values=[kv(key=k, value=v) for k, v in vals])
+        for lv, nm, ms, hw, vals in rows])
+    ref = bytes(ts.serialize_cdr(msg, bagio.DIAGNOSTIC_ARRAY))
+    assert bytes(diagnostic_array_cdr(stamp, n, iter(rows), frame_id='f')) == ref
