@@ -122,17 +122,20 @@ def _run_stream(args, machine, options, program, progress) -> dict:
     from feed_axis_energy.core.planstream import estimate_plan
     from feed_axis_energy.core.simstream import simulate_stream
     limits = machine.limits()
+    duration = None
     if args.max_samples or args.out is not None:
         # a planning pass without samples (cost: per block) to refuse before any output
         estimate = estimate_plan(program.moves, limits, options=options, file=program.file)
         _check_cost(args, estimate, n_axes=len(limits), rate_hz=options.rate_hz,
                     file=program.file)
+        duration = estimate.duration_s
     top = args.top
     total = len(program.moves)
     if args.out is None:
         summary, _ = simulate_stream(program.moves, machine, file=program.file,
                                      load_kg=args.load_kg, options=options, top_blocks=top,
-                                     total_moves=total, progress=progress, limits=limits)
+                                     total_moves=total, duration_s=duration,
+                                     progress=progress, limits=limits)
         progress.done()
         return summary
     from feed_axis_energy.core.recording import SimulationBagWriter
@@ -140,7 +143,8 @@ def _run_stream(args, machine, options, program, progress) -> dict:
         summary, blocks = simulate_stream(program.moves, machine, file=program.file,
                                           load_kg=args.load_kg, options=options,
                                           top_blocks=top, total_moves=total,
-                                          on_chunk=writer.write, progress=progress,
+                                          duration_s=duration, on_chunk=writer.write,
+                                          progress=progress,
                                           limits=limits)
         writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
     progress.done()

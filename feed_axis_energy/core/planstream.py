@@ -289,7 +289,7 @@ def _first_index_at_or_after(t: float, rate_hz: float) -> int:
 def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
                 options: PlannerOptions = PlannerOptions(), file: str = '',
                 chunk_samples: int = DEFAULT_CHUNK_SAMPLES, window_blocks: int = WINDOW_BLOCKS,
-                total_moves: int | None = None,
+                total_moves: int | None = None, duration_s: float | None = None,
                 progress: Callable[[float], None] | None = None) -> Iterator[Motion]:
     """Plan ``moves`` and yield the sampled motion in chunks of at most ``chunk_samples``.
 
@@ -312,8 +312,12 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         Passed on to :func:`iter_plan`.
     total_moves
         Number of moves, if known (``len(program.moves)``), for ``progress``.
+    duration_s
+        Program duration, if known (:func:`estimate_plan`): ``progress`` then reports the
+        fraction of time sampled, which also advances through a long dwell.
     progress
-        Called with the fraction of moves planned (only with ``total_moves``).
+        Called with the fraction of time sampled (with ``duration_s``) or of moves planned
+        (with ``total_moves``).
 
     Yields
     ------
@@ -332,7 +336,7 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
     moves_seen: list[Move] = []
 
     def on_move(count: int) -> None:
-        if progress is not None and total_moves:
+        if progress is not None and total_moves and not duration_s:
             progress(min(count / total_moves, 1.0))
 
     def first_move(source: Iterable[Move]) -> Iterator[Move]:
@@ -411,7 +415,10 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
             if done:
                 out.extend(*buf.split(done))
             while len(out) >= chunk_samples:
-                yield _motion(out.split(chunk_samples), axes, file)
+                chunk = _motion(out.split(chunk_samples), axes, file)
+                if progress is not None and duration_s:
+                    progress(min(float(chunk.t[-1]) / duration_s, 1.0))
+                yield chunk
             lo = hi
             if last_piece:
                 break

@@ -266,7 +266,7 @@ class SummaryAccumulator:
 def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
                     load_kg: float = 0.0, options: PlannerOptions | None = None,
                     top_blocks: int = 5, chunk_samples: int = DEFAULT_CHUNK_SAMPLES,
-                    total_moves: int | None = None,
+                    total_moves: int | None = None, duration_s: float | None = None,
                     on_chunk: Callable[[SimulationResult], None] | None = None,
                     progress: Callable[[float], None] | None = None,
                     limits: Mapping | None = None) -> tuple[dict[str, Any], list]:
@@ -294,6 +294,8 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
         Samples per chunk.
     total_moves
         Number of moves if known (progress).
+    duration_s
+        Program duration if known (progress by time, see :func:`.planstream.iter_motion`).
     on_chunk
         Called with every chunk's :class:`.simulate.SimulationResult` (e.g. a bag writer).
     progress
@@ -311,7 +313,8 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
         options = machine.planner.options()
     motions = iter_motion(moves, machine.limits() if limits is None else limits,
                           options=options, file=file, chunk_samples=chunk_samples,
-                          total_moves=total_moves, progress=progress)
+                          total_moves=total_moves, duration_s=duration_s,
+                          progress=progress)
     acc = SummaryAccumulator()
     for chunk in iter_simulation(motions, machine, load_kg=load_kg, program=file):
         acc.add(chunk)

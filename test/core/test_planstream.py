@@ -189,3 +189,14 @@ def test_corpus_programs_equal_whole_plan():
                                         file=prog.file, chunk_samples=5000,
                                         window_blocks=2))
         _assert_same(ref, got)
+
+
+def test_progress_advances_through_a_dwell():
+    prog = parse_gcode('G1 X0.01 F600\nG4 P30\nG1 X0\n', file='d.nc')
+    lim = {'X': AxisLimits(0.6, 2.5, 50.0)}
+    est = estimate_plan(prog.moves, lim)
+    seen = []
+    chunks = list(iter_motion(prog.moves, lim, chunk_samples=5000, duration_s=est.duration_s,
+                              progress=seen.append))
+    assert len(seen) == len(chunks) - 1 >= 5          # one report per full chunk
+    assert seen == sorted(seen) and 0.0 < seen[0] and seen[-1] <= 1.0
