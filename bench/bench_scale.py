@@ -35,7 +35,7 @@ def demonstrator_program(hours: float) -> str:
     while t < hours * 3600.0:
         f = feeds[i % len(feeds)]
         lines += [f'G1 X400 F{f * 60}', 'G4 P1', 'X0', 'G4 P1']
-        t += 2 * (400.0 / f + 1.0) + 0.5     # + ramps, roughly
+        t += 2 * (400.0 / f + 1.0)           # ramps make it a little longer
         i += 1
     lines.append('M30')
     return '\n'.join(lines) + '\n'

@@ -8,6 +8,7 @@ Topic names, field meanings and units are listed in ``docs/ARCHITECTURE.md`` and
 """
 from __future__ import annotations
 
+import itertools
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +26,7 @@ __all__ = [
     'TOPIC_MEASURED_POWER', 'TOPIC_MEASURED_KINEMATICS', 'JOINT_TRAJECTORY', 'DIAGNOSTIC_ARRAY',
     'Series', 'BagWriter', 'read_series', 'read_block_energy', 'read_custom_data', 'bag_topics',
     'typestore', 'series_to_messages', 'messages_to_series', 'BAG_COMPRESSIONS',
+    'BLOCK_ENERGY_PER_MESSAGE',
 ]
 
 TOPIC_SETPOINTS = '/setpoints'
@@ -39,6 +41,7 @@ DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 
 _NS = 1_000_000_000
 BAG_COMPRESSIONS = ('none', 'zstd')
+BLOCK_ENERGY_PER_MESSAGE = 10_000   # statuses per /block_energy message
 _TYPESTORE = None
 
 
@@ -215,20 +218,28 @@ class BagWriter:
 
     def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
                            stamp_s: float, program: str = '') -> None:
-        """Write the per-block energy summary as one DiagnosticArray (one status per line).
+        """Write the per-block energy summary as DiagnosticArrays (one status per line).
 
-        Serialised status by status (:func:`.cdr.diagnostic_array_cdr`), so a program of a
-        million lines costs the message's bytes, not a million message objects.
+        At most :data:`BLOCK_ENERGY_PER_MESSAGE` statuses per message, all at ``stamp_s``
+        (:func:`read_block_energy` joins them); serialised status by status
+        (:func:`.cdr.diagnostic_array_cdr`), so a program of a million lines costs a few
+        megabytes at a time, not a million message objects.
         """
         sec, nsec = _split_ns(stamp_s)
         stamp = sec * _NS + nsec
-        statuses = ((0, f'{program}:{line}', 'block energy', '',
-                     (('line', str(line)), ('energy_j', repr(float(e))),
-                      ('duration_s', repr(float(d)))))
-                    for line, e, d in blocks)
-        raw = diagnostic_array_cdr(stamp, len(blocks), statuses)
         conn = self._connection(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY)
-        self._writer.write(conn, stamp, raw)
+        rows = iter(blocks)
+        left = len(blocks)
+        while True:
+            count = min(left, BLOCK_ENERGY_PER_MESSAGE)
+            statuses = ((0, f'{program}:{line}', 'block energy', '',
+                         (('line', str(line)), ('energy_j', repr(float(e))),
+                          ('duration_s', repr(float(d)))))
+                        for line, e, d in itertools.islice(rows, count))
+            self._writer.write(conn, stamp, diagnostic_array_cdr(stamp, count, statuses))
+            left -= count
+            if left <= 0:
+                break
 
     def set_custom_data(self, key: str, value: object) -> None:
         """Store a JSON-serialisable value in the bag's metadata (``custom_data``)."""

@@ -6,7 +6,7 @@ so a recording made by either has the same layout (see the topic table in README
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -119,7 +119,7 @@ class SimulationBagWriter:
                                                         batch=self.batch)
             self._rest[topic] = _rows(joined, full, joined.t.shape[0])
 
-    def finish(self, blocks: list[tuple[int, float, float]], *, summary: dict,
+    def finish(self, blocks: Sequence[tuple[int, float, float]], *, summary: dict,
                stamp_s: float) -> None:
         """Write the samples still waiting, the per-block energy and the summary."""
         for topic, rest in self._rest.items():

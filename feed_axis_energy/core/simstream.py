@@ -8,7 +8,7 @@ line, whatever the program's length.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 import math
 from typing import Any
 
@@ -24,7 +24,8 @@ from .program import Move
 from .simulate import declared_effects_power_w, SimulationResult
 from .trajectory import PlannerOptions
 
-__all__ = ['streamable', 'iter_simulation', 'SummaryAccumulator', 'simulate_stream']
+__all__ = ['streamable', 'iter_simulation', 'LineEnergy', 'SummaryAccumulator',
+           'simulate_stream']
 
 
 def _row_sum(a: np.ndarray) -> np.ndarray:
@@ -96,6 +97,34 @@ def iter_simulation(motions: Iterable[Motion], machine: Machine, *, load_kg: flo
         yield SimulationResult(program=program or motion.source, machine=machine,
                                load_kg=float(load_kg), motion=motion, dynamics=dyn,
                                power=power)
+
+
+class LineEnergy(Sequence):
+    """Energy and time per source line as arrays, read as ``(line, energy_j, duration_s)``.
+
+    A sequence of tuples like :func:`.energy.energy_by_line` returns, without a Python
+    tuple per line (a 24-hour contour has millions of lines).
+    """
+
+    def __init__(self, lines: np.ndarray, energy_j: np.ndarray, duration_s: np.ndarray) -> None:
+        self.lines = lines
+        self.energy_j = energy_j
+        self.duration_s = duration_s
+
+    def __len__(self) -> int:
+        return int(self.lines.shape[0])
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[j] for j in range(*i.indices(len(self)))]
+        return (int(self.lines[i]), float(self.energy_j[i]), float(self.duration_s[i]))
+
+    def __iter__(self) -> Iterator[tuple[int, float, float]]:
+        step = 65536
+        for lo in range(0, len(self), step):
+            yield from zip(self.lines[lo:lo + step].tolist(),
+                           self.energy_j[lo:lo + step].tolist(),
+                           self.duration_s[lo:lo + step].tolist())
 
 
 class SummaryAccumulator:
@@ -208,10 +237,10 @@ class SummaryAccumulator:
         self._line_d[keys] += d
         self._line_seen[keys] = True
 
-    def block_energy(self) -> list[tuple[int, float, float]]:
+    def block_energy(self) -> 'LineEnergy':
         """``(line, energy [J], duration [s])`` by line, as :func:`.energy.energy_by_line`."""
         idx = np.nonzero(self._line_seen)[0]
-        return list(zip(idx.tolist(), self._line_e[idx].tolist(), self._line_d[idx].tolist()))
+        return LineEnergy(idx, self._line_e[idx], self._line_d[idx])
 
     def top_blocks(self, count: int) -> list[tuple[int, float, float]]:
         """The ``count`` lines with the largest ``|energy|`` (ties: lower line first)."""
@@ -269,7 +298,7 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
                     total_moves: int | None = None, duration_s: float | None = None,
                     on_chunk: Callable[[SimulationResult], None] | None = None,
                     progress: Callable[[float], None] | None = None,
-                    limits: Mapping | None = None) -> tuple[dict[str, Any], list]:
+                    limits: Mapping | None = None) -> tuple[dict[str, Any], LineEnergy]:
     """Simulate a program chunk by chunk; return its summary and energy per block.
 
     Equal (``1e-12`` relative) to ``summarize(simulate_program(...))`` and
@@ -305,9 +334,9 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
 
     Returns
     -------
-    (dict, list)
-        The summary (keys of :func:`.simulate.summarize`) and ``[(line, energy_j,
-        duration_s), ...]`` by line.
+    (dict, LineEnergy)
+        The summary (keys of :func:`.simulate.summarize`) and ``(line, energy_j,
+        duration_s)`` by line.
     """
     if options is None:
         options = machine.planner.options()

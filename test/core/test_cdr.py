@@ -40,3 +40,12 @@ def test_diagnostic_array_bytes_equal_rosbags_serializer(n):
         for lv, nm, ms, hw, vals in rows])
     ref = bytes(ts.serialize_cdr(msg, bagio.DIAGNOSTIC_ARRAY))
     assert bytes(diagnostic_array_cdr(stamp, n, iter(rows), frame_id='f')) == ref
+
+
+def test_block_energy_of_many_lines_splits_and_reads_back(tmp_path):
+    n = 2 * bagio.BLOCK_ENERGY_PER_MESSAGE + 1
+    blocks = [(i + 1, 0.5 * i - 7.0, 1e-3 * i) for i in range(n)]
+    with bagio.BagWriter(tmp_path / 'b') as writer:
+        writer.write_block_energy(blocks, stamp_s=12.5, program='p.nc')
+    assert bagio.bag_topics(tmp_path / 'b')[bagio.TOPIC_BLOCK_ENERGY][1] == 3
+    assert bagio.read_block_energy(tmp_path / 'b') == blocks
