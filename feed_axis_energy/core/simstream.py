@@ -218,14 +218,12 @@ class SummaryAccumulator:
         lines = np.asarray(lines, dtype=np.int64)
         if lines.size == 0:
             return
-        if lines[0] == lines[-1] and np.all(lines == lines[0]):
-            keys = lines[:1]
-            e, d = np.array([de.sum()]), np.array([dt.sum()])
-        else:
-            keys, inverse = np.unique(lines, return_inverse=True)
-            e = np.bincount(inverse, weights=de, minlength=keys.shape[0])
-            d = np.bincount(inverse, weights=dt, minlength=keys.shape[0])
-        top = int(keys[-1])
+        # samples come in runs of one line: sum per run (no sort), then add per line
+        starts = np.concatenate(([0], np.nonzero(lines[1:] != lines[:-1])[0] + 1))
+        keys = lines[starts]
+        e = np.add.reduceat(de, starts)
+        d = np.add.reduceat(dt, starts)
+        top = int(keys.max())
         if top >= self._line_e.shape[0]:
             size = max(2 * self._line_e.shape[0], top + 1)
             for name in ('_line_e', '_line_d', '_line_seen'):
@@ -233,8 +231,12 @@ class SummaryAccumulator:
                 new = np.zeros(size, dtype=old.dtype)
                 new[:old.shape[0]] = old
                 setattr(self, name, new)
-        self._line_e[keys] += e          # keys are unique: no repeated index
-        self._line_d[keys] += d
+        if keys.shape[0] == 1:
+            self._line_e[keys[0]] += e[0]
+            self._line_d[keys[0]] += d[0]
+        else:
+            np.add.at(self._line_e, keys, e)      # a line may have several runs
+            np.add.at(self._line_d, keys, d)
         self._line_seen[keys] = True
 
     def block_energy(self) -> 'LineEnergy':

@@ -94,3 +94,18 @@ def test_compressed_bag_reads_back_the_same(tmp_path):
     np.testing.assert_array_equal(series['zstd'].t, series['none'].t)
     np.testing.assert_array_equal(series['zstd'].velocities, series['none'].velocities)
     assert sizes['zstd'] < sizes['none'] / 2
+
+
+def test_lines_repeating_in_separate_runs():
+    from feed_axis_energy.core.program import Move, MoveKind, Program
+    machine = load_machine(REPO / 'config' / 'demonstrator.yaml')
+    pts = [0.0, 0.1, 0.02, 0.15, 0.0, 0.05]
+    moves = tuple(Move(MoveKind.LINEAR, 1 + i % 2, (a, 0.0, 0.0), (b, 0.0, 0.0),
+                       feed_m_s=0.2) for i, (a, b) in enumerate(zip(pts[:-1], pts[1:])))
+    prog = Program('rep.nc', moves)
+    whole = simulate_program(prog, machine)
+    got, blocks = simulate_stream(prog.moves, machine, file='rep.nc', chunk_samples=4096)
+    ref = energy_by_line(whole.power)
+    assert [b[0] for b in blocks] == [b[0] for b in ref] == [1, 2]
+    for (_, e0, d0), (_, e1, d1) in zip(ref, blocks):
+        assert e1 == pytest.approx(e0, rel=1e-12) and d1 == pytest.approx(d0, rel=1e-12)
