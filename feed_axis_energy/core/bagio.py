@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 from contextlib import contextmanager
+import itertools
 from dataclasses import dataclass
 import json
 import math
@@ -17,10 +18,11 @@ from pathlib import Path
 from typing import Iterable, Iterator, Sequence
 
 import numpy as np
-from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
 from feed_axis_energy.core.bagcheck import check_trajectory, field_layout, guard
+from feed_axis_energy.core.cdr import diagnostic_array_cdr, joint_trajectory_cdr
 from feed_axis_energy.core.errors import DataError, describe, shorten
 from feed_axis_energy.core.mcapcheck import check_mcap
 from feed_axis_energy.core.safeyaml import load_yaml_file
@@ -31,7 +33,7 @@ __all__ = [
     'TOPIC_MEASURED_POWER', 'TOPIC_MEASURED_KINEMATICS', 'JOINT_TRAJECTORY', 'DIAGNOSTIC_ARRAY',
     'Series', 'BagWriter', 'read_series', 'read_block_energy', 'read_custom_data', 'bag_topics',
     'typestore', 'series_to_messages', 'messages_to_series', 'read_metadata',
-    'read_raw_messages', 'check_trajectory',
+    'read_raw_messages', 'check_trajectory', 'BAG_COMPRESSIONS', 'BLOCK_ENERGY_PER_MESSAGE',
 ]
 
 TOPIC_SETPOINTS = '/setpoints'
@@ -45,6 +47,8 @@ JOINT_TRAJECTORY = 'trajectory_msgs/msg/JointTrajectory'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 
 _NS = 1_000_000_000
+BAG_COMPRESSIONS = ('none', 'zstd')
+BLOCK_ENERGY_PER_MESSAGE = 10_000   # statuses per /block_energy message
 _TYPESTORE = None
 
 
@@ -160,14 +164,23 @@ class BagWriter:
     ----------
     path
         Bag directory to create; it must not exist yet.
+    compression
+        ``'none'`` (default) or ``'zstd'``: MCAP chunks compressed with zstd (about 8x
+        smaller for simulated series, about 2.5x slower to write).
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, *, compression: str = 'none'):
         self.path = Path(path)
         if self.path.exists():
             msg = f'{self.path} exists already; choose a new output directory'
             raise FileExistsError(msg)
+        if compression not in BAG_COMPRESSIONS:
+            msg = f'compression must be one of {", ".join(BAG_COMPRESSIONS)}, got {compression!r}'
+            raise ValueError(msg)
         self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        if compression == 'zstd':
+            # MCAP chunk compression: read by rosbags, the mcap library and Foxglove
+            self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         self._connections: dict[str, object] = {}
 
     def __enter__(self) -> 'BagWriter':
@@ -192,29 +205,48 @@ class BagWriter:
         self._writer.write(conn, stamp_ns, typestore().serialize_cdr(message, msgtype))
 
     def write_series(self, topic: str, series: Series, *, batch: int = 100) -> int:
-        """Write a time series as batched JointTrajectory messages; returns the message count."""
-        msgs = series_to_messages(series, batch=batch)
-        for stamp, message in msgs:
-            self.write_message(topic, JOINT_TRAJECTORY, stamp, message)
-        return len(msgs)
+        """Write a time series as batched JointTrajectory messages; returns the message count.
+
+        The messages are those of :func:`series_to_messages`, serialised all at once by
+        :func:`.cdr.joint_trajectory_cdr` (same bytes, without a Python object per point).
+        """
+        if np.any(series.t < 0):
+            msg = 'bag time series must not have negative times'
+            raise ValueError(msg)
+        t_ns = np.rint(series.t * _NS).astype(np.int64)
+        fields = [getattr(series, f) for f in ('positions', 'velocities', 'accelerations',
+                                               'effort')]
+        raw = joint_trajectory_cdr(t_ns, tuple(series.names), fields, batch=batch)
+        conn = self._connection(topic, JOINT_TRAJECTORY)
+        write = self._writer.write
+        for stamp, data in raw:
+            write(conn, stamp, data)
+        return len(raw)
 
     def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
                            stamp_s: float, program: str = '') -> None:
-        """Write the per-block energy summary as one DiagnosticArray (one status per line)."""
-        ts = typestore()
-        kv = ts.types['diagnostic_msgs/msg/KeyValue']
-        status_cls = ts.types['diagnostic_msgs/msg/DiagnosticStatus']
+        """Write the per-block energy summary as DiagnosticArrays (one status per line).
+
+        At most :data:`BLOCK_ENERGY_PER_MESSAGE` statuses per message, all at ``stamp_s``
+        (:func:`read_block_energy` joins them); serialised status by status
+        (:func:`.cdr.diagnostic_array_cdr`), so a program of a million lines costs a few
+        megabytes at a time, not a million message objects.
+        """
         sec, nsec = _split_ns(stamp_s)
-        header = ts.types['std_msgs/msg/Header'](
-            stamp=ts.types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nsec), frame_id='')
-        statuses = [
-            status_cls(level=0, name=f'{program}:{line}', message='block energy',
-                       hardware_id='', values=[kv(key='line', value=str(line)),
-                                               kv(key='energy_j', value=repr(float(e))),
-                                               kv(key='duration_s', value=repr(float(d)))])
-            for line, e, d in blocks]
-        msg = ts.types[DIAGNOSTIC_ARRAY](header=header, status=statuses)
-        self.write_message(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY, sec * _NS + nsec, msg)
+        stamp = sec * _NS + nsec
+        conn = self._connection(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY)
+        rows = iter(blocks)
+        left = len(blocks)
+        while True:
+            count = min(left, BLOCK_ENERGY_PER_MESSAGE)
+            statuses = ((0, f'{program}:{line}', 'block energy', '',
+                         (('line', str(line)), ('energy_j', repr(float(e))),
+                          ('duration_s', repr(float(d)))))
+                        for line, e, d in itertools.islice(rows, count))
+            self._writer.write(conn, stamp, diagnostic_array_cdr(stamp, count, statuses))
+            left -= count
+            if left <= 0:
+                break
 
     def set_custom_data(self, key: str, value: object) -> None:
         """Store a JSON-serialisable value in the bag's metadata (``custom_data``)."""
