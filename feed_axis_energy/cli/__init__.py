@@ -11,7 +11,7 @@ import sys
 
 from feed_axis_energy import __version__
 from feed_axis_energy.core.errors import FeedAxisError
-from feed_axis_energy.core.outputs import terminate_on_signals
+from feed_axis_energy.core.outputs import Terminated, terminate_on_signals
 
 __all__ = ['main', 'build_parser']
 
@@ -72,16 +72,19 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser(argv)
     args = parser.parse_args(argv)
     try:
-        # SIGTERM raises SystemExit(143) inside the command so that staged outputs are
-        # removed (core/outputs.py); SIGINT raises KeyboardInterrupt as usual.
+        # SIGTERM and SIGINT raise Terminated inside the command so that staged outputs
+        # are removed (core/outputs.py); the handlers are restored afterwards.
         with terminate_on_signals():
             return int(args.run(args) or 0)
     except FeedAxisError as err:
         print(f'error: {err}', file=sys.stderr)
         return 1
-    except (OSError, FileExistsError) as err:
+    except OSError as err:
         print(f'error: {err}', file=sys.stderr)
         return 1
+    except Terminated as err:
+        print(f'terminated by signal {err.signum}; no partial output left', file=sys.stderr)
+        return err.exit_code
     except KeyboardInterrupt:
         print('interrupted', file=sys.stderr)
         return 130

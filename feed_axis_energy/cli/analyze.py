@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 from pathlib import Path
 
 import yaml
@@ -14,7 +15,8 @@ from feed_axis_energy.core.identify.analyze import (AnalysisResult, analyze_camp
                                                     AnalyzeOptions, HOLDOUTS)
 from feed_axis_energy.core.machine import load_machine, machine_to_dict
 from feed_axis_energy.core.measured.manifest import load_campaign
-from feed_axis_energy.core.outputs import check_target, write_text_atomic
+from feed_axis_energy.core.outputs import (check_target, marked_or_empty, REPORT_MARKER,
+                                           Rollback, write_text_atomic)
 
 __all__ = ['add_parser', 'run']
 
@@ -33,13 +35,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--json', action='store_true',
                    help='print one JSON object (keys in docs/analyze.md)')
     p.add_argument('--report', type=Path, metavar='DIR',
-                   help='write an HTML report with plots to DIR')
+                   help='write an HTML report with plots to DIR (must not exist unless '
+                        '--force; built in a hidden temporary directory and renamed into '
+                        'place when complete)')
     p.add_argument('--out-machine', type=Path, metavar='YAML',
                    help='write the machine config with the selected effects added (must not '
                         'exist unless --force)')
     p.add_argument('--force', action='store_true',
-                   help='replace an existing --out-machine file (never through a symbolic '
-                        'link)')
+                   help='replace an existing --out-machine file and an earlier --report '
+                        'DIR (or an empty one); never a symbolic link')
     p.add_argument('--runs', metavar='NAME,...', help='use only these runs (default: all)')
     p.add_argument('--machine', type=Path, metavar='YAML',
                    help="declared machine config (default: the manifest's machine)")
@@ -92,8 +96,9 @@ def _print(res: AnalysisResult) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
-    if args.report is not None and args.report.exists() and not args.report.is_dir():
-        raise FileExistsError(f'{args.report} exists and is not a directory')
+    if args.report is not None:
+        check_target(args.report, option='--report', force=args.force, kind='directory',
+                     replaceable=marked_or_empty(REPORT_MARKER))
     if args.out_machine is not None:
         # refused before the analysis runs, not after it
         check_target(args.out_machine, option='--out-machine', force=args.force)
@@ -110,14 +115,20 @@ def run(args: argparse.Namespace) -> int:
                               options=AnalyzeOptions(holdout=args.holdout), progress=progress)
     progress.done()
     extra = {}
-    if args.out_machine is not None:
-        text = yaml.safe_dump(machine_to_dict(result.augmented_machine()), sort_keys=False)
-        write_text_atomic(args.out_machine, text, option='--out-machine', force=args.force)
-        extra['out_machine'] = str(args.out_machine)
-    if args.report is not None:
-        # imported here: matplotlib is only needed for reports
-        from feed_axis_energy.report.analyze_report import write_analyze_report
-        extra['report'] = str(write_analyze_report(result, args.report))
+    # both outputs or neither: the first is removed if the second fails (unless it
+    # replaced an earlier one with --force, which cannot be brought back)
+    with Rollback() as written:
+        if args.out_machine is not None:
+            text = yaml.safe_dump(machine_to_dict(result.augmented_machine()), sort_keys=False)
+            new = not os.path.lexists(args.out_machine)
+            write_text_atomic(args.out_machine, text, option='--out-machine', force=args.force)
+            if new:
+                written.add(args.out_machine)
+            extra['out_machine'] = str(args.out_machine)
+        if args.report is not None:
+            # imported here: matplotlib is only needed for reports
+            from feed_axis_energy.report.analyze_report import write_analyze_report
+            extra['report'] = str(write_analyze_report(result, args.report, force=args.force))
     if args.json:
         out = result.to_dict()
         out.update(extra)

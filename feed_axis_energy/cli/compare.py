@@ -13,6 +13,7 @@ from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.measured.compare import (CampaignComparison, compare_campaign,
                                                     DEFAULT_MAX_LAG_S)
 from feed_axis_energy.core.measured.manifest import load_campaign
+from feed_axis_energy.core.outputs import check_target, marked_or_empty, REPORT_MARKER
 
 __all__ = ['add_parser', 'run']
 
@@ -32,7 +33,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='print one JSON object instead of the tables (keys in docs/compare.md)')
     p.add_argument('--report', type=Path, metavar='DIR',
                    help='write plots (power, energy, error per run) and index.html to DIR '
-                        '(replaced if it holds an earlier report)')
+                        '(must not exist unless --force; built in a hidden temporary '
+                        'directory and renamed into place when complete)')
+    p.add_argument('--force', action='store_true',
+                   help='replace an existing --report DIR if it holds an earlier report (or '
+                        'is empty); never a symbolic link or another directory')
     p.add_argument('--runs', metavar='NAME,...',
                    help='compare only these runs, in this order (default: all)')
     p.add_argument('--role', choices=('calibrate', 'validate'),
@@ -97,8 +102,10 @@ def run(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.pct_floor) and 0.0 <= args.pct_floor < 1.0):
         msg = f'--pct-floor must be a fraction in [0, 1), got {args.pct_floor}'
         raise ConfigError(msg, file='command line', key='pct-floor')
-    if args.report is not None and args.report.exists() and not args.report.is_dir():
-        raise FileExistsError(f'{args.report} exists and is not a directory')
+    if args.report is not None:
+        # refused before the comparison runs, not after it
+        check_target(args.report, option='--report', force=args.force, kind='directory',
+                     replaceable=marked_or_empty(REPORT_MARKER))
     campaign = load_campaign(args.manifest)
     names = _selected(args, campaign)
     machine = load_machine(args.machine) if args.machine is not None else None
@@ -110,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     if args.report is not None:
         # imported here: matplotlib is only needed for reports
         from feed_axis_energy.report import write_report
-        index = write_report(result, args.report)
+        index = write_report(result, args.report, force=args.force)
     if args.json:
         out = result.to_dict()
         if index is not None:

@@ -7,14 +7,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 from pathlib import Path
 
 from feed_axis_energy.cli.common import format_table
 from feed_axis_energy.cli.progress import Progress
-from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.gcode import load_gcode
 from feed_axis_energy.core.machine import load_machine
+from feed_axis_energy.core.outputs import marked_or_empty, staged_directory
 from feed_axis_energy.core.recording import write_simulation_bag
 from feed_axis_energy.core.simulate import simulate_program, summarize
 from feed_axis_energy.paths import default_machine, program_path
@@ -37,48 +36,55 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--machine', type=Path, default=None, metavar='YAML',
                    help='machine config (default: config/demonstrator.yaml)')
     p.add_argument('--out', type=Path, default=Path('out/demonstrator'), metavar='DIR',
-                   help='directory for the recordings (default: out/demonstrator; replaced '
-                        'if it holds an earlier demo)')
+                   help='directory for the recordings (default: out/demonstrator); must not '
+                        'exist unless --force; built in a hidden temporary directory and '
+                        'renamed into place when complete')
+    p.add_argument('--force', action='store_true',
+                   help='replace an existing --out directory if it holds an earlier demo '
+                        '(or is empty); never a symbolic link or another directory')
     p.add_argument('--no-bags', action='store_true', help='do not write recordings')
     p.add_argument('--json', action='store_true', help='print the summaries as JSON')
     p.add_argument('--quiet', action='store_true', help='no progress indication')
     p.set_defaults(run=run)
 
 
-def _prepare_out(out: Path) -> None:
-    if out.exists():
-        if not (out / _MARKER).exists():
-            msg = (f'{out} exists and was not written by "feed-axis-energy demo"; '
-                   'choose another --out')
-            raise ConfigError(msg, file='command line', key='out')
-        shutil.rmtree(out)
-    out.mkdir(parents=True)
-    (out / _MARKER).write_text('written by feed-axis-energy demo\n')
-
-
-def run(args: argparse.Namespace) -> int:
-    """Run the subcommand."""
-    machine = load_machine(args.machine if args.machine is not None else default_machine())
+def _simulate_all(args: argparse.Namespace, machine, staged: Path | None) -> list[dict]:
+    """Simulate every run; with ``staged``, write its bag there (named as under --out)."""
     options = machine.planner.options()
-    if not args.no_bags:
-        _prepare_out(args.out)
     runs = [(feed, load) for feed in PAPER_FEEDS_MM_S for load in PAPER_LOADS_KG]
     progress = Progress('demo', enabled=not args.quiet, delay_s=0.0)
     summaries = []
     programs = {feed: load_gcode(program_path(f'demonstrator_f{feed}.nc'),
                                  home=machine.home_point())
                 for feed in PAPER_FEEDS_MM_S}
+    if staged is not None:
+        staged.mkdir()
+        (staged / _MARKER).write_text('written by feed-axis-energy demo\n')
     for i, (feed, load) in enumerate(runs):
         result = simulate_program(programs[feed], machine, load_kg=load, options=options)
         summary = summarize(result, top_blocks=0)
         summary['feed_mm_s'] = feed
-        if not args.no_bags:
-            bag = args.out / f'f{feed}_load{load:g}kg'
-            write_simulation_bag(bag, result, summary=summary)
-            summary['bag'] = str(bag)
+        if staged is not None:
+            name = f'f{feed}_load{load:g}kg'
+            write_simulation_bag(staged / name, result, summary=summary)
+            summary['bag'] = str(args.out / name)
         summaries.append(summary)
         progress((i + 1) / len(runs))
     progress.done()
+    return summaries
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand."""
+    machine = load_machine(args.machine if args.machine is not None else default_machine())
+    runs = [(feed, load) for feed in PAPER_FEEDS_MM_S for load in PAPER_LOADS_KG]
+    if args.no_bags:
+        summaries = _simulate_all(args, machine, None)
+    else:
+        # all 15 bags or none: built in a hidden temporary directory, renamed at the end
+        with staged_directory(args.out, option='--out', force=args.force,
+                              replaceable=marked_or_empty(_MARKER)) as staged:
+            summaries = _simulate_all(args, machine, staged)
     if args.json:
         print(json.dumps(summaries, indent=2))
         return 0

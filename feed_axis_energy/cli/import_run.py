@@ -31,17 +31,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     '/measured/command, /measured/electrical, stamped in seconds from the run '
                     'start, with the source and units in the bag metadata. A manifest '
                     'listing the bags (DIR/campaign.yaml) is written last. Nothing is '
-                    'written if a run cannot be loaded or a destination exists.')
+                    'written if a run name or the manifest name is not a plain file name, '
+                    'a run cannot be loaded or a destination exists; if anything fails '
+                    'part-way (or SIGTERM/SIGINT arrive), every bag of this import is '
+                    'removed again.')
     p.add_argument('manifest', type=Path, help='campaign manifest (YAML)')
     p.add_argument('--out', type=Path, required=True, metavar='DIR',
-                   help='output directory (created if needed)')
+                   help='output directory (created if needed); each run becomes DIR/<run '
+                        'name>, which must not exist (no --force)')
     p.add_argument('--runs', metavar='NAME,...', help='runs to import (default: all)')
     p.add_argument('--start-s', type=float, default=0.0, metavar='S',
                    help='import an excerpt starting at this run time [s] (default: 0)')
     p.add_argument('--duration-s', type=float, default=None, metavar='S',
                    help='length of the excerpt [s] (default: to the end)')
     p.add_argument('--manifest-name', default='campaign.yaml', metavar='FILE',
-                   help='file name of the manifest written into DIR (default: campaign.yaml)')
+                   help='file name of the manifest written into DIR (default: '
+                        'campaign.yaml); a plain name, not a path, and no run name')
     p.add_argument('--json', action='store_true', help='print one JSON object')
     p.add_argument('--quiet', action='store_true', help='no progress indication')
     p.set_defaults(run=run)

@@ -35,7 +35,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "--effects: the paper's scenario, load-dependent friction "
                     f'({DEFAULT_EFFECTS}) at 0, 17.336 and 22.711 kg and 100..500 mm/s.')
     p.add_argument('--out', type=Path, default=None, metavar='DIR',
-                   help='output directory (must be new, empty or an earlier rig output)')
+                   help='output directory (must not exist unless --force; built in a hidden '
+                        'temporary directory and renamed into place when complete)')
+    p.add_argument('--force', action='store_true',
+                   help='replace an existing --out directory if it holds an earlier rig '
+                        'output (or is empty); never a symbolic link or another directory')
     p.add_argument('--machine', type=Path, default=None, metavar='YAML',
                    help='declared machine config (default: config/demonstrator.yaml)')
     p.add_argument('--effects', default=DEFAULT_EFFECTS, metavar='SPEC',
@@ -123,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
                        outside=args.outside_catalog, cycles=args.cycles,
                        bags=args.bags)
     progress = Progress('rig', enabled=not args.quiet)
-    manifest = make_campaign(args.out, config, progress=progress)
+    manifest = make_campaign(args.out, config, progress=progress, force=args.force)
     progress.done()
     shown = ', '.join(f'{e.id}({", ".join(f"{k}={v:g}" for k, v in e.params.items())})'
                       for e in effects) or 'none'

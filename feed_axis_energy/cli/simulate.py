@@ -40,7 +40,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_machine_options(p)
     p.add_argument('--out', type=Path, metavar='BAG_DIR',
                    help='write the full time series as a rosbag2 directory (MCAP storage); '
-                        'must not exist yet')
+                        'must not exist unless --force; built in a hidden temporary '
+                        'directory and renamed into place when complete')
+    p.add_argument('--force', action='store_true',
+                   help='replace an existing --out bag directory (only a rosbag2 directory, '
+                        'never a symbolic link) once the new one is complete')
     p.add_argument('--compression', choices=('none', 'zstd'), default='zstd',
                    help='MCAP chunk compression of the --out recording (default zstd: about 8x '
                         'smaller, about 2.5x slower to write)')
@@ -64,10 +68,13 @@ def run(args: argparse.Namespace) -> int:
     from feed_axis_energy.core.gcode import load_gcode
     from feed_axis_energy.core.simstream import streamable
 
+    from feed_axis_energy.core.outputs import check_target, is_bag_directory
+
     machine, options = load_machine_and_options(args)
-    if args.out is not None and args.out.exists():
-        msg = f'{args.out} exists already; choose a new output directory'
-        raise FileExistsError(msg)
+    if args.out is not None:
+        # refused before any sample is computed, not after
+        check_target(args.out, option='--out', force=args.force, kind='directory',
+                     replaceable=is_bag_directory)
     if args.max_samples < 0:
         msg = f'--max-samples must be >= 0, got {args.max_samples}'
         raise ConfigError(msg, file='command line', key='max-samples')
@@ -117,6 +124,13 @@ def _check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: flo
             raise PlanningError(msg, file=file)
 
 
+def _staged_out(args: argparse.Namespace):
+    """The ``--out`` bag directory, built in a hidden temporary and renamed when complete."""
+    from feed_axis_energy.core.outputs import is_bag_directory, staged_directory
+    return staged_directory(args.out, option='--out', force=args.force,
+                            replaceable=is_bag_directory)
+
+
 def _run_stream(args, machine, options, program, progress) -> dict:
     """Plan, simulate and record chunk by chunk (memory: one chunk)."""
     from feed_axis_energy.core.planstream import estimate_plan
@@ -139,7 +153,8 @@ def _run_stream(args, machine, options, program, progress) -> dict:
         progress.done()
         return summary
     from feed_axis_energy.core.recording import SimulationBagWriter
-    with SimulationBagWriter(args.out, compression=args.compression) as writer:
+    with _staged_out(args) as staged, \
+            SimulationBagWriter(staged, compression=args.compression) as writer:
         summary, blocks = simulate_stream(program.moves, machine, file=program.file,
                                           load_kg=args.load_kg, options=options,
                                           top_blocks=top, total_moves=total,
@@ -173,7 +188,8 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool) -> dict:
     # A trajectory has no source lines to attribute energy to.
     summary = summarize(result, top_blocks=0 if trajectory else args.top)
     if args.out is not None:
-        write_simulation_bag(args.out, result, summary=summary,
-                             progress=Progress('write bag', enabled=not args.quiet),
-                             compression=args.compression)
+        with _staged_out(args) as staged:
+            write_simulation_bag(staged, result, summary=summary,
+                                 progress=Progress('write bag', enabled=not args.quiet),
+                                 compression=args.compression)
     return summary

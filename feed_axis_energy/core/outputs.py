@@ -7,20 +7,21 @@ Rules (README, "Output files"):
   character, at most 255 bytes, not a reserved name of that directory. It is confined to
   the directory after normalisation.
 * An existing target is refused unless the caller passes ``force`` (the commands' ``--force``);
-  a symbolic link as the target, even a dangling one, is always refused (never written through),
-  and so is a parent directory that is not a real directory.
+  with ``force`` a directory is replaced only if the command recognises it as its own earlier
+  output (``replaceable``). A symbolic link as the target, even a dangling one, is always
+  refused (never written through), and so is a parent that is not a directory.
 * Files are written to a hidden temporary sibling (``.<name>.tmp-<pid>``, created with
   ``O_EXCL | O_NOFOLLOW``), flushed to disk, then renamed into place; directories are built
   in a hidden temporary sibling directory and renamed into place when complete. On any
-  exception, including the ``SystemExit`` that :func:`terminate_on_signals` raises for
-  SIGTERM, and ``KeyboardInterrupt`` for SIGINT, the temporary is removed: nothing is left.
+  exception, including the :class:`Terminated` that :func:`terminate_on_signals` raises for
+  SIGTERM and SIGINT, the temporary is removed: nothing is left.
 * SIGKILL cannot be caught: it may leave a hidden ``.<name>.tmp-<pid>`` beside the target,
-  never the target itself. A rerun removes such temporaries of processes that no longer
-  exist (:func:`remove_stale_temporaries`) and is not blocked by them.
+  never the target itself. The next write of the same target removes such temporaries of
+  processes that no longer exist (:func:`remove_stale_temporaries`) and is not blocked by them.
 """
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 import contextlib
 import os
 from pathlib import Path
@@ -32,29 +33,71 @@ import threading
 
 from .errors import FeedAxisError
 
-__all__ = ['OutputError', 'check_component', 'confined', 'check_target', 'write_text_atomic',
-           'staged_directory', 'remove_stale_temporaries', 'terminate_on_signals']
+__all__ = ['OutputError', 'Terminated', 'check_component', 'confined', 'check_target',
+           'write_text_atomic', 'staged_directory', 'remove_stale_temporaries',
+           'terminate_on_signals', 'marked_or_empty', 'is_bag_directory', 'Rollback',
+           'REPORT_MARKER']
 
-_TMP_RE = re.compile(r'^\.(?P<name>.+)\.tmp-(?P<pid>[0-9]+)(?:-[0-9]+)?$')
+_TMP_RE = re.compile(r'^\.(?P<name>.+)\.tmp-(?P<pid>[0-9]{1,10})(?:-(?P<n>[0-9]{1,6}))?$')
+REPORT_MARKER = '.feed_axis_energy_report'
+"""File in a report directory (compare/analyze ``--report``): ``--force`` may replace it."""
 _MAX_NAME_BYTES = 255
 _SHOWN = 60
+_PID_MAX = 1 << 22      # Linux's largest pid_max; anything above is no pid of ours
 
 
 class OutputError(FeedAxisError):
-    """An output that must not be written: names the option and the path."""
+    """An output that must not be written: names the option and the path.
+
+    Parameters
+    ----------
+    message
+        What is wrong and what to do.
+    path
+        The path concerned (shown cut to about 60 characters).
+    option
+        The argument or key the path comes from (``--out``, ``campaign.yaml runs[2].name``).
+    """
 
     def __init__(self, message: str, *, path: str | os.PathLike[str] = '', option: str = ''):
-        self.path = _short(str(path))
+        self.path = _short_path(os.fspath(path)) if path else ''
         self.option = option
         self.reason = message
-        where = ', '.join(p for p in (option, self.path) if p)
+        where = ' '.join(p for p in (option, self.path) if p)
         super().__init__(f'{where}: {message}' if where else message)
 
 
+class Terminated(KeyboardInterrupt):
+    """Raised in the main thread on SIGTERM or SIGINT so that cleanup code runs.
+
+    A ``KeyboardInterrupt`` so that ``except Exception`` blocks do not swallow it.
+
+    Parameters
+    ----------
+    signum
+        The signal received.
+    """
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = int(signum)
+
+    @property
+    def exit_code(self) -> int:
+        """The shell's convention: 128 + signal number."""
+        return 128 + self.signum
+
+
 def _short(text: str) -> str:
-    """``text`` cut to a bounded length for messages."""
+    """``text`` with control characters escaped, cut to a bounded length for messages."""
     text = text.encode('unicode_escape', 'backslashreplace').decode('ascii')
     return text if len(text) <= _SHOWN else text[:_SHOWN - 3] + '...'
+
+
+def _short_path(text: str) -> str:
+    """A path for messages: control characters escaped, its end kept when it is long."""
+    text = text.encode('unicode_escape', 'backslashreplace').decode('ascii')
+    return text if len(text) <= _SHOWN else '...' + text[3 - _SHOWN:]
 
 
 def check_component(name: str, *, option: str, reserved: tuple[str, ...] = ()) -> str:
@@ -67,15 +110,25 @@ def check_component(name: str, *, option: str, reserved: tuple[str, ...] = ()) -
     option
         The argument or key the name comes from, for the message.
     reserved
-        Names of the directory that must not be used (compared case-insensitively).
+        Names of the directory that must not be used (compared case-insensitively, so that
+        a case-insensitive file system cannot make two outputs one).
 
     Returns
     -------
     str
         ``name`` unchanged.
+
+    Raises
+    ------
+    OutputError
+        Empty, ``.``/``..``, a separator, a control character, over 255 bytes (UTF-8), the
+        form of our temporary names, or a reserved name.
     """
+    if not isinstance(name, str):
+        raise OutputError(f'expected a file name, got a value of type {type(name).__name__}',
+                          option=option)
     shown = _short(name)
-    if not isinstance(name, str) or not name.strip():
+    if not name.strip():
         raise OutputError('an empty name is not a file name', option=option)
     if name in ('.', '..'):
         raise OutputError(f'{shown!r} is not a file name', option=option)
@@ -87,7 +140,7 @@ def check_component(name: str, *, option: str, reserved: tuple[str, ...] = ()) -
     if len(name.encode('utf-8', 'surrogatepass')) > _MAX_NAME_BYTES:
         raise OutputError(f'{shown!r} is longer than {_MAX_NAME_BYTES} bytes', option=option)
     if _TMP_RE.match(name):
-        raise OutputError(f'{shown!r} looks like one of our temporary names', option=option)
+        raise OutputError(f'{shown!r} has the form of a temporary name', option=option)
     if name.casefold() in {r.casefold() for r in reserved}:
         raise OutputError(f'{shown!r} is reserved in this directory', option=option)
     return name
@@ -98,24 +151,63 @@ def confined(directory: str | os.PathLike[str], name: str, *, option: str,
     """``directory / name`` for a safe ``name`` (see :func:`check_component`).
 
     The result is checked again after normalisation to lie directly inside ``directory``.
+
+    Parameters
+    ----------
+    directory
+        The requested output directory.
+    name
+        One path component.
+    option
+        The argument or key ``name`` comes from.
+    reserved
+        Names that must not be used in ``directory``.
+
+    Returns
+    -------
+    pathlib.Path
+        ``Path(directory) / name``.
     """
     check_component(name, option=option, reserved=reserved)
     base = Path(os.path.abspath(directory))
     path = Path(os.path.normpath(base / name))
-    if path.parent != base:
+    if path.parent != base:  # pragma: no cover - check_component already refuses this
         raise OutputError(f'{_short(name)!r} leaves the output directory', option=option)
     return Path(directory) / name
 
 
-def _lexists(path: Path) -> os.stat_result | None:
+def _lstat(path: Path) -> os.stat_result | None:
     try:
         return os.lstat(path)
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
         return None
 
 
+def marked_or_empty(marker: str) -> Callable[[Path], bool]:
+    """A ``replaceable`` test: an empty directory or one holding the file ``marker``."""
+    def test(path: Path) -> bool:
+        mst = _lstat(path / marker)
+        if mst is not None and stat.S_ISREG(mst.st_mode):
+            return True
+        with os.scandir(path) as entries:
+            return next(entries, None) is None
+    return test
+
+
+def is_bag_directory(path: Path) -> bool:
+    """A ``replaceable`` test: a rosbag2 directory (``metadata.yaml`` and plain files only)."""
+    names = []
+    with os.scandir(path) as entries:
+        for entry in entries:
+            if not entry.is_file(follow_symlinks=False):
+                return False
+            names.append(entry.name)
+    return not names or 'metadata.yaml' in names
+
+
 def check_target(path: str | os.PathLike[str], *, option: str, force: bool = False,
-                 kind: str = 'file') -> Path:
+                 kind: str = 'file', replaceable: Callable[[Path], bool] | None = None,
+                 forceable: bool = True) -> Path:
     """Refuse a target that must not be (over)written; returns it as a :class:`Path`.
 
     Parameters
@@ -128,42 +220,63 @@ def check_target(path: str | os.PathLike[str], *, option: str, force: bool = Fal
         Allow replacing an existing target of the same kind (never a symbolic link).
     kind
         ``'file'`` or ``'directory'``.
+    replaceable
+        For directories with ``force``: a test that the existing directory is one the
+        command may replace (its own earlier output); default: any directory.
+    forceable
+        Whether the command has a ``--force`` (only changes the message's advice).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
 
     Raises
     ------
     OutputError
         The target is a symbolic link (even dangling), exists without ``force``, exists as
-        the other kind, or its parent exists but is not a directory (or is a link).
+        the other kind or fails ``replaceable``, or its parent exists but is not a directory.
     """
+    if kind not in ('file', 'directory'):
+        raise ValueError(f'kind must be file or directory, got {kind!r}')
     path = Path(path)
-    st = _lexists(path)
+    st = _lstat(path)
     if st is not None:
         if stat.S_ISLNK(st.st_mode):
             raise OutputError('is a symbolic link; links are never written through',
                               path=path, option=option)
         if not force:
-            raise OutputError('exists already; choose a new name or pass --force',
+            advice = ' or pass --force' if forceable else ''
+            raise OutputError(f'exists already; choose a new name{advice}',
                               path=path, option=option)
         is_dir = stat.S_ISDIR(st.st_mode)
         if is_dir != (kind == 'directory'):
             other = 'a directory' if is_dir else 'not a directory'
             raise OutputError(f'exists and is {other}; not replaced', path=path,
                               option=option)
+        if is_dir and replaceable is not None and not replaceable(path):
+            raise OutputError('exists and is not an earlier output of this command; '
+                              'not replaced, even with --force', path=path, option=option)
     parent = path.parent
-    pst = _lexists(parent)
-    if pst is not None and not stat.S_ISDIR(pst.st_mode):
-        what = 'a symbolic link' if stat.S_ISLNK(pst.st_mode) else 'not a directory'
-        raise OutputError(f'its parent {_short(str(parent))} is {what}', path=path,
+    # The parent may be a link to a directory (the user's choice of place); the target
+    # itself is never a link.
+    if parent.exists() and not parent.is_dir():
+        raise OutputError(f'its parent {_short_path(str(parent))} is not a directory', path=path,
                           option=option)
+    if os.path.lexists(parent) and not parent.exists():
+        raise OutputError(f'its parent {_short_path(str(parent))} is a dangling symbolic link',
+                          path=path, option=option)
     return path
 
 
 def _pid_alive(pid: int) -> bool:
+    if pid <= 0 or pid > _PID_MAX:
+        return True     # not a pid: leave the entry alone
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    except PermissionError:
+    except (PermissionError, OverflowError):
         return True
     return True
 
@@ -171,20 +284,32 @@ def _pid_alive(pid: int) -> bool:
 def remove_stale_temporaries(path: str | os.PathLike[str]) -> int:
     """Remove ``.<name>.tmp-<pid>`` siblings of ``path`` left by processes that are gone.
 
-    Returns the number removed. Temporaries of running processes are left alone.
+    A temporary named with this process's pid is stale too (its creator had this pid and is
+    gone, or it is this process, which writes one target at a time).
+
+    Parameters
+    ----------
+    path
+        The target whose temporaries are looked for.
+
+    Returns
+    -------
+    int
+        The number removed. Temporaries of other running processes are left alone.
     """
     path = Path(path)
-    parent = path.parent
     removed = 0
     try:
-        entries = list(os.scandir(parent))
+        with os.scandir(path.parent) as it:
+            entries = list(it)
     except OSError:
         return 0
     for entry in entries:
         m = _TMP_RE.match(entry.name)
         if m is None or m.group('name') != path.name:
             continue
-        if _pid_alive(int(m.group('pid'))):
+        pid = int(m.group('pid'))
+        if pid != os.getpid() and _pid_alive(pid):
             continue
         _remove(Path(entry.path))
         removed += 1
@@ -193,9 +318,8 @@ def remove_stale_temporaries(path: str | os.PathLike[str]) -> int:
 
 def _remove(path: Path) -> None:
     """Remove a file, link or directory tree without following links."""
-    try:
-        st = os.lstat(path)
-    except FileNotFoundError:
+    st = _lstat(path)
+    if st is None:
         return
     if stat.S_ISDIR(st.st_mode):
         shutil.rmtree(path, ignore_errors=True)
@@ -204,26 +328,57 @@ def _remove(path: Path) -> None:
             os.unlink(path)
 
 
-def _tmp_name(path: Path) -> Path:
-    return path.with_name(f'.{path.name}.tmp-{os.getpid()}')
+def _tmp_name(path: Path, n: int = 0) -> Path:
+    suffix = f'-{n}' if n else ''
+    return path.with_name(f'.{path.name}.tmp-{os.getpid()}{suffix}')
 
 
 def _make_parent(path: Path, option: str) -> None:
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-    except FileExistsError as err:
+    except (FileExistsError, NotADirectoryError) as err:
         raise OutputError(f'cannot create its directory: {err.strerror}', path=path,
                           option=option) from err
 
 
+def _sync_directory(directory: Path) -> None:
+    """Make a rename in ``directory`` durable (best effort: not every system allows it)."""
+    with contextlib.suppress(OSError):
+        fd = os.open(directory, os.O_RDONLY | getattr(os, 'O_DIRECTORY', 0))
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
 def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
-                      force: bool = False) -> Path:
+                      force: bool = False, forceable: bool = True) -> Path:
     """Write ``text`` (UTF-8) to ``path`` through a temporary sibling and a rename.
 
     Without ``force`` the final step is a hard link, which fails if the target appeared in
-    the meantime, so an existing file is never replaced. Returns ``path``.
+    the meantime, so an existing file is never replaced; with ``force`` it is
+    :func:`os.replace`, which replaces a file (or a link put there meanwhile) and never
+    writes through a link.
+
+    Parameters
+    ----------
+    path
+        The file to write.
+    text
+        Its content.
+    option
+        The argument it comes from, for messages.
+    force
+        Replace an existing file.
+    forceable
+        Whether the command has a ``--force`` (for the message).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
     """
-    path = check_target(path, option=option, force=force, kind='file')
+    path = check_target(path, option=option, force=force, kind='file', forceable=forceable)
     _make_parent(path, option)
     remove_stale_temporaries(path)
     tmp = _tmp_name(path)
@@ -234,7 +389,7 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
-        check_target(path, option=option, force=force, kind='file')
+        check_target(path, option=option, force=force, kind='file', forceable=forceable)
         if force:
             os.replace(tmp, path)
         else:
@@ -244,6 +399,7 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
                 raise OutputError('appeared while writing; not replaced', path=path,
                                   option=option) from err
             os.unlink(tmp)
+        _sync_directory(path.parent)
     except BaseException:
         _remove(tmp)
         raise
@@ -251,18 +407,38 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
 
 
 @contextlib.contextmanager
-def staged_directory(path: str | os.PathLike[str], *, option: str,
-                     force: bool = False) -> Iterator[Path]:
+def staged_directory(path: str | os.PathLike[str], *, option: str, force: bool = False,
+                     replaceable: Callable[[Path], bool] | None = None,
+                     forceable: bool = True) -> Iterator[Path]:
     """Build a directory output in a temporary place, renamed to ``path`` when complete.
 
     Yields ``.<name>.tmp-<pid>/<name>``, a path that does not exist yet, inside a hidden
     temporary sibling directory: the caller creates it (a rosbags writer creates its bag
     directory itself and names its files after it, so the name is kept). When the block
     ends without an exception it is renamed to ``path``; on any exception the temporary is
-    removed and nothing of the output exists. With ``force`` an existing directory is
-    replaced only after the new one is complete.
+    removed and nothing of the output exists. With ``force`` an existing directory that
+    passes ``replaceable`` is replaced only after the new one is complete.
+
+    Parameters
+    ----------
+    path
+        The directory to create.
+    option
+        The argument it comes from, for messages.
+    force
+        Replace an existing directory (see :func:`check_target`).
+    replaceable
+        Which existing directories ``force`` may replace.
+    forceable
+        Whether the command has a ``--force`` (for the message).
+
+    Yields
+    ------
+    pathlib.Path
+        Where to build the directory.
     """
-    path = check_target(path, option=option, force=force, kind='directory')
+    path = check_target(path, option=option, force=force, kind='directory',
+                        replaceable=replaceable, forceable=forceable)
     _make_parent(path, option)
     remove_stale_temporaries(path)
     tmp = _tmp_name(path)
@@ -271,16 +447,18 @@ def staged_directory(path: str | os.PathLike[str], *, option: str,
     try:
         inner = tmp / path.name
         yield inner
-        if _lexists(inner) is None:
+        if _lstat(inner) is None:
             os.mkdir(inner, 0o755)
-        check_target(path, option=option, force=force, kind='directory')
-        if _lexists(path) is not None:
-            old = path.with_name(f'.{path.name}.tmp-{os.getpid()}-1')
+        check_target(path, option=option, force=force, kind='directory',
+                     replaceable=replaceable, forceable=forceable)
+        if _lstat(path) is not None:
+            old = _tmp_name(path, 1)
             os.rename(path, old)
         os.rename(inner, path)
+        _sync_directory(path.parent)
     except BaseException:
-        if old is not None and _lexists(path) is None:
-            os.rename(old, path)
+        if old is not None and _lstat(path) is None:
+            os.rename(old, path)    # put the earlier output back
             old = None
         raise
     finally:
@@ -289,27 +467,70 @@ def staged_directory(path: str | os.PathLike[str], *, option: str,
             _remove(old)
 
 
-class _Terminated(SystemExit):
-    """Raised in the main thread on SIGTERM so that cleanup code runs."""
+class Rollback:
+    """Remove, on failure, every output one invocation has completed (context manager).
+
+    ``add`` the paths as they are completed; when the block raises, they are removed in
+    reverse order (links are not followed), and so are the directory given as ``created``
+    and its parents if this invocation created them and they are empty again.
+
+    Parameters
+    ----------
+    created
+        A directory that the invocation may create with its parents (those missing now are
+        recorded).
+    """
+
+    def __init__(self, created: str | os.PathLike[str] | None = None):
+        self._paths: list[Path] = []
+        self._missing: list[Path] = []
+        if created is not None:
+            here = Path(os.path.abspath(created))
+            while not os.path.lexists(here) and here.parent != here:
+                self._missing.append(here)
+                here = here.parent
+
+    def add(self, path: str | os.PathLike[str]) -> None:
+        """Record a completed output."""
+        self._paths.append(Path(path))
+
+    def __enter__(self) -> 'Rollback':
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            return
+        for path in reversed(self._paths):
+            _remove(path)
+        for directory in self._missing:     # deepest first; only if empty
+            with contextlib.suppress(OSError):
+                os.rmdir(directory)
 
 
 @contextlib.contextmanager
-def terminate_on_signals() -> Iterator[None]:
-    """Turn SIGTERM into a ``SystemExit(143)`` (SIGINT already raises KeyboardInterrupt).
+def terminate_on_signals(signals: tuple[int, ...] = (signal.SIGTERM, signal.SIGINT)
+                         ) -> Iterator[None]:
+    """Raise :class:`Terminated` in the main thread on SIGTERM or SIGINT while the block runs.
 
-    ``finally`` blocks and the staged outputs above then remove their temporaries. The
-    previous handler is restored on exit. Only in the main thread (signals are delivered
-    there); elsewhere a no-op.
+    ``finally`` blocks and the staged outputs above then remove their temporaries. Only the
+    first signal raises: a second one while cleanup runs is ignored, so that cleanup is not
+    cut short. The previous handlers are restored on exit. Only in the main thread (signals
+    are delivered there); elsewhere a no-op.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    state = {'raised': False}
 
     def handler(signum, frame):
-        raise _Terminated(128 + signum)
+        if state['raised']:
+            return
+        state['raised'] = True
+        raise Terminated(signum)
 
-    previous = signal.signal(signal.SIGTERM, handler)
+    previous = {s: signal.signal(s, handler) for s in signals}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for s, h in previous.items():
+            signal.signal(s, h)

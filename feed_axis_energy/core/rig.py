@@ -50,6 +50,7 @@ from .gcode import parse_gcode
 from .machine import load_machine, Machine
 from .measured.align import interval_average
 from .motion import Motion
+from .outputs import marked_or_empty, staged_directory
 from .simulate import simulate_motion, simulate_program, SimulationResult
 
 __all__ = ['PAPER_LOADS_KG', 'PAPER_FEEDS_MM_S', 'OUTSIDE_KINDS', 'CLOCK_START_MS',
@@ -354,11 +355,6 @@ def simulate_run(machine: Machine, program_text: str, *, load_kg: float,
 
 
 def _prepare_out(out: Path) -> None:
-    if out.exists():
-        if any(out.iterdir()) and not (out / MARKER).exists():
-            msg = f'{out} exists, is not empty and was not written by the rig; choose another'
-            raise ConfigError(msg, file='rig', key='out')
-        shutil.rmtree(out)
     (out / 'programs').mkdir(parents=True)
     (out / 'runs').mkdir()
     (out / MARKER).write_text('written by the feed_axis_energy virtual rig\n')
@@ -423,10 +419,14 @@ def _manifest(config: RigConfig, axes: tuple[str, ...],
 
 
 def make_campaign(out: str | Path, config: RigConfig, *,
-                  progress: Callable[[float], None] | None = None) -> Path:
+                  progress: Callable[[float], None] | None = None, force: bool = False,
+                  option: str = '--out') -> Path:
     """Write a virtual campaign (manifest, machine, programs, CSVs, truth) into ``out``.
 
-    ``out`` must not exist, be empty, or hold an earlier rig output (which is replaced).
+    ``out`` must not exist; with ``force`` an empty directory or an earlier rig output is
+    replaced. All or nothing: the campaign is built in a hidden temporary directory and
+    renamed into place when complete (:func:`.outputs.staged_directory`); ``option`` names
+    ``out`` in error messages.
 
     Returns
     -------
@@ -446,6 +446,15 @@ def make_campaign(out: str | Path, config: RigConfig, *,
     if any(not (math.isfinite(f) and f > 0.0) for f in config.feeds_mm_s):
         msg = f'feeds must be finite numbers > 0 mm/s, got {list(config.feeds_mm_s)}'
         raise ConfigError(msg, key='feeds')
+    with staged_directory(out, option=option, force=force,
+                          replaceable=marked_or_empty(MARKER)) as staged:
+        _write_campaign(staged, config, machine, progress)
+    return out / 'manifest.yaml'
+
+
+def _write_campaign(out: Path, config: RigConfig, machine,
+                    progress: Callable[[float], None] | None) -> None:
+    """Write the campaign's files into ``out`` (a new directory)."""
     _prepare_out(out)
     shutil.copyfile(config.machine, out / 'machine.yaml')
     rng = np.random.default_rng(config.seed)
@@ -494,7 +503,6 @@ def make_campaign(out: str | Path, config: RigConfig, *,
     }
     (out / 'truth.json').write_text(json.dumps(_jsonable(truth), indent=2, sort_keys=True)
                                     + '\n', encoding='utf-8')
-    return manifest
 
 
 def _jsonable(value: Any) -> Any:

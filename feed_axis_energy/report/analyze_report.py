@@ -150,16 +150,19 @@ td.num {{ text-align: right; }} img {{ max-width: 100%; }}</style></head><body>
 
 
 def write_analyze_report(res: AnalysisResult, out_dir: str | os.PathLike[str], *,
-                         dpi: int = 90) -> Path:
+                         dpi: int = 90, force: bool = False) -> Path:
     """Write the plots and ``index.html`` into ``out_dir`` (all or nothing); return the page.
+
+    ``force`` replaces an earlier report (or an empty directory) in ``out_dir``.
 
     Raises
     ------
-    FileExistsError
-        If ``out_dir`` is a file or a non-empty directory that is not an earlier report.
+    OutputError
+        If ``out_dir`` must not be written (see :func:`.staged_report`).
     """
     out = Path(out_dir)
-    with staged_report(out, written_by='feed-axis-energy analyze --report') as tmp:
+    with staged_report(out, written_by='feed-axis-energy analyze --report',
+                       force=force) as tmp:
         _residual_states(res, tmp / 'residual_states.png', dpi)
         _spectrum(res, tmp / 'spectrum.png', dpi)
         images = {}

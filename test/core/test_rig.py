@@ -9,6 +9,7 @@ import pytest
 from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.gcode import load_gcode
 from feed_axis_energy.core.machine import GRAVITY_M_S2, load_machine
+from feed_axis_energy.core.outputs import OutputError
 from feed_axis_energy.core.measured import interval_average, load_campaign, load_run
 from feed_axis_energy.core.rig import (EffectSpec, Instrument, instrument_record,
                                        make_campaign, paper_scenario, parse_effects,
@@ -194,13 +195,18 @@ def test_refuses_a_foreign_directory_and_replaces_its_own(tmp_path: Path) -> Non
     foreign = tmp_path / 'mine'
     foreign.mkdir()
     (foreign / 'thesis.tex').write_text('precious')
-    with pytest.raises(ConfigError, match='not written by the rig'):
-        make_campaign(foreign, _small())
-    assert (foreign / 'thesis.tex').exists()
+    for force in (False, True):
+        with pytest.raises(OutputError, match='exists'):
+            make_campaign(foreign, _small(), force=force)
+    assert [p.name for p in foreign.iterdir()] == ['thesis.tex']
     out = tmp_path / 'rig'
     make_campaign(out, _small(feeds_mm_s=(100.0,)))
-    make_campaign(out, _small(feeds_mm_s=(200.0,)))
+    # an earlier rig output is replaced only with force (it was replaced silently before)
+    with pytest.raises(OutputError, match='exists already'):
+        make_campaign(out, _small(feeds_mm_s=(200.0,)))
+    make_campaign(out, _small(feeds_mm_s=(200.0,)), force=True)
     assert sorted(p.name for p in (out / 'runs').iterdir()) == ['f200_load0kg.csv']
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['mine', 'rig']   # no temporary
 
 
 def test_paper_scenario_errors_grow_with_load(tmp_path: Path) -> None:

@@ -12,6 +12,7 @@ import pytest
 
 from feed_axis_energy.core.measured import load_campaign
 from feed_axis_energy.core.measured.compare import compare_campaign
+from feed_axis_energy.core.outputs import OutputError
 from feed_axis_energy.report import MARKER, PLOT_KINDS, write_report
 import feed_axis_energy.report.plots as plots
 
@@ -68,14 +69,18 @@ def test_an_earlier_report_is_replaced_but_a_foreign_directory_is_not(comparison
     out = tmp_path / 'r'
     write_report(comparison, out)
     (out / 'stale.png').write_bytes(b'x')
-    write_report(comparison, out)
+    # replaced only with force (it was replaced silently before)
+    with pytest.raises(OutputError, match='exists already'):
+        write_report(comparison, out)
+    assert (out / 'stale.png').exists()
+    write_report(comparison, out, force=True)
     assert (out / MARKER).exists() and not (out / 'stale.png').exists()
     foreign = tmp_path / 'mine'
     foreign.mkdir()
     (foreign / 'notes.txt').write_text('keep me')
-    with pytest.raises(FileExistsError, match='was not written by a feed-axis-energy report'):
-        write_report(comparison, foreign)
-    assert (foreign / 'notes.txt').read_text() == 'keep me'
+    with pytest.raises(OutputError, match='not an earlier output'):
+        write_report(comparison, foreign, force=True)
+    assert [p.name for p in foreign.iterdir()] == ['notes.txt']
 
 
 def test_a_failure_leaves_nothing_half_written(comparison, tmp_path, monkeypatch):
@@ -89,7 +94,7 @@ def test_a_failure_leaves_nothing_half_written(comparison, tmp_path, monkeypatch
 
     monkeypatch.setattr(plots, 'plot_error', broken)
     with pytest.raises(RuntimeError, match='disk full'):
-        write_report(comparison, out)
+        write_report(comparison, out, force=True)
     assert sorted(p.name for p in out.iterdir()) == before     # earlier report intact
     assert sorted(p.name for p in tmp_path.iterdir()) == ['r']  # temporary removed
 

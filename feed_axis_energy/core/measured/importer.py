@@ -1,10 +1,12 @@
 """Import measured runs into rosbag2/MCAP bags (layout in :mod:`.bagload`), all or nothing.
 
-Every run is loaded and checked first (CSV errors stop the import before anything is
-written); each bag is written into a temporary directory next to its destination and renamed
-into place when complete, so an interrupted import never leaves a half-written bag. A
-manifest listing the bags (same machine, loads, roles and motion sources) is written last, so
-the imported runs can be used wherever the CSV runs were.
+Every destination is checked first (run names and the manifest name must be plain names
+confined to the output directory, none may exist, :mod:`..outputs`) and every run is loaded
+and checked (CSV errors stop the import before anything is written); each bag is written
+into a hidden temporary directory next to its destination and renamed into place when
+complete. A manifest listing the bags (same machine, loads, roles and motion sources) is
+written last, so the imported runs can be used wherever the CSV runs were. If anything fails
+part-way (or SIGTERM/SIGINT arrive), every bag this import wrote is removed again.
 """
 from __future__ import annotations
 
@@ -12,8 +14,6 @@ from dataclasses import dataclass, replace
 import hashlib
 import os
 from pathlib import Path
-import shutil
-import tempfile
 from typing import Any, Callable, Sequence
 
 import numpy as np
@@ -21,7 +21,9 @@ import yaml
 
 from .. import bagio
 from ..energy import EnergyIntegrator
-from ..errors import ConfigError, DataError
+from ..errors import ConfigError, DataError, shorten
+from ..outputs import (check_target, confined, OutputError, Rollback, staged_directory,
+                       write_text_atomic)
 from ..units import si_unit_of
 from .bagload import (QUANTITY_TOPIC, RUN_KEY, TOPIC_MEASURED_COMMAND,
                       TOPIC_MEASURED_ELECTRICAL, electrical_joint)
@@ -242,7 +244,7 @@ def run_metadata(run: MeasuredRun, spec: RunSpec, *,
 
 
 def write_run_bag(path: str | Path, run: MeasuredRun, *, metadata: dict[str, Any],
-                  batch: int = 100) -> ImportedRun:
+                  batch: int = 100, option: str = 'bag') -> ImportedRun:
     """Write one run as a rosbag2/MCAP directory, renamed into place only when complete.
 
     Parameters
@@ -255,6 +257,8 @@ def write_run_bag(path: str | Path, run: MeasuredRun, *, metadata: dict[str, Any
         Stored as JSON under :data:`.bagload.RUN_KEY` in ``custom_data``.
     batch
         Samples per message.
+    option
+        What ``path`` comes from, for error messages.
 
     Returns
     -------
@@ -263,27 +267,18 @@ def write_run_bag(path: str | Path, run: MeasuredRun, *, metadata: dict[str, Any
 
     Raises
     ------
-    FileExistsError
-        If ``path`` exists.
+    OutputError
+        If ``path`` exists or is a symbolic link.
     """
     path = Path(path)
-    if path.exists():
-        msg = f'{path} exists already; choose a new output directory'
-        raise FileExistsError(msg)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f'.{path.name}.', suffix='.partial', dir=path.parent))
-    try:
-        # The bag is named after its directory (the MCAP file too), so build it under its
-        # final name inside the temporary directory.
-        staged = tmp / path.name
-        messages = 0
-        with bagio.BagWriter(staged) as writer:
-            for topic, series in run_series(run).items():
-                messages += writer.write_series(topic, series, batch=batch)
-            writer.set_custom_data(RUN_KEY, metadata)
-        os.rename(staged, path)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    messages = 0
+    # The bag is named after its directory (the MCAP file too): staged_directory builds it
+    # under its final name inside a hidden temporary directory.
+    with staged_directory(path, option=option, forceable=False) as staged, \
+            bagio.BagWriter(staged) as writer:
+        for topic, series in run_series(run).items():
+            messages += writer.write_series(topic, series, batch=batch)
+        writer.set_custom_data(RUN_KEY, metadata)
     size = sum(f.stat().st_size for f in path.iterdir() if f.is_file())
     return ImportedRun(name=run.name, bag=path, samples=int(run.t.shape[0]),
                        duration_s=float(run.t[-1] - run.t[0]), messages=messages,
@@ -345,6 +340,34 @@ def bag_manifest(campaign: Campaign, runs: Sequence[tuple[RunSpec, MeasuredRun, 
     }
 
 
+def _destinations(campaign: Campaign, specs: Sequence[RunSpec], out_dir: Path,
+                  manifest_name: str) -> tuple[Path, list[tuple[Path, str]]]:
+    """Check every destination before anything is written; the manifest and bag paths.
+
+    Each run name and the manifest name must be one plain name (:func:`.outputs.confined`),
+    no two may be equal ignoring case, and none may exist.
+    """
+    if os.path.lexists(out_dir) and not out_dir.is_dir():
+        raise OutputError('is not a directory', path=out_dir, option='--out')
+    options = [f'{Path(spec.manifest).name} {spec.key}.name' if spec.key else 'run name'
+               for spec in specs]
+    names = [spec.name for spec in specs]
+    manifest = confined(out_dir, manifest_name, option='--manifest-name',
+                        reserved=tuple(names))
+    bags = []
+    seen: dict[str, str] = {}
+    for name, option in zip(names, options):
+        bag = confined(out_dir, name, option=option, reserved=(manifest_name,))
+        other = seen.setdefault(name.casefold(), option)
+        if other != option:
+            raise OutputError(f'{shorten(name)!r} names the same bag directory as {other} on '
+                              'a file system that ignores case', option=option)
+        bags.append((check_target(bag, option=option, kind='directory', forceable=False),
+                     option))
+    check_target(manifest, option='--manifest-name', kind='file', forceable=False)
+    return manifest, bags
+
+
 def import_campaign(campaign: Campaign, out_dir: str | Path, *,
                     runs: Sequence[str] | None = None, start_s: float = 0.0,
                     duration_s: float | None = None, manifest_name: str = 'campaign.yaml',
@@ -378,8 +401,10 @@ def import_campaign(campaign: Campaign, out_dir: str | Path, *,
     ------
     KeyError
         An unknown run name.
-    FileExistsError
-        A destination exists (checked before anything is written).
+    OutputError
+        A run name or ``manifest_name`` that is no plain name inside ``out_dir``, two
+        destinations that are one, or a destination that exists (all checked before anything
+        is written).
     DataError, ConfigError
         A run that cannot be loaded (before anything is written).
     """
@@ -388,12 +413,7 @@ def import_campaign(campaign: Campaign, out_dir: str | Path, *,
         raise ConfigError(msg, file='import', key='excerpt')
     out_dir = Path(out_dir)
     specs = [campaign.run(n) for n in runs] if runs else list(campaign.runs)
-    manifest = out_dir / manifest_name
-    targets = [out_dir / s.name for s in specs] + [manifest]
-    for target in targets:
-        if target.exists():
-            msg = f'{target} exists already; choose a new output directory'
-            raise FileExistsError(msg)
+    manifest, bags = _destinations(campaign, specs, out_dir, manifest_name)
     excerpt = None if start_s == 0.0 and duration_s is None else (start_s, duration_s)
     loaded = []
     for spec in specs:
@@ -402,18 +422,19 @@ def import_campaign(campaign: Campaign, out_dir: str | Path, *,
             run = excerpt_run(run, start_s=start_s, duration_s=duration_s)
         loaded.append((spec, run))
     written = []
-    for i, (spec, run) in enumerate(loaded):
-        meta = run_metadata(run, spec, excerpt=excerpt)
-        written.append(write_run_bag(out_dir / spec.name, run, metadata=meta, batch=batch))
-        if progress is not None:
-            progress((i + 1) / (len(loaded) + 1))
-    doc = bag_manifest(campaign, [(s, r, w.bag) for (s, r), w in zip(loaded, written)],
-                       out_file=manifest)
-    tmp = manifest.with_name(f'.{manifest.name}.partial')
-    text = yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=99)
-    tmp.write_text('# Written by feed-axis-energy import; the bags are in SI (see '
-                   'docs/measured.md).\n' + text, encoding='utf-8')
-    os.replace(tmp, manifest)
+    with Rollback(created=out_dir) as rollback:
+        for i, ((spec, run), (bag, option)) in enumerate(zip(loaded, bags)):
+            meta = run_metadata(run, spec, excerpt=excerpt)
+            written.append(write_run_bag(bag, run, metadata=meta, batch=batch, option=option))
+            rollback.add(bag)
+            if progress is not None:
+                progress((i + 1) / (len(loaded) + 1))
+        doc = bag_manifest(campaign, [(s, r, w.bag) for (s, r), w in zip(loaded, written)],
+                           out_file=manifest)
+        text = yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=99)
+        write_text_atomic(manifest, '# Written by feed-axis-energy import; the bags are in SI '
+                          '(see docs/measured.md).\n' + text, option='--manifest-name',
+                          forceable=False)
     if progress is not None:
         progress(1.0)
     return ImportResult(runs=tuple(written), manifest=manifest)

@@ -14,6 +14,7 @@ from feed_axis_energy.core.measured import load_campaign, load_run
 from feed_axis_energy.core.measured.bagload import (RUN_KEY, TOPIC_MEASURED_COMMAND,
                                                     TOPIC_MEASURED_ELECTRICAL)
 from feed_axis_energy.core.measured.importer import excerpt_run, import_campaign
+from feed_axis_energy.core.outputs import OutputError
 
 ROOT = Path(__file__).resolve().parents[3]
 FIXTURES = ROOT / 'test' / 'fixtures' / 'measured'
@@ -86,7 +87,7 @@ def test_existing_destination_writes_nothing(tmp_path):
     campaign = load_campaign(FIXTURES / 'campaign.yaml')
     out = tmp_path / 'out'
     (out / 'b').mkdir(parents=True)
-    with pytest.raises(FileExistsError):
+    with pytest.raises(OutputError, match='exists already'):
         import_campaign(campaign, out)
     assert sorted(p.name for p in out.iterdir()) == ['b']
 
@@ -118,7 +119,8 @@ def test_failure_while_writing_leaves_no_partial_bag(tmp_path, monkeypatch):
     out = tmp_path / 'out'
     with pytest.raises(OSError, match='disk full'):
         import_campaign(campaign, out, runs=['a'])
-    assert list(out.iterdir()) == []                       # no bag, no temp dir, no manifest
+    # no bag, no temporary, no manifest, and the directory this import created is gone too
+    assert not out.exists() and list(tmp_path.iterdir()) == []
 
 
 def test_excerpt_restarts_time_and_keeps_source_rows():
