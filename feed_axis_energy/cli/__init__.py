@@ -11,7 +11,7 @@ import sys
 
 from feed_axis_energy import __version__
 from feed_axis_energy.core.errors import FeedAxisError
-from feed_axis_energy.core.outputs import Terminated, terminate_on_signals
+from feed_axis_energy.core.interrupt import Terminated, terminate_on_signals
 
 __all__ = ['main', 'build_parser']
 

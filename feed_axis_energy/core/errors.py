@@ -1,10 +1,11 @@
 """Every error type the core raises; each message names the place and what was expected."""
 from __future__ import annotations
 
+import os
 from typing import Any
 
 __all__ = ['FeedAxisError', 'GcodeError', 'ConfigError', 'DataError', 'PlanningError',
-           'describe', 'shorten', 'SHOWN_CHARS']
+           'OutputError', 'describe', 'shorten', 'shorten_path', 'SHOWN_CHARS']
 
 SHOWN_CHARS = 60
 """Quoted input in an error message is cut to about this many characters."""
@@ -27,6 +28,23 @@ def shorten(text: str, *, limit: int = SHOWN_CHARS) -> str:
     """
     text = str(text)
     return text if len(text) <= limit else text[:limit] + '...'
+
+
+def shorten_path(path: str) -> str:
+    """Return a path for a message: control characters escaped, its end kept when long.
+
+    Parameters
+    ----------
+    path
+        A path from the command line or from a file.
+
+    Returns
+    -------
+    str
+        At most :data:`SHOWN_CHARS` characters; a cut is marked by a leading ``...``.
+    """
+    text = str(path).encode('unicode_escape', 'backslashreplace').decode('ascii')
+    return text if len(text) <= SHOWN_CHARS else '...' + text[3 - SHOWN_CHARS:]
 
 
 def describe(value: Any) -> str:
@@ -144,3 +162,24 @@ class PlanningError(FeedAxisError):
         self.line = line
         self.reason = message
         super().__init__(f'{file}:{line}: {message}' if line else f'{file}: {message}')
+
+
+class OutputError(FeedAxisError):
+    """An output that must not be written: names the option and the path.
+
+    Parameters
+    ----------
+    message
+        What is wrong and what to do.
+    path
+        The path concerned (shown cut to about 60 characters).
+    option
+        The argument or key the path comes from (``--out``, ``campaign.yaml runs[2].name``).
+    """
+
+    def __init__(self, message: str, *, path: str | os.PathLike[str] = '', option: str = ''):
+        self.path = shorten_path(os.fspath(path)) if path else ''
+        self.option = option
+        self.reason = message
+        where = ' '.join(p for p in (option, self.path) if p)
+        super().__init__(f'{where}: {message}' if where else message)

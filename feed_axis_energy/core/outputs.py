@@ -27,11 +27,10 @@ import os
 from pathlib import Path
 import re
 import shutil
-import signal
 import stat
-import threading
 
-from .errors import FeedAxisError
+from .errors import OutputError, shorten, shorten_path
+from .interrupt import Terminated, terminate_on_signals
 
 __all__ = ['OutputError', 'Terminated', 'check_component', 'confined', 'check_target',
            'write_text_atomic', 'staged_directory', 'remove_stale_temporaries',
@@ -42,62 +41,12 @@ _TMP_RE = re.compile(r'^\.(?P<name>.+)\.tmp-(?P<pid>[0-9]{1,10})(?:-(?P<n>[0-9]{
 REPORT_MARKER = '.feed_axis_energy_report'
 """File in a report directory (compare/analyze ``--report``): ``--force`` may replace it."""
 _MAX_NAME_BYTES = 255
-_SHOWN = 60
 _PID_MAX = 1 << 22      # Linux's largest pid_max; anything above is no pid of ours
 
 
-class OutputError(FeedAxisError):
-    """An output that must not be written: names the option and the path.
-
-    Parameters
-    ----------
-    message
-        What is wrong and what to do.
-    path
-        The path concerned (shown cut to about 60 characters).
-    option
-        The argument or key the path comes from (``--out``, ``campaign.yaml runs[2].name``).
-    """
-
-    def __init__(self, message: str, *, path: str | os.PathLike[str] = '', option: str = ''):
-        self.path = _short_path(os.fspath(path)) if path else ''
-        self.option = option
-        self.reason = message
-        where = ' '.join(p for p in (option, self.path) if p)
-        super().__init__(f'{where}: {message}' if where else message)
-
-
-class Terminated(KeyboardInterrupt):
-    """Raised in the main thread on SIGTERM or SIGINT so that cleanup code runs.
-
-    A ``KeyboardInterrupt`` so that ``except Exception`` blocks do not swallow it.
-
-    Parameters
-    ----------
-    signum
-        The signal received.
-    """
-
-    def __init__(self, signum: int):
-        super().__init__(signum)
-        self.signum = int(signum)
-
-    @property
-    def exit_code(self) -> int:
-        """The shell's convention: 128 + signal number."""
-        return 128 + self.signum
-
-
-def _short(text: str) -> str:
-    """``text`` with control characters escaped, cut to a bounded length for messages."""
-    text = text.encode('unicode_escape', 'backslashreplace').decode('ascii')
-    return text if len(text) <= _SHOWN else text[:_SHOWN - 3] + '...'
-
-
-def _short_path(text: str) -> str:
-    """A path for messages: control characters escaped, its end kept when it is long."""
-    text = text.encode('unicode_escape', 'backslashreplace').decode('ascii')
-    return text if len(text) <= _SHOWN else '...' + text[3 - _SHOWN:]
+def _short_name(text: str) -> str:
+    """A name for messages: control characters escaped, cut to a bounded length."""
+    return shorten(text.encode('unicode_escape', 'backslashreplace').decode('ascii'))
 
 
 def check_component(name: str, *, option: str, reserved: tuple[str, ...] = ()) -> str:
@@ -127,7 +76,7 @@ def check_component(name: str, *, option: str, reserved: tuple[str, ...] = ()) -
     if not isinstance(name, str):
         raise OutputError(f'expected a file name, got a value of type {type(name).__name__}',
                           option=option)
-    shown = _short(name)
+    shown = _short_name(name)
     if not name.strip():
         raise OutputError('an empty name is not a file name', option=option)
     if name in ('.', '..'):
@@ -172,7 +121,7 @@ def confined(directory: str | os.PathLike[str], name: str, *, option: str,
     base = Path(os.path.abspath(directory))
     path = Path(os.path.normpath(base / name))
     if path.parent != base:  # pragma: no cover - check_component already refuses this
-        raise OutputError(f'{_short(name)!r} leaves the output directory', option=option)
+        raise OutputError(f'{_short_name(name)!r} leaves the output directory', option=option)
     return Path(directory) / name
 
 
@@ -261,10 +210,10 @@ def check_target(path: str | os.PathLike[str], *, option: str, force: bool = Fal
     # The parent may be a link to a directory (the user's choice of place); the target
     # itself is never a link.
     if parent.exists() and not parent.is_dir():
-        raise OutputError(f'its parent {_short_path(str(parent))} is not a directory', path=path,
+        raise OutputError(f'its parent {shorten_path(str(parent))} is not a directory', path=path,
                           option=option)
     if os.path.lexists(parent) and not parent.exists():
-        raise OutputError(f'its parent {_short_path(str(parent))} is a dangling symbolic link',
+        raise OutputError(f'its parent {shorten_path(str(parent))} is a dangling symbolic link',
                           path=path, option=option)
     return path
 
@@ -333,12 +282,32 @@ def _tmp_name(path: Path, n: int = 0) -> Path:
     return path.with_name(f'.{path.name}.tmp-{os.getpid()}{suffix}')
 
 
-def _make_parent(path: Path, option: str) -> None:
+def _missing_parents(path: Path) -> list[Path]:
+    """The parents of ``path`` that do not exist yet, deepest first."""
+    missing = []
+    here = Path(os.path.abspath(path)).parent
+    while not os.path.lexists(here) and here.parent != here:
+        missing.append(here)
+        here = here.parent
+    return missing
+
+
+def _remove_empty(directories: list[Path]) -> None:
+    """Remove directories (deepest first) that are empty; leave any other."""
+    for directory in directories:
+        with contextlib.suppress(OSError):
+            os.rmdir(directory)
+
+
+def _make_parent(path: Path, option: str) -> list[Path]:
+    """Create the parents of ``path``; return those created (to remove them on failure)."""
+    missing = _missing_parents(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except (FileExistsError, NotADirectoryError) as err:
         raise OutputError(f'cannot create its directory: {err.strerror}', path=path,
                           option=option) from err
+    return missing
 
 
 def _sync_directory(directory: Path) -> None:
@@ -379,11 +348,15 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
         ``path``.
     """
     path = check_target(path, option=option, force=force, kind='file', forceable=forceable)
-    _make_parent(path, option)
+    created = _make_parent(path, option)
     remove_stale_temporaries(path)
     tmp = _tmp_name(path)
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, 'O_NOFOLLOW', 0)
-    fd = os.open(tmp, flags, 0o644)
+    try:
+        fd = os.open(tmp, flags, 0o644)
+    except BaseException:
+        _remove_empty(created)
+        raise
     try:
         with os.fdopen(fd, 'w', encoding='utf-8') as fh:
             fh.write(text)
@@ -402,6 +375,7 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
         _sync_directory(path.parent)
     except BaseException:
         _remove(tmp)
+        _remove_empty(created)
         raise
     return path
 
@@ -439,12 +413,12 @@ def staged_directory(path: str | os.PathLike[str], *, option: str, force: bool =
     """
     path = check_target(path, option=option, force=force, kind='directory',
                         replaceable=replaceable, forceable=forceable)
-    _make_parent(path, option)
+    created = _make_parent(path, option)
     remove_stale_temporaries(path)
     tmp = _tmp_name(path)
-    os.mkdir(tmp, 0o700)
     old: Path | None = None
     try:
+        os.mkdir(tmp, 0o700)
         inner = tmp / path.name
         yield inner
         if _lstat(inner) is None:
@@ -460,6 +434,8 @@ def staged_directory(path: str | os.PathLike[str], *, option: str, force: bool =
         if old is not None and _lstat(path) is None:
             os.rename(old, path)    # put the earlier output back
             old = None
+        _remove(tmp)
+        _remove_empty(created)
         raise
     finally:
         _remove(tmp)
@@ -485,10 +461,7 @@ class Rollback:
         self._paths: list[Path] = []
         self._missing: list[Path] = []
         if created is not None:
-            here = Path(os.path.abspath(created))
-            while not os.path.lexists(here) and here.parent != here:
-                self._missing.append(here)
-                here = here.parent
+            self._missing = _missing_parents(Path(created) / 'x')
 
     def add(self, path: str | os.PathLike[str]) -> None:
         """Record a completed output."""
@@ -502,35 +475,4 @@ class Rollback:
             return
         for path in reversed(self._paths):
             _remove(path)
-        for directory in self._missing:     # deepest first; only if empty
-            with contextlib.suppress(OSError):
-                os.rmdir(directory)
-
-
-@contextlib.contextmanager
-def terminate_on_signals(signals: tuple[int, ...] = (signal.SIGTERM, signal.SIGINT)
-                         ) -> Iterator[None]:
-    """Raise :class:`Terminated` in the main thread on SIGTERM or SIGINT while the block runs.
-
-    ``finally`` blocks and the staged outputs above then remove their temporaries. Only the
-    first signal raises: a second one while cleanup runs is ignored, so that cleanup is not
-    cut short. The previous handlers are restored on exit. Only in the main thread (signals
-    are delivered there); elsewhere a no-op.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    state = {'raised': False}
-
-    def handler(signum, frame):
-        if state['raised']:
-            return
-        state['raised'] = True
-        raise Terminated(signum)
-
-    previous = {s: signal.signal(s, handler) for s in signals}
-    try:
-        yield
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
+        _remove_empty(self._missing)
