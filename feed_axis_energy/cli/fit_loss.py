@@ -77,11 +77,12 @@ def _options(args: argparse.Namespace) -> SteadyOptions:
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     options = _options(args)
+    if args.out_machine is not None:
+        # refused before anything is loaded or fitted
+        check_target(args.out_machine, option='--out-machine', force=args.force)
     campaign = load_campaign(args.manifest)
     machine_path = args.machine if args.machine is not None else campaign.machine
     machine = load_machine(machine_path)
-    if args.out_machine is not None:
-        check_target(args.out_machine, option='--out-machine', force=args.force)
     names = split_names(args.runs)
     try:
         specs = ([campaign.run(n) for n in names] if names

@@ -49,7 +49,8 @@ def _short_name(text: str) -> str:
     return shorten(text.encode('unicode_escape', 'backslashreplace').decode('ascii'))
 
 
-def check_component(name: str, *, option: str, reserved: tuple[str, ...] = ()) -> str:
+def check_component(name: str, *, option: str, reserved: tuple[str, ...] = (),
+                    why: str = 'reserved in this directory') -> str:
     """Return ``name`` if it is one safe path component, else raise :class:`OutputError`.
 
     Parameters
@@ -61,6 +62,8 @@ def check_component(name: str, *, option: str, reserved: tuple[str, ...] = ()) -
     reserved
         Names of the directory that must not be used (compared case-insensitively, so that
         a case-insensitive file system cannot make two outputs one).
+    why
+        Why the reserved names are, for the message.
 
     Returns
     -------
@@ -91,12 +94,12 @@ def check_component(name: str, *, option: str, reserved: tuple[str, ...] = ()) -
     if _TMP_RE.match(name):
         raise OutputError(f'{shown!r} has the form of a temporary name', option=option)
     if name.casefold() in {r.casefold() for r in reserved}:
-        raise OutputError(f'{shown!r} is reserved in this directory', option=option)
+        raise OutputError(f'{shown!r} is {why}', option=option)
     return name
 
 
 def confined(directory: str | os.PathLike[str], name: str, *, option: str,
-             reserved: tuple[str, ...] = ()) -> Path:
+             reserved: tuple[str, ...] = (), why: str = 'reserved in this directory') -> Path:
     """``directory / name`` for a safe ``name`` (see :func:`check_component`).
 
     The result is checked again after normalisation to lie directly inside ``directory``.
@@ -109,15 +112,15 @@ def confined(directory: str | os.PathLike[str], name: str, *, option: str,
         One path component.
     option
         The argument or key ``name`` comes from.
-    reserved
-        Names that must not be used in ``directory``.
+    reserved, why
+        Names that must not be used in ``directory``, and why (see :func:`check_component`).
 
     Returns
     -------
     pathlib.Path
         ``Path(directory) / name``.
     """
-    check_component(name, option=option, reserved=reserved)
+    check_component(name, option=option, reserved=reserved, why=why)
     base = Path(os.path.abspath(directory))
     path = Path(os.path.normpath(base / name))
     if path.parent != base:  # pragma: no cover - check_component already refuses this

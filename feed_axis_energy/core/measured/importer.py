@@ -352,18 +352,19 @@ def _destinations(campaign: Campaign, specs: Sequence[RunSpec], out_dir: Path,
     options = [f'{Path(spec.manifest).name} {spec.key}.name' if spec.key else 'run name'
                for spec in specs]
     names = [spec.name for spec in specs]
-    manifest = confined(out_dir, manifest_name, option='--manifest-name',
-                        reserved=tuple(names))
     bags = []
     seen: dict[str, str] = {}
     for name, option in zip(names, options):
-        bag = confined(out_dir, name, option=option, reserved=(manifest_name,))
+        bag = confined(out_dir, name, option=option, reserved=(manifest_name,),
+                       why='the name of the manifest written into --out (--manifest-name)')
         other = seen.setdefault(name.casefold(), option)
         if other != option:
             raise OutputError(f'{shorten(name)!r} names the same bag directory as {other} on '
                               'a file system that ignores case', option=option)
         bags.append((check_target(bag, option=option, kind='directory', forceable=False),
                      option))
+    manifest = confined(out_dir, manifest_name, option='--manifest-name',
+                        reserved=tuple(names), why='the name of a run (a bag directory)')
     check_target(manifest, option='--manifest-name', kind='file', forceable=False)
     return manifest, bags
 
