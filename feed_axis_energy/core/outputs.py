@@ -307,10 +307,25 @@ def _make_parent(path: Path, option: str) -> list[Path]:
     missing = _missing_parents(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError) as err:
-        raise OutputError(f'cannot create its directory: {err.strerror}', path=path,
+    except OSError as err:
+        _remove_empty(missing)
+        raise OutputError(f'cannot create its directory: {_reason(err)}', path=path,
                           option=option) from err
     return missing
+
+
+def _reason(err: OSError) -> str:
+    """The system's words for ``err``, without the (temporary) file name."""
+    return shorten(err.strerror or str(err) or type(err).__name__)
+
+
+def _failed(err: BaseException, path: Path, option: str) -> BaseException:
+    """The exception to raise after cleanup: an OSError becomes an OutputError naming the
+    argument (the temporary's name means nothing to the user); others stay as they are."""
+    if isinstance(err, OSError):
+        return OutputError(f'could not be written ({_reason(err)}); nothing was left',
+                           path=path, option=option)
+    return err
 
 
 def _sync_directory(directory: Path) -> None:
@@ -357,9 +372,12 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, 'O_NOFOLLOW', 0)
     try:
         fd = os.open(tmp, flags, 0o644)
-    except BaseException:
+    except BaseException as err:
         _remove_empty(created)
-        raise
+        failure = _failed(err, path, option)
+        if failure is err:
+            raise
+        raise failure from err
     try:
         with os.fdopen(fd, 'w', encoding='utf-8') as fh:
             fh.write(text)
@@ -376,10 +394,13 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
                                   option=option) from err
             os.unlink(tmp)
         _sync_directory(path.parent)
-    except BaseException:
+    except BaseException as err:
         _remove(tmp)
         _remove_empty(created)
-        raise
+        failure = _failed(err, path, option)
+        if failure is err:
+            raise
+        raise failure from err
     return path
 
 
@@ -433,13 +454,16 @@ def staged_directory(path: str | os.PathLike[str], *, option: str, force: bool =
             os.rename(path, old)
         os.rename(inner, path)
         _sync_directory(path.parent)
-    except BaseException:
+    except BaseException as err:
         if old is not None and _lstat(path) is None:
             os.rename(old, path)    # put the earlier output back
             old = None
         _remove(tmp)
         _remove_empty(created)
-        raise
+        failure = _failed(err, path, option)
+        if failure is err:
+            raise
+        raise failure from err
     finally:
         _remove(tmp)
         if old is not None:

@@ -117,14 +117,34 @@ def test_a_failed_write_leaves_nothing_not_even_the_directories_it_made(tmp_path
         raise OSError(28, 'No space left on device (simulated)')
 
     monkeypatch.setattr(os, 'fsync', broken)
-    with pytest.raises(OSError, match='No space'):
+    with pytest.raises(OutputError, match=r'^--out-machine .*m\.yaml: could not be written '
+                                          r'\(No space left on device \(simulated\)\)'):
         write_text_atomic(tmp_path / 'a' / 'b' / 'm.yaml', 'x', option='--out-machine')
     assert _tree(tmp_path) == []
     old = tmp_path / 'm.yaml'
     old.write_text('earlier')
-    with pytest.raises(OSError, match='No space'):
+    with pytest.raises(OutputError, match='No space'):
         write_text_atomic(old, 'new', option='--out-machine', force=True)
     assert old.read_text() == 'earlier' and _tree(tmp_path) == ['m.yaml']
+
+
+def test_an_unwritable_place_names_the_argument_not_the_temporary(tmp_path, monkeypatch):
+    real = os.mkdir
+
+    def refused(path, mode=0o777):
+        if '.tmp-' in str(path):
+            raise PermissionError(13, 'Permission denied', str(path))
+        return real(path, mode)
+
+    monkeypatch.setattr(os, 'mkdir', refused)
+    with pytest.raises(OutputError) as info:
+        with staged_directory(tmp_path / 'new' / 'bag', option='--out') as staged:
+            staged.mkdir()
+    message = str(info.value)
+    assert message.startswith('--out ') and message.endswith(
+        'new/bag: could not be written (Permission denied); nothing was left')
+    assert '.tmp-' not in message
+    assert _tree(tmp_path) == []                   # the directory it made is gone too
 
 
 def test_staged_directory_appears_only_when_complete(tmp_path: Path) -> None:

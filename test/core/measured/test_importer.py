@@ -117,7 +117,7 @@ def test_failure_while_writing_leaves_no_partial_bag(tmp_path, monkeypatch):
 
     monkeypatch.setattr(bagio.BagWriter, 'write_series', broken)
     out = tmp_path / 'out'
-    with pytest.raises(OSError, match='disk full'):
+    with pytest.raises(OutputError, match='disk full'):
         import_campaign(campaign, out, runs=['a'])
     # no bag, no temporary, no manifest, and the directory this import created is gone too
     assert not out.exists() and list(tmp_path.iterdir()) == []
