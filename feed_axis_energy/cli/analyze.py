@@ -117,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
     extra = {}
     # both outputs or neither: the first is removed if the second fails (unless it
     # replaced an earlier one with --force, which cannot be brought back)
-    with Rollback() as written:
+    made = None if args.out_machine is None else args.out_machine.parent
+    with Rollback(created=made) as written:
         if args.out_machine is not None:
             text = yaml.safe_dump(machine_to_dict(result.augmented_machine()), sort_keys=False)
             new = not os.path.lexists(args.out_machine)

@@ -28,6 +28,7 @@ from pathlib import Path
 import re
 import shutil
 import stat
+from typing import NoReturn
 
 from .errors import OutputError, shorten, shorten_path
 from .interrupt import Terminated, terminate_on_signals
@@ -102,7 +103,7 @@ def confined(directory: str | os.PathLike[str], name: str, *, option: str,
              reserved: tuple[str, ...] = (), why: str = 'reserved in this directory') -> Path:
     """``directory / name`` for a safe ``name`` (see :func:`check_component`).
 
-    The result is checked again after normalisation to lie directly inside ``directory``.
+    Checked again after normalisation to lie directly inside ``directory``.
 
     Parameters
     ----------
@@ -319,13 +320,12 @@ def _reason(err: OSError) -> str:
     return shorten(err.strerror or str(err) or type(err).__name__)
 
 
-def _failed(err: BaseException, path: Path, option: str) -> BaseException:
-    """The exception to raise after cleanup: an OSError becomes an OutputError naming the
-    argument (the temporary's name means nothing to the user); others stay as they are."""
+def _reraise(err: BaseException, path: Path, option: str) -> NoReturn:
+    """After cleanup, an OSError becomes an OutputError naming the argument, not the temporary."""
     if isinstance(err, OSError):
-        return OutputError(f'could not be written ({_reason(err)}); nothing was left',
-                           path=path, option=option)
-    return err
+        raise OutputError(f'could not be written ({_reason(err)}); nothing was left',
+                          path=path, option=option) from err
+    raise err
 
 
 def _sync_directory(directory: Path) -> None:
@@ -374,10 +374,7 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
         fd = os.open(tmp, flags, 0o644)
     except BaseException as err:
         _remove_empty(created)
-        failure = _failed(err, path, option)
-        if failure is err:
-            raise
-        raise failure from err
+        _reraise(err, path, option)
     try:
         with os.fdopen(fd, 'w', encoding='utf-8') as fh:
             fh.write(text)
@@ -397,10 +394,7 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
     except BaseException as err:
         _remove(tmp)
         _remove_empty(created)
-        failure = _failed(err, path, option)
-        if failure is err:
-            raise
-        raise failure from err
+        _reraise(err, path, option)
     return path
 
 
@@ -460,10 +454,7 @@ def staged_directory(path: str | os.PathLike[str], *, option: str, force: bool =
             old = None
         _remove(tmp)
         _remove_empty(created)
-        failure = _failed(err, path, option)
-        if failure is err:
-            raise
-        raise failure from err
+        _reraise(err, path, option)
     finally:
         _remove(tmp)
         if old is not None:

@@ -71,3 +71,20 @@ def test_tables_and_bad_run_name(manifest, capsys) -> None:
     assert 'all held-out runs' in text and 'after' in text
     assert main(['analyze', str(manifest), '--quiet', '--runs', 'nope']) == 1
     assert 'nope' in capsys.readouterr().err
+
+
+def test_out_machine_is_removed_when_the_report_fails(manifest, tmp_path, capsys,
+                                                      monkeypatch) -> None:
+    import feed_axis_energy.report.analyze_report as analyze_report
+
+    def broken(*args, **kwargs):
+        raise OSError(28, 'No space left on device (simulated)')
+
+    monkeypatch.setattr(analyze_report, '_spectrum', broken)
+    out_machine = tmp_path / 'new' / 'augmented.yaml'
+    report = tmp_path / 'report'
+    code = main(['analyze', str(manifest), '--quiet', '--out-machine', str(out_machine),
+                 '--report', str(report)])
+    err = capsys.readouterr().err
+    assert code == 1 and '--report' in err and 'No space' in err
+    assert list(tmp_path.iterdir()) == []          # neither output, no temporary, no 'new'
