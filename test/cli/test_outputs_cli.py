@@ -18,6 +18,7 @@ import yaml
 
 from feed_axis_energy.cli import main
 from feed_axis_energy.core import bagio
+from feed_axis_energy.core.interrupt import Terminated
 from feed_axis_energy.core.measured import load_campaign
 from feed_axis_energy.core.recording import SUMMARY_KEY
 
@@ -172,8 +173,12 @@ def test_import_confines_manifest_name(tmp_path: Path, capsys, bad: str) -> None
     assert not Path('/tmp/escaped.yaml').exists()
 
 
+@pytest.mark.parametrize('failure, code, said', [
+    (OSError(28, 'No space left on device (simulated)'), 1, 'No space'),
+    (Terminated(signal.SIGTERM), 143, 'signal 15'),     # what the SIGTERM handler raises
+])
 def test_import_failure_part_way_removes_every_bag_of_the_invocation(
-        tmp_path, capsys, monkeypatch) -> None:
+        tmp_path, capsys, monkeypatch, failure, code, said) -> None:
     manifest = _campaign_with_names(tmp_path, ['one', 'two', 'three'])
     out = tmp_path / 'out'
     real = bagio.BagWriter.write_series
@@ -182,13 +187,13 @@ def test_import_failure_part_way_removes_every_bag_of_the_invocation(
     def fails_in_the_second_bag(self, topic, series, *, batch=100):
         calls.append(self.path.name)
         if len(set(calls)) == 2:
-            raise OSError(28, 'No space left on device (simulated)')
+            raise failure
         return real(self, topic, series, batch=batch)
 
     monkeypatch.setattr(bagio.BagWriter, 'write_series', fails_in_the_second_bag)
     before = _snapshot(tmp_path)
-    assert main(['import', str(manifest), '--out', str(out), '--quiet']) == 1
-    assert 'No space' in capsys.readouterr().err
+    assert main(['import', str(manifest), '--out', str(out), '--quiet']) == code
+    assert said in capsys.readouterr().err
     assert _snapshot(tmp_path) == before                # bag 'one' was removed again
     monkeypatch.setattr(bagio.BagWriter, 'write_series', real)
     assert main(['import', str(manifest), '--out', str(out), '--quiet']) == 0
