@@ -340,7 +340,7 @@ def bag_manifest(campaign: Campaign, runs: Sequence[tuple[RunSpec, MeasuredRun, 
     }
 
 
-def _destinations(campaign: Campaign, specs: Sequence[RunSpec], out_dir: Path,
+def _destinations(specs: Sequence[RunSpec], out_dir: Path,
                   manifest_name: str) -> tuple[Path, list[tuple[Path, str]]]:
     """Check every destination before anything is written; the manifest and bag paths.
 
@@ -414,7 +414,7 @@ def import_campaign(campaign: Campaign, out_dir: str | Path, *,
         raise ConfigError(msg, file='import', key='excerpt')
     out_dir = Path(out_dir)
     specs = [campaign.run(n) for n in runs] if runs else list(campaign.runs)
-    manifest, bags = _destinations(campaign, specs, out_dir, manifest_name)
+    manifest, bags = _destinations(specs, out_dir, manifest_name)
     excerpt = None if start_s == 0.0 and duration_s is None else (start_s, duration_s)
     loaded = []
     for spec in specs:
