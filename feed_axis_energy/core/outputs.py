@@ -16,7 +16,8 @@ Rules (README, "Output files"):
   exception, including the :class:`Terminated` that :func:`terminate_on_signals` raises for
   SIGTERM and SIGINT, the temporary is removed: nothing is left.
 * SIGKILL cannot be caught: it may leave a hidden ``.<name>.tmp-<pid>`` beside the target,
-  never the target itself. The next write of the same target removes such temporaries of
+  never a partial target (in the instant of a ``force`` swap: the earlier output as
+  ``.<name>.tmp-<pid>-1``). The next write of the same target removes such temporaries of
   processes that no longer exist (:func:`remove_stale_temporaries`) and is not blocked by them.
 """
 from __future__ import annotations
