@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 
-from .errors import GcodeError
+from ..errors import GcodeError
 
 __all__ = ['blank_comments', 'WORD_RE', 'LINE_RE', 'G_CODES', 'G_UNSUPPORTED', 'M_CODES',
            'ALLOWED_LETTERS', 'UNSUPPORTED_LETTERS', 'diagnose_line', 'locate_word']

@@ -47,10 +47,10 @@ from __future__ import annotations
 import gc
 from os import PathLike
 
-from .errors import GcodeError
-from .gcode_interp import Interpreter
-from .gcode_lex import blank_comments, diagnose_line, LINE_RE, WORD_RE
-from .program import Program
+from .interp import Interpreter
+from .lexer import blank_comments, diagnose_line, LINE_RE, WORD_RE
+from ..errors import GcodeError
+from ..program import Program
 
 __all__ = ['parse_gcode', 'load_gcode', 'DEFAULT_ARC_TOLERANCE_M']
 

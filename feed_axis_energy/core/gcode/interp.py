@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import math
 
-from .errors import GcodeError
-from .gcode_lex import (ALLOWED_LETTERS, blank_comments, G_CODES, G_UNSUPPORTED, locate_word,
-                        M_CODES, UNSUPPORTED_LETTERS)
-from .program import Move, MoveKind
+from .lexer import (ALLOWED_LETTERS, blank_comments, G_CODES, G_UNSUPPORTED, locate_word,
+                    M_CODES, UNSUPPORTED_LETTERS)
+from ..errors import GcodeError
+from ..program import Move, MoveKind
 
 __all__ = ['Interpreter']
 
