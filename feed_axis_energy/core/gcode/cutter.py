@@ -98,6 +98,8 @@ class CutterComp:
         self.on = False            # G41/G42 in force (even with radius 0)
         self.first = True          # the next move is the entry move
         self.exit_pending = False  # G40 done, the exit move has not come yet
+        self.carry = False         # restarted while the tool was still offset
+        self.arc_not_allowed = False   # LinuxCNC: the move after G40 must be straight
         self.axes = _PLANE_AXES[17]
         self.plane = 17
         self.prog: list[float] = [0.0, 0.0, 0.0]    # last programmed point (u, v, w)
@@ -119,7 +121,7 @@ class CutterComp:
     @property
     def engaged(self) -> bool:
         """True while moves must go through :meth:`feed` (comp on, or the exit pending)."""
-        return (self.on and self.radius > 0.0) or self.exit_pending
+        return (self.on and self.radius > 0.0) or self.exit_pending or self.arc_not_allowed
 
     def start(self, side: int, radius_m: float, plane: int, *, fail: Fail | None = None,
               line: int = 0) -> None:
@@ -147,8 +149,11 @@ class CutterComp:
             self._raise(f'cutter compensation side must be G41 or G42, not {side}', 'G')
         if not math.isfinite(radius_m):
             self._raise('tool radius is not a finite number', 'D')
-        if not self.exit_pending:
-            self.tool = None       # moves bypassed the filter since it was last engaged
+        # After G40 with the exit still to come the tool stays offset (``carry``); otherwise
+        # moves bypassed the filter since it was last engaged and the tool is unknown here.
+        self.carry = self.exit_pending
+        if not self.carry:
+            self.tool = None
         self.left = (side == LEFT) != (radius_m < 0.0)
         self.radius = abs(float(radius_m))
         self.plane = plane
@@ -176,6 +181,11 @@ class CutterComp:
         if self.tool is None:
             self.tool = move.start
         moving = move.kind in (MoveKind.RAPID, MoveKind.LINEAR) or move.kind in _ARC_KINDS
+        if self.arc_not_allowed and moving:
+            if move.kind in _ARC_KINDS:
+                self._raise('The move just after exiting cutter compensation mode must be '
+                            'straight, not an arc', 'G')
+            self.arc_not_allowed = False
         if not (self.on and self.radius > 0.0):
             if self.exit_pending and moving:
                 self._exit(move)
@@ -186,8 +196,10 @@ class CutterComp:
             if move.kind == MoveKind.STOP:
                 self._flush_at(self.cur[0], self.cur[1])
                 self._pass(move)
-            else:
+            elif self.queue:
                 self.queue.append(move)
+            else:
+                self._pass(move)       # nothing held back: no reason to wait (enqueue_DWELL)
             return self._take()
         if move.kind in _ARC_KINDS and move.plane != self.plane:
             self._raise(f'arc in plane G{move.plane} while cutter compensation works in '
@@ -206,12 +218,19 @@ class CutterComp:
         return self._take()
 
     def finish(self, *, fail: Fail | None = None, line: int = 0) -> list[Move]:
-        """G40 (or program end): flush the held moves; the next move is the exit move."""
-        self._begin(fail, line)
+        """G40 (or program end): flush the held moves; the next move is the exit move.
+
+        ``line`` (for errors without ``fail``) defaults to the line of the last move fed.
+        """
+        self._begin(fail, line or self._line)
         if self.on and self.radius > 0.0 and not self.first:
             self._flush_at(self.cur[0], self.cur[1])
-            self._dequeue()
             self.exit_pending = True
+            self.arc_not_allowed = True
+        elif self.carry:
+            self.exit_pending = True   # G40 G41 G40 without motion: still offset
+        self._dequeue()
+        self.carry = False
         self.on = False
         self.first = True
         return self._take()
@@ -251,9 +270,6 @@ class CutterComp:
 
     def _exit(self, move: Move) -> None:
         """The first motion after G40: straight from the compensated to the programmed point."""
-        if move.kind in _ARC_KINDS:
-            self._raise('The move just after exiting cutter compensation mode must be '
-                        'straight, not an arc', 'G')
         length = math.dist(self.tool, move.end)
         self.exit_pending = False
         if length > 0.0:

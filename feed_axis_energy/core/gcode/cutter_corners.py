@@ -77,6 +77,8 @@ def arc_then_line(*, left: bool, radius: float, centre: Point, end: Point, turn:
     """
     c1, c2 = centre
     oldrad = math.hypot(c2 - end[1], c1 - end[0])
+    if oldrad == 0.0:
+        raise CornerError(f'Arc to straight motion {_GOUGE}')
     base = math.atan2(target[1] - corner[1], target[0] - corner[0])
     theta = base + _HALF_PI if turn > 0 else base - _HALF_PI
     phi = math.atan2(c2 - corner[1], c1 - corner[0])
@@ -98,6 +100,8 @@ def line_then_arc(*, left: bool, radius: float, beta: float, theta: float, arc_r
     ``convert_arc_comp2`` computes them; ``arc_r`` the programmed arc radius.
     """
     rise = arc_r * math.sin(beta - _HALF_PI)
+    if arc_r == 0.0:
+        raise CornerError(f'Line to arc motion {_GOUGE}')
     if tool_inside(left, turn):
         dist = arc_r - radius
         ratio = (rise + radius) / dist

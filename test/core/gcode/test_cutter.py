@@ -5,6 +5,7 @@ import json
 import math
 import os
 from pathlib import Path
+import random
 import re
 import subprocess
 
@@ -182,6 +183,60 @@ def test_exit_move_after_g40_starts_at_the_offset_point():
     assert out[-1].start == pytest.approx(p3(10, 1))
     assert out[-1].end == p3(20, 0)
     assert out[-1].length_m == pytest.approx(math.hypot(10, 1) * MM)
+
+
+def test_dwell_waits_with_a_held_move_and_sits_at_the_corner_point():
+    comp = CutterComp()
+    path = Path2(0, 0)
+    comp.start(LEFT, 1 * MM, 17)
+    dwell_first = Move(kind=MoveKind.DWELL, line=9, start=p3(0, 0), end=p3(0, 0), dwell_s=2)
+    assert comp.feed(dwell_first) == [dwell_first]        # nothing held: issued at once
+    assert comp.feed(path.line_to(10, 0)) == []
+    held = Move(kind=MoveKind.DWELL, line=10, start=p3(10, 0), end=p3(10, 0), dwell_s=1)
+    assert comp.feed(held) == []
+    out = comp.feed(path.line_to(10, 10))
+    # The concave corner moved the line's end to (9, 1): the dwell happens there.
+    assert [m.kind for m in out] == [MoveKind.LINEAR, MoveKind.DWELL]
+    assert out[1].start == out[1].end == out[0].end == pytest.approx(p3(9, 1))
+
+
+def test_arc_is_refused_after_g40_even_when_comp_is_restarted():
+    comp = CutterComp()
+    path = Path2(0, 0)
+    comp.start(LEFT, 1 * MM, 17)
+    comp.feed(path.line_to(10, 0))
+    comp.finish()
+    comp.start(RIGHT, 1 * MM, 17)                          # LinuxCNC keeps the rule
+    with pytest.raises(GcodeError, match='must be straight'):
+        comp.feed(path.arc_to(20, 0, 5, 0, ccw=True))
+
+
+def test_random_contours_give_chained_finite_moves_or_a_gcode_error():
+    rng = random.Random(8)
+    for _ in range(400):
+        path = Path2(0, 0)
+        moves = []
+        for _ in range(rng.randint(1, 8)):
+            if rng.random() < 0.6:
+                moves.append(path.line_to(rng.uniform(-30, 30), rng.uniform(-30, 30),
+                                          rng.choice([None, rng.uniform(-5, 5)])))
+            else:
+                r, a0 = rng.uniform(0.01, 20), rng.uniform(0, 2 * math.pi)
+                cx, cy = path.pos[0] / MM - r * math.cos(a0), path.pos[1] / MM - r * math.sin(a0)
+                a1 = a0 + rng.uniform(-3, 3)
+                moves.append(path.arc_to(cx + r * math.cos(a1), cy + r * math.sin(a1),
+                                         cx - path.pos[0] / MM, cy - path.pos[1] / MM,
+                                         ccw=rng.random() < 0.5))
+        try:
+            out = run(moves, side=rng.choice([LEFT, RIGHT]), radius=rng.choice([0.5, 2, 6]))
+        except GcodeError as err:
+            assert 1 <= err.line <= len(moves)
+            continue
+        assert_chained(out)
+        assert out[0].start == p3(0, 0)
+        for m in out:
+            values = [*m.start, *m.end, m.length_m, *(m.center or ())]
+            assert all(math.isfinite(v) for v in values) and m.length_m > 0.0
 
 
 def test_zero_radius_changes_nothing_and_negative_radius_swaps_the_side():
