@@ -14,15 +14,38 @@ from feed_axis_energy.core.errors import FeedAxisError
 
 __all__ = ['main', 'build_parser']
 
-# Order is the order shown in --help.
-SUBCOMMANDS = ('simulate', 'demo', 'compare', 'launch', 'import', 'fit-loss', 'rig',
-               'analyze')
+# Order is the order shown in --help; the one-line help of each subcommand is listed here so
+# that ``--help`` imports no subcommand module (each module's add_parser uses the same text,
+# a test checks it).
+SUBCOMMANDS = {
+    'simulate': 'predict power and energy of every feed axis for an NC program',
+    'demo': "simulate the paper's demonstrator at its 3 loads and 5 feeds",
+    'compare': 'compare measured runs of a campaign with the simulation (Table 1)',
+    'launch': 'run the ROS 2 node graph on an NC program (separate processes)',
+    'import': 'turn the measured runs of a campaign into rosbag2/MCAP bags',
+    'fit-loss': 'fit the loss function y = a*x^b from no-load runs at several feeds',
+    'rig': 'write a virtual measured campaign (truth model + instrument artefacts)',
+    'analyze': 'find the catalog effect(s) the model misses; error before/after',
+}
 # Subcommands whose module is not named after them ('import' is a Python keyword).
 _MODULES = {'import': 'import_run'}
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Return the top-level argument parser with every subcommand registered."""
+def _chosen(argv: list[str]) -> str | None:
+    """The subcommand named in ``argv`` (top-level options take no values)."""
+    for arg in argv:
+        if not arg.startswith('-'):
+            return arg if arg in SUBCOMMANDS else None
+    return None
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """Return the top-level argument parser.
+
+    Only the subcommand named in ``argv`` is imported and gets its full parser; the others
+    are listed with their one-line help (start-up time: a subcommand's imports are paid only
+    when it runs). ``argv=None`` imports and registers every subcommand.
+    """
     parser = argparse.ArgumentParser(
         prog='feed-axis-energy',
         description='Virtual ball-screw feed axis: actual power and energy of each feed axis '
@@ -30,16 +53,22 @@ def build_parser() -> argparse.ArgumentParser:
                     'measured runs.')
     parser.add_argument('--version', action='version', version=f'%(prog)s {__version__}')
     sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
-    for name in SUBCOMMANDS:
-        module_name = _MODULES.get(name, name.replace('-', '_'))
-        module = importlib.import_module(f'feed_axis_energy.cli.{module_name}')
-        module.add_parser(sub)
+    chosen = None if argv is None else _chosen(argv)
+    for name, summary in SUBCOMMANDS.items():
+        if argv is None or name == chosen:
+            module_name = _MODULES.get(name, name.replace('-', '_'))
+            module = importlib.import_module(f'feed_axis_energy.cli.{module_name}')
+            module.add_parser(sub)
+        else:
+            sub.add_parser(name, help=summary)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the process exit code."""
-    parser = build_parser()
+    if argv is None:
+        argv = sys.argv[1:]
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     try:
         return int(args.run(args) or 0)

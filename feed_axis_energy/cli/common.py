@@ -26,9 +26,10 @@ def add_machine_options(p: argparse.ArgumentParser) -> None:
                    help='machine config (default: the paper\'s demonstrator, '
                         'config/demonstrator.yaml)')
     p.add_argument('--load-kg', type=float, default=0.0, metavar='KG',
-                   help='mass clamped on the table [kg] (default: 0)')
+                   help='mass clamped on the table [kg] (default: 0; 0 to 1e6)')
     p.add_argument('--rate-hz', type=float, default=None, metavar='HZ',
-                   help='sampling rate of the simulation [Hz] (default: machine config, 1000)')
+                   help='sampling rate of the simulation [Hz] (default: machine config, 1000; '
+                        'at most 1e6)')
     p.add_argument('--profile', choices=('jerk', 'trapezoid'), default=None,
                    help='velocity profile (default: machine config)')
 
@@ -37,13 +38,14 @@ def load_machine_and_options(args: argparse.Namespace) -> tuple[Machine, Planner
     """Load the machine config and the planner options the command line asks for."""
     path = args.machine if args.machine is not None else default_machine()
     machine = load_machine(path)
-    if args.load_kg < 0:
-        msg = f'--load-kg must be >= 0, got {args.load_kg}'
+    if not 0.0 <= args.load_kg <= 1.0e6:  # also refuses nan and inf
+        msg = f'--load-kg must be a number of 0 to 1e6 kg, got {args.load_kg}'
         raise ConfigError(msg, file='command line', key='load-kg')
     options = machine.planner.options()
     if args.rate_hz is not None:
-        if not args.rate_hz > 0:
-            msg = f'--rate-hz must be > 0, got {args.rate_hz}'
+        # the machine config's bound: more would allocate beyond any memory
+        if not 0.0 < args.rate_hz <= 1.0e6:
+            msg = f'--rate-hz must be > 0 and <= 1e6 Hz, got {args.rate_hz}'
             raise ConfigError(msg, file='command line', key='rate-hz')
         options = replace(options, rate_hz=args.rate_hz)
     if args.profile is not None:

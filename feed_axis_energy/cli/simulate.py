@@ -3,18 +3,27 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 from pathlib import Path
 
-from feed_axis_energy.cli.common import (add_machine_options, load_machine_and_options,
-                                         print_summary, program_text_lines)
-from feed_axis_energy.cli.progress import Progress
-from feed_axis_energy.core.gcode import load_gcode
-from feed_axis_energy.core.measured.trajcsv import load_trajectory_csv
-from feed_axis_energy.core.recording import write_simulation_bag
-from feed_axis_energy.core.simulate import simulate_motion, simulate_program, summarize
+from feed_axis_energy.cli.common import add_machine_options
+from feed_axis_energy.core.errors import ConfigError
 
-__all__ = ['add_parser', 'run']
+__all__ = ['add_parser', 'run', 'bag_bytes_per_sample']
+
+# Recorded bytes per sample (all three topics, MCAP without compression; an upper bound of
+# the zstd-compressed size, which varies with the data) with k axes:
+# /setpoints 3 arrays of k doubles, /axis_state 4 arrays of 2k, /power 2 arrays of k + 1,
+# plus per-point lengths and stamps; measured 228 B (1 axis) and 437 B (3 axes), see README.
+_BAG_BYTES_AXIS = 105
+_BAG_BYTES_BASE = 125
+_DISK_RESERVE = 1.1      # refuse when the estimate exceeds 1 / 1.1 of the free space
+
+
+def bag_bytes_per_sample(n_axes: int) -> int:
+    """Estimated recording size per sample [bytes] for ``n_axes`` axes (see README)."""
+    return _BAG_BYTES_BASE + _BAG_BYTES_AXIS * int(n_axes)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -32,22 +41,123 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--out', type=Path, metavar='BAG_DIR',
                    help='write the full time series as a rosbag2 directory (MCAP storage); '
                         'must not exist yet')
+    p.add_argument('--compression', choices=('none', 'zstd'), default='zstd',
+                   help='MCAP chunk compression of the --out recording (default zstd: about 8x '
+                        'smaller, about 2.5x slower to write)')
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the table (keys in README)')
     p.add_argument('--top', type=int, default=5, metavar='N',
                    help='number of most energetic blocks to list (default: 5)')
+    p.add_argument('--max-samples', type=int, default=0, metavar='N',
+                   help='refuse programs that need more than N samples (default 0: no limit); '
+                        'the count is known from the plan before any sample is computed')
     p.add_argument('--quiet', action='store_true', help='no progress indication')
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
+    # imported here: ``feed-axis-energy --help`` must not pay for the simulation's imports
+    from feed_axis_energy.cli.common import (load_machine_and_options, print_summary,
+                                             program_text_lines)
+    from feed_axis_energy.cli.progress import Progress
+    from feed_axis_energy.core.gcode import load_gcode
+    from feed_axis_energy.core.simstream import streamable
+
     machine, options = load_machine_and_options(args)
     if args.out is not None and args.out.exists():
         msg = f'{args.out} exists already; choose a new output directory'
         raise FileExistsError(msg)
+    if args.max_samples < 0:
+        msg = f'--max-samples must be >= 0, got {args.max_samples}'
+        raise ConfigError(msg, file='command line', key='max-samples')
     progress = Progress('simulate', enabled=not args.quiet)
     trajectory = args.program.suffix.lower() == '.csv'
+    if trajectory or not streamable(machine):
+        summary = _run_whole(args, machine, options, progress, trajectory=trajectory)
+    else:
+        program = load_gcode(args.program, home=machine.home_point())
+        for warning in program.warnings:
+            print(f'warning: {warning}', file=sys.stderr)
+        if not program.moves:
+            print(f'warning: {args.program}: the program has no motion', file=sys.stderr)
+        summary = _run_stream(args, machine, options, program, progress)
+    if args.out is not None:
+        summary['bag'] = str(args.out)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print_summary(summary, source_lines=program_text_lines(args.program))
+        if args.out is not None:
+            print(f'recording: {args.out} (topics /setpoints, /axis_state, /power, '
+                  '/block_energy; units in README)')
+    return 0
+
+
+def _check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: float,
+                file: str) -> None:
+    """Refuse, before any sample is computed, a run beyond a documented limit."""
+    from feed_axis_energy.core.errors import PlanningError
+    samples, duration = estimate.samples, estimate.duration_s
+    what = f'{samples:,} samples ({duration / 3600.0:.2f} h at {rate_hz:g} Hz)'
+    if args.max_samples and samples > args.max_samples:
+        rate = args.max_samples / max(duration, 1e-9)
+        msg = (f'the run needs {what}, more than --max-samples {args.max_samples:,}; '
+               f'lower the rate (--rate-hz {max(rate, 1e-3):.3g} fits) or raise the limit')
+        raise PlanningError(msg, file=file)
+    if args.out is not None:
+        need = samples * bag_bytes_per_sample(n_axes)
+        parent = args.out.resolve().parent
+        free = shutil.disk_usage(parent).free if parent.is_dir() else None
+        if free is not None and need * _DISK_RESERVE > free:
+            rate = free / _DISK_RESERVE / bag_bytes_per_sample(n_axes) / max(duration, 1e-9)
+            msg = (f'the recording of {what} needs about {need / 1e9:.2f} GB but {parent} '
+                   f'has {free / 1e9:.2f} GB free; lower the rate (--rate-hz '
+                   f'{max(rate, 1e-3):.3g} fits) or write elsewhere')
+            raise PlanningError(msg, file=file)
+
+
+def _run_stream(args, machine, options, program, progress) -> dict:
+    """Plan, simulate and record chunk by chunk (memory: one chunk)."""
+    from feed_axis_energy.core.planstream import estimate_plan
+    from feed_axis_energy.core.simstream import simulate_stream
+    limits = machine.limits()
+    duration = None
+    if args.max_samples or args.out is not None:
+        # a planning pass without samples (cost: per block) to refuse before any output
+        estimate = estimate_plan(program.moves, limits, options=options, file=program.file)
+        _check_cost(args, estimate, n_axes=len(limits), rate_hz=options.rate_hz,
+                    file=program.file)
+        duration = estimate.duration_s
+    top = args.top
+    total = len(program.moves)
+    if args.out is None:
+        summary, _ = simulate_stream(program.moves, machine, file=program.file,
+                                     load_kg=args.load_kg, options=options, top_blocks=top,
+                                     total_moves=total, duration_s=duration,
+                                     progress=progress, limits=limits)
+        progress.done()
+        return summary
+    from feed_axis_energy.core.recording import SimulationBagWriter
+    with SimulationBagWriter(args.out, compression=args.compression) as writer:
+        summary, blocks = simulate_stream(program.moves, machine, file=program.file,
+                                          load_kg=args.load_kg, options=options,
+                                          top_blocks=top, total_moves=total,
+                                          duration_s=duration, on_chunk=writer.write,
+                                          progress=progress,
+                                          limits=limits)
+        writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
+    progress.done()
+    return summary
+
+
+def _run_whole(args, machine, options, progress, *, trajectory: bool) -> dict:
+    """Whole-record path: trajectory CSVs and declared effects that need the whole record."""
+    from feed_axis_energy.cli.progress import Progress
+    from feed_axis_energy.core.gcode import load_gcode
+    from feed_axis_energy.core.measured.trajcsv import load_trajectory_csv
+    from feed_axis_energy.core.recording import write_simulation_bag
+    from feed_axis_energy.core.simulate import simulate_motion, simulate_program, summarize
     if trajectory:
         motion = load_trajectory_csv(args.program, axes=machine.axis_names)
         result = simulate_motion(motion, machine, load_kg=args.load_kg)
@@ -64,13 +174,6 @@ def run(args: argparse.Namespace) -> int:
     summary = summarize(result, top_blocks=0 if trajectory else args.top)
     if args.out is not None:
         write_simulation_bag(args.out, result, summary=summary,
-                             progress=Progress('write bag', enabled=not args.quiet))
-        summary['bag'] = str(args.out)
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    else:
-        print_summary(summary, source_lines=program_text_lines(args.program))
-        if args.out is not None:
-            print(f'recording: {args.out} (topics /setpoints, /axis_state, /power, '
-                  '/block_energy; units in README)')
-    return 0
+                             progress=Progress('write bag', enabled=not args.quiet),
+                             compression=args.compression)
+    return summary

@@ -8,22 +8,32 @@ Topic names, field meanings and units are listed in ``docs/ARCHITECTURE.md`` and
 """
 from __future__ import annotations
 
-import json
+import contextlib
+from contextlib import contextmanager
+import itertools
 from dataclasses import dataclass
+import json
+import math
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Iterable, Iterator, Sequence
 
 import numpy as np
-from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
-from feed_axis_energy.core.errors import DataError
+from feed_axis_energy.core.bagcheck import check_trajectory, field_layout, guard
+from feed_axis_energy.core.cdr import diagnostic_array_cdr, joint_trajectory_cdr
+from feed_axis_energy.core.errors import DataError, describe, shorten
+from feed_axis_energy.core.mcapcheck import check_mcap
+from feed_axis_energy.core.safeyaml import load_yaml_file
+from feed_axis_energy.core.units import MAX_ABS_SI
 
 __all__ = [
     'TOPIC_SETPOINTS', 'TOPIC_AXIS_STATE', 'TOPIC_POWER', 'TOPIC_BLOCK_ENERGY',
     'TOPIC_MEASURED_POWER', 'TOPIC_MEASURED_KINEMATICS', 'JOINT_TRAJECTORY', 'DIAGNOSTIC_ARRAY',
     'Series', 'BagWriter', 'read_series', 'read_block_energy', 'read_custom_data', 'bag_topics',
-    'typestore', 'series_to_messages', 'messages_to_series',
+    'typestore', 'series_to_messages', 'messages_to_series', 'read_metadata',
+    'read_raw_messages', 'check_trajectory', 'BAG_COMPRESSIONS', 'BLOCK_ENERGY_PER_MESSAGE',
 ]
 
 TOPIC_SETPOINTS = '/setpoints'
@@ -37,6 +47,8 @@ JOINT_TRAJECTORY = 'trajectory_msgs/msg/JointTrajectory'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 
 _NS = 1_000_000_000
+BAG_COMPRESSIONS = ('none', 'zstd')
+BLOCK_ENERGY_PER_MESSAGE = 10_000   # statuses per /block_energy message
 _TYPESTORE = None
 
 
@@ -152,14 +164,23 @@ class BagWriter:
     ----------
     path
         Bag directory to create; it must not exist yet.
+    compression
+        ``'none'`` (default) or ``'zstd'``: MCAP chunks compressed with zstd (about 8x
+        smaller for simulated series, about 2.5x slower to write).
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, *, compression: str = 'none'):
         self.path = Path(path)
         if self.path.exists():
             msg = f'{self.path} exists already; choose a new output directory'
             raise FileExistsError(msg)
+        if compression not in BAG_COMPRESSIONS:
+            msg = f'compression must be one of {", ".join(BAG_COMPRESSIONS)}, got {compression!r}'
+            raise ValueError(msg)
         self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        if compression == 'zstd':
+            # MCAP chunk compression: read by rosbags, the mcap library and Foxglove
+            self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         self._connections: dict[str, object] = {}
 
     def __enter__(self) -> 'BagWriter':
@@ -184,82 +205,287 @@ class BagWriter:
         self._writer.write(conn, stamp_ns, typestore().serialize_cdr(message, msgtype))
 
     def write_series(self, topic: str, series: Series, *, batch: int = 100) -> int:
-        """Write a time series as batched JointTrajectory messages; returns the message count."""
-        msgs = series_to_messages(series, batch=batch)
-        for stamp, message in msgs:
-            self.write_message(topic, JOINT_TRAJECTORY, stamp, message)
-        return len(msgs)
+        """Write a time series as batched JointTrajectory messages; returns the message count.
+
+        The messages are those of :func:`series_to_messages`, serialised all at once by
+        :func:`.cdr.joint_trajectory_cdr` (same bytes, without a Python object per point).
+        """
+        if np.any(series.t < 0):
+            msg = 'bag time series must not have negative times'
+            raise ValueError(msg)
+        t_ns = np.rint(series.t * _NS).astype(np.int64)
+        fields = [getattr(series, f) for f in ('positions', 'velocities', 'accelerations',
+                                               'effort')]
+        raw = joint_trajectory_cdr(t_ns, tuple(series.names), fields, batch=batch)
+        conn = self._connection(topic, JOINT_TRAJECTORY)
+        write = self._writer.write
+        for stamp, data in raw:
+            write(conn, stamp, data)
+        return len(raw)
 
     def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
                            stamp_s: float, program: str = '') -> None:
-        """Write the per-block energy summary as one DiagnosticArray (one status per line)."""
-        ts = typestore()
-        kv = ts.types['diagnostic_msgs/msg/KeyValue']
-        status_cls = ts.types['diagnostic_msgs/msg/DiagnosticStatus']
+        """Write the per-block energy summary as DiagnosticArrays (one status per line).
+
+        At most :data:`BLOCK_ENERGY_PER_MESSAGE` statuses per message, all at ``stamp_s``
+        (:func:`read_block_energy` joins them); serialised status by status
+        (:func:`.cdr.diagnostic_array_cdr`), so a program of a million lines costs a few
+        megabytes at a time, not a million message objects.
+        """
         sec, nsec = _split_ns(stamp_s)
-        header = ts.types['std_msgs/msg/Header'](
-            stamp=ts.types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nsec), frame_id='')
-        statuses = [
-            status_cls(level=0, name=f'{program}:{line}', message='block energy',
-                       hardware_id='', values=[kv(key='line', value=str(line)),
-                                               kv(key='energy_j', value=repr(float(e))),
-                                               kv(key='duration_s', value=repr(float(d)))])
-            for line, e, d in blocks]
-        msg = ts.types[DIAGNOSTIC_ARRAY](header=header, status=statuses)
-        self.write_message(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY, sec * _NS + nsec, msg)
+        stamp = sec * _NS + nsec
+        conn = self._connection(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY)
+        rows = iter(blocks)
+        left = len(blocks)
+        while True:
+            count = min(left, BLOCK_ENERGY_PER_MESSAGE)
+            statuses = ((0, f'{program}:{line}', 'block energy', '',
+                         (('line', str(line)), ('energy_j', repr(float(e))),
+                          ('duration_s', repr(float(d)))))
+                        for line, e, d in itertools.islice(rows, count))
+            self._writer.write(conn, stamp, diagnostic_array_cdr(stamp, count, statuses))
+            left -= count
+            if left <= 0:
+                break
 
     def set_custom_data(self, key: str, value: object) -> None:
         """Store a JSON-serialisable value in the bag's metadata (``custom_data``)."""
         self._writer.set_custom_data(key, json.dumps(value))
 
 
-def _open_reader(path: str | Path) -> Reader:
+# ----------------------------------------------------------------------------- reading
+#
+# Everything read from a bag passes through here: the metadata is parsed by the bounded
+# YAML loader first, every rosbags call that touches file content is guarded, and every
+# decoded message is checked (type, array lengths, finite values) before it is used, so a
+# damaged bag ends in one DataError naming the bag, the topic and the message index.
+
+def read_metadata(path: str | Path) -> dict:
+    """Return the parsed ``metadata.yaml`` of a bag directory (the bounded YAML loader).
+
+    Parameters
+    ----------
+    path
+        The bag directory.
+
+    Returns
+    -------
+    dict
+        The ``rosbag2_bagfile_information`` mapping.
+
+    Raises
+    ------
+    DataError
+        Not a directory, no or unreadable ``metadata.yaml``, not valid YAML, or not the
+        rosbag2 layout.
+    """
     path = Path(path)
-    if not (path / 'metadata.yaml').is_file():
+    meta_file = path / 'metadata.yaml'
+    try:
+        is_bag = path.is_dir() and meta_file.is_file()
+    except OSError:  # a name too long, a loop in the path
+        is_bag = False
+    if not is_bag:
         msg = 'not a rosbag2 directory (no metadata.yaml)'
         raise DataError(msg, file=str(path))
-    return Reader(path)
+    meta = load_yaml_file(meta_file, error=DataError, what='bag metadata')
+    info = meta.get('rosbag2_bagfile_information') if isinstance(meta, dict) else None
+    if not isinstance(info, dict):
+        msg = (f'expected a mapping with the key rosbag2_bagfile_information, got '
+               f'{describe(meta)}')
+        raise DataError(msg, file=str(meta_file))
+    return info
+
+
+@contextmanager
+def _open_reader(path: str | Path) -> Iterator[Reader]:
+    path = Path(path)
+    info = read_metadata(path)  # bounded parse and layout check before rosbags parses it
+    files = info.get('relative_file_paths')
+    for name in files if isinstance(files, list) else []:
+        storage = path / Path(str(name)).name
+        if str(name).endswith('.mcap') and storage.is_file():
+            check_mcap(storage, bag=path)
+    with guard(path, doing='open the bag'):
+        reader = Reader(path)
+        reader.open()
+    try:
+        yield reader
+    finally:
+        with contextlib.suppress(Exception):
+            reader.close()
 
 
 def bag_topics(path: str | Path) -> dict[str, tuple[str, int]]:
-    """Return ``{topic: (msgtype, message count)}`` of a bag."""
+    """Return ``{topic: (msgtype, message count)}`` of a bag.
+
+    Raises
+    ------
+    DataError
+        Not a bag, or a bag whose metadata or storage cannot be read.
+    """
     with _open_reader(path) as reader:
-        return {c.topic: (c.msgtype, c.msgcount) for c in reader.connections}
+        return {c.topic: (c.msgtype, max(int(c.msgcount), 0)) for c in reader.connections}
+
+
+def _connections(reader: Reader, path: Path, topics: Sequence[str], *,
+                 msgtype: str | None) -> list:
+    conns = [c for c in reader.connections if c.topic in topics]
+    for c in conns:
+        if msgtype is not None and c.msgtype != msgtype:
+            msg = f'has type {shorten(c.msgtype)}, expected {msgtype}'
+            raise DataError(msg, file=str(path), topic=c.topic)
+    return conns
+
+
+def _messages(reader: Reader, path: Path, conns: list) -> Iterator[tuple[str, int, int, bytes]]:
+    """``(topic, index within the topic, log time [ns], raw CDR)`` with guarded reading."""
+    counts: dict[str, int] = {}
+    it = reader.messages(connections=conns)
+    while True:
+        with guard(path, doing='read the messages'):
+            item = next(it, None)
+        if item is None:
+            return
+        conn, log_ns, raw = item
+        index = counts.get(conn.topic, 0)
+        counts[conn.topic] = index + 1
+        yield conn.topic, index, int(log_ns), raw
+
+
+def _decode(path: Path, topic: str, index: int, raw: bytes, msgtype: str):
+    with guard(path, topic=topic, index=index, doing='decode the message'):
+        return typestore().deserialize_cdr(raw, msgtype)
 
 
 def read_series(path: str | Path, topic: str) -> Series:
-    """Read all JointTrajectory messages of ``topic`` into one :class:`Series`."""
-    ts = typestore()
+    """Read all JointTrajectory messages of ``topic`` into one :class:`Series`.
+
+    Raises
+    ------
+    DataError
+        Not a bag, the topic is missing or of another type, a message cannot be decoded,
+        or the decoded messages do not fit together (:func:`check_trajectory`, the same
+        joint names and fields in every message); naming the topic and message index.
+    """
+    path = Path(path)
+    msgs = []
     with _open_reader(path) as reader:
-        conns = [c for c in reader.connections if c.topic == topic]
+        conns = _connections(reader, path, [topic], msgtype=None)
         if not conns:
-            have = ', '.join(sorted(c.topic for c in reader.connections)) or 'none'
+            have = shorten(', '.join(sorted(c.topic for c in reader.connections)),
+                           limit=200) or 'none'
             msg = f'topic {topic!r} not in bag (topics: {have})'
             raise DataError(msg, file=str(path))
-        msgs = [ts.deserialize_cdr(raw, c.msgtype)
-                for c, _, raw in reader.messages(connections=conns)]
+        _connections(reader, path, [topic], msgtype=JOINT_TRAJECTORY)
+        first = None
+        for _, index, _, raw in _messages(reader, path, conns):
+            message = _decode(path, topic, index, raw, JOINT_TRAJECTORY)
+            check_trajectory(message, file=str(path), topic=topic, index=index)
+            shape = (tuple(message.joint_names), field_layout(message))
+            if first is None:
+                first = shape
+            elif shape != first and message.points:
+                msg = ('joint names or filled fields differ from those of message 0; '
+                       'expected the same columns in every message of a topic')
+                raise DataError(msg, file=str(path), topic=topic, index=index)
+            msgs.append(message)
     msgs.sort(key=lambda m: (m.header.stamp.sec, m.header.stamp.nanosec))
     return messages_to_series(msgs)
 
 
-def read_block_energy(path: str | Path) -> list[tuple[int, float, float]]:
-    """Read the per-block energy summary: ``[(line, energy_j, duration_s), ...]``."""
-    ts = typestore()
+def read_raw_messages(path: str | Path, topics: Sequence[str], *,
+                      max_abs: float = MAX_ABS_SI) -> list[tuple[str, int, bytes]]:
+    """Serialized JointTrajectory messages of ``topics``, by log time: ``[(topic, ns, cdr)]``.
+
+    Each message is decoded once and checked (:func:`check_trajectory`, values at most
+    ``max_abs``: by default the bound of measured SI values, as when a run is loaded) so
+    that corrupt CDR is refused here rather than published. Topics missing from the bag are
+    skipped.
+
+    Raises
+    ------
+    DataError
+        Not a bag; none of ``topics`` in it; a topic of another type; a present topic
+        without messages; a message that cannot be decoded or fails the checks.
+    """
+    path = Path(path)
     out = []
     with _open_reader(path) as reader:
-        conns = [c for c in reader.connections if c.topic == TOPIC_BLOCK_ENERGY]
-        for c, _, raw in reader.messages(connections=conns):
-            msg = ts.deserialize_cdr(raw, c.msgtype)
+        conns = _connections(reader, path, topics, msgtype=None)
+        if not conns:
+            have = shorten(', '.join(sorted(c.topic for c in reader.connections)),
+                           limit=200) or 'none'
+            msg = f'none of the topics {list(topics)} is in the bag (topics: {have})'
+            raise DataError(msg, file=str(path))
+        _connections(reader, path, topics, msgtype=JOINT_TRAJECTORY)
+        for topic, index, log_ns, raw in _messages(reader, path, conns):
+            message = _decode(path, topic, index, raw, JOINT_TRAJECTORY)
+            check_trajectory(message, file=str(path), topic=topic, index=index,
+                             max_abs=max_abs)
+            out.append((topic, log_ns, bytes(raw)))
+    for topic in sorted({c.topic for c in conns} - {m[0] for m in out}):
+        msg = 'the topic has no messages; expected a recorded run'
+        raise DataError(msg, file=str(path), topic=topic)
+    out.sort(key=lambda m: m[1])
+    return out
+
+
+def read_block_energy(path: str | Path) -> list[tuple[int, float, float]]:
+    """Read the per-block energy summary: ``[(line, energy_j, duration_s), ...]``.
+
+    Raises
+    ------
+    DataError
+        Not a bag, a message that cannot be decoded, or a status without a whole-number
+        ``line`` and finite ``energy_j`` and ``duration_s``.
+    """
+    path = Path(path)
+    out = []
+    with _open_reader(path) as reader:
+        conns = _connections(reader, path, [TOPIC_BLOCK_ENERGY], msgtype=DIAGNOSTIC_ARRAY)
+        for topic, index, _, raw in _messages(reader, path, conns):
+            msg = _decode(path, topic, index, raw, DIAGNOSTIC_ARRAY)
             for status in msg.status:
                 vals = {kv.key: kv.value for kv in status.values}
-                out.append((int(vals['line']), float(vals['energy_j']),
-                            float(vals['duration_s'])))
+                try:
+                    row = (int(vals['line']), float(vals['energy_j']),
+                           float(vals['duration_s']))
+                except (KeyError, ValueError) as err:
+                    text = f'status {shorten(status.name)!r}: expected line, energy_j and ' \
+                           f'duration_s numbers ({shorten(str(err))})'
+                    raise DataError(text, file=str(path), topic=topic, index=index) from None
+                if not (math.isfinite(row[1]) and math.isfinite(row[2])):
+                    text = f'status {shorten(status.name)!r}: energy or duration not finite'
+                    raise DataError(text, file=str(path), topic=topic, index=index)
+                out.append(row)
     return out
 
 
 def read_custom_data(path: str | Path, key: str) -> object:
-    """Read a JSON value stored with :meth:`BagWriter.set_custom_data` (``None`` if absent)."""
-    import yaml
-    meta = yaml.safe_load((Path(path) / 'metadata.yaml').read_text())
-    custom = meta.get('rosbag2_bagfile_information', {}).get('custom_data') or {}
-    return json.loads(custom[key]) if key in custom else None
+    """Read a JSON value stored with :meth:`BagWriter.set_custom_data` (``None`` if absent).
+
+    Raises
+    ------
+    DataError
+        Not a bag, metadata that cannot be read, or a value that is not valid JSON,
+        naming the bag and the key.
+    """
+    info = read_metadata(path)
+    custom = info.get('custom_data') or {}
+    where = str(Path(path) / 'metadata.yaml')
+    if not isinstance(custom, dict):
+        msg = f'custom_data: expected a mapping, got {describe(custom)}'
+        raise DataError(msg, file=where)
+    if key not in custom:
+        return None
+    text = custom[key]
+    if not isinstance(text, str):
+        msg = f'custom_data.{key}: expected JSON text, got {describe(text)}'
+        raise DataError(msg, file=where)
+    try:
+        return json.loads(text)
+    except (ValueError, RecursionError) as err:
+        reason = 'nested too deeply' if isinstance(err, RecursionError) else shorten(str(err))
+        msg = f'custom_data.{key}: not valid JSON ({reason})'
+        raise DataError(msg, file=where) from None

@@ -1,7 +1,71 @@
 """Every error type the core raises; each message names the place and what was expected."""
 from __future__ import annotations
 
-__all__ = ['FeedAxisError', 'GcodeError', 'ConfigError', 'DataError', 'PlanningError']
+from typing import Any
+
+__all__ = ['FeedAxisError', 'GcodeError', 'ConfigError', 'DataError', 'PlanningError',
+           'describe', 'shorten', 'SHOWN_CHARS']
+
+SHOWN_CHARS = 60
+"""Quoted input in an error message is cut to about this many characters."""
+
+
+def shorten(text: str, *, limit: int = SHOWN_CHARS) -> str:
+    """Return ``text`` cut to ``limit`` characters, marking the cut with ``...``.
+
+    Parameters
+    ----------
+    text
+        Any text taken from the input.
+    limit
+        Characters kept.
+
+    Returns
+    -------
+    str
+        At most ``limit + 3`` characters.
+    """
+    text = str(text)
+    return text if len(text) <= limit else text[:limit] + '...'
+
+
+def describe(value: Any) -> str:
+    """Describe a value from outside data for an error message, in bounded length.
+
+    Containers are described by their type and size, never by their ``repr`` (a YAML file
+    with aliases can expand to a structure far larger than the file); text and numbers are
+    shown quoted and cut to :data:`SHOWN_CHARS` characters.
+
+    Parameters
+    ----------
+    value
+        Whatever the parser produced.
+
+    Returns
+    -------
+    str
+        For example ``nothing``, ``true``, ``number 1e+400``, ``text 'abc'``,
+        ``a list of 3 items``, ``a mapping of 2 keys``.
+    """
+    if value is None:
+        return 'nothing'
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, int):
+        if value.bit_length() > 190:  # str() of huge ints is slow and may be refused
+            return f'an integer of {value.bit_length()} bits'
+        return f'number {shorten(str(value))}'
+    if isinstance(value, float):
+        return f'number {value!r}'
+    if isinstance(value, str):
+        return f'text {shorten(value)!r}'
+    if isinstance(value, (bytes, bytearray)):
+        return f'{len(value)} bytes of binary data'
+    if isinstance(value, dict):
+        return f'a mapping of {len(value)} key{"s" if len(value) != 1 else ""}'
+    if isinstance(value, (list, tuple)):
+        return f'a list of {len(value)} item{"s" if len(value) != 1 else ""}'
+    return f'a value of type {type(value).__name__}'
 
 
 class FeedAxisError(ValueError):
@@ -46,18 +110,29 @@ class ConfigError(FeedAxisError):
 
 
 class DataError(FeedAxisError):
-    """Measured data that cannot be used; names file, column and (1-based data) row."""
+    """Measured data that cannot be used.
 
-    def __init__(self, message: str, *, file: str, column: str = '', row: int | None = None):
+    Names the file, and where known the column and 1-based data row (CSV) or the topic and
+    0-based message index (bags).
+    """
+
+    def __init__(self, message: str, *, file: str, column: str = '', row: int | None = None,
+                 topic: str = '', index: int | None = None):
         self.file = file
         self.column = column
         self.row = row
+        self.topic = topic
+        self.index = index
         self.reason = message
         parts = [file]
         if column:
-            parts.append(f'column {column!r}')
+            parts.append(f'column {shorten(column)!r}')
         if row is not None:
             parts.append(f'row {row}')
+        if topic:
+            parts.append(f'topic {shorten(topic)!r}')
+        if index is not None:
+            parts.append(f'message {index}')
         super().__init__(f'{", ".join(parts)}: {message}')
 
 

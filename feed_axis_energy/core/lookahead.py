@@ -55,7 +55,7 @@ import numpy as np
 from .profiles import min_distance, reach_speed
 
 __all__ = ['THROUGH_ACC_FRACTION', 'CEILING_MERGE', 'BlockGroups', 'through_acceleration',
-           'group_blocks', 'look_ahead']
+           'group_blocks', 'look_ahead', 'path_cumsum']
 
 THROUGH_ACC_FRACTION = 0.25
 CEILING_MERGE = 0.02
@@ -91,6 +91,17 @@ class BlockGroups:
     jmax: np.ndarray
     v_junction: np.ndarray
     through: np.ndarray
+
+
+def path_cumsum(length: np.ndarray, start_m: float) -> np.ndarray:
+    """Running sum of ``length`` continued from ``start_m`` (the same bits as one long sum).
+
+    ``numpy.cumsum`` adds strictly in order, so continuing from the previous window's total
+    repeats exactly the additions of the whole-program sum.
+    """
+    if start_m == 0.0:
+        return np.cumsum(length)
+    return np.cumsum(np.concatenate(([start_m], length)))[1:]
 
 
 def through_acceleration(tan_in: np.ndarray, tan_out: np.ndarray, r_in: np.ndarray,
@@ -131,7 +142,7 @@ def through_acceleration(tan_in: np.ndarray, tan_out: np.ndarray, r_in: np.ndarr
 
 def group_blocks(length: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: np.ndarray,
                  vj: np.ndarray, a_through: np.ndarray, *,
-                 rest: np.ndarray) -> BlockGroups:
+                 rest: np.ndarray, path_start_m: float = 0.0) -> BlockGroups:
     """Group blocks joined by through junctions with similar speed ceilings.
 
     Parameters
@@ -144,6 +155,10 @@ def group_blocks(length: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: n
         Shape ``(m - 1,)``: :func:`through_acceleration` at each junction's cap.
     rest
         Shape ``(m,)``: dwells and stops (never grouped).
+    path_start_m
+        Program path length before the first block [m] (a streamed window of a longer
+        program): offsets are computed from the running sum as for the whole program, so a
+        window gives the same bits.
 
     Returns
     -------
@@ -181,7 +196,7 @@ def group_blocks(length: np.ndarray, vmax: np.ndarray, amax: np.ndarray, jmax: n
     first = np.concatenate(([0], np.nonzero(~through)[0] + 1)).astype(np.int64)
     group_of = np.cumsum(np.concatenate(([False], ~through))).astype(np.int64)
     g_len = np.add.reduceat(length, first)
-    cum = np.cumsum(length) - length
+    cum = path_cumsum(length, path_start_m) - length
     offset = cum - cum[first][group_of]
     g_vmax = np.minimum.reduceat(ceiling, first)
     # a through junction limits its group's acceleration; its slot belongs to the block before

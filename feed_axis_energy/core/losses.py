@@ -23,7 +23,7 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
-from .errors import ConfigError
+from .errors import ConfigError, describe, shorten
 
 __all__ = ['LossModel', 'LOSS_MODELS', 'PowerRegressionLoss', 'CoulombViscousLoss',
            'loss_from_dict', 'register_loss', 'X_UNITS', 'Y_UNITS']
@@ -60,7 +60,8 @@ def register_loss(cls: type) -> type:
 
 
 def _number(d: Mapping[str, Any], name: str, *, file: str, key: str, default: Any = None,
-            minimum: float | None = None, strict: bool = False) -> float:
+            minimum: float | None = None, strict: bool = False,
+            maximum: float = 1.0e12) -> float:
     where = f'{key}.{name}' if key else name
     if name not in d:
         if default is None:
@@ -69,11 +70,14 @@ def _number(d: Mapping[str, Any], name: str, *, file: str, key: str, default: An
         return float(default)
     value = d[name]
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        msg = f'expected a finite number, got {value!r}'
+        msg = f'expected a finite number, got {describe(value)}'
         raise ConfigError(msg, file=file, key=where)
     if minimum is not None and (value <= minimum if strict else value < minimum):
         relation = '>' if strict else '>='
-        msg = f'expected a number {relation} {minimum}, got {value!r}'
+        msg = f'expected a number {relation} {minimum}, got {describe(value)}'
+        raise ConfigError(msg, file=file, key=where)
+    if value > maximum:
+        msg = f'expected a number <= {maximum:g}, got {describe(value)}'
         raise ConfigError(msg, file=file, key=where)
     return float(value)
 
@@ -81,8 +85,9 @@ def _number(d: Mapping[str, Any], name: str, *, file: str, key: str, default: An
 def _check_keys(d: Mapping[str, Any], allowed: tuple[str, ...], *, file: str, key: str) -> None:
     for name in d:
         if name not in allowed:
-            where = f'{key}.{name}' if key else str(name)
-            msg = f'unknown key {name!r}; expected one of {", ".join(allowed)}'
+            shown = shorten(str(name))
+            where = f'{key}.{shown}' if key else shown
+            msg = f'unknown key {shown!r}; expected one of {", ".join(allowed)}'
             raise ConfigError(msg, file=file, key=where)
 
 
@@ -190,14 +195,15 @@ class PowerRegressionLoss:
     def from_dict(cls, d: Mapping[str, Any], *, file: str, key: str) -> 'PowerRegressionLoss':
         """Build from the YAML form (``model`` already checked); errors name ``key``."""
         _check_keys(d, ('model', 'a', 'b', 'x_unit', 'y_unit'), file=file, key=key)
-        a = _number(d, 'a', file=file, key=key, minimum=0.0)
-        b = _number(d, 'b', file=file, key=key, minimum=0.0)
+        # bounded so that a * x**b stays finite for any feed the limits allow
+        a = _number(d, 'a', file=file, key=key, minimum=0.0, maximum=1.0e6)
+        b = _number(d, 'b', file=file, key=key, minimum=0.0, maximum=10.0)
         units = {}
         for name, allowed, default in (('x_unit', tuple(X_UNITS), 'mm/s'),
                                        ('y_unit', Y_UNITS, 'W/(mm/s)')):
             value = d.get(name, default)
-            if value not in allowed:
-                msg = f'expected one of {", ".join(allowed)}, got {value!r}'
+            if not isinstance(value, str) or value not in allowed:
+                msg = f'expected one of {", ".join(allowed)}, got {describe(value)}'
                 raise ConfigError(msg, file=file, key=f'{key}.{name}')
             units[name] = value
         return cls(a=a, b=b, **units)
@@ -291,10 +297,10 @@ def loss_from_dict(d: Any, *, file: str = '<dict>', key: str = 'loss') -> LossMo
         Not a mapping, unknown ``model``, unknown keys or invalid values.
     """
     if not isinstance(d, Mapping):
-        msg = f'expected a mapping with a "model" key, got {type(d).__name__}'
+        msg = f'expected a mapping with a "model" key, got {describe(d)}'
         raise ConfigError(msg, file=file, key=key)
     name = d.get('model')
-    if name not in LOSS_MODELS:
-        msg = f'unknown loss model {name!r}; expected one of {", ".join(LOSS_MODELS)}'
+    if not isinstance(name, str) or name not in LOSS_MODELS:
+        msg = f'unknown loss model {describe(name)}; expected one of {", ".join(LOSS_MODELS)}'
         raise ConfigError(msg, file=file, key=f'{key}.model')
     return LOSS_MODELS[name].from_dict(d, file=file, key=key)

@@ -34,10 +34,9 @@ import math
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from .errors import ConfigError
+from .errors import ConfigError, describe, shorten
 from .losses import LossModel, loss_from_dict
+from .safeyaml import load_yaml_file
 from .trajectory import AxisLimits, PlannerOptions
 
 __all__ = ['ScrewSpec', 'InertiaSpec', 'LimitSpec', 'PlannerSettings', 'AxisSpec', 'Machine',
@@ -312,6 +311,9 @@ def moved_mass_kg(machine: Machine, axis: str, load_kg: float = 0.0) -> float:
 # ----------------------------------------------------------------------------- YAML I/O
 
 _REQUIRED = object()
+# Accepted ranges of values that the dynamics divide by or raise to powers: far outside any
+# machine tool, and narrow enough that no simulated quantity can overflow (docs/measured.md).
+_LIMIT_RANGES = ((1.0e-3, 1.0e3), (1.0e-3, 1.0e5), (1.0e-3, 1.0e8))
 
 
 def _join(key: str, name: str) -> str:
@@ -321,13 +323,12 @@ def _join(key: str, name: str) -> str:
 def _mapping(value: Any, *, file: str, key: str,
              allowed: tuple[str, ...] | None) -> Mapping[str, Any]:
     if not isinstance(value, Mapping):
-        got = 'nothing' if value is None else type(value).__name__
-        msg = f'expected a mapping, got {got}'
+        msg = f'expected a mapping, got {describe(value)}'
         raise ConfigError(msg, file=file, key=key or '<top>')
     for name in value:
         if allowed is not None and name not in allowed:
-            msg = f'unknown key {name!r}; expected one of {", ".join(allowed)}'
-            raise ConfigError(msg, file=file, key=_join(key, str(name)))
+            msg = f'unknown key {shorten(str(name))!r}; expected one of {", ".join(allowed)}'
+            raise ConfigError(msg, file=file, key=_join(key, shorten(str(name))))
     return value
 
 
@@ -342,13 +343,13 @@ def _float(d: Mapping[str, Any], name: str, *, file: str, key: str, default: Any
         return default
     value = d[name]
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        msg = f'expected a finite number, got {value!r}'
+        msg = f'expected a finite number, got {describe(value)}'
         raise ConfigError(msg, file=file, key=where)
     if minimum is not None and (value <= minimum if strict else value < minimum):
-        msg = f'expected a number {">" if strict else ">="} {minimum}, got {value!r}'
+        msg = f'expected a number {">" if strict else ">="} {minimum}, got {describe(value)}'
         raise ConfigError(msg, file=file, key=where)
     if maximum is not None and value > maximum:
-        msg = f'expected a number <= {maximum}, got {value!r}'
+        msg = f'expected a number <= {maximum}, got {describe(value)}'
         raise ConfigError(msg, file=file, key=where)
     return float(value)
 
@@ -364,7 +365,7 @@ def _choice(d: Mapping[str, Any], name: str, choices: tuple[Any, ...], *, file: 
     value = d[name]
     if value not in choices:
         shown = ', '.join('null' if c is None else str(c) for c in choices)
-        msg = f'expected one of {shown}, got {value!r}'
+        msg = f'expected one of {shown}, got {describe(value)}'
         raise ConfigError(msg, file=file, key=where)
     return value
 
@@ -374,17 +375,18 @@ def _screw(d: Any, *, file: str, key: str) -> ScrewSpec:
                                                  'efficiency', 'density_kg_m3'))
     starts = d.get('starts', 1)
     if isinstance(starts, bool) or not isinstance(starts, int) or starts < 1:
-        msg = f'expected a whole number >= 1, got {starts!r}'
+        msg = f'expected a whole number >= 1, got {describe(starts)}'
         raise ConfigError(msg, file=file, key=_join(key, 'starts'))
     return ScrewSpec(
-        diameter_m=_float(d, 'diameter_m', file=file, key=key, minimum=0.0),
-        lead_m=_float(d, 'lead_m', file=file, key=key, minimum=0.0),
-        length_m=_float(d, 'length_m', file=file, key=key, minimum=0.0),
+        diameter_m=_float(d, 'diameter_m', file=file, key=key, minimum=0.0, maximum=10.0),
+        lead_m=_float(d, 'lead_m', file=file, key=key, minimum=1.0e-6, strict=False,
+                      maximum=10.0),
+        length_m=_float(d, 'length_m', file=file, key=key, minimum=0.0, maximum=1.0e3),
         starts=starts,
-        efficiency=_float(d, 'efficiency', file=file, key=key, default=1.0, minimum=0.0,
-                          maximum=1.0),
+        efficiency=_float(d, 'efficiency', file=file, key=key, default=1.0, minimum=0.01,
+                          strict=False, maximum=1.0),
         density_kg_m3=_float(d, 'density_kg_m3', file=file, key=key,
-                             default=STEEL_DENSITY_KG_M3, minimum=0.0))
+                             default=STEEL_DENSITY_KG_M3, minimum=0.0, maximum=1.0e5))
 
 
 def _inertias(d: Any, *, file: str, key: str) -> InertiaSpec:
@@ -392,24 +394,27 @@ def _inertias(d: Any, *, file: str, key: str) -> InertiaSpec:
                  allowed=('motor_kg_m2', 'coupling_kg_m2', 'screw_kg_m2'))
     screw = None
     if d.get('screw_kg_m2') is not None:
-        screw = _float(d, 'screw_kg_m2', file=file, key=key, minimum=0.0, strict=False)
+        screw = _float(d, 'screw_kg_m2', file=file, key=key, minimum=0.0, strict=False,
+                       maximum=1.0e3)
     return InertiaSpec(
-        motor_kg_m2=_float(d, 'motor_kg_m2', file=file, key=key, minimum=0.0, strict=False),
+        motor_kg_m2=_float(d, 'motor_kg_m2', file=file, key=key, minimum=0.0, strict=False,
+                           maximum=1.0e3),
         coupling_kg_m2=_float(d, 'coupling_kg_m2', file=file, key=key, default=0.0,
-                              minimum=0.0, strict=False),
+                              minimum=0.0, strict=False, maximum=1.0e3),
         screw_kg_m2=screw)
 
 
 def _limits(d: Any, *, file: str, key: str) -> LimitSpec:
     names = ('velocity_m_s', 'acceleration_m_s2', 'jerk_m_s3')
     d = _mapping(d, file=file, key=key, allowed=names)
-    return LimitSpec(*(_float(d, n, file=file, key=key, minimum=0.0) for n in names))
+    return LimitSpec(*(_float(d, n, file=file, key=key, minimum=low, strict=False, maximum=high)
+                       for n, (low, high) in zip(names, _LIMIT_RANGES)))
 
 
 def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
-    key = f'axes.{name}'
+    key = f'axes.{shorten(str(name))}'
     if name not in AXIS_NAMES:
-        msg = f'unknown axis name {name!r}; expected one of {", ".join(AXIS_NAMES)}'
+        msg = f'unknown axis name {shorten(str(name))!r}; expected one of {", ".join(AXIS_NAMES)}'
         raise ConfigError(msg, file=file, key=key)
     allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
                'loss')
@@ -421,7 +426,8 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
     rides_on = _choice(d, 'rides_on', AXIS_NAMES + (None,), file=file, key=key, default=None)
     return AxisSpec(
         name=name,
-        table_mass_kg=_float(d, 'table_mass_kg', file=file, key=key, minimum=0.0, strict=False),
+        table_mass_kg=_float(d, 'table_mass_kg', file=file, key=key, minimum=0.0, strict=False,
+                             maximum=1.0e6),
         screw=_screw(d['screw'], file=file, key=f'{key}.screw'),
         inertias=_inertias(d['inertias'], file=file, key=f'{key}.inertias'),
         limits=_limits(d['limits'], file=file, key=f'{key}.limits'),
@@ -457,15 +463,15 @@ def _effects(value: Any, axis_names: tuple[str, ...], *,
     if value is None:
         return ()
     if not isinstance(value, list):
-        msg = f'expected a list of effects, got {type(value).__name__}'
+        msg = f'expected a list of effects, got {describe(value)}'
         raise ConfigError(msg, file=file, key='effects')
     out = []
     for i, item in enumerate(value):
         key = f'effects[{i}]'
         item = _mapping(item, file=file, key=key, allowed=('id', 'axis', 'params'))
         effect_id = item.get('id')
-        if effect_id not in EFFECTS:
-            msg = f'unknown effect {effect_id!r}; expected one of {", ".join(EFFECTS)}'
+        if not isinstance(effect_id, str) or effect_id not in EFFECTS:
+            msg = f'unknown effect {describe(effect_id)}; expected one of {", ".join(EFFECTS)}'
             raise ConfigError(msg, file=file, key=f'{key}.id')
         cls = EFFECTS[effect_id]
         if not cls.machine_property:
@@ -475,7 +481,8 @@ def _effects(value: Any, axis_names: tuple[str, ...], *,
         axis = _choice(item, 'axis', axis_names + (None,), file=file, key=key, default=None)
         params_d = _mapping(item.get('params', {}) or {}, file=file, key=f'{key}.params',
                             allowed=cls.param_names())
-        params = tuple((name, _float(params_d, name, file=file, key=f'{key}.params'))
+        params = tuple((name, _float(params_d, name, file=file, key=f'{key}.params',
+                                     minimum=-1.0e12, strict=False, maximum=1.0e12))
                        for name in cls.param_names() if name in params_d)
         out.append(DeclaredEffect(id=effect_id, axis=axis, params=params))
     return tuple(out)
@@ -506,7 +513,7 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
                           'home_m'))
     name = d.get('name', Path(file).stem)
     if not isinstance(name, str) or not name:
-        msg = f'expected a non-empty string, got {name!r}'
+        msg = f'expected a non-empty string, got {describe(name)}'
         raise ConfigError(msg, file=file, key='name')
     # axis names are checked one by one in _axis, with a message naming the axis
     axes_d = _mapping(d.get('axes'), file=file, key='axes', allowed=None)
@@ -521,11 +528,11 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
         profile=_choice(planner_d, 'profile', PROFILES, file=file, key='planner',
                         default='jerk'),
         corner_tolerance_m=_float(planner_d, 'corner_tolerance_m', file=file, key='planner',
-                                  default=1.0e-4, minimum=0.0, strict=False),
+                                  default=1.0e-4, minimum=0.0, strict=False, maximum=1.0),
         rate_hz=_float(planner_d, 'rate_hz', file=file, key='planner', default=1000.0,
-                       minimum=0.0),
+                       minimum=0.0, maximum=1.0e6),
         cycle_s=_float(planner_d, 'cycle_s', file=file, key='planner', default=1.0e-3,
-                       minimum=0.0))
+                       minimum=0.0, maximum=10.0))
     return Machine(
         name=name,
         axes=axes,
@@ -541,7 +548,8 @@ def _home(value: Any, axis_names: tuple[str, ...], *,
     if value is None:
         return ()
     home_d = _mapping(value, file=file, key='home_m', allowed=axis_names)
-    return tuple((a, _float(home_d, a, file=file, key='home_m', strict=False))
+    return tuple((a, _float(home_d, a, file=file, key='home_m', strict=False,
+                            minimum=-1.0e3, maximum=1.0e3))
                  for a in axis_names if a in home_d)
 
 
@@ -564,18 +572,7 @@ def load_machine(path: str | Path) -> Machine:
         Unreadable file, YAML syntax error, or any invalid value (named by dotted key).
     """
     file = str(path)
-    try:
-        text = Path(path).read_text(encoding='utf-8')
-    except OSError as err:
-        msg = f'cannot read machine file: {err.strerror or err}'
-        raise ConfigError(msg, file=file) from err
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, 'problem_mark', None)
-        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
-        msg = f'invalid YAML{where}: {getattr(err, "problem", None) or err}'
-        raise ConfigError(msg, file=file) from err
+    data = load_yaml_file(path, error=ConfigError, what='machine file')
     return machine_from_dict(data, file=file)
 
 

@@ -88,8 +88,9 @@ import numpy as np
 
 from .errors import DataError, PlanningError
 from .motion import Motion
-from .lookahead import BlockGroups, group_blocks, look_ahead, through_acceleration
-from .profiles import plan_profiles
+from .lookahead import (BlockGroups, group_blocks, look_ahead, path_cumsum,
+                        through_acceleration)
+from .profiles import plan_profiles, ProfilePhases
 from .program import Move, MoveKind, Program, PROGRAM_AXES
 
 __all__ = ['AxisLimits', 'PlannerOptions', 'plan', 'motion_from_samples']
@@ -182,56 +183,91 @@ class _Segments:
     stop_after: np.ndarray  # bool: must be at rest at the end
 
 
-def _collect(program: Program) -> _Segments:
-    """Walk the moves once: drop empty moves, turn dwells/stops into rests, check continuity."""
-    kinds: list[int] = []
-    moves: list[Move] = []
-    p0: list[tuple[float, float, float]] = []
-    p1: list[tuple[float, float, float]] = []
-    dwell: list[float] = []
-    stop: list[bool] = []
-    here: tuple[float, float, float] | None = None
-    for mv in program.moves:
+class _Collector:
+    """Turns moves into segments one at a time (streaming form of :func:`_collect`).
+
+    Drops empty moves, turns dwells/stops into rests and checks continuity. The stop flag
+    of the newest segment may still be set by the next move (a dwell, a stop or a dropped
+    exact-stop move), so only segments before the newest one are final.
+    """
+
+    def __init__(self, file: str) -> None:
+        self.file = file
+        self.kinds: list[int] = []
+        self.moves: list[Move] = []
+        self.p0: list[tuple[float, float, float]] = []
+        self.p1: list[tuple[float, float, float]] = []
+        self.dwell: list[float] = []
+        self.stop: list[bool] = []
+        self.here: tuple[float, float, float] | None = None
+        self.first_start: tuple[float, float, float] | None = None
+
+    def add(self, mv: Move) -> None:
+        """Take one move."""
+        if self.first_start is None:
+            self.first_start = tuple(mv.start)
         k = int(mv.kind)
+        stop = self.stop
         if k == _DWELL or k == _STOP:
-            pos = here if here is not None else mv.start
+            pos = self.here if self.here is not None else mv.start
             if stop:
                 stop[-1] = True
-            kinds.append(_REST)
-            moves.append(mv)
-            p0.append(pos)
-            p1.append(pos)
-            dwell.append(max(float(mv.dwell_s), 0.0) if k == _DWELL else 0.0)
+            self.kinds.append(_REST)
+            self.moves.append(mv)
+            self.p0.append(pos)
+            self.p1.append(pos)
+            self.dwell.append(max(float(mv.dwell_s), 0.0) if k == _DWELL else 0.0)
             stop.append(True)
-            continue
+            return
         start = mv.start
         end = mv.end
+        here = self.here
         if here is not None and start != here and max(
                 abs(start[0] - here[0]), abs(start[1] - here[1]),
                 abs(start[2] - here[2])) > _GAP_TOLERANCE_M:
             msg = f'move starts at {start} but the previous move ended at {here}'
-            raise PlanningError(msg, file=program.file, line=mv.line)
+            raise PlanningError(msg, file=self.file, line=mv.line)
         is_arc = k == _ARC_CW or k == _ARC_CCW
         if is_arc and mv.center is None:
-            raise PlanningError('arc move without a centre', file=program.file, line=mv.line)
-        here = end
+            raise PlanningError('arc move without a centre', file=self.file, line=mv.line)
+        self.here = end
         if not is_arc and math.dist(start, end) < _MIN_LENGTH_M:
             if mv.exact_stop and stop:
                 stop[-1] = True
-            continue
-        kinds.append(_ARC if is_arc else _LINE)
-        moves.append(mv)
-        p0.append(start)
-        p1.append(end)
-        dwell.append(0.0)
+            return
+        self.kinds.append(_ARC if is_arc else _LINE)
+        self.moves.append(mv)
+        self.p0.append(start)
+        self.p1.append(end)
+        self.dwell.append(0.0)
         stop.append(bool(mv.exact_stop))
-    if stop:
-        stop[-1] = True
-    m = len(kinds)
-    return _Segments(kind=np.asarray(kinds, dtype=np.int8), move=moves,
-                     p0=np.asarray(p0, dtype=float).reshape(m, 3),
-                     p1=np.asarray(p1, dtype=float).reshape(m, 3),
-                     dwell=np.asarray(dwell, dtype=float), stop_after=np.asarray(stop, bool))
+
+    def __len__(self) -> int:
+        return len(self.kinds)
+
+    def segments(self, *, final: bool) -> _Segments:
+        """Arrays of the segments collected so far (``final``: the program has ended)."""
+        if final and self.stop:
+            self.stop[-1] = True
+        m = len(self.kinds)
+        return _Segments(kind=np.asarray(self.kinds, dtype=np.int8), move=list(self.moves),
+                         p0=np.asarray(self.p0, dtype=float).reshape(m, 3),
+                         p1=np.asarray(self.p1, dtype=float).reshape(m, 3),
+                         dwell=np.asarray(self.dwell, dtype=float),
+                         stop_after=np.asarray(self.stop, bool))
+
+    def drop(self, count: int) -> None:
+        """Forget the first ``count`` segments (they have been planned)."""
+        for lst in (self.kinds, self.moves, self.p0, self.p1, self.dwell, self.stop):
+            del lst[:count]
+
+
+def _collect(program: Program) -> _Segments:
+    """Walk the moves once: drop empty moves, turn dwells/stops into rests, check continuity."""
+    collector = _Collector(program.file)
+    for mv in program.moves:
+        collector.add(mv)
+    return collector.segments(final=True)
 
 
 @dataclass
@@ -389,19 +425,19 @@ def _junction_speeds(seg: _Segments, geo: _Geometry, vmax: np.ndarray, amax: np.
     return vj
 
 
-def _check_limits(limits: Mapping[str, AxisLimits], program: Program) -> np.ndarray:
+def _check_limits(limits: Mapping[str, AxisLimits], file: str) -> np.ndarray:
     lim = np.full((3, 3), np.inf)
     for name, al in limits.items():
         if name not in PROGRAM_AXES:
             msg = f'unknown machine axis {name!r}; expected one of {PROGRAM_AXES}'
-            raise PlanningError(msg, file=program.file)
+            raise PlanningError(msg, file=file)
         if not isinstance(al, AxisLimits):
             msg = f'limits[{name!r}] must be an AxisLimits, got {type(al).__name__}'
-            raise PlanningError(msg, file=program.file)
+            raise PlanningError(msg, file=file)
         k = PROGRAM_AXES.index(name)
         lim[:, k] = (al.velocity_m_s, al.acceleration_m_s2, al.jerk_m_s3)
     if not limits:
-        raise PlanningError('no machine axes given in limits', file=program.file)
+        raise PlanningError('no machine axes given in limits', file=file)
     return lim
 
 
@@ -433,7 +469,7 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
     PlanningError
         A move on an axis missing from ``limits``, a discontinuous or degenerate move.
     """
-    lim = _check_limits(limits, program)
+    lim = _check_limits(limits, program.file)
     axes = tuple(limits)
     cols = [PROGRAM_AXES.index(a) for a in axes]
     seg = _collect(program)
@@ -457,26 +493,8 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
     look_ahead(gv, grp.length, grp.amax, grp.jmax)
     _report(progress, 0.15)
     prof = plan_profiles(grp.length, gv[:-1], gv[1:], grp.vmax, grp.amax, grp.jmax)
-    g = grp.first.size
-    dur = prof.duration.copy()
-    dur[:, 3] += seg.dwell[grp.first]      # a rest is a group of its own
-    # integrate the seven phases of every group to get s and v at each phase start
-    v_start = np.empty((g, 7))
-    s_start = np.empty((g, 7))
-    v_start[:, 0] = gv[:-1]
-    s_start[:, 0] = 0.0
-    for k in range(6):
-        T, a0, j = dur[:, k], prof.a_start[:, k], prof.jerk[:, k]
-        v_start[:, k + 1] = v_start[:, k] + a0 * T + 0.5 * j * T * T
-        s_start[:, k + 1] = s_start[:, k] + (v_start[:, k] + (0.5 * a0 + j * T / 6.0) * T) * T
-    flat_dur = dur.ravel()
-    t_start = np.concatenate(([0.0], np.cumsum(flat_dur)))
+    t_start, phases = _phase_table(prof, gv, seg.dwell[grp.first], 0.0)
     t_end = float(t_start[-1])
-    keep = np.nonzero(flat_dur > 0.0)[0]
-    if keep.size == 0:
-        keep = np.array([0])
-    phases = (t_start[keep], flat_dur[keep], s_start.ravel()[keep], v_start.ravel()[keep],
-              prof.a_start.ravel()[keep], prof.jerk.ravel()[keep], keep // 7)
     _report(progress, 0.25)
 
     n = int(math.floor(t_end * options.rate_hz + 1e-9))
@@ -507,11 +525,42 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
     return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line, source=program.file)
 
 
+def _phase_table(prof: ProfilePhases, gv: np.ndarray, dwell: np.ndarray,
+                 t_offset: float) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """Phase start times (all ``7 g + 1``) and the table of phases with a duration.
+
+    ``dwell`` is the rest time of each group (0 unless the group is a rest); ``t_offset`` the
+    program time at the first group's start: the running sum continues from it, so a window
+    of a longer program gets the same bits as the whole program.
+    """
+    g = gv.shape[0] - 1
+    dur = prof.duration.copy()
+    dur[:, 3] += dwell      # a rest is a group of its own
+    # integrate the seven phases of every group to get s and v at each phase start
+    v_start = np.empty((g, 7))
+    s_start = np.empty((g, 7))
+    v_start[:, 0] = gv[:-1]
+    s_start[:, 0] = 0.0
+    for k in range(6):
+        T, a0, j = dur[:, k], prof.a_start[:, k], prof.jerk[:, k]
+        v_start[:, k + 1] = v_start[:, k] + a0 * T + 0.5 * j * T * T
+        s_start[:, k + 1] = s_start[:, k] + (v_start[:, k] + (0.5 * a0 + j * T / 6.0) * T) * T
+    flat_dur = dur.ravel()
+    t_start = np.cumsum(np.concatenate(([t_offset], flat_dur)))
+    keep = np.nonzero(flat_dur > 0.0)[0]
+    if keep.size == 0:
+        keep = np.array([0])
+    phases = (t_start[keep], flat_dur[keep], s_start.ravel()[keep], v_start.ravel()[keep],
+              prof.a_start.ravel()[keep], prof.jerk.ravel()[keep], keep // 7)
+    return t_start, phases
+
+
 class _BlockLocator:
     """Maps a path length inside a group to the block containing it."""
 
-    def __init__(self, grp: BlockGroups, length: np.ndarray) -> None:
-        cum = np.cumsum(length) - length
+    def __init__(self, grp: BlockGroups, length: np.ndarray, *,
+                 path_start_m: float = 0.0) -> None:
+        cum = path_cumsum(length, path_start_m) - length
         self.group_first = grp.first
         self.group_last = np.append(grp.first[1:], length.shape[0]) - 1
         self.group_start = cum[grp.first]     # program path length at each group's start
@@ -574,6 +623,30 @@ def _junction_times(grp: BlockGroups, t_start: np.ndarray, gv: np.ndarray,
     return t_j, v_j
 
 
+def _corner_terms(t_junction: np.ndarray, v_junction: np.ndarray, tan_in: np.ndarray,
+                  tan_out: np.ndarray, cols: list[int],
+                  sample_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Velocity steps of the non-tangent junctions passed at speed: ``(index, time, dv)``.
+
+    ``index`` is the sample nearest to the junction (``rint(t / T)``, not yet clipped to the
+    last sample), ``dv`` the per-axis step ``(h, len(cols))``.
+    """
+    dv = v_junction[:, None] * (tan_out - tan_in)[:, cols]
+    hit = np.nonzero((v_junction > 0.0) & np.any(dv != 0.0, axis=1))[0]
+    tc = t_junction[hit]
+    return np.rint(tc / sample_s).astype(np.int64), tc, dv[hit]
+
+
+def _apply_steps(t: np.ndarray, idx: np.ndarray, tc: np.ndarray, dv: np.ndarray,
+                 sample_s: float, *, vel: np.ndarray, acc: np.ndarray) -> None:
+    """Add the steps ``dv`` at samples ``idx`` (indices into ``t``) to ``vel`` and ``acc``."""
+    # the sample already shows the whole step if it lies at or after the junction
+    # (phases own the samples from the first one at or after their start)
+    half = np.where(t[idx] >= tc, -0.5, 0.5)
+    np.add.at(vel, idx, dv * half[:, None])
+    np.add.at(acc, idx, dv * (1.0 / sample_s))
+
+
 def _corner_steps(t: np.ndarray, t_junction: np.ndarray, v_junction: np.ndarray,
                   geo: _Geometry, cols: list[int], sample_s: float, *, vel: np.ndarray,
                   acc: np.ndarray) -> None:
@@ -583,18 +656,11 @@ def _corner_steps(t: np.ndarray, t_junction: np.ndarray, v_junction: np.ndarray,
     so that acceleration integrates to velocity on the samples) and half the step in its
     velocity (see the module docstring, *Corners*).
     """
-    dv = v_junction[:, None] * (geo.tan0[1:] - geo.tan1[:-1])[:, cols]
-    hit = np.nonzero((v_junction > 0.0) & np.any(dv != 0.0, axis=1))[0]
-    if hit.size == 0:
+    idx, tc, dv = _corner_terms(t_junction, v_junction, geo.tan1[:-1], geo.tan0[1:], cols,
+                                sample_s)
+    if idx.size == 0:
         return
-    dv = dv[hit]
-    tc = t_junction[hit]
-    idx = np.clip(np.rint(tc / sample_s).astype(np.int64), 0, t.size - 1)
-    # the sample already shows the whole step if it lies at or after the junction
-    # (phases own the samples from the first one at or after their start)
-    half = np.where(t[idx] >= tc, -0.5, 0.5)
-    np.add.at(vel, idx, dv * half[:, None])
-    np.add.at(acc, idx, dv * (1.0 / sample_s))
+    _apply_steps(t, np.clip(idx, 0, t.size - 1), tc, dv, sample_s, vel=vel, acc=acc)
 
 
 def _report(progress: Callable[[float], None] | None, fraction: float) -> None:

@@ -10,11 +10,18 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .errors import ConfigError
+from .errors import ConfigError, DataError, shorten
 
-__all__ = ['QUANTITIES', 'known_units', 'quantity_of', 'si_unit_of', 'to_si']
+__all__ = ['QUANTITIES', 'MAX_ABS_SI', 'check_si_values', 'known_units', 'quantity_of',
+           'si_unit_of', 'to_si']
 
 _INCH_M = 0.0254
+
+MAX_ABS_SI = 1.0e12
+"""Largest magnitude a measured value may have in SI (1 TW, 10^12 m, m/s, A, V, s).
+
+Far above anything a machine tool measures, and far enough below the float range that
+squares, sums and integrals of such values stay finite."""
 
 # quantity -> (SI unit, {unit: factor to SI})
 QUANTITIES: dict[str, tuple[str, dict[str, float]]] = {
@@ -85,10 +92,10 @@ def _lookup(unit: str, quantity: str | None) -> tuple[str, float]:
     if found is None or (quantity is not None and found[0] != quantity):
         if quantity is None:
             listing = '; '.join(f'{q}: {", ".join(t)}' for q, (_, t) in QUANTITIES.items())
-            msg = f'unknown unit {unit!r}; known units are {listing}'
+            msg = f'unknown unit {shorten(str(unit))!r}; known units are {listing}'
         else:
             listing = ', '.join(QUANTITIES[quantity][1])
-            msg = f'unknown {quantity} unit {unit!r}; expected one of {listing}'
+            msg = f'unknown {quantity} unit {shorten(str(unit))!r}; expected one of {listing}'
         raise ConfigError(msg, file='<units>')
     return found
 
@@ -162,4 +169,49 @@ def to_si(values: ArrayLike, unit: str, *, quantity: str | None = None) -> np.nd
     """
     factor = _lookup(unit, quantity)[1]
     arr = np.asarray(values, dtype=np.float64)
-    return arr * factor if factor != 1.0 else arr.copy()
+    if factor == 1.0:
+        return arr.copy()
+    # overflow to inf is not warned about here: callers check the converted values
+    with np.errstate(over='ignore'):
+        return arr * factor
+
+
+def check_si_values(values: np.ndarray, *, file: str, column: str,
+                    rows: np.ndarray | None = None, topic: str = '') -> np.ndarray:
+    """Check converted (SI) measured values: finite and within :data:`MAX_ABS_SI`.
+
+    Done after the unit conversion, because a finite number in the file can become
+    infinite on conversion (``1e307`` kW is ``inf`` W).
+
+    Parameters
+    ----------
+    values
+        SI values, shape ``(n,)``.
+    file, column, topic
+        Where they came from, for the error.
+    rows
+        1-based data row of each value (CSV) or ``None`` (sample numbers, counted from 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``values`` unchanged.
+
+    Raises
+    ------
+    DataError
+        Naming file, column (or topic) and row of the first bad value.
+    """
+    bad = ~(np.abs(values) <= MAX_ABS_SI)  # NaN compares False: counted as bad
+    if not bad.any():
+        return values
+    i = int(np.flatnonzero(bad)[0])
+    row = int(rows[i]) if rows is not None else i + 1
+    v = float(values[i])
+    what = 'is not finite' if not np.isfinite(v) else f'is {v:.6g}'
+    msg = (f'the value {what} after conversion to SI units; expected a finite magnitude of '
+           f'at most {MAX_ABS_SI:g}')
+    if topic:
+        msg = f'sample {row}: {msg}'
+        raise DataError(msg, file=file, topic=topic)
+    raise DataError(msg, file=file, column=column, row=row)

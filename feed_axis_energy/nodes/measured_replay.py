@@ -22,7 +22,7 @@ from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
 from feed_axis_energy.core import bagio
-from feed_axis_energy.core.graph import FlowWindow, ProgramEnd, read_raw
+from feed_axis_energy.core.graph import FlowWindow, ProgramEnd
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import latched_qos, stream_qos
 from feed_axis_energy.nodes.runner import declare, run, StartupError, steady_timer
@@ -59,7 +59,9 @@ class MeasuredReplay(Node):
         if self.burst < 1 or self.burst >= stream_qos().depth:
             msg = f'parameter burst must be in 1..{stream_qos().depth - 1}, got {self.burst}'
             raise StartupError(msg)
-        self.messages = read_raw(bag, BAG_TOPICS)
+        # decoded and checked once here (bagio): a damaged bag is a DataError at start-up,
+        # and corrupt CDR is never published
+        self.messages = bagio.read_raw_messages(bag, BAG_TOPICS)
         self.bag = bag
         self._check_stamps()
         topics = sorted({m[0] for m in self.messages})

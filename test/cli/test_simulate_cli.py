@@ -93,3 +93,28 @@ def test_load_changes_peak_power_but_not_regenerative_cycle_energy(capsys) -> No
     assert_allclose(results[1]['energy_j']['total'], results[0]['energy_j']['total'],
                     rtol=1e-3)
     assert results[1]['peak_power_w']['total'] > results[0]['peak_power_w']['total']
+
+
+def test_simulate_refuses_beyond_max_samples_before_starting(tmp_path: Path) -> None:
+    week = tmp_path / 'week.nc'
+    week.write_text('G1 X0.01 F600\nG4 P604800\nG1 X0\nM2\n')
+    out = tmp_path / 'bag'
+    proc = _run('simulate', str(week), '--max-samples', '1000000', '--out', str(out))
+    assert proc.returncode == 1
+    assert 'Traceback' not in proc.stderr
+    assert 'week.nc' in proc.stderr and '--rate-hz' in proc.stderr
+    assert '604,8' in proc.stderr           # the sample count from the plan
+    assert not out.exists()
+
+
+def test_simulate_streamed_json_equals_whole_summary(capsys) -> None:
+    from feed_axis_energy.core.gcode import load_gcode
+    from feed_axis_energy.core.machine import load_machine
+    from feed_axis_energy.core.simulate import simulate_program, summarize
+    machine = load_machine(ROOT / 'config' / 'demonstrator.yaml')
+    ref = summarize(simulate_program(load_gcode(PROGRAM), machine, load_kg=3.0))
+    assert main(['simulate', str(PROGRAM), '--load-kg', '3', '--json', '--quiet']) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got['samples'] == ref['samples']
+    assert_allclose(got['energy_j']['total'], ref['energy_j']['total'], rtol=1e-12)
+    assert_allclose(got['loss_energy_j'], ref['loss_energy_j'], rtol=1e-12)

@@ -88,7 +88,13 @@ _DELETE = object()
 
 @pytest.mark.parametrize('dotted, value, key, expected', [
     ('axes.X.screw.lead_m', _DELETE, 'axes.X.screw.lead_m', 'missing'),
-    ('axes.X.screw.lead_m', -0.01, 'axes.X.screw.lead_m', '> 0'),
+    ('axes.X.screw.lead_m', -0.01, 'axes.X.screw.lead_m', '>= 1e-06'),
+    # values that let the dynamics overflow to inf/NaN (found by the property tests)
+    ('axes.X.screw.lead_m', 1e-300, 'axes.X.screw.lead_m', '>= 1e-06'),
+    ('axes.X.screw.efficiency', 5e-324, 'axes.X.screw.efficiency', '>= 0.01'),
+    ('axes.X.screw.diameter_m', 1e300, 'axes.X.screw.diameter_m', '<= 10'),
+    ('axes.X.limits.velocity_m_s', 1e-30, 'axes.X.limits.velocity_m_s', '>= 0.001'),
+    ('axes.X.loss.b', 1e12, 'axes.X.loss.b', '<= 10'),
     ('axes.X.screw.lead_m', '10mm', 'axes.X.screw.lead_m', 'finite number'),
     ('axes.X.screw.lead_m', True, 'axes.X.screw.lead_m', 'finite number'),
     ('axes.X.screw.lead_mm', 0.01, 'axes.X.screw.lead_mm', 'unknown key'),
@@ -96,7 +102,7 @@ _DELETE = object()
     ('axes.X.screw.starts', 1.5, 'axes.X.screw.starts', 'whole number'),
     ('axes.X.table_mass_kg', _DELETE, 'axes.X.table_mass_kg', 'missing'),
     ('axes.X.inertias', _DELETE, 'axes.X.inertias', 'missing'),
-    ('axes.X.limits.jerk_m_s3', 0.0, 'axes.X.limits.jerk_m_s3', '> 0'),
+    ('axes.X.limits.jerk_m_s3', 0.0, 'axes.X.limits.jerk_m_s3', '>= 0.001'),
     ('axes.X.inclination_deg', 120.0, 'axes.X.inclination_deg', '<= 90'),
     ('axes.X.rides_on', 'Y', 'axes.X.rides_on', 'not defined'),
     ('axes.X.rides_on', 'Q', 'axes.X.rides_on', 'one of'),
@@ -131,7 +137,7 @@ def test_file_errors(tmp_path):
         load_machine(tmp_path / 'missing.yaml')
     bad = tmp_path / 'bad.yaml'
     bad.write_text('name: x\naxes: [\n')
-    with pytest.raises(ConfigError, match='invalid YAML at line'):
+    with pytest.raises(ConfigError, match='line 3, column 1: not valid YAML'):
         load_machine(bad)
     empty = tmp_path / 'empty.yaml'
     empty.write_text('')

@@ -363,6 +363,10 @@ def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
 
 def _folds(runs: Sequence[_Run], holdout: str, file: str) -> list[tuple[list[int], list[int]]]:
     if holdout == 'loro':
+        if len(runs) < 2:
+            msg = (f'holdout "loro" (leave one run out) needs at least 2 runs, got '
+                   f'{len(runs)}; add runs to the manifest')
+            raise ConfigError(msg, file=file, key='runs')
         return loro_folds(len(runs))
     if holdout == 'roles':
         train = [i for i, r in enumerate(runs) if r.cmp.role == 'calibrate']
@@ -721,9 +725,12 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         meas = c.total_meas_w
         sim = c.total_sim_w
         after = sim + add.sum(axis=1)
+        metrics_after = table1_metrics(c.t, meas, after, file=c.data_file,
+                                       columns=('time', 'measured total power',
+                                                'total power with the effects'))
         outcomes.append(RunOutcome(
             name=c.name, load_kg=c.load_kg, role=c.role, heldout=held, before=c.metrics,
-            after=table1_metrics(c.t, meas, after), t=c.t, meas_w=meas, sim_w=sim,
+            after=metrics_after, t=c.t, meas_w=meas, sim_w=sim,
             after_w=after, residual_before_w=run.residual, residual_after_w=residual_after[-1],
             states=run.states))
 

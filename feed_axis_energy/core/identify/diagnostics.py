@@ -107,6 +107,9 @@ def binned_structure(residual: np.ndarray, state: np.ndarray, *, sigma: float, n
     y = np.asarray(residual, dtype=float)
     x = np.asarray(state, dtype=float)
     edges = np.unique(np.quantile(x, np.linspace(0.0, 1.0, bins + 1)))
+    if edges.size < 2:  # a constant state (e.g. a run of two equal samples): no bins
+        return Diagnostic(name, axis, math.nan, math.nan, math.nan, math.nan, False,
+                          f'{name} is constant; nothing to bin')
     idx = np.clip(np.searchsorted(edges, x, side='right') - 1, 0, max(edges.size - 2, 0))
     counts = np.bincount(idx, minlength=max(edges.size - 1, 1)).astype(float)
     sums = np.bincount(idx, weights=y, minlength=counts.size)

@@ -22,6 +22,7 @@ from ..errors import DataError
 
 __all__ = ['OffsetResult', 'align_simulated', 'estimate_offset', 'interval_average']
 
+_MAX_LAG_STEPS = 100_000
 _CHUNK_ELEMENTS = 2_000_000
 
 
@@ -174,7 +175,8 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
     """Find the time offset of the measured record by cross-correlation.
 
     The measured power is correlated with the interval-averaged simulated power shifted by
-    every lag on a grid of the median measured period within ``±max_lag_s``; the best grid
+    every lag on a grid of the median measured period within ``±max_lag_s`` (a coarser grid
+    if that needs more than 100 000 lags per side); the best grid
     lag is then refined to a fraction of a period by a bounded scalar maximisation of the
     correlation over the continuous offset (interval averaging makes it smooth in the lag).
     Correlation, not squared error, is used so that a gain error of the model does not bias
@@ -214,7 +216,10 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
     if not (math.isfinite(max_lag_s) and max_lag_s >= 0.0):
         msg = f'max_lag_s must be a finite number >= 0, got {max_lag_s!r}'
         raise DataError(msg, file='<arrays>', column='max_lag_s')
-    period = float(np.median(np.diff(t_meas)))
+    # the grid step is the measured period, coarsened when that would need more than
+    # _MAX_LAG_STEPS lags per side (a sub-microsecond period against a lag range of
+    # seconds asked for 10^10 lags); the refinement below then searches +-one step
+    period = max(float(np.median(np.diff(t_meas))), max_lag_s / _MAX_LAG_STEPS)
     steps = int(math.ceil(max_lag_s / period - 1e-9))
     lags = np.clip(np.arange(-steps, steps + 1) * period, -max_lag_s, max_lag_s)
     if np.ptp(y_meas) == 0.0 or np.ptp(y_sim) == 0.0:

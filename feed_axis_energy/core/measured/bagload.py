@@ -25,14 +25,15 @@ quantity is read from (``/measured/power``, ``/measured/kinematics``, ``/measure
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .. import bagio
-from ..errors import ConfigError, DataError
-from ..units import si_unit_of
+from ..errors import ConfigError, DataError, describe, shorten
+from ..units import check_si_values, si_unit_of
 from .csvload import check_duration, GAP_FACTOR, MeasuredRun
 from .manifest import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, RunSpec
 
@@ -118,7 +119,7 @@ def load_run_from_bag(spec: RunSpec, *, min_duration_s: float | None = None) -> 
     def series(topic: str) -> bagio.Series:
         if topic not in cache:
             if topic not in topics:
-                have = ', '.join(sorted(topics)) or 'none'
+                have = shorten(', '.join(sorted(topics)), limit=200) or 'none'
                 msg = f'topic {topic!r} is not in the bag (topics: {have})'
                 raise DataError(msg, file=file, column=topic)
             cache[topic] = bagio.read_series(spec.data, topic)
@@ -145,10 +146,14 @@ def load_run_from_bag(spec: RunSpec, *, min_duration_s: float | None = None) -> 
         cols = []
         for joint in joints:
             if joint not in s.names:
-                msg = f'no joint {joint!r} (joints: {", ".join(s.names)})'
+                joints = shorten(', '.join(s.names), limit=200)
+                msg = f'no joint {shorten(joint)!r} (joints: {joints})'
                 raise DataError(msg, file=file, column=topic)
             cols.append(arr[:, s.names.index(joint)])
-        return np.column_stack(cols).astype(np.float64)
+        out = np.column_stack(cols).astype(np.float64)
+        for j, joint in enumerate(joints):
+            check_si_values(out[:, j], file=file, column='', topic=f'{topic} ({joint})')
+        return out
 
     _check_time(t, spec, file)
     check_duration(t, spec, min_duration_s, file=file)
@@ -163,12 +168,8 @@ def load_run_from_bag(spec: RunSpec, *, min_duration_s: float | None = None) -> 
     extra: dict[str, Any] = {
         'excluded_rows': 0, 'rows': np.arange(1, t.shape[0] + 1, dtype=np.int64), 't0_s': 0.0,
     }
-    if isinstance(meta, dict):
-        extra['t0_s'] = float(meta.get('t0_s', 0.0))
-        extra['excluded_rows'] = int(meta.get('excluded_rows', 0))
-        rows = rows_from_ranges(meta.get('rows', []))
-        if rows.shape[0] == t.shape[0]:
-            extra['rows'] = rows
+    if meta is not None:
+        extra.update(_run_metadata(meta, n=t.shape[0], file=file))
     for q, key in (('current', 'current_a'), ('voltage', 'voltage_v')):
         having = [a for a, cols in spec.axes.items() if q in cols]
         if having:
@@ -179,10 +180,41 @@ def load_run_from_bag(spec: RunSpec, *, min_duration_s: float | None = None) -> 
                        extra=extra, **kin)
 
 
+def _run_metadata(meta: Any, *, n: int, file: str) -> dict[str, Any]:
+    """``t0_s``, ``excluded_rows`` and ``rows`` from the run's JSON metadata, checked."""
+    where = f'{file}/metadata.yaml'
+    key = f'custom_data.{RUN_KEY}'
+    if not isinstance(meta, dict):
+        msg = f'{key}: expected a JSON object, got {describe(meta)}'
+        raise DataError(msg, file=where)
+    out: dict[str, Any] = {}
+    t0 = meta.get('t0_s', 0.0)
+    if isinstance(t0, bool) or not isinstance(t0, (int, float)) or not math.isfinite(t0):
+        msg = f'{key}.t0_s: expected a finite number, got {describe(t0)}'
+        raise DataError(msg, file=where)
+    out['t0_s'] = float(t0)
+    excluded = meta.get('excluded_rows', 0)
+    if isinstance(excluded, bool) or not isinstance(excluded, int) or excluded < 0:
+        msg = f'{key}.excluded_rows: expected a whole number >= 0, got {describe(excluded)}'
+        raise DataError(msg, file=where)
+    out['excluded_rows'] = excluded
+    ranges = meta.get('rows', [])
+    ok = isinstance(ranges, list) and all(
+        isinstance(r, list) and len(r) == 2
+        and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in r)
+        for r in ranges)
+    if not ok:
+        msg = (f'{key}.rows: expected a list of [first row, count] pairs of whole numbers, '
+               f'got {describe(ranges)}')
+        raise DataError(msg, file=where)
+    # counted before expanding: a damaged count must not allocate a huge array
+    if sum(count for _, count in ranges) == n:
+        out['rows'] = rows_from_ranges(ranges)
+    return out
+
+
 def _require_bag(path: Path) -> None:
-    if not (Path(path) / 'metadata.yaml').is_file():
-        msg = 'not a rosbag2 directory (no metadata.yaml)'
-        raise DataError(msg, file=str(path))
+    bagio.read_metadata(path)
 
 
 def _check_spec(spec: RunSpec) -> None:
@@ -195,11 +227,11 @@ def _check_spec(spec: RunSpec) -> None:
             key = f'{spec.key}.axes.{axis}.{q}'
             si = si_unit_of(cs.unit, quantity=AXIS_QUANTITIES[q])
             if cs.unit != si:
-                msg = f'a rosbag2 run is in SI: the unit must be {si!r}, got {cs.unit!r}'
+                msg = f'a rosbag2 run is in SI: the unit must be {si!r}, got {shorten(cs.unit)!r}'
                 raise ConfigError(msg, file=spec.manifest, key=f'{key}.unit')
             if cs.column != QUANTITY_TOPIC[q]:
                 msg = (f'for a rosbag2 run the column names the topic; {q} is on '
-                       f'{QUANTITY_TOPIC[q]!r}, got {cs.column!r}')
+                       f'{QUANTITY_TOPIC[q]!r}, got {shorten(cs.column)!r}')
                 raise ConfigError(msg, file=spec.manifest, key=f'{key}.column')
 
 

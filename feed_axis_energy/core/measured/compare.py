@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, DataError
 from ..gcode import load_gcode
 from ..machine import load_machine, Machine
 from ..motion import Motion
@@ -333,10 +333,19 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
     sim, source = _simulate(spec, run, machine, cache)
     sim_w = _sim_columns(spec, sim, machine)
     window = float(np.median(np.diff(run.t))) if window_s is None else float(window_s)
+    if not np.isfinite(sim_w).all():
+        sample = int(np.flatnonzero(~np.isfinite(sim_w).all(axis=1))[0]) + 1
+        msg = (f'the simulation of this run overflowed (simulated power sample {sample} is '
+               'not finite); check the run\'s kinematics and the machine config')
+        raise DataError(msg, file=run.file)
     if offset_s is None:
-        found = estimate_offset(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
-                                max_lag_s=max_lag_s, window_s=window,
-                                min_correlation=min_correlation)
+        try:
+            found = estimate_offset(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
+                                    max_lag_s=max_lag_s, window_s=window,
+                                    min_correlation=min_correlation)
+        except DataError as err:
+            msg = f'the time offset cannot be estimated: {err.reason}'
+            raise DataError(msg, file=run.file, column=err.column) from err
         used = 0.0 if found.status == 'weak' else found.offset_s
         if found.status == 'weak':
             found = OffsetResult(found.offset_s, found.peak_correlation, found.status,
@@ -345,11 +354,20 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
     else:
         used = float(offset_s)
         found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')
-    aligned = align_simulated(sim.power.t, sim_w, run.t, offset_s=used, window_s=window)
+    try:
+        aligned = align_simulated(sim.power.t, sim_w, run.t, offset_s=used, window_s=window)
+    except DataError as err:
+        # align names its arrays only; the run's file is the place the user can act on
+        msg = f'simulated power cannot be aligned: {err.reason}'
+        raise DataError(msg, file=run.file, column=err.column) from err
     meas = run.power_w
+    where = {'file': run.file, 'rows': run.extra.get('rows'), 'floor_fraction': floor_fraction}
     total = table1_metrics(run.t, meas.sum(axis=1), aligned.sum(axis=1),
-                           floor_fraction=floor_fraction)
-    per_axis = {a: table1_metrics(run.t, meas[:, j], aligned[:, j], floor_fraction=floor_fraction)
+                           columns=('time', 'measured total power', 'simulated total power'),
+                           **where)
+    per_axis = {a: table1_metrics(run.t, meas[:, j], aligned[:, j],
+                                  columns=('time', f'measured {a} power',
+                                           f'simulated {a} power'), **where)
                 for j, a in enumerate(spec.power_axes)}
     return RunComparison(
         name=spec.name, role=spec.role, load_kg=spec.load_kg, data_file=run.file,

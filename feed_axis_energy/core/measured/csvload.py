@@ -17,14 +17,16 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DataError
-from ..units import to_si
+from ..errors import DataError, shorten
+from ..units import check_si_values, to_si
 from .manifest import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, ColumnSpec, RowFilter, RunSpec
 
-__all__ = ['GAP_FACTOR', 'MeasuredRun', 'load_run']
+__all__ = ['GAP_FACTOR', 'MIN_STEP_S', 'MeasuredRun', 'load_run']
 
 GAP_FACTOR = 1.5
 """A time step longer than this many median periods is a gap."""
+MIN_STEP_S = 1.0e-9
+"""Shortest time step accepted [s]: bags and topics stamp in whole nanoseconds."""
 
 _FIELD = {
     'position': 'position_m',
@@ -115,7 +117,7 @@ class MeasuredRun:
         """
         arr = {'actual': self.position_m, 'commanded': self.command_position_m}.get(source)
         if arr is None:
-            msg = f'run {self.name!r} has no {source} position columns'
+            msg = f'run {shorten(self.name)!r} has no {source} position columns'
             raise DataError(msg, file=self.file)
         return arr
 
@@ -166,7 +168,8 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
 
     def column(cs: ColumnSpec, quantity: str) -> np.ndarray:
         raw = _parse(kept, index[cs.column], numbers, file, cs.column)
-        return to_si(raw, cs.unit, quantity=quantity)
+        return check_si_values(to_si(raw, cs.unit, quantity=quantity), file=file,
+                               column=cs.column, rows=numbers)
 
     t = _time(spec, sample, numbers, file, column)
     check_duration(t, spec, min_duration_s, file=file, after=' after filtering')
@@ -246,7 +249,7 @@ def _column_index(header: list[str], spec: RunSpec, file: str) -> dict[str, int]
         if not hits:
             lower = {h.lower(): h for h in header}
             close = difflib.get_close_matches(name.lower(), list(lower), n=1, cutoff=0.5)
-            hint = f'; did you mean {lower[close[0]]!r}?' if close else ''
+            hint = f'; did you mean {shorten(lower[close[0]])!r}?' if close else ''
             msg = f'no such column in the header{hint}'
             raise DataError(msg, file=file, column=name)
         if len(hits) > 1:
@@ -274,10 +277,10 @@ def _parse(rows: list[list[str]], j: int, numbers: np.ndarray, file: str,
         try:
             value = float(text)
         except ValueError:
-            msg = f'{text!r} is not a number'
+            msg = f'{shorten(text)!r} is not a number'
             raise DataError(msg, file=file, column=name, row=int(numbers[i])) from None
         if not np.isfinite(value):
-            msg = f'{text!r} is not a finite number'
+            msg = f'{shorten(text)!r} is not a finite number'
             raise DataError(msg, file=file, column=name, row=int(numbers[i]))
     raise AssertionError('unreachable: a bad cell must have been found')  # pragma: no cover
 
@@ -307,11 +310,17 @@ def _time(spec: RunSpec, sample: np.ndarray, numbers: np.ndarray, file: str,
         name = '<row index>'
         t = sample * float(spec.period_s)
     dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0.0)
+    bad = np.flatnonzero(dt < 0.999 * MIN_STEP_S)  # 0.999: rounding of decimal times
     if bad.size:
         i = int(bad[0]) + 1
-        what = 'repeats the previous time' if dt[i - 1] == 0.0 else 'goes back in time'
-        msg = f'{what} ({t[i - 1]:.9g} s then {t[i]:.9g} s); time must increase strictly'
+        if dt[i - 1] == 0.0:
+            what = 'repeats the previous time'
+        elif dt[i - 1] < 0.0:
+            what = 'goes back in time'
+        else:
+            what = f'follows the previous time after only {dt[i - 1]:.3g} s'
+        msg = (f'{what} ({t[i - 1]:.9g} s then {t[i]:.9g} s); time must increase by at '
+               f'least {MIN_STEP_S:g} s (stamps are whole nanoseconds)')
         raise DataError(msg, file=file, column=name, row=int(numbers[i]))
     if not spec.allow_gaps:
         median = float(np.median(dt))

@@ -37,9 +37,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from ..errors import ConfigError
+from ..errors import ConfigError, describe, shorten
+from ..safeyaml import load_yaml_file
 from ..units import si_unit_of
 
 __all__ = [
@@ -233,16 +232,7 @@ def load_campaign(path: str | Path, *, check_files: bool = True) -> Campaign:
         Naming the manifest and the dotted key of the first bad value.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding='utf-8')
-    except OSError as err:
-        msg = f'cannot read manifest: {err.strerror or err}'
-        raise ConfigError(msg, file=str(path)) from err
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        msg = f'not valid YAML: {err}'
-        raise ConfigError(msg, file=str(path)) from err
+    data = load_yaml_file(path, error=ConfigError, what='manifest')
     return campaign_from_dict(data, file=path, check_files=check_files)
 
 
@@ -285,7 +275,8 @@ def campaign_from_dict(data: Any, *, file: str | Path, check_files: bool = True)
         own = ctx.mapping(raw, key, _RUN_KEYS, required=('name', 'data'))
         spec = ctx.run_spec(_merge(defaults, own), own, key)
         if spec.name in seen:
-            ctx.fail(f'{key}.name', f'duplicate run name {spec.name!r} (also {seen[spec.name]})')
+            ctx.fail(f'{key}.name',
+                     f'duplicate run name {shorten(spec.name)!r} (also {seen[spec.name]})')
         seen[spec.name] = key
         runs.append(spec)
     if top.get('split') is not None:
@@ -299,7 +290,7 @@ def campaign_from_dict(data: Any, *, file: str | Path, check_files: bool = True)
 
 
 def _kind(value: Any) -> str:
-    return 'nothing' if value is None else f'{type(value).__name__} {value!r}'
+    return describe(value)
 
 
 def _merge(base: dict, over: dict) -> dict:
@@ -341,9 +332,10 @@ class _Ctx:
             self.fail(key, f'expected a mapping, got {_kind(value)}')
         for k in value:
             if not isinstance(k, str) or k not in allowed:
-                close = difflib.get_close_matches(str(k), allowed, n=1)
+                shown = shorten(str(k))
+                close = difflib.get_close_matches(shown, allowed, n=1)
                 hint = f' (did you mean {close[0]!r}?)' if close else ''
-                where = f'{key}.{k}' if key else str(k)
+                where = f'{key}.{shown}' if key else shown
                 self.fail(where, f'unknown key{hint}; expected one of {", ".join(allowed)}')
         for k in required:
             if value.get(k) is None:
@@ -356,11 +348,11 @@ class _Ctx:
             self.fail(key, f'expected a number, got {_kind(value)}')
         out = float(value)
         if not math.isfinite(out):
-            self.fail(key, f'expected a finite number, got {value!r}')
+            self.fail(key, f'expected a finite number, got {describe(value)}')
         if positive and out <= 0.0:
-            self.fail(key, f'expected a positive number, got {value!r}')
+            self.fail(key, f'expected a positive number, got {describe(value)}')
         if minimum is not None and out < minimum:
-            self.fail(key, f'expected a number >= {minimum:g}, got {value!r}')
+            self.fail(key, f'expected a number >= {minimum:g}, got {describe(value)}')
         return out
 
     def text(self, value: Any, key: str) -> str:
@@ -369,12 +361,21 @@ class _Ctx:
         return value.strip()
 
     def path(self, value: Any, key: str, *, directory_ok: bool = False) -> Path:
-        p = (self.file.parent / self.text(value, key)).resolve()
-        if self.check_files:
-            if not p.exists():
-                self.fail(key, f'no such file: {p}')
-            if p.is_dir() and not directory_ok:
-                self.fail(key, f'expected a file, got the directory {p}')
+        text = self.text(value, key)
+        if '\x00' in text:
+            self.fail(key, f'a file name cannot contain a NUL character, got {describe(text)}')
+        try:
+            p = (self.file.parent / text).resolve()
+            if self.check_files:
+                if not p.exists():
+                    self.fail(key, f'no such file: {shorten(str(p), limit=200)}')
+                if p.is_dir() and not directory_ok:
+                    self.fail(key, f'expected a file, got the directory {p}')
+                if not (p.is_file() or p.is_dir()):  # reading a FIFO would block
+                    self.fail(key, f'expected a regular file, got {shorten(str(p), limit=200)}')
+        except (OSError, RuntimeError) as err:  # too long a name, a symlink loop
+            msg = f'cannot use {describe(text)} as a file: {getattr(err, "strerror", None) or err}'
+            raise ConfigError(msg, file=str(self.file), key=key) from None
         return p
 
     def column(self, value: Any, key: str, quantity: str) -> ColumnSpec:
@@ -404,7 +405,7 @@ class _Ctx:
             if isinstance(raw, bool) or not isinstance(raw, (int, float, str)):
                 self.fail(f'{ikey}.{op}', f'expected a number or text, got {_kind(raw)}')
             if isinstance(raw, str) and op in ('greater', 'less'):
-                self.fail(f'{ikey}.{op}', f'{op} needs a number, got {raw!r}')
+                self.fail(f'{ikey}.{op}', f'{op} needs a number, got {describe(raw)}')
             value_ = raw.strip() if isinstance(raw, str) else float(raw)
             out.append(RowFilter(self.text(cond['column'], f'{ikey}.column'), op, value_))
         return tuple(out)
@@ -414,7 +415,7 @@ class _Ctx:
             self.fail(key, f'expected a mapping of axis names, got {_kind(value)}')
         out: dict[str, dict[str, ColumnSpec]] = {}
         for axis, cols in value.items():
-            akey = f'{key}.{axis}'
+            akey = f'{key}.{shorten(str(axis))}'
             if not isinstance(axis, str) or not axis.strip():
                 self.fail(akey, 'axis names must be non-empty text')
             cols = self.mapping(cols if cols is not None else {}, akey, tuple(AXIS_QUANTITIES))
@@ -509,18 +510,20 @@ class _Ctx:
                 self.fail(f'split.{role}', f'expected a list of run names, got {_kind(members)}')
             for j, member in enumerate(members):
                 mkey = f'split.{role}[{j}]'
+                if not isinstance(member, str):
+                    self.fail(mkey, f'expected a run name, got {describe(member)}')
                 if member not in names:
-                    close = difflib.get_close_matches(str(member), sorted(names), n=1)
+                    close = difflib.get_close_matches(shorten(member), sorted(names), n=1)
                     hint = f' (did you mean {close[0]!r}?)' if close else ''
-                    self.fail(mkey, f'no run named {member!r}{hint}')
+                    self.fail(mkey, f'no run named {shorten(member)!r}{hint}')
                 if member in role_of and role_of[member] != role:
-                    self.fail(mkey, f'run {member!r} is in both calibrate and validate')
+                    self.fail(mkey, f'run {shorten(member)!r} is in both calibrate and validate')
                 role_of[member] = role
         out = []
         for r in runs:
             new = role_of.get(r.name)
             if new is not None and r.role is not None and r.role != new:
-                self.fail(f'{r.key}.role',
-                          f'role {r.role!r} contradicts split.{new} which lists {r.name!r}')
+                self.fail(f'{r.key}.role', f'role {r.role!r} contradicts split.{new} which '
+                          f'lists {shorten(r.name)!r}')
             out.append(r if new is None else replace(r, role=new))
         return out

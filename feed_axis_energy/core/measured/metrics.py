@@ -81,7 +81,9 @@ def _energy_pct(e_meas: float, e_sim: float) -> float:
 
 
 def table1_metrics(t: ArrayLike, p_meas: ArrayLike, p_sim: ArrayLike, *,
-                   floor_fraction: float = 0.05) -> Metrics:
+                   floor_fraction: float = 0.05, file: str = '<arrays>',
+                   rows: ArrayLike | None = None,
+                   columns: tuple[str, str, str] = ('t', 'p_meas', 'p_sim')) -> Metrics:
     """Table-1 metrics of one run, from aligned measured and simulated power.
 
     Parameters
@@ -92,6 +94,9 @@ def table1_metrics(t: ArrayLike, p_meas: ArrayLike, p_sim: ArrayLike, *,
         Measured and simulated power on those stamps [W], shape ``(n,)``.
     floor_fraction
         Percentual errors are taken where ``|P_meas| >= floor_fraction * max |P_meas|``.
+    file, rows, columns
+        Name the data in errors: the run's file, the 1-based file data row of every sample
+        (default: sample numbers) and the names of ``t``, ``p_meas`` and ``p_sim``.
 
     Returns
     -------
@@ -106,21 +111,24 @@ def table1_metrics(t: ArrayLike, p_meas: ArrayLike, p_sim: ArrayLike, *,
     t = np.asarray(t, dtype=np.float64)
     pm = np.asarray(p_meas, dtype=np.float64)
     ps = np.asarray(p_sim, dtype=np.float64)
-    for name, arr in (('t', t), ('p_meas', pm), ('p_sim', ps)):
+    row_of = np.arange(1, t.size + 1) if rows is None else np.asarray(rows).reshape(-1)
+    if row_of.shape != t.shape:
+        row_of = np.arange(1, t.size + 1)
+    for name, arr in zip(columns, (t, pm, ps)):
         if arr.ndim != 1 or arr.shape != t.shape or arr.size < 2:
             msg = f'expected shape ({t.size},) with at least 2 samples, got {arr.shape}'
-            raise DataError(msg, file='<arrays>', column=name)
+            raise DataError(msg, file=file, column=name)
         bad = np.flatnonzero(~np.isfinite(arr))
         if bad.size:
-            raise DataError('not a finite number', file='<arrays>', column=name,
-                            row=int(bad[0]) + 1)
+            raise DataError('not a finite number', file=file, column=name,
+                            row=int(row_of[bad[0]]))
     bad = np.flatnonzero(np.diff(t) <= 0.0)
     if bad.size:
-        raise DataError('time must increase strictly', file='<arrays>', column='t',
-                        row=int(bad[0]) + 2)
+        raise DataError('time must increase strictly', file=file, column=columns[0],
+                        row=int(row_of[bad[0] + 1]))
     if not (0.0 < floor_fraction < 1.0):
         msg = f'floor_fraction must lie in (0, 1), got {floor_fraction!r}'
-        raise DataError(msg, file='<arrays>', column='floor_fraction')
+        raise DataError(msg, file=file, column='floor_fraction')
     err = np.abs(pm - ps)
     floor = floor_fraction * float(np.max(np.abs(pm)))
     above = (np.abs(pm) >= floor) & (np.abs(pm) > 0.0)

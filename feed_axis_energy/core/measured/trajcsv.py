@@ -17,11 +17,11 @@ import re
 
 import numpy as np
 
-from ..errors import DataError
+from ..errors import ConfigError, DataError, shorten
 from ..motion import Motion
 from ..trajectory import motion_from_samples
-from ..units import to_si
-from .csvload import _parse, _read_csv
+from ..units import check_si_values, to_si
+from .csvload import _parse, _read_csv, MIN_STEP_S
 
 __all__ = ['load_trajectory_csv', 'TIME_NAMES']
 
@@ -84,15 +84,16 @@ def load_trajectory_csv(path: str | Path, *, axes: tuple[str, ...]) -> Motion:
         j, unit = cols[name]
         raw = _parse(rows, j, numbers, file, name)
         try:
-            return to_si(raw, unit, quantity=quantity)
-        except ValueError as err:
-            msg = f'unit {unit!r} in the header: {err.reason if hasattr(err, "reason") else err}'
+            si = to_si(raw, unit, quantity=quantity)
+        except ConfigError as err:
+            msg = f'unit {shorten(unit)!r} in the header: {err.reason}'
             raise DataError(msg, file=file, column=name) from err
+        return check_si_values(si, file=file, column=name, rows=numbers)
 
     t = values(time_name, 'time')
-    bad = np.nonzero(np.diff(t) <= 0.0)[0]
+    bad = np.nonzero(np.diff(t) < 0.999 * MIN_STEP_S)[0]
     if bad.size:
-        msg = 'time is not strictly increasing'
+        msg = f'time is not strictly increasing by at least {MIN_STEP_S:g} s per row'
         raise DataError(msg, file=file, column=time_name, row=int(numbers[bad[0] + 1]))
     missing = [a for a in axes if a not in cols]
     if missing:

@@ -1,0 +1,49 @@
+"""Start-up time of the command: wall time of N process starts (best and median).
+
+Usage: python bench/bench_startup.py [N]   (default 10)
+
+Measures ``feed-axis-energy --help`` and ``simulate`` of a 10-line program (``--json``),
+each as a fresh ``python -m feed_axis_energy`` process, and prints best / median in seconds.
+Target (issue 10): <= 0.25 s.
+"""
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PROGRAM = '\n'.join(['G21 G90 G17', 'G0 X0 Y0 Z5', 'G1 Z0 F300', 'G1 X20 F1200', 'G1 Y20',
+                     'G2 X30 Y10 I0 J-10', 'G1 X0 Y0', 'G4 P0.5', 'G0 Z5', 'M2']) + '\n'
+
+
+def _time(argv: list[str], n: int) -> list[float]:
+    out = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        proc = subprocess.run([sys.executable, '-m', 'feed_axis_energy', *argv], cwd=ROOT,
+                              capture_output=True, text=True)
+        out.append(time.perf_counter() - t0)
+        if proc.returncode != 0:
+            sys.exit(f'{argv}: exit {proc.returncode}: {proc.stderr[-300:]}')
+    return out
+
+
+def main() -> None:
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 10
+    with tempfile.TemporaryDirectory() as tmp:
+        prog = Path(tmp) / 'ten_lines.nc'
+        prog.write_text(PROGRAM)
+        cases = {'--help': ['--help'],
+                 'simulate 10-line program (3-axis mill)':
+                     ['simulate', str(prog), '--machine',
+                      str(ROOT / 'config' / 'three_axis_mill.yaml'), '--json', '--quiet']}
+        print(f'{"command":44s} {"best [s]":>9s} {"median [s]":>11s}  ({n} starts)')
+        for label, argv in cases.items():
+            times = _time(argv, n)
+            print(f'{label:44s} {min(times):9.3f} {statistics.median(times):11.3f}')
+
+
+if __name__ == '__main__':
+    main()

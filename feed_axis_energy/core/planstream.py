@@ -1,0 +1,499 @@
+"""Streaming planner: moves from any iterable -> bounded chunks of sampled motion.
+
+:func:`.trajectory.plan` plans a whole program at once. Here the same steps run on a bounded
+*window* of blocks and the samples come out in chunks of at most ``chunk_samples``, so a
+program of any length (or a dwell of a week) costs memory for one window and one chunk only.
+
+Committing a window
+-------------------
+The look-ahead's backward pass is the only step that needs the future, and only as far as the
+stopping distance. A window of blocks is grouped (:mod:`.lookahead`; a junction's grouping is
+final once two blocks after it are known) and the backward pass runs from the end of the last
+complete group, whose following speed is unknown. Going backwards, the first boundary whose
+speed is its own cap whatever follows fixes the speeds of all boundaries before it to the
+whole-program values. A cap holds when it is 0 (a dwell, a stop, an exact stop, a reversal),
+or when even the worst following speed lets the group reach it: the bound is
+``reach_speed(0, L / 2)`` (see :func:`_commit_point`; the reachable speed is not monotone in
+the end speed for jerk-limited ramps), with a relative margin of ``1e-9``. The groups before
+that boundary are *committed*: forward pass, profiles, phase table and samples are computed
+with the whole-program formulas (running sums continued from the previous window, so times
+and path lengths carry the same bits), and the window restarts at that boundary with its
+final speed. When no boundary qualifies, the window grows (doubles) until one does or the
+program ends. The window is therefore bounded by the number of blocks within about two
+stopping distances (plus one group), not by the program length.
+
+Samples follow the whole-program rule (sample ``i`` at ``i / rate_hz``, owned by the last
+phase starting at or before it; the last sample is the program end). A corner's velocity step
+goes to the sample nearest the junction, which may lie before the window's first sample or
+after its last: the samples from ``rint(t_window_end / T)`` on are held back until the next
+window's steps are known, and steps beyond the window's samples are carried forward.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass, fields, replace
+import math
+
+import numpy as np
+
+from .lookahead import BlockGroups, group_blocks, path_cumsum, through_acceleration
+from .motion import Motion
+from .profiles import plan_profiles, reach_speed
+from .program import Move, PROGRAM_AXES
+from .trajectory import (_apply_steps, _BlockLocator, _check_limits, _Collector,
+                         _corner_terms, _Geometry, _geometry, _junction_speeds, _junction_times,
+                         _path_limits, _phase_table, _REST, _sample, _Segments, AxisLimits,
+                         PlannerOptions)
+
+__all__ = ['DEFAULT_CHUNK_SAMPLES', 'WINDOW_BLOCKS', 'PlannedWindow', 'iter_plan',
+           'iter_motion', 'concat_motion', 'PlanEstimate', 'estimate_plan']
+
+DEFAULT_CHUNK_SAMPLES = 1 << 16   # samples per Motion chunk (65 536: 65.5 s at 1 kHz)
+WINDOW_BLOCKS = 4096              # blocks read before the first commit attempt of a window
+_SATURATION_MARGIN = 1e-9         # relative margin for "the cap holds whatever follows"
+
+
+@dataclass(frozen=True)
+class PlannedWindow:
+    """A committed run of groups: everything needed to sample it.
+
+    Attributes
+    ----------
+    seg, geo
+        Segments and geometry of the window's blocks.
+    groups
+        The groups (``v_junction`` holds the final boundary speeds).
+    t_start
+        Start time of every phase, ``7 g + 1`` values; ``t_start[0]`` is the window's start,
+        ``t_start[-1]`` its end [s].
+    phases
+        The table of phases with a duration (see :func:`.trajectory._phase_table`).
+    path_start_m
+        Program path length before the first block [m].
+    tan_entry
+        Tangent at the end of the previous window's last block (``None`` for the first).
+    final
+        True for the program's last window.
+    """
+
+    seg: _Segments
+    geo: _Geometry
+    groups: BlockGroups
+    t_start: np.ndarray
+    phases: tuple[np.ndarray, ...]
+    path_start_m: float
+    tan_entry: np.ndarray | None
+    final: bool
+
+    @property
+    def t_begin(self) -> float:
+        """Start of the window [s]."""
+        return float(self.t_start[0])
+
+    @property
+    def t_end(self) -> float:
+        """End of the window [s]."""
+        return float(self.t_start[-1])
+
+
+def _take(obj, count: int):
+    """The first ``count`` rows of every array/list field of a dataclass."""
+    return replace(obj, **{f.name: getattr(obj, f.name)[:count] for f in fields(obj)})
+
+
+def _commit_point(v: list[float], usable: list[float], amax: list[float], jmax: list[float],
+                  complete: int, ended: bool) -> tuple[int, list[float]]:
+    """Backward pass over the complete groups; return the commit boundary.
+
+    Returns ``(k, speeds)``: boundaries ``0..k`` have their whole-program backward-pass speeds
+    (``k = 0``: nothing can be committed yet).
+
+    The speed after the last complete group is unknown (between 0 and its cap), and
+    :func:`.profiles.reach_speed` is not monotone in the end speed (a jerk-limited ramp from
+    a low speed may reach higher than one from a slightly higher speed), so the bound used is
+    one that holds for every end speed: a ramp from ``x`` to ``v`` covers at most ``v T(v)``
+    (``T`` the ramp duration, increasing in the speed change), twice the distance from rest
+    to ``v``, hence ``reach_speed(x, L) >= reach_speed(0, L / 2)`` for all ``x >= 0``.
+    A boundary whose cap is 0, or at most a lower bound of the next speed, or at most that
+    reach from ``L / 2``, keeps its cap whatever follows.
+    """
+    low = list(v)
+    exact = ended
+    k = complete if ended else 0
+    next_low = 0.0           # lower bound of the (unknown) speed at the next boundary
+    for i in range(complete - 1, 0, -1):
+        vi = low[i]
+        if exact:
+            nxt = low[i + 1]
+            if vi > nxt:
+                low[i] = min(vi, reach_speed(nxt, usable[i], amax[i], jmax[i]))
+            continue
+        bound = reach_speed(0.0, 0.5 * usable[i], amax[i], jmax[i])
+        if (vi == 0.0 or vi <= next_low * (1.0 - _SATURATION_MARGIN)
+                or bound >= vi * (1.0 + _SATURATION_MARGIN)):
+            exact = True
+            k = i
+        else:
+            next_low = min(vi, bound) * (1.0 - _SATURATION_MARGIN)
+    return k, low
+
+
+def iter_plan(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
+              options: PlannerOptions = PlannerOptions(), file: str = '',
+              window_blocks: int = WINDOW_BLOCKS,
+              on_move: Callable[[int], None] | None = None) -> Iterator[PlannedWindow]:
+    """Plan ``moves`` window by window (see the module docstring).
+
+    Parameters
+    ----------
+    moves
+        Canonical moves in program order: ``Program.moves`` or a generator.
+    limits
+        Kinematic limits per machine axis (as for :func:`.trajectory.plan`).
+    options
+        Planner options (the sample rate is not used here).
+    file
+        Program file, for error messages.
+    window_blocks
+        Blocks read before a window is first tried for a commit (it doubles while nothing
+        can be committed).
+    on_move
+        Called with the number of moves read so far, once per window.
+
+    Yields
+    ------
+    PlannedWindow
+        Committed windows in time order; the last has ``final=True``. Nothing is yielded for
+        a program without motion.
+
+    Raises
+    ------
+    PlanningError
+        As :func:`.trajectory.plan`, naming the move's line.
+    """
+    lim = _check_limits(limits, file)
+    collector = _Collector(file)
+    it = iter(moves)
+    ended = False
+    read = 0
+    want = max(int(window_blocks), 2)
+    v_entry, t_offset, path_start = 0.0, 0.0, 0.0
+    tan_entry: np.ndarray | None = None
+    cycle_s = options.cycle_s
+    while True:
+        while not ended and len(collector) < want:
+            mv = next(it, None)
+            if mv is None:
+                ended = True
+                break
+            collector.add(mv)
+            read += 1
+        if on_move is not None:
+            on_move(read)
+        m = len(collector)
+        if m == 0:
+            return
+        seg = collector.segments(final=ended)
+        geo = _geometry(seg, file)
+        vmax, amax, jmax = _path_limits(seg, geo, lim, file)
+        if options.profile == 'trapezoid':
+            jmax = np.full(m, np.inf)
+        vj = _junction_speeds(seg, geo, vmax, amax, options.corner_tolerance_m, lim[1],
+                              cycle_s)
+        a_through = through_acceleration(geo.tan1[:-1], geo.tan0[1:], geo.r_min[:-1],
+                                         geo.r_min[1:], vj[1:-1], lim[1], cycle_s)
+        grp = group_blocks(geo.length, vmax, amax, jmax, vj, a_through,
+                           rest=seg.kind == _REST, path_start_m=path_start)
+        g = grp.first.size
+        # a junction's grouping needs two blocks after it (the next block's ceiling depends on
+        # the junction after that): groups ending at or before junction m - 3 are complete
+        complete = g if ended else int(np.searchsorted(grp.first[1:], m - 2, side='right'))
+        v = grp.v_junction.tolist()
+        v[0] = v_entry
+        usable = (grp.length * (1.0 - 1e-9)).tolist()
+        ga, gj = grp.amax.tolist(), grp.jmax.tolist()
+        k, low = _commit_point(v, usable, ga, gj, complete, ended)
+        if k == 0:
+            want = 2 * max(m, want)
+            continue
+        want = max(int(window_blocks), 2)
+        fwd = low[:k + 1]
+        for i in range(k):
+            if fwd[i + 1] > fwd[i]:
+                fwd[i + 1] = min(fwd[i + 1], reach_speed(fwd[i], usable[i], ga[i], gj[i]))
+        gv = np.asarray(fwd)
+        nb = int(grp.first[k]) if k < g else m
+        last = ended and k == g
+        cgrp = BlockGroups(first=grp.first[:k], group_of=grp.group_of[:nb],
+                           offset=grp.offset[:nb], length=grp.length[:k], vmax=grp.vmax[:k],
+                           amax=grp.amax[:k], jmax=grp.jmax[:k], v_junction=gv,
+                           through=grp.through[:max(nb - 1, 0)])
+        cseg, cgeo = _take(seg, nb), _take(geo, nb)
+        prof = plan_profiles(cgrp.length, gv[:-1], gv[1:], cgrp.vmax, cgrp.amax, cgrp.jmax)
+        t_start, phases = _phase_table(prof, gv, cseg.dwell[cgrp.first], t_offset)
+        yield PlannedWindow(seg=cseg, geo=cgeo, groups=cgrp, t_start=t_start, phases=phases,
+                            path_start_m=path_start, tan_entry=tan_entry, final=last)
+        if last:
+            return
+        v_entry = float(gv[-1])
+        t_offset = float(t_start[-1])
+        path_start = float(path_cumsum(cgeo.length, path_start)[-1])
+        tan_entry = cgeo.tan1[-1].copy()
+        collector.drop(nb)
+
+
+class _Samples:
+    """Samples being assembled: ``t, pos, vel, acc, line`` from sample index ``base`` on."""
+
+    def __init__(self, k: int, base: int) -> None:
+        self.base = base
+        self.t = np.zeros(0)
+        self.pos = np.zeros((0, k))
+        self.vel = np.zeros((0, k))
+        self.acc = np.zeros((0, k))
+        self.line = np.zeros(0, np.int32)
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def extend(self, t, pos, vel, acc, line) -> None:
+        if len(self) == 0:
+            self.t, self.pos, self.vel, self.acc, self.line = t, pos, vel, acc, line
+            return
+        self.t = np.concatenate((self.t, t))
+        self.pos = np.concatenate((self.pos, pos))
+        self.vel = np.concatenate((self.vel, vel))
+        self.acc = np.concatenate((self.acc, acc))
+        self.line = np.concatenate((self.line, line))
+
+    def split(self, count: int) -> tuple:
+        """Remove and return the first ``count`` samples as a tuple of arrays."""
+        head = (self.t[:count], self.pos[:count], self.vel[:count], self.acc[:count],
+                self.line[:count])
+        self.t, self.pos, self.vel = self.t[count:], self.pos[count:], self.vel[count:]
+        self.acc, self.line = self.acc[count:], self.line[count:]
+        self.base += count
+        return head
+
+
+def _first_index_at_or_after(t: float, rate_hz: float) -> int:
+    """Smallest ``i >= 0`` with ``i / rate_hz >= t`` (the test the samples use)."""
+    i = max(int(math.ceil(t * rate_hz)), 0)
+    while i > 0 and (i - 1) / rate_hz >= t:
+        i -= 1
+    while i / rate_hz < t:
+        i += 1
+    return i
+
+
+def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
+                options: PlannerOptions = PlannerOptions(), file: str = '',
+                chunk_samples: int = DEFAULT_CHUNK_SAMPLES, window_blocks: int = WINDOW_BLOCKS,
+                total_moves: int | None = None, duration_s: float | None = None,
+                progress: Callable[[float], None] | None = None) -> Iterator[Motion]:
+    """Plan ``moves`` and yield the sampled motion in chunks of at most ``chunk_samples``.
+
+    The concatenated chunks equal :func:`.trajectory.plan` of the same moves (same samples,
+    values within rounding of the continued running sums; see the module docstring).
+
+    Parameters
+    ----------
+    moves
+        Canonical moves in program order: ``Program.moves`` or a generator.
+    limits
+        Kinematic limits per machine axis; its keys become ``Motion.axes``.
+    options
+        Sample rate, profile, corner tolerance, interpolation cycle.
+    file
+        Program file (error messages, ``Motion.source``).
+    chunk_samples
+        Largest chunk [samples], ``>= 2``.
+    window_blocks
+        Passed on to :func:`iter_plan`.
+    total_moves
+        Number of moves, if known (``len(program.moves)``), for ``progress``.
+    duration_s
+        Program duration, if known (:func:`estimate_plan`): ``progress`` then reports the
+        fraction of time sampled, which also advances through a long dwell.
+    progress
+        Called with the fraction of time sampled (with ``duration_s``) or of moves planned
+        (with ``total_moves``).
+
+    Yields
+    ------
+    Motion
+        Consecutive chunks; every chunk has at least one sample.
+    """
+    if chunk_samples < 2:
+        msg = f'chunk_samples must be >= 2, got {chunk_samples}'
+        raise ValueError(msg)
+    _check_limits(limits, file)
+    axes = tuple(limits)
+    cols = [PROGRAM_AXES.index(a) for a in axes]
+    k = len(axes)
+    rate = options.rate_hz
+    sample_s = 1.0 / rate
+    moves_seen: list[Move] = []
+
+    def on_move(count: int) -> None:
+        if progress is not None and total_moves and not duration_s:
+            progress(min(count / total_moves, 1.0))
+
+    def first_move(source: Iterable[Move]) -> Iterator[Move]:
+        for mv in source:
+            if not moves_seen:
+                moves_seen.append(mv)
+            yield mv
+
+    buf = _Samples(k, 0)                  # samples whose steps may not all be known yet
+    out = _Samples(k, 0)                  # finished samples waiting to fill a chunk
+    steps = (np.zeros(0, np.int64), np.zeros(0), np.zeros((0, k)))   # not yet applied
+    next_index = 0
+    any_window = False
+    for win in iter_plan(first_move(moves), limits, options=options, file=file,
+                         window_blocks=window_blocks, on_move=on_move):
+        any_window = True
+        seg, geo, grp = win.seg, win.geo, win.groups
+        gv = grp.v_junction
+        t_j, v_j = _junction_times(grp, win.t_start, gv, win.phases)
+        tan_in, tan_out = geo.tan1[:-1], geo.tan0[1:]
+        if win.tan_entry is not None:
+            t_j = np.concatenate(([win.t_begin], t_j))
+            v_j = np.concatenate(([float(gv[0])], v_j))
+            tan_in = np.vstack((win.tan_entry[None, :], tan_in))
+            tan_out = np.vstack((geo.tan0[:1], tan_out))
+        idx, tc, dv = _corner_terms(t_j, v_j, tan_in, tan_out, cols, sample_s)
+        steps = (np.concatenate((steps[0], idx)), np.concatenate((steps[1], tc)),
+                 np.concatenate((steps[2], dv)))
+        t_end = win.t_end
+        if win.final:
+            n_last = int(math.floor(t_end * rate + 1e-9))
+            stop_index = max(n_last + 1, next_index)
+        else:
+            stop_index = _first_index_at_or_after(t_end, rate)
+        lines = np.array([x.line for x in seg.move], dtype=np.int32)
+        locate = _BlockLocator(grp, geo.length, path_start_m=win.path_start_m)
+        p0c, uc = seg.p0[:, cols], geo.u[:, cols]
+        t0_phase = win.phases[0]
+        lo = next_index
+        while True:
+            hi = min(lo + chunk_samples, stop_index)
+            last_piece = hi >= stop_index
+            t = np.arange(lo, hi, dtype=float) / rate
+            if win.final and last_piece:
+                if t.size and t_end - t[-1] <= 1e-9:
+                    t[-1] = t_end
+                else:
+                    t = np.append(t, t_end)
+            n = t.size
+            pos = np.empty((n, k))
+            vel = np.empty((n, k))
+            acc = np.empty((n, k))
+            if n:
+                # each phase owns the samples from the first one at or after its start
+                first = np.searchsorted(t, t0_phase, side='left')
+                owner = np.repeat(np.arange(first.size), np.diff(np.append(first, n)))
+                mi = _sample(t, owner, win.phases, locate, seg, geo, cols, p0c, uc,
+                             out=(pos, vel, acc))
+                buf.extend(t, pos, vel, acc, lines[mi])
+            end_index = buf.base + len(buf)
+            if win.final and last_piece:
+                steps = (np.minimum(steps[0], end_index - 1), steps[1], steps[2])
+            ready = steps[0] < end_index
+            if np.any(ready):
+                sel = np.nonzero(ready)[0]
+                _apply_steps(buf.t, steps[0][sel] - buf.base, steps[1][sel], steps[2][sel],
+                             sample_s, vel=buf.vel, acc=buf.acc)
+                keep = np.nonzero(~ready)[0]
+                steps = (steps[0][keep], steps[1][keep], steps[2][keep])
+            if win.final and last_piece:
+                done = len(buf)
+            else:
+                # later junctions (at or after the window end) reach back to this sample
+                cut = int(np.rint(t_end / sample_s))
+                done = max(min(cut - buf.base, len(buf)), 0) if last_piece else len(buf)
+            if done:
+                out.extend(*buf.split(done))
+            while len(out) >= chunk_samples:
+                chunk = _motion(out.split(chunk_samples), axes, file)
+                if progress is not None and duration_s:
+                    progress(min(float(chunk.t[-1]) / duration_s, 1.0))
+                yield chunk
+            lo = hi
+            if last_piece:
+                break
+        next_index = stop_index
+    if not any_window:
+        start = moves_seen[0].start if moves_seen else (0.0, 0.0, 0.0)
+        pos = np.asarray(start, dtype=float)[cols][None, :]
+        yield Motion(t=np.zeros(1), axes=axes, pos=pos, vel=np.zeros_like(pos),
+                     acc=np.zeros_like(pos), line=np.zeros(1, np.int32), source=file)
+        return
+    if len(out):
+        yield _motion(out.split(len(out)), axes, file)
+
+
+def _motion(arrays: tuple, axes: tuple[str, ...], file: str) -> Motion:
+    t, pos, vel, acc, line = arrays
+    return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line, source=file)
+
+
+def concat_motion(chunks: Iterable[Motion]) -> Motion:
+    """Join consecutive motion chunks into one :class:`Motion` (for small programs, tests)."""
+    parts = list(chunks)
+    if not parts:
+        msg = 'concat_motion: no chunks'
+        raise ValueError(msg)
+    first = parts[0]
+    return Motion(t=np.concatenate([c.t for c in parts]), axes=first.axes,
+                  pos=np.concatenate([c.pos for c in parts]),
+                  vel=np.concatenate([c.vel for c in parts]),
+                  acc=np.concatenate([c.acc for c in parts]),
+                  line=np.concatenate([c.line for c in parts]), source=first.source)
+
+
+@dataclass(frozen=True)
+class PlanEstimate:
+    """What a run will cost, known from the plan before any sample is computed.
+
+    Attributes
+    ----------
+    duration_s
+        Program duration [s].
+    samples
+        Number of samples at the planned rate.
+    moves
+        Moves read.
+    """
+
+    duration_s: float
+    samples: int
+    moves: int
+
+
+def estimate_plan(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
+                  options: PlannerOptions = PlannerOptions(), file: str = '') -> PlanEstimate:
+    """Plan without sampling: duration and sample count (cost: per block, not per sample).
+
+    Parameters
+    ----------
+    moves, limits, options, file
+        As for :func:`iter_motion`.
+
+    Returns
+    -------
+    PlanEstimate
+        Duration, samples (as :func:`iter_motion` will produce) and moves read.
+    """
+    count = [0]
+
+    def on_move(n: int) -> None:
+        count[0] = n
+
+    t_end = 0.0
+    for win in iter_plan(moves, limits, options=options, file=file, on_move=on_move):
+        t_end = win.t_end
+    rate = options.rate_hz
+    n_last = int(math.floor(t_end * rate + 1e-9))
+    samples = n_last + 1 + (1 if t_end - n_last / rate > 1e-9 else 0)
+    return PlanEstimate(duration_s=t_end, samples=samples, moves=count[0])
