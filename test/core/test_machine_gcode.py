@@ -1,0 +1,84 @@
+"""The G-code section of a machine config (dialect, tool table) and axis travel limits."""
+from pathlib import Path
+
+import pytest
+import yaml
+
+from feed_axis_energy.core.errors import ConfigError
+from feed_axis_energy.core.machine import (GcodeSettings, load_machine, machine_from_dict,
+                                           machine_to_dict, ToolSpec)
+
+CONFIG = Path(__file__).resolve().parents[2] / 'config'
+
+
+@pytest.fixture()
+def mill_dict():
+    return machine_to_dict(load_machine(CONFIG / 'three_axis_mill.yaml'))
+
+
+def test_defaults_when_the_section_is_absent():
+    demo = load_machine(CONFIG / 'demonstrator.yaml')
+    assert demo.gcode == GcodeSettings()
+    assert demo.gcode.dialect == 'linuxcnc' and dict(demo.gcode.tools) == {}
+    assert demo.gcode.tool(1) is None
+    assert demo.axis('X').travel_m is None
+    assert 'gcode' not in machine_to_dict(demo)
+
+
+def test_tools_dialect_and_travel_are_read_and_round_trip(mill_dict, tmp_path):
+    mill_dict['gcode'] = {'dialect': 'fanuc',
+                          'tools': {2: {'radius_m': 0.005}, '1': {'length_m': -0.01}}}
+    mill_dict['axes']['Z']['travel_m'] = [-0.4, 0]
+    mill_dict['axes']['X'].pop('travel_m', None)
+    m = machine_from_dict(mill_dict, file='m.yaml')
+    assert m.gcode.dialect == 'fanuc'
+    assert m.gcode.tools[1] == ToolSpec(radius_m=0.0, length_m=-0.01)
+    assert m.gcode.tools[2].radius_m == 0.005 and m.gcode.tools[2].length_m == 0.0
+    assert list(m.gcode.tools) == [1, 2]
+    assert m.axis('Z').travel_m == (-0.4, 0.0) and m.axis('X').travel_m is None
+    path = tmp_path / 'm.yaml'
+    path.write_text(yaml.safe_dump(machine_to_dict(m)))
+    assert load_machine(path) == m
+    with pytest.raises(TypeError):
+        m.gcode.tools[3] = ToolSpec()          # the table is read-only
+
+
+@pytest.mark.parametrize('gcode, key, words', [
+    ({'dialect': 'heidenhain'}, 'gcode.dialect', 'expected one of linuxcnc'),
+    ({'dialekt': 'fanuc'}, 'gcode.dialekt', 'unknown key'),
+    ([1], 'gcode', 'expected a mapping'),
+    ({'tools': {0: {}}}, 'gcode.tools', 'tool number'),
+    ({'tools': {'T1': {}}}, 'gcode.tools', 'tool number'),
+    ({'tools': {True: {}}}, 'gcode.tools', 'tool number'),
+    ({'tools': {1: {'radius_m': -0.001}}}, 'gcode.tools.1.radius_m', '>= 0.0'),
+    ({'tools': {1: {'length_m': 1e400}}}, 'gcode.tools.1.length_m', 'finite'),
+    ({'tools': {1: {'length_m': 10 ** 400}}}, 'gcode.tools.1.length_m', 'finite'),
+    ({'tools': {1: {'diameter_m': 0.01}}}, 'gcode.tools.1.diameter_m', 'unknown key'),
+    ({'tools': {1: {}, '1': {}}}, 'gcode.tools.1', 'twice'),
+    ({'tools': {1: 0.003}}, 'gcode.tools.1', 'expected a mapping'),
+])
+def test_bad_gcode_section_names_the_key(mill_dict, gcode, key, words):
+    mill_dict['gcode'] = gcode
+    with pytest.raises(ConfigError) as err:
+        machine_from_dict(mill_dict, file='m.yaml')
+    assert err.value.key == key and err.value.file == 'm.yaml'
+    assert words in str(err.value) and len(str(err.value)) < 300
+
+
+def test_too_many_tools_is_refused_before_reading_them(mill_dict):
+    mill_dict['gcode'] = {'tools': {n: {} for n in range(1, 10_002)}}
+    with pytest.raises(ConfigError, match='at most 10000 tools'):
+        machine_from_dict(mill_dict, file='m.yaml')
+
+
+@pytest.mark.parametrize('travel, key', [
+    ([0.1, 0.1], 'axes.X.travel_m'), ([0.2, -0.1], 'axes.X.travel_m'),
+    ([0.0], 'axes.X.travel_m'), (0.3, 'axes.X.travel_m'), ('0..1', 'axes.X.travel_m'),
+    ([0.0, 'far'], 'axes.X.travel_m[1]'), ([-2000.0, 0.0], 'axes.X.travel_m[0]'),
+    ([float('nan'), 1.0], 'axes.X.travel_m[0]'), ([False, 1.0], 'axes.X.travel_m[0]'),
+])
+def test_bad_travel_names_the_key(mill_dict, travel, key):
+    mill_dict['axes']['X']['travel_m'] = travel
+    with pytest.raises(ConfigError) as err:
+        machine_from_dict(mill_dict, file='m.yaml')
+    assert err.value.key == key
