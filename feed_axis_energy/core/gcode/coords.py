@@ -1,0 +1,422 @@
+"""Coordinate systems, offsets and the tool table: program coordinates <-> machine coordinates.
+
+LinuxCNC 2.9 semantics (``interp_convert.cc``: ``convert_coordinate_system``,
+``convert_setup``, ``convert_axis_offsets``, ``convert_home``, ``convert_savehome``,
+``convert_tool_length_offset``; ``interp_find.cc``: ``find_ends``, ``find_relative``). For
+the X, Y and Z axes, with every offset a pure translation::
+
+    machine = program + G5x offset + G92/G52 offset + tool length offset
+
+* G54..G59, G59.1..G59.3 select coordinate system 1..9; its origin is read from the stored
+  parameters ``#5221 + 20 (n - 1)`` (X, Y, Z) when it is selected, as LinuxCNC does.
+* G10 L2 P.. sets a system's origin to the given values; G10 L20 P.. sets it so that the
+  current point has the given coordinates; P0 = the active system. G10 L1 P.. writes the
+  tool table (R = radius, Z = length offset).
+* G92 shifts the origin so that the current point has the given coordinates; G52 sets the
+  same offset to the given values (LinuxCNC treats G52 as a G92 with absolute values);
+  G92.1 clears it and its parameters #5211..#5213, G92.2 clears it and keeps them, G92.3
+  restores it from them.
+* G53: the axis words of this line are machine coordinates (no offset at all).
+* G28/G30: a rapid to the line's intermediate point, then the named axes (all without axis
+  words) to the stored position ``#5161..#5163`` / ``#5181..#5183`` (machine coordinates);
+  G28.1/G30.1 store the current machine position there.
+* G43 H.. (H absent: the loaded tool) applies the tool table's length to Z; G43.1 X/Y/Z
+  sets the offset directly, G43.2 adds to it; G49 cancels it. A tool the table lacks is an
+  error.
+
+Stored parameters hold lengths in millimetres (LinuxCNC with a millimetre machine
+configuration); the live values (``#5420..`` position, ``#<_x>`` ...) are in program units.
+Rotation of a coordinate system (G10 L2 R) is refused. The state is pure: no I/O.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+import math
+from typing import NoReturn
+
+from ..errors import GcodeError
+from ..machine_gcode import ToolSpec
+
+__all__ = ['Coords', 'ParamTable', 'COORD_G_CODES', 'SYSTEM_NAMES', 'system_param']
+
+Vec3 = tuple[float, float, float]
+Fail = Callable[[str, str], NoReturn]
+
+_AXES = ('X', 'Y', 'Z')
+_MM = 1000.0
+# G codes this module executes, keyed by round(10 x number): (modal group, argument).
+COORD_G_CODES: dict[int, tuple[str, object]] = {
+    100: ('nonmodal', 'G10'), 280: ('nonmodal', 'G28'), 281: ('nonmodal', 'G28.1'),
+    300: ('nonmodal', 'G30'), 301: ('nonmodal', 'G30.1'), 520: ('nonmodal', 'G52'),
+    530: ('nonmodal', 'G53'), 920: ('nonmodal', 'G92'), 921: ('nonmodal', 'G92.1'),
+    922: ('nonmodal', 'G92.2'), 923: ('nonmodal', 'G92.3'),
+    430: ('tool_length', 'G43'), 431: ('tool_length', 'G43.1'),
+    432: ('tool_length', 'G43.2'), 490: ('tool_length', 'G49'),
+    540: ('coord', 1), 550: ('coord', 2), 560: ('coord', 3), 570: ('coord', 4),
+    580: ('coord', 5), 590: ('coord', 6), 591: ('coord', 7), 592: ('coord', 8),
+    593: ('coord', 9),
+}
+SYSTEM_NAMES = ('G54', 'G55', 'G56', 'G57', 'G58', 'G59', 'G59.1', 'G59.2', 'G59.3')
+# #<_coord_system> as LinuxCNC reports it (540 ... 593).
+_SYSTEM_CODES = (540.0, 550.0, 560.0, 570.0, 580.0, 590.0, 591.0, 592.0, 593.0)
+G28_PARAM = 5161
+G30_PARAM = 5181
+G92_APPLIED = 5210
+G92_PARAM = 5211
+SYSTEM_PARAM = 5220
+TOOL_PARAM = 5400
+POSITION_PARAM = 5420
+MAX_PASSES = 9          # axes X Y Z A B C U V W of every parameter block
+
+
+def system_param(system: int, axis: int = 0) -> int:
+    """Number of the stored parameter of ``axis`` (0 = X) of coordinate system 1..9."""
+    return 5201 + 20 * system + axis
+
+
+def _raise(message: str, letter: str) -> NoReturn:
+    raise GcodeError(message, file='<program>', line=0, column=0)
+
+
+class ParamTable:
+    """Numbered parameters as a plain table (stand-in for ``gcode.params.Parameters``).
+
+    Only :meth:`get` and :meth:`set` are used here, so the front end's ``Parameters``
+    object can be passed instead. Unset parameters read 0 (LinuxCNC's fresh parameter file).
+    """
+
+    __slots__ = ('values',)
+
+    def __init__(self) -> None:
+        self.values: dict[int, float] = {}
+
+    def get(self, number: int) -> float:
+        """Value of ``#number`` (0 if never set)."""
+        return self.values.get(number, 0.0)
+
+    def set(self, number: int, value: float) -> None:
+        """Set ``#number``."""
+        self.values[number] = float(value)
+
+
+class Coords:
+    """The coordinate state of a program being interpreted (all lengths in metres).
+
+    Parameters
+    ----------
+    tools
+        The tool table ``{T: ToolSpec}`` (a machine's ``gcode.tools``); copied, since G10 L1
+        may change it.
+    home_m
+        Initial G28 position (machine coordinates [m]) stored in #5161..#5163; ``None``
+        leaves them at 0, LinuxCNC's fresh parameter file.
+    params
+        The numbered parameter table (``get``/``set``); a fresh :class:`ParamTable` if
+        ``None``.
+    """
+
+    __slots__ = ('params', 'tools', 'system', 'g5x', 'g92', 'tlo', 'offset', 'selected_tool',
+                 'loaded_tool', 'home_used')
+
+    def __init__(self, *, tools: Mapping[int, ToolSpec] | None = None,
+                 home_m: Vec3 | None = None, params: object | None = None):
+        self.params = ParamTable() if params is None else params
+        self.tools: dict[int, ToolSpec] = dict(tools or {})
+        self.system = 1
+        self.g5x: Vec3 = (0.0, 0.0, 0.0)
+        self.g92: Vec3 = (0.0, 0.0, 0.0)
+        self.tlo: Vec3 = (0.0, 0.0, 0.0)
+        self.offset: Vec3 = (0.0, 0.0, 0.0)
+        self.selected_tool = 0
+        self.loaded_tool = 0
+        self.home_used = False
+        if home_m is not None:
+            for i in range(3):
+                self.params.set(G28_PARAM + i, home_m[i] * _MM)
+        self.params.set(SYSTEM_PARAM, 1.0)
+        self._load_system(1)
+
+    # -- frames ---------------------------------------------------------------------------
+    def _update(self) -> None:
+        g5x, g92, tlo = self.g5x, self.g92, self.tlo
+        self.offset = (g5x[0] + g92[0] + tlo[0], g5x[1] + g92[1] + tlo[1],
+                       g5x[2] + g92[2] + tlo[2])
+
+    def to_machine(self, program: Vec3) -> Vec3:
+        """Machine coordinates [m] of a point given in program coordinates [m]."""
+        o = self.offset
+        return (program[0] + o[0], program[1] + o[1], program[2] + o[2])
+
+    def to_program(self, machine: Vec3) -> Vec3:
+        """Program coordinates [m] of a point given in machine coordinates [m]."""
+        o = self.offset
+        return (machine[0] - o[0], machine[1] - o[1], machine[2] - o[2])
+
+    def _load_system(self, system: int) -> None:
+        get = self.params.get
+        self.g5x = tuple(get(system_param(system, i)) / _MM for i in range(3))
+        self._check_rotation(system, None)
+        self._update()
+
+    def _check_rotation(self, system: int, fail: Fail | None) -> None:
+        if self.params.get(system_param(system, 9)) != 0.0:
+            (fail or _raise)(f'coordinate system {SYSTEM_NAMES[system - 1]} is rotated '
+                             '(G10 L2 R, #' f'{system_param(system, 9)}): rotation is not '
+                             'supported', 'G')
+
+    # -- G54 .. G59.3 ---------------------------------------------------------------------
+    def select_system(self, system: int, *, fail: Fail = _raise) -> None:
+        """G54..G59.3: make coordinate system ``system`` (1..9) active."""
+        if system == self.system:
+            return
+        if self.params.get(system_param(system, 9)) != 0.0:
+            self._check_rotation(system, fail)
+        self.system = system
+        self.params.set(SYSTEM_PARAM, float(system))
+        self._load_system(system)
+
+    # -- G10 ------------------------------------------------------------------------------
+    def g10(self, l_word: float | None, p_word: float | None, values: Mapping[str, float],
+            position: Vec3, *, fail: Fail = _raise) -> None:
+        """G10 L1/L2/L20 with the line's words.
+
+        Parameters
+        ----------
+        l_word, p_word
+            The L and P words as read (``None`` if absent).
+        values
+            ``{'X': m, 'Y': m, 'Z': m}`` for the axis words on the line (program units
+            converted to metres, not made absolute), ``'R'`` as written (L1: radius [m];
+            L2: rotation [deg]).
+        position
+            Current machine position [m] (for L20).
+        fail
+            ``fail(message, letter)`` raising the error at a word.
+        """
+        if l_word is None:
+            fail('G10 needs an L word (L1 tool table, L2 or L20 coordinate system)', 'G')
+        if l_word not in (1.0, 2.0, 20.0):
+            fail(f'G10 L{l_word:g} is not supported (L1, L2 and L20 are)', 'L')
+        if p_word is None:
+            fail(f'G10 L{l_word:g} needs a P word', 'G')
+        p = int(math.floor(p_word + 0.5)) if p_word >= 0 else int(math.ceil(p_word - 0.5))
+        if abs(p_word - p) > 0.0002:
+            fail('P value not an integer with G10', 'P')
+        if l_word == 1.0:
+            self._g10_tool(p, values, fail=fail)
+            return
+        if not 0 <= p <= 9:
+            fail(f'P value out of range (0-9) with G10 L{l_word:g}', 'P')
+        system = p or self.system
+        if 'R' in values:
+            if l_word == 20.0:
+                fail('R not allowed in G10 L20', 'R')
+            if values['R'] != 0.0:
+                fail('rotation of a coordinate system (G10 L2 R) is not supported', 'R')
+        get = self.params.get
+        origin = [get(system_param(system, i)) / _MM for i in range(3)]
+        for i, axis in enumerate(_AXES):
+            if axis in values:
+                if l_word == 2.0:
+                    origin[i] = values[axis]
+                else:
+                    # the current point, seen in `system`, gets the given coordinate
+                    origin[i] = position[i] - self.tlo[i] - self.g92[i] - values[axis]
+                self.params.set(system_param(system, i), origin[i] * _MM)
+        if system == self.system:
+            self.g5x = tuple(origin)
+            self._update()
+
+    def _g10_tool(self, number: int, values: Mapping[str, float], *, fail: Fail) -> None:
+        if number < 1:
+            fail('P value out of range with G10 L1 (a tool number >= 1)', 'P')
+        old = self.tools.get(number, ToolSpec())
+        radius = values.get('R', old.radius_m)
+        if radius < 0.0:
+            fail('negative tool radius', 'R')
+        self.tools[number] = ToolSpec(radius_m=radius, length_m=values.get('Z', old.length_m))
+
+    # -- G92, G52 -------------------------------------------------------------------------
+    def axis_offsets(self, code: str, values: Mapping[str, float], position: Vec3) -> None:
+        """G92 / G52 / G92.1 / G92.2 / G92.3.
+
+        Parameters
+        ----------
+        code
+            ``'G92'``, ``'G52'``, ``'G92.1'``, ``'G92.2'`` or ``'G92.3'``.
+        values
+            ``{'X': m, ...}`` for the axis words on the line (G92, G52).
+        position
+            Current machine position [m].
+        """
+        g92 = list(self.g92)
+        set_param = self.params.set
+        if code in ('G92', 'G52'):
+            set_param(G92_APPLIED, 1.0)
+            for i, axis in enumerate(_AXES):
+                if axis in values:
+                    if code == 'G52':
+                        g92[i] = values[axis]
+                    else:
+                        g92[i] = position[i] - self.tlo[i] - self.g5x[i] - values[axis]
+            for i in range(3):
+                set_param(G92_PARAM + i, g92[i] * _MM)
+        elif code in ('G92.1', 'G92.2'):
+            set_param(G92_APPLIED, 0.0)
+            g92 = [0.0, 0.0, 0.0]
+            if code == 'G92.1':
+                for i in range(3):
+                    set_param(G92_PARAM + i, 0.0)
+        elif code == 'G92.3':
+            set_param(G92_APPLIED, 1.0)
+            g92 = [self.params.get(G92_PARAM + i) / _MM for i in range(3)]
+        else:
+            raise ValueError(f'not a G92 code: {code!r}')
+        self.g92 = tuple(g92)
+        self._update()
+
+    # -- G28 / G30 ------------------------------------------------------------------------
+    def stored_home(self, code: str) -> Vec3:
+        """The stored G28 or G30 position, machine coordinates [m]."""
+        base = G28_PARAM if code == 'G28' else G30_PARAM
+        self.home_used = True
+        return tuple(self.params.get(base + i) / _MM for i in range(3))
+
+    def home_path(self, code: str, via: Vec3, named: tuple[bool, bool, bool]) -> list[Vec3]:
+        """G28/G30: the intermediate point and the end point, machine coordinates [m].
+
+        Parameters
+        ----------
+        code
+            ``'G28'`` or ``'G30'``.
+        via
+            Intermediate point [m] (machine coordinates; the current point where the line
+            has no axis words).
+        named
+            Which of X, Y, Z the line names; those go to the stored position (all of them
+            when none is named).
+        """
+        home = self.stored_home(code)
+        if not any(named):
+            named = (True, True, True)
+        end = tuple(home[i] if named[i] else via[i] for i in range(3))
+        return [via, end]
+
+    def save_home(self, code: str, position: Vec3) -> None:
+        """G28.1 / G30.1: store the current machine position [m]."""
+        base = G28_PARAM if code == 'G28.1' else G30_PARAM
+        for i in range(3):
+            self.params.set(base + i, position[i] * _MM)
+
+    # -- tools ----------------------------------------------------------------------------
+    def select_tool(self, number: int) -> None:
+        """T word: the tool the next M6 loads (not checked against the table here)."""
+        self.selected_tool = number
+
+    def change_tool(self) -> None:
+        """M6: the selected tool becomes the loaded one (the offset stays until G43/G49)."""
+        self.loaded_tool = self.selected_tool
+
+    def set_loaded_tool(self, number: int) -> None:
+        """M61 Q..: declare the loaded tool without a change."""
+        self.selected_tool = self.loaded_tool = number
+
+    def tool(self, number: int | None, *, letter: str, fail: Fail = _raise) -> ToolSpec:
+        """The table entry of tool ``number`` (``None``: the loaded tool); T0 = no tool.
+
+        Raises through ``fail`` at ``letter`` when the table lacks the tool.
+        """
+        if number is None:
+            number = self.loaded_tool
+        if number == 0:
+            return ToolSpec()
+        spec = self.tools.get(number)
+        if spec is None:
+            fail(f'tool {number} is not in the tool table (add it under gcode.tools of the '
+                 'machine config)', letter)
+        return spec
+
+    def cutter_radius(self, d_word: float | None, *, fail: Fail = _raise) -> float:
+        """Radius [m] for G41/G42 with the line's D word (absent: the loaded tool)."""
+        number = None
+        if d_word is not None:
+            number = int(d_word)
+            if number != d_word or number < 0:
+                fail('D word must be a tool number (a whole number >= 0)', 'D')
+        return self.tool(number, letter='D' if d_word is not None else 'G', fail=fail).radius_m
+
+    def tool_length(self, code: str, h_word: float | None, values: Mapping[str, float], *,
+                    fail: Fail = _raise) -> None:
+        """G43 [H..] / G43.1 axes / G43.2 H.. or axes / G49."""
+        tlo = list(self.tlo)
+        if code == 'G49':
+            tlo = [0.0, 0.0, 0.0]
+        elif code == 'G43' or (code == 'G43.2' and h_word is not None):
+            number = None
+            if h_word is not None:
+                number = int(h_word)
+                if number != h_word or number < 0:
+                    fail('H word must be a tool number (a whole number >= 0)', 'H')
+            spec = self.tool(number, letter='H' if h_word is not None else 'G', fail=fail)
+            if code == 'G43':
+                tlo = [0.0, 0.0, spec.length_m]
+            else:
+                if values:
+                    fail('G43.2: Can not have both H and axis words', 'H')
+                tlo[2] += spec.length_m
+        elif code in ('G43.1', 'G43.2'):
+            if not values and code == 'G43.2':
+                fail('G43.2: No axes specified and H word missing', 'G')
+            for i, axis in enumerate(_AXES):
+                if axis in values:
+                    tlo[i] = values[axis] + (tlo[i] if code == 'G43.2' else 0.0)
+        else:
+            raise ValueError(f'not a tool length code: {code!r}')
+        self.tlo = tuple(tlo)
+        self._update()
+
+    # -- live values ----------------------------------------------------------------------
+    def system_value(self, key: int | str, position: Vec3, scale: float) -> float | None:
+        """Read-only system parameter ``key`` (number or lower-case name), or ``None``.
+
+        Parameters
+        ----------
+        key
+            ``5420``..``5428`` (current position), ``5400`` (loaded tool), ``5401``..``5403``
+            (its tool length offset, mm), ``5410`` (its diameter, mm), or a name
+            ``'_x'``, ``'_y'``, ``'_z'``, ``'_a'``..``'_w'``, ``'_coord_system'``,
+            ``'_current_tool'``, ``'_selected_tool'``, ``'_abs_x'``..``'_abs_z'``.
+        position
+            Current machine position [m].
+        scale
+            Metres per program unit (G20: 0.0254, G21: 0.001).
+        """
+        if isinstance(key, str):
+            return self._named_value(key, position, scale)
+        if POSITION_PARAM <= key < POSITION_PARAM + MAX_PASSES:
+            i = key - POSITION_PARAM
+            return self.to_program(position)[i] / scale if i < 3 else 0.0
+        if key == TOOL_PARAM:
+            return float(self.loaded_tool)
+        spec = self.tools.get(self.loaded_tool, ToolSpec())
+        if TOOL_PARAM + 1 <= key <= TOOL_PARAM + MAX_PASSES:
+            return spec.length_m * _MM if key == TOOL_PARAM + 3 else 0.0
+        if key == 5410:
+            return 2.0 * spec.radius_m * _MM
+        return None
+
+    def _named_value(self, name: str, position: Vec3, scale: float) -> float | None:
+        if len(name) == 2 and name[0] == '_' and name[1] in 'xyzabcuvw':
+            return self.system_value(POSITION_PARAM + 'xyzabcuvw'.index(name[1]), position,
+                                     scale)
+        if name in ('_abs_x', '_abs_y', '_abs_z'):
+            return position['xyz'.index(name[-1])] / scale
+        if name == '_coord_system':
+            return _SYSTEM_CODES[self.system - 1]
+        if name == '_tool_offset':
+            return float(any(self.tlo))
+        if name == '_current_tool':
+            return float(self.loaded_tool)
+        if name == '_selected_tool':
+            return float(self.selected_tool)
+        return None

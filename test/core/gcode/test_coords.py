@@ -1,0 +1,216 @@
+"""Coordinate systems, offsets and the tool table (core/gcode/coords.py), checked by hand.
+
+Every expected machine position below is computed by hand from LinuxCNC's rules
+(machine = program + G5x origin + G92 offset + tool length offset).
+"""
+import pytest
+
+from feed_axis_energy.core.errors import GcodeError
+from feed_axis_energy.core.gcode.coords import (COORD_G_CODES, Coords, ParamTable,
+                                                system_param)
+from feed_axis_energy.core.machine_gcode import ToolSpec
+
+
+class Failed(Exception):
+    pass
+
+
+def fail(message, letter):
+    raise Failed(letter, message)
+
+
+def approx3(v):
+    return pytest.approx(v, abs=1e-12)
+
+
+def test_fresh_state_is_the_identity_like_the_reference_set_up():
+    c = Coords()
+    assert c.offset == (0.0, 0.0, 0.0) and c.system == 1
+    assert c.to_machine((0.01, 0.02, 0.03)) == (0.01, 0.02, 0.03)
+    assert c.params.get(5220) == 1.0 and c.params.get(5221) == 0.0
+    assert c.stored_home('G28') == (0.0, 0.0, 0.0)
+
+
+def test_g10_l2_then_g55_moves_the_program_origin():
+    c = Coords()
+    # G10 L2 P2 X100 Y50 (mm): G55 origin at machine (0.1, 0.05, 0)
+    c.g10(2.0, 2.0, {'X': 0.1, 'Y': 0.05}, (0.0, 0.0, 0.0), fail=fail)
+    assert c.params.get(system_param(2, 0)) == pytest.approx(100.0)
+    assert c.params.get(5241) == pytest.approx(100.0) and c.params.get(5242) == 50.0
+    assert c.offset == (0.0, 0.0, 0.0)           # G54 still active
+    c.select_system(2)
+    assert c.params.get(5220) == 2.0
+    # program X10 Y10 Z-5 in G55 is machine X110 Y60 Z-5
+    assert c.to_machine((0.01, 0.01, -0.005)) == approx3((0.11, 0.06, -0.005))
+    c.select_system(1)
+    assert c.to_machine((0.01, 0.01, -0.005)) == approx3((0.01, 0.01, -0.005))
+
+
+def test_g10_l2_p0_changes_the_active_system_at_once():
+    c = Coords()
+    c.select_system(3)                          # G56
+    c.g10(2.0, 0.0, {'Z': -0.02}, (0.0, 0.0, 0.0), fail=fail)
+    assert c.params.get(5263) == pytest.approx(-20.0)
+    assert c.to_machine((0.0, 0.0, 0.005)) == approx3((0.0, 0.0, -0.015))
+
+
+def test_g10_l20_makes_the_current_point_read_the_given_value():
+    c = Coords()
+    pos = (0.2, 0.1, -0.05)                     # machine position of the tool
+    c.g10(20.0, 1.0, {'X': 0.0, 'Y': 0.01}, pos, fail=fail)
+    # the current point now reads X0 Y10 in G54: origin at machine X200 Y90
+    assert c.to_program(pos) == approx3((0.0, 0.01, -0.05))
+    assert (c.params.get(5221), c.params.get(5222)) == pytest.approx((200.0, 90.0))
+
+
+def test_g92_offset_with_g54_origin_and_its_cancel_codes():
+    c = Coords()
+    c.g10(2.0, 1.0, {'X': 0.1}, (0.0, 0.0, 0.0), fail=fail)   # G54 X100
+    pos = (0.13, 0.0, 0.0)                       # program X30 in G54
+    c.axis_offsets('G92', {'X': 0.0}, pos)                # the current point becomes X0
+    assert c.to_program(pos) == approx3((0.0, 0.0, 0.0))
+    assert c.g92 == approx3((0.03, 0.0, 0.0))
+    assert c.params.get(5210) == 1.0 and c.params.get(5211) == pytest.approx(30.0)
+    # program X10 is machine 100 + 30 + 10 mm
+    assert c.to_machine((0.01, 0.0, 0.0)) == approx3((0.14, 0.0, 0.0))
+    c.axis_offsets('G92.2', {}, pos)                      # off, parameters kept
+    assert c.to_program(pos) == approx3((0.03, 0.0, 0.0))
+    assert c.params.get(5210) == 0.0 and c.params.get(5211) == pytest.approx(30.0)
+    c.axis_offsets('G92.3', {}, pos)                      # back from the parameters
+    assert c.to_program(pos) == approx3((0.0, 0.0, 0.0))
+    c.axis_offsets('G92.1', {}, pos)                      # off and parameters cleared
+    assert c.params.get(5211) == 0.0 and c.offset == approx3((0.1, 0.0, 0.0))
+    c.axis_offsets('G92.3', {}, pos)
+    assert c.offset == approx3((0.1, 0.0, 0.0))
+
+
+def test_g92_applies_to_every_coordinate_system():
+    c = Coords()
+    c.g10(2.0, 2.0, {'Y': 0.05}, (0.0, 0.0, 0.0), fail=fail)  # G55 Y50
+    c.axis_offsets('G92', {'Y': 0.01}, (0.0, 0.0, 0.0))   # G54: current Y0 becomes Y10: g92 Y = -10
+    c.select_system(2)
+    # in G55 program Y0 is machine 50 - 10 mm
+    assert c.to_machine((0.0, 0.0, 0.0)) == approx3((0.0, 0.04, 0.0))
+
+
+def test_g52_sets_the_offset_to_the_values_not_relative_to_the_point():
+    c = Coords()
+    c.axis_offsets('G52', {'X': 0.01, 'Z': -0.002}, (0.5, 0.5, 0.5))
+    assert c.g92 == approx3((0.01, 0.0, -0.002))
+    assert c.to_machine((0.0, 0.0, 0.0)) == approx3((0.01, 0.0, -0.002))
+    c.axis_offsets('G52', {'X': 0.0}, (0.5, 0.5, 0.5))   # G52 X0 cancels X only
+    assert c.g92 == approx3((0.0, 0.0, -0.002))
+
+
+def test_tool_length_offset_from_the_table_and_its_variants():
+    c = Coords(tools={1: ToolSpec(radius_m=0.003, length_m=0.05), 2: ToolSpec(length_m=0.02)})
+    c.select_tool(1)
+    c.change_tool()                              # T1 M6
+    c.tool_length('G43', None, {}, fail=fail)    # G43: the loaded tool
+    assert c.to_machine((0.0, 0.0, 0.0)) == approx3((0.0, 0.0, 0.05))
+    c.tool_length('G43', 2.0, {}, fail=fail)     # G43 H2
+    assert c.offset == approx3((0.0, 0.0, 0.02))
+    c.tool_length('G43.2', 1.0, {}, fail=fail)   # G43.2 H1 adds tool 1's length
+    assert c.offset == approx3((0.0, 0.0, 0.07))
+    c.tool_length('G43.1', None, {'Z': -0.01}, fail=fail)
+    assert c.offset == approx3((0.0, 0.0, -0.01))
+    c.tool_length('G43.2', None, {'Z': 0.004}, fail=fail)
+    assert c.offset == approx3((0.0, 0.0, -0.006))
+    c.tool_length('G49', None, {}, fail=fail)
+    assert c.offset == (0.0, 0.0, 0.0)
+    assert c.cutter_radius(1.0, fail=fail) == 0.003
+    assert c.cutter_radius(None, fail=fail) == 0.003      # D absent: the loaded tool
+    assert c.cutter_radius(0.0, fail=fail) == 0.0
+
+
+@pytest.mark.parametrize('call, letter, words', [
+    (lambda c: c.tool_length('G43', 7.0, {}, fail=fail), 'H', 'tool 7 is not in the tool'),
+    (lambda c: c.tool_length('G43', 1.5, {}, fail=fail), 'H', 'whole number'),
+    (lambda c: c.tool_length('G43.2', None, {}, fail=fail), 'G', 'No axes'),
+    (lambda c: c.tool_length('G43.2', 1.0, {'Z': 0.1}, fail=fail), 'H', 'both H'),
+    (lambda c: c.cutter_radius(3.0, fail=fail), 'D', 'tool 3 is not in the tool'),
+    (lambda c: c.g10(None, 1.0, {}, (0, 0, 0), fail=fail), 'G', 'needs an L word'),
+    (lambda c: c.g10(3.0, 1.0, {}, (0, 0, 0), fail=fail), 'L', 'not supported'),
+    (lambda c: c.g10(2.0, None, {}, (0, 0, 0), fail=fail), 'G', 'needs a P word'),
+    (lambda c: c.g10(2.0, 10.0, {}, (0, 0, 0), fail=fail), 'P', 'out of range (0-9)'),
+    (lambda c: c.g10(2.0, 1.5, {}, (0, 0, 0), fail=fail), 'P', 'not an integer'),
+    (lambda c: c.g10(20.0, 1.0, {'R': 0.0}, (0, 0, 0), fail=fail), 'R', 'R not allowed'),
+    (lambda c: c.g10(2.0, 1.0, {'R': 30.0}, (0, 0, 0), fail=fail), 'R', 'rotation'),
+    (lambda c: c.g10(1.0, 0.0, {}, (0, 0, 0), fail=fail), 'P', 'tool number'),
+])
+def test_errors_name_the_word(call, letter, words):
+    c = Coords(tools={1: ToolSpec()})
+    with pytest.raises(Failed) as err:
+        call(c)
+    assert err.value.args[0] == letter and words in err.value.args[1]
+
+
+def test_missing_loaded_tool_is_an_error_at_the_g_word():
+    c = Coords()
+    c.select_tool(4)
+    c.change_tool()
+    with pytest.raises(Failed) as err:
+        c.tool_length('G43', None, {}, fail=fail)
+    assert err.value.args[0] == 'G' and 'tool 4' in err.value.args[1]
+
+
+def test_g10_l1_writes_the_tool_table():
+    c = Coords()
+    c.g10(1.0, 5.0, {'Z': 0.04, 'R': 0.002}, (0, 0, 0), fail=fail)
+    assert c.tools[5] == ToolSpec(radius_m=0.002, length_m=0.04)
+    c.tool_length('G43', 5.0, {}, fail=fail)
+    assert c.offset == approx3((0.0, 0.0, 0.04))
+
+
+def test_g28_goes_through_the_via_point_to_the_stored_position():
+    c = Coords(home_m=(0.0, 0.0, 0.1))
+    assert c.params.get(5163) == pytest.approx(100.0)
+    c.g10(2.0, 1.0, {'Z': -0.05}, (0, 0, 0), fail=fail)
+    # G91 G28 Z0 at machine (0.02, 0.03, 0.01): via = the current point, Z only goes home
+    via = (0.02, 0.03, 0.01)
+    assert c.home_path('G28', via, (False, False, True)) == [via, (0.02, 0.03, 0.1)]
+    # no axis words: every axis goes home (LinuxCNC, Haas), whatever the work offset
+    assert c.home_path('G28', via, (False, False, False)) == [via, (0.0, 0.0, 0.1)]
+    # G30.1 stores the current machine position, G30 returns to it
+    c.save_home('G30.1', (0.3, 0.2, 0.1))
+    assert (c.params.get(5181), c.params.get(5182)) == pytest.approx((300.0, 200.0))
+    assert c.home_path('G30', via, (True, True, False))[1] == approx3((0.3, 0.2, 0.01))
+
+
+def test_live_values_in_program_units():
+    c = Coords(tools={3: ToolSpec(radius_m=0.005, length_m=0.1)})
+    c.g10(2.0, 1.0, {'X': 0.1}, (0, 0, 0), fail=fail)
+    pos = (0.1254, 0.0, 0.0)
+    assert c.system_value(5420, pos, 0.001) == pytest.approx(25.4)
+    assert c.system_value('_x', pos, 0.0254) == pytest.approx(1.0)
+    assert c.system_value('_abs_x', pos, 0.001) == pytest.approx(125.4)
+    assert c.system_value(5424, pos, 0.001) == 0.0          # A axis: not simulated
+    assert c.system_value('_coord_system', pos, 0.001) == 540.0
+    c.select_system(7)
+    assert c.system_value('_coord_system', pos, 0.001) == 591.0
+    c.select_tool(3)
+    c.change_tool()
+    assert c.system_value(5400, pos, 0.001) == 3.0
+    assert c.system_value(5403, pos, 0.001) == pytest.approx(100.0)
+    assert c.system_value(5410, pos, 0.001) == pytest.approx(10.0)
+    assert c.system_value('_tool_offset', pos, 0.001) == 0.0
+    assert c.system_value(31, pos, 0.001) is None and c.system_value('_foo', pos, 1) is None
+
+
+def test_a_rotated_system_is_refused_when_selected():
+    params = ParamTable()
+    params.set(5250, 30.0)                       # G55 rotated 30 degrees (a program wrote it)
+    c = Coords(params=params)
+    with pytest.raises(Failed, match='rotation'):
+        c.select_system(2, fail=fail)
+    c2 = Coords()
+    with pytest.raises(GcodeError):
+        c2.params.set(5250, 1.0)
+        c2.select_system(2)
+
+
+def test_code_table_covers_every_system_and_offset_code():
+    assert {COORD_G_CODES[k][1] for k in (540, 550, 560, 570, 580, 590, 591, 592, 593)} \
+        == set(range(1, 10))
+    for k in (100, 280, 281, 300, 301, 520, 530, 920, 921, 922, 923, 430, 431, 432, 490):
+        assert k in COORD_G_CODES
