@@ -32,15 +32,17 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 import math
-from typing import NoReturn
+from typing import NamedTuple, NoReturn
 
 from ..errors import GcodeError
 from ..machine_gcode import ToolSpec
 
-__all__ = ['Coords', 'ParamTable', 'COORD_G_CODES', 'SYSTEM_NAMES', 'system_param']
+__all__ = ['Coords', 'LineEffect', 'ParamTable', 'COORD_G_CODES', 'SYSTEM_NAMES',
+           'system_param']
 
 Vec3 = tuple[float, float, float]
 Fail = Callable[[str, str], NoReturn]
+Value = Callable[[str], 'float | None']
 
 _AXES = ('X', 'Y', 'Z')
 _MM = 1000.0
@@ -76,6 +78,47 @@ def system_param(system: int, axis: int = 0) -> int:
 
 def _raise(message: str, letter: str) -> NoReturn:
     raise GcodeError(message, file='<program>', line=0, column=0)
+
+
+def _tool_spec(entry: object) -> ToolSpec:
+    """A tool table entry as ToolSpec (also from a ``(radius_m, length_m)`` pair)."""
+    if isinstance(entry, ToolSpec):
+        return entry
+    radius, length = entry
+    return ToolSpec(radius_m=float(radius), length_m=float(length))
+
+
+# LinuxCNC 2.9's messages for what it refuses while cutter radius compensation is on.
+_COMP_MESSAGES = {
+    'G92': 'Cannot change axis offsets with cutter radius compensation',
+    'G28': 'Cannot use G28 or G30 with cutter radius compensation',
+    'G28.1': 'Cannot set reference point with cutter compensation in effect',
+    'G10': 'Cannot change the active coordinate system with cutter radius compensation on',
+    'G43': 'Cannot change tool offset with cutter radius compensation on',
+}
+_COMP_KEY = {'G52': 'G92', 'G92.1': 'G92', 'G92.2': 'G92', 'G92.3': 'G92', 'G30': 'G28',
+             'G30.1': 'G28.1', 'G43.1': 'G43', 'G43.2': 'G43', 'G49': 'G43'}
+# Codes whose line's axis words are data, not a motion.
+_AXIS_DATA = frozenset({'G10', 'G52', 'G92', 'G28.1', 'G30.1', 'G43.1', 'G43.2'})
+
+
+class LineEffect(NamedTuple):
+    """What the coordinate codes of a line mean for its motion.
+
+    Attributes
+    ----------
+    axes_used
+        The axis words were data of G10/G92/G52/G43.1/G43.2/G28.1/G30.1: no motion.
+    frame
+        ``machine - program`` [m] for this line's absolute axis words (zero under G53).
+    home
+        ``'G28'`` or ``'G30'`` when the line returns to a stored position
+        (:meth:`Coords.home_path`), else ``None``.
+    """
+
+    axes_used: bool
+    frame: Vec3
+    home: str | None
 
 
 class ParamTable:
@@ -121,7 +164,8 @@ class Coords:
     def __init__(self, *, tools: Mapping[int, ToolSpec] | None = None,
                  home_m: Vec3 | None = None, params: object | None = None):
         self.params = ParamTable() if params is None else params
-        self.tools: dict[int, ToolSpec] = dict(tools or {})
+        self.tools: dict[int, ToolSpec] = {int(t): _tool_spec(e)
+                                           for t, e in (tools or {}).items()}
         self.system = 1
         self.g5x: Vec3 = (0.0, 0.0, 0.0)
         self.g92: Vec3 = (0.0, 0.0, 0.0)
@@ -135,6 +179,83 @@ class Coords:
                 self.params.set(G28_PARAM + i, home_m[i] * _MM)
         self.params.set(SYSTEM_PARAM, 1.0)
         self._load_system(1)
+
+    # -- one line -------------------------------------------------------------------------
+    def execute(self, codes: Mapping[str, object], value: Value, *, position: Vec3,
+                scale: float, motion: int | None, absolute: bool, comp_active: bool = False,
+                fail: Fail = _raise) -> LineEffect:
+        """Execute the coordinate codes of one line, in LinuxCNC's order.
+
+        Tool length (G43/G49) first, then the coordinate system (G54..), then the
+        non-modal code (G10, G28.1/G30.1, G92.., G52; G28/G30 and G53 only mark the line).
+
+        Parameters
+        ----------
+        codes
+            ``{group: argument}`` of the line's entries of :data:`COORD_G_CODES` (groups
+            ``'tool_length'``, ``'coord'``, ``'nonmodal'``).
+        value
+            ``value(letter)``: the number of the line's word ``letter`` as written, or
+            ``None`` if the line has none.
+        position
+            Current machine position [m].
+        scale
+            Metres per program unit.
+        motion
+            The motion mode the line runs in (0, 1, 2, 3, a cycle code or ``None``).
+        absolute
+            G90 in force.
+        comp_active
+            Cutter radius compensation G41/G42 is on (LinuxCNC then refuses most of these).
+        fail
+            ``fail(message, letter)`` raising the error at a word.
+
+        Returns
+        -------
+        LineEffect
+            Whether the axis words were used, the frame of the line's axis words and the
+            G28/G30 return, if any.
+        """
+        axes = {a: v * scale for a in _AXES if (v := value(a)) is not None}
+        if comp_active:
+            for code in (codes.get('tool_length'), codes.get('nonmodal')):
+                key = _COMP_KEY.get(code, code)
+                if key in _COMP_MESSAGES and not (
+                        key == 'G10' and not self._g10_hits_active(value)):
+                    fail(_COMP_MESSAGES[key], 'G')
+        length = codes.get('tool_length')
+        if length is not None:
+            h = value('H')
+            self.tool_length(length, h, axes if length in _AXIS_DATA else {}, fail=fail)
+        system = codes.get('coord')
+        if system is not None:
+            self.select_system(system, fail=fail)
+        code = codes.get('nonmodal')
+        if code == 'G10':
+            data = dict(axes)
+            r = value('R')
+            if r is not None:
+                data['R'] = r * scale if value('L') == 1.0 else r
+            self.g10(value('L'), value('P'), data, position, fail=fail)
+        elif code in ('G92', 'G52', 'G92.1', 'G92.2', 'G92.3'):
+            self.axis_offsets(code, axes, position)
+        elif code in ('G28.1', 'G30.1'):
+            self.save_home(code, position)
+        elif code == 'G53':
+            if motion not in (0, 1):
+                fail('Must use G0 or G1 with G53', 'G')
+            if not absolute:
+                fail('Cannot use G53 incremental', 'G')
+        return LineEffect(axes_used=bool(axes) and (code in _AXIS_DATA or length in _AXIS_DATA),
+                          frame=(0.0, 0.0, 0.0) if code == 'G53' else self.offset,
+                          home=code if code in ('G28', 'G30') else None)
+
+    def _g10_hits_active(self, value: Value) -> bool:
+        l_word, p_word = value('L'), value('P')
+        if l_word not in (2.0, 20.0) or p_word is None:
+            return False
+        p = round(p_word)
+        return p == 0 or p == self.system
 
     # -- frames ---------------------------------------------------------------------------
     def _update(self) -> None:

@@ -87,7 +87,7 @@ def test_g92_offset_with_g54_origin_and_its_cancel_codes():
 def test_g92_applies_to_every_coordinate_system():
     c = Coords()
     c.g10(2.0, 2.0, {'Y': 0.05}, (0.0, 0.0, 0.0), fail=fail)  # G55 Y50
-    c.axis_offsets('G92', {'Y': 0.01}, (0.0, 0.0, 0.0))   # G54: current Y0 becomes Y10: g92 Y = -10
+    c.axis_offsets('G92', {'Y': 0.01}, (0.0, 0.0, 0.0))  # current Y0 reads Y10: g92 Y = -10
     c.select_system(2)
     # in G55 program Y0 is machine 50 - 10 mm
     assert c.to_machine((0.0, 0.0, 0.0)) == approx3((0.0, 0.04, 0.0))
@@ -214,3 +214,74 @@ def test_code_table_covers_every_system_and_offset_code():
         == set(range(1, 10))
     for k in (100, 280, 281, 300, 301, 520, 530, 920, 921, 922, 923, 430, 431, 432, 490):
         assert k in COORD_G_CODES
+
+
+def run(c, codes, words, *, position=(0.0, 0.0, 0.0), scale=0.001, motion=1, absolute=True,
+        comp=False):
+    return c.execute(codes, words.get, position=position, scale=scale, motion=motion,
+                     absolute=absolute, comp_active=comp, fail=fail)
+
+
+def test_execute_g10_line_uses_its_axis_words_as_data():
+    c = Coords()
+    eff = run(c, {'nonmodal': 'G10'}, {'L': 2.0, 'P': 1.0, 'X': 10.0, 'Y': 20.0})
+    assert eff.axes_used and eff.home is None
+    assert eff.frame == approx3((0.01, 0.02, 0.0)) and c.offset == eff.frame
+    # G10 L1 R in program units is a radius; in inches too
+    run(c, {'nonmodal': 'G10'}, {'L': 1.0, 'P': 2.0, 'R': 0.1, 'Z': 1.0}, scale=0.0254)
+    assert c.tools[2].radius_m == pytest.approx(0.00254)
+    assert c.tools[2].length_m == pytest.approx(0.0254)
+
+
+def test_execute_order_is_tool_length_then_system_then_g92():
+    c = Coords(tools={1: ToolSpec(length_m=0.1)})
+    run(c, {'nonmodal': 'G10'}, {'L': 2.0, 'P': 2.0, 'Z': -200.0})       # G55 Z-200 mm
+    # G43 H1 G55 G92 Z0 at machine Z = -0.05: G92 sees the new TLO and the G55 origin
+    eff = run(c, {'tool_length': 'G43', 'coord': 2, 'nonmodal': 'G92'}, {'H': 1.0, 'Z': 0.0},
+              position=(0.0, 0.0, -0.05))
+    assert eff.axes_used
+    # the current point reads Z0: g92 Z = -0.05 - 0.1 - (-0.2) = 0.05
+    assert c.g92 == approx3((0.0, 0.0, 0.05))
+    assert c.to_program((0.0, 0.0, -0.05)) == approx3((0.0, 0.0, 0.0))
+
+
+def test_execute_g43_with_an_axis_word_is_a_move_and_g53_uses_no_offset():
+    c = Coords(tools={1: ToolSpec(length_m=0.1)})
+    eff = run(c, {'tool_length': 'G43'}, {'H': 1.0, 'Z': 5.0}, motion=0)
+    assert not eff.axes_used and eff.frame == approx3((0.0, 0.0, 0.1))
+    eff = run(c, {'nonmodal': 'G53'}, {'Z': 0.0}, motion=0)
+    assert eff.frame == (0.0, 0.0, 0.0) and not eff.axes_used
+    with pytest.raises(Failed, match='G0 or G1'):
+        run(c, {'nonmodal': 'G53'}, {'X': 0.0}, motion=2)
+    with pytest.raises(Failed, match='incremental'):
+        run(c, {'nonmodal': 'G53'}, {'X': 0.0}, motion=0, absolute=False)
+
+
+def test_execute_marks_g28_and_g30_and_stores_with_g28_1():
+    c = Coords()
+    eff = run(c, {'nonmodal': 'G28.1'}, {}, position=(0.1, 0.2, 0.3))
+    assert eff.home is None and c.stored_home('G28') == approx3((0.1, 0.2, 0.3))
+    assert run(c, {'nonmodal': 'G28'}, {'Z': 0.0}).home == 'G28'
+    assert run(c, {'nonmodal': 'G30'}, {}).home == 'G30'
+
+
+@pytest.mark.parametrize('codes, words', [
+    ({'nonmodal': 'G92'}, {'X': 0.0}), ({'nonmodal': 'G52'}, {'X': 0.0}),
+    ({'nonmodal': 'G28'}, {}), ({'nonmodal': 'G30.1'}, {}), ({'tool_length': 'G49'}, {}),
+    ({'nonmodal': 'G10'}, {'L': 2.0, 'P': 0.0, 'X': 1.0}),
+    ({'nonmodal': 'G10'}, {'L': 20.0, 'P': 1.0, 'X': 1.0}),
+])
+def test_execute_refuses_what_linuxcnc_refuses_under_cutter_compensation(codes, words):
+    with pytest.raises(Failed, match='cutter'):
+        run(Coords(), codes, words, comp=True)
+
+
+def test_execute_allows_g10_of_another_system_under_cutter_compensation():
+    c = Coords()
+    run(c, {'nonmodal': 'G10'}, {'L': 2.0, 'P': 3.0, 'X': 1.0}, comp=True)
+    assert c.params.get(5261) == pytest.approx(1.0)
+
+
+def test_tools_given_as_radius_length_pairs():
+    c = Coords(tools={7: (0.0, 0.0), 8: (0.002, 0.03)})
+    assert c.tools[8] == ToolSpec(radius_m=0.002, length_m=0.03) and c.tools[7] == ToolSpec()
