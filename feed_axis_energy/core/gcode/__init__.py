@@ -44,6 +44,7 @@ Dialect (LinuxCNC semantics where dialects differ)
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 import gc
 from os import PathLike
 
@@ -60,7 +61,8 @@ DEFAULT_ARC_TOLERANCE_M = 2e-6
 def parse_gcode(text: str, *, file: str = '<string>',
                 start: tuple[float, float, float] = (0.0, 0.0, 0.0),
                 arc_tolerance_m: float = DEFAULT_ARC_TOLERANCE_M,
-                home: tuple[float, float, float] | None = None) -> Program:
+                home: tuple[float, float, float] | None = None,
+                tools: Mapping[int, object] | None = None) -> Program:
     """Parse an NC program into moves in SI units.
 
     Parameters
@@ -77,6 +79,10 @@ def parse_gcode(text: str, *, file: str = '<string>',
     home
         The G28 reference point [m] in program coordinates (a machine's ``home_m``); without
         it G28 is an error.
+    tools
+        Tool table for cutter radius compensation: tool number -> radius [m] (a number, a
+        mapping with ``radius_m`` or an object with a ``radius_m`` attribute). Without it
+        G41/G42 work only with tool 0 (radius 0, the path unchanged) or G41.1/G42.1.
 
     Returns
     -------
@@ -100,7 +106,7 @@ def parse_gcode(text: str, *, file: str = '<string>',
     gc.disable()
     try:
         return _parse_lines(text, lines, file=file, start=start,
-                            arc_tolerance_m=arc_tolerance_m, home=home)
+                            arc_tolerance_m=arc_tolerance_m, home=home, tools=tools)
     finally:
         if gc_was_enabled:
             gc.enable()
@@ -108,12 +114,13 @@ def parse_gcode(text: str, *, file: str = '<string>',
 
 def _parse_lines(text: str, lines: list[str], *, file: str,
                  start: tuple[float, float, float], arc_tolerance_m: float,
-                 home: tuple[float, float, float] | None) -> Program:
+                 home: tuple[float, float, float] | None,
+                 tools: Mapping[int, object] | None) -> Program:
     """Interpret ``lines`` (``text`` split at newlines) into a :class:`Program`."""
     # Upper-casing the whole text once keeps lines aligned: it never adds or removes '\n'.
     upper_lines = text.upper().split('\n')
     ascii_text = text.isascii()
-    p = Interpreter(file, start, arc_tolerance_m, lines=lines, home=home)
+    p = Interpreter(file, start, arc_tolerance_m, lines=lines, home=home, tools=tools)
     line_re = LINE_RE.fullmatch
     findall = WORD_RE.findall
     interpret = p.line
@@ -146,6 +153,7 @@ def _parse_lines(text: str, lines: list[str], *, file: str,
         if p.ended:
             end_at = lineno
             break
+    p.close()
     if end_at:
         _warn_trailing(p, lines, end_at)
     return Program(file=file, moves=tuple(p.moves), n_lines=len(lines),
@@ -169,14 +177,15 @@ def _warn_trailing(p: Interpreter, lines: list[str], end_at: int) -> None:
 def load_gcode(path: str | PathLike[str], *,
                start: tuple[float, float, float] = (0.0, 0.0, 0.0),
                arc_tolerance_m: float = DEFAULT_ARC_TOLERANCE_M,
-               home: tuple[float, float, float] | None = None) -> Program:
+               home: tuple[float, float, float] | None = None,
+               tools: Mapping[int, object] | None = None) -> Program:
     """Read a UTF-8 program file and parse it (see :func:`parse_gcode`).
 
     Parameters
     ----------
     path
         The program file; its path is used as ``file`` in messages and in the result.
-    start, arc_tolerance_m, home
+    start, arc_tolerance_m, home, tools
         As for :func:`parse_gcode`.
 
     Returns
@@ -205,4 +214,4 @@ def load_gcode(path: str | PathLike[str], *,
                f'(line {bad_line})')
         raise GcodeError(msg, file=name, line=0, column=0) from err
     return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
-                       home=home)
+                       home=home, tools=tools)

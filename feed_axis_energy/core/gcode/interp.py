@@ -7,10 +7,14 @@ little more than the :class:`~.program.Move` it produces.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 import math
 
-from .lexer import (ALLOWED_LETTERS, blank_comments, G_CODES, G_UNSUPPORTED, locate_word,
-                    M_CODES, UNSUPPORTED_LETTERS)
+from .codes import (ALLOWED_LETTERS, COMP_FORBIDDEN, G_CODES, G_UNSUPPORTED, M_CODES,
+                    UNSUPPORTED_LETTERS)
+from .cutter import CutterComp, LEFT, RIGHT
+from .cycles import CycleMemory, CycleSpec, expand_cycle
+from .lexer import blank_comments, locate_word
 from ..errors import GcodeError
 from ..program import Move, MoveKind
 
@@ -26,9 +30,12 @@ _CENTRE_LETTERS = ('I', 'J', 'K')
 _AXIS_LETTERS = ('X', 'Y', 'Z')
 _MOTION_KIND = (MoveKind.RAPID, MoveKind.LINEAR, MoveKind.ARC_CW, MoveKind.ARC_CCW)
 _MOTION_TEXT = {t: int(t) for t in ('0', '00', '1', '01', '2', '02', '3', '03')}
-# Letters that need no check beyond the motion itself.
-_STRAIGHT_WORDS = frozenset('XYZFNST')
-_ARC_WORDS = frozenset('XYZIJKRPFNST')
+_SPINDLE = {'cw': 1, 'ccw': -1, 'off': 0}
+# Letters that need no check beyond the motion itself (T is recorded by check_extras).
+_STRAIGHT_WORDS = frozenset('XYZFNS')
+_ARC_WORDS = frozenset('XYZIJKRPFNS')
+# Words of a canned-cycle line (cycles.py checks which the cycle needs).
+_CYCLE_LENGTH_WORDS = ('X', 'Y', 'Z', 'R', 'I', 'J', 'K', 'Q')
 
 
 class Interpreter:
@@ -46,15 +53,22 @@ class Interpreter:
         The source lines (as split by the caller), to show the offending word in errors.
     home
         The G28 reference point [m] in program coordinates, or ``None`` (G28 refused).
+    tools
+        Tool table for cutter compensation: tool number -> radius [m] (a number, a mapping
+        with ``radius_m`` or an object with a ``radius_m`` attribute); ``None``: no table
+        (G41/G42 with a D word is then an error).
     """
 
     __slots__ = ('file', 'arc_tol', 'pos', 'motion', 'plane', 'scale', 'absolute',
                  'arc_absolute', 'inverse_time', 'feed', 'exact', 'coord', 'moves',
                  'warnings', 'lineno', 'lines', 'ended', 'g_cache', 'g43_lineno', 'home',
-                 'g28_lineno')
+                 'g28_lineno', 'retract', 'cycle_memory', 'series', 'comp', 'routing',
+                 'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
+                 'tool_loaded', 'spindle', 'p_unit')
 
     def __init__(self, file: str, start: tuple[float, float, float], arc_tolerance_m: float,
-                 *, lines: list[str], home: tuple[float, float, float] | None = None):
+                 *, lines: list[str], home: tuple[float, float, float] | None = None,
+                 tools: Mapping[int, object] | None = None):
         self.file = file
         self.arc_tol = float(arc_tolerance_m)
         self.pos = (float(start[0]), float(start[1]), float(start[2]))
@@ -76,6 +90,19 @@ class Interpreter:
         self.g43_lineno = -1                # line of the last G43 (its H word is legal there)
         self.home = None if home is None else tuple(float(v) for v in home)
         self.g28_lineno = -1                # line of the last G28 (its axis words are special)
+        self.retract = 99                   # G99: LinuxCNC's start-up canned-cycle return
+        self.cycle_memory = CycleMemory()   # sticky cycle words, initial level of a series
+        self.series = False                 # the last motion was a canned cycle
+        self.comp = CutterComp(file=file, units_m=self.scale)
+        self.routing = False                # moves go through self.comp (comp.engaged)
+        self.comp_code: int | None = None   # the G40/G41/G42(.1) of the pending line
+        self.pending_lineno = -1            # line with work to do before its motion
+        self.tool_change = False            # M6 on the pending line
+        self.tools = tools
+        self.tool_selected = 0              # T word
+        self.tool_loaded = 0                # tool in the spindle (after M6); 0 = none
+        self.spindle = 0                    # 1 M3, -1 M4, 0 stopped (M5 / start-up)
+        self.p_unit = 1.0                   # seconds per unit of a dwell's P word
 
     # -- errors ---------------------------------------------------------------------------
     def fail(self, msg: str, letter: str, *, value: float | None = None, nth: int = 0):
@@ -134,16 +161,23 @@ class Interpreter:
         if dwell or g64 or not d.keys() <= (_ARC_WORDS if is_arc and has_axes
                                             else _STRAIGHT_WORDS):
             self.check_extras(d, is_arc, has_axes, dwell, g64)
+        if self.pending_lineno == self.lineno:
+            self.before_motion(d)
         if self.g28_lineno == self.lineno:
             self.go_home(d, g9)
         elif has_axes:
             if mode is None:
                 self.fail('axis words but no motion mode (G0/G1/G2/G3) is active',
                           self.first_axis(d))
-            if is_arc:
-                self.arc(d, mode, g9, motion is not None)
+            if mode > 3:
+                self.cycle(d, mode)
             else:
-                self.straight(d, mode, g9, motion is not None)
+                if self.series:
+                    self.end_series()
+                if is_arc:
+                    self.arc(d, mode, g9, motion is not None)
+                else:
+                    self.straight(d, mode, g9, motion is not None)
         if ml:
             self.stop(ml)
 
@@ -182,8 +216,21 @@ class Interpreter:
                 self.fail('O-word subroutines and control flow are not supported', 'O')
         if 'H' in d and self.g43_lineno != self.lineno:
             self.fail('H word with no G43 to use it', 'H')
+        if 'T' in d:
+            self.select_tool(d['T'])
+        if 'D' in d and not (self.pending_lineno == self.lineno
+                             and self.comp_code not in (None, 40)):
+            self.fail('D word with no G41/G42 (or G41.1/G42.1) to use it', 'D')
+        cycle_move = has_axes and (self.motion or 0) > 3
+        if cycle_move:
+            if dwell:
+                self.fail('G4 and a canned cycle on one line would share the P word', 'G',
+                          value=4.0)
+            return              # cycles.py checks the cycle's words
         if 'Q' in d and not g64:
-            self.fail('Q words (canned cycles) are not supported', 'Q')
+            self.fail('Q word with no canned cycle (G73, G83) or G64 to use it', 'Q')
+        if 'L' in d:
+            self.fail('L word with no canned cycle to use it', 'L')
         arc_move = is_arc and has_axes
         if is_arc and not has_axes:
             for letter in 'IJKR':
@@ -214,10 +261,19 @@ class Interpreter:
                 cache[text] = entry
             group, arg, code = entry
             if group in seen:
-                same = seen[group] == code
-                self.fail(f'G{seen[group] / 10:g} and G{code / 10:g} are in the same modal '
-                          f'group ({group}) on one line', 'G', value=code / 10, nth=int(same))
+                if group == 'motion' and 800 in (code, seen[group]) and code != seen[group]:
+                    # LinuxCNC 2.9 lets G80 stand beside another motion code (Fanuc safety
+                    # blocks such as G0 G17 G40 G49 G80 G90): the other code wins.
+                    if code == 800:
+                        continue
+                else:
+                    same = seen[group] == code
+                    self.fail(f'G{seen[group] / 10:g} and G{code / 10:g} are in the same '
+                              f'modal group ({group}) on one line', 'G', value=code / 10,
+                              nth=int(same))
             seen[group] = code
+            if self.comp.active and group in COMP_FORBIDDEN:
+                self.comp_forbidden(group, arg, code)
             if group == 'motion':
                 motion = -1 if arg is None else arg
             elif group == 'nonmodal':
@@ -232,6 +288,7 @@ class Interpreter:
                 self.plane = arg
             elif group == 'units':
                 self.scale = arg
+                self.comp.units_m = arg
             elif group == 'distance':
                 self.absolute = arg
             elif group == 'arc_distance':
@@ -243,6 +300,11 @@ class Interpreter:
             elif group == 'control':
                 self.exact = arg
                 g64 = code == 640
+            elif group == 'cutter':
+                self.comp_code = arg
+                self.pending_lineno = self.lineno
+            elif group == 'retract':
+                self.retract = arg
             elif group == 'tool_length' and code == 430:
                 if self.g43_lineno < 0:
                     self.warnings.append(
@@ -257,10 +319,146 @@ class Interpreter:
                         'coordinates)')
                 self.coord = arg
         if motion == -1:
-            # G80: no motion mode until the next G0/G1/G2/G3.
+            # G80: no motion mode until the next G0/G1/G2/G3; a series of cycles ends.
             self.motion = None
             motion = None
+            self.end_series()
         return motion, dwell, g9, g64
+
+    def comp_forbidden(self, group: str, arg: object, code: int) -> None:
+        """Refuse what LinuxCNC refuses while cutter compensation is on (a plane or
+        coordinate-system change, any G61/G64, G98/G99)."""
+        if group == 'plane' and arg == self.plane:
+            return
+        if group == 'coord' and arg == self.coord:
+            return
+        self.fail(COMP_FORBIDDEN[group], 'G', value=code / 10)
+
+    # -- canned cycles and cutter compensation ---------------------------------------------
+    def emit(self, move: Move) -> None:
+        """Append a move, through the cutter compensation while it is engaged."""
+        if self.routing:
+            self.route(move)
+        else:
+            self.moves.append(move)
+
+    def route(self, move: Move) -> None:
+        """Feed a programmed move to the cutter compensation; keep what it hands back."""
+        comp = self.comp
+        self.moves += comp.feed(move, fail=self.fail)
+        self.routing = comp.engaged
+
+    def close(self) -> None:
+        """End of the program text: release the moves the compensation still holds."""
+        comp = self.comp
+        if comp.active or self.routing:
+            self.moves += comp.finish(fail=self.fail, line=self.lineno)
+            self.routing = False
+
+    def end_series(self) -> None:
+        """A motion that is not a canned cycle ends the series (LinuxCNC forgets R, Z)."""
+        self.cycle_memory = self.cycle_memory.end_series()
+        self.series = False
+
+    def select_tool(self, text: str) -> None:
+        """T word: select a tool (it is loaded by M6)."""
+        t = self.num('T', text)
+        if t != int(t) or t < 0:
+            self.fail('T (tool number) must be a whole number >= 0', 'T')
+        self.tool_selected = int(t)
+
+    def before_motion(self, d: dict[str, str]) -> None:
+        """Work that LinuxCNC does after the modes and before the motion: M6, G40/G41/G42."""
+        if self.tool_change:
+            self.tool_loaded = self.tool_selected
+            self.tool_change = False
+        code = self.comp_code
+        if code is None:
+            return
+        self.comp_code = None
+        comp = self.comp
+        if code == 40:
+            self.moves += comp.finish(fail=self.fail, line=self.lineno)
+        else:
+            comp.units_m = self.scale
+            side = LEFT if code in (41, 411) else RIGHT
+            comp.start(side, self.comp_radius(d, code), self.plane, fail=self.fail,
+                       line=self.lineno)
+        self.routing = comp.engaged
+
+    def comp_radius(self, d: dict[str, str], code: int) -> float:
+        """Tool radius [m] for G41/G42 (tool table via D or the loaded tool), G41.1/G42.1."""
+        if code > 100:
+            if 'D' not in d:
+                self.fail(f'G{code / 10:g} needs a D word (the tool diameter)', 'G',
+                          value=code / 10)
+            return 0.5 * self.num('D', d['D']) * self.scale
+        if 'D' in d:
+            t = self.num('D', d['D'])
+            if t != int(t) or t < 0:
+                self.fail('D (tool number for G41/G42) must be a whole number >= 0', 'D')
+            number, letter = int(t), 'D'
+        else:
+            number, letter = self.tool_loaded, 'G'
+        if number == 0:
+            return 0.0          # no tool: zero diameter, as LinuxCNC's empty pocket 0
+        if self.tools is None:
+            self.fail(f'no tool table for G{code}: tool {number} needs its radius (machine '
+                      'config gcode.tools)', letter, value=None if letter == 'D' else code)
+        if number not in self.tools:
+            self.fail(f'tool {number} is not in the tool table (machine config gcode.tools)',
+                      letter, value=None if letter == 'D' else code)
+        return _tool_radius(self.tools[number])
+
+    def cycle(self, d: dict[str, str], code: int) -> None:
+        """Expand a canned-cycle line (cycles.py) into moves."""
+        s = self.scale
+        num = self.num
+        words = {letter: num(letter, d[letter]) * s for letter in _CYCLE_LENGTH_WORDS
+                 if letter in d}
+        if 'P' in d:
+            words['P'] = num('P', d['P']) * self.p_unit
+        if 'L' in d:
+            words['L'] = num('L', d['L'])
+        spec = CycleSpec(code, self.plane, self.pos, words, offset=self.offset(),
+                         incremental=not self.absolute, retract=self.retract,
+                         feed_m_s=None if self.inverse_time else self.feed,
+                         inverse_time=self.inverse_time, cutter_comp=self.comp.active,
+                         spindle=self.spindle)
+        res = expand_cycle(spec, self.cycle_memory, fail=self.cycle_fail)
+        line = self.lineno
+        pos = self.pos
+        emit = self.emit
+        feed = self.feed
+        for prim in res.primitives:
+            kind = prim[0]
+            if kind == 'rapid' or kind == 'feed':
+                end = prim[1]
+                rapid = kind == 'rapid'
+                emit(Move(kind=MoveKind.RAPID if rapid else MoveKind.LINEAR, line=line,
+                          start=pos, end=end, feed_m_s=_INF if rapid else feed,
+                          exact_stop=True, length_m=math.dist(pos, end)))
+                pos = end
+            elif kind == 'dwell':
+                emit(Move(kind=MoveKind.DWELL, line=line, start=pos, end=pos,
+                          dwell_s=prim[1]))
+            else:
+                emit(Move(kind=MoveKind.STOP, line=line, start=pos, end=pos))
+        self.pos = res.end
+        self.cycle_memory = res.memory
+        self.series = True
+
+    def cycle_fail(self, msg: str, letter: str):
+        """Fail at a word of a cycle line (``G`` means the cycle's own G word)."""
+        if letter == 'G' and self.motion is not None:
+            self.fail(msg, 'G', value=float(self.motion))
+        self.fail(msg, letter)
+
+    # ---- coords hooks (owned by coords) ----------------------------------------------------
+    def offset(self) -> tuple[float, float, float]:
+        """``machine - program`` [m]: work offset, G92, G52 and tool length (none yet)."""
+        return (0.0, 0.0, 0.0)
+    # ---- end of coords hooks -----------------------------------------------------------------
 
     def g_lookup(self, text: str) -> tuple[str, object, int]:
         """(group, argument, 10 x code) of a G word, or fail naming why it is refused."""
@@ -286,12 +484,12 @@ class Interpreter:
         """Append the G4 dwell of P seconds."""
         if 'P' not in d:
             self.fail('G4 dwell needs a P word (seconds)', 'G', value=4.0)
-        seconds = self.num('P', d['P'])
+        seconds = self.num('P', d['P']) * self.p_unit
         if seconds < 0.0:
             self.fail('negative dwell time', 'P')
         p = self.pos
-        self.moves.append(Move(kind=MoveKind.DWELL, line=self.lineno, start=p, end=p,
-                               dwell_s=seconds))
+        self.emit(Move(kind=MoveKind.DWELL, line=self.lineno, start=p, end=p,
+                       dwell_s=seconds))
 
     def m_words(self, ml) -> list[str]:
         """Check the M words of a line; return the stop actions (run after the motion)."""
@@ -307,15 +505,25 @@ class Interpreter:
                 self.fail(f'M{groups[group]} and M{code} are in the same modal group on one '
                           'line', 'M', value=value)
             groups[group] = code
-            if action is not None:
+            if action is None:
+                continue
+            if group == 'stop':
                 actions.append(action)
+            elif group == 'spindle':
+                self.spindle = _SPINDLE[action]
+            else:
+                self.tool_change = True
+                self.pending_lineno = self.lineno
         return actions
 
     def stop(self, actions: list[str]) -> None:
         """STOP moves for M0/M1/M2/M30; M2/M30 end the program."""
         for action in actions:
             p = self.pos
-            self.moves.append(Move(kind=MoveKind.STOP, line=self.lineno, start=p, end=p))
+            if action == 'end' and (self.comp.active or self.routing):
+                self.moves += self.comp.finish(fail=self.fail)
+                self.routing = self.comp.engaged
+            self.emit(Move(kind=MoveKind.STOP, line=self.lineno, start=p, end=p))
             if action == 'end':
                 self.ended = True
 
@@ -388,9 +596,8 @@ class Interpreter:
         for end in (via, tuple(home)):
             length = math.dist(self.pos, end)
             if length > 0.0:
-                self.moves.append(Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos,
-                                       end=end, feed_m_s=_INF, exact_stop=True,
-                                       length_m=length))
+                self.emit(Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos,
+                               end=end, feed_m_s=_INF, exact_stop=True, length_m=length))
                 self.pos = end
 
     def straight(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
@@ -406,9 +613,12 @@ class Interpreter:
                 feed = self.feed_for(d, length, explicit)
         if length == 0.0:
             return
-        self.moves.append(Move(kind=_MOTION_KIND[mode], line=self.lineno, start=start,
-                               end=end, feed_m_s=feed, exact_stop=self.exact or g9,
-                               length_m=length))
+        m = Move(kind=_MOTION_KIND[mode], line=self.lineno, start=start, end=end,
+                 feed_m_s=feed, exact_stop=self.exact or g9, length_m=length)
+        if self.routing:
+            self.route(m)
+        else:
+            self.moves.append(m)
         self.pos = end
 
     def arc(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
@@ -471,10 +681,13 @@ class Interpreter:
             c[b] = cb
             c[n] = start[n]
             centre = tuple(c)
-        self.moves.append(Move(kind=_MOTION_KIND[mode], line=self.lineno, start=start,
-                               end=end, feed_m_s=feed, exact_stop=self.exact or g9,
-                               center=centre, plane=self.plane, turns=turns,
-                               length_m=length))
+        m = Move(kind=_MOTION_KIND[mode], line=self.lineno, start=start, end=end,
+                 feed_m_s=feed, exact_stop=self.exact or g9, center=centre, plane=self.plane,
+                 turns=turns, length_m=length)
+        if self.routing:
+            self.route(m)
+        else:
+            self.moves.append(m)
         self.pos = end
 
     def centre_from_offsets(self, d: dict[str, str], start: tuple[float, float, float],
@@ -515,3 +728,17 @@ class Interpreter:
         # The centre lies left of the chord for a CCW arc of at most 180 degrees.
         side = (1.0 if ccw else -1.0) * (1.0 if r > 0.0 else -1.0) * h / chord
         return (start[a] + 0.5 * da - side * db, start[b] + 0.5 * db + side * da)
+
+
+def _tool_radius(entry: object) -> float:
+    """Radius [m] of a tool-table entry: a number, ``(radius_m, length_m)``, a mapping or an
+    object with ``radius_m``."""
+    if isinstance(entry, Mapping):
+        value = entry.get('radius_m', 0.0)
+    elif hasattr(entry, 'radius_m'):
+        value = entry.radius_m
+    elif isinstance(entry, (tuple, list)):
+        value = entry[0]            # (radius_m, length_m)
+    else:
+        value = entry
+    return float(value)
