@@ -7,11 +7,15 @@ works on one source line at a time; columns are 1-based positions in the origina
 from __future__ import annotations
 
 import re
+from typing import Union
 
+from .expr import Reader
+from .params import ParameterError
 from ..errors import GcodeError
 
 __all__ = ['blank_comments', 'WORD_RE', 'LINE_RE', 'G_CODES', 'G_UNSUPPORTED', 'M_CODES',
-           'ALLOWED_LETTERS', 'UNSUPPORTED_LETTERS', 'diagnose_line', 'locate_word']
+           'ALLOWED_LETTERS', 'UNSUPPORTED_LETTERS', 'diagnose_line', 'locate_word',
+           'read_items', 'Assignment']
 
 # A number as LinuxCNC reads it: optional sign, digits and at most one point, and (like
 # LinuxCNC) blanks anywhere inside; the value is validated by float() afterwards so that
@@ -213,3 +217,58 @@ def locate_word(code: str, letter: str, *, value: float | None = None,
             return m.start() + 1, code[m.start():m.end()]
         k += 1
     return 1, code.strip()
+
+
+Assignment = tuple[Union[int, str], float]
+"""A parameter assignment read from a line: ``(number or lower-case name, value)``."""
+
+
+def read_items(r: Reader) -> tuple[list[tuple[str, float]], list[Assignment]]:
+    """Read the words and parameter assignments of a compacted line (not an O-word line).
+
+    Parameters
+    ----------
+    r
+        A reader positioned where the items start (see :mod:`.expr`).
+
+    Returns
+    -------
+    tuple[list[tuple[str, float]], list[Assignment]]
+        The words ``(letter, value)`` in order, and the assignments, which the caller
+        applies after the line (RS274NGC: assignments on a line take effect after it).
+
+    Raises
+    ------
+    GcodeError
+        At the column of anything that is neither a word nor an assignment.
+    """
+    words: list[tuple[str, float]] = []
+    assigns: list[Assignment] = []
+    s = r.s
+    n = len(s)
+    while r.pos < n:
+        at = r.pos
+        c = s[at]
+        if 'A' <= c <= 'Z':
+            r.pos += 1
+            words.append((c, r.checked(r.value(), at)))
+        elif c == '#':
+            ref = r.parameter_ref()
+            if isinstance(ref, int):
+                try:
+                    r.params.check_settable(ref)
+                except ParameterError as err:
+                    raise r.error(str(err), at) from None
+            if r.peek() != '=':
+                raise r.error('expected "=" after the parameter (an assignment such as '
+                              '#1=2)')
+            r.pos += 1
+            assigns.append((ref, r.checked(r.value(), at)))
+        elif c == ')':
+            raise r.error('")" without an opening "("', at)
+        elif c.isdigit() or c in '+-.':
+            raise r.error('number without a letter in front of it', at)
+        else:
+            raise r.error(f'unexpected character {c!r}; expected a letter (G, X, F, ...) '
+                          'or a parameter assignment', at)
+    return words, assigns

@@ -1,0 +1,723 @@
+"""Program flow: lines -> executed :class:`~.block.Block` s (O-words, subprograms, loops).
+
+:func:`read_blocks` is the reading half of the interpreter. It walks the program line by
+line, executes what is not motion itself (parameter assignments, O-word control lines,
+Fanuc ``M98``/``M99``) and yields every other line as a :class:`~.block.Block` with its
+words evaluated. It is a generator pulled by the interpreter: a line's parameter
+assignments are applied when the interpreter asks for the next block (RS274NGC: they take
+effect after the line), and nothing is read ahead, so a parameter read always sees the
+state after the previous line.
+
+Control flow follows LinuxCNC 2.9 (``interp_o_word.cc``, manual "O Codes"):
+
+* ``o<name> sub`` ... ``o<name> endsub [value]`` (or a number: ``o100 sub``) defines a
+  subroutine; the definition is skipped where it stands. ``o<name> call [a] [b] ...``
+  passes up to 30 arguments as ``#1..#30`` (local to the call, restored on return);
+  ``o<name> return [value]`` leaves early; a value sets ``#<_value>`` and
+  ``#<_value_returned>`` (both cleared before each call). A subroutine may be defined
+  after its call in the same file (LinuxCNC requires it before; accepting more is harmless).
+  A subroutine not in the program is looked for in the file ``<name>.ngc`` (lower case) in
+  the program's directory and then the ``search_path`` directories (LinuxCNC's
+  ``SUBROUTINE_PATH``).
+* ``if``/``elseif``/``else``/``endif``, ``while``/``endwhile``, ``do``/``while``,
+  ``repeat [n]``/``endrepeat``, ``break`` and ``continue`` with the loop's label. Labels of
+  control structures are local to the subroutine they are in.
+* Fanuc style (on by default, as in LinuxCNC): a bare ``O1234`` line labels a numbered
+  (sub)program; ``M98 P1234 [L n]`` calls it ``n`` times (``L0``: not at all), ``#1..#30``
+  stay global; ``M99`` returns. ``M99`` in the main program, an endless program in
+  LinuxCNC (it restarts at the first line), ends the simulation after one pass with a
+  warning.
+* Limits, so that a runaway program ends with a clear error instead of running for ever:
+  :data:`MAX_LOOP_ITERATIONS` iterations of one loop (also ``M98 ... L`` repeats),
+  :data:`MAX_EXECUTED_LINES` executed lines in all, :data:`MAX_CALL_DEPTH` nested calls
+  (LinuxCNC's own limit of subroutine levels).
+
+Other line rules: a line whose first non-blank character is ``/`` is skipped (block delete
+on); a ``%`` line before the first code line is ignored and one after code ends the
+program (LinuxCNC's ``%`` delimiters; text after the ``%`` is allowed, as some CAM systems
+write it); grbl ``$`` lines (``$H``, ``$X``, ``$$``) are skipped with a warning.
+
+Memory: the program is held as its list of lines, nothing per executed line is kept; the
+index of O-word lines of a file is built only when a control structure first needs it.
+"""
+from __future__ import annotations
+
+from bisect import bisect_left
+from os import PathLike
+from pathlib import Path
+import re
+from typing import Any, Iterator
+
+from .block import Block
+from .expr import compact, MAX_MAGNITUDE, Reader
+from .lexer import blank_comments, LINE_RE, read_items, WORD_RE
+from .params import N_CALL_ARGUMENTS, Parameters
+from .source import find_subroutine_file, read_program, split_lines
+from ..errors import GcodeError, shorten
+
+__all__ = ['read_blocks', 'BlockReader', 'MAX_LOOP_ITERATIONS', 'MAX_EXECUTED_LINES',
+           'MAX_CALL_DEPTH']
+
+MAX_LOOP_ITERATIONS = 1_000_000
+"""Iterations of any one loop (``while``, ``do``, ``repeat``, ``M98 L``) before it is stopped."""
+
+MAX_EXECUTED_LINES = 50_000_000
+"""Lines executed in one run (each loop pass counts its lines again) before it is stopped."""
+
+MAX_CALL_DEPTH = 10
+"""Deepest nesting of ``call``/``M98`` (LinuxCNC's ``INTERP_SUB_ROUTINE_LEVELS``)."""
+
+# A line that may be an O-word line: optional N number, then O (blanks allowed).
+_OLINE_RE = re.compile(r'[ \t]*(?:[Nn][ \t]*[0-9][0-9. \t]*)?[Oo]')
+# A literal with 13 integer digits can exceed MAX_MAGNITUDE: only then check values.
+_BIG_RE = re.compile(r'[0-9]{13}')
+# O-word keywords in LinuxCNC's order of matching (``read_o``).
+_KEYWORDS = ('SUB', 'ENDSUB', 'CALL', 'DO', 'WHILE', 'REPEAT', 'IF', 'ELSEIF', 'ELSE',
+             'ENDIF', 'BREAK', 'CONTINUE', 'ENDWHILE', 'ENDREPEAT', 'RETURN')
+_FANUC = ''      # keyword of a bare ``O1234`` line
+_SWITCH = object()  # _slow(): the frame stack changed
+_END = object()     # _slow(): the program ends here
+
+
+class _File:
+    """A loaded program or subroutine file."""
+
+    __slots__ = ('name', 'lines', 'big', 'ascii', 'olines', 'heads', 'defs')
+
+    def __init__(self, name: str, text: str):
+        self.name = name
+        self.big = _BIG_RE.search(text) is not None
+        self.ascii = text.isascii()
+        self.lines = split_lines(text)
+        self.olines: list[int] | None = None      # indices of lines that may be O-lines
+        self.heads: dict[int, tuple[str, str]] = {}  # index -> (label, keyword), literal labels
+        self.defs: dict[str, tuple[str, int]] | None = None  # label -> (keyword, index)
+
+
+class _Loop:
+    """An open loop of a frame."""
+
+    __slots__ = ('kind', 'start', 'left', 'iterations')
+
+    def __init__(self, kind: str, start: int, left: int = 0):
+        self.kind = kind          # 'WHILE', 'DO' or 'REPEAT'
+        self.start = start        # index of the loop's first line (while/do/repeat)
+        self.left = left          # repeats still to run (REPEAT)
+        self.iterations = 0
+
+
+class _Frame:
+    """The main program or one active call."""
+
+    __slots__ = ('file', 'pc', 'kind', 'name', 'saved', 'start', 'repeats', 'main_line',
+                 'loops', 'call_line', 'iterations')
+
+    def __init__(self, file: _File, pc: int, *, kind: str, name: str = '',
+                 saved: list[float] | None = None, repeats: int = 0,
+                 main_line: int | None = None, call_line: int = 0):
+        self.file = file
+        self.pc = pc                  # index of the next line to read
+        self.kind = kind              # 'main', 'sub' (o-call) or 'm98'
+        self.name = name
+        self.saved = saved or []
+        self.start = pc
+        self.repeats = repeats        # M98 L repeats still to run
+        self.main_line = main_line    # None: blocks are attributed to their own line
+        self.loops: dict[str, _Loop] = {}
+        self.call_line = call_line
+        self.iterations = 0
+
+
+def read_blocks(text: str, *, file: str = '<string>', params: Parameters | None = None,
+                dialect: Any = None, search_path: tuple[str | PathLike[str], ...] = (),
+                program_dir: str | PathLike[str] | None = None) -> 'BlockReader':
+    """Read a program as a stream of executed blocks.
+
+    Parameters
+    ----------
+    text
+        The program text (any of LF, CRLF, CR line ends).
+    file
+        Name used in blocks, errors and warnings.
+    params
+        The parameter table (a new one if ``None``); the interpreter installs its
+        ``provider`` and writes its persistent values there.
+    dialect
+        A dialect profile; ``fanuc_subprograms`` (default true) says whether bare
+        ``O1234`` lines and ``M98``/``M99`` are Fanuc subprograms.
+    search_path
+        Directories searched for subroutine files after ``program_dir``.
+    program_dir
+        Directory of the program (searched first for subroutine files); by default the
+        directory of ``file`` when ``file`` names an existing file.
+
+    Returns
+    -------
+    BlockReader
+        Iterate over it for the :class:`~.block.Block` s; its ``warnings`` list fills while
+        it is read.
+    """
+    return BlockReader(text, file=file, params=params, dialect=dialect,
+                       search_path=search_path, program_dir=program_dir)
+
+
+class BlockReader:
+    """The executed blocks of a program (see :func:`read_blocks`).
+
+    Attributes
+    ----------
+    params
+        The parameter table.
+    warnings
+        ``file:line: message`` texts about lines that were read but changed nothing (grbl
+        ``$`` lines, an ``M99`` ending the main program, code after the closing ``%``).
+    """
+
+    def __init__(self, text: str, *, file: str = '<string>', params: Parameters | None = None,
+                 dialect: Any = None, search_path: tuple[str | PathLike[str], ...] = (),
+                 program_dir: str | PathLike[str] | None = None):
+        self.params = Parameters() if params is None else params
+        self.warnings: list[str] = []
+        self.main = _File(file, text)
+        if program_dir is None and file and not file.startswith('<'):
+            parent = Path(file).parent
+            program_dir = parent if parent.is_dir() else None
+        self.program_dir = program_dir
+        self.search_path = tuple(search_path)
+        self.fanuc = bool(getattr(dialect, 'fanuc_subprograms', True))
+        self.sub_files: dict[str, _File] = {}
+        self.subs: dict[str, tuple[_File, str, int]] = {}
+        self.frames = [_Frame(self.main, 0, kind='main')]
+        self.executed = 0
+        self.seen_code = False
+        self._warned_dollar = False
+
+    def __iter__(self) -> Iterator[Block]:
+        """Run the program, yielding blocks."""
+        return self._run()
+
+    # -- the main loop ---------------------------------------------------------------------
+    def _run(self) -> Iterator[Block]:
+        """Generator over the executed blocks; the fast path for plain lines is inline."""
+        frames = self.frames
+        params = self.params
+        line_re = LINE_RE.fullmatch
+        findall = WORD_RE.findall
+        while frames:
+            fr = frames[-1]
+            f = fr.file
+            lines = f.lines
+            n = len(lines)
+            fname = f.name
+            big = f.big
+            ascii_file = f.ascii
+            main_line = fr.main_line
+            pc = fr.pc
+            switched = False
+            while pc < n:
+                raw = lines[pc]
+                pc += 1
+                code = raw.upper()
+                if '(' in code or ';' in code:
+                    code = blank_comments(code, file=fname, line=pc)
+                if line_re(code) is not None and 'O' not in code and (ascii_file or
+                                                                      raw.isascii()):
+                    words = findall(code)
+                    if not words:
+                        continue
+                    try:
+                        vals = [(letter, float(t)) for letter, t in words]
+                    except ValueError:
+                        vals = None   # blanks inside a number, or a bad one: slow path
+                    if vals is not None and (not big or all(
+                            -MAX_MAGNITUDE <= v <= MAX_MAGNITUDE for _, v in vals)) and (
+                            'M9' not in code or not _fanuc_m(vals)):
+                        self.seen_code = True
+                        self.executed += 1
+                        yield Block(pc, vals, fname, raw, main_line or pc)
+                        continue
+                fr.pc = pc
+                out = self._slow(fr, raw, pc)
+                if out is _SWITCH:
+                    switched = True
+                    break
+                if out is _END:
+                    frames.clear()
+                    return
+                if out is not None:
+                    vals, assigns = out
+                    if vals:
+                        self.seen_code = True
+                        yield Block(pc, vals, fname, raw, main_line or pc)
+                    for ref, value in assigns:
+                        if isinstance(ref, int):
+                            params.set(ref, value)
+                        else:
+                            params.set_named(ref, value)
+                pc = fr.pc
+            if switched:
+                continue
+            if fr.kind == 'main':
+                return
+            what = 'o<%s> endsub' % fr.name if fr.kind == 'sub' else 'M99'
+            msg = f'end of file inside subroutine {fr.name!r}: {what} missing'
+            raise GcodeError(msg, file=fname, line=n, column=1)
+
+    # -- lines that are not plain words ----------------------------------------------------
+    def _slow(self, fr: _Frame, raw: str, lineno: int) -> Any:
+        """Execute a line off the fast path.
+
+        Returns
+        -------
+        None (nothing to hand on), ``(words, assignments)``, ``_SWITCH`` (the frame stack
+        changed) or ``_END``.
+        """
+        fname = fr.file.name
+        self.executed += 1
+        if self.executed > MAX_EXECUTED_LINES:
+            msg = (f'more than {MAX_EXECUTED_LINES} lines executed: a loop or subprogram '
+                   'that never ends?')
+            raise GcodeError(msg, file=fname, line=lineno, column=1,
+                             text=shorten(raw.strip()))
+        code = blank_comments(raw, file=fname, line=lineno)
+        stripped = code.strip()
+        if not stripped or stripped[0] == '/':
+            return None
+        if stripped[0] == '%':
+            return self._percent(fr, lineno)
+        if stripped[0] == '$':
+            if not self._warned_dollar:
+                self._warned_dollar = True
+                self.warnings.append(f'{fname}:{lineno}: grbl "$" lines are controller '
+                                     'settings/commands and are skipped')
+            return None
+        if not code.isascii():
+            col = next(i for i, ch in enumerate(code, 1) if not ch.isascii())
+            msg = f'unexpected character {code[col - 1]!r} (not part of G-code)'
+            raise GcodeError(msg, file=fname, line=lineno, column=col,
+                             text=shorten(raw[col - 1:].strip(), limit=20))
+        s, cols = compact(code.upper())
+        r = Reader(s, cols, raw, file=fname, line=lineno, params=self.params)
+        if s[0] == 'N':
+            r.pos = 1
+            r.number()
+            if r.peek() == 'O':
+                return self._oline(fr, r, lineno)
+            r.pos = 0
+        elif s[0] == 'O':
+            return self._oline(fr, r, lineno)
+        words, assigns = read_items(r)
+        self.seen_code = self.seen_code or bool(words)
+        if self.fanuc and _fanuc_m(words):
+            return self._fanuc(fr, r, words, assigns, lineno)
+        return words, assigns
+
+    def _percent(self, fr: _Frame, lineno: int) -> Any:
+        """A ``%`` line: ignored before the first code, the end of the program after it."""
+        if fr.kind != 'main' or not self.seen_code:
+            return None
+        lines = fr.file.lines
+        for k in range(lineno, len(lines)):
+            rest = lines[k].strip()
+            if rest and rest[0] not in '%(;':
+                self.warnings.append(f'{fr.file.name}:{k + 1}: lines after the closing "%" '
+                                     f'(line {lineno}) are ignored')
+                break
+        return _END
+
+    # -- Fanuc subprograms -----------------------------------------------------------------
+    def _fanuc(self, fr: _Frame, r: Reader, words: list[tuple[str, float]],
+               assigns: list, lineno: int) -> Any:
+        """``M98 P.. L..`` (call) and ``M99`` (return, or the end of the main program)."""
+        d = dict(words)
+        fname = fr.file.name
+        if ('M', 98.0) in words:
+            if 'P' not in d:
+                raise _err("'M98' with no P word (the subprogram number)", fname, lineno,
+                           r.raw, 'M')
+            p = d['P']
+            if abs(p - round(p)) > 1e-4:
+                raise _err(f'M98 P{p:g}: subprogram number must be an integer', fname,
+                           lineno, r.raw, 'P')
+            repeat = d.get('L', 1.0)
+            if repeat < 0 or abs(repeat - round(repeat)) > 1e-4:
+                raise _err(f'M98 L{repeat:g}: repeat count must be a whole number >= 0',
+                           fname, lineno, r.raw, 'L')
+            self._apply(assigns)
+            if round(repeat) == 0:
+                return None
+            return self._call(fr, str(int(round(p))), None, lineno, kind='m98',
+                              repeats=int(round(repeat)) - 1, raw=r.raw)
+        # M99
+        if fr.kind == 'm98':
+            self._apply(assigns)
+            return self._return_m98(fr, lineno)
+        if fr.kind == 'sub':
+            raise _err(f"'M99' cannot end subroutine o<{fr.name}> sub (use o<{fr.name}> "
+                       'endsub)', fname, lineno, r.raw, 'M')
+        self.warnings.append(f'{fname}:{lineno}: M99 in the main program restarts it for '
+                             'ever on LinuxCNC (an endless program); simulated once')
+        return _END
+
+    def _return_m98(self, fr: _Frame, lineno: int) -> Any:
+        """M99 in a subprogram: run it again for ``L`` repeats, else return."""
+        if fr.repeats > 0:
+            fr.repeats -= 1
+            fr.iterations += 1
+            if fr.iterations > MAX_LOOP_ITERATIONS:
+                msg = f'M98 repeats of O{fr.name} exceed {MAX_LOOP_ITERATIONS}'
+                raise GcodeError(msg, file=fr.file.name, line=lineno, column=1)
+            fr.pc = fr.start
+            return None
+        return self._leave(fr)
+
+    def _apply(self, assigns: list) -> None:
+        """Apply a control line's assignments (before the jump)."""
+        for ref, value in assigns:
+            if isinstance(ref, int):
+                self.params.set(ref, value)
+            else:
+                self.params.set_named(ref, value)
+
+    # -- calls -----------------------------------------------------------------------------
+    def _call(self, fr: _Frame, label: str, args: list[float] | None, lineno: int, *,
+              kind: str, repeats: int = 0, raw: str = '') -> Any:
+        """Enter subroutine ``label`` (``kind`` 'sub' for ``o.. call``, 'm98' for M98)."""
+        fname = fr.file.name
+        shown = f'o<{label}>' if kind == 'sub' else f'O{label}'
+        if len(self.frames) > MAX_CALL_DEPTH:
+            msg = (f'calls nested more than {MAX_CALL_DEPTH} deep at {shown} (recursion '
+                   'without end?)')
+            raise GcodeError(msg, file=fname, line=lineno, column=1, text=shorten(raw.strip()))
+        target = self._find_sub(fr, label, kind == 'sub', lineno, raw)
+        tfile, tkind, idx = target
+        if kind == 'sub' and tkind != 'SUB':
+            msg = f'O{label} is a Fanuc subprogram: call it with M98 P{label}'
+            raise GcodeError(msg, file=fname, line=lineno, column=1, text=shorten(raw.strip()))
+        if kind == 'm98' and tkind != _FANUC:
+            msg = f"o{label} sub must be called with 'o{label} call', not M98"
+            raise GcodeError(msg, file=fname, line=lineno, column=1, text=shorten(raw.strip()))
+        saved = self.params.enter_call(args)
+        ml = lineno if fr.file is self.main else fr.main_line
+        self.frames.append(_Frame(tfile, idx + 1, kind=kind, name=label, saved=saved,
+                                  repeats=repeats,
+                                  main_line=None if tfile is self.main else ml,
+                                  call_line=lineno))
+        return _SWITCH
+
+    def _find_sub(self, fr: _Frame, label: str, may_load: bool, lineno: int,
+                  raw: str) -> tuple[_File, str, int]:
+        """Where subroutine ``label`` starts: (file, keyword, index of its first line)."""
+        hit = self.subs.get(label)
+        if hit is not None:
+            return hit
+        for f in (fr.file, self.main):
+            kind_idx = self._defs(f).get(label)
+            if kind_idx is not None:
+                hit = (f, kind_idx[0], kind_idx[1])
+                self.subs[label] = hit
+                return hit
+        path = find_subroutine_file(label, program_dir=self.program_dir,
+                                    search_path=self.search_path) if may_load else None
+        if path is not None:
+            key = str(path)
+            f = self.sub_files.get(key)
+            if f is None:
+                f = _File(key, read_program(path))
+                self.sub_files[key] = f
+            kind_idx = self._defs(f).get(label)
+            if kind_idx is None or kind_idx[0] != 'SUB':
+                msg = f'subroutine file {path.name} does not define o<{label}> sub'
+                raise GcodeError(msg, file=key, line=1, column=1)
+            hit = (f, kind_idx[0], kind_idx[1])
+            self.subs[label] = hit
+            return hit
+        if may_load:
+            where = (f'not in the program and no file {label.lower()}.ngc on the '
+                     'subroutine search path')
+        else:
+            where = f'no line O{label} in the program'
+        msg = f'subroutine {label!r} is not defined: {where}'
+        raise GcodeError(msg, file=fr.file.name, line=lineno, column=1,
+                         text=shorten(raw.strip()))
+
+    def _leave(self, fr: _Frame) -> Any:
+        """Return from the innermost call."""
+        self.params.leave_call(fr.saved)
+        self.frames.pop()
+        return _SWITCH
+
+    # -- O-word lines ----------------------------------------------------------------------
+    def _oline(self, fr: _Frame, r: Reader, lineno: int) -> Any:
+        """Execute an O-word line (``r`` positioned at the ``O``)."""
+        label, keyword = _read_head(r)
+        f = fr.file
+        idx = lineno - 1
+        if keyword == _FANUC:
+            if not self.fanuc:
+                raise r.error('bare O-number (Fanuc program number) with Fanuc subprograms '
+                              'off in this dialect', 0)
+            return None
+        if keyword == 'SUB':
+            if fr.kind != 'main':
+                raise r.error(f'subroutine definition o<{label}> sub inside a running '
+                              f'subroutine (o<{fr.name}>): definitions cannot be nested', 0)
+            self._defs(f).setdefault(label, ('SUB', idx))
+            end = self._find(f, lineno, label, ('ENDSUB',), r)
+            fr.pc = end + 1
+            return None
+        if keyword in ('ENDSUB', 'RETURN'):
+            value = r.checked(r.expression(), r.pos) if r.peek() == '[' else None
+            _expect_end(r)
+            if fr.kind != 'sub':
+                what = 'M99 ends an M98 subprogram' if fr.kind == 'm98' else \
+                    'not in a subroutine'
+                raise r.error(f'o<{label}> {keyword.lower()}: {what}', 0)
+            if label != fr.name:
+                raise r.error(f'o<{label}> {keyword.lower()} inside subroutine '
+                              f'o<{fr.name}>', 0)
+            if value is not None:
+                self.params.set_named('_value', value)
+                self.params.set_named('_value_returned', 1.0)
+            return self._leave(fr)
+        if keyword == 'CALL':
+            args: list[float] = []
+            while r.peek() == '[':
+                at = r.pos
+                args.append(r.checked(r.expression(), at))
+            _expect_end(r)
+            if len(args) > N_CALL_ARGUMENTS:
+                raise r.error(f'more than {N_CALL_ARGUMENTS} call arguments', 0)
+            self.params.set_named('_value', 0.0)
+            self.params.set_named('_value_returned', 0.0)
+            return self._call(fr, label, args, lineno, kind='sub', raw=r.raw)
+        return self._structure(fr, r, label, keyword, lineno)
+
+    def _structure(self, fr: _Frame, r: Reader, label: str, keyword: str,
+                   lineno: int) -> Any:
+        """if/elseif/else/endif, while/endwhile, do/while, repeat/endrepeat, break, continue."""
+        f = fr.file
+        idx = lineno - 1
+        loops = fr.loops
+        if keyword == 'IF':
+            if not self._condition(r):
+                self._skip_branch(fr, label, lineno, r)
+            return None
+        if keyword in ('ELSEIF', 'ELSE'):
+            # Reached by running the branch before it: the if is done.
+            fr.pc = self._find(f, lineno, label, ('ENDIF',), r) + 1
+            return None
+        if keyword == 'ENDIF':
+            _expect_end(r)
+            return None
+        if keyword == 'DO':
+            _expect_end(r)
+            loops[label] = _Loop('DO', idx)
+            return None
+        if keyword == 'WHILE':
+            loop = loops.get(label)
+            if loop is not None and loop.kind == 'DO' and loop.start != idx:
+                if self._condition(r):
+                    self._iterate(loop, label, fr, lineno)
+                    fr.pc = loop.start + 1
+                else:
+                    del loops[label]
+                return None
+            if self._condition(r):
+                if loop is None or loop.start != idx:
+                    loops[label] = _Loop('WHILE', idx)
+            else:
+                loops.pop(label, None)
+                fr.pc = self._find(f, lineno, label, ('ENDWHILE',), r) + 1
+            return None
+        if keyword == 'ENDWHILE':
+            _expect_end(r)
+            loop = loops.get(label)
+            if loop is None or loop.kind != 'WHILE':
+                raise r.error(f'o{_shown(label)} endwhile without a matching while', 0)
+            self._iterate(loop, label, fr, lineno)
+            fr.pc = loop.start
+            return None
+        if keyword == 'REPEAT':
+            if r.peek() != '[':
+                raise r.error('expected [count] after repeat')
+            at = r.pos
+            count = r.checked(r.expression(), at)
+            _expect_end(r)
+            times = int(count + (0.5 if count >= 0 else -0.5))
+            if times <= 0:
+                loops.pop(label, None)
+                fr.pc = self._find(f, lineno, label, ('ENDREPEAT',), r) + 1
+            else:
+                loops[label] = _Loop('REPEAT', idx, times - 1)
+            return None
+        if keyword == 'ENDREPEAT':
+            _expect_end(r)
+            loop = loops.get(label)
+            if loop is None or loop.kind != 'REPEAT':
+                raise r.error(f'o{_shown(label)} endrepeat without a matching repeat', 0)
+            if loop.left > 0:
+                loop.left -= 1
+                self._iterate(loop, label, fr, lineno)
+                fr.pc = loop.start + 1
+            else:
+                del loops[label]
+            return None
+        # BREAK / CONTINUE
+        _expect_end(r)
+        loop = loops.get(label)
+        if loop is None:
+            raise r.error(f'o{_shown(label)} {keyword.lower()} outside a loop with that '
+                          'label', 0)
+        end_kw = {'WHILE': 'ENDWHILE', 'REPEAT': 'ENDREPEAT', 'DO': 'WHILE'}[loop.kind]
+        end = self._find(f, lineno, label, (end_kw,), r)
+        if keyword == 'BREAK':
+            del loops[label]
+            fr.pc = end + 1
+        elif loop.kind == 'WHILE':
+            self._iterate(loop, label, fr, lineno)
+            fr.pc = loop.start
+        else:
+            fr.pc = end      # the do's while / the endrepeat decides
+        return None
+
+    def _condition(self, r: Reader) -> bool:
+        """Read ``[condition]`` at the end of an O-word line."""
+        if r.peek() != '[':
+            raise r.error('expected [condition]')
+        at = r.pos
+        value = r.checked(r.expression(), at)
+        _expect_end(r)
+        return value != 0.0
+
+    def _iterate(self, loop: _Loop, label: str, fr: _Frame, lineno: int) -> None:
+        """Count one more pass of ``loop``; stop a runaway loop."""
+        loop.iterations += 1
+        if loop.iterations > MAX_LOOP_ITERATIONS:
+            msg = (f'loop o{_shown(label)} ran {MAX_LOOP_ITERATIONS} times without ending '
+                   f'(limit MAX_LOOP_ITERATIONS)')
+            raise GcodeError(msg, file=fr.file.name, line=loop.start + 1, column=1,
+                             text=shorten(fr.file.lines[loop.start].strip()))
+
+    def _skip_branch(self, fr: _Frame, label: str, lineno: int, r: Reader) -> None:
+        """After a false if/elseif: go to the next branch whose condition holds."""
+        f = fr.file
+        start = lineno
+        while True:
+            j = self._find(f, start, label, ('ELSEIF', 'ELSE', 'ENDIF'), r)
+            kw = self._head(f, j)[1]
+            if kw != 'ELSEIF':
+                fr.pc = j + 1
+                return
+            r2 = self._reader(f, j)
+            _read_head(r2)
+            if self._condition(r2):
+                fr.pc = j + 1
+                return
+            start = j + 1
+
+    # -- the O-line index ------------------------------------------------------------------
+    def _olines(self, f: _File) -> list[int]:
+        """Indices of the lines of ``f`` that may be O-word lines (built once, lazily)."""
+        if f.olines is None:
+            match = _OLINE_RE.match
+            f.olines = [i for i, ln in enumerate(f.lines) if match(ln)]
+        return f.olines
+
+    def _reader(self, f: _File, idx: int) -> Reader:
+        """A reader on line ``idx`` of ``f`` positioned at its ``O``."""
+        raw = f.lines[idx]
+        code = blank_comments(raw, file=f.name, line=idx + 1)
+        s, cols = compact(code.upper())
+        r = Reader(s, cols, raw, file=f.name, line=idx + 1, params=self.params)
+        if s.startswith('N'):
+            r.pos = 1
+            r.number()
+        return r
+
+    def _head(self, f: _File, idx: int) -> tuple[str, str]:
+        """(label, keyword) of O-line ``idx``; literal labels are cached."""
+        hit = f.heads.get(idx)
+        if hit is not None:
+            return hit
+        r = self._reader(f, idx)
+        if r.peek() != 'O':
+            return ('', '?')
+        after = r.s[r.pos + 1:r.pos + 2]
+        literal = after == '<' or after.isdigit()   # not o[#1] or o#1
+        head = _read_head(r)
+        if literal:
+            f.heads[idx] = head
+        return head
+
+    def _find(self, f: _File, start: int, label: str, keywords: tuple[str, ...],
+              r: Reader) -> int:
+        """Index of the first O-line at or after line index ``start`` with ``label`` and one
+        of ``keywords``; an error at ``r``'s line if there is none."""
+        olines = self._olines(f)
+        for k in range(bisect_left(olines, start), len(olines)):
+            idx = olines[k]
+            head = self._head(f, idx)
+            if head[0] == label and head[1] in keywords:
+                return idx
+        want = ' or '.join(kw.lower() for kw in keywords)
+        raise r.error(f'no matching o{_shown(label)} {want} after this line', 0)
+
+    def _defs(self, f: _File) -> dict[str, tuple[str, int]]:
+        """Subroutine definitions of ``f``: label -> (keyword 'SUB' or '', line index)."""
+        if f.defs is None:
+            defs: dict[str, tuple[str, int]] = {}
+            for idx in self._olines(f):
+                try:
+                    label, kw = self._head(f, idx)
+                except GcodeError:
+                    continue      # reported when (if ever) the line runs
+                if kw == 'SUB' or (kw == _FANUC and self.fanuc):
+                    defs.setdefault(label, (kw, idx))
+            f.defs = defs
+        return f.defs
+
+
+def _read_head(r: Reader) -> tuple[str, str]:
+    """Read ``O<label> keyword`` (``r`` at the ``O``); returns (label, keyword)."""
+    r.pos += 1
+    if r.peek() == '<':
+        label = r.name()
+        if not label:
+            raise r.error('empty O-word name', r.pos - 2)
+    else:
+        label = str(r.integer())
+    s = r.s
+    for kw in _KEYWORDS:
+        if s.startswith(kw, r.pos):
+            r.pos += len(kw)
+            return label, kw
+    if r.at_end():
+        return label, _FANUC
+    raise r.error(f'unknown O-word keyword {shorten(s[r.pos:], limit=12)!r} (expected sub, '
+                  'endsub, call, return, if, elseif, else, endif, while, endwhile, do, '
+                  'repeat, endrepeat, break or continue)')
+
+
+def _expect_end(r: Reader) -> None:
+    """Nothing but comments may follow an O-word's arguments."""
+    if not r.at_end():
+        raise r.error('unexpected text after the O-word')
+
+
+def _shown(label: str) -> str:
+    """``100`` or ``<name>``, as the label was written."""
+    return label if label.isdigit() else f'<{label}>'
+
+
+def _fanuc_m(words: list[tuple[str, float]]) -> bool:
+    """Whether a line holds M98 or M99."""
+    return any(letter == 'M' and (v == 98.0 or v == 99.0) for letter, v in words)
+
+
+def _err(msg: str, file: str, line: int, raw: str, letter: str) -> GcodeError:
+    """A :class:`GcodeError` at the first ``letter`` word of ``raw``."""
+    from .lexer import locate_word
+    code = blank_comments(raw, file=file, line=line)
+    column, text = locate_word(code, letter)
+    return GcodeError(msg, file=file, line=line, column=column, text=text)
