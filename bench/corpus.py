@@ -2,7 +2,7 @@
 
 Run by hand from the repository root after ``scripts/test`` made the venv::
 
-    PYTHONPATH=. .venv/bin/python bench/corpus.py [--corpus DIR] [--plan] [--json]
+    PYTHONPATH=. .venv/bin/python bench/corpus.py [--corpus DIR] [--plan] [--json] [--locate]
                                                   [--mem-lines N] [--skip-largest K]
 
 For every program of ``programs.csv`` it parses the program in-process, the way the
@@ -26,6 +26,8 @@ box (1 um). ``--plan`` also plans every accepted program on ``config/three_axis_
 Prints acceptance per dialect (ours vs the reference), every refusal of a program the
 reference accepts (file:line:column and our message), every disagreement (program, figure,
 ours vs reference, and the line of our first move where that can be told), every traceback,
+with ``--locate`` the first differing move of each disagreeing program found by running the
+reference move by move (``bench/oracle_trace.py``, needs LinuxCNC's ``gcode`` module),
 and a summary line with the targets of issue 8 (>= 95 % of the programs the reference
 accepts, 0 tracebacks, 0 disagreements). ``--mem-lines N`` (default 1 000 000; 0 skips it)
 generates an N-line CAM-like program in a temporary directory and reports the peak resident
@@ -403,6 +405,96 @@ def _fmt(v: list[float]) -> str:
     return '[' + ', '.join(f'{x:.4f}' for x in v) + ']'
 
 
+_KIND_NAMES = {'RAPID': 'traverse', 'LINEAR': 'feed', 'ARC_CW': 'arc', 'ARC_CCW': 'arc',
+               'DWELL': 'dwell'}
+
+
+def reference_trace(path: Path, *, timeout_s: float = 120.0) -> list[list[Any]] | None:
+    """The reference's canonical calls for one program (``bench/oracle_trace.py``).
+
+    Returns ``None`` where LinuxCNC's ``gcode`` module or the oracle script is missing.
+    """
+    if not os.path.exists('/usr/bin/python3'):
+        return None
+    try:
+        proc = subprocess.run(['/usr/bin/python3', str(ROOT / 'bench' / 'oracle_trace.py'),
+                               str(path)], capture_output=True, text=True,
+                              timeout=timeout_s + 30)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    if proc.returncode != 0 or not proc.stdout.strip():
+        return None
+    return json.loads(proc.stdout.strip().splitlines()[-1]).get('trace')
+
+
+def first_difference(moves: list[Any], trace: list[list[Any]]) -> str:
+    """Describe the first canonical call where our moves and the reference's trace differ.
+
+    Parameters
+    ----------
+    moves
+        Our moves (STOP moves are skipped: the reference's trace has none).
+    trace
+        The reference's ``[kind, line, x, y, z, length]`` / ``[dwell, line, s]`` calls.
+
+    Returns
+    -------
+    str
+        ``''`` when the sequences agree, else the index, kind, line and end point of both.
+    """
+    ours = [m for m in moves if m.kind.name in _KIND_NAMES]
+    for i in range(max(len(ours), len(trace))):
+        if i >= len(ours):
+            return f'move {i}: ours ended; reference {_call(trace[i])}'
+        m = ours[i]
+        kind = _KIND_NAMES[m.kind.name]
+        if i >= len(trace):
+            return f'move {i}: ours {kind} line {m.line}; reference ended'
+        ref = trace[i]
+        same = kind == ref[0] or (kind == 'feed' and ref[0] in ('probe', 'tap'))
+        if same and kind == 'dwell':
+            same = abs(m.dwell_s - ref[2]) <= DWELL_TOL_S
+        elif same:
+            same = all(abs(a * 1e3 - b) <= POSITION_TOL_MM for a, b in zip(m.end, ref[2:5]))
+            length = m.length_m if kind == 'arc' else math.dist(m.start, m.end)
+            if same and len(ref) > 5:
+                same = _close(length * 1e3, ref[5], rel=REL_LENGTH_TOL,
+                              absolute=ABS_LENGTH_TOL_MM)
+        if not same:
+            if kind == 'dwell':
+                end = f'{m.dwell_s:g} s'
+            else:
+                length = m.length_m if kind == 'arc' else math.dist(m.start, m.end)
+                end = f'{_fmt([v * 1e3 for v in m.end])} length {length * 1e3:.4f} mm'
+            return (f'move {i}: ours {kind} line {m.line} to {end}; '
+                    f'reference {_call(ref)}')
+    return ''
+
+
+def _call(ref: list[Any]) -> str:
+    if ref[0] == 'dwell':
+        return f'dwell line {ref[1]} {ref[2]:g} s'
+    length = f' length {ref[5]:.4f} mm' if len(ref) > 5 else ''
+    return f'{ref[0]} line {ref[1]} to {_fmt(ref[2:5])}{length}'
+
+
+def locate(corpus: Path, file: str) -> str:
+    """First difference between us and the reference on one corpus program ('' if none)."""
+    path = corpus / file
+    trace = reference_trace(path)
+    if trace is None:
+        return 'reference trace not available'
+    links = SubroutineLinks()
+    try:
+        kw = _parse_keywords(REFERENCE_DIALECT, [links.for_folder(path.parent), path.parent])
+        moves = list(load_gcode(path, **kw).moves)
+    except FeedAxisError as err:
+        return f'ours refused: {err}'
+    finally:
+        links.close()
+    return first_difference(moves, trace)
+
+
 # --------------------------------------------------------------------------------------
 # the whole corpus
 # --------------------------------------------------------------------------------------
@@ -418,6 +510,7 @@ class Report:
     skipped: list[str]
     seconds: float
     planned: bool = False
+    located: dict[str, str] = field(default_factory=dict)   # file -> first difference
 
     def tracebacks(self) -> list[tuple[str, OurResult]]:
         """Programs on which our side raised something other than GcodeError (or hung)."""
@@ -563,6 +656,10 @@ def format_report(report: Report) -> str:
                f'{len(report.disagreeing_files())} programs')
     for d in report.disagreements:
         out.append(f'  {d.text()}')
+    if report.located:
+        out.append('first difference move by move (reference trace, bench/oracle_trace.py):')
+        for name, where in report.located.items():
+            out.append(f'  {name}: {where or "the move sequences agree"}')
     tbs = report.tracebacks()
     out.append('')
     out.append(f'tracebacks and timeouts: {len(tbs)}')
@@ -609,6 +706,7 @@ def report_json(report: Report) -> dict[str, Any]:
                                        for e, r in report.refused_but_accepted()],
         disagreements=[dict(file=d.file, what=d.what, ours=d.ours, reference=d.reference,
                             line=d.line) for d in report.disagreements],
+        first_difference=report.located,
         tracebacks=[dict(file=n, status=r.status, error=r.error)
                     for n, r in report.tracebacks()],
         programs={e.file: dict(dialect=e.dialect, reference=e.oracle.get('status'),
@@ -732,6 +830,9 @@ def main(argv: list[str] | None = None) -> int:
                     help='leave out the K programs with the most lines')
     ap.add_argument('--timeout', type=float, default=DEFAULT_TIMEOUT_S, metavar='S',
                     help=f'wall-clock limit per program [s] (default {DEFAULT_TIMEOUT_S:g})')
+    ap.add_argument('--locate', action='store_true',
+                    help='for every disagreeing program, run the reference move by move '
+                         '(needs linuxcnc-uspace) and print the first differing move and line')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     args = ap.parse_args(argv)
     if args.mem_lines < 0 or args.skip_largest < 0 or not args.timeout > 0:
@@ -748,6 +849,10 @@ def main(argv: list[str] | None = None) -> int:
 
     report = evaluate(corpus, plan=args.plan, skip_largest=args.skip_largest,
                       timeout_s=args.timeout, progress=progress)
+    if args.locate:
+        for name in report.disagreeing_files():
+            progress(f'locating the first difference in {name} ...')
+            report.located[name] = locate(corpus, name)
     mem = None
     if args.mem_lines:
         progress(f'memory figure: parsing a generated {args.mem_lines}-line program ...')
