@@ -307,13 +307,17 @@ def test_bad_fixture_place(name):
     assert str(err).startswith(f'{path}:{line}:{column}: ')
 
 
-def test_g43_tool_length_offset_is_accepted_with_a_warning():
-    # CAM headers set the tool length offset; its value is unknown here, so Z moves as
-    # programmed and the user is told once.
-    prog = parse_gcode('G21 G90\nG0 G43 H1 Z50\nG1 Z10 F600\nG43 H2\nG49\n', file='t.nc')
-    assert [m.end[2] for m in prog.moves] == pytest.approx([0.05, 0.01])
-    assert len(prog.warnings) == 1 and 't.nc:2:' in prog.warnings[0]
-    assert 'not simulated' in prog.warnings[0]
+def test_g43_tool_length_offset_comes_from_the_tool_table():
+    # G43 H1 applies tool 1's length to Z (moves are in machine coordinates); a tool the
+    # table lacks is an error at its H word (more cases in test/core/gcode/test_coords.py).
+    tools = {1: (0.0, 0.1), 2: (0.0, 0.02)}
+    prog = parse_gcode('G21 G90\nG0 G43 H1 Z50\nG1 Z10 F600\nG43 H2\nG49\n', file='t.nc',
+                       tools=tools)
+    assert [m.end[2] for m in prog.moves] == pytest.approx([0.15, 0.11])
+    assert prog.warnings == ()
+    with pytest.raises(GcodeError) as err:
+        parse_gcode('G21 G90\nG0 G43 H1 Z50\n', file='t.nc')
+    assert (err.value.line, err.value.column) == (2, 8) and 'tool table' in str(err.value)
 
 
 @pytest.mark.parametrize('text, line, column, reason', [
@@ -330,10 +334,7 @@ def test_g43_tool_length_offset_is_accepted_with_a_warning():
     ('G1 X1 F-5', 1, 7, 'negative feed'),
     ('G1 X1 F0', 1, 7, 'zero'),
     ('G93 G1 X1 F0', 1, 11, 'never finish'),
-    ('G28', 1, 1, 'home_m'),
-    ('G30', 1, 1, 'reference return'),
     ('G41 D1', 1, 5, 'no tool table'),
-    ('G43.1 Z5', 1, 1, 'tool length offset'),
     ('G0 X1 H1', 1, 7, 'no G43'),
     ('G5.5', 1, 1, 'unknown G code'),
     ('M3 M5', 1, 4, 'same modal group'),

@@ -6,6 +6,8 @@ interpreter changes one table here. G codes are keyed by ``round(10 * number)`` 
 """
 from __future__ import annotations
 
+from .coords import COORD_G_CODES
+
 __all__ = ['G_CODES', 'G_UNSUPPORTED', 'M_CODES', 'ALLOWED_LETTERS', 'UNSUPPORTED_LETTERS',
            'CYCLE_MOTIONS', 'COMP_FORBIDDEN']
 
@@ -16,7 +18,7 @@ G_CODES: dict[int, tuple[str, object]] = {
     0: ('motion', 0), 10: ('motion', 1), 20: ('motion', 2), 30: ('motion', 3),
     800: ('motion', None),
     **{c * 10: ('motion', c) for c in CYCLE_MOTIONS},
-    40: ('nonmodal', 'dwell'), 90: ('nonmodal', 'exact'), 280: ('nonmodal', 'home'),
+    40: ('nonmodal', 'dwell'), 90: ('nonmodal', 'exact'),
     170: ('plane', 17), 180: ('plane', 18), 190: ('plane', 19),
     200: ('units', 0.0254), 210: ('units', 0.001),
     900: ('distance', True), 910: ('distance', False),
@@ -26,9 +28,8 @@ G_CODES: dict[int, tuple[str, object]] = {
     # Cutter radius compensation (group 7): 40 off, 41 left, 42 right; .1 = D is a diameter.
     400: ('cutter', 40), 410: ('cutter', 41), 420: ('cutter', 42),
     411: ('cutter', 411), 421: ('cutter', 421),
-    430: ('tool_length', 'G43'), 490: ('tool_length', None),
-    540: ('coord', 54), 550: ('coord', 55), 560: ('coord', 56), 570: ('coord', 57),
-    580: ('coord', 58), 590: ('coord', 59),
+    # G10, G28/G30 (+ .1), G52, G53, G92.x, G43.x/G49 and G54..G59.3: executed by coords.py
+    **COORD_G_CODES,
     # Canned-cycle return level (group 10): LinuxCNC starts in G99 (to R).
     980: ('retract', 98), 990: ('retract', 99),
     960: ('spindle_mode', None), 970: ('spindle_mode', None),
@@ -38,16 +39,10 @@ G_CODES: dict[int, tuple[str, object]] = {
 # Codes we know and refuse, with the reason shown to the user.
 G_UNSUPPORTED: dict[int, str] = {
     50: 'spline moves', 51: 'spline moves', 52: 'spline moves', 70: 'lathe diameter mode',
-    100: 'G10 data setting', 281: 'setting the reference point',
-    300: 'reference return', 301: 'reference return', 330: 'spindle-synchronised motion',
+    330: 'spindle-synchronised motion',
     331: 'rigid tapping', 382: 'probing', 383: 'probing', 384: 'probing', 385: 'probing',
-    431: 'tool length offset from the tool table', 432: 'dynamic tool length offset',
-    520: 'local coordinate offsets', 530: 'machine coordinate moves',
     740: 'lathe/left-hand tapping cycle', 760: 'lathe threading cycle',
-    920: 'coordinate offsets', 921: 'coordinate offsets', 922: 'coordinate offsets',
-    923: 'coordinate offsets', 950: 'feed per revolution', 171: 'UVW planes',
-    181: 'UVW planes', 191: 'UVW planes', 591: 'extra coordinate systems',
-    592: 'extra coordinate systems', 593: 'extra coordinate systems',
+    950: 'feed per revolution', 171: 'UVW planes', 181: 'UVW planes', 191: 'UVW planes',
 }
 
 # M codes keyed by integer: (group, action); ``None`` action means ignored for the feed axes.

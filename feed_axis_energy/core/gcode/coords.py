@@ -81,9 +81,21 @@ def _raise(message: str, letter: str) -> NoReturn:
 
 
 def _tool_spec(entry: object) -> ToolSpec:
-    """A tool table entry as ToolSpec (also from a ``(radius_m, length_m)`` pair)."""
+    """A tool table entry as ToolSpec.
+
+    Accepted: a ToolSpec, a number (the radius [m]), a ``(radius_m, length_m)`` pair, a
+    mapping or an object with ``radius_m`` (and optionally ``length_m``).
+    """
     if isinstance(entry, ToolSpec):
         return entry
+    if isinstance(entry, (int, float)) and not isinstance(entry, bool):
+        return ToolSpec(radius_m=float(entry))
+    if isinstance(entry, Mapping):
+        return ToolSpec(radius_m=float(entry.get('radius_m', 0.0)),
+                        length_m=float(entry.get('length_m', 0.0)))
+    if hasattr(entry, 'radius_m'):
+        return ToolSpec(radius_m=float(entry.radius_m),
+                        length_m=float(getattr(entry, 'length_m', 0.0)))
     radius, length = entry
     return ToolSpec(radius_m=float(radius), length_m=float(length))
 

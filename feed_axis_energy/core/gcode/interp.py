@@ -12,6 +12,7 @@ import math
 
 from .codes import (ALLOWED_LETTERS, COMP_FORBIDDEN, G_CODES, G_UNSUPPORTED, M_CODES,
                     UNSUPPORTED_LETTERS)
+from .coords import COORD_G_CODES, Coords
 from .cutter import CutterComp, LEFT, RIGHT
 from .cycles import CycleMemory, CycleSpec, expand_cycle
 from .lexer import blank_comments, locate_word
@@ -52,7 +53,8 @@ class Interpreter:
     lines
         The source lines (as split by the caller), to show the offending word in errors.
     home
-        The G28 reference point [m] in program coordinates, or ``None`` (G28 refused).
+        The G28 position [m] in machine coordinates (initial #5161..#5163), or ``None``:
+        0, as in LinuxCNC's fresh parameter file (G28 then warns).
     tools
         Tool table for cutter compensation: tool number -> radius [m] (a number, a mapping
         with ``radius_m`` or an object with a ``radius_m`` attribute); ``None``: no table
@@ -62,7 +64,8 @@ class Interpreter:
     __slots__ = ('file', 'arc_tol', 'pos', 'motion', 'plane', 'scale', 'absolute',
                  'arc_absolute', 'inverse_time', 'feed', 'exact', 'coord', 'moves',
                  'warnings', 'lineno', 'lines', 'ended', 'g_cache', 'g43_lineno', 'home',
-                 'g28_lineno', 'retract', 'cycle_memory', 'series', 'comp', 'routing',
+                 'coords', 'frame', 'coord_line', 'coord_todo', 'retract', 'cycle_memory',
+                 'series', 'comp', 'routing',
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
                  'tool_loaded', 'spindle', 'p_unit')
 
@@ -80,7 +83,7 @@ class Interpreter:
         self.inverse_time = False           # G94
         self.feed: float | None = None      # m/s under G94, 1/min (this line only) under G93
         self.exact = False                  # G64
-        self.coord = 54
+        self.coord = 1                      # G54 (coordinate system 1..9, see coords.py)
         self.moves: list[Move] = []
         self.warnings: list[str] = []
         self.lineno = 0
@@ -89,7 +92,10 @@ class Interpreter:
         self.g_cache: dict[str, tuple[str, object, int]] = {}
         self.g43_lineno = -1                # line of the last G43 (its H word is legal there)
         self.home = None if home is None else tuple(float(v) for v in home)
-        self.g28_lineno = -1                # line of the last G28 (its axis words are special)
+        self.coords = Coords(tools=tools, home_m=self.home)
+        self.frame = self.coords.offset     # machine - program for absolute axis words
+        self.coord_line = -1                # line with coordinate codes to execute
+        self.coord_todo: dict[str, object] = {}
         self.retract = 99                   # G99: LinuxCNC's start-up canned-cycle return
         self.cycle_memory = CycleMemory()   # sticky cycle words, initial level of a series
         self.series = False                 # the last motion was a canned cycle
@@ -98,7 +104,7 @@ class Interpreter:
         self.comp_code: int | None = None   # the G40/G41/G42(.1) of the pending line
         self.pending_lineno = -1            # line with work to do before its motion
         self.tool_change = False            # M6 on the pending line
-        self.tools = tools
+        self.tools = None if tools is None else self.coords.tools  # G10 L1 writes reach G41
         self.tool_selected = 0              # T word
         self.tool_loaded = 0                # tool in the spindle (after M6); 0 = none
         self.spindle = 0                    # 1 M3, -1 M4, 0 stopped (M5 / start-up)
@@ -163,8 +169,8 @@ class Interpreter:
             self.check_extras(d, is_arc, has_axes, dwell, g64)
         if self.pending_lineno == self.lineno:
             self.before_motion(d)
-        if self.g28_lineno == self.lineno:
-            self.go_home(d, g9)
+        if self.coord_line == self.lineno and self.apply_coords(d):
+            pass                # the axis words were G10/G92/... data, or G28/G30 moved
         elif has_axes:
             if mode is None:
                 self.fail('axis words but no motion mode (G0/G1/G2/G3) is active',
@@ -221,6 +227,8 @@ class Interpreter:
         if 'D' in d and not (self.pending_lineno == self.lineno
                              and self.comp_code not in (None, 40)):
             self.fail('D word with no G41/G42 (or G41.1/G42.1) to use it', 'D')
+        if self.coord_line == self.lineno and self.coord_todo.get('nonmodal') == 'G10':
+            return              # coords.py checks G10's L, P and R words
         cycle_move = has_axes and (self.motion or 0) > 3
         if cycle_move:
             if dwell:
@@ -279,11 +287,8 @@ class Interpreter:
             elif group == 'nonmodal':
                 dwell = arg == 'dwell'
                 g9 = arg == 'exact'
-                if arg == 'home':
-                    if self.home is None:
-                        self.fail('G28 needs the reference point: set home_m in the machine '
-                                  'config', 'G', value=28.0)
-                    self.g28_lineno = self.lineno
+                if code in COORD_G_CODES:
+                    self.coord_codes(group, arg, code)
             elif group == 'plane':
                 self.plane = arg
             elif group == 'units':
@@ -305,19 +310,8 @@ class Interpreter:
                 self.pending_lineno = self.lineno
             elif group == 'retract':
                 self.retract = arg
-            elif group == 'tool_length' and code == 430:
-                if self.g43_lineno < 0:
-                    self.warnings.append(
-                        f'{self.file}:{self.lineno}: G43 tool length offset is not simulated '
-                        '(the tool length is unknown): Z moves as programmed')
-                self.g43_lineno = self.lineno
-            elif group == 'coord':
-                if arg != self.coord and self.moves:
-                    self.warnings.append(
-                        f'{self.file}:{self.lineno}: G{arg} changes the work offset after '
-                        'motion; offsets are not simulated (motion stays in program '
-                        'coordinates)')
-                self.coord = arg
+            elif group == 'tool_length' or group == 'coord':
+                self.coord_codes(group, arg, code)
         if motion == -1:
             # G80: no motion mode until the next G0/G1/G2/G3; a series of cycles ends.
             self.motion = None
@@ -456,8 +450,70 @@ class Interpreter:
 
     # ---- coords hooks (owned by coords) ----------------------------------------------------
     def offset(self) -> tuple[float, float, float]:
-        """``machine - program`` [m]: work offset, G92, G52 and tool length (none yet)."""
-        return (0.0, 0.0, 0.0)
+        """``machine - program`` [m]: work offset, G92, G52 and tool length."""
+        return self.coords.offset
+
+    def coord_codes(self, group: str, arg: object, code: int) -> None:
+        """Note a code of coords.py on this line; :meth:`apply_coords` runs them."""
+        if self.coord_line != self.lineno:
+            self.coord_line = self.lineno
+            self.coord_todo = {}
+        self.coord_todo[group] = arg
+        self.coord_todo['_code_' + group] = code
+        if arg in ('G43', 'G43.2'):
+            self.g43_lineno = self.lineno       # its H word is legal here
+
+    def apply_coords(self, d: dict[str, str]) -> bool:
+        """Run the line's coordinate codes; True if they used the axis words (or moved)."""
+        todo = self.coord_todo
+        self.coord_todo = {}
+        coords = self.coords
+        coords.selected_tool = self.tool_selected
+        coords.loaded_tool = self.tool_loaded
+
+        def value(letter: str) -> float | None:
+            return self.num(letter, d[letter]) if letter in d else None
+
+        def fail(msg: str, letter: str):
+            if letter != 'G':
+                self.fail(msg, letter)
+            code = next(todo['_code_' + g] for g in ('nonmodal', 'tool_length', 'coord')
+                        if '_code_' + g in todo)
+            self.fail(msg, 'G', value=code / 10)
+
+        effect = coords.execute(todo, value, position=self.pos, scale=self.scale,
+                                motion=self.motion, absolute=self.absolute,
+                                comp_active=self.comp.active, fail=fail)
+        self.frame = coords.offset
+        self.coord = coords.system
+        if effect.home is not None:
+            self.home_return(d, effect.home)
+            return True
+        if todo.get('nonmodal') == 'G53':
+            # this line's axis words are machine coordinates: give them as program ones
+            s = self.scale
+            for i, letter in enumerate(_AXIS_LETTERS):
+                if letter in d:
+                    d[letter] = (self.num(letter, d[letter]) * s - self.frame[i]) / s
+        return effect.axes_used
+
+    def home_return(self, d: dict[str, str], code: str) -> None:
+        """G28/G30: rapid to the intermediate point, then the named axes (all without axis
+        words) to the stored position; both rapids stop at their end."""
+        if self.home is None and code == 'G28' and not self.coords.home_used:
+            self.warnings.append(f'{self.file}:{self.lineno}: G28 returns to the stored '
+                                 'position #5161..#5163 (0 unless the program set it): the '
+                                 'machine config has no home_m')
+        if self.series:
+            self.end_series()
+        named = tuple(letter in d for letter in _AXIS_LETTERS)
+        path = self.coords.home_path(code, self.target(d), named)
+        for end in path:
+            length = math.dist(self.pos, end)
+            if length > 0.0:
+                self.emit(Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos,
+                               end=end, feed_m_s=_INF, exact_stop=True, length_m=length))
+                self.pos = end
     # ---- end of coords hooks -----------------------------------------------------------------
 
     def g_lookup(self, text: str) -> tuple[str, object, int]:
@@ -534,12 +590,13 @@ class Interpreter:
         s = self.scale
         try:
             if self.absolute:
+                ox, oy, oz = self.frame
                 if 'X' in d:
-                    x = float(d['X']) * s
+                    x = float(d['X']) * s + ox
                 if 'Y' in d:
-                    y = float(d['Y']) * s
+                    y = float(d['Y']) * s + oy
                 if 'Z' in d:
-                    z = float(d['Z']) * s
+                    z = float(d['Z']) * s + oz
             else:
                 if 'X' in d:
                     x += float(d['X']) * s
@@ -553,7 +610,7 @@ class Interpreter:
             for i, letter in enumerate(_AXIS_LETTERS):
                 if letter in d:
                     v = self.num(letter, d[letter]) * s
-                    new[i] = v if self.absolute else pos[i] + v
+                    new[i] = v + self.frame[i] if self.absolute else pos[i] + v
             x, y, z = new
         return (x, y, z)
 
@@ -581,24 +638,6 @@ class Interpreter:
         if explicit:
             self.fail(msg, 'G', value=float(self.motion))
         self.fail(msg, self.first_axis(d))
-
-    def go_home(self, d: dict[str, str], g9: bool) -> None:
-        """G28: rapid to the intermediate point of the axis words, then those axes home.
-
-        Without axis words every axis goes home directly (LinuxCNC semantics). Both moves are
-        rapids that stop at their end.
-        """
-        named = [i for i, letter in enumerate(_AXIS_LETTERS) if letter in d]
-        via = self.target(d)
-        home = list(via)
-        for i in (named or range(3)):
-            home[i] = self.home[i]
-        for end in (via, tuple(home)):
-            length = math.dist(self.pos, end)
-            if length > 0.0:
-                self.emit(Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos,
-                               end=end, feed_m_s=_INF, exact_stop=True, length_m=length))
-                self.pos = end
 
     def straight(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
         """Append a G0/G1 move (none if it has zero length)."""
@@ -704,7 +743,7 @@ class Interpreter:
         oa = self.num(la, d[la]) * self.scale if la in d else 0.0
         ob = self.num(lb, d[lb]) * self.scale if lb in d else 0.0
         if self.arc_absolute:
-            return oa, ob
+            return oa + self.frame[a], ob + self.frame[b]
         return start[a] + oa, start[b] + ob
 
     def centre_from_radius(self, d: dict[str, str], start: tuple[float, float, float],

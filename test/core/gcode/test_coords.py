@@ -285,3 +285,90 @@ def test_execute_allows_g10_of_another_system_under_cutter_compensation():
 def test_tools_given_as_radius_length_pairs():
     c = Coords(tools={7: (0.0, 0.0), 8: (0.002, 0.03)})
     assert c.tools[8] == ToolSpec(radius_m=0.002, length_m=0.03) and c.tools[7] == ToolSpec()
+
+
+# -- through the interpreter: programs with hand-checked machine positions -------------------
+
+def ends_mm(text, **kw):
+    from feed_axis_energy.core.gcode import parse_gcode
+    prog = parse_gcode(text, file='t.nc', **kw)
+    return [tuple(round(v * 1000.0, 9) for v in m.end) for m in prog.moves
+            if m.length_m > 0.0]
+
+
+def test_program_with_g10_l2_and_g55():
+    text = 'G21 G90\nG10 L2 P1 X100 Y50\nG10 L2 P2 Z-100\nG0 X10 Y10\nG55\nG0 Z5\nG54 X0\n'
+    # G54: X10 Y10 is machine 110 60; G55: Z5 is machine -95; G54 X0: machine X100
+    assert ends_mm(text) == [(110.0, 60.0, 0.0), (110.0, 60.0, -95.0), (100.0, 60.0, -95.0)]
+
+
+def test_program_with_g92_and_its_cancel():
+    text = 'G21 G90\nG0 X30\nG92 X0\nG0 X10\nG92.1\nG0 X10\nG92.3\nG0 X5\n'
+    # G92 X0 at X30: offset 30; X10 -> 40; G92.1: X10 -> 10; G92.3 restores 0?: no, .1
+    # cleared the parameters, so X5 -> 5
+    assert ends_mm(text) == [(30.0, 0, 0), (40.0, 0, 0), (10.0, 0, 0), (5.0, 0, 0)]
+    text = 'G21 G90\nG0 X30\nG92 X0\nG92.2\nG0 X10\nG92.3\nG0 X5\n'
+    # G92.2 keeps the parameters: G92.3 brings the offset 30 back
+    assert ends_mm(text) == [(30.0, 0, 0), (10.0, 0, 0), (35.0, 0, 0)]
+
+
+def test_program_with_g52_in_inches():
+    text = 'G20 G90\nG52 X1 Y-1\nG1 X1 Y1 F10\nG52 X0 Y0\nG0 X1 Y1\n'
+    assert ends_mm(text) == [(50.8, 0.0, 0.0), (25.4, 25.4, 0.0)]
+
+
+def test_g53_is_machine_coordinates_for_its_line_only():
+    text = 'G21 G90\nG10 L2 P1 X100 Z-50\nG0 X0 Z0\nG53 G0 Z0\nG0 X20\nG53 X-10\n'
+    assert ends_mm(text) == [(100.0, 0, -50.0), (100.0, 0, 0.0), (120.0, 0, 0.0),
+                             (-10.0, 0, 0.0)]
+
+
+def test_tool_length_offset_and_g10_l1():
+    tools = {1: ToolSpec(radius_m=0.003, length_m=0.1)}
+    text = ('G21 G90\nT1 M6\nG43 G0 Z10\nG10 L1 P2 Z20 R1\nG43 H2 Z10\nG43.1 Z-5\nG0 Z10\n'
+            'G49 Z10\n')
+    assert ends_mm(text, tools=tools) == [(0, 0, 110.0), (0, 0, 30.0), (0, 0, 5.0),
+                                          (0, 0, 10.0)]
+
+
+def test_g28_and_g30_through_the_intermediate_point():
+    text = ('G21 G90\nG10 L2 P1 Z-20\nG1 X10 Y20 Z5 F600\nG28 Z10\nG0 X50 Y60\nG30.1\n'
+            'G0 X0 Y0\nG91 G30 X0\n')
+    # via program Z10 = machine Z-10, then Z to the reference Z100 (home_m); G30.1 stores
+    # machine (50, 60, 100); G91 G30 X0: via = here, then X only
+    assert ends_mm(text, home=(0.0, 0.0, 0.1)) == [
+        (10.0, 20.0, -15.0), (10.0, 20.0, -10.0), (10.0, 20.0, 100.0), (50.0, 60.0, 100.0),
+        (0.0, 0.0, 100.0), (50.0, 0.0, 100.0)]
+
+
+def test_absolute_arc_centres_follow_the_work_offset():
+    from feed_axis_energy.core.gcode import parse_gcode
+    prog = parse_gcode('G21 G90 G90.1\nG10 L2 P1 X100\nG0 X10 Y0\nG2 X-10 Y0 I0 J0 F100\n')
+    arc = prog.moves[-1]
+    assert arc.center == approx3((0.1, 0.0, 0.0)) and arc.end == approx3((0.09, 0.0, 0.0))
+    assert arc.length_m == pytest.approx(3.141592653589793 * 0.01, rel=1e-12)
+
+
+def test_live_position_reads_program_coordinates():
+    c = Coords()
+    c.g10(2.0, 1.0, {'X': 0.1}, (0.0, 0.0, 0.0), fail=fail)
+    assert c.system_value('_x', (0.1, 0.0, 0.0), 0.001) == pytest.approx(0.0)
+
+
+@pytest.mark.parametrize('text, line, column, words', [
+    ('G43 H1', 1, 5, 'not in the tool table'),
+    ('G10 L3 P1', 1, 5, 'L1, L2 and L20'),
+    ('G10 L2 P10 X1', 1, 8, 'out of range'),
+    ('G10 P1 X1', 1, 1, 'needs an L word'),
+    ('G91 G0 G53 X1', 1, 8, 'G53 incremental'),
+    ('G1 F100\nG53 G2 X1 I1', 2, 1, 'G0 or G1'),
+    ('G10 L2 P1 R30 X1', 1, 11, 'rotation'),
+    ('G41 D0 G1 X10 F100\nG92 X0', 2, 1, 'cutter radius'),
+    ('G1 X1 F100\nG4 G92 X0 P1', 2, 4, 'same modal group'),
+])
+def test_errors_name_line_and_column(text, line, column, words):
+    from feed_axis_energy.core.gcode import parse_gcode
+    with pytest.raises(GcodeError) as err:
+        parse_gcode(text, file='t.nc')
+    assert (err.value.line, err.value.column) == (line, column)
+    assert words in str(err.value)
