@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     progress = Progress('demo', enabled=not args.quiet, delay_s=0.0)
     summaries = []
     programs = {feed: load_gcode(program_path(f'demonstrator_f{feed}.nc'),
-                                 home=machine.home_point())
+                                 **machine.gcode_keywords())
                 for feed in PAPER_FEEDS_MM_S}
     for i, (feed, load) in enumerate(runs):
         result = simulate_program(programs[feed], machine, load_kg=load, options=options)

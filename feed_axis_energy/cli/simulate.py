@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     if trajectory or not streamable(machine):
         summary = _run_whole(args, machine, options, progress, trajectory=trajectory)
     else:
-        program = load_gcode(args.program, home=machine.home_point())
+        program = load_gcode(args.program, **machine.gcode_keywords())
         for warning in program.warnings:
             print(f'warning: {warning}', file=sys.stderr)
         if not program.moves:
@@ -162,7 +162,7 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool) -> dict:
         motion = load_trajectory_csv(args.program, axes=machine.axis_names)
         result = simulate_motion(motion, machine, load_kg=args.load_kg)
     else:
-        program = load_gcode(args.program, home=machine.home_point())
+        program = load_gcode(args.program, **machine.gcode_keywords())
         for warning in program.warnings:
             print(f'warning: {warning}', file=sys.stderr)
         if not program.moves:

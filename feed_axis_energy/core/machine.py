@@ -245,6 +245,13 @@ class Machine:
         home = dict(self.home_m)
         return (home.get('X', 0.0), home.get('Y', 0.0), home.get('Z', 0.0))
 
+    def gcode_keywords(self) -> dict[str, Any]:
+        """Keywords for :func:`.gcode.load_gcode` from this machine: G28 position, tools.
+
+        ``load_gcode(path, **machine.gcode_keywords())`` runs a program on this machine.
+        """
+        return {'home': self.home_point(), 'tools': self.gcode.tools}
+
     @property
     def axis_names(self) -> tuple[str, ...]:
         """Names of the axes, in order."""

@@ -82,3 +82,27 @@ def test_bad_travel_names_the_key(mill_dict, travel, key):
     with pytest.raises(ConfigError) as err:
         machine_from_dict(mill_dict, file='m.yaml')
     assert err.value.key == key
+
+
+def test_simulate_takes_the_tool_table_from_the_machine_config(tmp_path, capsys):
+    from feed_axis_energy.cli import main
+    prog = tmp_path / 'cam.nc'
+    prog.write_text('G21 G90\nT2 M6\nG43 H2 G0 Z50\nG1 X100 F3000\nM30\n')
+    mill = load_machine(CONFIG / 'three_axis_mill.yaml')
+    assert mill.gcode.tools[2] is not None
+    d = machine_to_dict(mill)
+    d['gcode']['tools'][2]['length_m'] = 0.04
+    machine = tmp_path / 'm.yaml'
+    machine.write_text(yaml.safe_dump(d))
+    assert main(['simulate', str(prog), '--machine', str(machine), '--json', '--quiet']) == 0
+    capsys.readouterr()
+    from feed_axis_energy.core.gcode import load_gcode
+    moves = load_gcode(prog, **load_machine(machine).gcode_keywords()).moves
+    # G43 H2 Z50: machine Z = 50 mm + 40 mm tool length
+    assert moves[0].end == pytest.approx((0.0, 0.0, 0.09))
+    # the demonstrator has no tool table: a clear error at the H word, exit 1
+    assert main(['simulate', str(prog), '--machine', str(CONFIG / 'demonstrator.yaml'),
+                 '--quiet']) == 1
+    err = capsys.readouterr().err
+    assert 'cam.nc:3:5' in err and 'tool 2 is not in the tool table' in err
+    assert 'Traceback' not in err
