@@ -234,7 +234,8 @@ def read_items(r: Reader) -> tuple[list[tuple[str, float]], list[Assignment]]:
     Returns
     -------
     tuple[list[tuple[str, float]], list[Assignment]]
-        The words ``(letter, value)`` in order, and the assignments, which the caller
+        The words ``(letter, value)`` in order (letters A-Z, and ``@``/``^``, LinuxCNC's
+        polar radius and angle), and the assignments, which the caller
         applies after the line (RS274NGC: assignments on a line take effect after it).
 
     Raises
@@ -249,7 +250,8 @@ def read_items(r: Reader) -> tuple[list[tuple[str, float]], list[Assignment]]:
     while r.pos < n:
         at = r.pos
         c = s[at]
-        if 'A' <= c <= 'Z':
+        if 'A' <= c <= 'Z' or c == '@' or c == '^':
+            # '@' and '^' are LinuxCNC's polar words (radius, angle in degrees).
             r.pos += 1
             words.append((c, r.checked(r.value(), at)))
         elif c == '#':

@@ -82,6 +82,12 @@ def test_bad_lines_name_line_and_column(line, column, message):
     assert len(str(err)) < 200
 
 
+def test_polar_words_are_words():
+    # LinuxCNC's polar coordinates (nc_files/spiral.ngc): '@' radius, '^' angle.
+    assert words('G91 G1 @-.0025 ^4.5\n') == [[('G', 91.0), ('G', 1.0), ('@', -0.0025),
+                                               ('^', 4.5)]]
+
+
 def test_non_ascii_inside_comments_is_fine():
     assert words('G0 X1 (Fräse Ø6)\n') == [[('G', 0.0), ('X', 1.0)]]
 
