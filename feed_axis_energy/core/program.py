@@ -56,6 +56,10 @@ class Move:
         Dwell time [s] for DWELL moves.
     length_m
         Path length [m] (helical arcs included).
+    sweep_rad
+        Signed sweep of an arc [rad] (counter-clockwise positive in the plane's first and
+        second axes, extra turns included), as the parser decided it; ``None``: the planner
+        derives it from start, end and ``turns`` (start == end in the plane: full circle).
     """
 
     kind: MoveKind
@@ -69,6 +73,7 @@ class Move:
     turns: int = 0
     dwell_s: float = 0.0
     length_m: float = 0.0
+    sweep_rad: float | None = None
 
 
 @dataclass(frozen=True)

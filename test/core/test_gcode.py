@@ -121,8 +121,13 @@ def test_g80_clears_motion_mode():
     assert (info.value.line, info.value.column) == (3, 1)
 
 
-def test_zero_length_move_is_dropped():
-    assert motion_moves('G1 X1 F100\nX1\nG0 X1\n')[1:] == []
+def test_zero_length_moves_are_issued_as_linuxcnc_does():
+    # LinuxCNC issues STRAIGHT_FEED/TRAVERSE for them (the reference counts them); the
+    # planner drops them. An explicit G0/G1 without axis words is such a move too.
+    zero = motion_moves('G1 X1 F100\nX1\nG0 X1\nG0\n')[1:]
+    assert [m.kind for m in zero] == [MoveKind.LINEAR, MoveKind.RAPID, MoveKind.RAPID]
+    assert [m.length_m for m in zero] == [0.0, 0.0, 0.0]
+    assert all(m.start == m.end == (1 * MM, 0.0, 0.0) for m in zero)
 
 
 # -- arcs -----------------------------------------------------------------------------------
@@ -184,15 +189,26 @@ def test_absolute_arc_centres():
 
 
 def test_arc_within_tolerance_and_outside():
-    # r0 = 10 mm; end radius 10.009 mm: inside 0.1 % (0.01 mm), outside 0.002 mm.
-    m = motion_moves('G0 X10\nG3 X-10.009 Y0 I-10 F100\n')[-1]
-    assert_allclose(m.length_m, math.pi * 10.0045 * MM, rtol=1e-12)
+    # LinuxCNC 2.9 (G21): the radii may differ by 2 * 0.01 * sqrt(2) = 0.028284 mm, or by
+    # more if within 0.1 % of the radius, but never by more than 2.8284 mm.
+    m = motion_moves('G0 X10\nG3 X-10.028 Y0 I-10 F100\n')[-1]
+    assert_allclose(m.length_m, math.pi * 10.014 * MM, rtol=1e-12)
     with pytest.raises(GcodeError, match='not on the circle'):
-        parse_gcode('G0 X10\nG3 X-10.011 Y0 I-10 F100\n')
-    # The absolute tolerance governs small circles and can be widened.
-    parse_gcode('G0 X1\nG3 X-1.004 I-1 F100\n', arc_tolerance_m=0.005 * MM)
+        parse_gcode('G0 X10\nG3 X-10.029 Y0 I-10 F100\n')
+    parse_gcode('G0 X100\nG3 X-100.099 Y0 I-100 F100\n')          # 0.099 %
     with pytest.raises(GcodeError, match='not on the circle'):
-        parse_gcode('G0 X1\nG3 X-1.004 I-1 F100\n')
+        parse_gcode('G0 X100\nG3 X-100.101 Y0 I-100 F100\n')
+    parse_gcode('G0 X5000\nG3 X-5002.8 Y0 I-5000 F100\n')         # 0.056 %, < 2.8284 mm
+    with pytest.raises(GcodeError, match='not on the circle'):
+        parse_gcode('G0 X5000\nG3 X-5002.9 Y0 I-5000 F100\n')
+    # G20: 0.002828 inch.
+    parse_gcode('G20 G0 X1\nG3 X-1.0028 I-1 F10\n')
+    with pytest.raises(GcodeError, match='not on the circle'):
+        parse_gcode('G20 G0 X1\nG3 X-1.0029 I-1 F10\n')
+    # The absolute tolerance can be narrowed (or widened) by the caller.
+    parse_gcode('G0 X1\nG3 X-1.004 I-1 F100\n')
+    with pytest.raises(GcodeError, match='not on the circle'):
+        parse_gcode('G0 X1\nG3 X-1.004 I-1 F100\n', arc_tolerance_m=0.002 * MM)
 
 
 def test_every_arc_end_is_on_its_circle():
@@ -325,7 +341,7 @@ def test_g43_tool_length_offset_comes_from_the_tool_table():
     ('F100\nG2 X0 Y0 R5', 2, 10, 'full circle'),
     ('F100\nG2 X10 R5 I5', 2, 8, 'not both'),
     ('F100\nG1 X10 I5', 2, 8, 'no G2/G3'),
-    ('F100\nG2 I5', 2, 4, 'without an end point'),
+    ('F100\nG2 R5', 2, 4, 'needs an end point'),
     ('F100\nG2 X10 I5 K1', 2, 11, 'not an in-plane'),
     ('F100\nG2 X10 I5 P1.5', 2, 11, 'number of turns'),
     ('G4', 1, 1, 'needs a P'),

@@ -48,6 +48,7 @@ from collections.abc import Mapping
 import gc
 from os import PathLike
 
+from .canon import CENTER_ARC_RADIUS_TOLERANCE_MM
 from .interp import Interpreter
 from .lexer import blank_comments, diagnose_line, LINE_RE, WORD_RE
 from ..errors import GcodeError
@@ -55,12 +56,14 @@ from ..program import Program
 
 __all__ = ['parse_gcode', 'load_gcode', 'DEFAULT_ARC_TOLERANCE_M']
 
-DEFAULT_ARC_TOLERANCE_M = 2e-6
+# LinuxCNC's centre-format radius tolerance in G21 (canon.CENTER_ARC_RADIUS_TOLERANCE_MM):
+# what arc_tolerance_m=None means for a metric program (G20: 0.002828 inch).
+DEFAULT_ARC_TOLERANCE_M = CENTER_ARC_RADIUS_TOLERANCE_MM * 1e-3
 
 
 def parse_gcode(text: str, *, file: str = '<string>',
                 start: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                arc_tolerance_m: float = DEFAULT_ARC_TOLERANCE_M,
+                arc_tolerance_m: float | None = None,
                 home: tuple[float, float, float] | None = None,
                 tools: Mapping[int, object] | None = None) -> Program:
     """Parse an NC program into moves in SI units.
@@ -74,8 +77,9 @@ def parse_gcode(text: str, *, file: str = '<string>',
     start
         Tool position [m] before the first line.
     arc_tolerance_m
-        Absolute tolerance [m] of the arc end-point check; the effective tolerance is the
-        larger of this and 0.1 % of the radius.
+        Absolute tolerance [m] of the arc end-point check (start and end radius may differ
+        by this, or by up to 0.1 % of the radius but never by more than 100 times this);
+        ``None``: LinuxCNC's, 0.02828 mm under G21 and 0.002828 inch under G20.
     home
         The G28 reference point [m] in program coordinates (a machine's ``home_m``); without
         it G28 is an error.
@@ -113,7 +117,7 @@ def parse_gcode(text: str, *, file: str = '<string>',
 
 
 def _parse_lines(text: str, lines: list[str], *, file: str,
-                 start: tuple[float, float, float], arc_tolerance_m: float,
+                 start: tuple[float, float, float], arc_tolerance_m: float | None,
                  home: tuple[float, float, float] | None,
                  tools: Mapping[int, object] | None) -> Program:
     """Interpret ``lines`` (``text`` split at newlines) into a :class:`Program`."""
@@ -176,7 +180,7 @@ def _warn_trailing(p: Interpreter, lines: list[str], end_at: int) -> None:
 
 def load_gcode(path: str | PathLike[str], *,
                start: tuple[float, float, float] = (0.0, 0.0, 0.0),
-               arc_tolerance_m: float = DEFAULT_ARC_TOLERANCE_M,
+               arc_tolerance_m: float | None = None,
                home: tuple[float, float, float] | None = None,
                tools: Mapping[int, object] | None = None) -> Program:
     """Read a UTF-8 program file and parse it (see :func:`parse_gcode`).

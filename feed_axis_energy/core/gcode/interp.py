@@ -15,14 +15,13 @@ from .codes import (ALLOWED_LETTERS, COMP_FORBIDDEN, G_CODES, G_UNSUPPORTED, M_C
 from .coords import COORD_G_CODES, Coords
 from .cutter import CutterComp, LEFT, RIGHT
 from .cycles import CycleMemory, CycleSpec, expand_cycle
+from .interp_arc import ArcMixin
 from .lexer import blank_comments, locate_word
 from ..errors import GcodeError
 from ..program import Move, MoveKind
 
 __all__ = ['Interpreter']
 
-_REL_ARC_TOLERANCE = 1e-3
-_TWO_PI = 2.0 * math.pi
 _INF = float('inf')
 
 # Plane -> (first in-plane axis, second in-plane axis, normal axis), right-handed.
@@ -39,7 +38,7 @@ _ARC_WORDS = frozenset('XYZIJKRPFNS')
 _CYCLE_LENGTH_WORDS = ('X', 'Y', 'Z', 'R', 'I', 'J', 'K', 'Q')
 
 
-class Interpreter:
+class Interpreter(ArcMixin):
     """Modal state of a program being parsed and the interpretation of its lines.
 
     Parameters
@@ -69,11 +68,12 @@ class Interpreter:
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
                  'tool_loaded', 'spindle', 'p_unit')
 
-    def __init__(self, file: str, start: tuple[float, float, float], arc_tolerance_m: float,
+    def __init__(self, file: str, start: tuple[float, float, float],
+                 arc_tolerance_m: float | None,
                  *, lines: list[str], home: tuple[float, float, float] | None = None,
                  tools: Mapping[int, object] | None = None):
         self.file = file
-        self.arc_tol = float(arc_tolerance_m)
+        self.arc_tol = None if arc_tolerance_m is None else float(arc_tolerance_m)
         self.pos = (float(start[0]), float(start[1]), float(start[2]))
         self.motion: int | None = None      # G80 at start-up
         self.plane = 17
@@ -166,7 +166,7 @@ class Interpreter:
         is_arc = mode == 2 or mode == 3
         if dwell or g64 or not d.keys() <= (_ARC_WORDS if is_arc and has_axes
                                             else _STRAIGHT_WORDS):
-            self.check_extras(d, is_arc, has_axes, dwell, g64)
+            has_axes = self.check_extras(d, is_arc, has_axes, dwell, g64) or has_axes
         if self.pending_lineno == self.lineno:
             self.before_motion(d)
         if self.coord_line == self.lineno and self.apply_coords(d):
@@ -184,6 +184,8 @@ class Interpreter:
                     self.arc(d, mode, g9, motion is not None)
                 else:
                     self.straight(d, mode, g9, motion is not None)
+        elif motion is not None and motion <= 1:
+            self.stand_still(d, motion, g9)
         if ml:
             self.stop(ml)
 
@@ -214,8 +216,11 @@ class Interpreter:
         return gl, ml
 
     def check_extras(self, d: dict[str, str], is_arc: bool, has_axes: bool, dwell: bool,
-                     g64: bool) -> None:
-        """Words other than axes/F/N/S/T: run the dwell, refuse words nothing uses."""
+                     g64: bool) -> bool:
+        """Words other than axes/F/N/S: run the dwell, refuse words nothing uses.
+
+        Returns True for a full circle written without axis words (it moves all the same).
+        """
         if 'O' in d:
             o = self.num('O', d['O'])
             if len(d) > 1 or o != int(o):
@@ -234,17 +239,18 @@ class Interpreter:
             if dwell:
                 self.fail('G4 and a canned cycle on one line would share the P word', 'G',
                           value=4.0)
-            return              # cycles.py checks the cycle's words
+            return False        # cycles.py checks the cycle's words
         if 'Q' in d and not g64:
             self.fail('Q word with no canned cycle (G73, G83) or G64 to use it', 'Q')
         if 'L' in d:
             self.fail('L word with no canned cycle to use it', 'L')
         arc_move = is_arc and has_axes
         if is_arc and not has_axes:
-            for letter in 'IJKR':
-                if letter in d:
-                    self.fail('arc without an end point: give at least one axis word '
-                              '(repeat the start point for a full circle)', letter)
+            if 'R' in d:
+                self.fail('an R-form arc needs an end point (use I/J/K for a full circle)',
+                          'R')
+            # LinuxCNC: a full circle may be written with its centre offsets only.
+            arc_move = 'I' in d or 'J' in d or 'K' in d
         if not arc_move:
             for letter in 'IJKR':
                 if letter in d:
@@ -255,6 +261,7 @@ class Interpreter:
             self.dwell(d)
         elif 'P' in d and not (arc_move or g64):
             self.fail('P word with no G4, G2/G3 or G64 to use it', 'P')
+        return arc_move and not has_axes
 
     def g_words(self, gl) -> tuple[int | None, bool, bool, bool]:
         """Apply the modal G codes of a line; return (motion, dwell, G9, G64 present)."""
@@ -640,7 +647,8 @@ class Interpreter:
         self.fail(msg, self.first_axis(d))
 
     def straight(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
-        """Append a G0/G1 move (none if it has zero length)."""
+        """Emit a G0/G1 move (also of zero length: LinuxCNC issues it, the planner drops
+        it)."""
         start = self.pos
         end = self.target(d)
         length = math.dist(start, end)
@@ -650,8 +658,6 @@ class Interpreter:
             feed = self.feed
             if not feed or self.inverse_time:
                 feed = self.feed_for(d, length, explicit)
-        if length == 0.0:
-            return
         m = Move(kind=_MOTION_KIND[mode], line=self.lineno, start=start, end=end,
                  feed_m_s=feed, exact_stop=self.exact or g9, length_m=length)
         if self.routing:
@@ -660,74 +666,14 @@ class Interpreter:
             self.moves.append(m)
         self.pos = end
 
-    def arc(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
-        """Append a G2/G3 arc or helix after checking its end lies on the circle."""
-        start = self.pos
-        end = self.target(d)
-        a, b, n = _PLANE_AXES[self.plane]
-        turns = 0
-        if 'P' in d:
-            p = self.num('P', d['P'])
-            if p != int(p) or p < 1:
-                self.fail('P on G2/G3 is the number of turns: a whole number >= 1', 'P')
-            turns = int(p) - 1
-        if 'R' in d:
-            if 'I' in d or 'J' in d or 'K' in d:
-                self.fail('give either R or I/J/K for an arc, not both', 'R')
-            ca, cb = self.centre_from_radius(d, start, end, a, b, mode == 3)
-        else:
-            la = _CENTRE_LETTERS[a]
-            lb = _CENTRE_LETTERS[b]
-            try:
-                if _CENTRE_LETTERS[n] in d or self.arc_absolute:
-                    raise ValueError
-                ca = start[a] + float(d[la]) * self.scale if la in d else start[a]
-                cb = start[b] + float(d[lb]) * self.scale if lb in d else start[b]
-                if la not in d and lb not in d:
-                    raise ValueError
-            except ValueError:
-                # The checking (and absolute-centre) path.
-                ca, cb = self.centre_from_offsets(d, start, a, b, n)
-        sa = start[a] - ca
-        sb = start[b] - cb
-        ea = end[a] - ca
-        eb = end[b] - cb
-        r0 = math.hypot(sa, sb)
-        r1 = math.hypot(ea, eb)
-        if r0 == 0.0:
-            self.fail_motion('arc radius is zero (centre at the start point)', explicit, d)
-        tol = max(self.arc_tol, _REL_ARC_TOLERANCE * r0)
-        if abs(r1 - r0) > tol:
-            self.fail(f'arc end is not on the circle: radius {r0 * 1e3:.4f} mm at the start, '
-                      f'{r1 * 1e3:.4f} mm at the end (tolerance {tol * 1e3:.4f} mm)',
-                      self.first_axis(d))
-        if math.hypot(ea - sa, eb - sb) <= tol:
-            sweep = _TWO_PI
-        else:
-            # Signed angle from start to end vector, in (-pi, pi], then taken the arc's way.
-            ang = math.atan2(sa * eb - sb * ea, sa * ea + sb * eb)
-            sweep = ang % _TWO_PI if mode == 3 else (-ang) % _TWO_PI
-        sweep += _TWO_PI * turns
-        length = math.hypot(sweep * 0.5 * (r0 + r1), end[n] - start[n])
-        feed = self.feed
-        if not feed or self.inverse_time:
-            feed = self.feed_for(d, length, explicit)
-        if n == 2:
-            centre = (ca, cb, start[2])
-        else:
-            c = [0.0, 0.0, 0.0]
-            c[a] = ca
-            c[b] = cb
-            c[n] = start[n]
-            centre = tuple(c)
-        m = Move(kind=_MOTION_KIND[mode], line=self.lineno, start=start, end=end,
-                 feed_m_s=feed, exact_stop=self.exact or g9, center=centre, plane=self.plane,
-                 turns=turns, length_m=length)
-        if self.routing:
-            self.route(m)
-        else:
-            self.moves.append(m)
-        self.pos = end
+    def stand_still(self, d: dict[str, str], mode: int, g9: bool) -> None:
+        """G0/G1 without axis words: LinuxCNC issues a move to where the tool is (a G1
+        without any feed rate is let pass without one)."""
+        if mode == 1 and (self.feed is None or self.inverse_time):
+            return
+        if self.series:
+            self.end_series()
+        self.straight(d, mode, g9, True)
 
     def centre_from_offsets(self, d: dict[str, str], start: tuple[float, float, float],
                             a: int, b: int, n: int) -> tuple[float, float]:
@@ -745,28 +691,6 @@ class Interpreter:
         if self.arc_absolute:
             return oa + self.frame[a], ob + self.frame[b]
         return start[a] + oa, start[b] + ob
-
-    def centre_from_radius(self, d: dict[str, str], start: tuple[float, float, float],
-                           end: tuple[float, float, float], a: int, b: int,
-                           ccw: bool) -> tuple[float, float]:
-        """In-plane centre [m] from R (negative R: the arc over 180 degrees)."""
-        r = self.num('R', d['R']) * self.scale
-        if r == 0.0:
-            self.fail('R0: an arc needs a non-zero radius', 'R')
-        da = end[a] - start[a]
-        db = end[b] - start[b]
-        chord = math.hypot(da, db)
-        tol = max(self.arc_tol, _REL_ARC_TOLERANCE * abs(r))
-        if chord <= tol:
-            self.fail('R-form arc ending where it starts: use I/J/K for a full circle', 'R')
-        half = 0.5 * chord
-        if abs(r) < half - tol:
-            self.fail(f'R {abs(r) * 1e3:.4f} mm is smaller than half the chord '
-                      f'({half * 1e3:.4f} mm)', 'R')
-        h = math.sqrt(max(r * r - half * half, 0.0))
-        # The centre lies left of the chord for a CCW arc of at most 180 degrees.
-        side = (1.0 if ccw else -1.0) * (1.0 if r > 0.0 else -1.0) * h / chord
-        return (start[a] + 0.5 * da - side * db, start[b] + 0.5 * db + side * da)
 
 
 def _tool_radius(entry: object) -> float:

@@ -20,6 +20,11 @@ def lengths_mm(prog) -> tuple[float, float]:
     return feed, rapid
 
 
+def moving(prog) -> list:
+    """The moves of non-zero length (LinuxCNC also issues zero-length ones)."""
+    return [m for m in prog.moves if m.length_m > 0.0]
+
+
 def end_mm(prog) -> tuple[float, ...]:
     return tuple(round(v / MM, 9) for v in prog.moves[-1].end)
 
@@ -89,7 +94,9 @@ def test_cycle_errors_name_the_line():
 def test_g80_beside_another_motion_code_is_accepted():
     # Fanuc safety block; LinuxCNC 2.9 lets the other motion code win.
     prog = parse_gcode('G0 G17 G40 G49 G80 G90\nX5\nG80 G1 X6 F60\n')
-    assert [m.kind for m in prog.moves] == [MoveKind.RAPID, MoveKind.LINEAR]
+    # The first line is a G0 without axis words: a zero-length traverse, as in LinuxCNC.
+    assert [m.kind for m in prog.moves] == [MoveKind.RAPID] * 2 + [MoveKind.LINEAR]
+    assert prog.moves[0].length_m == 0.0
     assert end_mm(prog) == (6, 0, 0)
     with pytest.raises(GcodeError):
         parse_gcode('G0 G1 X1 F60\n')
@@ -108,7 +115,7 @@ def test_g41_offsets_left_by_the_tool_radius(on, tools):
     # Entry ends one radius left of (10, 0); the straight X20 stays 1 mm to the left; the
     # exit after G40 runs from (20, 1) back to the programmed (30, 0).
     prog = parse_gcode(COMP_PROGRAM.format(on=on), tools=tools)
-    ends = [tuple(round(v / MM, 9) for v in m.end) for m in prog.moves]
+    ends = [tuple(round(v / MM, 9) for v in m.end) for m in moving(prog)]
     assert ends == [(10, 1, 0), (20, 1, 0), (30, 0, 0)]
     feed, _ = lengths_mm(prog)
     assert feed == pytest.approx(2 * math.hypot(10, 1) + 10)
@@ -116,9 +123,9 @@ def test_g41_offsets_left_by_the_tool_radius(on, tools):
 
 def test_g42_and_zero_radius():
     prog = parse_gcode(COMP_PROGRAM.format(on='G42 D1'), tools={1: 1 * MM})
-    assert [round(m.end[1] / MM, 9) for m in prog.moves] == [-1, -1, 0]
+    assert [round(m.end[1] / MM, 9) for m in moving(prog)] == [-1, -1, 0]
     prog = parse_gcode(COMP_PROGRAM.format(on='G42 D1'), tools={1: 0.0})
-    assert [round(m.end[0] / MM, 9) for m in prog.moves] == [10, 20, 30]
+    assert [round(m.end[0] / MM, 9) for m in moving(prog)] == [10, 20, 30]
     assert all(m.end[1] == 0.0 for m in prog.moves)
 
 

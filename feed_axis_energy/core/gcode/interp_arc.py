@@ -1,0 +1,107 @@
+"""G2/G3 arcs of the interpreter: centre (I/J/K or R), LinuxCNC's checks, the canonical arc.
+
+A mixin of :class:`~.interp.Interpreter` (split off along the arc seam to keep modules
+small); it uses the interpreter's state (``pos``, ``plane``, ``scale``, ``feed``, ...) and
+helpers (``target``, ``centre_from_offsets``, ``feed_for``, ``fail``). The rules are those
+of LinuxCNC 2.9's ``arc_data_ijk`` / ``arc_data_r`` (see :mod:`.canon` for the tolerances).
+"""
+from __future__ import annotations
+
+import math
+
+from . import canon
+from .canon import arc_length, arc_sweep, centre_tolerance_m, radius_error, radius_tolerance_m
+
+__all__ = ['ArcMixin']
+
+_PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
+_CENTRE_LETTERS = ('I', 'J', 'K')
+# LinuxCNC's TINY (interp_internal.hh): an R this close to half the chord is a half circle.
+_TINY = 1e-12
+
+
+class ArcMixin:
+    """G2/G3 for :class:`~.interp.Interpreter`."""
+
+    __slots__ = ()
+
+    def arc(self, d: dict, mode: int, g9: bool, explicit: bool) -> None:
+        """Emit a G2/G3 arc or helix after LinuxCNC's radius checks."""
+        start = self.pos
+        end = self.target(d)
+        a, b, n = _PLANE_AXES[self.plane]
+        turn = 1
+        if 'P' in d:
+            p = self.num('P', d['P'])
+            if p != int(p) or p < 1:
+                self.fail('P on G2/G3 is the number of turns: a whole number >= 1', 'P')
+            turn = int(p)
+        if mode == 2:
+            turn = -turn
+        if 'R' in d:
+            if 'I' in d or 'J' in d or 'K' in d:
+                self.fail('give either R or I/J/K for an arc, not both', 'R')
+            ca, cb = self.centre_from_radius(d, start, end, a, b, mode == 3)
+        else:
+            la = _CENTRE_LETTERS[a]
+            lb = _CENTRE_LETTERS[b]
+            try:
+                if _CENTRE_LETTERS[n] in d or self.arc_absolute:
+                    raise ValueError
+                ca = start[a] + float(d[la]) * self.scale if la in d else start[a]
+                cb = start[b] + float(d[lb]) * self.scale if lb in d else start[b]
+                if la not in d and lb not in d:
+                    raise ValueError
+            except ValueError:
+                # The checking (and absolute-centre) path.
+                ca, cb = self.centre_from_offsets(d, start, a, b, n)
+        sa = start[a] - ca
+        sb = start[b] - cb
+        ea = end[a] - ca
+        eb = end[b] - cb
+        r0 = math.hypot(sa, sb)
+        r1 = math.hypot(ea, eb)
+        scale = self.scale
+        if min(r0, r1) < radius_tolerance_m(scale):
+            self.fail_motion(f'arc radius is zero (radius {r0 * 1e3:.4f} mm at the start, '
+                             f'{r1 * 1e3:.4f} mm at the end)', explicit, d)
+        tol = self.arc_tol if self.arc_tol is not None else centre_tolerance_m(scale)
+        if radius_error(r0, r1, tol):
+            self.fail(f'arc end is not on the circle: radius {r0 * 1e3:.4f} mm at the start, '
+                      f'{r1 * 1e3:.4f} mm at the end (LinuxCNC tolerance {tol * 1e3:.4f} mm, '
+                      f'or 0.1 % of the radius up to {100 * tol * 1e3:.4f} mm)',
+                      self.first_axis(d) if any(x in d for x in 'XYZ') else 'G')
+        sweep = arc_sweep((sa, sb), (ea, eb), (0.0, 0.0), turn)
+        length = arc_length(sweep, r0, r1, end[n] - start[n])
+        feed = self.feed
+        if not feed or self.inverse_time:
+            feed = self.feed_for(d, length, explicit)
+        self.emit(canon.arc_feed(self.lineno, start, end, (ca, cb), plane=self.plane,
+                                 turn=turn, feed_m_s=feed, sweep=sweep, length_m=length,
+                                 exact_stop=self.exact or g9))
+        self.pos = end
+
+    def centre_from_radius(self, d: dict, start: tuple[float, float, float],
+                           end: tuple[float, float, float], a: int, b: int,
+                           ccw: bool) -> tuple[float, float]:
+        """In-plane centre [m] from R (negative R: the arc over 180 degrees), LinuxCNC's
+        ``arc_data_r``: any radius that reaches the end point, however large."""
+        r = self.num('R', d['R']) * self.scale
+        if r == 0.0:
+            self.fail('R0: an arc needs a non-zero radius', 'R')
+        da = end[a] - start[a]
+        db = end[b] - start[b]
+        if da == 0.0 and db == 0.0:
+            self.fail('R-form arc ending where it starts: use I/J/K for a full circle', 'R')
+        chord = math.hypot(da, db)
+        half = 0.5 * chord
+        ar = abs(r)
+        if half - ar > radius_tolerance_m(self.scale):
+            self.fail(f'R {ar * 1e3:.4f} mm is smaller than half the chord '
+                      f'({half * 1e3:.4f} mm): the arc cannot reach its end point', 'R')
+        if half / ar > 1.0 - _TINY:
+            half = ar
+        h = math.sqrt(max(ar * ar - half * half, 0.0))
+        # The centre lies left of the chord for a CCW arc of at most 180 degrees.
+        side = (1.0 if ccw else -1.0) * (1.0 if r > 0.0 else -1.0) * h / chord
+        return (start[a] + 0.5 * da - side * db, start[b] + 0.5 * db + side * da)
