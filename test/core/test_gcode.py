@@ -410,12 +410,14 @@ def test_g28_goes_home_through_the_intermediate_point():
     # Fanuc-style program end: incremental Z0 = the current point, then Z to the reference.
     prog = parse_gcode('G21 G90\nG1 X10 Y20 Z5 F600\nG91 G28 Z0\nG90 G28 X30\n',
                        file='t.nc', home=HOME)
+    # LinuxCNC issues both rapids of a G28, the first of zero length here
     kinds = [m.kind for m in prog.moves]
-    assert kinds == [MoveKind.LINEAR, MoveKind.RAPID, MoveKind.RAPID, MoveKind.RAPID]
-    up = prog.moves[1]
+    assert kinds == [MoveKind.LINEAR] + [MoveKind.RAPID] * 4
+    assert prog.moves[1].length_m == 0.0
+    up = prog.moves[2]
     assert up.line == 3 and up.start == pytest.approx((0.01, 0.02, 0.005))
     assert up.end == pytest.approx((0.01, 0.02, 0.1)) and up.exact_stop
-    via, home_x = prog.moves[2:]
+    via, home_x = prog.moves[3:]
     assert via.end == pytest.approx((0.03, 0.02, 0.1))     # intermediate X30 (absolute)
     assert home_x.end == pytest.approx((0.0, 0.02, 0.1))   # only X goes home
     assert home_x.length_m == pytest.approx(0.03)

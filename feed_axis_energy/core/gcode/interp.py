@@ -516,11 +516,10 @@ class Interpreter(ArcMixin):
         named = tuple(letter in d for letter in _AXIS_LETTERS)
         path = self.coords.home_path(code, self.target(d), named)
         for end in path:
-            length = math.dist(self.pos, end)
-            if length > 0.0:
-                self.emit(Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos,
-                               end=end, feed_m_s=_INF, exact_stop=True, length_m=length))
-                self.pos = end
+            # both rapids, even of zero length: LinuxCNC issues both (the planner drops them)
+            self.emit(Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos, end=end,
+                           feed_m_s=_INF, exact_stop=True, length_m=math.dist(self.pos, end)))
+            self.pos = end
     # ---- end of coords hooks -----------------------------------------------------------------
 
     def g_lookup(self, text: str) -> tuple[str, object, int]:

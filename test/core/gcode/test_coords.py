@@ -372,3 +372,13 @@ def test_errors_name_line_and_column(text, line, column, words):
         parse_gcode(text, file='t.nc')
     assert (err.value.line, err.value.column) == (line, column)
     assert words in str(err.value)
+
+
+def test_g28_issues_both_rapids_even_of_zero_length_as_linuxcnc():
+    from feed_axis_energy.core.gcode import parse_gcode
+    from feed_axis_energy.core.program import MoveKind
+    prog = parse_gcode('G21 G90\nG0 X10\nG91 G28 X0\n', home=(0.0, 0.0, 0.0))
+    rapids = [m for m in prog.moves if m.line == 3]
+    assert [m.kind for m in rapids] == [MoveKind.RAPID, MoveKind.RAPID]
+    assert rapids[0].length_m == 0.0 and rapids[1].end == (0.0, 0.0, 0.0)
+    assert rapids[1].length_m == pytest.approx(0.01)
