@@ -520,6 +520,15 @@ class Interpreter(ArcMixin):
             self.emit(Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos, end=end,
                            feed_m_s=_INF, exact_stop=True, length_m=math.dist(self.pos, end)))
             self.pos = end
+
+    def system_value(self, key: int | str) -> float | None:
+        """Live coordinate values for ``Parameters.provider`` (``#5420..#5428``, ``#5400``,
+        ``#5401..#5410``, ``#<_x>``.., ``#<_abs_x>``.., ``#<_coord_system>``, tool numbers);
+        ``None`` for any other key."""
+        coords = self.coords
+        coords.selected_tool = self.tool_selected
+        coords.loaded_tool = self.tool_loaded
+        return coords.system_value(key, self.pos, self.scale)
     # ---- end of coords hooks -----------------------------------------------------------------
 
     def g_lookup(self, text: str) -> tuple[str, object, int]:

@@ -382,3 +382,17 @@ def test_g28_issues_both_rapids_even_of_zero_length_as_linuxcnc():
     assert [m.kind for m in rapids] == [MoveKind.RAPID, MoveKind.RAPID]
     assert rapids[0].length_m == 0.0 and rapids[1].end == (0.0, 0.0, 0.0)
     assert rapids[1].length_m == pytest.approx(0.01)
+
+
+def test_interpreter_supplies_live_values_for_the_parameter_provider():
+    from feed_axis_energy.core.gcode.interp import Interpreter
+    text = 'G21 G90\nG10 L2 P1 X100\nG0 X10 Y5\nT3 M6\n'
+    lines = text.splitlines()
+    p = Interpreter('t.nc', (0.0, 0.0, 0.0), 2e-6, lines=lines, tools={3: (0.002, 0.05)})
+    for n, line in enumerate(lines, 1):
+        p.lineno = n
+        p.line([(w[0], w[1:]) for w in line.split()])
+    assert p.system_value(5420) == pytest.approx(10.0)     # program X, mm
+    assert p.system_value('_abs_x') == pytest.approx(110.0)
+    assert p.system_value(5400) == 3.0 and p.system_value(5410) == pytest.approx(4.0)
+    assert p.system_value('_coord_system') == 540.0 and p.system_value(1) is None
