@@ -152,7 +152,7 @@ def warning_texts(path: Path, program: Any, machine: Any) -> list[str]:
     problems = problems_from_warnings(program.warnings, file=name)
     sanity, _ = check_moves(program.moves, file=name,
                             limits=_limits(machine, DEFAULT_MAX_DWELL_S))
-    return [_warning_line(p) for p in problems + sanity]
+    return [_warning_line(p) for p in sorted(problems + sanity, key=lambda p: p.line)]
 
 
 def _warning_line(p: Any) -> str:

@@ -104,3 +104,18 @@ def test_bad_machine_config_exits_1(tmp_path, capsys):
     cfg = _write(tmp_path, 'm.yaml', 'name: x\naxes: 3\n')
     assert main(['check', str(CONTOUR), '--machine', str(cfg)]) == 1
     assert 'error: ' in capsys.readouterr().err
+
+
+def test_simulate_json_carries_the_warnings(tmp_path, capsys):
+    far = _write(tmp_path, 'far.nc', 'G21 G90\nG1 X700 F1000\nG4 P4000\nM2\n')
+    assert main(['simulate', str(far), '--machine', str(MILL), '--json', '--quiet',
+                 '--rate-hz', '1']) == 0
+    captured = capsys.readouterr()
+    warnings = json.loads(captured.out)['warnings']
+    assert len(warnings) == 2
+    assert warnings[0].startswith(f'{far}:2: move goes beyond the X travel')
+    assert warnings[1].startswith(f'{far}:3: dwell of 4000 s')
+    assert f'warning: {warnings[0]}' in captured.err
+    assert main(['simulate', str(CONTOUR), '--machine', str(MILL), '--json', '--quiet',
+                 '--rate-hz', '10']) == 0
+    assert json.loads(capsys.readouterr().out)['warnings'] == []
