@@ -35,7 +35,7 @@ import math
 from typing import NamedTuple, NoReturn
 
 from ..errors import GcodeError
-from ..machine_gcode import ToolSpec
+from ..machine_gcode import MAX_TOOL_NUMBER, ToolSpec
 
 __all__ = ['Coords', 'LineEffect', 'ParamTable', 'COORD_G_CODES', 'SYSTEM_NAMES',
            'system_param']
@@ -69,6 +69,9 @@ SYSTEM_PARAM = 5220
 TOOL_PARAM = 5400
 POSITION_PARAM = 5420
 MAX_PASSES = 9          # axes X Y Z A B C U V W of every parameter block
+MAX_OFFSET_M = 1.0e3
+"""Largest offset, stored position or tool length [m] accepted (an absurd value would plan
+an endless move or overflow to inf)."""
 
 
 def system_param(system: int, axis: int = 0) -> int:
@@ -229,6 +232,12 @@ class Coords:
             G28/G30 return, if any.
         """
         axes = {a: v * scale for a in _AXES if (v := value(a)) is not None}
+        if codes.get('nonmodal') in _AXIS_DATA or codes.get('tool_length') in _AXIS_DATA:
+            for a, v in axes.items():
+                if not abs(v) <= MAX_OFFSET_M:
+                    shown = f'{v:.6g} m' if math.isfinite(v) else 'beyond any float'
+                    fail(f'{a} value ({shown}) is not a plausible offset (at most '
+                         f'{MAX_OFFSET_M:g} m)', a)
         if comp_active:
             for code in (codes.get('tool_length'), codes.get('nonmodal')):
                 key = _COMP_KEY.get(code, code)
@@ -258,6 +267,9 @@ class Coords:
                 fail('Must use G0 or G1 with G53', 'G')
             if not absolute:
                 fail('Cannot use G53 incremental', 'G')
+        if not all(abs(v) <= MAX_OFFSET_M for v in self.offset):
+            fail('the offsets of this line move the program origin more than '
+                 f'{MAX_OFFSET_M:g} m from the machine origin', 'G')
         return LineEffect(axes_used=bool(axes) and (code in _AXIS_DATA or length in _AXIS_DATA),
                           frame=(0.0, 0.0, 0.0) if code == 'G53' else self.offset,
                           home=code if code in ('G28', 'G30') else None)
@@ -332,6 +344,8 @@ class Coords:
             fail(f'G10 L{l_word:g} is not supported (L1, L2 and L20 are)', 'L')
         if p_word is None:
             fail(f'G10 L{l_word:g} needs a P word', 'G')
+        if not abs(p_word) <= 1e9:
+            fail('P value out of range with G10', 'P')
         p = int(math.floor(p_word + 0.5)) if p_word >= 0 else int(math.ceil(p_word - 0.5))
         if abs(p_word - p) > 0.0002:
             fail('P value not an integer with G10', 'P')
@@ -361,12 +375,13 @@ class Coords:
             self._update()
 
     def _g10_tool(self, number: int, values: Mapping[str, float], *, fail: Fail) -> None:
-        if number < 1:
-            fail('P value out of range with G10 L1 (a tool number >= 1)', 'P')
+        if not 1 <= number <= MAX_TOOL_NUMBER:
+            fail(f'P value out of range with G10 L1 (a tool number 1 ... {MAX_TOOL_NUMBER})',
+                 'P')
         old = self.tools.get(number, ToolSpec())
         radius = values.get('R', old.radius_m)
-        if radius < 0.0:
-            fail('negative tool radius', 'R')
+        if not 0.0 <= radius <= 1.0:
+            fail(f'tool radius {radius:.6g} m: expected 0 ... 1 m', 'R')
         self.tools[number] = ToolSpec(radius_m=radius, length_m=values.get('Z', old.length_m))
 
     # -- G92, G52 -------------------------------------------------------------------------
@@ -409,13 +424,18 @@ class Coords:
         self._update()
 
     # -- G28 / G30 ------------------------------------------------------------------------
-    def stored_home(self, code: str) -> Vec3:
+    def stored_home(self, code: str, *, fail: Fail = _raise) -> Vec3:
         """The stored G28 or G30 position, machine coordinates [m]."""
         base = G28_PARAM if code == 'G28' else G30_PARAM
         self.home_used = True
-        return tuple(self.params.get(base + i) / _MM for i in range(3))
+        home = tuple(self.params.get(base + i) / _MM for i in range(3))
+        if not all(abs(v) <= MAX_OFFSET_M for v in home):
+            fail(f'the stored {code} position (#{base}..#{base + 2}) is more than '
+                 f'{MAX_OFFSET_M:g} m from the machine origin', 'G')
+        return home
 
-    def home_path(self, code: str, via: Vec3, named: tuple[bool, bool, bool]) -> list[Vec3]:
+    def home_path(self, code: str, via: Vec3, named: tuple[bool, bool, bool], *,
+                  fail: Fail = _raise) -> list[Vec3]:
         """G28/G30: the intermediate point and the end point, machine coordinates [m].
 
         Parameters
@@ -429,7 +449,7 @@ class Coords:
             Which of X, Y, Z the line names; those go to the stored position (all of them
             when none is named).
         """
-        home = self.stored_home(code)
+        home = self.stored_home(code, fail=fail)
         if not any(named):
             named = (True, True, True)
         end = tuple(home[i] if named[i] else via[i] for i in range(3))

@@ -514,7 +514,9 @@ class Interpreter(ArcMixin):
         if self.series:
             self.end_series()
         named = tuple(letter in d for letter in _AXIS_LETTERS)
-        path = self.coords.home_path(code, self.target(d), named)
+        path = self.coords.home_path(code, self.target(d), named,
+                                     fail=lambda msg, letter: self.fail(msg, 'G', value=float(
+                                         code[1:])))
         for end in path:
             # both rapids, even of zero length: LinuxCNC issues both (the planner drops them)
             self.emit(Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos, end=end,

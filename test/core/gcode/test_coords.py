@@ -396,3 +396,32 @@ def test_interpreter_supplies_live_values_for_the_parameter_provider():
     assert p.system_value('_abs_x') == pytest.approx(110.0)
     assert p.system_value(5400) == 3.0 and p.system_value(5410) == pytest.approx(4.0)
     assert p.system_value('_coord_system') == 540.0 and p.system_value(1) is None
+
+
+BIG = '1' + '0' * 300
+
+
+@pytest.mark.parametrize('text, line, column', [
+    (f'G10 L2 P1 X{BIG}\nG0 X0\n', 1, 11),
+    (f'G0 X1\nG92 Y{BIG}\n', 2, 5),
+    (f'G43.1 Z{BIG}\n', 1, 7),
+    (f'G52 X1{"0" * 400}\n', 1, 5),
+    (f'G10 L1 P{BIG} Z1\n', 1, 8),
+    ('G10 L1 P2 R2000\n', 1, 11),
+    # each offset is plausible, G92 (-900 m) plus the G55 origin (-900 m) is not
+    ('G10 L2 P1 X900000\nG10 L2 P2 X-900000\nG92 X0\nG55\n', 4, 1),
+])
+def test_absurd_offsets_are_errors_not_inf(text, line, column):
+    from feed_axis_energy.core.gcode import parse_gcode
+    with pytest.raises(GcodeError) as err:
+        parse_gcode(text, file='t.nc')
+    assert (err.value.line, err.value.column) == (line, column)
+    assert len(err.value.reason) < 120 and 'inf' not in err.value.reason
+
+
+def test_absurd_stored_home_is_an_error_at_g28():
+    params = ParamTable()
+    params.set(5161, 1e300)
+    c = Coords(params=params)
+    with pytest.raises(Failed, match='stored G28'):
+        c.home_path('G28', (0.0, 0.0, 0.0), (False, False, False), fail=fail)
