@@ -37,8 +37,8 @@ from typing import NamedTuple, NoReturn
 from ..errors import GcodeError
 from ..machine_gcode import MAX_TOOL_NUMBER, ToolSpec
 
-__all__ = ['Coords', 'LineEffect', 'ParamTable', 'COORD_G_CODES', 'SYSTEM_NAMES',
-           'system_param']
+__all__ = ['Coords', 'LineEffect', 'ParamTable', 'COORD_G_CODES', 'MAX_OFFSET_M',
+           'SYSTEM_NAMES', 'system_param']
 
 Vec3 = tuple[float, float, float]
 Fail = Callable[[str, str], NoReturn]

@@ -12,7 +12,7 @@ import math
 
 from .codes import (ALLOWED_LETTERS, COMP_FORBIDDEN, G_CODES, G_UNSUPPORTED, M_CODES,
                     UNSUPPORTED_LETTERS)
-from .coords import COORD_G_CODES, Coords
+from .coords import COORD_G_CODES, Coords, MAX_OFFSET_M
 from .cutter import CutterComp, LEFT, RIGHT
 from .cycles import CycleMemory, CycleSpec, expand_cycle
 from .interp_arc import ArcMixin
@@ -501,7 +501,11 @@ class Interpreter(ArcMixin):
             s = self.scale
             for i, letter in enumerate(_AXIS_LETTERS):
                 if letter in d:
-                    d[letter] = (self.num(letter, d[letter]) * s - self.frame[i]) / s
+                    v = self.num(letter, d[letter]) * s
+                    if not abs(v) <= MAX_OFFSET_M:
+                        self.fail(f'G53 {letter}: not a machine position within '
+                                  f'{MAX_OFFSET_M:g} m of the machine origin', letter)
+                    d[letter] = (v - self.frame[i]) / s
         return effect.axes_used
 
     def home_return(self, d: dict[str, str], code: str) -> None:
