@@ -22,10 +22,9 @@ from __future__ import annotations
 
 import math
 
-from .cutter_corners import arc_sweep
 from ..program import Move, MoveKind
 
-__all__ = ['straight_traverse', 'straight_feed', 'arc_feed', 'dwell', 'stop', 'arc_sweep',
+__all__ = ['straight_traverse', 'straight_feed', 'arc_feed', 'dwell', 'stop', 'arc_sweep_rad',
            'arc_length', 'radius_error', 'radius_tolerance_m', 'centre_tolerance_m',
            'CENTER_ARC_RADIUS_TOLERANCE_INCH', 'CENTER_ARC_RADIUS_TOLERANCE_MM',
            'RADIUS_TOLERANCE_INCH', 'RADIUS_TOLERANCE_MM', 'SPIRAL_RELATIVE_TOLERANCE',
@@ -75,6 +74,19 @@ def radius_error(r0: float, r1: float, tolerance_m: float) -> bool:
     return err > tolerance_m and err > SPIRAL_RELATIVE_TOLERANCE * max(r0, r1)
 
 
+def arc_sweep_rad(sa: float, sb: float, ea: float, eb: float, turn: int) -> float:
+    """Signed sweep [rad] from the start vector ``(sa, sb)`` to the end vector ``(ea, eb)``
+    (from the centre) of an arc of LinuxCNC rotation ``turn``: the angle taken the arc's way
+    round, a whole turn if it is below :data:`FULL_TURN_EPS_RAD`, plus ``|turn| - 1`` turns.
+    (The interpreter's arc inlines this.)"""
+    ang = math.atan2(sa * eb - sb * ea, sa * ea + sb * eb)
+    sweep = (ang if turn > 0 else -ang) % (2.0 * math.pi)
+    if sweep < FULL_TURN_EPS_RAD:
+        sweep = 2.0 * math.pi
+    sweep += (abs(turn) - 1) * 2.0 * math.pi
+    return sweep if turn > 0 else -sweep
+
+
 def arc_length(sweep: float, r0: float, r1: float, dz: float) -> float:
     """Length [m] of a helical spiral arc: mean radius times sweep, with the normal rise."""
     return math.hypot(abs(sweep) * 0.5 * (r0 + r1), dz)
@@ -98,7 +110,7 @@ def arc_feed(line: int, start: Vec3, end: Vec3, centre: tuple[float, float], *, 
              exact_stop: bool = False) -> Move:
     """G2/G3: ``centre`` in the plane's (first, second) axes [m]; ``turn`` as LinuxCNC's
     ARC_FEED rotation (+n counter-clockwise, -n clockwise, n - 1 extra full turns);
-    ``sweep``/``length_m`` from :func:`arc_sweep` and :func:`arc_length`."""
+    ``sweep``/``length_m`` from :func:`arc_sweep_rad` and :func:`arc_length`."""
     a, b, n = _PLANE_AXES[plane]
     c = [0.0, 0.0, 0.0]
     c[a] = centre[0]

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import math
 
-from . import canon
-from .canon import arc_length, arc_sweep, centre_tolerance_m, radius_error, radius_tolerance_m
+from .canon import (centre_tolerance_m, FULL_TURN_EPS_RAD, radius_error, RADIUS_TOLERANCE_MM,
+                    radius_tolerance_m)
+from ..program import Move, MoveKind
 
 __all__ = ['ArcMixin']
 
@@ -18,6 +19,11 @@ _PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 _CENTRE_LETTERS = ('I', 'J', 'K')
 # LinuxCNC's TINY (interp_internal.hh): an R this close to half the chord is a half circle.
 _TINY = 1e-12
+_TWO_PI = 2.0 * math.pi
+# Radii above RADIUS_TOLERANCE (1.27e-6 m in either unit system) whose difference is at
+# most 1e-9 m pass every check of canon: 1e-9 m is below 0.1 % of such a radius.
+_R_MIN = RADIUS_TOLERANCE_MM * 1e-3
+_QUICK_DIFF = 1e-9
 
 
 class ArcMixin:
@@ -61,6 +67,42 @@ class ArcMixin:
         eb = end[b] - cb
         r0 = math.hypot(sa, sb)
         r1 = math.hypot(ea, eb)
+        if r0 < _R_MIN or r1 < _R_MIN or abs(r1 - r0) > _QUICK_DIFF:
+            self.check_radii(d, r0, r1, explicit)
+        # canon.arc_sweep_rad, inline on this hot path (same rule, same arithmetic).
+        ang = math.atan2(sa * eb - sb * ea, sa * ea + sb * eb)
+        sweep = (ang if turn > 0 else -ang) % _TWO_PI
+        if sweep < FULL_TURN_EPS_RAD:
+            sweep = _TWO_PI
+        if turn != 1 and turn != -1:
+            sweep += (abs(turn) - 1) * _TWO_PI
+        if turn < 0:
+            sweep = -sweep
+        length = math.hypot(sweep * 0.5 * (r0 + r1), end[n] - start[n])
+        feed = self.feed
+        if not feed or self.inverse_time:
+            feed = self.feed_for(d, length, explicit)
+        if n == 2:
+            centre = (ca, cb, start[2])
+        else:
+            c = [0.0, 0.0, 0.0]
+            c[a] = ca
+            c[b] = cb
+            c[n] = start[n]
+            centre = (c[0], c[1], c[2])
+        # canon.arc_feed, inline on this hot path.
+        m = Move(kind=MoveKind.ARC_CCW if turn > 0 else MoveKind.ARC_CW, line=self.lineno,
+                 start=start, end=end, feed_m_s=feed, exact_stop=self.exact or g9,
+                 center=centre, plane=self.plane, turns=abs(turn) - 1, length_m=length,
+                 sweep_rad=sweep)
+        if self.routing:
+            self.route(m)
+        else:
+            self.moves.append(m)
+        self.pos = end
+
+    def check_radii(self, d: dict, r0: float, r1: float, explicit: bool) -> None:
+        """LinuxCNC's zero-radius and end-on-circle checks (see :mod:`.canon`)."""
         scale = self.scale
         if min(r0, r1) < radius_tolerance_m(scale):
             self.fail_motion(f'arc radius is zero (radius {r0 * 1e3:.4f} mm at the start, '
@@ -71,15 +113,6 @@ class ArcMixin:
                       f'{r1 * 1e3:.4f} mm at the end (LinuxCNC tolerance {tol * 1e3:.4f} mm, '
                       f'or 0.1 % of the radius up to {100 * tol * 1e3:.4f} mm)',
                       self.first_axis(d) if any(x in d for x in 'XYZ') else 'G')
-        sweep = arc_sweep((sa, sb), (ea, eb), (0.0, 0.0), turn)
-        length = arc_length(sweep, r0, r1, end[n] - start[n])
-        feed = self.feed
-        if not feed or self.inverse_time:
-            feed = self.feed_for(d, length, explicit)
-        self.emit(canon.arc_feed(self.lineno, start, end, (ca, cb), plane=self.plane,
-                                 turn=turn, feed_m_s=feed, sweep=sweep, length_m=length,
-                                 exact_stop=self.exact or g9))
-        self.pos = end
 
     def centre_from_radius(self, d: dict, start: tuple[float, float, float],
                            end: tuple[float, float, float], a: int, b: int,

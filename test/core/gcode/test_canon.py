@@ -8,7 +8,7 @@ import pytest
 
 from feed_axis_energy.core.errors import GcodeError
 from feed_axis_energy.core.gcode import parse_gcode
-from feed_axis_energy.core.gcode.canon import (arc_sweep, CENTER_ARC_RADIUS_TOLERANCE_MM,
+from feed_axis_energy.core.gcode.canon import (arc_sweep_rad, CENTER_ARC_RADIUS_TOLERANCE_MM,
                                                radius_error, straight_feed)
 from feed_axis_energy.core.program import MoveKind, Program
 from feed_axis_energy.core.trajectory import _collect, _geometry
@@ -41,7 +41,7 @@ def test_straight_feed_length():
 @pytest.mark.parametrize('turn, expected', [(1, 2 * math.pi), (-1, -2 * math.pi),
                                             (3, 6 * math.pi)])
 def test_end_at_start_is_whole_turns(turn, expected):
-    assert arc_sweep((1.0, 0.0), (1.0, 0.0), (0.0, 0.0), turn) == expected
+    assert arc_sweep_rad(1.0, 0.0, 1.0, 0.0, turn) == expected
 
 
 def test_near_full_circle_is_the_same_arc_for_parser_and_planner():
@@ -54,6 +54,7 @@ def test_near_full_circle_is_the_same_arc_for_parser_and_planner():
     assert a2.sweep_rad == pytest.approx(-sliver, rel=1e-9)
     assert a3.sweep_rad == pytest.approx(2 * math.pi - sliver, rel=1e-12)
     assert a2.length_m == pytest.approx(sliver * 10 * MM, rel=1e-6)
+    assert a3.sweep_rad == arc_sweep_rad(10.0, 0.0, 10.0, -0.001, 1)      # canon's own rule
     for prog, move in ((g2, a2), (g3, a3)):
         sweeps, lengths = planner_sweeps(prog)
         assert sweeps == [move.sweep_rad]
