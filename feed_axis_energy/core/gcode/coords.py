@@ -11,7 +11,7 @@ the X, Y and Z axes, with every offset a pure translation::
   parameters ``#5221 + 20 (n - 1)`` (X, Y, Z) when it is selected, as LinuxCNC does.
 * G10 L2 P.. sets a system's origin to the given values; G10 L20 P.. sets it so that the
   current point has the given coordinates; P0 = the active system. G10 L1 P.. writes the
-  tool table (R = radius, Z = length offset).
+  tool table (R = radius, Z = length offset), L10/L11 from the current point.
 * G92 shifts the origin so that the current point has the given coordinates; G52 sets the
   same offset to the given values (LinuxCNC treats G52 as a G92 with absolute values);
   G92.1 clears it and its parameters #5211..#5213, G92.2 clears it and keeps them, G92.3
@@ -256,7 +256,7 @@ class Coords:
             data = dict(axes)
             r = value('R')
             if r is not None:
-                data['R'] = r * scale if value('L') == 1.0 else r
+                data['R'] = r * scale if value('L') in (1.0, 10.0, 11.0) else r
             self.g10(value('L'), value('P'), data, position, fail=fail)
         elif code in ('G92', 'G52', 'G92.1', 'G92.2', 'G92.3'):
             self.axis_offsets(code, axes, position)
@@ -323,7 +323,7 @@ class Coords:
     # -- G10 ------------------------------------------------------------------------------
     def g10(self, l_word: float | None, p_word: float | None, values: Mapping[str, float],
             position: Vec3, *, fail: Fail = _raise) -> None:
-        """G10 L1/L2/L20 with the line's words.
+        """G10 L1/L10/L11 (tool table) or L2/L20 (coordinate system) with the line's words.
 
         Parameters
         ----------
@@ -331,17 +331,18 @@ class Coords:
             The L and P words as read (``None`` if absent).
         values
             ``{'X': m, 'Y': m, 'Z': m}`` for the axis words on the line (program units
-            converted to metres, not made absolute), ``'R'`` as written (L1: radius [m];
-            L2: rotation [deg]).
+            converted to metres, not made absolute), ``'R'`` as written (L1/L10/L11: radius
+            [m]; L2: rotation [deg]).
         position
-            Current machine position [m] (for L20).
+            Current machine position [m] (for L10, L11, L20).
         fail
             ``fail(message, letter)`` raising the error at a word.
         """
         if l_word is None:
-            fail('G10 needs an L word (L1 tool table, L2 or L20 coordinate system)', 'G')
-        if l_word not in (1.0, 2.0, 20.0):
-            fail(f'G10 L{l_word:g} is not supported (L1, L2 and L20 are)', 'L')
+            fail('G10 needs an L word (L1, L10, L11 tool table; L2, L20 coordinate system)',
+                 'G')
+        if l_word not in (1.0, 2.0, 10.0, 11.0, 20.0):
+            fail(f'G10 L{l_word:g} is not supported (L1, L2, L10, L11 and L20 are)', 'L')
         if p_word is None:
             fail(f'G10 L{l_word:g} needs a P word', 'G')
         if not abs(p_word) <= 1e9:
@@ -349,8 +350,8 @@ class Coords:
         p = int(math.floor(p_word + 0.5)) if p_word >= 0 else int(math.ceil(p_word - 0.5))
         if abs(p_word - p) > 0.0002:
             fail('P value not an integer with G10', 'P')
-        if l_word == 1.0:
-            self._g10_tool(p, values, fail=fail)
+        if l_word in (1.0, 10.0, 11.0):
+            self._g10_tool(int(l_word), p, values, position, fail=fail)
             return
         if not 0 <= p <= 9:
             fail(f'P value out of range (0-9) with G10 L{l_word:g}', 'P')
@@ -374,15 +375,36 @@ class Coords:
             self.g5x = tuple(origin)
             self._update()
 
-    def _g10_tool(self, number: int, values: Mapping[str, float], *, fail: Fail) -> None:
+    def _g10_tool(self, l_word: int, number: int, values: Mapping[str, float],
+                  position: Vec3, *, fail: Fail) -> None:
+        """G10 L1 (values), L10 (the current point reads Z in the active system with the new
+        length), L11 (the same in G59.3, without G92) -- LinuxCNC's convert_setup_tool."""
         if not 1 <= number <= MAX_TOOL_NUMBER:
-            fail(f'P value out of range with G10 L1 (a tool number 1 ... {MAX_TOOL_NUMBER})',
-                 'P')
-        old = self.tools.get(number, ToolSpec())
+            fail(f'P value out of range with G10 L{l_word} (a tool number 1 ... '
+                 f'{MAX_TOOL_NUMBER})', 'P')
+        old = self.tools.get(number)
+        if old is None:
+            fail(f'tool {number} is not in the tool table (add it under gcode.tools of the '
+                 'machine config)', 'P')
+        for axis in ('X', 'Y'):
+            if axis in values:
+                fail(f'tool {axis} offsets (lathe tools) are not supported', axis)
+        if 'Z' not in values and 'R' not in values:
+            fail(f'G10 L{l_word} without offsets has no effect', 'G')
         radius = values.get('R', old.radius_m)
         if not 0.0 <= radius <= 1.0:
             fail(f'tool radius {radius:.6g} m: expected 0 ... 1 m', 'R')
-        self.tools[number] = ToolSpec(radius_m=radius, length_m=values.get('Z', old.length_m))
+        length = old.length_m
+        if 'Z' in values:
+            length = values['Z']
+            if l_word == 10:
+                # the machine Z seen in the active system with no tool length offset
+                length = position[2] - self.g5x[2] - self.g92[2] - values['Z']
+            elif l_word == 11:
+                length = position[2] - self.params.get(system_param(9, 2)) / _MM - values['Z']
+            if not abs(length) <= MAX_OFFSET_M:
+                fail(f'tool length beyond {MAX_OFFSET_M:g} m', 'Z')
+        self.tools[number] = ToolSpec(radius_m=radius, length_m=length)
 
     # -- G92, G52 -------------------------------------------------------------------------
     def axis_offsets(self, code: str, values: Mapping[str, float], position: Vec3) -> None:

@@ -155,11 +155,31 @@ def test_missing_loaded_tool_is_an_error_at_the_g_word():
 
 
 def test_g10_l1_writes_the_tool_table():
-    c = Coords()
+    c = Coords(tools={5: ToolSpec(radius_m=0.001, length_m=0.01)})
     c.g10(1.0, 5.0, {'Z': 0.04, 'R': 0.002}, (0, 0, 0), fail=fail)
     assert c.tools[5] == ToolSpec(radius_m=0.002, length_m=0.04)
     c.tool_length('G43', 5.0, {}, fail=fail)
     assert c.offset == approx3((0.0, 0.0, 0.04))
+    c.g10(1.0, 5.0, {'R': 0.003}, (0, 0, 0), fail=fail)     # R alone keeps the length
+    assert c.tools[5] == ToolSpec(radius_m=0.003, length_m=0.04)
+
+
+def test_g10_l10_and_l11_set_the_length_from_the_current_point():
+    c = Coords(tools={3: ToolSpec()})
+    c.g10(2.0, 1.0, {'Z': -0.2}, (0, 0, 0), fail=fail)     # G54 Z-200 mm
+    c.g10(2.0, 9.0, {'Z': -0.3}, (0, 0, 0), fail=fail)     # G59.3 Z-300 mm
+    c.axis_offsets('G52', {'Z': 0.01}, (0, 0, 0))           # G92-type offset Z10 mm
+    pos = (0.0, 0.0, -0.05)                                 # machine Z-50 mm
+    # L10 Z0: with the new length the point reads Z0 in G54: -50 = 0 + (-200) + 10 + L
+    c.g10(10.0, 3.0, {'Z': 0.0}, pos, fail=fail)
+    assert c.tools[3].length_m == pytest.approx(0.14)
+    # L11 Z5: in G59.3 without G92: -50 = 5 + (-300) + L
+    c.g10(11.0, 3.0, {'Z': 0.005}, pos, fail=fail)
+    assert c.tools[3].length_m == pytest.approx(0.245)
+    c.tool_length('G43', 3.0, {}, fail=fail)
+    c.select_system(9)
+    c.axis_offsets('G92.2', {}, pos)
+    assert c.to_program(pos)[2] == pytest.approx(0.005)
 
 
 def test_g28_goes_through_the_via_point_to_the_stored_position():
@@ -223,7 +243,7 @@ def run(c, codes, words, *, position=(0.0, 0.0, 0.0), scale=0.001, motion=1, abs
 
 
 def test_execute_g10_line_uses_its_axis_words_as_data():
-    c = Coords()
+    c = Coords(tools={2: ToolSpec()})
     eff = run(c, {'nonmodal': 'G10'}, {'L': 2.0, 'P': 1.0, 'X': 10.0, 'Y': 20.0})
     assert eff.axes_used and eff.home is None
     assert eff.frame == approx3((0.01, 0.02, 0.0)) and c.offset == eff.frame
@@ -324,7 +344,7 @@ def test_g53_is_machine_coordinates_for_its_line_only():
 
 
 def test_tool_length_offset_and_g10_l1():
-    tools = {1: ToolSpec(radius_m=0.003, length_m=0.1)}
+    tools = {1: ToolSpec(radius_m=0.003, length_m=0.1), 2: ToolSpec()}
     text = ('G21 G90\nT1 M6\nG43 G0 Z10\nG10 L1 P2 Z20 R1\nG43 H2 Z10\nG43.1 Z-5\nG0 Z10\n'
             'G49 Z10\n')
     assert ends_mm(text, tools=tools) == [(0, 0, 110.0), (0, 0, 30.0), (0, 0, 5.0),
@@ -357,7 +377,8 @@ def test_live_position_reads_program_coordinates():
 
 @pytest.mark.parametrize('text, line, column, words', [
     ('G43 H1', 1, 5, 'not in the tool table'),
-    ('G10 L3 P1', 1, 5, 'L1, L2 and L20'),
+    ('G10 L3 P1', 1, 5, 'L10, L11 and L20'),
+    ('G10 L1 P4 Z1', 1, 8, 'tool 4 is not in the tool table'),
     ('G10 L2 P10 X1', 1, 8, 'out of range'),
     ('G10 P1 X1', 1, 1, 'needs an L word'),
     ('G91 G0 G53 X1', 1, 8, 'G53 incremental'),
@@ -416,7 +437,7 @@ BIG = '1' + '0' * 300
 def test_absurd_offsets_are_errors_not_inf(text, line, column):
     from feed_axis_energy.core.gcode import parse_gcode
     with pytest.raises(GcodeError) as err:
-        parse_gcode(text, file='t.nc')
+        parse_gcode(text, file='t.nc', tools={2: (0.0, 0.0)})
     assert (err.value.line, err.value.column) == (line, column)
     assert len(err.value.reason) < 120 and 'inf' not in err.value.reason
 
