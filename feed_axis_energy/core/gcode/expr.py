@@ -164,8 +164,9 @@ class Reader:
         text = m.group(0)
         if not _NUMBER.fullmatch(text):
             if not text:
-                c = self.s[start]
-                raise self.error(f'expected a number, found {c!r}', start)
+                if start >= len(self.s):
+                    raise self.error('expected a number at the end of the line', start)
+                raise self.error(f'expected a number, found {self.s[start]!r}', start)
             raise self.error(f'bad number {shorten(text, limit=20)!r}', start)
         self.pos = m.end()
         v = float(text)

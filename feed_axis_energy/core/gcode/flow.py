@@ -37,11 +37,13 @@ on); a ``%`` line before the first code line is ignored and one after code ends 
 program (LinuxCNC's ``%`` delimiters; text after the ``%`` is allowed, as some CAM systems
 write it); grbl ``$`` lines (``$H``, ``$X``, ``$$``) are skipped with a warning.
 
-Memory: the program is held as its list of lines, nothing per executed line is kept; the
-index of O-word lines of a file is built only when a control structure first needs it.
+Memory: a file is held as its text (line ends made LF) and read line by line; nothing per
+executed line is kept. Only when a control structure first needs to jump does the file get
+a table of line start offsets (8 bytes a line) and an index of its O-word lines.
 """
 from __future__ import annotations
 
+from array import array
 from bisect import bisect_left
 from os import PathLike
 from pathlib import Path
@@ -52,7 +54,7 @@ from .block import Block
 from .expr import compact, MAX_MAGNITUDE, Reader
 from .lexer import blank_comments, LINE_RE, read_items, WORD_RE
 from .params import N_CALL_ARGUMENTS, Parameters
-from .source import find_subroutine_file, read_program, split_lines
+from .source import find_subroutine_file, read_program
 from ..errors import GcodeError, shorten
 
 __all__ = ['read_blocks', 'BlockReader', 'MAX_LOOP_ITERATIONS', 'MAX_EXECUTED_LINES',
@@ -82,16 +84,46 @@ _END = object()     # _slow(): the program ends here
 class _File:
     """A loaded program or subroutine file."""
 
-    __slots__ = ('name', 'lines', 'big', 'ascii', 'olines', 'heads', 'defs')
+    __slots__ = ('name', 'text', 'big', 'ascii', 'starts', 'olines', 'heads', 'defs')
 
     def __init__(self, name: str, text: str):
         self.name = name
+        if '\r' in text:
+            text = text.replace('\r\n', '\n').replace('\r', '\n')
+        self.text = text
         self.big = _BIG_RE.search(text) is not None
         self.ascii = text.isascii()
-        self.lines = split_lines(text)
+        self.starts: array | None = None          # offset of each line's start (lazily)
         self.olines: list[int] | None = None      # indices of lines that may be O-lines
         self.heads: dict[int, tuple[str, str]] = {}  # index -> (label, keyword), literal labels
         self.defs: dict[str, tuple[str, int]] | None = None  # label -> (keyword, index)
+
+    def offset(self, idx: int) -> int:
+        """Offset in ``text`` of the start of line ``idx`` (0-based; past the end: len + 1)."""
+        starts = self.starts
+        if starts is None:
+            starts = array('q', [0])
+            text = self.text
+            find = text.find
+            pos = find('\n')
+            while pos != -1:
+                starts.append(pos + 1)
+                pos = find('\n', pos + 1)
+            if starts[-1] == len(text):
+                starts.pop()            # a final line end starts no line
+            self.starts = starts
+        return starts[idx] if idx < len(starts) else len(self.text) + 1
+
+    def line(self, idx: int) -> str:
+        """Line ``idx`` (0-based) without its line end."""
+        start = self.offset(idx)
+        end = self.text.find('\n', start)
+        return self.text[start:] if end == -1 else self.text[start:end]
+
+    def n_lines(self) -> int:
+        """Number of lines."""
+        self.offset(0)
+        return len(self.starts)
 
 
 class _Loop:
@@ -109,14 +141,15 @@ class _Loop:
 class _Frame:
     """The main program or one active call."""
 
-    __slots__ = ('file', 'pc', 'kind', 'name', 'saved', 'start', 'repeats', 'main_line',
-                 'loops', 'call_line', 'iterations')
+    __slots__ = ('file', 'pc', 'off', 'kind', 'name', 'saved', 'start', 'repeats',
+                 'main_line', 'loops', 'call_line', 'iterations')
 
     def __init__(self, file: _File, pc: int, *, kind: str, name: str = '',
                  saved: list[float] | None = None, repeats: int = 0,
                  main_line: int | None = None, call_line: int = 0):
         self.file = file
         self.pc = pc                  # index of the next line to read
+        self.off = 0 if pc == 0 else file.offset(pc)   # its offset in file.text
         self.kind = kind              # 'main', 'sub' (o-call) or 'm98'
         self.name = name
         self.saved = saved or []
@@ -208,16 +241,22 @@ class BlockReader:
         while frames:
             fr = frames[-1]
             f = fr.file
-            lines = f.lines
-            n = len(lines)
+            text = f.text
+            find = text.find
+            end = len(text)
             fname = f.name
             big = f.big
             ascii_file = f.ascii
             main_line = fr.main_line
             pc = fr.pc
+            off = fr.off
             switched = False
-            while pc < n:
-                raw = lines[pc]
+            while off < end:
+                nl = find('\n', off)
+                if nl == -1:
+                    nl = end
+                raw = text[off:nl]
+                off = nl + 1
                 pc += 1
                 code = raw.upper()
                 if '(' in code or ';' in code:
@@ -239,6 +278,7 @@ class BlockReader:
                         yield new_tuple(Block, (pc, vals, fname, raw, main_line or pc))
                         continue
                 fr.pc = pc
+                fr.off = off
                 if fast:
                     self.executed += fast
                     self.seen_code = True
@@ -261,13 +301,14 @@ class BlockReader:
                         else:
                             params.set_named(ref, value)
                 pc = fr.pc
+                off = fr.off
             if switched:
                 continue
             if fr.kind == 'main':
                 return
             what = 'o<%s> endsub' % fr.name if fr.kind == 'sub' else 'M99'
             msg = f'end of file inside subroutine {fr.name!r}: {what} missing'
-            raise GcodeError(msg, file=fname, line=n, column=1)
+            raise GcodeError(msg, file=fname, line=pc, column=1)
 
     # -- lines that are not plain words ----------------------------------------------------
     def _slow(self, fr: _Frame, raw: str, lineno: int) -> Any:
@@ -322,13 +363,18 @@ class BlockReader:
         """A ``%`` line: ignored before the first code, the end of the program after it."""
         if fr.kind != 'main' or not self.seen_code:
             return None
-        lines = fr.file.lines
-        for k in range(lineno, len(lines)):
-            rest = lines[k].strip()
+        text = fr.file.text
+        off = fr.off
+        k = lineno
+        while off < len(text):
+            nl = text.find('\n', off)
+            rest = (text[off:] if nl == -1 else text[off:nl]).strip()
+            k += 1
             if rest and rest[0] not in '%(;':
-                self.warnings.append(f'{fr.file.name}:{k + 1}: lines after the closing "%" '
+                self.warnings.append(f'{fr.file.name}:{k}: lines after the closing "%" '
                                      f'(line {lineno}) are ignored')
                 break
+            off = len(text) if nl == -1 else nl + 1
         return _END
 
     # -- Fanuc subprograms -----------------------------------------------------------------
@@ -373,7 +419,7 @@ class BlockReader:
             if fr.iterations > MAX_LOOP_ITERATIONS:
                 msg = f'M98 repeats of O{fr.name} exceed {MAX_LOOP_ITERATIONS}'
                 raise GcodeError(msg, file=fr.file.name, line=lineno, column=1)
-            fr.pc = fr.start
+            _goto(fr, fr.start)
             return None
         return self._leave(fr)
 
@@ -470,7 +516,7 @@ class BlockReader:
                               f'subroutine (o<{fr.name}>): definitions cannot be nested', 0)
             self._defs(f).setdefault(label, ('SUB', idx))
             end = self._find(f, lineno, label, ('ENDSUB',), r)
-            fr.pc = end + 1
+            _goto(fr, end + 1)
             return None
         if keyword in ('ENDSUB', 'RETURN'):
             value = r.checked(r.expression(), r.pos) if r.peek() == '[' else None
@@ -511,7 +557,7 @@ class BlockReader:
             return None
         if keyword in ('ELSEIF', 'ELSE'):
             # Reached by running the branch before it: the if is done.
-            fr.pc = self._find(f, lineno, label, ('ENDIF',), r) + 1
+            _goto(fr, self._find(f, lineno, label, ('ENDIF',), r) + 1)
             return None
         if keyword == 'ENDIF':
             _expect_end(r)
@@ -525,7 +571,7 @@ class BlockReader:
             if loop is not None and loop.kind == 'DO' and loop.start != idx:
                 if self._condition(r):
                     self._iterate(loop, label, fr, lineno)
-                    fr.pc = loop.start + 1
+                    _goto(fr, loop.start + 1)
                 else:
                     del loops[label]
                 return None
@@ -534,7 +580,7 @@ class BlockReader:
                     loops[label] = _Loop('WHILE', idx)
             else:
                 loops.pop(label, None)
-                fr.pc = self._find(f, lineno, label, ('ENDWHILE',), r) + 1
+                _goto(fr, self._find(f, lineno, label, ('ENDWHILE',), r) + 1)
             return None
         if keyword == 'ENDWHILE':
             _expect_end(r)
@@ -542,7 +588,7 @@ class BlockReader:
             if loop is None or loop.kind != 'WHILE':
                 raise r.error(f'o{_shown(label)} endwhile without a matching while', 0)
             self._iterate(loop, label, fr, lineno)
-            fr.pc = loop.start
+            _goto(fr, loop.start)
             return None
         if keyword == 'REPEAT':
             if r.peek() != '[':
@@ -553,7 +599,7 @@ class BlockReader:
             times = int(count + (0.5 if count >= 0 else -0.5))
             if times <= 0:
                 loops.pop(label, None)
-                fr.pc = self._find(f, lineno, label, ('ENDREPEAT',), r) + 1
+                _goto(fr, self._find(f, lineno, label, ('ENDREPEAT',), r) + 1)
             else:
                 loops[label] = _Loop('REPEAT', idx, times - 1)
             return None
@@ -565,7 +611,7 @@ class BlockReader:
             if loop.left > 0:
                 loop.left -= 1
                 self._iterate(loop, label, fr, lineno)
-                fr.pc = loop.start + 1
+                _goto(fr, loop.start + 1)
             else:
                 del loops[label]
             return None
@@ -579,12 +625,12 @@ class BlockReader:
         end = self._find(f, lineno, label, (end_kw,), r)
         if keyword == 'BREAK':
             del loops[label]
-            fr.pc = end + 1
+            _goto(fr, end + 1)
         elif loop.kind == 'WHILE':
             self._iterate(loop, label, fr, lineno)
-            fr.pc = loop.start
+            _goto(fr, loop.start)
         else:
-            fr.pc = end      # the do's while / the endrepeat decides
+            _goto(fr, end)      # the do's while / the endrepeat decides
         return None
 
     def _condition(self, r: Reader) -> bool:
@@ -603,7 +649,7 @@ class BlockReader:
             msg = (f'loop o{_shown(label)} ran {MAX_LOOP_ITERATIONS} times without ending '
                    f'(limit MAX_LOOP_ITERATIONS)')
             raise GcodeError(msg, file=fr.file.name, line=loop.start + 1, column=1,
-                             text=shorten(fr.file.lines[loop.start].strip()))
+                             text=shorten(fr.file.line(loop.start).strip()))
 
     def _skip_branch(self, fr: _Frame, label: str, lineno: int, r: Reader) -> None:
         """After a false if/elseif: go to the next branch whose condition holds."""
@@ -613,12 +659,12 @@ class BlockReader:
             j = self._find(f, start, label, ('ELSEIF', 'ELSE', 'ENDIF'), r)
             kw = self._head(f, j)[1]
             if kw != 'ELSEIF':
-                fr.pc = j + 1
+                _goto(fr, j + 1)
                 return
             r2 = self._reader(f, j)
             _read_head(r2)
             if self._condition(r2):
-                fr.pc = j + 1
+                _goto(fr, j + 1)
                 return
             start = j + 1
 
@@ -627,12 +673,12 @@ class BlockReader:
         """Indices of the lines of ``f`` that may be O-word lines (built once, lazily)."""
         if f.olines is None:
             match = _OLINE_RE.match
-            f.olines = [i for i, ln in enumerate(f.lines) if match(ln)]
+            f.olines = [i for i in range(f.n_lines()) if match(f.line(i))]
         return f.olines
 
     def _reader(self, f: _File, idx: int) -> Reader:
         """A reader on line ``idx`` of ``f`` positioned at its ``O``."""
-        raw = f.lines[idx]
+        raw = f.line(idx)
         code = blank_comments(raw, file=f.name, line=idx + 1)
         s, cols = compact(code.upper())
         r = Reader(s, cols, raw, file=f.name, line=idx + 1, params=self.params)
@@ -682,6 +728,12 @@ class BlockReader:
                     defs.setdefault(label, (kw, idx))
             f.defs = defs
         return f.defs
+
+
+def _goto(fr: _Frame, idx: int) -> None:
+    """Continue ``fr`` at line index ``idx``."""
+    fr.pc = idx
+    fr.off = fr.file.offset(idx)
 
 
 def _read_head(r: Reader) -> tuple[str, str]:

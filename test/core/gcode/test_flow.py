@@ -71,6 +71,8 @@ def test_percent_with_text_and_closing_percent_ends_the_program():
     ('G1 X1.2.3', 5, 'bad number'),
     ('G1 X', 5, 'expected a value'),
     ('10 G1', 1, 'number without a letter'),
+    ('N', 2, 'expected a number at the end of the line'),
+    ('N10 X', 6, 'expected a value'),
     ('G1 X1 !', 7, "unexpected character '!'"),
     ('G1 X1 @', 8, 'expected a value'),
     ('G1 X1 (open', 7, 'unclosed comment'),
