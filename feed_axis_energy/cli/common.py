@@ -8,6 +8,7 @@ from pathlib import Path
 
 from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.machine import load_machine, Machine
+from feed_axis_energy.core.machine_gcode import parse_tool_option, with_tools
 from feed_axis_energy.core.trajectory import PlannerOptions
 from feed_axis_energy.paths import default_machine
 
@@ -20,8 +21,15 @@ METRIC_HEADER = ['avg dP [W]', 'avg dP [%]', 'max dP [W]', 'max dP [%]', 'dE [J]
                  'RMSE [W]']
 
 
+def _tool(text: str) -> tuple:
+    try:
+        return parse_tool_option(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
 def add_machine_options(p: argparse.ArgumentParser) -> None:
-    """Add ``--machine``, ``--load-kg``, ``--rate-hz`` and ``--profile``."""
+    """Add ``--machine``, ``--load-kg``, ``--rate-hz``, ``--profile`` and ``--tool``."""
     p.add_argument('--machine', type=Path, metavar='YAML', default=None,
                    help='machine config (default: the paper\'s demonstrator, '
                         'config/demonstrator.yaml)')
@@ -32,6 +40,10 @@ def add_machine_options(p: argparse.ArgumentParser) -> None:
                         'at most 1e6)')
     p.add_argument('--profile', choices=('jerk', 'trapezoid'), default=None,
                    help='velocity profile (default: machine config)')
+    p.add_argument('--tool', type=_tool, action='append', default=[], metavar='T:R[:L]',
+                   help='tool T with radius R and length offset L in mm (default 0) for '
+                        'G41/G42 and G43, added to the machine config\'s gcode.tools or '
+                        'replacing its entry; repeat for more tools (e.g. --tool 1:3:45.2)')
 
 
 def load_machine_and_options(args: argparse.Namespace) -> tuple[Machine, PlannerOptions]:
@@ -50,6 +62,8 @@ def load_machine_and_options(args: argparse.Namespace) -> tuple[Machine, Planner
         options = replace(options, rate_hz=args.rate_hz)
     if args.profile is not None:
         options = replace(options, profile=args.profile)
+    if getattr(args, 'tool', None):
+        machine = replace(machine, gcode=with_tools(machine.gcode, dict(args.tool)))
     return machine, options
 
 

@@ -23,10 +23,11 @@ from types import MappingProxyType
 from typing import Any, Mapping
 
 from .configcheck import check_choice, check_float, check_mapping, is_finite_number
-from .errors import ConfigError, describe
+from .errors import ConfigError, describe, shorten
 
 __all__ = ['ToolSpec', 'GcodeSettings', 'DIALECTS', 'MAX_TOOLS', 'MAX_TOOL_NUMBER',
-           'gcode_from_dict', 'gcode_to_dict', 'travel_from_value']
+           'gcode_from_dict', 'gcode_to_dict', 'travel_from_value', 'parse_tool_option',
+           'with_tools']
 
 DIALECTS = ('linuxcnc', 'fanuc', 'haas', 'grbl', 'mach3')
 """Dialect names a config may choose (the profiles live in ``core/gcode/dialect.py``)."""
@@ -176,3 +177,52 @@ def _travel_end(v: Any, *, file: str, key: str) -> float:
         msg = f'expected a finite number within +-{_TRAVEL_LIMIT_M:g} m, got {describe(v)}'
         raise ConfigError(msg, file=file, key=key)
     return float(v)
+
+
+def parse_tool_option(text: str) -> tuple[int, ToolSpec]:
+    """Read a command-line tool ``T:RADIUS_MM[:LENGTH_MM]`` (``3:2.5:45.2``).
+
+    Parameters
+    ----------
+    text
+        The option's value.
+
+    Returns
+    -------
+    tuple
+        The tool number and its :class:`ToolSpec` (SI units).
+
+    Raises
+    ------
+    ValueError
+        With a message naming what is wrong (the value is quoted cut to 60 characters).
+    """
+    parts = text.split(':')
+    shown = shorten(text)
+    if len(parts) not in (2, 3):
+        msg = f'expected T:RADIUS_MM or T:RADIUS_MM:LENGTH_MM, got {shown!r}'
+        raise ValueError(msg)
+    number = parts[0].strip()
+    if not number.isdigit() or len(number) > 6 or not 1 <= int(number) <= MAX_TOOL_NUMBER:
+        msg = f'tool number must be 1 ... {MAX_TOOL_NUMBER}, got {shorten(parts[0])!r}'
+        raise ValueError(msg)
+    values = []
+    for part, low, high in zip(parts[1:], (0.0, -1.0e4), (1.0e3, 1.0e4)):
+        try:
+            v = float(part)
+        except ValueError:
+            msg = f'expected a number of millimetres, got {shorten(part)!r} in {shown!r}'
+            raise ValueError(msg) from None
+        if not low <= v <= high:  # also refuses nan and inf
+            msg = f'expected {low:g} ... {high:g} mm, got {shorten(part)!r} in {shown!r}'
+            raise ValueError(msg)
+        values.append(v / 1000.0)
+    return int(number), ToolSpec(*values)
+
+
+def with_tools(settings: GcodeSettings, tools: Mapping[int, ToolSpec]) -> GcodeSettings:
+    """Return ``settings`` with ``tools`` added to (or replacing entries of) its table."""
+    table = dict(settings.tools)
+    table.update(tools)
+    return GcodeSettings(dialect=settings.dialect,
+                         tools=MappingProxyType(dict(sorted(table.items()))))

@@ -106,3 +106,44 @@ def test_simulate_takes_the_tool_table_from_the_machine_config(tmp_path, capsys)
     err = capsys.readouterr().err
     assert 'cam.nc:3:5' in err and 'tool 2 is not in the tool table' in err
     assert 'Traceback' not in err
+
+
+@pytest.mark.parametrize('text, number, radius, length', [
+    ('1:3', 1, 0.003, 0.0), ('12:2.5:45.2', 12, 0.0025, 0.0452), ('7:0:-10', 7, 0.0, -0.01),
+])
+def test_tool_option_is_read_in_millimetres(text, number, radius, length):
+    from feed_axis_energy.core.machine_gcode import parse_tool_option
+    t, spec = parse_tool_option(text)
+    assert t == number
+    assert spec.radius_m == pytest.approx(radius) and spec.length_m == pytest.approx(length)
+
+
+@pytest.mark.parametrize('text, words', [
+    ('1', 'T:RADIUS_MM'), ('1:2:3:4', 'T:RADIUS_MM'), ('0:1', 'tool number'),
+    ('x:1', 'tool number'), ('1:-1', '0 ... 1000 mm'), ('1:nan', '0 ... 1000 mm'),
+    ('1:2:inf', '-10000 ... 10000 mm'), ('1:abc', 'a number of millimetres'),
+    ('1:' + '9' * 500, '0 ... 1000 mm'),
+])
+def test_bad_tool_option_says_why(text, words):
+    from feed_axis_energy.core.machine_gcode import parse_tool_option
+    with pytest.raises(ValueError) as err:
+        parse_tool_option(text)
+    assert words in str(err.value) and len(str(err.value)) < 250
+
+
+def test_simulate_tool_option_adds_to_the_table(tmp_path, capsys):
+    from feed_axis_energy.cli import main
+    prog = tmp_path / 'cam.nc'
+    prog.write_text('G21 G90\nG43 H5 G0 Z20\nG1 X50 F3000\nM30\n')
+    mill = str(CONFIG / 'three_axis_mill.yaml')
+    # tool 5 is not in the mill's table: refused; given on the command line: simulated
+    assert main(['simulate', str(prog), '--machine', mill, '--quiet']) == 1
+    assert 'tool 5 is not in the tool table' in capsys.readouterr().err
+    assert main(['simulate', str(prog), '--machine', mill, '--quiet', '--json',
+                 '--tool', '5:3:45']) == 0
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exc:
+        main(['simulate', str(prog), '--machine', mill, '--tool', '5:3:abc'])
+    assert exc.value.code == 2
+    assert "argument --tool: expected a number of millimetres, got 'abc'" in \
+        capsys.readouterr().err
