@@ -11,7 +11,7 @@ from typing import Union
 
 from .expr import Reader
 from .params import ParameterError
-from ..errors import GcodeError
+from ..errors import GcodeError, shorten
 
 __all__ = ['blank_comments', 'WORD_RE', 'LINE_RE', 'G_CODES', 'G_UNSUPPORTED', 'M_CODES',
            'ALLOWED_LETTERS', 'UNSUPPORTED_LETTERS', 'diagnose_line', 'locate_word',
@@ -117,7 +117,7 @@ def blank_comments(text: str, *, file: str, line: int) -> str:
         if nested != -1:
             msg = 'nested comment: "(" inside a comment'
             raise GcodeError(msg, file=file, line=line, column=nested + 1,
-                             text=text[p:close + 1])
+                             text=shorten(text[p:close + 1]))
         parts.append(text[i:p])
         parts.append(' ' * (close + 1 - p))
         i = close + 1
@@ -146,7 +146,8 @@ def diagnose_line(code: str, *, file: str, line: int) -> GcodeError:
     if stripped[:1] in ('O', 'o') and not re.fullmatch(r'[Oo]\s*\d+\s*', stripped):
         col = len(code) - len(stripped) + 1
         msg = 'O-word subroutines and control flow are not supported'
-        return GcodeError(msg, file=file, line=line, column=col, text=stripped.strip())
+        return GcodeError(msg, file=file, line=line, column=col,
+                          text=shorten(stripped.strip()))
     pos = 0
     n = len(code)
     while pos < n:
@@ -179,7 +180,7 @@ def diagnose_line(code: str, *, file: str, line: int) -> GcodeError:
                               text=code[m.start(1):m.start(1) + 12].strip())
         pos = m.end()
     msg = 'cannot read this line'
-    return GcodeError(msg, file=file, line=line, column=1, text=code.strip())
+    return GcodeError(msg, file=file, line=line, column=1, text=shorten(code.strip()))
 
 
 def locate_word(code: str, letter: str, *, value: float | None = None,
@@ -201,7 +202,7 @@ def locate_word(code: str, letter: str, *, value: float | None = None,
     Returns
     -------
     tuple[int, str]
-        Column (1 if not found) and the word's text.
+        Column (1 if not found) and the word's text (cut to about 60 characters).
     """
     k = 0
     for m in WORD_RE.finditer(code.upper()):
@@ -214,9 +215,9 @@ def locate_word(code: str, letter: str, *, value: float | None = None,
             except ValueError:
                 continue
         if k == nth:
-            return m.start() + 1, code[m.start():m.end()]
+            return m.start() + 1, shorten(code[m.start():m.end()])
         k += 1
-    return 1, code.strip()
+    return 1, shorten(code.strip())
 
 
 Assignment = tuple[Union[int, str], float]

@@ -312,3 +312,9 @@ def test_a_program_with_a_million_lines_streams_without_copies():
     rd = iter(read_blocks(text, file='big'))
     first = [next(rd) for _ in range(3)]
     assert [b.line for b in first] == [1, 2, 3]
+
+
+def test_locate_word_text_is_bounded():
+    from feed_axis_energy.core.gcode.lexer import locate_word
+    column, text = locate_word('G10 L2 P1 X1' + '0' * 400, 'X')
+    assert column == 11 and text.startswith('X10') and len(text) <= 63
