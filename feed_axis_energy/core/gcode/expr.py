@@ -54,9 +54,12 @@ _OPERATORS = {'*': ('**', '*'), '/': ('/',), '+': ('+',), '-': ('-',), 'M': ('MO
 _NUMBER_SPAN = re.compile(r'[+-]*[0-9.]*')
 _NUMBER = re.compile(r'[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)')
 _DEG = math.pi / 180.0
+_BLANKS = re.compile(r'\s+')
+_DIGITS = frozenset('0123456789.')
+_NUMBER_START = frozenset('0123456789.+-')
 
 
-def compact(code: str) -> tuple[str, list[int]]:
+def compact(code: str) -> tuple[str, str]:
     """Remove blanks from a comment-free, upper-cased line.
 
     Parameters
@@ -66,11 +69,11 @@ def compact(code: str) -> tuple[str, list[int]]:
 
     Returns
     -------
-    tuple[str, list[int]]
-        The compacted text and, for each of its characters, the 1-based column in ``code``.
+    tuple[str, str]
+        The compacted text, and ``code`` itself (from which :class:`Reader` finds the
+        original column of a character only when it reports an error).
     """
-    cols = [i for i, ch in enumerate(code, 1) if not ch.isspace()]
-    return ''.join([code[i - 1] for i in cols]), cols
+    return _BLANKS.sub('', code), code
 
 
 class Reader:
@@ -80,8 +83,8 @@ class Reader:
     ----------
     s
         The compacted line (upper case, no blanks, no comments).
-    cols
-        Original 1-based column of each character of ``s``.
+    code
+        The line ``s`` was compacted from (comments blanked; for error columns).
     raw
         The line as written (for the text shown in errors).
     file, line
@@ -90,12 +93,12 @@ class Reader:
         The parameter table values are read from.
     """
 
-    __slots__ = ('s', 'cols', 'raw', 'file', 'line', 'params', 'pos')
+    __slots__ = ('s', 'code', 'raw', 'file', 'line', 'params', 'pos')
 
-    def __init__(self, s: str, cols: list[int], raw: str, *, file: str, line: int,
+    def __init__(self, s: str, code: str, raw: str, *, file: str, line: int,
                  params: Parameters):
         self.s = s
-        self.cols = cols
+        self.code = code
         self.raw = raw
         self.file = file
         self.line = line
@@ -106,10 +109,11 @@ class Reader:
     def error(self, msg: str, at: int | None = None) -> GcodeError:
         """A :class:`GcodeError` at compact position ``at`` (default: the current one)."""
         at = self.pos if at is None else at
-        if at < len(self.cols):
-            column = self.cols[at]
+        cols = [i for i, ch in enumerate(self.code, 1) if not ch.isspace()]
+        if at < len(cols):
+            column = cols[at]
         else:
-            column = (self.cols[-1] + 1) if self.cols else 1
+            column = (cols[-1] + 1) if cols else 1
         shown = shorten(self.raw[column - 1:].strip(), limit=20) if self.raw else ''
         return GcodeError(msg, file=self.file, line=self.line, column=column,
                           text=shown or shorten(self.raw.strip()))
@@ -134,6 +138,15 @@ class Reader:
     def value(self) -> float:
         """Read one value (LinuxCNC ``read_real_value``) starting at the current position."""
         start = self.pos
+        s = self.s
+        if start < len(s) and s[start] in _NUMBER_START:
+            m = _NUMBER.match(s, start)   # the common case: a plain number
+            if m is not None and s[m.end():m.end() + 1] not in _DIGITS:
+                self.pos = m.end()
+                v = float(m.group(0))
+                if -MAX_MAGNITUDE <= v <= MAX_MAGNITUDE:
+                    return v
+                self.pos = start
         c = self.peek()
         if c == '':
             raise self.error('expected a value at the end of the line')
