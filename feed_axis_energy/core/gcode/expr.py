@@ -21,8 +21,8 @@ The semantics are LinuxCNC 2.9's (``interp_read.cc``, ``interp_execute.cc``):
   400-digit number is an error, never ``inf`` or NaN.
 
 The reader works on the line *compacted*: comments blanked, upper case, every blank
-removed (LinuxCNC removes blanks before reading), with a table of the original columns so
-errors name the column in the line as written.
+removed (LinuxCNC removes blanks before reading); an error finds the column of the
+offending character in the line as written.
 """
 from __future__ import annotations
 

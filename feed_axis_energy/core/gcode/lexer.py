@@ -257,11 +257,13 @@ def read_items(r: Reader) -> tuple[list[tuple[str, float]], list[Assignment]]:
             words.append((c, r.checked(r.value(), at)))
         elif c == '#':
             ref = r.parameter_ref()
-            if isinstance(ref, int):
-                try:
+            try:
+                if isinstance(ref, int):
                     r.params.check_settable(ref)
-                except ParameterError as err:
-                    raise r.error(str(err), at) from None
+                else:
+                    r.params.check_settable_named(ref)
+            except ParameterError as err:
+                raise r.error(str(err), at) from None
             if r.peek() != '=':
                 raise r.error('expected "=" after the parameter (an assignment such as '
                               '#1=2)')

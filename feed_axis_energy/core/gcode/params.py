@@ -13,13 +13,19 @@ LinuxCNC's rules (G-code overview, "Parameters"; ``interp_read.cc``):
 * Live system values (current position ``#5420..#5428``, tool ``#5400``, ``#<_x>``,
   ``#<_metric>``, ...) come from a ``provider`` the interpreter installs: it is asked first
   for every read, and answers ``None`` for anything it does not supply.
+* Predefined named parameters (LinuxCNC's read-only list, :data:`READ_ONLY_NAMES`) cannot
+  be assigned by a program. The table itself supplies those that belong to the reading
+  half: ``#<_value>`` and ``#<_value_returned>`` (set by ``endsub``/``return``),
+  ``#<_call_level>``, ``#<_vmajor>`` = 2 and ``#<_vminor>`` = 9 (LinuxCNC 2.9), and
+  ``#<_task>`` = 1: the program runs on the machine (LinuxCNC's preview reads 0; a program
+  that skips work in the preview is simulated as it runs).
 """
 from __future__ import annotations
 
 from typing import Callable, Union
 
 __all__ = ['Parameters', 'Provider', 'MAX_PARAMETER', 'N_CALL_ARGUMENTS',
-           'READ_ONLY_PARAMETERS', 'ParameterError', 'normalize_name']
+           'READ_ONLY_PARAMETERS', 'READ_ONLY_NAMES', 'ParameterError', 'normalize_name']
 
 MAX_PARAMETER = 5601
 """Highest numbered parameter (LinuxCNC's ``RS274NGC_MAX_PARAMETERS`` - 1)."""
@@ -30,6 +36,18 @@ N_CALL_ARGUMENTS = 30
 READ_ONLY_PARAMETERS = frozenset([*range(5021, 5030), *range(5400, 5414),
                                   *range(5420, 5429)])
 """Numbered parameters a program may read but not assign (LinuxCNC's list)."""
+
+READ_ONLY_NAMES = frozenset(
+    ['_line', '_motion_mode', '_plane', '_ccomp', '_metric', '_imperial', '_absolute',
+     '_incremental', '_inverse_time', '_units_per_minute', '_units_per_rev', '_coord_system',
+     '_tool_offset', '_retract_r_plane', '_retract_old_z', '_spindle_rpm_mode',
+     '_spindle_css_mode', '_ijk_absolute_mode', '_lathe_diameter_mode', '_lathe_radius_mode',
+     '_spindle_on', '_spindle_cw', '_mist', '_flood', '_speed_override', '_feed_override',
+     '_adaptive_feed', '_feed_hold', '_feed', '_rpm', '_current_tool', '_current_pocket',
+     '_selected_pocket', '_selected_tool', '_value', '_value_returned', '_task',
+     '_call_level', '_remap_level', '_vmajor', '_vminor', '_metric_machine',
+     *(f'_{a}' for a in 'xyzabcuvw'), *(f'_abs_{a}' for a in 'xyzabcuvw')])
+"""Predefined named parameters a program may read but not assign (LinuxCNC 2.9's list)."""
 
 Provider = Callable[[Union[int, str]], Union[float, None]]
 """``provider(key)``: a live system value for a parameter number or a normalised name."""
@@ -61,7 +79,8 @@ class Parameters:
 
     def __init__(self, *, provider: Provider | None = None):
         self.numbered = [0.0] * (MAX_PARAMETER + 1)
-        self.globals: dict[str, float] = {}
+        self.globals: dict[str, float] = {'_value': 0.0, '_value_returned': 0.0,
+                                          '_vmajor': 2.0, '_vminor': 9.0, '_task': 1.0}
         # One dict of local named parameters per call level; [0] is the main program's.
         self.scopes: list[dict[str, float]] = [{}]
         self.provider = provider
@@ -119,6 +138,8 @@ class Parameters:
             value = self.provider(key)
             if value is not None:
                 return float(value)
+        if key == '_call_level':
+            return float(len(self.scopes) - 1)
         table = self.globals if key.startswith('_') else self.scopes[-1]
         try:
             return table[key]
@@ -130,11 +151,29 @@ class Parameters:
         key = normalize_name(name)
         if self.provider is not None and self.provider(key) is not None:
             return True
+        if key == '_call_level':
+            return True
         table = self.globals if key.startswith('_') else self.scopes[-1]
         return key in table
 
+    def check_settable_named(self, name: str) -> None:
+        """Refuse an assignment to a predefined named parameter.
+
+        Raises
+        ------
+        ParameterError
+            If the name is in :data:`READ_ONLY_NAMES`.
+        """
+        key = normalize_name(name)
+        if key in READ_ONLY_NAMES:
+            raise ParameterError(f'named parameter #<{key}> is read-only')
+
     def set_named(self, name: str, value: float) -> None:
-        """Assign ``#<name>`` (global if the name begins with ``_``, else local)."""
+        """Assign ``#<name>`` (global if the name begins with ``_``, else local).
+
+        No read-only check: the reader calls :meth:`check_settable_named` for a program's
+        assignments; the flow and the interpreter set predefined values here.
+        """
         key = normalize_name(name)
         table = self.globals if key.startswith('_') else self.scopes[-1]
         table[key] = float(value)

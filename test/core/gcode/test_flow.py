@@ -119,6 +119,17 @@ def test_read_only_parameter_cannot_be_assigned():
     assert 'read-only' in str(err)
 
 
+def test_predefined_named_parameter_cannot_be_assigned():
+    err = fails('G0 X0\n#<_value> = 1\n')
+    assert (err.line, err.column) == (2, 1)
+    assert 'read-only' in str(err)
+
+
+def test_call_level_inside_a_subroutine():
+    assert xs('o<f> sub\nG0 X#<_call_level>\no<f> endsub\no<f> call\nG0 X#<_call_level>\n') \
+        == [1.0, 0.0]
+
+
 def test_provider_supplies_live_values():
     pos = {'x': 0.0}
     params = Parameters(provider=lambda key: pos['x'] if key in (5420, '_x') else None)

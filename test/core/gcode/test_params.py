@@ -71,3 +71,17 @@ def test_provider_is_asked_first():
     assert p.get(5421) == 1.0          # provider answered None: the table
     assert p.get_named('_X') == 12.0
     assert p.exists_named('_x') and not p.exists_named('_y')
+
+
+def test_predefined_names():
+    p = Parameters()
+    assert p.get_named('_vmajor') == 2.0 and p.get_named('_vminor') == 9.0
+    assert p.get_named('_value') == 0.0 and p.get_named('_task') == 1.0
+    assert p.get_named('_call_level') == 0.0
+    saved = p.enter_call([])
+    assert p.get_named('_call_level') == 1.0
+    p.leave_call(saved)
+    for name in ('_value', '_X', '_abs_z', '_metric'):
+        with pytest.raises(ParameterError, match='read-only'):
+            p.check_settable_named(name)
+    p.check_settable_named('_mine')
