@@ -44,36 +44,44 @@ Dialect (LinuxCNC semantics where dialects differ)
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 import gc
 from os import PathLike
 
 from .canon import CENTER_ARC_RADIUS_TOLERANCE_MM
+from .dialect import Dialect, dialect_by_name
+from .flow import read_blocks
 from .interp import Interpreter
-from .lexer import blank_comments, diagnose_line, LINE_RE, WORD_RE
+from .lexer import blank_comments, LINE_RE, WORD_RE
+from .params import Parameters
+from .source import read_program
 from ..errors import GcodeError
 from ..program import Program
 
-__all__ = ['parse_gcode', 'load_gcode', 'DEFAULT_ARC_TOLERANCE_M']
+__all__ = ['parse_gcode', 'load_gcode', 'DEFAULT_ARC_TOLERANCE_M', 'Dialect',
+           'dialect_by_name']
 
 # LinuxCNC's centre-format radius tolerance in G21 (canon.CENTER_ARC_RADIUS_TOLERANCE_MM):
 # what arc_tolerance_m=None means for a metric program (G20: 0.002828 inch).
 DEFAULT_ARC_TOLERANCE_M = CENTER_ARC_RADIUS_TOLERANCE_MM * 1e-3
 
+Vec3 = tuple[float, float, float]
 
-def parse_gcode(text: str, *, file: str = '<string>',
-                start: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                arc_tolerance_m: float | None = None,
-                home: tuple[float, float, float] | None = None,
-                tools: Mapping[int, object] | None = None) -> Program:
+
+def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0.0),
+                arc_tolerance_m: float | None = None, home: Vec3 | None = None,
+                tools: Mapping[int, object] | None = None,
+                dialect: str | Dialect | None = None,
+                search_path: Sequence[str | PathLike[str]] = ()) -> Program:
     """Parse an NC program into moves in SI units.
 
     Parameters
     ----------
     text
-        The program text.
+        The program text (LF, CRLF or CR line ends).
     file
-        Name used in error messages and stored in the result.
+        Name used in error messages and stored in the result; subroutine files are looked
+        for in its directory first.
     start
         Tool position [m] before the first line.
     arc_tolerance_m
@@ -81,12 +89,17 @@ def parse_gcode(text: str, *, file: str = '<string>',
         by this, or by up to 0.1 % of the radius but never by more than 100 times this);
         ``None``: LinuxCNC's, 0.02828 mm under G21 and 0.002828 inch under G20.
     home
-        The G28 reference point [m] in program coordinates (a machine's ``home_m``); without
-        it G28 is an error.
+        The G28 position [m] in machine coordinates (a machine's ``home_m``); without it
+        #5161..#5163 are 0 as in LinuxCNC's fresh parameter file.
     tools
-        Tool table for cutter radius compensation: tool number -> radius [m] (a number, a
-        mapping with ``radius_m`` or an object with a ``radius_m`` attribute). Without it
-        G41/G42 work only with tool 0 (radius 0, the path unchanged) or G41.1/G42.1.
+        Tool table: tool number -> ``ToolSpec`` (or ``(radius_m, length_m)``, or a radius).
+        Without it G41/G42 work only with tool 0 (radius 0, the path unchanged) or
+        G41.1/G42.1, and G43 H only with H0.
+    dialect
+        A :class:`Dialect` or its name (``linuxcnc``, ``fanuc``, ``haas``, ``grbl``,
+        ``mach3``); ``None``: ``linuxcnc``.
+    search_path
+        Directories searched for subroutine files (``o<name> call``) after the program's.
 
     Returns
     -------
@@ -97,44 +110,57 @@ def parse_gcode(text: str, *, file: str = '<string>',
     ------
     GcodeError
         For anything that cannot be simulated exactly; names file, line, column and word.
+    ConfigError
+        For an unknown dialect name.
     """
+    dialect = dialect_by_name(dialect)
     if '\r' in text:
-        text = text.replace('\r\n', '\n')
+        text = text.replace('\r\n', '\n').replace('\r', '\n')
     lines = text.split('\n')
     if lines and lines[-1] == '':
         lines.pop()
+    opts = dict(file=file, start=start, arc_tolerance_m=arc_tolerance_m, home=home,
+                tools=tools, dialect=dialect)
     # The parse allocates one Move per block and frees nothing: cyclic garbage collection
     # passes over the growing list find nothing and cost ~15 % of the time, so they are
     # paused for the duration (and resumed even when the program is refused).
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
-        return _parse_lines(text, lines, file=file, start=start,
-                            arc_tolerance_m=arc_tolerance_m, home=home, tools=tools)
+        program = _parse_plain(text, lines, **opts)
+        if program is None:
+            program = _parse_blocks(text, lines, search_path=search_path, **opts)
+        return program
     finally:
         if gc_was_enabled:
             gc.enable()
 
 
-def _parse_lines(text: str, lines: list[str], *, file: str,
-                 start: tuple[float, float, float], arc_tolerance_m: float | None,
-                 home: tuple[float, float, float] | None,
-                 tools: Mapping[int, object] | None) -> Program:
-    """Interpret ``lines`` (``text`` split at newlines) into a :class:`Program`."""
+def _parse_plain(text: str, lines: list[str], *, file: str, start: Vec3,
+                 arc_tolerance_m: float | None, home: Vec3 | None,
+                 tools: Mapping[int, object] | None, dialect: Dialect) -> Program | None:
+    """The fast path: a program of plain ``letter number`` lines, read line by line.
+
+    Returns ``None`` as soon as a line needs the front's reader (parameters, expressions,
+    O-words, M98/M99, ``$`` lines, anything it must diagnose): the caller starts again
+    with :func:`_parse_blocks`. Plain programs (most CAM output) never get there.
+    """
     # Upper-casing the whole text once keeps lines aligned: it never adds or removes '\n'.
     upper_lines = text.upper().split('\n')
     ascii_text = text.isascii()
-    p = Interpreter(file, start, arc_tolerance_m, lines=lines, home=home, tools=tools)
+    p = Interpreter(file, start, arc_tolerance_m, lines=lines, home=home, tools=tools,
+                    dialect=dialect)
     line_re = LINE_RE.fullmatch
     findall = WORD_RE.findall
     interpret = p.line
+    fanuc = dialect.fanuc_subprograms
     seen_code = False
     end_at = 0
     for lineno, code in enumerate(upper_lines[:len(lines)], 1):
         if '(' in code or ';' in code:
             code = blank_comments(code, file=file, line=lineno)
         if line_re(code) is None or not (ascii_text or lines[lineno - 1].isascii()):
-            # Not plain words: block delete, a % marker, non-ASCII text or an error.
+            # Not plain words: block delete, a % marker, or a line for the front's reader.
             code = blank_comments(lines[lineno - 1], file=file, line=lineno)
             stripped = code.strip()
             if stripped[:1] == '/':
@@ -143,14 +169,15 @@ def _parse_lines(text: str, lines: list[str], *, file: str,
                 if seen_code:
                     end_at = lineno
                     break
-                seen_code = True
                 continue
             if not code.isascii() or line_re(code.upper()) is None:
-                raise diagnose_line(code, file=file, line=lineno)
+                return None
             code = code.upper()
         words = findall(code)
         if not words:
             continue
+        if fanuc and 'M9' in code and _fanuc_call(words):
+            return None
         seen_code = True
         p.lineno = lineno
         interpret(words)
@@ -162,6 +189,50 @@ def _parse_lines(text: str, lines: list[str], *, file: str,
         _warn_trailing(p, lines, end_at)
     return Program(file=file, moves=tuple(p.moves), n_lines=len(lines),
                    warnings=tuple(p.warnings))
+
+
+def _fanuc_call(words: list[tuple[str, str]]) -> bool:
+    """True if the line has M98 or M99 (Fanuc subprograms: the front's reader runs them)."""
+    for letter, value in words:
+        if letter == 'M':
+            try:
+                if float(''.join(value.split())) in (98.0, 99.0):
+                    return True
+            except ValueError:
+                return True
+    return False
+
+
+def _parse_blocks(text: str, lines: list[str], *, file: str, start: Vec3,
+                  arc_tolerance_m: float | None, home: Vec3 | None,
+                  tools: Mapping[int, object] | None, dialect: Dialect,
+                  search_path: Sequence[str | PathLike[str]]) -> Program:
+    """The full path: blocks from the front's reader (parameters, expressions, O-words,
+    subroutine files, Fanuc subprograms), each interpreted with its evaluated words."""
+    params = Parameters()
+    p = Interpreter(file, start, arc_tolerance_m, lines=lines, home=home, tools=tools,
+                    dialect=dialect, params=params)
+    coords = p.coords
+    params.provider = lambda key: coords.system_value(key, p.pos, p.scale)
+    reader = read_blocks(text, file=file, params=params, dialect=dialect,
+                         search_path=tuple(search_path))
+    interpret = p.line
+    end_at = 0
+    for block in reader:
+        p.src = block
+        p.lineno = block.main_line
+        interpret(block.words)
+        p.end_block()
+        if p.ended:
+            if block.file == file and block.line == block.main_line:
+                end_at = block.line
+            break
+    p.src = None
+    p.close()
+    if end_at:
+        _warn_trailing(p, lines, end_at)
+    return Program(file=file, moves=tuple(p.moves), n_lines=len(lines),
+                   warnings=tuple(reader.warnings) + tuple(p.warnings))
 
 
 def _warn_trailing(p: Interpreter, lines: list[str], end_at: int) -> None:
@@ -178,18 +249,18 @@ def _warn_trailing(p: Interpreter, lines: list[str], end_at: int) -> None:
             return
 
 
-def load_gcode(path: str | PathLike[str], *,
-               start: tuple[float, float, float] = (0.0, 0.0, 0.0),
-               arc_tolerance_m: float | None = None,
-               home: tuple[float, float, float] | None = None,
-               tools: Mapping[int, object] | None = None) -> Program:
-    """Read a UTF-8 program file and parse it (see :func:`parse_gcode`).
+def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
+               arc_tolerance_m: float | None = None, home: Vec3 | None = None,
+               tools: Mapping[int, object] | None = None,
+               dialect: str | Dialect | None = None,
+               search_path: Sequence[str | PathLike[str]] = ()) -> Program:
+    """Read a program file (UTF-8, a BOM allowed) and parse it (see :func:`parse_gcode`).
 
     Parameters
     ----------
     path
         The program file; its path is used as ``file`` in messages and in the result.
-    start, arc_tolerance_m, home, tools
+    start, arc_tolerance_m, home, tools, dialect, search_path
         As for :func:`parse_gcode`.
 
     Returns
@@ -200,22 +271,10 @@ def load_gcode(path: str | PathLike[str], *,
     Raises
     ------
     GcodeError
-        Also when the file cannot be read (line 0, column 0, chained from the ``OSError``)
-        or is not UTF-8 text (line 0, column 0; the message gives the line of the bad byte).
+        Also when the file cannot be read (line 0, column 0, chained from the ``OSError``),
+        is too large, or is not UTF-8 text (the message gives the line of the bad byte).
     """
     name = str(path)
-    try:
-        with open(path, 'rb') as fh:
-            data = fh.read()
-    except OSError as err:
-        msg = f'cannot read the program: {err.strerror or err}'
-        raise GcodeError(msg, file=name, line=0, column=0) from err
-    try:
-        text = data.decode('utf-8-sig')
-    except UnicodeDecodeError as err:
-        bad_line = data.count(b'\n', 0, err.start) + 1
-        msg = (f'not UTF-8 text: byte 0x{data[err.start]:02x} at offset {err.start} '
-               f'(line {bad_line})')
-        raise GcodeError(msg, file=name, line=0, column=0) from err
+    text = read_program(path, file=name)
     return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
-                       home=home, tools=tools)
+                       home=home, tools=tools, dialect=dialect, search_path=search_path)

@@ -54,7 +54,7 @@ M_CODES: dict[int, tuple[str, str | None]] = {
 }
 
 # Letters the interpreter understands (the extra axes are refused with a reason).
-ALLOWED_LETTERS = frozenset('GMXYZIJKRFPSTNOQHLD')
+ALLOWED_LETTERS = frozenset('GMXYZIJKRFPSTNOQHLDE')
 UNSUPPORTED_LETTERS: dict[str, str] = {
     **{a: f'axis {a} is not supported (only X, Y, Z are simulated)' for a in 'ABCUVW'},
 }

@@ -15,6 +15,7 @@ from .codes import (ALLOWED_LETTERS, COMP_FORBIDDEN, G_CODES, G_UNSUPPORTED, M_C
 from .coords import COORD_G_CODES, Coords, MAX_OFFSET_M
 from .cutter import CutterComp, LEFT, RIGHT
 from .cycles import CycleMemory, CycleSpec, expand_cycle
+from .dialect import Dialect, dialect_by_name
 from .interp_arc import ArcMixin
 from .lexer import blank_comments, locate_word
 from ..errors import GcodeError
@@ -66,12 +67,14 @@ class Interpreter(ArcMixin):
                  'coords', 'frame', 'coord_line', 'coord_todo', 'retract', 'cycle_memory',
                  'series', 'comp', 'routing',
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
-                 'tool_loaded', 'spindle', 'p_unit')
+                 'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
+                 'warned')
 
     def __init__(self, file: str, start: tuple[float, float, float],
                  arc_tolerance_m: float | None,
-                 *, lines: list[str], home: tuple[float, float, float] | None = None,
-                 tools: Mapping[int, object] | None = None):
+                 *, lines: list[str] | None, home: tuple[float, float, float] | None = None,
+                 tools: Mapping[int, object] | None = None, dialect: Dialect | None = None,
+                 params: object | None = None):
         self.file = file
         self.arc_tol = None if arc_tolerance_m is None else float(arc_tolerance_m)
         self.pos = (float(start[0]), float(start[1]), float(start[2]))
@@ -92,7 +95,7 @@ class Interpreter(ArcMixin):
         self.g_cache: dict[str, tuple[str, object, int]] = {}
         self.g43_lineno = -1                # line of the last G43 (its H word is legal there)
         self.home = None if home is None else tuple(float(v) for v in home)
-        self.coords = Coords(tools=tools, home_m=self.home)
+        self.coords = Coords(tools=tools, home_m=self.home, params=params)
         self.frame = self.coords.offset     # machine - program for absolute axis words
         self.coord_line = -1                # line with coordinate codes to execute
         self.coord_todo: dict[str, object] = {}
@@ -109,13 +112,29 @@ class Interpreter(ArcMixin):
         self.tool_loaded = 0                # tool in the spindle (after M6); 0 = none
         self.spindle = 0                    # 1 M3, -1 M4, 0 stopped (M5 / start-up)
         self.p_unit = 1.0                   # seconds per unit of a dwell's P word
+        self.dialect = dialect_by_name(dialect)
+        if self.dialect.dwell_p == 'milliseconds':
+            self.p_unit = 0.001
+        self.src = None                     # the front's current Block (None: plain lines)
+        self.io_lineno = -1                 # line with an I/O M code (its P/Q/E/L words)
+        self.warned: set[str] = set()       # warnings given once
 
     # -- errors ---------------------------------------------------------------------------
     def fail(self, msg: str, letter: str, *, value: float | None = None, nth: int = 0):
         """Raise a :class:`GcodeError` at the word ``letter`` (``value``, ``nth``) of the line."""
-        code = blank_comments(self.lines[self.lineno - 1], file=self.file, line=self.lineno)
+        src = self.src
+        if src is None:
+            file, line, raw = self.file, self.lineno, self.lines[self.lineno - 1]
+        else:           # a block of the front's reader (perhaps in a subroutine file)
+            file, line, raw = src.file, src.line, src.text
+        code = blank_comments(raw, file=file, line=line)
         column, text = locate_word(code, letter, value=value, nth=nth)
-        raise GcodeError(msg, file=self.file, line=self.lineno, column=column, text=text)
+        raise GcodeError(msg, file=file, line=line, column=column, text=text[:60])
+
+    def end_block(self) -> None:
+        """After a block of the front's reader: its markers must not reach the next block,
+        which may carry the same (main-program) line number."""
+        self.pending_lineno = self.coord_line = self.g43_lineno = self.io_lineno = -1
 
     def num(self, letter: str, text: str) -> float:
         """Value of a word; blanks inside the number are ignored (LinuxCNC rule)."""
@@ -161,6 +180,8 @@ class Interpreter(ArcMixin):
             self.set_feed(d['F'])
         if motion is not None:
             self.motion = motion
+        if dwell and 'X' in d and self.dialect.dwell_x_seconds:
+            self.dwell_x(d)
         mode = self.motion
         has_axes = 'X' in d or 'Y' in d or 'Z' in d
         is_arc = mode == 2 or mode == 3
@@ -229,6 +250,10 @@ class Interpreter(ArcMixin):
             self.fail('H word with no G43 to use it', 'H')
         if 'T' in d:
             self.select_tool(d['T'])
+        if self.io_lineno == self.lineno:
+            d = {k: v for k, v in d.items() if k not in 'PQEL'}    # the I/O M code's words
+        elif 'E' in d:
+            self.fail('E word with no M66/M67/M68 to use it', 'E')
         if 'D' in d and not (self.pending_lineno == self.lineno
                              and self.comp_code not in (None, 40)):
             self.fail('D word with no G41/G42 (or G41.1/G42.1) to use it', 'D')
@@ -371,8 +396,16 @@ class Interpreter(ArcMixin):
     def before_motion(self, d: dict[str, str]) -> None:
         """Work that LinuxCNC does after the modes and before the motion: M6, G40/G41/G42."""
         if self.tool_change:
-            self.tool_loaded = self.tool_selected
             self.tool_change = False
+            if self.io_lineno == self.lineno:      # M61 Q
+                if 'Q' not in d:
+                    self.fail('M61 needs a Q word (the tool number)', 'M', value=61.0)
+                q = self.num('Q', d['Q'])
+                if q != int(q) or q < 0:
+                    self.fail('M61 Q must be a whole number >= 0', 'Q')
+                self.tool_loaded = self.tool_selected = int(q)
+            else:
+                self.tool_loaded = self.tool_selected
         code = self.comp_code
         if code is None:
             return
@@ -558,15 +591,31 @@ class Interpreter(ArcMixin):
         self.feed = f if self.inverse_time else f * self.scale / 60.0
 
     def dwell(self, d: dict[str, str]) -> None:
-        """Append the G4 dwell of P seconds."""
+        """Emit the G4 dwell of P (the dialect's unit; see :mod:`.dialect`)."""
         if 'P' not in d:
             self.fail('G4 dwell needs a P word (seconds)', 'G', value=4.0)
         seconds = self.num('P', d['P']) * self.p_unit
+        if self.dialect.dwell_p == 'haas' and not self.word_has_point('P'):
+            seconds *= 0.001                # Haas: P without a decimal point is ms
         if seconds < 0.0:
             self.fail('negative dwell time', 'P')
         p = self.pos
         self.emit(Move(kind=MoveKind.DWELL, line=self.lineno, start=p, end=p,
                        dwell_s=seconds))
+
+    def dwell_x(self, d: dict[str, str]) -> None:
+        """Fanuc ``G4 X``: the dwell in seconds (X is then no axis word)."""
+        x = self.num('X', d.pop('X'))
+        if 'P' in d:
+            self.fail('G4 with both X and P (Fanuc: give one dwell time)', 'P')
+        d['P'] = x / self.p_unit
+
+    def word_has_point(self, letter: str) -> bool:
+        """True if the line's ``letter`` word was written with a decimal point."""
+        src = self.src
+        raw = self.lines[self.lineno - 1] if src is None else src.text
+        code = blank_comments(raw, file=self.file, line=self.lineno)
+        return '.' in locate_word(code, letter)[1]
 
     def m_words(self, ml) -> list[str]:
         """Check the M words of a line; return the stop actions (run after the motion)."""
@@ -576,7 +625,8 @@ class Interpreter(ArcMixin):
             value = self.num('M', text)
             code = int(value)
             if code != value or code not in M_CODES:
-                self.fail(f'M{value:g} is not supported', 'M', value=value)
+                self.harmless_m(value)
+                continue
             group, action = M_CODES[code]
             if group in groups and {groups[group], code} != {7, 8}:
                 self.fail(f'M{groups[group]} and M{code} are in the same modal group on one '
@@ -592,6 +642,21 @@ class Interpreter(ArcMixin):
                 self.tool_change = True
                 self.pending_lineno = self.lineno
         return actions
+
+    def harmless_m(self, value: float) -> None:
+        """An M code outside M_CODES: accepted if the dialect calls it harmless I/O."""
+        code = int(value)
+        if code != value or code not in self.dialect.harmless_m:
+            self.fail(f'M{value:g} is not supported (not a machine function the '
+                      f'{self.dialect.name} dialect lets pass; see --dialect)', 'M',
+                      value=value)
+        self.io_lineno = self.lineno       # its P, Q, E, L words belong to it
+        self.pending_lineno = self.lineno
+        if code == 61:
+            self.tool_change = True        # M61 Q: the tool in the spindle is Q
+        elif 62 <= code <= 68 and self.comp.active:
+            self.fail('Cannot set motion output with cutter radius compensation on', 'M',
+                      value=value)
 
     def stop(self, actions: list[str]) -> None:
         """STOP moves for M0/M1/M2/M30; M2/M30 end the program."""
@@ -694,7 +759,7 @@ class Interpreter(ArcMixin):
         """In-plane centre [m] from I/J/K (incremental under G91.1, absolute under G90.1)."""
         normal = _CENTRE_LETTERS[n]
         if normal in d:
-            self.fail(f'{normal} is not an in-plane centre word for G{self.plane}', normal)
+            self.normal_centre_word(normal, d[normal])
         la = _CENTRE_LETTERS[a]
         lb = _CENTRE_LETTERS[b]
         if la not in d and lb not in d:
@@ -705,6 +770,19 @@ class Interpreter(ArcMixin):
         if self.arc_absolute:
             return oa + self.frame[a], ob + self.frame[b]
         return start[a] + oa, start[b] + ob
+
+    def normal_centre_word(self, letter: str, text: str) -> None:
+        """A centre word along the plane normal (K in G17): LinuxCNC refuses it; other
+        dialects ignore a zero one (FreeCAD writes K0) with one warning."""
+        if self.num(letter, text) != 0.0 or self.dialect.normal_centre_zero == 'error':
+            self.fail(f'{letter} is not an in-plane centre word for G{self.plane} (LinuxCNC: '
+                      f'{letter} word given for arc in G{self.plane} plane)', letter)
+        key = f'normal {letter}'
+        if key not in self.warned:
+            self.warned.add(key)
+            self.warnings.append(f'{self.file}:{self.lineno}: {letter}0 on a G{self.plane} '
+                                 f'arc is ignored ({self.dialect.name} dialect; LinuxCNC '
+                                 'refuses it)')
 
 
 def _tool_radius(entry: object) -> float:
