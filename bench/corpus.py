@@ -176,6 +176,15 @@ class SubroutineLinks:
             self._dirs[folder] = links
         return self._dirs[folder]
 
+    def real_names(self, text: str) -> str:
+        """Replace the links' paths in ``text`` (an error message) by the files they name."""
+        if self._tmp.name not in text:
+            return text
+        for links in self._dirs.values():
+            for link in links.iterdir():
+                text = text.replace(str(link), str(link.resolve()))
+        return text
+
     def close(self) -> None:
         """Remove the links."""
         self._tmp.cleanup()
@@ -580,6 +589,7 @@ def evaluate(corpus: Path, *, plan: bool = False, skip_largest: int = 0,
             own = _dialect_for(e, known)
             r = run_ours(path, dialect=own, search_path=search, timeout_s=timeout_s,
                          planner=planner)
+            r.error = links.real_names(r.error)
             accept[e.file] = r
             if e.reference_accepts:
                 if own in (None, REFERENCE_DIALECT) or REFERENCE_DIALECT not in known:
@@ -650,7 +660,10 @@ def format_report(report: Report) -> str:
     out.append(f'refused by us, accepted by the reference: {len(refused)}')
     prefix = report.corpus.rstrip('/') + '/'
     for e, r in refused:
-        out.append(f'  [{e.dialect}] {_one_line(r.error.replace(prefix, ""))}')
+        msg = r.error.replace(prefix, '')
+        if not msg.startswith(e.file):
+            msg = f'{e.file}: {msg}'    # the error lies in a subroutine file it calls
+        out.append(f'  [{e.dialect}] {_one_line(msg)}')
     out.append('')
     out.append(f'disagreements on programs both accept: {len(report.disagreements)} in '
                f'{len(report.disagreeing_files())} programs')
