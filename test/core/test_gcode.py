@@ -287,7 +287,7 @@ def test_inch_inverse_time_fixture():
 
 # -- errors ---------------------------------------------------------------------------------
 BAD = {
-    'unknown_letter.nc': (3, 10, 'unknown word letter'),
+    'unknown_letter.nc': (3, 10, 'E word with no M66'),
     'missing_feed.nc': (3, 3, 'no feed rate'),
     'arc_off_circle.nc': (2, 4, 'not on the circle'),
     'r_too_small.nc': (2, 11, 'smaller than half the chord'),
