@@ -12,9 +12,10 @@ Control flow follows LinuxCNC 2.9 (``interp_o_word.cc``, manual "O Codes"):
 
 * ``o<name> sub`` ... ``o<name> endsub [value]`` (or a number: ``o100 sub``) defines a
   subroutine; the definition is skipped where it stands. ``o<name> call [a] [b] ...``
-  passes up to 30 arguments as ``#1..#30`` (local to the call, restored on return);
-  ``o<name> return [value]`` leaves early; a value sets ``#<_value>`` and
-  ``#<_value_returned>`` (both cleared before each call). A subroutine may be defined
+  passes up to 30 arguments as ``#1..#30`` (local to the call, restored on return; the
+  ones without an argument are 0); ``o<any label> return [value]`` leaves early; the
+  value of ``return``/``endsub`` goes to ``#<_value>`` with ``#<_value_returned>`` = 1
+  (without a value both are 0; both are also cleared before each call). A subroutine may be defined
   after its call in the same file (LinuxCNC requires it before; accepting more is harmless).
   A subroutine not in the program is looked for in the file ``<name>.ngc`` (lower case) in
   the program's directory and then the ``search_path`` directories (LinuxCNC's
@@ -525,12 +526,9 @@ class BlockReader:
                 what = 'M99 ends an M98 subprogram' if fr.kind == 'm98' else \
                     'not in a subroutine'
                 raise r.error(f'o<{label}> {keyword.lower()}: {what}', 0)
-            if label != fr.name:
-                raise r.error(f'o<{label}> {keyword.lower()} inside subroutine '
-                              f'o<{fr.name}>', 0)
-            if value is not None:
-                self.params.set_named('_value', value)
-                self.params.set_named('_value_returned', 1.0)
+            # LinuxCNC checks no label here: 'o1010 return' leaves the running subroutine.
+            self.params.set_named('_value', 0.0 if value is None else value)
+            self.params.set_named('_value_returned', 0.0 if value is None else 1.0)
             return self._leave(fr)
         if keyword == 'CALL':
             args: list[float] = []
@@ -709,7 +707,10 @@ class BlockReader:
         olines = self._olines(f)
         for k in range(bisect_left(olines, start), len(olines)):
             idx = olines[k]
-            head = self._head(f, idx)
+            try:
+                head = self._head(f, idx)
+            except GcodeError:
+                continue    # a label such as o#<local> that cannot be computed here
             if head[0] == label and head[1] in keywords:
                 return idx
         want = ' or '.join(kw.lower() for kw in keywords)

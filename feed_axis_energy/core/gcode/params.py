@@ -4,7 +4,9 @@ LinuxCNC's rules (G-code overview, "Parameters"; ``interp_read.cc``):
 
 * Numbered parameters are ``#1`` to ``#5601``; any other number is an error. An unset
   numbered parameter reads 0. ``#1..#30`` are the arguments of an ``o... call`` and are
-  local to the call (restored on return); all others are global. ``#5021..#5029``,
+  local to the call (restored on return); those without an argument are 0 in the call
+  (LinuxCNC 2.9's code, ``interp_o_word.cc``, zeroes them; its manual says they keep the
+  caller's values); all others are global. ``#5021..#5029``,
   ``#5400..#5413`` and ``#5420..#5428`` are read-only.
 * Named parameters are case-insensitive and blanks inside the name do not count (the line
   is read with blanks removed). A name beginning with ``_`` is global; any other is local
@@ -185,8 +187,9 @@ class Parameters:
         Parameters
         ----------
         args
-            The call's arguments for ``#1..#len(args)`` (``o... call``), or ``None`` for a
-            Fanuc ``M98`` call, whose ``#1..#30`` stay global.
+            The call's arguments for ``#1..#len(args)``, the rest of ``#1..#30`` set to 0
+            (``o... call``), or ``None`` for a Fanuc ``M98`` call, whose ``#1..#30`` stay
+            global.
 
         Returns
         -------
@@ -197,8 +200,8 @@ class Parameters:
         if args is None:
             return []
         saved = self.numbered[1:N_CALL_ARGUMENTS + 1]
-        for i, value in enumerate(args, 1):
-            self.numbered[i] = float(value)
+        values = [float(v) for v in args[:N_CALL_ARGUMENTS]]
+        self.numbered[1:N_CALL_ARGUMENTS + 1] = values + [0.0] * (N_CALL_ARGUMENTS - len(values))
         return saved
 
     def leave_call(self, saved: list[float]) -> None:

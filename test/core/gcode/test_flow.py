@@ -206,6 +206,31 @@ def test_subroutine_with_arguments_and_return_value_defined_after_the_call():
     assert out[0].line == 6
 
 
+def test_linuxcnc_return_value_test():
+    # LinuxCNC tests/interp/return-value: 'return' under an if label leaves the sub;
+    # 123 * 2 = 246; a plain return gives 0; endsub [4712] when no return ran.
+    text = ('o1000 sub\no1010 if [#1 GT 0]\no1010    return [123*[#1]]\no1010 endif\n'
+            'o1020 if [#1 LT 0]\no1020    return\no1020 endif\no1000 endsub [4712]\n'
+            'o1000 call [2]\nG0 X#<_value> Y#<_value_returned>\n'
+            'o1000 call [-1]\nG0 X#<_value> Y#<_value_returned>\n'
+            'o1000 call [0]\nG0 X#<_value> Y#<_value_returned>\n')
+    assert words(text) == [[('G', 0.0), ('X', 246.0), ('Y', 1.0)],
+                           [('G', 0.0), ('X', 0.0), ('Y', 0.0)],
+                           [('G', 0.0), ('X', 4712.0), ('Y', 1.0)]]
+
+
+def test_arguments_not_given_are_zero_in_the_call():
+    # LinuxCNC 2.9 interp_o_word.cc copies all 30 block parameters, unused ones 0.
+    assert xs('#2 = 5\no<f> sub\nG0 X#2\no<f> endsub\no<f> call [1]\nG0 X#2\n') == [0.0, 5.0]
+
+
+def test_computed_label_inside_a_skipped_definition():
+    # LinuxCNC tests/interp/oword-bug315-p2: o#<sub> call inside a sub definition.
+    text = ('o2 sub\ng0 x2\no2 endsub\no<multipass> sub\n#<sub> = 2\no#<sub> call\n'
+            'o<multipass> endsub\no<multipass> call\nm2\n')
+    assert xs(text) == [2.0]
+
+
 def test_subroutine_defined_before_is_skipped_where_it_stands():
     text = 'o100 sub\n  G0 X#1\no100 endsub\nG0 X1\no100 call [2]\no100 call [3]\n'
     assert xs(text) == [1.0, 2.0, 3.0]
