@@ -1,6 +1,10 @@
-"""The shared corpus of real programs against the reference interpreter (``bench/corpus.py``).
+"""Our front end against the reference interpreter (LinuxCNC 2.9's rs274ngc).
 
-Skipped where the corpus is absent. What must hold now: no traceback on any program; on
+1. The shared corpus of real programs (``bench/corpus.py``), skipped where it is absent.
+2. Live: small programs of our own, one per construct, run through the reference
+   (``shared/tools/run_oracle.py --one``), skipped where ``linuxcnc-uspace`` is not installed.
+
+Corpus: what must hold now: no traceback on any program; on
 every program both we and the reference accept, the same moves within the tolerances of
 ``bench/corpus.py`` except the programs listed in :data:`KNOWN_DISAGREEMENTS` (each with its
 reason); an acceptance rate of at least :data:`ACCEPTANCE_FLOOR`. A listed program that
@@ -9,8 +13,12 @@ now agrees fails the test, so the list only shrinks; raise the floor as work lan
 from __future__ import annotations
 
 import importlib.util
+import json
+import os
 from pathlib import Path
+import subprocess
 import sys
+import textwrap
 
 import pytest
 
@@ -27,7 +35,8 @@ def _load_bench():
 
 corpus = _load_bench()
 CORPUS = corpus.find_corpus()
-pytestmark = pytest.mark.skipif(CORPUS is None, reason='shared corpus (corpus/gcode) not found')
+needs_corpus = pytest.mark.skipif(CORPUS is None,
+                                  reason='shared corpus (corpus/gcode) not found')
 
 ACCEPTANCE_FLOOR = 0.85
 """Share of the programs the reference accepts that we accept (issue 8 target: 0.95).
@@ -51,22 +60,26 @@ def report():
     return corpus.evaluate(CORPUS, timeout_s=120.0)
 
 
+@needs_corpus
 def test_no_traceback_and_no_timeout(report):
     bad = [f'{name}: {r.status}: {r.error}' for name, r in report.tracebacks()]
     assert not bad, '\n'.join(bad)
 
 
+@needs_corpus
 def test_acceptance_floor(report):
     s = corpus.summary(report)
     assert s['reference_accepts'] > 0
     assert s['acceptance_of_reference'] >= ACCEPTANCE_FLOOR, corpus.format_report(report)
 
 
+@needs_corpus
 def test_agreement_on_programs_both_accept(report):
     new = [d.text() for d in report.disagreements if d.file not in KNOWN_DISAGREEMENTS]
     assert not new, 'new disagreements with the reference:\n' + '\n'.join(new)
 
 
+@needs_corpus
 def test_known_disagreements_still_accurate(report):
     """A listed program that is refused or now agrees must leave the list."""
     disagreeing = set(report.disagreeing_files())
@@ -81,6 +94,7 @@ def test_known_disagreements_still_accurate(report):
                        + '\n'.join(stale))
 
 
+@needs_corpus
 def test_report_names_every_refusal_with_its_place(report):
     """Every program the reference accepts and we refuse is listed with file:line:column."""
     text = corpus.format_report(report)
@@ -92,3 +106,154 @@ def test_report_names_every_refusal_with_its_place(report):
         assert f':{ours.line}:{ours.column}: ' in ours.error
         assert f'{entry.file}' in text
         assert ' '.join(ours.error.replace(str(CORPUS) + '/', '').split())[:200] in text
+
+
+# ----------------------------------------------------------------------------------------
+# live: our own small programs through the reference interpreter
+# ----------------------------------------------------------------------------------------
+def _oracle_script() -> Path | None:
+    shared = [os.environ.get('FAE_SHARED', ''), str(ROOT.parent / 'shared'), '/work/shared']
+    for folder in shared:
+        path = Path(folder) / 'tools' / 'run_oracle.py' if folder else None
+        if path is not None and path.is_file():
+            return path
+    return None
+
+
+def _has_linuxcnc() -> bool:
+    if not Path('/usr/bin/python3').exists():
+        return False
+    proc = subprocess.run(['/usr/bin/python3', '-c', 'import gcode; gcode.parse'],
+                          capture_output=True, cwd='/', timeout=60)
+    return proc.returncode == 0
+
+
+ORACLE = _oracle_script()
+needs_reference = pytest.mark.skipif(
+    ORACLE is None or not _has_linuxcnc(),
+    reason='reference interpreter (linuxcnc-uspace, shared/tools/run_oracle.py) not available')
+
+# One program per construct; each runs to M2 in LinuxCNC 2.9. Millimetres unless stated.
+LIVE_PROGRAMS = {
+    'lines_arcs': '''
+        G21 G90 G17 G94 F600
+        G0 X10 Y5 Z2
+        G1 Z-1
+        G1 X40 Y5
+        G2 X50 Y15 I0 J10
+        G3 X40 Y25 R10
+        G2 X40 Y25 I0 J-5 Z-2 P2      (helix, two turns)
+        G2 I5                         (full circle with offsets only, no axis words)
+        G18 G3 X30 Z-1 I-5 K0.5
+        G19 G2 Y15 Z-2 J-5 K-0.5
+        G17 G0 Z5
+        M2''',
+    'inch_incremental': '''
+        G20 G91 G17 F20
+        G0 X1 Y1
+        G1 X2 Y-0.5
+        G90.1 G3 X2 Y0 I4 J0.5          (G91: end 2 to the right; centre absolute)
+        G91.1 G90 G0 Z0.5
+        M2''',
+    'canned_cycles': '''
+        G21 G90 G17 F200
+        G0 X0 Y0 Z10
+        G99 G81 X10 Y10 Z-3 R2
+        X20
+        G98 G82 X30 Y10 Z-4 R1 P0.5
+        G83 X40 Z-10 R1 Q3
+        G73 X50 Z-8 R1 Q2.5
+        G91 G85 X5 Y0 Z-5 R-8 L3
+        G90 G89 X80 Y20 Z-2 R1 P0.25
+        G80 G0 Z20
+        M2''',
+    'cutter_comp_zero_tool': '''
+        G21 G90 G17 F500 T1 M6
+        G0 X0 Y0 Z5
+        G41 D1 G1 X10 Y0
+        G1 X30
+        G3 X40 Y10 R10
+        G1 Y30
+        G40 G1 X50 Y40
+        M2''',
+    'coordinate_systems': '''
+        G21 G90 G17 F300
+        G10 L2 P2 X100 Y50 Z-10
+        G55 G0 X0 Y0 Z5
+        G1 X10
+        G92 X0 Y0
+        G1 X5 Y5
+        G92.1
+        G52 X3
+        G1 X1
+        G52 X0
+        G53 G0 Z0
+        G54 G0 X1 Y1
+        G28.1
+        G1 X20
+        G28
+        G43 H1 G1 Z-3
+        G49
+        M2''',
+    'parameters_and_o_words': '''
+        #1 = 3
+        #<step> = [#1 * 2]
+        G21 G90 F400
+        G0 X0 Y0 Z1
+        o100 sub
+          G1 X[#1] Y[#2]
+        o100 endsub
+        #<i> = 0
+        o101 while [#<i> LT 3]
+          o100 call [#<i> * #<step>] [#<i> + 1]
+          #<i> = [#<i> + 1]
+        o101 endwhile
+        o102 if [#<i> EQ 3]
+          G1 Z[-SIN[30] * 2]
+        o102 else
+          G1 Z-5
+        o102 endif
+        o103 repeat [2]
+          G91 G1 X1
+        o103 endrepeat
+        G90 G0 Z5
+        M2''',
+    'dwells_and_safety_block': '''
+        %
+        G0 G17 G40 G49 G80 G90
+        G21 F100
+        G0 X1 Y1
+        G4 P0.5
+        G1 X2
+        G4 P2
+        G0 X1
+        M2
+        %''',
+}
+
+# Constructs the reference accepts that we do not (yet), with the reason; remove an entry
+# when it passes.
+KNOWN_LIVE: dict[str, str] = {}
+
+
+def _oracle_one(path: Path) -> dict:
+    proc = subprocess.run([sys.executable, str(ORACLE), '--one', str(path)], cwd='/',
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+@needs_reference
+@pytest.mark.parametrize('name', sorted(LIVE_PROGRAMS))
+def test_live_reference_agrees_on_each_construct(tmp_path, name):
+    path = tmp_path / f'{name}.ngc'
+    path.write_text(textwrap.dedent(LIVE_PROGRAMS[name]).strip() + '\n')
+    ref = _oracle_one(path)
+    assert ref['status'] == 'ok', f'the fixture itself is wrong: {ref["error"]}'
+    ours = corpus.run_ours(path, dialect='linuxcnc', search_path=[tmp_path])
+    if name in KNOWN_LIVE:
+        pytest.xfail(KNOWN_LIVE[name])
+    assert ours.status == 'ok', ours.error
+    assert ours.stats.n_motions > 0
+    diffs = corpus.compare(name, ours, ref)
+    assert not diffs, '\n'.join(d.text() for d in diffs)
