@@ -25,6 +25,14 @@ def _max_dwell(text: str) -> float:
     return value
 
 
+def _tool(text: str) -> tuple:
+    from feed_axis_energy.core.machine_gcode import parse_tool_option
+    try:
+        return parse_tool_option(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the subcommand."""
     from feed_axis_energy.core.gcode_check import DEFAULT_MAX_DWELL_S
@@ -44,6 +52,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--machine', type=Path, metavar='YAML', default=None,
                    help='machine config: travel and velocity limits, tool table, G28 position, '
                         'default dialect (default: config/demonstrator.yaml)')
+    p.add_argument('--tool', type=_tool, action='append', default=[], metavar='T:R[:L]',
+                   help='tool T with radius R and length offset L in mm (default 0) for '
+                        'G41/G42 and G43, added to the machine config\'s gcode.tools or '
+                        'replacing its entry; repeat for more tools (e.g. --tool 1:3:45.2)')
     p.add_argument('--dialect', default=None, choices=DIALECTS,
                    help='G-code dialect (default: the machine config\'s gcode.dialect)')
     p.add_argument('--max-dwell-s', type=_max_dwell, default=DEFAULT_MAX_DWELL_S, metavar='S',
@@ -68,19 +80,9 @@ def _limits(machine: Any, max_dwell_s: float):
 
 
 def _parse_keywords(machine: Any, dialect: str | None) -> dict[str, Any]:
-    """Keywords for ``load_gcode`` on this machine (the dialect where the parser has one)."""
-    import inspect
-    from feed_axis_energy.core.errors import ConfigError
-    from feed_axis_energy.core.gcode import load_gcode
+    """Keywords for ``load_gcode`` on this machine: tools, G28 position and dialect."""
     kw = dict(machine.gcode_keywords())
-    params = inspect.signature(load_gcode).parameters
-    chosen = dialect if dialect is not None else getattr(machine.gcode, 'dialect', None)
-    if 'dialect' in params:
-        if chosen is not None:
-            kw['dialect'] = chosen
-    elif dialect is not None and dialect != 'linuxcnc':
-        msg = f'dialect {dialect[:60]!r}: this parser reads the linuxcnc dialect only'
-        raise ConfigError(msg, file='command line', key='dialect')
+    kw['dialect'] = dialect if dialect is not None else machine.gcode.dialect
     return kw
 
 
@@ -177,6 +179,9 @@ def run(args: argparse.Namespace) -> int:
     from feed_axis_energy.core.machine import load_machine
     from feed_axis_energy.paths import default_machine
     machine = load_machine(args.machine if args.machine is not None else default_machine())
+    if args.tool:
+        from feed_axis_energy.core.machine_gcode import with_tools
+        machine = replace(machine, gcode=with_tools(machine.gcode, dict(args.tool)))
     keywords = _parse_keywords(machine, args.dialect)
     results = []
     n = len(args.programs)

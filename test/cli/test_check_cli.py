@@ -119,3 +119,25 @@ def test_simulate_json_carries_the_warnings(tmp_path, capsys):
     assert main(['simulate', str(CONTOUR), '--machine', str(MILL), '--json', '--quiet',
                  '--rate-hz', '10']) == 0
     assert json.loads(capsys.readouterr().out)['warnings'] == []
+
+
+def test_dialect_sets_the_unit_of_g4_p(tmp_path, capsys):
+    # G4 P4000: 4000 s in LinuxCNC (a warning above 3600 s), 4 s where P is milliseconds.
+    prog = _write(tmp_path, 'dwell.nc', 'G21 G90 F100\nG1 X1\nG4 P4000\nM2\n')
+    for dialect, dwell, warnings in (('linuxcnc', 4000.0, 1), ('fanuc', 4.0, 0)):
+        assert main(['check', str(prog), '--machine', str(MILL), '--dialect', dialect,
+                     '--json']) == 0
+        doc = json.loads(capsys.readouterr().out)
+        assert doc['programs'][0]['summary']['dwell_s'] == pytest.approx(dwell, rel=1e-12)
+        assert doc['warnings'] == warnings
+
+
+def test_tool_option_fills_the_tool_table(tmp_path, capsys):
+    prog = _write(tmp_path, 'tool.nc', 'G21 G90 F100\nG43 H3 G0 Z10\nM2\n')
+    assert main(['check', str(prog), '--machine', str(MILL), '--json']) == 1
+    doc = json.loads(capsys.readouterr().out)
+    assert doc['programs'][0]['errors'][0]['line'] == 2
+    assert main(['check', str(prog), '--machine', str(MILL), '--tool', '3:2:40', '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    # G43 H3 with a 40 mm tool: Z10 in the program is Z 50 mm in machine coordinates.
+    assert doc['programs'][0]['summary']['final_position_m'][2] == pytest.approx(0.05)
