@@ -29,7 +29,7 @@ Control flow follows LinuxCNC 2.9 (``interp_o_word.cc``, manual "O Codes"):
   LinuxCNC (it restarts at the first line), ends the simulation after one pass with a
   warning.
 * Limits, so that a runaway program ends with a clear error instead of running for ever:
-  :data:`MAX_LOOP_ITERATIONS` iterations of one loop (also ``M98 ... L`` repeats),
+  :data:`.control.MAX_LOOP_ITERATIONS` passes of one loop (also ``M98 ... L`` repeats),
   :data:`MAX_EXECUTED_LINES` executed lines in all, :data:`MAX_CALL_DEPTH` nested calls
   (LinuxCNC's own limit of subroutine levels).
 
@@ -44,25 +44,21 @@ a table of line start offsets (8 bytes a line) and an index of its O-word lines.
 """
 from __future__ import annotations
 
-from array import array
-from bisect import bisect_left
 from os import PathLike
 from pathlib import Path
-import re
 from typing import Any, Iterator
 
+from . import control
 from .block import Block
+from .control import Frame, goto, run_structure
 from .expr import compact, MAX_MAGNITUDE, Reader
-from .lexer import blank_comments, LINE_RE, read_items, WORD_RE
+from .lexer import blank_comments, LINE_RE, locate_word, read_items, WORD_RE
 from .params import N_CALL_ARGUMENTS, Parameters
+from .progfile import expect_end, FANUC, ProgramFile, read_head
 from .source import find_subroutine_file, read_program
 from ..errors import GcodeError, shorten
 
-__all__ = ['read_blocks', 'BlockReader', 'MAX_LOOP_ITERATIONS', 'MAX_EXECUTED_LINES',
-           'MAX_CALL_DEPTH']
-
-MAX_LOOP_ITERATIONS = 1_000_000
-"""Iterations of any one loop (``while``, ``do``, ``repeat``, ``M98 L``) before it is stopped."""
+__all__ = ['read_blocks', 'BlockReader', 'MAX_EXECUTED_LINES', 'MAX_CALL_DEPTH']
 
 MAX_EXECUTED_LINES = 50_000_000
 """Lines executed in one run (each loop pass counts its lines again) before it is stopped."""
@@ -70,96 +66,8 @@ MAX_EXECUTED_LINES = 50_000_000
 MAX_CALL_DEPTH = 10
 """Deepest nesting of ``call``/``M98`` (LinuxCNC's ``INTERP_SUB_ROUTINE_LEVELS``)."""
 
-# A line that may be an O-word line: optional N number, then O (blanks allowed).
-_OLINE_RE = re.compile(r'[ \t]*(?:[Nn][ \t]*[0-9][0-9. \t]*)?[Oo]')
-# A literal with 13 integer digits can exceed MAX_MAGNITUDE: only then check values.
-_BIG_RE = re.compile(r'[0-9]{13}')
-# O-word keywords in LinuxCNC's order of matching (``read_o``).
-_KEYWORDS = ('SUB', 'ENDSUB', 'CALL', 'DO', 'WHILE', 'REPEAT', 'IF', 'ELSEIF', 'ELSE',
-             'ENDIF', 'BREAK', 'CONTINUE', 'ENDWHILE', 'ENDREPEAT', 'RETURN')
-_FANUC = ''      # keyword of a bare ``O1234`` line
 _SWITCH = object()  # _slow(): the frame stack changed
 _END = object()     # _slow(): the program ends here
-
-
-class _File:
-    """A loaded program or subroutine file."""
-
-    __slots__ = ('name', 'text', 'big', 'ascii', 'starts', 'olines', 'heads', 'defs')
-
-    def __init__(self, name: str, text: str):
-        self.name = name
-        if '\r' in text:
-            text = text.replace('\r\n', '\n').replace('\r', '\n')
-        self.text = text
-        self.big = _BIG_RE.search(text) is not None
-        self.ascii = text.isascii()
-        self.starts: array | None = None          # offset of each line's start (lazily)
-        self.olines: list[int] | None = None      # indices of lines that may be O-lines
-        self.heads: dict[int, tuple[str, str]] = {}  # index -> (label, keyword), literal labels
-        self.defs: dict[str, tuple[str, int]] | None = None  # label -> (keyword, index)
-
-    def offset(self, idx: int) -> int:
-        """Offset in ``text`` of the start of line ``idx`` (0-based; past the end: len + 1)."""
-        starts = self.starts
-        if starts is None:
-            starts = array('q', [0])
-            text = self.text
-            find = text.find
-            pos = find('\n')
-            while pos != -1:
-                starts.append(pos + 1)
-                pos = find('\n', pos + 1)
-            if starts[-1] == len(text):
-                starts.pop()            # a final line end starts no line
-            self.starts = starts
-        return starts[idx] if idx < len(starts) else len(self.text) + 1
-
-    def line(self, idx: int) -> str:
-        """Line ``idx`` (0-based) without its line end."""
-        start = self.offset(idx)
-        end = self.text.find('\n', start)
-        return self.text[start:] if end == -1 else self.text[start:end]
-
-    def n_lines(self) -> int:
-        """Number of lines."""
-        self.offset(0)
-        return len(self.starts)
-
-
-class _Loop:
-    """An open loop of a frame."""
-
-    __slots__ = ('kind', 'start', 'left', 'iterations')
-
-    def __init__(self, kind: str, start: int, left: int = 0):
-        self.kind = kind          # 'WHILE', 'DO' or 'REPEAT'
-        self.start = start        # index of the loop's first line (while/do/repeat)
-        self.left = left          # repeats still to run (REPEAT)
-        self.iterations = 0
-
-
-class _Frame:
-    """The main program or one active call."""
-
-    __slots__ = ('file', 'pc', 'off', 'kind', 'name', 'saved', 'start', 'repeats',
-                 'main_line', 'loops', 'call_line', 'iterations')
-
-    def __init__(self, file: _File, pc: int, *, kind: str, name: str = '',
-                 saved: list[float] | None = None, repeats: int = 0,
-                 main_line: int | None = None, call_line: int = 0):
-        self.file = file
-        self.pc = pc                  # index of the next line to read
-        self.off = 0 if pc == 0 else file.offset(pc)   # its offset in file.text
-        self.kind = kind              # 'main', 'sub' (o-call) or 'm98'
-        self.name = name
-        self.saved = saved or []
-        self.start = pc
-        self.repeats = repeats        # M98 L repeats still to run
-        self.main_line = main_line    # None: blocks are attributed to their own line
-        self.loops: dict[str, _Loop] = {}
-        self.call_line = call_line
-        self.iterations = 0
 
 
 def read_blocks(text: str, *, file: str = '<string>', params: Parameters | None = None,
@@ -212,16 +120,16 @@ class BlockReader:
                  program_dir: str | PathLike[str] | None = None):
         self.params = Parameters() if params is None else params
         self.warnings: list[str] = []
-        self.main = _File(file, text)
+        self.fanuc = bool(getattr(dialect, 'fanuc_subprograms', True))
+        self.main = ProgramFile(file, text, params=self.params, fanuc=self.fanuc)
         if program_dir is None and file and not file.startswith('<'):
             parent = Path(file).parent
             program_dir = parent if parent.is_dir() else None
         self.program_dir = program_dir
         self.search_path = tuple(search_path)
-        self.fanuc = bool(getattr(dialect, 'fanuc_subprograms', True))
-        self.sub_files: dict[str, _File] = {}
-        self.subs: dict[str, tuple[_File, str, int]] = {}
-        self.frames = [_Frame(self.main, 0, kind='main')]
+        self.sub_files: dict[str, ProgramFile] = {}
+        self.subs: dict[str, tuple[ProgramFile, str, int]] = {}
+        self.frames = [Frame(self.main, 0, kind='main')]
         self.executed = 0
         self.seen_code = False
         self._warned_dollar = False
@@ -312,7 +220,7 @@ class BlockReader:
             raise GcodeError(msg, file=fname, line=pc, column=1)
 
     # -- lines that are not plain words ----------------------------------------------------
-    def _slow(self, fr: _Frame, raw: str, lineno: int) -> Any:
+    def _slow(self, fr: Frame, raw: str, lineno: int) -> Any:
         """Execute a line off the fast path.
 
         Returns
@@ -360,7 +268,7 @@ class BlockReader:
             return self._fanuc(fr, r, words, assigns, lineno)
         return words, assigns
 
-    def _percent(self, fr: _Frame, lineno: int) -> Any:
+    def _percent(self, fr: Frame, lineno: int) -> Any:
         """A ``%`` line: ignored before the first code, the end of the program after it."""
         if fr.kind != 'main' or not self.seen_code:
             return None
@@ -379,7 +287,7 @@ class BlockReader:
         return _END
 
     # -- Fanuc subprograms -----------------------------------------------------------------
-    def _fanuc(self, fr: _Frame, r: Reader, words: list[tuple[str, float]],
+    def _fanuc(self, fr: Frame, r: Reader, words: list[tuple[str, float]],
                assigns: list, lineno: int) -> Any:
         """``M98 P.. L..`` (call) and ``M99`` (return, or the end of the main program)."""
         d = dict(words)
@@ -412,15 +320,15 @@ class BlockReader:
                              'ever on LinuxCNC (an endless program); simulated once')
         return _END
 
-    def _return_m98(self, fr: _Frame, lineno: int) -> Any:
+    def _return_m98(self, fr: Frame, lineno: int) -> Any:
         """M99 in a subprogram: run it again for ``L`` repeats, else return."""
         if fr.repeats > 0:
             fr.repeats -= 1
             fr.iterations += 1
-            if fr.iterations > MAX_LOOP_ITERATIONS:
-                msg = f'M98 repeats of O{fr.name} exceed {MAX_LOOP_ITERATIONS}'
+            if fr.iterations > control.MAX_LOOP_ITERATIONS:
+                msg = f'M98 repeats of O{fr.name} exceed {control.MAX_LOOP_ITERATIONS}'
                 raise GcodeError(msg, file=fr.file.name, line=lineno, column=1)
-            _goto(fr, fr.start)
+            goto(fr, fr.start)
             return None
         return self._leave(fr)
 
@@ -433,7 +341,7 @@ class BlockReader:
                 self.params.set_named(ref, value)
 
     # -- calls -----------------------------------------------------------------------------
-    def _call(self, fr: _Frame, label: str, args: list[float] | None, lineno: int, *,
+    def _call(self, fr: Frame, label: str, args: list[float] | None, lineno: int, *,
               kind: str, repeats: int = 0, raw: str = '') -> Any:
         """Enter subroutine ``label`` (``kind`` 'sub' for ``o.. call``, 'm98' for M98)."""
         fname = fr.file.name
@@ -447,25 +355,25 @@ class BlockReader:
         if kind == 'sub' and tkind != 'SUB':
             msg = f'O{label} is a Fanuc subprogram: call it with M98 P{label}'
             raise GcodeError(msg, file=fname, line=lineno, column=1, text=shorten(raw.strip()))
-        if kind == 'm98' and tkind != _FANUC:
+        if kind == 'm98' and tkind != FANUC:
             msg = f"o{label} sub must be called with 'o{label} call', not M98"
             raise GcodeError(msg, file=fname, line=lineno, column=1, text=shorten(raw.strip()))
         saved = self.params.enter_call(args)
         ml = lineno if fr.file is self.main else fr.main_line
-        self.frames.append(_Frame(tfile, idx + 1, kind=kind, name=label, saved=saved,
-                                  repeats=repeats,
-                                  main_line=None if tfile is self.main else ml,
-                                  call_line=lineno))
+        self.frames.append(Frame(tfile, idx + 1, kind=kind, name=label, saved=saved,
+                                 repeats=repeats,
+                                 main_line=None if tfile is self.main else ml,
+                                 call_line=lineno))
         return _SWITCH
 
-    def _find_sub(self, fr: _Frame, label: str, may_load: bool, lineno: int,
-                  raw: str) -> tuple[_File, str, int]:
+    def _find_sub(self, fr: Frame, label: str, may_load: bool, lineno: int,
+                  raw: str) -> tuple[ProgramFile, str, int]:
         """Where subroutine ``label`` starts: (file, keyword, index of its first line)."""
         hit = self.subs.get(label)
         if hit is not None:
             return hit
         for f in (fr.file, self.main):
-            kind_idx = self._defs(f).get(label)
+            kind_idx = f.definitions().get(label)
             if kind_idx is not None:
                 hit = (f, kind_idx[0], kind_idx[1])
                 self.subs[label] = hit
@@ -476,9 +384,10 @@ class BlockReader:
             key = str(path)
             f = self.sub_files.get(key)
             if f is None:
-                f = _File(key, read_program(path))
+                f = ProgramFile(key, read_program(path), params=self.params,
+                                fanuc=self.fanuc)
                 self.sub_files[key] = f
-            kind_idx = self._defs(f).get(label)
+            kind_idx = f.definitions().get(label)
             if kind_idx is None or kind_idx[0] != 'SUB':
                 msg = f'subroutine file {path.name} does not define o<{label}> sub'
                 raise GcodeError(msg, file=key, line=1, column=1)
@@ -494,19 +403,19 @@ class BlockReader:
         raise GcodeError(msg, file=fr.file.name, line=lineno, column=1,
                          text=shorten(raw.strip()))
 
-    def _leave(self, fr: _Frame) -> Any:
+    def _leave(self, fr: Frame) -> Any:
         """Return from the innermost call."""
         self.params.leave_call(fr.saved)
         self.frames.pop()
         return _SWITCH
 
     # -- O-word lines ----------------------------------------------------------------------
-    def _oline(self, fr: _Frame, r: Reader, lineno: int) -> Any:
+    def _oline(self, fr: Frame, r: Reader, lineno: int) -> Any:
         """Execute an O-word line (``r`` positioned at the ``O``)."""
-        label, keyword = _read_head(r)
+        label, keyword = read_head(r)
         f = fr.file
         idx = lineno - 1
-        if keyword == _FANUC:
+        if keyword == FANUC:
             if not self.fanuc:
                 raise r.error('bare O-number (Fanuc program number) with Fanuc subprograms '
                               'off in this dialect', 0)
@@ -515,13 +424,13 @@ class BlockReader:
             if fr.kind != 'main':
                 raise r.error(f'subroutine definition o<{label}> sub inside a running '
                               f'subroutine (o<{fr.name}>): definitions cannot be nested', 0)
-            self._defs(f).setdefault(label, ('SUB', idx))
-            end = self._find(f, lineno, label, ('ENDSUB',), r)
-            _goto(fr, end + 1)
+            f.definitions().setdefault(label, ('SUB', idx))
+            end = f.find(lineno, label, ('ENDSUB',), r)
+            goto(fr, end + 1)
             return None
         if keyword in ('ENDSUB', 'RETURN'):
             value = r.checked(r.expression(), r.pos) if r.peek() == '[' else None
-            _expect_end(r)
+            expect_end(r)
             if fr.kind != 'sub':
                 what = 'M99 ends an M98 subprogram' if fr.kind == 'm98' else \
                     'not in a subroutine'
@@ -535,238 +444,14 @@ class BlockReader:
             while r.peek() == '[':
                 at = r.pos
                 args.append(r.checked(r.expression(), at))
-            _expect_end(r)
+            expect_end(r)
             if len(args) > N_CALL_ARGUMENTS:
                 raise r.error(f'more than {N_CALL_ARGUMENTS} call arguments', 0)
             self.params.set_named('_value', 0.0)
             self.params.set_named('_value_returned', 0.0)
             return self._call(fr, label, args, lineno, kind='sub', raw=r.raw)
-        return self._structure(fr, r, label, keyword, lineno)
-
-    def _structure(self, fr: _Frame, r: Reader, label: str, keyword: str,
-                   lineno: int) -> Any:
-        """if/elseif/else/endif, while/endwhile, do/while, repeat/endrepeat, break, continue."""
-        f = fr.file
-        idx = lineno - 1
-        loops = fr.loops
-        if keyword == 'IF':
-            if not self._condition(r):
-                self._skip_branch(fr, label, lineno, r)
-            return None
-        if keyword in ('ELSEIF', 'ELSE'):
-            # Reached by running the branch before it: the if is done.
-            _goto(fr, self._find(f, lineno, label, ('ENDIF',), r) + 1)
-            return None
-        if keyword == 'ENDIF':
-            _expect_end(r)
-            return None
-        if keyword == 'DO':
-            _expect_end(r)
-            loops[label] = _Loop('DO', idx)
-            return None
-        if keyword == 'WHILE':
-            loop = loops.get(label)
-            if loop is not None and loop.kind == 'DO' and loop.start != idx:
-                if self._condition(r):
-                    self._iterate(loop, label, fr, lineno)
-                    _goto(fr, loop.start + 1)
-                else:
-                    del loops[label]
-                return None
-            if self._condition(r):
-                if loop is None or loop.start != idx:
-                    loops[label] = _Loop('WHILE', idx)
-            else:
-                loops.pop(label, None)
-                _goto(fr, self._find(f, lineno, label, ('ENDWHILE',), r) + 1)
-            return None
-        if keyword == 'ENDWHILE':
-            _expect_end(r)
-            loop = loops.get(label)
-            if loop is None or loop.kind != 'WHILE':
-                raise r.error(f'o{_shown(label)} endwhile without a matching while', 0)
-            self._iterate(loop, label, fr, lineno)
-            _goto(fr, loop.start)
-            return None
-        if keyword == 'REPEAT':
-            if r.peek() != '[':
-                raise r.error('expected [count] after repeat')
-            at = r.pos
-            count = r.checked(r.expression(), at)
-            _expect_end(r)
-            times = int(count + (0.5 if count >= 0 else -0.5))
-            if times <= 0:
-                loops.pop(label, None)
-                _goto(fr, self._find(f, lineno, label, ('ENDREPEAT',), r) + 1)
-            else:
-                loops[label] = _Loop('REPEAT', idx, times - 1)
-            return None
-        if keyword == 'ENDREPEAT':
-            _expect_end(r)
-            loop = loops.get(label)
-            if loop is None or loop.kind != 'REPEAT':
-                raise r.error(f'o{_shown(label)} endrepeat without a matching repeat', 0)
-            if loop.left > 0:
-                loop.left -= 1
-                self._iterate(loop, label, fr, lineno)
-                _goto(fr, loop.start + 1)
-            else:
-                del loops[label]
-            return None
-        # BREAK / CONTINUE
-        _expect_end(r)
-        loop = loops.get(label)
-        if loop is None:
-            raise r.error(f'o{_shown(label)} {keyword.lower()} outside a loop with that '
-                          'label', 0)
-        end_kw = {'WHILE': 'ENDWHILE', 'REPEAT': 'ENDREPEAT', 'DO': 'WHILE'}[loop.kind]
-        end = self._find(f, lineno, label, (end_kw,), r)
-        if keyword == 'BREAK':
-            del loops[label]
-            _goto(fr, end + 1)
-        elif loop.kind == 'WHILE':
-            self._iterate(loop, label, fr, lineno)
-            _goto(fr, loop.start)
-        else:
-            _goto(fr, end)      # the do's while / the endrepeat decides
+        run_structure(fr, r, label, keyword, lineno, self.params)
         return None
-
-    def _condition(self, r: Reader) -> bool:
-        """Read ``[condition]`` at the end of an O-word line."""
-        if r.peek() != '[':
-            raise r.error('expected [condition]')
-        at = r.pos
-        value = r.checked(r.expression(), at)
-        _expect_end(r)
-        return value != 0.0
-
-    def _iterate(self, loop: _Loop, label: str, fr: _Frame, lineno: int) -> None:
-        """Count one more pass of ``loop``; stop a runaway loop."""
-        loop.iterations += 1
-        if loop.iterations > MAX_LOOP_ITERATIONS:
-            msg = (f'loop o{_shown(label)} ran {MAX_LOOP_ITERATIONS} times without ending '
-                   f'(limit MAX_LOOP_ITERATIONS)')
-            raise GcodeError(msg, file=fr.file.name, line=loop.start + 1, column=1,
-                             text=shorten(fr.file.line(loop.start).strip()))
-
-    def _skip_branch(self, fr: _Frame, label: str, lineno: int, r: Reader) -> None:
-        """After a false if/elseif: go to the next branch whose condition holds."""
-        f = fr.file
-        start = lineno
-        while True:
-            j = self._find(f, start, label, ('ELSEIF', 'ELSE', 'ENDIF'), r)
-            kw = self._head(f, j)[1]
-            if kw != 'ELSEIF':
-                _goto(fr, j + 1)
-                return
-            r2 = self._reader(f, j)
-            _read_head(r2)
-            if self._condition(r2):
-                _goto(fr, j + 1)
-                return
-            start = j + 1
-
-    # -- the O-line index ------------------------------------------------------------------
-    def _olines(self, f: _File) -> list[int]:
-        """Indices of the lines of ``f`` that may be O-word lines (built once, lazily)."""
-        if f.olines is None:
-            match = _OLINE_RE.match
-            f.olines = [i for i in range(f.n_lines()) if match(f.line(i))]
-        return f.olines
-
-    def _reader(self, f: _File, idx: int) -> Reader:
-        """A reader on line ``idx`` of ``f`` positioned at its ``O``."""
-        raw = f.line(idx)
-        code = blank_comments(raw, file=f.name, line=idx + 1)
-        s, cols = compact(code.upper())
-        r = Reader(s, cols, raw, file=f.name, line=idx + 1, params=self.params)
-        if s.startswith('N'):
-            r.pos = 1
-            r.number()
-        return r
-
-    def _head(self, f: _File, idx: int) -> tuple[str, str]:
-        """(label, keyword) of O-line ``idx``; literal labels are cached."""
-        hit = f.heads.get(idx)
-        if hit is not None:
-            return hit
-        r = self._reader(f, idx)
-        if r.peek() != 'O':
-            return ('', '?')
-        after = r.s[r.pos + 1:r.pos + 2]
-        literal = after == '<' or after.isdigit()   # not o[#1] or o#1
-        head = _read_head(r)
-        if literal:
-            f.heads[idx] = head
-        return head
-
-    def _find(self, f: _File, start: int, label: str, keywords: tuple[str, ...],
-              r: Reader) -> int:
-        """Index of the first O-line at or after line index ``start`` with ``label`` and one
-        of ``keywords``; an error at ``r``'s line if there is none."""
-        olines = self._olines(f)
-        for k in range(bisect_left(olines, start), len(olines)):
-            idx = olines[k]
-            try:
-                head = self._head(f, idx)
-            except GcodeError:
-                continue    # a label such as o#<local> that cannot be computed here
-            if head[0] == label and head[1] in keywords:
-                return idx
-        want = ' or '.join(kw.lower() for kw in keywords)
-        raise r.error(f'no matching o{_shown(label)} {want} after this line', 0)
-
-    def _defs(self, f: _File) -> dict[str, tuple[str, int]]:
-        """Subroutine definitions of ``f``: label -> (keyword 'SUB' or '', line index)."""
-        if f.defs is None:
-            defs: dict[str, tuple[str, int]] = {}
-            for idx in self._olines(f):
-                try:
-                    label, kw = self._head(f, idx)
-                except GcodeError:
-                    continue      # reported when (if ever) the line runs
-                if kw == 'SUB' or (kw == _FANUC and self.fanuc):
-                    defs.setdefault(label, (kw, idx))
-            f.defs = defs
-        return f.defs
-
-
-def _goto(fr: _Frame, idx: int) -> None:
-    """Continue ``fr`` at line index ``idx``."""
-    fr.pc = idx
-    fr.off = fr.file.offset(idx)
-
-
-def _read_head(r: Reader) -> tuple[str, str]:
-    """Read ``O<label> keyword`` (``r`` at the ``O``); returns (label, keyword)."""
-    r.pos += 1
-    if r.peek() == '<':
-        label = r.name()
-        if not label:
-            raise r.error('empty O-word name', r.pos - 2)
-    else:
-        label = str(r.integer())
-    s = r.s
-    for kw in _KEYWORDS:
-        if s.startswith(kw, r.pos):
-            r.pos += len(kw)
-            return label, kw
-    if r.at_end():
-        return label, _FANUC
-    raise r.error(f'unknown O-word keyword {shorten(s[r.pos:], limit=12)!r} (expected sub, '
-                  'endsub, call, return, if, elseif, else, endif, while, endwhile, do, '
-                  'repeat, endrepeat, break or continue)')
-
-
-def _expect_end(r: Reader) -> None:
-    """Nothing but comments may follow an O-word's arguments."""
-    if not r.at_end():
-        raise r.error('unexpected text after the O-word')
-
-
-def _shown(label: str) -> str:
-    """``100`` or ``<name>``, as the label was written."""
-    return label if label.isdigit() else f'<{label}>'
 
 
 def _fanuc_m(words: list[tuple[str, float]]) -> bool:
@@ -776,7 +461,6 @@ def _fanuc_m(words: list[tuple[str, float]]) -> bool:
 
 def _err(msg: str, file: str, line: int, raw: str, letter: str) -> GcodeError:
     """A :class:`GcodeError` at the first ``letter`` word of ``raw``."""
-    from .lexer import locate_word
     code = blank_comments(raw, file=file, line=line)
     column, text = locate_word(code, letter)
     return GcodeError(msg, file=file, line=line, column=column, text=text)

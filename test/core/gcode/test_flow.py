@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from feed_axis_energy.core.errors import GcodeError
-from feed_axis_energy.core.gcode import flow
+from feed_axis_energy.core.gcode import control, flow
 from feed_axis_energy.core.gcode.block import Block
 from feed_axis_energy.core.gcode.flow import read_blocks
 from feed_axis_energy.core.gcode.params import Parameters
@@ -182,7 +182,7 @@ def test_nested_if_inside_while():
 
 
 def test_runaway_loop_stops_with_a_clear_error(monkeypatch):
-    monkeypatch.setattr(flow, 'MAX_LOOP_ITERATIONS', 50)
+    monkeypatch.setattr(control, 'MAX_LOOP_ITERATIONS', 50)
     err = fails('G0 X0\no10 while [1]\n  G0 X1\no10 endwhile\n')
     assert err.line == 2
     assert 'ran 50 times' in str(err)

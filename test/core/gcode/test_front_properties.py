@@ -11,7 +11,7 @@ import math
 from hypothesis import given, HealthCheck, settings, strategies as st
 
 from feed_axis_energy.core.errors import GcodeError
-from feed_axis_energy.core.gcode import flow
+from feed_axis_energy.core.gcode import control, flow
 from feed_axis_energy.core.gcode.expr import MAX_MAGNITUDE
 from feed_axis_energy.core.gcode.flow import read_blocks
 from feed_axis_energy.core.gcode.source import decode_program, split_lines
@@ -68,12 +68,12 @@ def _line(draw) -> str:
 
 
 def _read_all(text: str) -> list:
-    saved = flow.MAX_LOOP_ITERATIONS, flow.MAX_EXECUTED_LINES
-    flow.MAX_LOOP_ITERATIONS, flow.MAX_EXECUTED_LINES = 50, 2000
+    saved = control.MAX_LOOP_ITERATIONS, flow.MAX_EXECUTED_LINES
+    control.MAX_LOOP_ITERATIONS, flow.MAX_EXECUTED_LINES = 50, 2000
     try:
         return list(read_blocks(text, file='prop.ngc'))
     finally:
-        flow.MAX_LOOP_ITERATIONS, flow.MAX_EXECUTED_LINES = saved
+        control.MAX_LOOP_ITERATIONS, flow.MAX_EXECUTED_LINES = saved
 
 
 def _check(text: str) -> None:
