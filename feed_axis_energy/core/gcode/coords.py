@@ -173,7 +173,8 @@ class Coords:
         ``None``.
     """
 
-    __slots__ = ('params', 'tools', 'system', 'g5x', 'g92', 'tlo', 'offset', 'selected_tool',
+    __slots__ = ('params', 'tools', 'system', 'g5x', 'g92', 'tlo', 'offset', 'rotation_deg',
+                 'cos', 'sin', 'selected_tool',
                  'loaded_tool', 'home_used')
 
     def __init__(self, *, tools: Mapping[int, ToolSpec] | None = None,
@@ -186,6 +187,9 @@ class Coords:
         self.g92: Vec3 = (0.0, 0.0, 0.0)
         self.tlo: Vec3 = (0.0, 0.0, 0.0)
         self.offset: Vec3 = (0.0, 0.0, 0.0)
+        self.rotation_deg = 0.0
+        self.cos = 1.0
+        self.sin = 0.0
         self.selected_tool = 0
         self.loaded_tool = 0
         self.home_used = False
@@ -283,39 +287,65 @@ class Coords:
 
     # -- frames ---------------------------------------------------------------------------
     def _update(self) -> None:
+        # offset = the machine position of the program origin = R (G92) + G5x + TLO
         g5x, g92, tlo = self.g5x, self.g92, self.tlo
-        self.offset = (g5x[0] + g92[0] + tlo[0], g5x[1] + g92[1] + tlo[1],
-                       g5x[2] + g92[2] + tlo[2])
+        gx, gy = self.rotate(g92[0], g92[1])
+        self.offset = (g5x[0] + gx + tlo[0], g5x[1] + gy + tlo[1], g5x[2] + g92[2] + tlo[2])
+
+    @property
+    def rotated(self) -> bool:
+        """True if the active coordinate system is rotated about Z (G10 L2 R)."""
+        return self.sin != 0.0 or self.cos != 1.0
+
+    def rotate(self, x: float, y: float) -> tuple[float, float]:
+        """An XY vector turned by the active system's rotation (program -> machine)."""
+        c, s = self.cos, self.sin
+        return (x * c - y * s, x * s + y * c)
 
     def to_machine(self, program: Vec3) -> Vec3:
-        """Machine coordinates [m] of a point given in program coordinates [m]."""
+        """Machine coordinates [m] of a point given in program coordinates [m].
+
+        ``machine = R (program + G92) + G5x + TLO`` in XY (R: the system's rotation about Z,
+        as LinuxCNC applies it), a plain sum in Z.
+        """
         o = self.offset
-        return (program[0] + o[0], program[1] + o[1], program[2] + o[2])
+        x, y = self.rotate(program[0], program[1])
+        return (x + o[0], y + o[1], program[2] + o[2])
 
     def to_program(self, machine: Vec3) -> Vec3:
         """Program coordinates [m] of a point given in machine coordinates [m]."""
         o = self.offset
-        return (machine[0] - o[0], machine[1] - o[1], machine[2] - o[2])
+        dx, dy = machine[0] - o[0], machine[1] - o[1]
+        c, s = self.cos, self.sin
+        return (dx * c + dy * s, -dx * s + dy * c, machine[2] - o[2])
+
+    def _set_rotation(self, degrees: float) -> None:
+        self.rotation_deg = degrees
+        if degrees == 0.0:
+            self.cos, self.sin = 1.0, 0.0
+        else:
+            t = math.radians(degrees)
+            self.cos, self.sin = math.cos(t), math.sin(t)
 
     def _load_system(self, system: int) -> None:
         get = self.params.get
         self.g5x = tuple(get(system_param(system, i)) / _MM for i in range(3))
-        self._check_rotation(system, None)
+        self._set_rotation(self._system_rotation(system, None))
         self._update()
 
-    def _check_rotation(self, system: int, fail: Fail | None) -> None:
-        if self.params.get(system_param(system, 9)) != 0.0:
-            (fail or _raise)(f'coordinate system {SYSTEM_NAMES[system - 1]} is rotated '
-                             '(G10 L2 R, #' f'{system_param(system, 9)}): rotation is not '
-                             'supported', 'G')
+    def _system_rotation(self, system: int, fail: Fail | None) -> float:
+        r = self.params.get(system_param(system, 9))
+        if not abs(r) <= 1.0e6:
+            (fail or _raise)(f'rotation of {SYSTEM_NAMES[system - 1]} (#'
+                             f'{system_param(system, 9)}) is not a plausible angle', 'G')
+        return r
 
     # -- G54 .. G59.3 ---------------------------------------------------------------------
     def select_system(self, system: int, *, fail: Fail = _raise) -> None:
         """G54..G59.3: make coordinate system ``system`` (1..9) active."""
         if system == self.system:
             return
-        if self.params.get(system_param(system, 9)) != 0.0:
-            self._check_rotation(system, fail)
+        self._system_rotation(system, fail)
         self.system = system
         self.params.set(SYSTEM_PARAM, float(system))
         self._load_system(system)
@@ -356,24 +386,49 @@ class Coords:
         if not 0 <= p <= 9:
             fail(f'P value out of range (0-9) with G10 L{l_word:g}', 'P')
         system = p or self.system
+        get = self.params.get
+        rotation = get(system_param(system, 9))
         if 'R' in values:
             if l_word == 20.0:
                 fail('R not allowed in G10 L20', 'R')
-            if values['R'] != 0.0:
-                fail('rotation of a coordinate system (G10 L2 R) is not supported', 'R')
-        get = self.params.get
+            rotation = values['R']
+            if not abs(rotation) <= 1.0e6:
+                fail('R (rotation in degrees) is not a plausible angle', 'R')
+            self.params.set(system_param(system, 9), rotation)
         origin = [get(system_param(system, i)) / _MM for i in range(3)]
-        for i, axis in enumerate(_AXES):
-            if axis in values:
-                if l_word == 2.0:
+        if l_word == 2.0:
+            for i, axis in enumerate(_AXES):
+                if axis in values:
                     origin[i] = values[axis]
-                else:
-                    # the current point, seen in `system`, gets the given coordinate
-                    origin[i] = position[i] - self.tlo[i] - self.g92[i] - values[axis]
-                self.params.set(system_param(system, i), origin[i] * _MM)
+        else:
+            # the current point, seen in `system`, gets the given coordinates (LinuxCNC:
+            # the XY difference is turned by the system's rotation; parameters unrotated)
+            here = self._in_system(system, position)
+            want = [values.get(axis, here[i]) for i, axis in enumerate(_AXES)]
+            t = math.radians(rotation)
+            c, s = math.cos(t), math.sin(t)
+            dx, dy = here[0] - want[0], here[1] - want[1]
+            if 'X' in values or 'Y' in values:
+                origin[0] += dx * c - dy * s
+                origin[1] += dx * s + dy * c
+            origin[2] += here[2] - want[2]
+        for i in range(3):
+            self.params.set(system_param(system, i), origin[i] * _MM)
         if system == self.system:
             self.g5x = tuple(origin)
+            self._set_rotation(rotation)
             self._update()
+
+    def _in_system(self, system: int, position: Vec3) -> Vec3:
+        """Program coordinates of machine ``position`` if ``system`` were active (LinuxCNC's
+        find_current_in_system: the G92 offset applies if #5210 says so)."""
+        get = self.params.get
+        t = math.radians(get(system_param(system, 9)))
+        c, s = math.cos(t), math.sin(t)
+        g92 = self.g92 if get(G92_APPLIED) else (0.0, 0.0, 0.0)
+        dx, dy, dz = (position[i] - self.tlo[i] - get(system_param(system, i)) / _MM
+                      for i in range(3))
+        return (dx * c + dy * s - g92[0], -dx * s + dy * c - g92[1], dz - g92[2])
 
     def _g10_tool(self, l_word: int, number: int, values: Mapping[str, float],
                   position: Vec3, *, fail: Fail) -> None:
@@ -421,6 +476,7 @@ class Coords:
         """
         g92 = list(self.g92)
         set_param = self.params.set
+        here = self.to_program(position)
         if code in ('G92', 'G52'):
             set_param(G92_APPLIED, 1.0)
             for i, axis in enumerate(_AXES):
@@ -428,7 +484,8 @@ class Coords:
                     if code == 'G52':
                         g92[i] = values[axis]
                     else:
-                        g92[i] = position[i] - self.tlo[i] - self.g5x[i] - values[axis]
+                        # the current point reads the value (LinuxCNC: current + offset - v)
+                        g92[i] = here[i] + self.g92[i] - values[axis]
             for i in range(3):
                 set_param(G92_PARAM + i, g92[i] * _MM)
         elif code in ('G92.1', 'G92.2'):

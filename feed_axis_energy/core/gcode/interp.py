@@ -64,8 +64,8 @@ class Interpreter(ArcMixin):
     __slots__ = ('file', 'arc_tol', 'pos', 'motion', 'plane', 'scale', 'absolute',
                  'arc_absolute', 'inverse_time', 'feed', 'exact', 'coord', 'moves',
                  'warnings', 'lineno', 'lines', 'ended', 'g_cache', 'g43_lineno', 'home',
-                 'coords', 'frame', 'coord_line', 'coord_todo', 'retract', 'cycle_memory',
-                 'series', 'comp', 'routing',
+                 'coords', 'frame', 'rotated', 'coord_line', 'coord_todo', 'retract',
+                 'cycle_memory', 'series', 'comp', 'routing',
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
                  'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
                  'warned')
@@ -97,6 +97,7 @@ class Interpreter(ArcMixin):
         self.home = None if home is None else tuple(float(v) for v in home)
         self.coords = Coords(tools=tools, home_m=self.home, params=params)
         self.frame = self.coords.offset     # machine - program for absolute axis words
+        self.rotated = False                # G10 L2 R: target() turns the whole point
         self.coord_line = -1                # line with coordinate codes to execute
         self.coord_todo: dict[str, object] = {}
         self.retract = 99                   # G99: LinuxCNC's start-up canned-cycle return
@@ -490,7 +491,11 @@ class Interpreter(ArcMixin):
 
     # ---- coords hooks (owned by coords) ----------------------------------------------------
     def offset(self) -> tuple[float, float, float]:
-        """``machine - program`` [m]: work offset, G92, G52 and tool length."""
+        """``machine - program`` [m]: work offset, G92, G52 and tool length (canned cycles;
+        they are refused in a rotated coordinate system, where this is no translation)."""
+        if self.rotated:
+            self.fail('canned cycles in a rotated coordinate system (G10 L2 R) are not '
+                      'supported', 'G', value=float(self.motion))
         return self.coords.offset
 
     def coord_codes(self, group: str, arg: object, code: int) -> None:
@@ -525,21 +530,53 @@ class Interpreter(ArcMixin):
                                 motion=self.motion, absolute=self.absolute,
                                 comp_active=self.comp.active, fail=fail)
         self.frame = coords.offset
+        self.rotated = coords.rotated
         self.coord = coords.system
         if effect.home is not None:
             self.home_return(d, effect.home)
             return True
         if todo.get('nonmodal') == 'G53':
-            # this line's axis words are machine coordinates: give them as program ones
-            s = self.scale
-            for i, letter in enumerate(_AXIS_LETTERS):
-                if letter in d:
-                    v = self.num(letter, d[letter]) * s
-                    if not abs(v) <= MAX_OFFSET_M:
-                        self.fail(f'G53 {letter}: not a machine position within '
-                                  f'{MAX_OFFSET_M:g} m of the machine origin', letter)
-                    d[letter] = (v - self.frame[i]) / s
+            self.machine_words(d)
         return effect.axes_used
+
+    def machine_words(self, d: dict[str, str]) -> None:
+        """G53: this line's axis words are machine coordinates; give them as program ones
+        (in a rotated system X and Y both, since each depends on the other)."""
+        s = self.scale
+        end = list(self.pos)
+        given = [letter in d for letter in _AXIS_LETTERS]
+        for i, letter in enumerate(_AXIS_LETTERS):
+            if given[i]:
+                v = self.num(letter, d[letter]) * s
+                if not abs(v) <= MAX_OFFSET_M:
+                    self.fail(f'G53 {letter}: not a machine position within '
+                              f'{MAX_OFFSET_M:g} m of the machine origin', letter)
+                end[i] = v
+        if self.rotated and (given[0] or given[1]):
+            given[0] = given[1] = True
+        program = self.coords.to_program(tuple(end))
+        for i, letter in enumerate(_AXIS_LETTERS):
+            if given[i]:
+                d[letter] = program[i] / s
+
+    def rotated_target(self, d: dict[str, str]) -> tuple[float, float, float]:
+        """:meth:`target` in a rotated coordinate system: the point is turned as a whole; on
+        an arc line the I/J words become machine-frame offsets (G17 only)."""
+        coords = self.coords
+        s = self.scale
+        prog = list(coords.to_program(self.pos))
+        for i, letter in enumerate(_AXIS_LETTERS):
+            if letter in d:
+                v = self.num(letter, d[letter]) * s
+                prog[i] = v if self.absolute else prog[i] + v
+        if (self.motion == 2 or self.motion == 3) and ('I' in d or 'J' in d or 'K' in d):
+            if self.plane != 17:
+                self.fail(f'G{self.plane} arcs in a rotated coordinate system (G10 L2 R) '
+                          'are not supported', next(c for c in 'IJK' if c in d))
+            i = self.num('I', d['I']) if 'I' in d else 0.0
+            j = self.num('J', d['J']) if 'J' in d else 0.0
+            d['I'], d['J'] = coords.rotate(i, j)
+        return coords.to_machine(tuple(prog))
 
     def home_return(self, d: dict[str, str], code: str) -> None:
         """G28/G30: rapid to the intermediate point, then the named axes (all without axis
@@ -672,6 +709,8 @@ class Interpreter(ArcMixin):
     # -- motion ---------------------------------------------------------------------------
     def target(self, d: dict[str, str]) -> tuple[float, float, float]:
         """End point [m] of a move from the axis words of the line."""
+        if self.rotated:
+            return self.rotated_target(d)
         x, y, z = pos = self.pos
         s = self.scale
         try:

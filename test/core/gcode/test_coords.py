@@ -135,7 +135,7 @@ def test_tool_length_offset_from_the_table_and_its_variants():
     (lambda c: c.g10(2.0, 10.0, {}, (0, 0, 0), fail=fail), 'P', 'out of range (0-9)'),
     (lambda c: c.g10(2.0, 1.5, {}, (0, 0, 0), fail=fail), 'P', 'not an integer'),
     (lambda c: c.g10(20.0, 1.0, {'R': 0.0}, (0, 0, 0), fail=fail), 'R', 'R not allowed'),
-    (lambda c: c.g10(2.0, 1.0, {'R': 30.0}, (0, 0, 0), fail=fail), 'R', 'rotation'),
+    (lambda c: c.g10(2.0, 1.0, {'R': 1e300}, (0, 0, 0), fail=fail), 'R', 'plausible angle'),
     (lambda c: c.g10(1.0, 0.0, {}, (0, 0, 0), fail=fail), 'P', 'tool number'),
 ])
 def test_errors_name_the_word(call, letter, words):
@@ -217,16 +217,16 @@ def test_live_values_in_program_units():
     assert c.system_value(31, pos, 0.001) is None and c.system_value('_foo', pos, 1) is None
 
 
-def test_a_rotated_system_is_refused_when_selected():
+def test_a_rotation_written_into_the_parameters_applies_when_selected():
     params = ParamTable()
-    params.set(5250, 30.0)                       # G55 rotated 30 degrees (a program wrote it)
+    params.set(5250, 90.0)                       # G55 rotated 90 degrees (a program wrote it)
     c = Coords(params=params)
-    with pytest.raises(Failed, match='rotation'):
-        c.select_system(2, fail=fail)
-    c2 = Coords()
-    with pytest.raises(GcodeError):
-        c2.params.set(5250, 1.0)
-        c2.select_system(2)
+    assert not c.rotated
+    c.select_system(2, fail=fail)
+    assert c.rotated and c.to_machine((0.001, 0.0, 0.0)) == approx3((0.0, 0.001, 0.0))
+    params.set(5270, float('inf'))
+    with pytest.raises(Failed, match='plausible angle'):
+        c.select_system(3, fail=fail)
 
 
 def test_code_table_covers_every_system_and_offset_code():
@@ -383,7 +383,8 @@ def test_live_position_reads_program_coordinates():
     ('G10 P1 X1', 1, 1, 'needs an L word'),
     ('G91 G0 G53 X1', 1, 8, 'G53 incremental'),
     ('G1 F100\nG53 G2 X1 I1', 2, 1, 'G0 or G1'),
-    ('G10 L2 P1 R30 X1', 1, 11, 'rotation'),
+    ('G10 L2 P1 R30\nG81 X1 Y1 Z-1 R1 F100', 2, 1, 'rotated coordinate system'),
+    ('G10 L2 P1 R30\nG18 G0 X1\nG2 X0 Z1 I-1 K0 F100', 3, 10, 'G18 arcs in a rotated'),
     ('G41 D0 G1 X10 F100\nG92 X0', 2, 1, 'cutter radius'),
     ('G1 X1 F100\nG4 G92 X0 P1', 2, 4, 'same modal group'),
 ])
@@ -448,3 +449,38 @@ def test_absurd_stored_home_is_an_error_at_g28():
     c = Coords(params=params)
     with pytest.raises(Failed, match='stored G28'):
         c.home_path('G28', (0.0, 0.0, 0.0), (False, False, False), fail=fail)
+
+
+# -- rotation (G10 L2 R): machine = R (program + G92) + G5x + TLO, hand-checked -----------------
+
+def test_rotated_system_turns_absolute_and_incremental_moves():
+    text = 'G21 G90\nG10 L2 P1 X10 R90\nG0 X1 Y0\nG0 Y2\nG91 G1 X1 F100\n'
+    # (1,0) turned 90 deg is (0,1), + origin (10,0); (1,2) -> (-2,1) + (10,0); G91 X1 moves
+    # the program point by (1,0) = machine (0,1)
+    assert ends_mm(text) == [(10.0, 1.0, 0.0), (8.0, 1.0, 0.0), (8.0, 2.0, 0.0)]
+
+
+def test_rotated_arc_keeps_its_direction_and_length():
+    from feed_axis_energy.core.gcode import parse_gcode
+    prog = parse_gcode('G21 G90\nG10 L2 P1 R90\nG0 X1 Y0\nG3 X-1 Y0 I-1 J0 F100\n')
+    arc = prog.moves[-1]
+    assert arc.start == approx3((0.0, 0.001, 0.0)) and arc.end == approx3((0.0, -0.001, 0.0))
+    assert arc.center == approx3((0.0, 0.0, 0.0))
+    assert arc.length_m == pytest.approx(3.141592653589793e-3, rel=1e-12)
+    # counter-clockwise from +Y to -Y passes through -X (the turned +Y of the program)
+    assert getattr(arc, 'sweep_rad', 3.141592653589793) == pytest.approx(3.141592653589793)
+
+
+def test_g92_and_g10_l20_in_a_rotated_system():
+    # at program (1,0) = machine (0,1): G92 X0 Y0 makes it read (0,0); X1 is then program
+    # (1,0) + G92 (1,0) = (2,0) turned = machine (0,2)
+    text = 'G21 G90\nG10 L2 P1 R90\nG0 X1 Y0\nG92 X0 Y0\nG0 X1\n'
+    assert ends_mm(text) == [(0.0, 1.0, 0.0), (0.0, 2.0, 0.0)]
+    # G10 L20 X0 at program (1,0): the origin moves by the turned difference (0,1)
+    text = 'G21 G90\nG10 L2 P1 R90\nG0 X1 Y0\nG10 L20 P1 X0\nG0 X1 Y0\n'
+    assert ends_mm(text) == [(0.0, 1.0, 0.0), (0.0, 2.0, 0.0)]
+
+
+def test_g53_in_a_rotated_system_is_still_machine_coordinates():
+    text = 'G21 G90\nG10 L2 P1 X10 R90\nG53 G0 X5\nG0 X0 Y0\nG53 G0 Y-3\n'
+    assert ends_mm(text) == [(5.0, 0.0, 0.0), (10.0, 0.0, 0.0), (10.0, -3.0, 0.0)]
