@@ -3,9 +3,12 @@
 LinuxCNC 2.9 semantics (``interp_convert.cc``: ``convert_coordinate_system``,
 ``convert_setup``, ``convert_axis_offsets``, ``convert_home``, ``convert_savehome``,
 ``convert_tool_length_offset``; ``interp_find.cc``: ``find_ends``, ``find_relative``). For
-the X, Y and Z axes, with every offset a pure translation::
+the X, Y and Z axes::
 
-    machine = program + G5x offset + G92/G52 offset + tool length offset
+    machine = R (program + G92/G52 offset) + G5x offset + tool length offset
+
+where R turns X and Y by the active system's rotation (G10 L2 R, #5230 + 20 (k - 1); a pure
+translation without it).
 
 * G54..G59, G59.1..G59.3 select coordinate system 1..9; its origin is read from the stored
   parameters ``#5221 + 20 (n - 1)`` (X, Y, Z) when it is selected, as LinuxCNC does.
@@ -26,7 +29,7 @@ the X, Y and Z axes, with every offset a pure translation::
 
 Stored parameters hold lengths in millimetres (LinuxCNC with a millimetre machine
 configuration); the live values (``#5420..`` position, ``#<_x>`` ...) are in program units.
-Rotation of a coordinate system (G10 L2 R) is refused. The state is pure: no I/O.
+The state is pure: no I/O.
 """
 from __future__ import annotations
 
