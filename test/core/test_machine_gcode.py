@@ -147,3 +147,10 @@ def test_simulate_tool_option_adds_to_the_table(tmp_path, capsys):
     assert exc.value.code == 2
     assert "argument --tool: expected a number of millimetres, got 'abc'" in \
         capsys.readouterr().err
+
+
+def test_config_dialect_names_are_the_registry_of_the_gcode_package():
+    # machine_gcode keeps its own tuple (core/machine_gcode must not import core/gcode)
+    from feed_axis_energy.core.gcode.dialect import DIALECTS as REGISTRY
+    from feed_axis_energy.core.machine_gcode import DIALECTS
+    assert set(DIALECTS) == set(REGISTRY)
