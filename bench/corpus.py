@@ -2,7 +2,8 @@
 
 Run by hand from the repository root after ``scripts/test`` made the venv::
 
-    PYTHONPATH=. .venv/bin/python bench/corpus.py [--corpus DIR] [--plan] [--json] [--locate]
+    PYTHONPATH=. .venv/bin/python bench/corpus.py [--corpus DIR] [--plan] [--json]
+                                                  [--locate auto|yes|no]
                                                   [--mem-lines N] [--skip-largest K]
 
 For every program of ``programs.csv`` it parses the program in-process, the way the
@@ -25,14 +26,15 @@ box (1 um). ``--plan`` also plans every accepted program on ``config/three_axis_
 
 Prints acceptance per dialect (ours vs the reference), every refusal of a program the
 reference accepts (file:line:column and our message), every disagreement (program, figure,
-ours vs reference, and the line of our first move where that can be told), every traceback,
-with ``--locate`` the first differing move of each disagreeing program found by running the
-reference move by move (``bench/oracle_trace.py``, needs LinuxCNC's ``gcode`` module),
-and a summary line with the targets of issue 8 (>= 95 % of the programs the reference
-accepts, 0 tracebacks, 0 disagreements). ``--mem-lines N`` (default 1 000 000; 0 skips it)
-generates an N-line CAM-like program in a temporary directory and reports the peak resident
-memory of parsing it in a child process. Exit status 0 (the figures are a report, not a
-verdict); 2 on a usage error; 1 when the corpus cannot be found.
+ours vs reference), the first differing move of each disagreeing program with its line,
+found by running the reference move by move (``bench/oracle_trace.py``, needs LinuxCNC's
+``gcode`` module; ``--locate``, by default when it is installed and at most 30 programs
+disagree), every traceback, and a summary line with the targets of issue 8 (>= 95 % of
+the programs the reference accepts, 0 tracebacks, 0 disagreements). ``--mem-lines N``
+(default 1 000 000; 0 skips it) generates an N-line CAM-like program in a temporary
+directory and reports the peak resident memory of parsing it in a child process. Exit
+status 0 (the figures are a report, not a verdict); 2 on a usage error; 1 when the corpus
+cannot be found.
 """
 from __future__ import annotations
 
@@ -75,6 +77,7 @@ POSITION_TOL_MM = 1e-3      # 1 um
 DWELL_TOL_S = 1e-4
 ORACLE_TOOLS = 999          # tools T1..T999, zero radius and length (run_oracle.py)
 DEFAULT_TIMEOUT_S = 60.0
+MAX_AUTO_LOCATE = 30        # --locate auto: programs traced move by move at most
 
 
 # --------------------------------------------------------------------------------------
@@ -207,7 +210,6 @@ class OurResult:
     line: int | None = None
     column: int | None = None
     stats: ProgramStats | None = None
-    first_line: dict[str, int] = field(default_factory=dict)  # first line issuing each kind
     warnings: int = 0
     seconds: float = 0.0
     plan: str = ''                    # '', 'ok <duration>', or the planning error
@@ -247,18 +249,6 @@ def known_dialects() -> tuple[str, ...]:
     return tuple(DIALECTS)
 
 
-def _first_lines(moves: Any) -> tuple[list[Any], dict[str, int]]:
-    """Pass the moves through, noting the first source line of each kind."""
-    first: dict[str, int] = {}
-    out = []
-    for m in moves:
-        name = m.kind.name
-        if name not in first:
-            first[name] = m.line
-        out.append(m)
-    return out, first
-
-
 def run_ours(path: Path, *, dialect: str | None, search_path: list[Path],
              timeout_s: float = DEFAULT_TIMEOUT_S,
              planner: Callable[[Any], str] | None = None) -> OurResult:
@@ -291,9 +281,8 @@ def run_ours(path: Path, *, dialect: str | None, search_path: list[Path],
         signal.setitimer(signal.ITIMER_REAL, timeout_s)
     try:
         program = load_gcode(path, **kw)
-        moves, first = _first_lines(program.moves)
-        stats = summarize(moves)
-        res = OurResult('ok', stats=stats, first_line=first, warnings=len(program.warnings))
+        stats = summarize(program.moves)
+        res = OurResult('ok', stats=stats, warnings=len(program.warnings))
         if planner is not None:
             res.plan = planner(program)
     except _Timeout:
@@ -376,11 +365,8 @@ def compare(file: str, ours: OurResult, ref: dict[str, Any]) -> list[Disagreemen
              'n_arcs': ('ARC_CW', s.n_arcs), 'n_dwells': ('DWELL', s.n_dwells)}
     for key, (kind, n) in kinds.items():
         if n != ref.get(key):
-            line = ours.first_line.get(kind)
-            if kind == 'ARC_CW':
-                cand = [v for k, v in ours.first_line.items() if k.startswith('ARC')]
-                line = min(cand) if cand else None
-            out.append(Disagreement(file, key, n, ref.get(key), line))
+            # The line where the counts part is found by the move-by-move trace (--locate).
+            out.append(Disagreement(file, key, n, ref.get(key)))
     lengths = (('feed_path_length_mm', s.feed_length_m), ('traverse_path_length_mm',
                                                           s.traverse_length_m))
     for key, metres in lengths:
@@ -391,7 +377,7 @@ def compare(file: str, ours: OurResult, ref: dict[str, Any]) -> list[Disagreemen
     if not _close(s.dwell_s, float(ref.get('dwell_s_total', math.nan)), rel=REL_LENGTH_TOL,
                   absolute=DWELL_TOL_S):
         out.append(Disagreement(file, 'dwell_s_total', f'{s.dwell_s:.4f}',
-                                ref.get('dwell_s_total'), ours.first_line.get('DWELL')))
+                                ref.get('dwell_s_total')))
     fin = [v * 1e3 for v in s.final_position]
     if not _near(fin, ref.get('final_position')):
         out.append(Disagreement(file, 'final_position', _fmt(fin), ref.get('final_position')))
@@ -490,6 +476,18 @@ def _call(ref: list[Any]) -> str:
         return f'dwell line {ref[1]} {ref[2]:g} s'
     length = f' length {ref[5]:.4f} mm' if len(ref) > 5 else ''
     return f'{ref[0]} line {ref[1]} to {_fmt(ref[2:5])}{length}'
+
+
+def reference_available() -> bool:
+    """True when LinuxCNC's ``gcode`` module can be imported by /usr/bin/python3."""
+    if not os.path.exists('/usr/bin/python3'):
+        return False
+    try:
+        proc = subprocess.run(['/usr/bin/python3', '-c', 'import gcode; gcode.parse'],
+                              capture_output=True, cwd='/', timeout=60)
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return proc.returncode == 0
 
 
 def locate(corpus: Path, file: str) -> str:
@@ -855,9 +853,11 @@ def main(argv: list[str] | None = None) -> int:
                     help='leave out the K programs with the most lines')
     ap.add_argument('--timeout', type=float, default=DEFAULT_TIMEOUT_S, metavar='S',
                     help=f'wall-clock limit per program [s] (default {DEFAULT_TIMEOUT_S:g})')
-    ap.add_argument('--locate', action='store_true',
-                    help='for every disagreeing program, run the reference move by move '
-                         '(needs linuxcnc-uspace) and print the first differing move and line')
+    ap.add_argument('--locate', choices=('auto', 'yes', 'no'), default='auto',
+                    help='run the reference move by move on each disagreeing program and '
+                         'print the first differing move and its line (needs '
+                         'linuxcnc-uspace; auto, the default: when it is installed and at '
+                         f'most {MAX_AUTO_LOCATE} programs disagree)')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     args = ap.parse_args(argv)
     if args.mem_lines < 0 or args.skip_largest < 0 or not args.timeout > 0:
@@ -874,8 +874,10 @@ def main(argv: list[str] | None = None) -> int:
 
     report = evaluate(corpus, plan=args.plan, skip_largest=args.skip_largest,
                       timeout_s=args.timeout, progress=progress)
-    if args.locate:
-        for name in report.disagreeing_files():
+    bad = report.disagreeing_files()
+    if args.locate == 'yes' or (args.locate == 'auto' and 0 < len(bad) <= MAX_AUTO_LOCATE
+                                and reference_available()):
+        for name in bad:
             progress(f'locating the first difference in {name} ...')
             report.located[name] = locate(corpus, name)
     mem = None
