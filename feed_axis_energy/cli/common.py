@@ -8,7 +8,7 @@ from pathlib import Path
 
 from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.machine import load_machine, Machine
-from feed_axis_energy.core.machine_gcode import parse_tool_option, with_tools
+from feed_axis_energy.core.machine_gcode import DIALECTS, parse_tool_option, with_tools
 from feed_axis_energy.core.trajectory import PlannerOptions
 from feed_axis_energy.paths import default_machine
 
@@ -29,7 +29,8 @@ def _tool(text: str) -> tuple:
 
 
 def add_machine_options(p: argparse.ArgumentParser) -> None:
-    """Add ``--machine``, ``--load-kg``, ``--rate-hz``, ``--profile`` and ``--tool``."""
+    """Add ``--machine``, ``--load-kg``, ``--rate-hz``, ``--profile``, ``--tool`` and
+    ``--dialect``."""
     p.add_argument('--machine', type=Path, metavar='YAML', default=None,
                    help='machine config (default: the paper\'s demonstrator, '
                         'config/demonstrator.yaml)')
@@ -44,6 +45,9 @@ def add_machine_options(p: argparse.ArgumentParser) -> None:
                    help='tool T with radius R and length offset L in mm (default 0) for '
                         'G41/G42 and G43, added to the machine config\'s gcode.tools or '
                         'replacing its entry; repeat for more tools (e.g. --tool 1:3:45.2)')
+    p.add_argument('--dialect', choices=DIALECTS, default=None,
+                   help='G-code dialect of the program (default: the machine config\'s '
+                        'gcode.dialect, else linuxcnc; docs in core/gcode/dialect.py)')
 
 
 def load_machine_and_options(args: argparse.Namespace) -> tuple[Machine, PlannerOptions]:
@@ -64,6 +68,8 @@ def load_machine_and_options(args: argparse.Namespace) -> tuple[Machine, Planner
         options = replace(options, profile=args.profile)
     if getattr(args, 'tool', None):
         machine = replace(machine, gcode=with_tools(machine.gcode, dict(args.tool)))
+    if getattr(args, 'dialect', None) is not None:
+        machine = replace(machine, gcode=replace(machine.gcode, dialect=args.dialect))
     return machine, options
 
 

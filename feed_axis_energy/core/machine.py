@@ -246,11 +246,13 @@ class Machine:
         return (home.get('X', 0.0), home.get('Y', 0.0), home.get('Z', 0.0))
 
     def gcode_keywords(self) -> dict[str, Any]:
-        """Keywords for :func:`.gcode.load_gcode` from this machine: G28 position, tools.
+        """Keywords for :func:`.gcode.load_gcode` from this machine: G28 position, tool
+        table and dialect.
 
         ``load_gcode(path, **machine.gcode_keywords())`` runs a program on this machine.
         """
-        return {'home': self.home_point(), 'tools': self.gcode.tools}
+        return {'home': self.home_point(), 'tools': self.gcode.tools,
+                'dialect': self.gcode.dialect}
 
     @property
     def axis_names(self) -> tuple[str, ...]:

@@ -154,3 +154,25 @@ def test_config_dialect_names_are_the_registry_of_the_gcode_package():
     from feed_axis_energy.core.gcode.dialect import DIALECTS as REGISTRY
     from feed_axis_energy.core.machine_gcode import DIALECTS
     assert set(DIALECTS) == set(REGISTRY)
+
+
+def test_simulate_dialect_from_the_config_or_the_command_line(tmp_path, capsys):
+    # G4 P2000: 2000 s for LinuxCNC, 2 s for Fanuc (milliseconds)
+    from feed_axis_energy.cli import main
+    import json
+    prog = tmp_path / 'dwell.nc'
+    prog.write_text('G21 G90\nG1 X10 F600\nG4 P2000\nM30\n')
+    d = machine_to_dict(load_machine(CONFIG / 'three_axis_mill.yaml'))
+    d['gcode']['dialect'] = 'fanuc'
+    fanuc = tmp_path / 'fanuc.yaml'
+    fanuc.write_text(yaml.safe_dump(d))
+
+    def duration(*extra):
+        assert main(['simulate', str(prog), '--json', '--quiet', *extra]) == 0
+        return json.loads(capsys.readouterr().out)['duration_s']
+
+    assert duration('--machine', str(fanuc)) == pytest.approx(3.0, abs=0.5)
+    assert duration('--machine', str(fanuc), '--dialect', 'linuxcnc') > 2000.0
+    with pytest.raises(SystemExit) as exc:
+        main(['simulate', str(prog), '--dialect', 'heidenhain'])
+    assert exc.value.code == 2
