@@ -44,22 +44,18 @@ Dialect (LinuxCNC semantics where dialects differ)
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 import gc
 from os import PathLike
 
 from .canon import CENTER_ARC_RADIUS_TOLERANCE_MM
 from .dialect import Dialect, dialect_by_name
-from .flow import read_blocks
-from .interp import Interpreter
-from .lexer import blank_comments, LINE_RE, WORD_RE
-from .params import Parameters
+from .run import GcodeRun
 from .source import read_program
-from ..errors import GcodeError
-from ..program import Program
+from ..program import Move, Program
 
-__all__ = ['parse_gcode', 'load_gcode', 'DEFAULT_ARC_TOLERANCE_M', 'Dialect',
-           'dialect_by_name']
+__all__ = ['parse_gcode', 'load_gcode', 'iter_moves', 'MoveStream',
+           'DEFAULT_ARC_TOLERANCE_M', 'Dialect', 'dialect_by_name']
 
 # LinuxCNC's centre-format radius tolerance in G21 (canon.CENTER_ARC_RADIUS_TOLERANCE_MM):
 # what arc_tolerance_m=None means for a metric program (G20: 0.002828 inch).
@@ -113,140 +109,81 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
     ConfigError
         For an unknown dialect name.
     """
-    dialect = dialect_by_name(dialect)
-    if '\r' in text:
-        text = text.replace('\r\n', '\n').replace('\r', '\n')
-    lines = text.split('\n')
-    if lines and lines[-1] == '':
-        lines.pop()
-    opts = dict(file=file, start=start, arc_tolerance_m=arc_tolerance_m, home=home,
-                tools=tools, dialect=dialect)
+    run = GcodeRun(text, file=file, start=start, arc_tolerance_m=arc_tolerance_m, home=home,
+                   tools=tools, dialect=dialect_by_name(dialect), search_path=search_path)
     # The parse allocates one Move per block and frees nothing: cyclic garbage collection
     # passes over the growing list find nothing and cost ~15 % of the time, so they are
     # paused for the duration (and resumed even when the program is refused).
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
-        program = _parse_plain(text, lines, **opts)
-        if program is None:
-            program = _parse_blocks(text, lines, search_path=search_path, **opts)
-        return program
+        moves: list[Move] = []
+        for batch in run:
+            moves += batch
     finally:
         if gc_was_enabled:
             gc.enable()
+    return Program(file=file, moves=tuple(moves), n_lines=run.n_lines,
+                   warnings=tuple(run.warnings))
 
 
-def _parse_plain(text: str, lines: list[str], *, file: str, start: Vec3,
-                 arc_tolerance_m: float | None, home: Vec3 | None,
-                 tools: Mapping[int, object] | None, dialect: Dialect) -> Program | None:
-    """The fast path: a program of plain ``letter number`` lines, read line by line.
+class MoveStream:
+    """The moves of a program file one by one, in bounded memory (see :func:`iter_moves`).
 
-    Returns ``None`` as soon as a line needs the front's reader (parameters, expressions,
-    O-words, M98/M99, ``$`` lines, anything it must diagnose): the caller starts again
-    with :func:`_parse_blocks`. Plain programs (most CAM output) never get there.
+    Attributes
+    ----------
+    file
+        The program's name.
+    warnings
+        ``file:line: message`` texts, complete once the iteration has ended.
+    n_lines
+        Number of lines of the program.
     """
-    # Upper-casing the whole text once keeps lines aligned: it never adds or removes '\n'.
-    upper_lines = text.upper().split('\n')
-    ascii_text = text.isascii()
-    p = Interpreter(file, start, arc_tolerance_m, lines=lines, home=home, tools=tools,
-                    dialect=dialect)
-    line_re = LINE_RE.fullmatch
-    findall = WORD_RE.findall
-    interpret = p.line
-    fanuc = dialect.fanuc_subprograms
-    seen_code = False
-    end_at = 0
-    for lineno, code in enumerate(upper_lines[:len(lines)], 1):
-        if '(' in code or ';' in code:
-            code = blank_comments(code, file=file, line=lineno)
-        if line_re(code) is None or not (ascii_text or lines[lineno - 1].isascii()):
-            # Not plain words: block delete, a % marker, or a line for the front's reader.
-            code = blank_comments(lines[lineno - 1], file=file, line=lineno)
-            stripped = code.strip()
-            if stripped[:1] == '/':
-                continue
-            if stripped == '%':
-                if seen_code:
-                    end_at = lineno
-                    break
-                continue
-            if not code.isascii() or line_re(code.upper()) is None:
-                return None
-            code = code.upper()
-        words = findall(code)
-        if not words:
-            continue
-        if fanuc and 'M9' in code and _fanuc_call(words):
-            return None
-        seen_code = True
-        p.lineno = lineno
-        interpret(words)
-        if p.ended:
-            end_at = lineno
-            break
-    p.close()
-    if end_at:
-        _warn_trailing(p, lines, end_at)
-    return Program(file=file, moves=tuple(p.moves), n_lines=len(lines),
-                   warnings=tuple(p.warnings))
+
+    def __init__(self, run: GcodeRun):
+        self._run = run
+        self.file = run.file
+        self.n_lines = run.n_lines
+
+    @property
+    def warnings(self) -> list[str]:
+        """Warnings so far (all of them after the last move)."""
+        return self._run.warnings
+
+    def __iter__(self) -> Iterator[Move]:
+        """The moves in order."""
+        for batch in self._run:
+            yield from batch
 
 
-def _fanuc_call(words: list[tuple[str, str]]) -> bool:
-    """True if the line has M98 or M99 (Fanuc subprograms: the front's reader runs them)."""
-    for letter, value in words:
-        if letter == 'M':
-            try:
-                if float(''.join(value.split())) in (98.0, 99.0):
-                    return True
-            except ValueError:
-                return True
-    return False
+def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
+               arc_tolerance_m: float | None = None, home: Vec3 | None = None,
+               tools: Mapping[int, object] | None = None,
+               dialect: str | Dialect | None = None,
+               search_path: Sequence[str | PathLike[str]] = (),
+               batch: int = 4096) -> MoveStream:
+    """Read a program file and stream its moves (memory: the text plus ``batch`` moves).
 
+    Parameters
+    ----------
+    path
+        The program file.
+    start, arc_tolerance_m, home, tools, dialect, search_path
+        As for :func:`parse_gcode`.
+    batch
+        Moves interpreted ahead of the consumer (at least 1).
 
-def _parse_blocks(text: str, lines: list[str], *, file: str, start: Vec3,
-                  arc_tolerance_m: float | None, home: Vec3 | None,
-                  tools: Mapping[int, object] | None, dialect: Dialect,
-                  search_path: Sequence[str | PathLike[str]]) -> Program:
-    """The full path: blocks from the front's reader (parameters, expressions, O-words,
-    subroutine files, Fanuc subprograms), each interpreted with its evaluated words."""
-    params = Parameters()
-    p = Interpreter(file, start, arc_tolerance_m, lines=lines, home=home, tools=tools,
-                    dialect=dialect, params=params)
-    coords = p.coords
-    params.provider = lambda key: coords.system_value(key, p.pos, p.scale)
-    reader = read_blocks(text, file=file, params=params, dialect=dialect,
-                         search_path=tuple(search_path))
-    interpret = p.line
-    end_at = 0
-    for block in reader:
-        p.src = block
-        p.lineno = block.main_line
-        interpret(block.words)
-        p.end_block()
-        if p.ended:
-            if block.file == file and block.line == block.main_line:
-                end_at = block.line
-            break
-    p.src = None
-    p.close()
-    if end_at:
-        _warn_trailing(p, lines, end_at)
-    return Program(file=file, moves=tuple(p.moves), n_lines=len(lines),
-                   warnings=tuple(reader.warnings) + tuple(p.warnings))
-
-
-def _warn_trailing(p: Interpreter, lines: list[str], end_at: int) -> None:
-    """Warn once if code follows the end of the program."""
-    for lineno in range(end_at + 1, len(lines) + 1):
-        raw = lines[lineno - 1]
-        try:
-            code = blank_comments(raw, file=p.file, line=lineno).strip()
-        except GcodeError:
-            code = raw.strip()
-        if code and code != '%':
-            p.warnings.append(f'{p.file}:{lineno}: lines after the end of the program '
-                              f'(line {end_at}) are ignored')
-            return
+    Returns
+    -------
+    MoveStream
+        Iterate over it for the moves; its ``warnings`` are complete at the end. Errors
+        (:class:`GcodeError`) are raised during the iteration, at the line concerned.
+    """
+    name = str(path)
+    text = read_program(path, file=name)
+    return MoveStream(GcodeRun(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
+                               home=home, tools=tools, dialect=dialect_by_name(dialect),
+                               search_path=search_path, batch=max(1, int(batch))))
 
 
 def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),

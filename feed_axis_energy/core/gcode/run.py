@@ -1,0 +1,190 @@
+"""One run of a program through the interpreter, as a stream of moves.
+
+Plain lines (``letter number`` words only: most CAM output) are read here, line by line
+with two precompiled regular expressions, and handed straight to the interpreter. At the
+first line that needs more (parameters, expressions, O-words, ``M98``/``M99``, ``$`` lines,
+anything to diagnose) the rest of the program goes to the front's reader
+(:func:`.flow.read_blocks`) with the same interpreter and parameter table: the lines
+already run are blanked for it, so its line numbers stay those of the file. Nothing is read
+twice and memory is bounded by the batch size (plus the program text itself).
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+from os import PathLike
+
+from .dialect import Dialect
+from .flow import read_blocks
+from .interp import Interpreter
+from .lexer import blank_comments, LINE_RE, WORD_RE
+from .params import Parameters
+from ..errors import GcodeError
+from ..program import Move
+
+__all__ = ['GcodeRun']
+
+Vec3 = tuple[float, float, float]
+
+
+class GcodeRun:
+    """Iterate over the moves of one program in batches (lists of :class:`Move`).
+
+    Parameters
+    ----------
+    text
+        The program text (LF, CRLF or CR line ends).
+    file, start, arc_tolerance_m, home, tools, dialect, search_path
+        As for :func:`~.parse_gcode` (``dialect`` already a :class:`Dialect`).
+    batch
+        Hand on the moves whenever this many have gathered (``None``: once, at the end).
+
+    Attributes
+    ----------
+    warnings
+        ``file:line: message`` texts; complete once the iteration has ended.
+    n_lines
+        Number of lines of the program file.
+    """
+
+    def __init__(self, text: str, *, file: str, start: Vec3, arc_tolerance_m: float | None,
+                 home: Vec3 | None, tools: Mapping[int, object] | None, dialect: Dialect,
+                 search_path: Sequence[str | PathLike[str]] = (), batch: int | None = None):
+        if '\r' in text:
+            text = text.replace('\r\n', '\n').replace('\r', '\n')
+        self.text = text
+        self.lines = text.split('\n')
+        if self.lines and self.lines[-1] == '':
+            self.lines.pop()
+        self.n_lines = len(self.lines)
+        self.file = file
+        self.dialect = dialect
+        self.search_path = tuple(search_path)
+        self.batch = batch
+        self.warnings: list[str] = []
+        self.params = Parameters()
+        self.interp = Interpreter(file, start, arc_tolerance_m, lines=self.lines, home=home,
+                                  tools=tools, dialect=dialect, params=self.params)
+        p = self.interp
+        coords = p.coords
+        self.params.provider = lambda key: coords.system_value(key, p.pos, p.scale)
+
+    def __iter__(self) -> Iterator[list[Move]]:
+        """Run the program; yield the moves in batches."""
+        p = self.interp
+        rest = yield from self._plain()
+        reader_warnings: list[str] = []
+        if rest is not None:
+            reader_warnings = yield from self._blocks(rest)
+        p.close()
+        self.warnings = reader_warnings + p.warnings
+        if p.moves:
+            yield p.moves
+            p.moves = []
+
+    def _take(self) -> list[Move]:
+        p = self.interp
+        out = p.moves
+        p.moves = []
+        return out
+
+    def _plain(self) -> Iterator[list[Move]]:
+        """The fast path; returns the 0-based index of the first line it cannot take, or
+        ``None`` when the program ended."""
+        p = self.interp
+        file = self.file
+        lines = self.lines
+        # Upper-casing the whole text once keeps lines aligned: it adds or removes no '\n'.
+        upper_lines = self.text.upper().split('\n')
+        ascii_text = self.text.isascii()
+        line_re = LINE_RE.fullmatch
+        findall = WORD_RE.findall
+        interpret = p.line
+        fanuc = self.dialect.fanuc_subprograms
+        batch = self.batch or 0
+        seen_code = False
+        end_at = 0
+        for lineno, code in enumerate(upper_lines[:len(lines)], 1):
+            if '(' in code or ';' in code:
+                code = blank_comments(code, file=file, line=lineno)
+            if line_re(code) is None or not (ascii_text or lines[lineno - 1].isascii()):
+                # Not plain words: block delete, a % marker, or a line for the front.
+                code = blank_comments(lines[lineno - 1], file=file, line=lineno)
+                stripped = code.strip()
+                if stripped[:1] == '/':
+                    continue
+                if stripped == '%':
+                    if seen_code:
+                        end_at = lineno
+                        break
+                    continue
+                if not code.isascii() or line_re(code.upper()) is None:
+                    return lineno - 1
+                code = code.upper()
+            words = findall(code)
+            if not words:
+                continue
+            if fanuc and 'M9' in code and _fanuc_call(words):
+                return lineno - 1
+            seen_code = True
+            p.lineno = lineno
+            interpret(words)
+            if p.ended:
+                end_at = lineno
+                break
+            if batch and len(p.moves) >= batch:
+                yield self._take()
+        if end_at:
+            _warn_trailing(p, lines, end_at)
+        return None
+
+    def _blocks(self, first: int) -> Iterator[list[Move]]:
+        """The front's reader from line ``first`` (0-based) on; returns its warnings."""
+        p = self.interp
+        file = self.file
+        text = '\n' * first + '\n'.join(self.lines[first:])
+        reader = read_blocks(text, file=file, params=self.params, dialect=self.dialect,
+                             search_path=self.search_path)
+        interpret = p.line
+        batch = self.batch or 0
+        end_at = 0
+        for block in reader:
+            p.src = block
+            p.lineno = block.main_line
+            interpret(block.words)
+            p.end_block()
+            if p.ended:
+                if block.file == file and block.line == block.main_line:
+                    end_at = block.line
+                break
+            if batch and len(p.moves) >= batch:
+                yield self._take()
+        p.src = None
+        if end_at:
+            _warn_trailing(p, self.lines, end_at)
+        return list(reader.warnings)
+
+
+def _fanuc_call(words: list[tuple[str, str]]) -> bool:
+    """True if the line has M98 or M99 (Fanuc subprograms: the front's reader runs them)."""
+    for letter, value in words:
+        if letter == 'M':
+            try:
+                if float(''.join(value.split())) in (98.0, 99.0):
+                    return True
+            except ValueError:
+                return True
+    return False
+
+
+def _warn_trailing(p: Interpreter, lines: list[str], end_at: int) -> None:
+    """Warn once if code follows the end of the program."""
+    for lineno in range(end_at + 1, len(lines) + 1):
+        raw = lines[lineno - 1]
+        try:
+            code = blank_comments(raw, file=p.file, line=lineno).strip()
+        except GcodeError:
+            code = raw.strip()
+        if code and code != '%':
+            p.warnings.append(f'{p.file}:{lineno}: lines after the end of the program '
+                              f'(line {end_at}) are ignored')
+            return
