@@ -121,13 +121,14 @@ def program_problems(path: Path, *, machine: Any, keywords: dict[str, Any],
     problems = problems_from_warnings(program.warnings, file=name)
     sanity, stats = check_moves(program.moves, file=name, limits=_limits(machine, max_dwell_s))
     # In line order (a file-level warning, line 0, first), as a reader goes through the file.
-    return sorted(problems + _with_text(sanity, path), key=lambda p: p.line), stats
+    return sorted(_with_text(problems + sanity, path), key=lambda p: p.line), stats
 
 
 def _with_text(problems: list[Any], path: Path) -> list[Any]:
     """Fill in the source text of the lines the problems name (one streaming pass)."""
     from feed_axis_energy.core.errors import shorten
-    wanted = {p.line for p in problems if p.line > 0 and not p.text}
+    name = str(path)
+    wanted = {p.line for p in problems if p.line > 0 and not p.text and p.file == name}
     if not wanted:
         return problems
     texts: dict[int, str] = {}
@@ -140,7 +141,8 @@ def _with_text(problems: list[Any], path: Path) -> list[Any]:
                         break
     except OSError:
         return problems
-    return [replace(p, text=texts.get(p.line, p.text)) for p in problems]
+    return [replace(p, text=texts.get(p.line, p.text)) if p.file == name else p
+            for p in problems]
 
 
 def warning_texts(path: Path, program: Any, machine: Any) -> list[str]:

@@ -141,3 +141,11 @@ def test_tool_option_fills_the_tool_table(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     # G43 H3 with a 40 mm tool: Z10 in the program is Z 50 mm in machine coordinates.
     assert doc['programs'][0]['summary']['final_position_m'][2] == pytest.approx(0.05)
+
+
+def test_parser_warnings_are_listed_with_their_line_and_text(tmp_path, capsys):
+    prog = _write(tmp_path, 'tail.nc', 'G21 G90\nG1 X1 F100\nM2\nG1 X5\n')
+    assert main(['check', str(prog), '--machine', str(MILL), '--quiet']) == 0
+    out = capsys.readouterr().out
+    assert f"{prog}:4:0: warning: lines after the end of the program (line 3) are ignored " \
+           f"near 'G1 X5'" in out
