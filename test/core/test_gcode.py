@@ -229,9 +229,14 @@ def test_inverse_time_feed():
     assert_allclose(ms[1].feed_m_s, 2 * math.pi * 10 * MM / 10)
 
 
-def test_switching_feed_mode_needs_new_f():
-    with pytest.raises(GcodeError, match='no feed rate'):
-        parse_gcode('G1 X1 F100\nG93 G1 X2 F1\nG94 G1 X3\n')
+def test_switching_feed_mode_clears_f():
+    # LinuxCNC clears F on a G93/G94 switch; a feed move without F then runs at the
+    # machine's limits (feed inf), with one warning (LinuxCNC's preview accepts it).
+    prog = parse_gcode('G1 X1 F100\nG93 G1 X2 F1\nG94 G1 X3\nX4\n', file='t.nc')
+    assert [m.feed_m_s for m in prog.moves[2:]] == [math.inf, math.inf]
+    assert [w for w in prog.warnings if 'no feed rate' in w] == [
+        't.nc:3: feed move with no feed rate (F) in force: it runs at the machine\'s axis '
+        'limits (LinuxCNC refuses this; its preview accepts it)']
 
 
 def test_dwell_and_stops():
@@ -288,7 +293,7 @@ def test_inch_inverse_time_fixture():
 # -- errors ---------------------------------------------------------------------------------
 BAD = {
     'unknown_letter.nc': (3, 10, 'E word with no M66'),
-    'missing_feed.nc': (3, 3, 'no feed rate'),
+    'missing_feed.nc': (3, 10, 'feed rate is zero'),
     'arc_off_circle.nc': (2, 4, 'not on the circle'),
     'r_too_small.nc': (2, 11, 'smaller than half the chord'),
     'bad_number.nc': (2, 4, 'not a number'),

@@ -749,14 +749,14 @@ class Interpreter(ArcMixin):
             if feed == 0.0:
                 self.fail('F0 in G93: the move would never finish', 'F')
             return length * feed / 60.0
-        if feed is None:
-            self.fail_motion('no feed rate: give F before (or on) the first feed move',
-                             explicit, d)
-        if feed == 0.0:
-            if 'F' in d:
-                self.fail('feed rate is zero', 'F')
-            self.fail_motion('feed rate is zero', explicit, d)
-        return feed
+        if feed == 0.0 and 'F' in d:
+            self.fail('feed rate is zero', 'F')
+        if 'no feed' not in self.warned:
+            self.warned.add('no feed')
+            self.warnings.append(f'{self.file}:{self.lineno}: feed move with no feed rate (F) '
+                                 "in force: it runs at the machine's axis limits (LinuxCNC "
+                                 'refuses this; its preview accepts it)')
+        return _INF
 
     def fail_motion(self, msg: str, explicit: bool, d: dict[str, str]):
         """Fail at the word that asked for this line's motion (its G word or first axis)."""

@@ -58,7 +58,7 @@ def test_stream_equals_whole_program(tmp_path):
 
 def test_stream_raises_at_the_bad_line(tmp_path):
     path = tmp_path / 'bad.nc'
-    path.write_text('G21 G0 X1\n' * 50 + 'G1 X2\n')        # no feed rate on line 51
+    path.write_text('G21 G0 X1\n' * 50 + 'G1 X2 F0\n')     # zero feed rate on line 51
     stream = iter(iter_moves(path, batch=10))
     first = [next(stream) for _ in range(10)]
     assert [m.line for m in first] == list(range(1, 11))
