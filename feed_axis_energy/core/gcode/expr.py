@@ -236,15 +236,25 @@ class Reader:
         except ParameterError as err:
             raise self.error(str(err), start) from None
 
-    def expression(self) -> float:
-        """Read ``[ ... ]`` (the current character is ``[``) and evaluate it."""
-        self.pos += 1
+    def expression(self, *, open_end: bool = False) -> float:
+        """Read ``[ ... ]`` (the current character is ``[``) and evaluate it.
+
+        With ``open_end`` the expression has no brackets and runs to the end of the line
+        (Fanuc macro B assignments, ``#1 = #2 / 2 + 1``); the current character is its
+        first value.
+        """
+        if not open_end:
+            self.pos += 1
         values = [self.value()]
         ops: list[tuple[str, int]] = []
         while True:
             at = self.pos
+            if open_end and self.pos >= len(self.s):
+                break
             op = self.operator()
             if op == ']':
+                if open_end:
+                    raise self.error('"]" without an opening "["', at)
                 break
             prec = _PRECEDENCE[op]
             while ops and _PRECEDENCE[ops[-1][0]] >= prec:

@@ -48,11 +48,12 @@ from os import PathLike
 from pathlib import Path
 from typing import Any, Iterator
 
-from . import control
 from .block import Block
 from .control import Frame, goto, run_structure
 from .expr import compact, MAX_MAGNITUDE, Reader
-from .lexer import blank_comments, LINE_RE, locate_word, read_items, WORD_RE
+from .fanuc import END, fanuc_m, FanucCalls, MAX_CALL_DEPTH, SWITCH
+from .lexer import blank_comments, LINE_RE, read_items, WORD_RE
+from .macrob import is_macro_statement, run_macro
 from .params import N_CALL_ARGUMENTS, Parameters
 from .progfile import expect_end, FANUC, ProgramFile, read_head
 from .source import find_subroutine_file, read_program
@@ -62,12 +63,6 @@ __all__ = ['read_blocks', 'BlockReader', 'MAX_EXECUTED_LINES', 'MAX_CALL_DEPTH']
 
 MAX_EXECUTED_LINES = 50_000_000
 """Lines executed in one run (each loop pass counts its lines again) before it is stopped."""
-
-MAX_CALL_DEPTH = 10
-"""Deepest nesting of ``call``/``M98`` (LinuxCNC's ``INTERP_SUB_ROUTINE_LEVELS``)."""
-
-_SWITCH = object()  # _slow(): the frame stack changed
-_END = object()     # _slow(): the program ends here
 
 
 def read_blocks(text: str, *, file: str = '<string>', params: Parameters | None = None,
@@ -86,7 +81,10 @@ def read_blocks(text: str, *, file: str = '<string>', params: Parameters | None 
         ``provider`` and writes its persistent values there.
     dialect
         A dialect profile; ``fanuc_subprograms`` (default true) says whether bare
-        ``O1234`` lines and ``M98``/``M99`` are Fanuc subprograms.
+        ``O1234`` lines and ``M98``/``M99`` are Fanuc subprograms; ``fanuc_macro`` (default:
+        true for the ``fanuc`` and ``haas`` profiles) turns on Fanuc Custom Macro B
+        (:mod:`.macrob`: ``WHILE``/``DO``/``END``, ``IF``/``GOTO``/``THEN``, ``G65``,
+        assignments without brackets).
     search_path
         Directories searched for subroutine files after ``program_dir``.
     program_dir
@@ -103,7 +101,7 @@ def read_blocks(text: str, *, file: str = '<string>', params: Parameters | None 
                        search_path=search_path, program_dir=program_dir)
 
 
-class BlockReader:
+class BlockReader(FanucCalls):
     """The executed blocks of a program (see :func:`read_blocks`).
 
     Attributes
@@ -121,6 +119,10 @@ class BlockReader:
         self.params = Parameters() if params is None else params
         self.warnings: list[str] = []
         self.fanuc = bool(getattr(dialect, 'fanuc_subprograms', True))
+        macro = getattr(dialect, 'fanuc_macro', None)
+        if macro is None:
+            macro = getattr(dialect, 'name', '') in ('fanuc', 'haas')
+        self.macro = bool(macro)
         self.main = ProgramFile(file, text, params=self.params, fanuc=self.fanuc)
         if program_dir is None and file and not file.startswith('<'):
             parent = Path(file).parent
@@ -146,6 +148,7 @@ class BlockReader:
         line_re = LINE_RE.fullmatch
         findall = WORD_RE.findall
         new_tuple = tuple.__new__
+        macro = self.macro
         fast = 0      # plain lines since the last slow one (added to self.executed there)
         while frames:
             fr = frames[-1]
@@ -181,7 +184,8 @@ class BlockReader:
                         vals = None   # blanks inside a number, or a bad one: slow path
                     if vals is not None and (not big or all(
                             -MAX_MAGNITUDE <= v <= MAX_MAGNITUDE for _, v in vals)) and (
-                            'M9' not in code or not _fanuc_m(vals)):
+                            'M9' not in code or not fanuc_m(vals)) and (
+                            not macro or ('G', 65.0) not in vals):
                         fast += 1
                         # tuple.__new__ skips NamedTuple's Python-level __new__ (3x faster).
                         yield new_tuple(Block, (pc, vals, fname, raw, main_line or pc))
@@ -193,10 +197,10 @@ class BlockReader:
                     self.seen_code = True
                     fast = 0
                 out = self._slow(fr, raw, pc)
-                if out is _SWITCH:
+                if out is SWITCH:
                     switched = True
                     break
-                if out is _END:
+                if out is END:
                     frames.clear()
                     return
                 if out is not None:
@@ -225,8 +229,8 @@ class BlockReader:
 
         Returns
         -------
-        None (nothing to hand on), ``(words, assignments)``, ``_SWITCH`` (the frame stack
-        changed) or ``_END``.
+        None (nothing to hand on), ``(words, assignments)``, ``SWITCH`` (the frame stack
+        changed) or ``END``.
         """
         fname = fr.file.name
         self.executed += 1
@@ -257,15 +261,17 @@ class BlockReader:
         if s[0] == 'N':
             r.pos = 1
             r.number()
-            if r.peek() == 'O':
-                return self._oline(fr, r, lineno)
-            r.pos = 0
-        elif s[0] == 'O':
+        if r.peek() == 'O':
             return self._oline(fr, r, lineno)
-        words, assigns = read_items(r)
+        if self.macro and is_macro_statement(s, r.pos):
+            return run_macro(fr, r, lineno)
+        r.pos = 0
+        words, assigns = read_items(r, open_assign=self.macro)
         self.seen_code = self.seen_code or bool(words)
-        if self.fanuc and _fanuc_m(words):
+        if self.fanuc and fanuc_m(words):
             return self._fanuc(fr, r, words, assigns, lineno)
+        if self.macro and ('G', 65.0) in words:
+            return self._g65(fr, r, words, assigns, lineno)
         return words, assigns
 
     def _percent(self, fr: Frame, lineno: int) -> Any:
@@ -284,53 +290,7 @@ class BlockReader:
                                      f'(line {lineno}) are ignored')
                 break
             off = len(text) if nl == -1 else nl + 1
-        return _END
-
-    # -- Fanuc subprograms -----------------------------------------------------------------
-    def _fanuc(self, fr: Frame, r: Reader, words: list[tuple[str, float]],
-               assigns: list, lineno: int) -> Any:
-        """``M98 P.. L..`` (call) and ``M99`` (return, or the end of the main program)."""
-        d = dict(words)
-        fname = fr.file.name
-        if ('M', 98.0) in words:
-            if 'P' not in d:
-                raise _err("'M98' with no P word (the subprogram number)", fname, lineno,
-                           r.raw, 'M')
-            p = d['P']
-            if abs(p - round(p)) > 1e-4:
-                raise _err(f'M98 P{p:g}: subprogram number must be an integer', fname,
-                           lineno, r.raw, 'P')
-            repeat = d.get('L', 1.0)
-            if repeat < 0 or abs(repeat - round(repeat)) > 1e-4:
-                raise _err(f'M98 L{repeat:g}: repeat count must be a whole number >= 0',
-                           fname, lineno, r.raw, 'L')
-            self._apply(assigns)
-            if round(repeat) == 0:
-                return None
-            return self._call(fr, str(int(round(p))), None, lineno, kind='m98',
-                              repeats=int(round(repeat)) - 1, raw=r.raw)
-        # M99
-        if fr.kind == 'm98':
-            self._apply(assigns)
-            return self._return_m98(fr, lineno)
-        if fr.kind == 'sub':
-            raise _err(f"'M99' cannot end subroutine o<{fr.name}> sub (use o<{fr.name}> "
-                       'endsub)', fname, lineno, r.raw, 'M')
-        self.warnings.append(f'{fname}:{lineno}: M99 in the main program restarts it for '
-                             'ever on LinuxCNC (an endless program); simulated once')
-        return _END
-
-    def _return_m98(self, fr: Frame, lineno: int) -> Any:
-        """M99 in a subprogram: run it again for ``L`` repeats, else return."""
-        if fr.repeats > 0:
-            fr.repeats -= 1
-            fr.iterations += 1
-            if fr.iterations > control.MAX_LOOP_ITERATIONS:
-                msg = f'M98 repeats of O{fr.name} exceed {control.MAX_LOOP_ITERATIONS}'
-                raise GcodeError(msg, file=fr.file.name, line=lineno, column=1)
-            goto(fr, fr.start)
-            return None
-        return self._leave(fr)
+        return END
 
     def _apply(self, assigns: list) -> None:
         """Apply a control line's assignments (before the jump)."""
@@ -364,7 +324,7 @@ class BlockReader:
                                  repeats=repeats,
                                  main_line=None if tfile is self.main else ml,
                                  call_line=lineno))
-        return _SWITCH
+        return SWITCH
 
     def _find_sub(self, fr: Frame, label: str, may_load: bool, lineno: int,
                   raw: str) -> tuple[ProgramFile, str, int]:
@@ -407,7 +367,7 @@ class BlockReader:
         """Return from the innermost call."""
         self.params.leave_call(fr.saved)
         self.frames.pop()
-        return _SWITCH
+        return SWITCH
 
     # -- O-word lines ----------------------------------------------------------------------
     def _oline(self, fr: Frame, r: Reader, lineno: int) -> Any:
@@ -452,15 +412,3 @@ class BlockReader:
             return self._call(fr, label, args, lineno, kind='sub', raw=r.raw)
         run_structure(fr, r, label, keyword, lineno, self.params)
         return None
-
-
-def _fanuc_m(words: list[tuple[str, float]]) -> bool:
-    """Whether a line holds M98 or M99."""
-    return any(letter == 'M' and (v == 98.0 or v == 99.0) for letter, v in words)
-
-
-def _err(msg: str, file: str, line: int, raw: str, letter: str) -> GcodeError:
-    """A :class:`GcodeError` at the first ``letter`` word of ``raw``."""
-    code = blank_comments(raw, file=file, line=line)
-    column, text = locate_word(code, letter)
-    return GcodeError(msg, file=file, line=line, column=column, text=text)

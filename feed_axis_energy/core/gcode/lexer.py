@@ -113,13 +113,17 @@ Assignment = tuple[Union[int, str], float]
 """A parameter assignment read from a line: ``(number or lower-case name, value)``."""
 
 
-def read_items(r: Reader) -> tuple[list[tuple[str, float]], list[Assignment]]:
+def read_items(r: Reader, *, open_assign: bool = False
+               ) -> tuple[list[tuple[str, float]], list[Assignment]]:
     """Read the words and parameter assignments of a compacted line (not an O-word line).
 
     Parameters
     ----------
     r
         A reader positioned where the items start (see :mod:`.expr`).
+    open_assign
+        Fanuc macro B: the value of an assignment is an expression without brackets that
+        runs to the end of the line (``#1 = #2 / 2 + 1``).
 
     Returns
     -------
@@ -157,7 +161,8 @@ def read_items(r: Reader) -> tuple[list[tuple[str, float]], list[Assignment]]:
                 raise r.error('expected "=" after the parameter (an assignment such as '
                               '#1=2)')
             r.pos += 1
-            assigns.append((ref, r.checked(r.value(), at)))
+            value = r.expression(open_end=True) if open_assign else r.value()
+            assigns.append((ref, r.checked(value, at)))
         elif c == ')':
             raise r.error('")" without an opening "("', at)
         elif c.isdigit() or c in '+-.':
