@@ -7,6 +7,7 @@ exception, NaN or infinity.
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 from hypothesis import given, HealthCheck, settings, strategies as st
 
@@ -61,25 +62,32 @@ def _line(draw) -> str:
         return f'{draw(_LABELS)} {draw(_KEYWORDS)}{cond}'
     if kind == 3:
         return draw(st.sampled_from(['M98 P100 L2', 'M99', 'O100', '%', '$H', '/G0 X1',
-                                     '(comment', 'M30', ';x', 'G0 X1 (a) Y2']))
+                                     '(comment', 'M30', ';x', 'G0 X1 (a) Y2', 'N10 G0 X1',
+                                     'WHILE [#1 LT 3] DO1', 'END1', 'GOTO 10', 'END2',
+                                     'IF [#1 GT 2] GOTO 10', 'IF [1] THEN #1 = #1 + 1',
+                                     'G65 P100 A1 X2', 'M97 P10 L2', '#1 = #1 + 1 * 2']))
     if kind == 4:
         return draw(st.text(max_size=20))
     return draw(st.sampled_from(['G0 X1', 'G1 X2 Y3 F100', 'G2 X1 Y1 I1 J0']))
 
 
-def _read_all(text: str) -> list:
+_DIALECTS = [None, SimpleNamespace(name='fanuc', fanuc_subprograms=True),
+             SimpleNamespace(name='grbl', fanuc_subprograms=False)]
+
+
+def _read_all(text: str, dialect: object = None) -> list:
     saved = control.MAX_LOOP_ITERATIONS, flow.MAX_EXECUTED_LINES
     control.MAX_LOOP_ITERATIONS, flow.MAX_EXECUTED_LINES = 50, 2000
     try:
-        return list(read_blocks(text, file='prop.ngc'))
+        return list(read_blocks(text, file='prop.ngc', dialect=dialect))
     finally:
         control.MAX_LOOP_ITERATIONS, flow.MAX_EXECUTED_LINES = saved
 
 
-def _check(text: str) -> None:
+def _check(text: str, dialect: object = None) -> None:
     n_lines = len(split_lines(text)) if text else 0
     try:
-        blocks = _read_all(text)
+        blocks = _read_all(text, dialect)
     except GcodeError as err:
         assert err.file == 'prop.ngc'
         assert 1 <= err.line <= max(n_lines, 1)
@@ -93,9 +101,10 @@ def _check(text: str) -> None:
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.lists(_line(), max_size=12), st.sampled_from(['\n', '\r\n', '\r']))
-def test_random_programs_give_blocks_or_a_clear_error(lines, end):
-    _check(end.join(lines))
+@given(st.lists(_line(), max_size=12), st.sampled_from(['\n', '\r\n', '\r']),
+       st.sampled_from(_DIALECTS))
+def test_random_programs_give_blocks_or_a_clear_error(lines, end, dialect):
+    _check(end.join(lines), dialect)
 
 
 @settings(max_examples=200, deadline=None)
