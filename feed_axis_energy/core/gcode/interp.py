@@ -10,13 +10,14 @@ from __future__ import annotations
 from collections.abc import Mapping
 import math
 
-from .codes import (ALLOWED_LETTERS, COMP_FORBIDDEN, G_CODES, G_UNSUPPORTED, M_CODES,
-                    UNSUPPORTED_LETTERS)
+from .codes import ALLOWED_LETTERS, COMP_FORBIDDEN
 from .coords import COORD_G_CODES, Coords, MAX_OFFSET_M
-from .cutter import CutterComp, LEFT, RIGHT
-from .cycles import CycleMemory, CycleSpec, expand_cycle
+from .cutter import CutterComp
+from .cycles import CycleMemory
 from .dialect import Dialect, dialect_by_name
-from .interp_arc import ArcMixin
+from .interp_comp import CompMixin
+from .interp_modes import ModesMixin
+from .interp_motion import MotionMixin
 from .lexer import blank_comments, locate_word
 from ..errors import GcodeError
 from ..program import Move, MoveKind
@@ -29,17 +30,13 @@ _INF = float('inf')
 _PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 _CENTRE_LETTERS = ('I', 'J', 'K')
 _AXIS_LETTERS = ('X', 'Y', 'Z')
-_MOTION_KIND = (MoveKind.RAPID, MoveKind.LINEAR, MoveKind.ARC_CW, MoveKind.ARC_CCW)
 _MOTION_TEXT = {t: int(t) for t in ('0', '00', '1', '01', '2', '02', '3', '03')}
-_SPINDLE = {'cw': 1, 'ccw': -1, 'off': 0}
 # Letters that need no check beyond the motion itself (T is recorded by check_extras).
 _STRAIGHT_WORDS = frozenset('XYZFNS')
 _ARC_WORDS = frozenset('XYZIJKRPFNS')
-# Words of a canned-cycle line (cycles.py checks which the cycle needs).
-_CYCLE_LENGTH_WORDS = ('X', 'Y', 'Z', 'R', 'I', 'J', 'K', 'Q')
 
 
-class Interpreter(ArcMixin):
+class Interpreter(MotionMixin, CompMixin, ModesMixin):
     """Modal state of a program being parsed and the interpretation of its lines.
 
     Parameters
@@ -211,32 +208,6 @@ class Interpreter(ArcMixin):
         if ml:
             self.stop(ml)
 
-    def unknown_letter(self, d: dict[str, str]) -> None:
-        """Fail at the first letter the interpreter does not accept."""
-        for letter in d:
-            if letter not in ALLOWED_LETTERS:
-                self.fail(UNSUPPORTED_LETTERS.get(letter, f'unknown word letter {letter!r}'),
-                          letter)
-
-    def split_repeated(self, words: list[tuple[str, str]],
-                       d: dict[str, str]) -> tuple[list[str], list[str]]:
-        """G and M words of a line with several of them; other letters must not repeat."""
-        gl: list[str] = []
-        ml: list[str] = []
-        seen: set[str] = set()
-        for letter, text in words:
-            if letter == 'G':
-                gl.append(text)
-            elif letter == 'M':
-                ml.append(text)
-            elif letter in seen:
-                self.fail(f'{letter} word repeated on one line', letter, nth=1)
-            else:
-                seen.add(letter)
-        d.pop('G', None)
-        d.pop('M', None)
-        return gl, ml
-
     def check_extras(self, d: dict[str, str], is_arc: bool, has_axes: bool, dwell: bool,
                      g64: bool) -> bool:
         """Words other than axes/F/N/S: run the dwell, refuse words nothing uses.
@@ -351,143 +322,6 @@ class Interpreter(ArcMixin):
             motion = None
             self.end_series()
         return motion, dwell, g9, g64
-
-    def comp_forbidden(self, group: str, arg: object, code: int) -> None:
-        """Refuse what LinuxCNC refuses while cutter compensation is on (a plane or
-        coordinate-system change, any G61/G64, G98/G99)."""
-        if group == 'plane' and arg == self.plane:
-            return
-        if group == 'coord' and arg == self.coord:
-            return
-        self.fail(COMP_FORBIDDEN[group], 'G', value=code / 10)
-
-    # -- canned cycles and cutter compensation ---------------------------------------------
-    def emit(self, move: Move) -> None:
-        """Append a move, through the cutter compensation while it is engaged."""
-        if self.routing:
-            self.route(move)
-        else:
-            self.moves.append(move)
-
-    def route(self, move: Move) -> None:
-        """Feed a programmed move to the cutter compensation; keep what it hands back."""
-        comp = self.comp
-        self.moves += comp.feed(move, fail=self.fail)
-        self.routing = comp.engaged
-
-    def close(self) -> None:
-        """End of the program text: release the moves the compensation still holds."""
-        comp = self.comp
-        if comp.active or self.routing:
-            self.moves += comp.finish(fail=self.fail, line=self.lineno)
-            self.routing = False
-
-    def end_series(self) -> None:
-        """A motion that is not a canned cycle ends the series (LinuxCNC forgets R, Z)."""
-        self.cycle_memory = self.cycle_memory.end_series()
-        self.series = False
-
-    def select_tool(self, text: str) -> None:
-        """T word: select a tool (it is loaded by M6)."""
-        t = self.num('T', text)
-        if t != int(t) or t < 0:
-            self.fail('T (tool number) must be a whole number >= 0', 'T')
-        self.tool_selected = int(t)
-
-    def before_motion(self, d: dict[str, str]) -> None:
-        """Work that LinuxCNC does after the modes and before the motion: M6, G40/G41/G42."""
-        if self.tool_change:
-            self.tool_change = False
-            if self.io_lineno == self.lineno:      # M61 Q
-                if 'Q' not in d:
-                    self.fail('M61 needs a Q word (the tool number)', 'M', value=61.0)
-                q = self.num('Q', d['Q'])
-                if q != int(q) or q < 0:
-                    self.fail('M61 Q must be a whole number >= 0', 'Q')
-                self.tool_loaded = self.tool_selected = int(q)
-            else:
-                self.tool_loaded = self.tool_selected
-        code = self.comp_code
-        if code is None:
-            return
-        self.comp_code = None
-        comp = self.comp
-        if code == 40:
-            self.moves += comp.finish(fail=self.fail, line=self.lineno)
-        else:
-            comp.units_m = self.scale
-            side = LEFT if code in (41, 411) else RIGHT
-            comp.start(side, self.comp_radius(d, code), self.plane, fail=self.fail,
-                       line=self.lineno)
-        self.routing = comp.engaged
-
-    def comp_radius(self, d: dict[str, str], code: int) -> float:
-        """Tool radius [m] for G41/G42 (tool table via D or the loaded tool), G41.1/G42.1."""
-        if code > 100:
-            if 'D' not in d:
-                self.fail(f'G{code / 10:g} needs a D word (the tool diameter)', 'G',
-                          value=code / 10)
-            return 0.5 * self.num('D', d['D']) * self.scale
-        if 'D' in d:
-            t = self.num('D', d['D'])
-            if t != int(t) or t < 0:
-                self.fail('D (tool number for G41/G42) must be a whole number >= 0', 'D')
-            number, letter = int(t), 'D'
-        else:
-            number, letter = self.tool_loaded, 'G'
-        if number == 0:
-            return 0.0          # no tool: zero diameter, as LinuxCNC's empty pocket 0
-        if self.tools is None:
-            self.fail(f'no tool table for G{code}: tool {number} needs its radius (machine '
-                      'config gcode.tools)', letter, value=None if letter == 'D' else code)
-        if number not in self.tools:
-            self.fail(f'tool {number} is not in the tool table (machine config gcode.tools)',
-                      letter, value=None if letter == 'D' else code)
-        return _tool_radius(self.tools[number])
-
-    def cycle(self, d: dict[str, str], code: int) -> None:
-        """Expand a canned-cycle line (cycles.py) into moves."""
-        s = self.scale
-        num = self.num
-        words = {letter: num(letter, d[letter]) * s for letter in _CYCLE_LENGTH_WORDS
-                 if letter in d}
-        if 'P' in d:
-            words['P'] = num('P', d['P']) * self.p_unit
-        if 'L' in d:
-            words['L'] = num('L', d['L'])
-        spec = CycleSpec(code, self.plane, self.pos, words, offset=self.offset(),
-                         incremental=not self.absolute, retract=self.retract,
-                         feed_m_s=None if self.inverse_time else self.feed,
-                         inverse_time=self.inverse_time, cutter_comp=self.comp.active,
-                         spindle=self.spindle)
-        res = expand_cycle(spec, self.cycle_memory, fail=self.cycle_fail)
-        line = self.lineno
-        pos = self.pos
-        emit = self.emit
-        feed = self.feed
-        for prim in res.primitives:
-            kind = prim[0]
-            if kind == 'rapid' or kind == 'feed':
-                end = prim[1]
-                rapid = kind == 'rapid'
-                emit(Move(kind=MoveKind.RAPID if rapid else MoveKind.LINEAR, line=line,
-                          start=pos, end=end, feed_m_s=_INF if rapid else feed,
-                          exact_stop=True, length_m=math.dist(pos, end)))
-                pos = end
-            elif kind == 'dwell':
-                emit(Move(kind=MoveKind.DWELL, line=line, start=pos, end=pos,
-                          dwell_s=prim[1]))
-            else:
-                emit(Move(kind=MoveKind.STOP, line=line, start=pos, end=pos))
-        self.pos = res.end
-        self.cycle_memory = res.memory
-        self.series = True
-
-    def cycle_fail(self, msg: str, letter: str):
-        """Fail at a word of a cycle line (``G`` means the cycle's own G word)."""
-        if letter == 'G' and self.motion is not None:
-            self.fail(msg, 'G', value=float(self.motion))
-        self.fail(msg, letter)
 
     # ---- coords hooks (owned by coords) ----------------------------------------------------
     def offset(self) -> tuple[float, float, float]:
@@ -607,105 +441,6 @@ class Interpreter(ArcMixin):
         return coords.system_value(key, self.pos, self.scale)
     # ---- end of coords hooks -----------------------------------------------------------------
 
-    def g_lookup(self, text: str) -> tuple[str, object, int]:
-        """(group, argument, 10 x code) of a G word, or fail naming why it is refused."""
-        value = self.num('G', text)
-        code = round(value * 10.0)
-        whole = abs(value * 10.0 - code) <= 1e-6
-        if whole and code in G_CODES:
-            group, arg = G_CODES[code]
-            return group, arg, code
-        if whole and code in G_UNSUPPORTED:
-            self.fail(f'G{value:g} is not supported ({G_UNSUPPORTED[code]})', 'G', value=value)
-        self.fail(f'unknown G code G{value:g}', 'G', value=value)
-
-    def set_feed(self, text: str) -> None:
-        """Read F: m/s under G94 (in the units now in force), 1/min under G93."""
-        f = self.num('F', text)
-        if f < 0.0:
-            self.fail('negative feed rate', 'F')
-        # Under G93 the raw number (1/min) is kept; it is used only on this line.
-        self.feed = f if self.inverse_time else f * self.scale / 60.0
-
-    def dwell(self, d: dict[str, str]) -> None:
-        """Emit the G4 dwell of P (the dialect's unit; see :mod:`.dialect`)."""
-        if 'P' not in d:
-            self.fail('G4 dwell needs a P word (seconds)', 'G', value=4.0)
-        seconds = self.num('P', d['P']) * self.p_unit
-        if self.dialect.dwell_p == 'haas' and not self.word_has_point('P'):
-            seconds *= 0.001                # Haas: P without a decimal point is ms
-        if seconds < 0.0:
-            self.fail('negative dwell time', 'P')
-        p = self.pos
-        self.emit(Move(kind=MoveKind.DWELL, line=self.lineno, start=p, end=p,
-                       dwell_s=seconds))
-
-    def dwell_x(self, d: dict[str, str]) -> None:
-        """Fanuc ``G4 X``: the dwell in seconds (X is then no axis word)."""
-        x = self.num('X', d.pop('X'))
-        if 'P' in d:
-            self.fail('G4 with both X and P (Fanuc: give one dwell time)', 'P')
-        d['P'] = x / self.p_unit
-
-    def word_has_point(self, letter: str) -> bool:
-        """True if the line's ``letter`` word was written with a decimal point."""
-        src = self.src
-        raw = self.lines[self.lineno - 1] if src is None else src.text
-        code = blank_comments(raw, file=self.file, line=self.lineno)
-        return '.' in locate_word(code, letter)[1]
-
-    def m_words(self, ml) -> list[str]:
-        """Check the M words of a line; return the stop actions (run after the motion)."""
-        groups: dict[str, int] = {}
-        actions = []
-        for text in ml:
-            value = self.num('M', text)
-            code = int(value)
-            if code != value or code not in M_CODES:
-                self.harmless_m(value)
-                continue
-            group, action = M_CODES[code]
-            if group in groups and {groups[group], code} != {7, 8}:
-                self.fail(f'M{groups[group]} and M{code} are in the same modal group on one '
-                          'line', 'M', value=value)
-            groups[group] = code
-            if action is None:
-                continue
-            if group == 'stop':
-                actions.append(action)
-            elif group == 'spindle':
-                self.spindle = _SPINDLE[action]
-            else:
-                self.tool_change = True
-                self.pending_lineno = self.lineno
-        return actions
-
-    def harmless_m(self, value: float) -> None:
-        """An M code outside M_CODES: accepted if the dialect calls it harmless I/O."""
-        code = int(value)
-        if code != value or code not in self.dialect.harmless_m:
-            self.fail(f'M{value:g} is not supported (not a machine function the '
-                      f'{self.dialect.name} dialect lets pass; see --dialect)', 'M',
-                      value=value)
-        self.io_lineno = self.lineno       # its P, Q, E, L words belong to it
-        self.pending_lineno = self.lineno
-        if code == 61:
-            self.tool_change = True        # M61 Q: the tool in the spindle is Q
-        elif 62 <= code <= 68 and self.comp.active:
-            self.fail('Cannot set motion output with cutter radius compensation on', 'M',
-                      value=value)
-
-    def stop(self, actions: list[str]) -> None:
-        """STOP moves for M0/M1/M2/M30; M2/M30 end the program."""
-        for action in actions:
-            p = self.pos
-            if action == 'end' and (self.comp.active or self.routing):
-                self.moves += self.comp.finish(fail=self.fail)
-                self.routing = self.comp.engaged
-            self.emit(Move(kind=MoveKind.STOP, line=self.lineno, start=p, end=p))
-            if action == 'end':
-                self.ended = True
-
     # -- motion ---------------------------------------------------------------------------
     def target(self, d: dict[str, str]) -> tuple[float, float, float]:
         """End point [m] of a move from the axis words of the line."""
@@ -739,60 +474,6 @@ class Interpreter(ArcMixin):
             x, y, z = new
         return (x, y, z)
 
-    def feed_for(self, d: dict[str, str], length: float, explicit: bool) -> float:
-        """Path feed [m/s] of a feed move of ``length`` metres on this line."""
-        feed = self.feed
-        if self.inverse_time:
-            if 'F' not in d:
-                self.fail_motion('G93 inverse time: every feed move needs F on its line',
-                                 explicit, d)
-            if feed == 0.0:
-                self.fail('F0 in G93: the move would never finish', 'F')
-            return length * feed / 60.0
-        if feed == 0.0 and 'F' in d:
-            self.fail('feed rate is zero', 'F')
-        if 'no feed' not in self.warned:
-            self.warned.add('no feed')
-            self.warnings.append(f'{self.file}:{self.lineno}: feed move with no feed rate (F) '
-                                 "in force: it runs at the machine's axis limits (LinuxCNC "
-                                 'refuses this; its preview accepts it)')
-        return _INF
-
-    def fail_motion(self, msg: str, explicit: bool, d: dict[str, str]):
-        """Fail at the word that asked for this line's motion (its G word or first axis)."""
-        if explicit:
-            self.fail(msg, 'G', value=float(self.motion))
-        self.fail(msg, self.first_axis(d))
-
-    def straight(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
-        """Emit a G0/G1 move (also of zero length: LinuxCNC issues it, the planner drops
-        it)."""
-        start = self.pos
-        end = self.target(d)
-        length = math.dist(start, end)
-        if mode == 0:
-            feed = _INF
-        else:
-            feed = self.feed
-            if not feed or self.inverse_time:
-                feed = self.feed_for(d, length, explicit)
-        m = Move(kind=_MOTION_KIND[mode], line=self.lineno, start=start, end=end,
-                 feed_m_s=feed, exact_stop=self.exact or g9, length_m=length)
-        if self.routing:
-            self.route(m)
-        else:
-            self.moves.append(m)
-        self.pos = end
-
-    def stand_still(self, d: dict[str, str], mode: int, g9: bool) -> None:
-        """G0/G1 without axis words: LinuxCNC issues a move to where the tool is (a G1
-        without any feed rate is let pass without one)."""
-        if mode == 1 and (self.feed is None or self.inverse_time):
-            return
-        if self.series:
-            self.end_series()
-        self.straight(d, mode, g9, True)
-
     def centre_from_offsets(self, d: dict[str, str], start: tuple[float, float, float],
                             a: int, b: int, n: int) -> tuple[float, float]:
         """In-plane centre [m] from I/J/K (incremental under G91.1, absolute under G90.1)."""
@@ -809,30 +490,3 @@ class Interpreter(ArcMixin):
         if self.arc_absolute:
             return oa + self.frame[a], ob + self.frame[b]
         return start[a] + oa, start[b] + ob
-
-    def normal_centre_word(self, letter: str, text: str) -> None:
-        """A centre word along the plane normal (K in G17): LinuxCNC refuses it; other
-        dialects ignore a zero one (FreeCAD writes K0) with one warning."""
-        if self.num(letter, text) != 0.0 or self.dialect.normal_centre_zero == 'error':
-            self.fail(f'{letter} is not an in-plane centre word for G{self.plane} (LinuxCNC: '
-                      f'{letter} word given for arc in G{self.plane} plane)', letter)
-        key = f'normal {letter}'
-        if key not in self.warned:
-            self.warned.add(key)
-            self.warnings.append(f'{self.file}:{self.lineno}: {letter}0 on a G{self.plane} '
-                                 f'arc is ignored ({self.dialect.name} dialect; LinuxCNC '
-                                 'refuses it)')
-
-
-def _tool_radius(entry: object) -> float:
-    """Radius [m] of a tool-table entry: a number, ``(radius_m, length_m)``, a mapping or an
-    object with ``radius_m``."""
-    if isinstance(entry, Mapping):
-        value = entry.get('radius_m', 0.0)
-    elif hasattr(entry, 'radius_m'):
-        value = entry.radius_m
-    elif isinstance(entry, (tuple, list)):
-        value = entry[0]            # (radius_m, length_m)
-    else:
-        value = entry
-    return float(value)

@@ -1,6 +1,6 @@
-"""G2/G3 arcs of the interpreter: centre (I/J/K or R), LinuxCNC's checks, the canonical arc.
+"""Motion of the interpreter: G0/G1 and G2/G3 (centre, LinuxCNC's checks), feeds.
 
-A mixin of :class:`~.interp.Interpreter` (split off along the arc seam to keep modules
+A mixin of :class:`~.interp.Interpreter` (split off along the motion seam to keep modules
 small); it uses the interpreter's state (``pos``, ``plane``, ``scale``, ``feed``, ...) and
 helpers (``target``, ``centre_from_offsets``, ``feed_for``, ``fail``). The rules are those
 of LinuxCNC 2.9's ``arc_data_ijk`` / ``arc_data_r`` (see :mod:`.canon` for the tolerances).
@@ -13,8 +13,10 @@ from .canon import (centre_tolerance_m, FULL_TURN_EPS_RAD, radius_error, RADIUS_
                     radius_tolerance_m)
 from ..program import Move, MoveKind
 
-__all__ = ['ArcMixin']
+__all__ = ['MotionMixin']
 
+_INF = float('inf')
+_MOTION_KIND = (MoveKind.RAPID, MoveKind.LINEAR, MoveKind.ARC_CW, MoveKind.ARC_CCW)
 _PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 _CENTRE_LETTERS = ('I', 'J', 'K')
 # LinuxCNC's TINY (interp_internal.hh): an R this close to half the chord is a half circle.
@@ -26,8 +28,8 @@ _R_MIN = RADIUS_TOLERANCE_MM * 1e-3
 _QUICK_DIFF = 1e-9
 
 
-class ArcMixin:
-    """G2/G3 for :class:`~.interp.Interpreter`."""
+class MotionMixin:
+    """G0/G1, G2/G3 and feeds for :class:`~.interp.Interpreter`."""
 
     __slots__ = ()
 
@@ -138,3 +140,70 @@ class ArcMixin:
         # The centre lies left of the chord for a CCW arc of at most 180 degrees.
         side = (1.0 if ccw else -1.0) * (1.0 if r > 0.0 else -1.0) * h / chord
         return (start[a] + 0.5 * da - side * db, start[b] + 0.5 * db + side * da)
+
+    def feed_for(self, d: dict[str, str], length: float, explicit: bool) -> float:
+        """Path feed [m/s] of a feed move of ``length`` metres on this line."""
+        feed = self.feed
+        if self.inverse_time:
+            if 'F' not in d:
+                self.fail_motion('G93 inverse time: every feed move needs F on its line',
+                                 explicit, d)
+            if feed == 0.0:
+                self.fail('F0 in G93: the move would never finish', 'F')
+            return length * feed / 60.0
+        if feed == 0.0 and 'F' in d:
+            self.fail('feed rate is zero', 'F')
+        if 'no feed' not in self.warned:
+            self.warned.add('no feed')
+            self.warnings.append(f'{self.file}:{self.lineno}: feed move with no feed rate (F) '
+                                 "in force: it runs at the machine's axis limits (LinuxCNC "
+                                 'refuses this; its preview accepts it)')
+        return _INF
+
+    def fail_motion(self, msg: str, explicit: bool, d: dict[str, str]):
+        """Fail at the word that asked for this line's motion (its G word or first axis)."""
+        if explicit:
+            self.fail(msg, 'G', value=float(self.motion))
+        self.fail(msg, self.first_axis(d))
+
+    def straight(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
+        """Emit a G0/G1 move (also of zero length: LinuxCNC issues it, the planner drops
+        it)."""
+        start = self.pos
+        end = self.target(d)
+        length = math.dist(start, end)
+        if mode == 0:
+            feed = _INF
+        else:
+            feed = self.feed
+            if not feed or self.inverse_time:
+                feed = self.feed_for(d, length, explicit)
+        m = Move(kind=_MOTION_KIND[mode], line=self.lineno, start=start, end=end,
+                 feed_m_s=feed, exact_stop=self.exact or g9, length_m=length)
+        if self.routing:
+            self.route(m)
+        else:
+            self.moves.append(m)
+        self.pos = end
+
+    def stand_still(self, d: dict[str, str], mode: int, g9: bool) -> None:
+        """G0/G1 without axis words: LinuxCNC issues a move to where the tool is (a G1
+        without any feed rate is let pass without one)."""
+        if mode == 1 and (self.feed is None or self.inverse_time):
+            return
+        if self.series:
+            self.end_series()
+        self.straight(d, mode, g9, True)
+
+    def normal_centre_word(self, letter: str, text: str) -> None:
+        """A centre word along the plane normal (K in G17): LinuxCNC refuses it; other
+        dialects ignore a zero one (FreeCAD writes K0) with one warning."""
+        if self.num(letter, text) != 0.0 or self.dialect.normal_centre_zero == 'error':
+            self.fail(f'{letter} is not an in-plane centre word for G{self.plane} (LinuxCNC: '
+                      f'{letter} word given for arc in G{self.plane} plane)', letter)
+        key = f'normal {letter}'
+        if key not in self.warned:
+            self.warned.add(key)
+            self.warnings.append(f'{self.file}:{self.lineno}: {letter}0 on a G{self.plane} '
+                                 f'arc is ignored ({self.dialect.name} dialect; LinuxCNC '
+                                 'refuses it)')
