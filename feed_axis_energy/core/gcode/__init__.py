@@ -49,9 +49,11 @@ import gc
 from os import PathLike
 
 from .canon import CENTER_ARC_RADIUS_TOLERANCE_MM
+from .codes import IGNORABLE_AXES
 from .dialect import Dialect, dialect_by_name
 from .run import GcodeRun
 from .source import read_program
+from ..errors import ConfigError
 from ..program import Move, Program
 
 __all__ = ['parse_gcode', 'load_gcode', 'iter_moves', 'MoveStream',
@@ -68,7 +70,8 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
                 arc_tolerance_m: float | None = None, home: Vec3 | None = None,
                 tools: Mapping[int, object] | None = None,
                 dialect: str | Dialect | None = None,
-                search_path: Sequence[str | PathLike[str]] = ()) -> Program:
+                search_path: Sequence[str | PathLike[str]] = (),
+                ignore_axes: Sequence[str] = ()) -> Program:
     """Parse an NC program into moves in SI units.
 
     Parameters
@@ -96,6 +99,9 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
         ``mach3``); ``None``: ``linuxcnc``.
     search_path
         Directories searched for subroutine files (``o<name> call``) after the program's.
+    ignore_axes
+        Axis letters among A, B, C, U, V, W whose words are dropped (one warning each);
+        otherwise such a word is an error naming its line.
 
     Returns
     -------
@@ -107,10 +113,11 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
     GcodeError
         For anything that cannot be simulated exactly; names file, line, column and word.
     ConfigError
-        For an unknown dialect name.
+        For an unknown dialect name or an axis that cannot be ignored.
     """
     run = GcodeRun(text, file=file, start=start, arc_tolerance_m=arc_tolerance_m, home=home,
-                   tools=tools, dialect=dialect_by_name(dialect), search_path=search_path)
+                   tools=tools, dialect=dialect_by_name(dialect), search_path=search_path,
+                   ignore_axes=_axes(ignore_axes))
     # The parse allocates one Move per block and frees nothing: cyclic garbage collection
     # passes over the growing list find nothing and cost ~15 % of the time, so they are
     # paused for the duration (and resumed even when the program is refused).
@@ -161,14 +168,14 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                tools: Mapping[int, object] | None = None,
                dialect: str | Dialect | None = None,
                search_path: Sequence[str | PathLike[str]] = (),
-               batch: int = 4096) -> MoveStream:
+               ignore_axes: Sequence[str] = (), batch: int = 4096) -> MoveStream:
     """Read a program file and stream its moves (memory: the text plus ``batch`` moves).
 
     Parameters
     ----------
     path
         The program file.
-    start, arc_tolerance_m, home, tools, dialect, search_path
+    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
         As for :func:`parse_gcode`.
     batch
         Moves interpreted ahead of the consumer (at least 1).
@@ -183,21 +190,23 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     text = read_program(path, file=name)
     return MoveStream(GcodeRun(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
                                home=home, tools=tools, dialect=dialect_by_name(dialect),
-                               search_path=search_path, batch=max(1, int(batch))))
+                               search_path=search_path, batch=max(1, int(batch)),
+                               ignore_axes=_axes(ignore_axes)))
 
 
 def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                arc_tolerance_m: float | None = None, home: Vec3 | None = None,
                tools: Mapping[int, object] | None = None,
                dialect: str | Dialect | None = None,
-               search_path: Sequence[str | PathLike[str]] = ()) -> Program:
+               search_path: Sequence[str | PathLike[str]] = (),
+               ignore_axes: Sequence[str] = ()) -> Program:
     """Read a program file (UTF-8, a BOM allowed) and parse it (see :func:`parse_gcode`).
 
     Parameters
     ----------
     path
         The program file; its path is used as ``file`` in messages and in the result.
-    start, arc_tolerance_m, home, tools, dialect, search_path
+    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
         As for :func:`parse_gcode`.
 
     Returns
@@ -214,4 +223,16 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     name = str(path)
     text = read_program(path, file=name)
     return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
-                       home=home, tools=tools, dialect=dialect, search_path=search_path)
+                       home=home, tools=tools, dialect=dialect, search_path=search_path,
+                       ignore_axes=ignore_axes)
+
+
+def _axes(letters: Sequence[str]) -> tuple[str, ...]:
+    """Upper-case axis letters for ``ignore_axes``, checked."""
+    out = tuple(str(a).strip().upper() for a in letters)
+    for a in out:
+        if a not in IGNORABLE_AXES:
+            shown = a[:60]
+            msg = f'cannot ignore axis {shown!r}: only A, B, C, U, V, W can be ignored'
+            raise ConfigError(msg, key='ignore_axes')
+    return out

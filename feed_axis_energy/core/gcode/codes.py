@@ -9,6 +9,7 @@ from __future__ import annotations
 from .coords import COORD_G_CODES
 
 __all__ = ['G_CODES', 'G_UNSUPPORTED', 'M_CODES', 'ALLOWED_LETTERS', 'UNSUPPORTED_LETTERS',
+           'IGNORABLE_AXES',
            'CYCLE_MOTIONS', 'COMP_FORBIDDEN']
 
 # Canned cycles are motion modes (LinuxCNC: modal group 1): the argument is the cycle code.
@@ -58,6 +59,8 @@ ALLOWED_LETTERS = frozenset('GMXYZIJKRFPSTNOQHLDE')
 UNSUPPORTED_LETTERS: dict[str, str] = {
     **{a: f'axis {a} is not supported (only X, Y, Z are simulated)' for a in 'ABCUVW'},
 }
+# Axes that --ignore-axes may drop.
+IGNORABLE_AXES = frozenset('ABCUVW')
 
 # What LinuxCNC 2.9 refuses while cutter radius compensation is on (its messages; checked
 # with its interpreter): a change of plane or coordinate system, and any G61/G64 or G98/G99.

@@ -7,7 +7,7 @@ little more than the :class:`~.program.Move` it produces.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 import math
 
 from .codes import ALLOWED_LETTERS, COMP_FORBIDDEN
@@ -56,6 +56,12 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         Tool table for cutter compensation: tool number -> radius [m] (a number, a mapping
         with ``radius_m`` or an object with a ``radius_m`` attribute); ``None``: no table
         (G41/G42 with a D word is then an error).
+    dialect
+        The :class:`~.dialect.Dialect` (or its name); ``None``: linuxcnc.
+    params
+        The parameter table shared with the front's reader (``None``: a private one).
+    ignore_axes
+        Axis letters (A, B, C, U, V, W) whose words are dropped with one warning each.
     """
 
     __slots__ = ('file', 'arc_tol', 'pos', 'motion', 'plane', 'scale', 'absolute',
@@ -65,13 +71,13 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                  'cycle_memory', 'series', 'comp', 'routing',
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
                  'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
-                 'warned')
+                 'warned', 'ignore_axes')
 
     def __init__(self, file: str, start: tuple[float, float, float],
                  arc_tolerance_m: float | None,
                  *, lines: list[str] | None, home: tuple[float, float, float] | None = None,
                  tools: Mapping[int, object] | None = None, dialect: Dialect | None = None,
-                 params: object | None = None):
+                 params: object | None = None, ignore_axes: Iterable[str] = ()):
         self.file = file
         self.arc_tol = None if arc_tolerance_m is None else float(arc_tolerance_m)
         self.pos = (float(start[0]), float(start[1]), float(start[2]))
@@ -116,6 +122,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         self.src = None                     # the front's current Block (None: plain lines)
         self.io_lineno = -1                 # line with an I/O M code (its P/Q/E/L words)
         self.warned: set[str] = set()       # warnings given once
+        self.ignore_axes = frozenset(ignore_axes)   # axis letters dropped with a warning
 
     # -- errors ---------------------------------------------------------------------------
     def fail(self, msg: str, letter: str, *, value: float | None = None, nth: int = 0):

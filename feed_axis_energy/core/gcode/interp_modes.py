@@ -4,8 +4,11 @@ A mixin of :class:`~.interp.Interpreter` (split off along this seam to keep modu
 """
 from __future__ import annotations
 
+import math
+
 from .codes import ALLOWED_LETTERS, G_CODES, G_UNSUPPORTED, M_CODES, UNSUPPORTED_LETTERS
 from .lexer import blank_comments, locate_word
+from ..errors import GcodeError
 from ..program import Move, MoveKind
 
 __all__ = ['ModesMixin']
@@ -106,11 +109,62 @@ class ModesMixin:
                 self.ended = True
 
     def unknown_letter(self, d: dict[str, str]) -> None:
-        """Fail at the first letter the interpreter does not accept."""
-        for letter in d:
-            if letter not in ALLOWED_LETTERS:
-                self.fail(UNSUPPORTED_LETTERS.get(letter, f'unknown word letter {letter!r}'),
-                          letter)
+        """Words off the common path: polar ``@``/``^`` (made X/Y), axes the user chose to
+        ignore (dropped, one warning each); fail at any other letter the interpreter does
+        not accept."""
+        if '@' in d or '^' in d:
+            self.polar(d)
+        for letter in list(d):
+            if letter in ALLOWED_LETTERS:
+                continue
+            if letter in self.ignore_axes:
+                del d[letter]
+                if letter not in self.warned:
+                    self.warned.add(letter)
+                    self.warnings.append(f'{self.file}:{self.lineno}: axis {letter} words are '
+                                         'ignored (--ignore-axes): its motion is not '
+                                         'simulated')
+                continue
+            if letter in UNSUPPORTED_LETTERS:
+                self.fail(f'{UNSUPPORTED_LETTERS[letter]}: a machine with that axis cannot '
+                          f'be simulated; --ignore-axes {letter} drops its words', letter)
+            self.fail(f'unknown word letter {letter!r}', letter)
+
+    def fail_at_char(self, msg: str, char: str):
+        """Fail at the first ``char`` of the line outside comments (for ``@`` and ``^``,
+        which are no letters for the lexer's word finder)."""
+        src = self.src
+        if src is None:
+            file, line, raw = self.file, self.lineno, self.lines[self.lineno - 1]
+        else:
+            file, line, raw = src.file, src.line, src.text
+        code = blank_comments(raw, file=file, line=line)
+        col = code.find(char) + 1
+        raise GcodeError(msg, file=file, line=line, column=max(col, 1),
+                         text=code[max(col - 1, 0):][:20].strip())
+
+    def polar(self, d: dict[str, str]) -> None:
+        """LinuxCNC's polar words in the XY plane: ``@`` distance, ``^`` angle [degrees]
+        from the program origin (G90), or added to the current point's (G91)."""
+        if 'X' in d or 'Y' in d:
+            self.fail_at_char('polar coordinates (@, ^) cannot be combined with X or Y on '
+                              'one line', '@' if '@' in d else '^')
+        x, y, _ = self.coords.to_program(self.pos)
+        r = math.hypot(x, y) / self.scale
+        a = math.degrees(math.atan2(y, x))
+        if self.absolute:
+            r = self.num('@', d.pop('@')) if '@' in d else r
+            a = self.num('^', d.pop('^')) if '^' in d else a
+        else:
+            r += self.num('@', d.pop('@')) if '@' in d else 0.0
+            a += self.num('^', d.pop('^')) if '^' in d else 0.0
+        px = r * math.cos(math.radians(a))
+        py = r * math.sin(math.radians(a))
+        if not self.absolute:       # target() adds increments to the current point
+            px -= x / self.scale
+            py -= y / self.scale
+        d['X'] = px
+        d['Y'] = py
 
     def split_repeated(self, words: list[tuple[str, str]],
                        d: dict[str, str]) -> tuple[list[str], list[str]]:

@@ -33,8 +33,9 @@ class GcodeRun:
     ----------
     text
         The program text (LF, CRLF or CR line ends).
-    file, start, arc_tolerance_m, home, tools, dialect, search_path
-        As for :func:`~.parse_gcode` (``dialect`` already a :class:`Dialect`).
+    file, start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
+        As for :func:`~.parse_gcode` (``dialect`` already a :class:`Dialect`, the axes
+        checked).
     batch
         Hand on the moves whenever this many have gathered (``None``: once, at the end).
 
@@ -48,7 +49,8 @@ class GcodeRun:
 
     def __init__(self, text: str, *, file: str, start: Vec3, arc_tolerance_m: float | None,
                  home: Vec3 | None, tools: Mapping[int, object] | None, dialect: Dialect,
-                 search_path: Sequence[str | PathLike[str]] = (), batch: int | None = None):
+                 search_path: Sequence[str | PathLike[str]] = (), batch: int | None = None,
+                 ignore_axes: Sequence[str] = ()):
         if '\r' in text:
             text = text.replace('\r\n', '\n').replace('\r', '\n')
         self.text = text
@@ -63,7 +65,8 @@ class GcodeRun:
         self.warnings: list[str] = []
         self.params = Parameters()
         self.interp = Interpreter(file, start, arc_tolerance_m, lines=self.lines, home=home,
-                                  tools=tools, dialect=dialect, params=self.params)
+                                  tools=tools, dialect=dialect, params=self.params,
+                                  ignore_axes=ignore_axes)
         p = self.interp
         coords = p.coords
         self.params.provider = lambda key: coords.system_value(key, p.pos, p.scale)

@@ -1,0 +1,45 @@
+"""Less common words: polar coordinates, ignored rotary axes (hand-computed positions)."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from feed_axis_energy.core.errors import ConfigError, GcodeError
+from feed_axis_energy.core.gcode import parse_gcode
+
+MM = 1e-3
+
+
+def ends_mm(prog) -> list[tuple[float, ...]]:
+    return [tuple(round(v / MM, 6) for v in m.end) for m in prog.moves if m.length_m > 0]
+
+
+def test_polar_coordinates_absolute_and_incremental():
+    # From (10, 0): @5 ^90 is (0, 5); G91 ^90 turns by another 90 degrees at radius 5
+    # (-5, 0); G91 @2 lengthens the radius to 7 (-7, 0); G90 ^45 keeps radius 7.
+    text = 'G21 G0 X10 Y0\nG1 @5 ^90 F100\nG91 ^90\n@2\nG90 ^45\n'
+    r = 7 / math.sqrt(2)
+    assert ends_mm(parse_gcode(text)) == [(10, 0, 0), (0, 5, 0), (-5, 0, 0), (-7, 0, 0),
+                                          (round(r, 6), round(r, 6), 0)]
+
+
+def test_polar_with_x_is_an_error():
+    with pytest.raises(GcodeError) as info:
+        parse_gcode('G1 X1 @5 F100\n')
+    assert (info.value.line, info.value.column) == (1, 7)
+
+
+def test_rotary_axis_is_an_error_naming_the_line_or_ignored():
+    text = 'G21 G0 X1\nG1 X2 A90 F100\nG1 X3 A180 B5\n'
+    with pytest.raises(GcodeError) as info:
+        parse_gcode(text, file='r.nc')
+    assert (info.value.line, info.value.column) == (2, 7)
+    assert '--ignore-axes A' in info.value.reason
+    prog = parse_gcode(text, file='r.nc', ignore_axes=('a', 'B'))
+    assert ends_mm(prog) == [(1, 0, 0), (2, 0, 0), (3, 0, 0)]
+    assert prog.warnings == (
+        'r.nc:2: axis A words are ignored (--ignore-axes): its motion is not simulated',
+        'r.nc:3: axis B words are ignored (--ignore-axes): its motion is not simulated')
+    with pytest.raises(ConfigError, match="cannot ignore axis 'X'"):
+        parse_gcode(text, ignore_axes=('X',))
