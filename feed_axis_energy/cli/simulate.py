@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     # imported here: ``feed-axis-energy --help`` must not pay for the simulation's imports
     from feed_axis_energy.cli.common import (load_machine_and_options, print_summary,
-                                             program_text_lines)
+                                             program_keywords, program_text_lines)
     from feed_axis_energy.cli.progress import Progress
     from feed_axis_energy.core.gcode import load_gcode
     from feed_axis_energy.core.simstream import streamable
@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
         summary = _run_whole(args, machine, options, progress, trajectory=trajectory,
                              warnings=warnings)
     else:
-        program = load_gcode(args.program, **machine.gcode_keywords())
+        program = load_gcode(args.program, **program_keywords(machine, args))
         warnings = _warn(args, program, machine)
         summary = _run_stream(args, machine, options, program, progress)
     summary['warnings'] = warnings
@@ -163,6 +163,7 @@ def _warn(args, program, machine) -> list[str]:
 def _run_whole(args, machine, options, progress, *, trajectory: bool,
                warnings: list[str]) -> dict:
     """Whole-record path: trajectory CSVs and declared effects that need the whole record."""
+    from feed_axis_energy.cli.common import program_keywords
     from feed_axis_energy.cli.progress import Progress
     from feed_axis_energy.core.gcode import load_gcode
     from feed_axis_energy.core.measured.trajcsv import load_trajectory_csv
@@ -172,7 +173,7 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool,
         motion = load_trajectory_csv(args.program, axes=machine.axis_names)
         result = simulate_motion(motion, machine, load_kg=args.load_kg)
     else:
-        program = load_gcode(args.program, **machine.gcode_keywords())
+        program = load_gcode(args.program, **program_keywords(machine, args))
         warnings.extend(_warn(args, program, machine))
         result = simulate_program(program, machine, load_kg=args.load_kg, options=options,
                                   progress=progress)
