@@ -18,6 +18,9 @@ CYCLE_MOTIONS = frozenset({73, 81, 82, 83, 84, 85, 86, 87, 88, 89})
 G_CODES: dict[int, tuple[str, object]] = {
     0: ('motion', 0), 10: ('motion', 1), 20: ('motion', 2), 30: ('motion', 3),
     800: ('motion', None),
+    # Probing (run to the end point: no contact is simulated) and rigid tapping.
+    382: ('motion', 382), 383: ('motion', 383), 384: ('motion', 384), 385: ('motion', 385),
+    331: ('motion', 331),
     **{c * 10: ('motion', c) for c in CYCLE_MOTIONS},
     40: ('nonmodal', 'dwell'), 90: ('nonmodal', 'exact'),
     170: ('plane', 17), 180: ('plane', 18), 190: ('plane', 19),
@@ -41,7 +44,6 @@ G_CODES: dict[int, tuple[str, object]] = {
 G_UNSUPPORTED: dict[int, str] = {
     50: 'spline moves', 51: 'spline moves', 52: 'spline moves', 70: 'lathe diameter mode',
     330: 'spindle-synchronised motion',
-    331: 'rigid tapping', 382: 'probing', 383: 'probing', 384: 'probing', 385: 'probing',
     740: 'lathe/left-hand tapping cycle', 760: 'lathe threading cycle',
     950: 'feed per revolution', 171: 'UVW planes', 181: 'UVW planes', 191: 'UVW planes',
 }

@@ -32,8 +32,8 @@ _CENTRE_LETTERS = ('I', 'J', 'K')
 _AXIS_LETTERS = ('X', 'Y', 'Z')
 _MOTION_TEXT = {t: int(t) for t in ('0', '00', '1', '01', '2', '02', '3', '03')}
 # Letters that need no check beyond the motion itself (T is recorded by check_extras).
-_STRAIGHT_WORDS = frozenset('XYZFNS')
-_ARC_WORDS = frozenset('XYZIJKRPFNS')
+_STRAIGHT_WORDS = frozenset('XYZFN')
+_ARC_WORDS = frozenset('XYZIJKRPFN')
 
 
 class Interpreter(MotionMixin, CompMixin, ModesMixin):
@@ -71,7 +71,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                  'cycle_memory', 'series', 'comp', 'routing',
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
                  'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
-                 'warned', 'ignore_axes')
+                 'warned', 'ignore_axes', 'rpm')
 
     def __init__(self, file: str, start: tuple[float, float, float],
                  arc_tolerance_m: float | None,
@@ -123,6 +123,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         self.io_lineno = -1                 # line with an I/O M code (its P/Q/E/L words)
         self.warned: set[str] = set()       # warnings given once
         self.ignore_axes = frozenset(ignore_axes)   # axis letters dropped with a warning
+        self.rpm = 0.0                      # S word (spindle speed, rev/min)
 
     # -- errors ---------------------------------------------------------------------------
     def fail(self, msg: str, letter: str, *, value: float | None = None, nth: int = 0):
@@ -202,7 +203,10 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                 self.fail('axis words but no motion mode (G0/G1/G2/G3) is active',
                           self.first_axis(d))
             if mode > 3:
-                self.cycle(d, mode)
+                if mode < 100:
+                    self.cycle(d, mode)
+                else:
+                    self.probe_or_tap(d, mode, g9)
             else:
                 if self.series:
                     self.end_series()
@@ -229,6 +233,8 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
             self.fail('H word with no G43 to use it', 'H')
         if 'T' in d:
             self.select_tool(d['T'])
+        if 'S' in d:
+            self.rpm = self.num('S', d['S'])
         if self.io_lineno == self.lineno:
             d = {k: v for k, v in d.items() if k not in 'PQEL'}    # the I/O M code's words
         elif 'E' in d:

@@ -103,6 +103,38 @@ class MotionMixin:
             self.moves.append(m)
         self.pos = end
 
+    def probe_or_tap(self, d: dict, mode: int, g9: bool) -> None:
+        """G38.2-G38.5 probing: a feed to the end point (no contact is simulated, one
+        warning); G33.1 rigid tapping: in to the end point and back at K x S."""
+        if self.series:
+            self.end_series()
+        if self.comp.active:
+            self.fail('Cannot probe or tap with cutter radius compensation on', 'G',
+                      value=mode / 10)
+        if mode != 331:
+            if not self.feed or self.inverse_time:
+                self.fail('probing (G38.x) needs a feed rate in units per minute (G94 F)',
+                          'G', value=mode / 10)
+            if 'probe' not in self.warned:
+                self.warned.add('probe')
+                self.warnings.append(f'{self.file}:{self.lineno}: G{mode / 10:g} probing runs '
+                                     'to its end point (no contact is simulated)')
+            self.straight(d, 1, g9, True)
+            return
+        if 'K' not in d:
+            self.fail('G33.1 rigid tapping needs K (the distance per spindle revolution)', 'G',
+                      value=33.1)
+        pitch = abs(self.num('K', d['K'])) * self.scale
+        if pitch == 0.0 or self.rpm <= 0.0:
+            self.fail('G33.1 needs a non-zero K and a spindle speed S (feed = K x S)', 'K')
+        start = self.pos
+        end = self.target(d)
+        feed = pitch * self.rpm / 60.0
+        length = math.dist(start, end)
+        for a, b in ((start, end), (end, start)):
+            self.emit(Move(kind=MoveKind.LINEAR, line=self.lineno, start=a, end=b,
+                           feed_m_s=feed, exact_stop=True, length_m=length))
+
     def check_radii(self, d: dict, r0: float, r1: float, explicit: bool) -> None:
         """LinuxCNC's zero-radius and end-on-circle checks (see :mod:`.canon`)."""
         scale = self.scale

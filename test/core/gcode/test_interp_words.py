@@ -43,3 +43,23 @@ def test_rotary_axis_is_an_error_naming_the_line_or_ignored():
         'r.nc:3: axis B words are ignored (--ignore-axes): its motion is not simulated')
     with pytest.raises(ConfigError, match="cannot ignore axis 'X'"):
         parse_gcode(text, ignore_axes=('X',))
+
+
+def test_rigid_tap_goes_in_and_back_at_k_times_s():
+    # K1.5 mm/rev at S600 rev/min: 900 mm/min; 15 mm in and 15 mm out; back at Z5.
+    prog = parse_gcode('G21 G0 X0 Y0 Z5\nS600 M3\nG33.1 Z-10 K1.5\nG0 X5\n')
+    taps = [m for m in prog.moves if m.line == 3]
+    assert [round(m.end[2] / MM, 9) for m in taps] == [-10, 5]
+    assert [m.length_m for m in taps] == pytest.approx([15 * MM, 15 * MM])
+    assert all(m.feed_m_s == pytest.approx(900 * MM / 60) for m in taps)
+    with pytest.raises(GcodeError, match='spindle speed S'):
+        parse_gcode('G21 G33.1 Z-10 K1.5\n')
+
+
+def test_probe_runs_to_its_end_point_and_stays_the_motion_mode():
+    prog = parse_gcode('G21 G0 X5 Z5\nF100\nG38.2 Z-3\nX8\n', file='p.nc')
+    assert ends_mm(prog)[-2:] == [(5, 0, -3), (8, 0, -3)]
+    assert [w for w in prog.warnings if 'probing' in w] == [
+        'p.nc:3: G38.2 probing runs to its end point (no contact is simulated)']
+    with pytest.raises(GcodeError, match='needs a feed rate'):
+        parse_gcode('G21 G38.2 Z-3\n')
