@@ -1,46 +1,68 @@
-"""G-code (RS-274 / ISO 6983, milling) to a :class:`~.program.Program` of moves in SI units.
+"""G-code (RS-274 / ISO 6983, milling) to moves in SI units: the user's reference.
 
-One pass over the text: each line is lexed with two precompiled regular expressions and
-interpreted against the full modal state. Parsing either returns a whole program or raises
-:class:`~.errors.GcodeError` naming ``file:line:column`` and the offending word.
+``parse_gcode(text)`` / ``load_gcode(path)`` return a :class:`~..program.Program`;
+``iter_moves(path)`` streams the same moves in bounded memory. A program that cannot be
+simulated exactly raises :class:`~..errors.GcodeError` naming ``file:line:column`` and the
+offending word (a subroutine file names itself). Semantics are LinuxCNC 2.9's (RS274NGC),
+checked against its interpreter; where controls differ a :mod:`dialect <.dialect>` profile
+applies (``linuxcnc`` by default; ``fanuc``, ``haas``, ``grbl``, ``mach3``).
 
-Dialect (LinuxCNC semantics where dialects differ)
---------------------------------------------------
-* Motion: G0, G1, G2/G3 (I/J/K centre or R radius; negative R = arc over 180 degrees;
-  IJK with end == start = full circle; P = number of turns; the axis normal to the plane
-  moves linearly = helix), G4 dwell (P in seconds), G80 (motion mode off).
-* Modes, with their start-up values in brackets: plane G17/G18/G19 [G17], units G20/G21
-  [G21, mm], distance G90/G91 [G90], arc centres G90.1/G91.1 [G91.1, incremental], feed
-  G93/G94 [G94], path control G61 (and G61.1, treated the same)/G64 [G64; G64 P/Q
-  tolerances are accepted and ignored], G9 (exact stop for this line), motion [G80: axis
-  words before the first G0/G1/G2/G3 are an error].
-* F is read in the units in force *after* the line's G20/G21 and keeps its physical speed
-  when the units change later. Switching between G93 and G94 clears F (a new F is
-  required). Under G93 every feed move needs F on its line; F is 1/minutes, so the move
-  takes 60/F s and ``feed_m_s = length_m * F / 60``.
-* Accepted and ignored for the feed axes: N, O (a bare program number), S, T, M3-M9,
-  G40, G43 H (tool length offset: unknown tool length, so Z moves as programmed; a warning
-  says so), G49, G54-G59 (motion stays in program coordinates; a change of coordinate system
-  after the first move is reported as a warning), G8, G96/G97, G98/G99.
-* G28 (needs the machine's ``home_m``, in program coordinates since work offsets are not
-  simulated): a rapid to the intermediate point of the line's axis words, then those axes
-  (all axes without axis words) rapid to the reference point; both stop at their end.
-* M0/M1 give a STOP move; M2/M30 give a STOP move and end the program: later lines are
-  ignored (with a warning if any of them holds code). A ``%`` line after code also ends it.
-* Comments ``( ... )`` (no nesting, must close on the line) and ``;`` to end of line;
-  a line whose first non-blank character is ``/`` is skipped (block delete switch on).
-* Blanks and tabs are ignored between and inside words (LinuxCNC rule): ``X 10`` and even
-  ``X1 0`` (= X10) are read. Letters may be lower case. Numbers: ``X.5``, ``X-1.``,
-  ``X+2``; ``X1.2.3`` and ``Xabc`` are errors.
-* Refused with "not supported": G28 without a reference point, G28.1, G30, G41/G42,
-  G43.1/G43.2, G52/G53, G92, canned cycles (G73-G89), G95, G33, G38.x, G5.x, A/B/C/U/V/W,
-  D/L words (H only with G43), parameters and expressions (``#``, ``[...]``), O-word
-  control flow, unknown G/M codes and letters.
-* Arc end check: the end must lie on the start circle within
-  ``max(arc_tolerance_m, 0.1 % of the radius)``; the default ``arc_tolerance_m`` is 0.002 mm.
-  An R smaller than half the chord by no more than the same tolerance gives a half circle.
-  A spiral within tolerance is kept: its length uses the mean of the start and end radii.
-* Zero-length G0/G1 moves produce no move (they would have no duration to plan).
+Layout (as LinuxCNC's rs274ngc): :mod:`.source` (bytes, line ends), :mod:`.lexer`,
+:mod:`.expr` and :mod:`.params` (words, expressions, parameters), :mod:`.flow` (O-words,
+Fanuc subprograms), :mod:`.interp` with :mod:`.interp_motion`, :mod:`.interp_modes`,
+:mod:`.interp_comp` (modal state), :mod:`.coords` (coordinate systems, tool length),
+:mod:`.cycles` and :mod:`.cutter` (canned cycles, cutter compensation), :mod:`.canon` (the
+canonical moves and arc rules), :mod:`.run` (one pass: plain lines on a fast path, the rest
+through the front's reader).
+
+Reading
+-------
+* UTF-8 (BOM allowed), LF / CRLF / CR line ends; comments ``( )`` and ``;``; block delete
+  ``/``; ``%`` lines (the second ends the program); grbl ``$`` lines skipped with a warning.
+  Blanks inside words and lower-case letters are read as LinuxCNC reads them.
+* Parameters ``#1``..``#5601``, ``#<local>``, ``#<_global>``, expressions ``[ ]`` with
+  LinuxCNC's operators and functions; assignments take effect after their line.
+* O-word subroutines (in the program, or ``<name>.ngc`` next to it or on ``search_path``)
+  and ``if/elseif/else``, ``while``, ``do``, ``repeat``, ``break/continue``; Fanuc
+  ``O1234`` + ``M98 P.. L..`` / ``M99``. Loops stop with an error after 10^6 passes.
+* Non-finite or absurd numbers (beyond 1e12 program units) are errors.
+
+Motion (canonical moves, :mod:`.canon`)
+---------------------------------------
+* G0, G1; G2/G3 with I/J/K (incremental under G91.1, absolute under G90.1) or R (negative:
+  over 180 degrees), P turns, helices; a full circle may be written with I/J only. Arc
+  tolerances are LinuxCNC's: end and start radius may differ by 0.0283 mm (G20: 0.00283
+  inch), or by up to 0.1 % of the radius, never by more than 2.83 mm (0.283 inch); an R may
+  fall 0.00127 mm short of the chord. Parser and planner share one sweep (``Move.sweep_rad``):
+  an end angle within 1e-12 rad of the start is a full turn, anything else the short way
+  the arc runs.
+* An explicit G0/G1 without axis words, and any zero-length move, is issued with length 0
+  (as LinuxCNC; the planner drops it). A feed move with no F in force runs at the
+  machine's limits with one warning (LinuxCNC's preview accepts it).
+* Polar words ``@`` (distance) and ``^`` (angle, degrees) in the XY plane, from the origin
+  under G90 or added to the current point's under G91.
+* Canned cycles G73, G81..G89 with G98/G99 (start-up G99) and L repeats, sticky R/Z/P/Q
+  words, G80; the cycle is the motion mode. Cutter radius compensation G41/G42 (D = tool
+  number, or the tool in the spindle), G41.1/G42.1 (D = diameter), G40, in G17/G18; the
+  radius comes from the machine's ``gcode.tools`` (``tools=``); tool 0 or radius 0 leaves
+  the path unchanged; what LinuxCNC refuses under compensation is refused.
+* G38.2..G38.5 probing runs to its end point (no contact simulated, one warning); G33.1
+  rigid tapping goes in and back at K x S.
+* G4 dwell (P unit per dialect); M0/M1 stop; M2/M30 end (later lines warned about).
+
+Modes and coordinates
+---------------------
+G17/G18/G19, G20/G21, G90/G91, G90.1/G91.1, G93/G94 (F cleared on a switch), G61/G61.1/G64,
+G9; G54..G59.3, G10 L1/L2/L10/L11/L20, G92/G92.1/G92.2/G92.3, G52, G53, G28/G30 (+ .1),
+G43/G43.1/G43.2/G49 as LinuxCNC 2.9 (:mod:`.coords`); moves are in machine coordinates.
+S, T, M6, M61, M3..M9 are tracked where they matter (G84/G86 need a turning spindle, G41
+without D uses the loaded tool); harmless I/O M codes per dialect are accepted.
+
+Refused with a clear message
+----------------------------
+Axes A/B/C/U/V/W (or dropped with ``ignore_axes``/``--ignore-axes``, one warning each),
+G5/G5.1/G5.2/G5.3 splines, G33 spindle-synchronised motion, G95 feed per revolution, G7
+lathe mode, G17.1-G19.1 UVW planes, unknown G and M codes, words nothing uses.
 """
 from __future__ import annotations
 

@@ -42,7 +42,8 @@ G_CODES: dict[int, tuple[str, object]] = {
 
 # Codes we know and refuse, with the reason shown to the user.
 G_UNSUPPORTED: dict[int, str] = {
-    50: 'spline moves', 51: 'spline moves', 52: 'spline moves', 70: 'lathe diameter mode',
+    50: 'spline moves', 51: 'spline moves', 52: 'spline moves', 53: 'spline moves',
+    70: 'lathe diameter mode',
     330: 'spindle-synchronised motion',
     740: 'lathe/left-hand tapping cycle', 760: 'lathe threading cycle',
     950: 'feed per revolution', 171: 'UVW planes', 181: 'UVW planes', 191: 'UVW planes',
