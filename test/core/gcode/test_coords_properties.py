@@ -89,7 +89,8 @@ def test_g10_l20_makes_the_current_point_read_the_values_in_that_system(c, posit
     assert before_other is not None
 
 
-_WORD = st.sampled_from(['G10 L2 P{p} X{v}', 'G10 L2 P{p} R{v}', 'G3 X{v} I{v} F100', 'G10 L20 P{p} Y{v}', 'G10 L1 P{p} Z{v} R{r}',
+_WORD = st.sampled_from(['G10 L2 P{p} X{v}', 'G10 L2 P{p} R{v}', 'G3 X{v} I{v} F100',
+                         'G10 L20 P{p} Y{v}', 'G10 L1 P{p} Z{v} R{r}',
                          'G92 X{v} Z{v}', 'G92.1', 'G92.2', 'G92.3', 'G52 Y{v}', 'G5{s}',
                          'G59.{s3}', 'G53 G0 X{v}', 'G28 Z{v}', 'G30', 'G28.1', 'G30.1',
                          'G43 H{p}', 'G43.1 Z{v}', 'G43.2 Z{v}', 'G49', 'G0 X{v} Y{v}',
