@@ -109,6 +109,10 @@ class CycleSpec(NamedTuple):
         True while G41/G42 is active (an error with canned cycles).
     spindle
         1 turning clockwise, -1 counter-clockwise, 0 stopped, ``None`` unknown (no check).
+    polar
+        LinuxCNC's polar increments under G91 in G17, ``(@ [m], ^ [rad])``: each repeat
+        moves the hole by them in polar coordinates about the program origin (instead of
+        X/Y increments).
     """
 
     code: int
@@ -122,6 +126,7 @@ class CycleSpec(NamedTuple):
     inverse_time: bool = False
     cutter_comp: bool = False
     spindle: int | None = None
+    polar: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -334,9 +339,18 @@ def expand_cycle(spec: CycleSpec, memory: CycleMemory | None = None, *,
         old = r
         current = r
     clear = r if spec.retract == 99 else old
+    polar = spec.polar if spec.incremental else None
+    if polar is not None and spec.plane != 17:
+        fail('polar coordinates (@, ^) in a canned cycle need plane G17', 'G')
     for rep in range(repeats):
-        pa += inc_a
-        pb += inc_b
+        if polar is None:
+            pa += inc_a
+            pb += inc_b
+        else:
+            radius = math.hypot(pa, pb) + polar[0]
+            theta = math.atan2(pb, pa) + polar[1]
+            pa = radius * math.cos(theta)
+            pb = radius * math.sin(theta)
         if rep == 0 and current > r:
             out.append(('rapid', point(pa, pb, current)))
             out.append(('rapid', point(pa, pb, r)))

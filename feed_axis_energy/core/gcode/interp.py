@@ -71,7 +71,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                  'cycle_memory', 'series', 'comp', 'routing',
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
                  'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
-                 'warned', 'ignore_axes', 'rpm')
+                 'warned', 'ignore_axes', 'rpm', 'polar_line', 'polar_inc')
 
     def __init__(self, file: str, start: tuple[float, float, float],
                  arc_tolerance_m: float | None,
@@ -124,6 +124,8 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         self.warned: set[str] = set()       # warnings given once
         self.ignore_axes = frozenset(ignore_axes)   # axis letters dropped with a warning
         self.rpm = 0.0                      # S word (spindle speed, rev/min)
+        self.polar_line = -1                # line with G91 polar words (@ [m], ^ [rad])
+        self.polar_inc = (0.0, 0.0)
 
     # -- errors ---------------------------------------------------------------------------
     def fail(self, msg: str, letter: str, *, value: float | None = None, nth: int = 0):
@@ -141,6 +143,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         """After a block of the front's reader: its markers must not reach the next block,
         which may carry the same (main-program) line number."""
         self.pending_lineno = self.coord_line = self.g43_lineno = self.io_lineno = -1
+        self.polar_line = -1
 
     def num(self, letter: str, text: str) -> float:
         """Value of a word; blanks inside the number are ignored (LinuxCNC rule)."""

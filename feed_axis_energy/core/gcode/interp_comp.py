@@ -128,11 +128,15 @@ class CompMixin:
             words['P'] = num('P', d['P']) * self.p_unit
         if 'L' in d:
             words['L'] = num('L', d['L'])
+        polar = None
+        if self.polar_line == self.lineno and not self.absolute:
+            polar = self.polar_inc          # the X/Y made of them are not increments here
+            del words['X'], words['Y']
         spec = CycleSpec(code, self.plane, self.pos, words, offset=self.offset(),
                          incremental=not self.absolute, retract=self.retract,
                          feed_m_s=None if self.inverse_time else self.feed,
                          inverse_time=self.inverse_time, cutter_comp=self.comp.active,
-                         spindle=self.spindle)
+                         spindle=self.spindle, polar=polar)
         res = expand_cycle(spec, self.cycle_memory, fail=self.cycle_fail)
         line = self.lineno
         pos = self.pos

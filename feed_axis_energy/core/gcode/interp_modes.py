@@ -156,8 +156,13 @@ class ModesMixin:
             r = self.num('@', d.pop('@')) if '@' in d else r
             a = self.num('^', d.pop('^')) if '^' in d else a
         else:
-            r += self.num('@', d.pop('@')) if '@' in d else 0.0
-            a += self.num('^', d.pop('^')) if '^' in d else 0.0
+            dr = self.num('@', d.pop('@')) if '@' in d else 0.0
+            da = self.num('^', d.pop('^')) if '^' in d else 0.0
+            # A G91 canned cycle repeats polar increments itself (cycles.py).
+            self.polar_inc = (dr * self.scale, math.radians(da))
+            self.polar_line = self.lineno
+            r += dr
+            a += da
         px = r * math.cos(math.radians(a))
         py = r * math.sin(math.radians(a))
         if not self.absolute:       # target() adds increments to the current point

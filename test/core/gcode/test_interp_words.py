@@ -63,3 +63,17 @@ def test_probe_runs_to_its_end_point_and_stays_the_motion_mode():
         'p.nc:3: G38.2 probing runs to its end point (no contact is simulated)']
     with pytest.raises(GcodeError, match='needs a feed rate'):
         parse_gcode('G21 G38.2 Z-3\n')
+
+
+def test_polar_increments_repeat_in_a_g91_cycle():
+    # Six holes on a circle of radius 1.5 inch, 60 degrees apart (LinuxCNC's hole-circle.ngc):
+    # each repeat turns the hole position about the origin; the last is back at the start.
+    prog = parse_gcode('G20 G17 G90\nG0 X1.5 Y0 Z0\nG91 G81 R.1 Z-.5 ^60 L6 F10\n')
+    inch = 0.0254
+    holes = [m.end for m in prog.moves if m.kind.name == 'LINEAR']
+    assert len(holes) == 6
+    for k, (x, y, z) in enumerate(holes, 1):
+        angle = math.radians(60 * k)
+        assert (x, y, z) == pytest.approx((1.5 * inch * math.cos(angle),
+                                           1.5 * inch * math.sin(angle), -0.4 * inch))
+    assert prog.moves[-1].end == pytest.approx((1.5 * inch, 0.0, 0.1 * inch))
