@@ -38,7 +38,8 @@ import math
 from typing import NamedTuple, NoReturn
 
 from ..errors import GcodeError
-from ..machine_gcode import MAX_TOOL_NUMBER, ToolSpec
+from .coords_tools import MAX_OFFSET_M, tool_spec, ToolTable
+from ..machine_gcode import ToolSpec
 
 __all__ = ['Coords', 'LineEffect', 'ParamTable', 'COORD_G_CODES', 'MAX_OFFSET_M',
            'SYSTEM_NAMES', 'system_param']
@@ -72,9 +73,6 @@ SYSTEM_PARAM = 5220
 TOOL_PARAM = 5400
 POSITION_PARAM = 5420
 MAX_PASSES = 9          # axes X Y Z A B C U V W of every parameter block
-MAX_OFFSET_M = 1.0e3
-"""Largest offset, stored position or tool length [m] accepted (an absurd value would plan
-an endless move or overflow to inf)."""
 
 
 def system_param(system: int, axis: int = 0) -> int:
@@ -84,26 +82,6 @@ def system_param(system: int, axis: int = 0) -> int:
 
 def _raise(message: str, letter: str) -> NoReturn:
     raise GcodeError(message, file='<program>', line=0, column=0)
-
-
-def _tool_spec(entry: object) -> ToolSpec:
-    """A tool table entry as ToolSpec.
-
-    Accepted: a ToolSpec, a number (the radius [m]), a ``(radius_m, length_m)`` pair, a
-    mapping or an object with ``radius_m`` (and optionally ``length_m``).
-    """
-    if isinstance(entry, ToolSpec):
-        return entry
-    if isinstance(entry, (int, float)) and not isinstance(entry, bool):
-        return ToolSpec(radius_m=float(entry))
-    if isinstance(entry, Mapping):
-        return ToolSpec(radius_m=float(entry.get('radius_m', 0.0)),
-                        length_m=float(entry.get('length_m', 0.0)))
-    if hasattr(entry, 'radius_m'):
-        return ToolSpec(radius_m=float(entry.radius_m),
-                        length_m=float(getattr(entry, 'length_m', 0.0)))
-    radius, length = entry
-    return ToolSpec(radius_m=float(radius), length_m=float(length))
 
 
 # LinuxCNC 2.9's messages for what it refuses while cutter radius compensation is on.
@@ -160,7 +138,7 @@ class ParamTable:
         self.values[number] = float(value)
 
 
-class Coords:
+class Coords(ToolTable):
     """The coordinate state of a program being interpreted (all lengths in metres).
 
     Parameters
@@ -183,7 +161,7 @@ class Coords:
     def __init__(self, *, tools: Mapping[int, ToolSpec] | None = None,
                  home_m: Vec3 | None = None, params: object | None = None):
         self.params = ParamTable() if params is None else params
-        self.tools: dict[int, ToolSpec] = {int(t): _tool_spec(e)
+        self.tools: dict[int, ToolSpec] = {int(t): tool_spec(e)
                                            for t, e in (tools or {}).items()}
         self.system = 1
         self.g5x: Vec3 = (0.0, 0.0, 0.0)
@@ -433,37 +411,6 @@ class Coords:
                       for i in range(3))
         return (dx * c + dy * s - g92[0], -dx * s + dy * c - g92[1], dz - g92[2])
 
-    def _g10_tool(self, l_word: int, number: int, values: Mapping[str, float],
-                  position: Vec3, *, fail: Fail) -> None:
-        """G10 L1 (values), L10 (the current point reads Z in the active system with the new
-        length), L11 (the same in G59.3, without G92) -- LinuxCNC's convert_setup_tool."""
-        if not 1 <= number <= MAX_TOOL_NUMBER:
-            fail(f'P value out of range with G10 L{l_word} (a tool number 1 ... '
-                 f'{MAX_TOOL_NUMBER})', 'P')
-        old = self.tools.get(number)
-        if old is None:
-            fail(f'tool {number} is not in the tool table (add it under gcode.tools of the '
-                 'machine config)', 'P')
-        for axis in ('X', 'Y'):
-            if axis in values:
-                fail(f'tool {axis} offsets (lathe tools) are not supported', axis)
-        if 'Z' not in values and 'R' not in values:
-            fail(f'G10 L{l_word} without offsets has no effect', 'G')
-        radius = values.get('R', old.radius_m)
-        if not 0.0 <= radius <= 1.0:
-            fail(f'tool radius {radius:.6g} m: expected 0 ... 1 m', 'R')
-        length = old.length_m
-        if 'Z' in values:
-            length = values['Z']
-            if l_word == 10:
-                # the machine Z seen in the active system with no tool length offset
-                length = position[2] - self.g5x[2] - self.g92[2] - values['Z']
-            elif l_word == 11:
-                length = position[2] - self.params.get(system_param(9, 2)) / _MM - values['Z']
-            if not abs(length) <= MAX_OFFSET_M:
-                fail(f'tool length beyond {MAX_OFFSET_M:g} m', 'Z')
-        self.tools[number] = ToolSpec(radius_m=radius, length_m=length)
-
     # -- G92, G52 -------------------------------------------------------------------------
     def axis_offsets(self, code: str, values: Mapping[str, float], position: Vec3) -> None:
         """G92 / G52 / G92.1 / G92.2 / G92.3.
@@ -542,73 +489,6 @@ class Coords:
         base = G28_PARAM if code == 'G28.1' else G30_PARAM
         for i in range(3):
             self.params.set(base + i, position[i] * _MM)
-
-    # -- tools ----------------------------------------------------------------------------
-    def select_tool(self, number: int) -> None:
-        """T word: the tool the next M6 loads (not checked against the table here)."""
-        self.selected_tool = number
-
-    def change_tool(self) -> None:
-        """M6: the selected tool becomes the loaded one (the offset stays until G43/G49)."""
-        self.loaded_tool = self.selected_tool
-
-    def set_loaded_tool(self, number: int) -> None:
-        """M61 Q..: declare the loaded tool without a change."""
-        self.selected_tool = self.loaded_tool = number
-
-    def tool(self, number: int | None, *, letter: str, fail: Fail = _raise) -> ToolSpec:
-        """The table entry of tool ``number`` (``None``: the loaded tool); T0 = no tool.
-
-        Raises through ``fail`` at ``letter`` when the table lacks the tool.
-        """
-        if number is None:
-            number = self.loaded_tool
-        if number == 0:
-            return ToolSpec()
-        spec = self.tools.get(number)
-        if spec is None:
-            fail(f'tool {number} is not in the tool table (add it under gcode.tools of the '
-                 'machine config)', letter)
-        return spec
-
-    def cutter_radius(self, d_word: float | None, *, fail: Fail = _raise) -> float:
-        """Radius [m] for G41/G42 with the line's D word (absent: the loaded tool)."""
-        number = None
-        if d_word is not None:
-            number = int(d_word)
-            if number != d_word or number < 0:
-                fail('D word must be a tool number (a whole number >= 0)', 'D')
-        return self.tool(number, letter='D' if d_word is not None else 'G', fail=fail).radius_m
-
-    def tool_length(self, code: str, h_word: float | None, values: Mapping[str, float], *,
-                    fail: Fail = _raise) -> None:
-        """G43 [H..] / G43.1 axes / G43.2 H.. or axes / G49."""
-        tlo = list(self.tlo)
-        if code == 'G49':
-            tlo = [0.0, 0.0, 0.0]
-        elif code == 'G43' or (code == 'G43.2' and h_word is not None):
-            number = None
-            if h_word is not None:
-                number = int(h_word)
-                if number != h_word or number < 0:
-                    fail('H word must be a tool number (a whole number >= 0)', 'H')
-            spec = self.tool(number, letter='H' if h_word is not None else 'G', fail=fail)
-            if code == 'G43':
-                tlo = [0.0, 0.0, spec.length_m]
-            else:
-                if values:
-                    fail('G43.2: Can not have both H and axis words', 'H')
-                tlo[2] += spec.length_m
-        elif code in ('G43.1', 'G43.2'):
-            if not values and code == 'G43.2':
-                fail('G43.2: No axes specified and H word missing', 'G')
-            for i, axis in enumerate(_AXES):
-                if axis in values:
-                    tlo[i] = values[axis] + (tlo[i] if code == 'G43.2' else 0.0)
-        else:
-            raise ValueError(f'not a tool length code: {code!r}')
-        self.tlo = tuple(tlo)
-        self._update()
 
     # -- live values ----------------------------------------------------------------------
     def system_value(self, key: int | str, position: Vec3, scale: float) -> float | None:
