@@ -52,6 +52,11 @@ KNOWN_DISAGREEMENTS = {
     # at line 23)
     'LinuxCNC__linuxcnc/nc_files__comp-g1.ngc': 'cutter comp exit move after G40',
     'LinuxCNC__linuxcnc/nc_files__comp311.ngc': 'cutter comp exit move after G40',
+    # Convention, kept on purpose: after `G43.1 Z5` (line 37), `G53 G0 Z3` (line 39) puts
+    # the machine at Z3 in our moves; the reference's canon positions exclude the tool length
+    # offset (run_oracle.py treats it as zero), so oracle.json has Z-2 there.
+    'LinuxCNC__linuxcnc/tests__interp__machine-coord-params__test.ngc':
+        'tool length offset: ours machine (motor) positions, the oracle\'s exclude it',
 }
 
 

@@ -14,7 +14,6 @@ import math
 from pathlib import Path
 
 from hypothesis import given, HealthCheck, settings, strategies as st
-import pytest
 
 from feed_axis_energy.core.errors import FeedAxisError, GcodeError
 from feed_axis_energy.core.gcode import load_gcode, parse_gcode
@@ -209,9 +208,6 @@ def test_crlf_line_ends_give_the_same_moves_as_lf(body):
     assert parse_gcode('\r\n'.join(body), file='p.nc').moves == ref.moves
 
 
-@pytest.mark.xfail(strict=True, reason='CR-only line ends: parse_gcode does not yet read '
-                                       'through the front (source.split_lines); remove this '
-                                       'mark when it does')
 @settings(max_examples=100, derandomize=True, deadline=None, database=None)
 @given(_BODIES)
 def test_cr_line_ends_give_the_same_moves_as_lf(body):
