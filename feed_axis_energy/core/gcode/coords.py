@@ -70,6 +70,7 @@ G30_PARAM = 5181
 G92_APPLIED = 5210
 G92_PARAM = 5211
 SYSTEM_PARAM = 5220
+PROBE_PARAM = 5061      # G38 result X Y Z A B C U V W, then #5070 tripped
 TOOL_PARAM = 5400
 POSITION_PARAM = 5420
 MAX_PASSES = 9          # axes X Y Z A B C U V W of every parameter block
@@ -489,6 +490,20 @@ class Coords(ToolTable):
         base = G28_PARAM if code == 'G28.1' else G30_PARAM
         for i in range(3):
             self.params.set(base + i, position[i] * _MM)
+
+    # -- probing ------------------------------------------------------------------------
+    def probe_result(self, position: Vec3, scale: float) -> None:
+        """After a G38.x move: #5061..#5063 = where it ended, in the program coordinates of
+        the active system and program units; #5064..#5069 and #5070 (tripped) = 0.
+
+        No contact is simulated, so the probe point is the end of the move -- what LinuxCNC's
+        interpreter records when nothing trips (its preview and the reference set-up).
+        """
+        program = self.to_program(position)
+        for i in range(3):
+            self.params.set(PROBE_PARAM + i, program[i] / scale)
+        for n in range(PROBE_PARAM + 3, PROBE_PARAM + 10):
+            self.params.set(n, 0.0)
 
     # -- live values ----------------------------------------------------------------------
     def system_value(self, key: int | str, position: Vec3, scale: float) -> float | None:

@@ -455,6 +455,10 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         coords.selected_tool = self.tool_selected
         coords.loaded_tool = self.tool_loaded
         return coords.system_value(key, self.pos, self.scale)
+
+    def probe_result(self) -> None:
+        """After a G38.x move: the probe parameters #5061.. (see Coords.probe_result)."""
+        self.coords.probe_result(self.pos, self.scale)
     # ---- end of coords hooks -----------------------------------------------------------------
 
     # -- motion ---------------------------------------------------------------------------

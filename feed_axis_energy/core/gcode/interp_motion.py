@@ -120,6 +120,7 @@ class MotionMixin:
                 self.warnings.append(f'{self.file}:{self.lineno}: G{mode / 10:g} probing runs '
                                      'to its end point (no contact is simulated)')
             self.straight(d, 1, g9, True)
+            self.probe_result()         # coords: #5061..#5070
             return
         if 'K' not in d:
             self.fail('G33.1 rigid tapping needs K (the distance per spindle revolution)', 'G',

@@ -484,3 +484,19 @@ def test_g92_and_g10_l20_in_a_rotated_system():
 def test_g53_in_a_rotated_system_is_still_machine_coordinates():
     text = 'G21 G90\nG10 L2 P1 X10 R90\nG53 G0 X5\nG0 X0 Y0\nG53 G0 Y-3\n'
     assert ends_mm(text) == [(5.0, 0.0, 0.0), (10.0, 0.0, 0.0), (10.0, -3.0, 0.0)]
+
+
+def test_probe_result_is_the_end_of_the_probe_move_in_program_coordinates():
+    from feed_axis_energy.core.gcode import parse_gcode
+    # G20, G54 origin X1 in: probe to program (0.5, 0, -0.1) in; then #5063 reads -0.1 and a
+    # move to Z[#5063 + 1] goes to program Z0.9 in = machine 22.86 mm
+    text = ('G20 G90\nG10 L2 P1 X1\nG0 X0.5\nG38.2 Z-0.1 F10\n#1 = #5063\nG0 Z[#1 + 1]\n'
+            'G0 X[#5061]\n')
+    prog = parse_gcode(text, file='p.nc')
+    assert prog.moves[-2].end == approx3((0.0381, 0.0, 0.02286))
+    assert prog.moves[-1].end == approx3((0.0381, 0.0, 0.02286))   # #5061 = 0.5 in
+    c = Coords()
+    c.params.set(5070, 1.0)
+    c.probe_result((0.01, 0.02, -0.003), 0.001)
+    assert [c.params.get(n) for n in (5061, 5062, 5063, 5064, 5070)] == \
+        pytest.approx([10.0, 20.0, -3.0, 0.0, 0.0])
