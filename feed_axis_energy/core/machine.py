@@ -224,7 +224,9 @@ class Machine:
     effects
         Catalog effects added on top of the power (empty for the paper's model).
     home_m
-        The reference point G28 moves to, ``((axis, position [m]), ...)``.
+        The reference point G28 moves to, ``((axis, position [m]), ...)`` in machine
+        coordinates: the initial ``#5161..#5163`` of a program run (empty: 0, as in
+        LinuxCNC's fresh parameter file).
     gcode
         Dialect and tool table of the G-code front end (:mod:`.machine_gcode`).
     """

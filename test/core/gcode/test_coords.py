@@ -500,3 +500,13 @@ def test_probe_result_is_the_end_of_the_probe_move_in_program_coordinates():
     c.probe_result((0.01, 0.02, -0.003), 0.001)
     assert [c.params.get(n) for n in (5061, 5062, 5063, 5064, 5070)] == \
         pytest.approx([10.0, 20.0, -3.0, 0.0, 0.0])
+
+
+def test_programs_read_and_write_the_offset_parameters():
+    # G10 L2 P2 X5 stores #5241 = 5 (mm); a program may read it, or write a system's origin
+    # directly, which takes effect when the system is selected (LinuxCNC)
+    text = ('G21 G90\nG10 L2 P2 X5\n#1 = #5241\nG0 X#1\n#5261 = 7\nG56\nG0 X0\n'
+            'G0 Y[#<_coord_system> / 10]\nG0 Z[#5420 + 1]\n')
+    # X5 in G54 = machine 5; G56 X0 = machine 7; Y = 560 / 10 = 56; Z = X (0) + 1
+    assert ends_mm(text) == [(5.0, 0.0, 0.0), (7.0, 0.0, 0.0), (7.0, 56.0, 0.0),
+                             (7.0, 56.0, 1.0)]
