@@ -42,7 +42,7 @@ from .coords_tools import MAX_OFFSET_M, tool_spec, ToolTable
 from ..machine_gcode import ToolSpec
 
 __all__ = ['Coords', 'LineEffect', 'ParamTable', 'COORD_G_CODES', 'MAX_OFFSET_M',
-           'SYSTEM_NAMES', 'system_param']
+           'SYSTEM_NAMES', 'system_param', 'foreign_codes']
 
 Vec3 = tuple[float, float, float]
 Fail = Callable[[str, str], NoReturn]
@@ -74,6 +74,31 @@ PROBE_PARAM = 5061      # G38 result X Y Z A B C U V W, then #5070 tripped
 TOOL_PARAM = 5400
 POSITION_PARAM = 5420
 MAX_PASSES = 9          # axes X Y Z A B C U V W of every parameter block
+
+
+# Coordinate codes a dialect's control lacks (grbl 1.1's G-code list: G10 L2/L20, G28/G30
+# (+ .1), G43.1/G49, G53, G54..G59, G92/G92.1 only). The program is simulated as LinuxCNC
+# runs it, with a warning, since the control itself would stop at the line.
+_FOREIGN = {
+    'grbl': ('grbl 1.1', frozenset({'G52', 'G92.2', 'G92.3', 'G43', 'G43.2', 'G59.1', 'G59.2',
+                                    'G59.3', 'G10 L1', 'G10 L10', 'G10 L11'})),
+}
+
+
+def foreign_codes(dialect: str, codes: Mapping[str, object],
+                  value: Callable[[str], 'float | None']) -> tuple[str, list[str]]:
+    """The codes of a line (as :meth:`Coords.execute` takes them) that ``dialect``'s
+    control does not have: ``(control name, [code, ...])``; empty for the others."""
+    control, missing = _FOREIGN.get(dialect, ('', frozenset()))
+    if not missing:
+        return control, []
+    names = [c for c in (codes.get('nonmodal'), codes.get('tool_length')) if c is not None]
+    system = codes.get('coord')
+    if system is not None:
+        names.append(SYSTEM_NAMES[system - 1])
+    if codes.get('nonmodal') == 'G10' and value('L') is not None:
+        names.append(f'G10 L{value("L"):g}')
+    return control, [n for n in names if n in missing]
 
 
 def system_param(system: int, axis: int = 0) -> int:

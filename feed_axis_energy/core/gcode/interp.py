@@ -11,7 +11,7 @@ from collections.abc import Iterable, Mapping
 import math
 
 from .codes import ALLOWED_LETTERS, COMP_FORBIDDEN
-from .coords import COORD_G_CODES, Coords, MAX_OFFSET_M
+from .coords import COORD_G_CODES, Coords, foreign_codes, MAX_OFFSET_M
 from .cutter import CutterComp
 from .cycles import CycleMemory
 from .dialect import Dialect, dialect_by_name
@@ -376,6 +376,13 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                         if '_code_' + g in todo)
             self.fail(msg, 'G', value=code / 10)
 
+        control, foreign = foreign_codes(self.dialect.name, todo, value)
+        for code in foreign:
+            if code not in self.warned:
+                self.warned.add(code)
+                self.warnings.append(f'{self.file}:{self.lineno}: {code} is not a {control} '
+                                     'code (the control would stop here); simulated as '
+                                     'LinuxCNC runs it')
         effect = coords.execute(todo, value, position=self.pos, scale=self.scale,
                                 motion=self.motion, absolute=self.absolute,
                                 comp_active=self.comp.active, fail=fail)

@@ -510,3 +510,12 @@ def test_programs_read_and_write_the_offset_parameters():
     # X5 in G54 = machine 5; G56 X0 = machine 7; Y = 560 / 10 = 56; Z = X (0) + 1
     assert ends_mm(text) == [(5.0, 0.0, 0.0), (7.0, 0.0, 0.0), (7.0, 56.0, 0.0),
                              (7.0, 56.0, 1.0)]
+
+
+def test_grbl_dialect_warns_once_per_code_grbl_lacks():
+    from feed_axis_energy.core.gcode import parse_gcode
+    text = 'G21 G90\nG52 X1\nG0 X0\nG52 X2\nG43 H1 Z5\nG59.1\nG10 L2 P1 X1\nG92 X0\n'
+    prog = parse_gcode(text, file='g.nc', dialect='grbl', tools={1: (0.0, 0.0)})
+    assert [w.split(':')[1] for w in prog.warnings] == ['2', '5', '6']
+    assert 'G52 is not a grbl 1.1 code' in prog.warnings[0]
+    assert parse_gcode(text, file='l.nc', tools={1: (0.0, 0.0)}).warnings == ()
