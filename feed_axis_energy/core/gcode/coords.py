@@ -209,7 +209,7 @@ class Coords(ToolTable):
     # -- one line -------------------------------------------------------------------------
     def execute(self, codes: Mapping[str, object], value: Value, *, position: Vec3,
                 scale: float, motion: int | None, absolute: bool, comp_active: bool = False,
-                fail: Fail = _raise) -> LineEffect:
+                explicit_motion: bool = False, fail: Fail = _raise) -> LineEffect:
         """Execute the coordinate codes of one line, in LinuxCNC's order.
 
         Tool length (G43/G49) first, then the coordinate system (G54..), then the
@@ -233,6 +233,9 @@ class Coords(ToolTable):
             G90 in force.
         comp_active
             Cutter radius compensation G41/G42 is on (LinuxCNC then refuses most of these).
+        explicit_motion
+            The line has its own G0..G3 or cycle code (LinuxCNC refuses it beside G10, G28,
+            G30, G52 or G92: both would use the axis words).
         fail
             ``fail(message, letter)`` raising the error at a word.
 
@@ -243,6 +246,11 @@ class Coords(ToolTable):
             G28/G30 return, if any.
         """
         axes = {a: v * scale for a in _AXES if (v := value(a)) is not None}
+        code = codes.get('nonmodal')
+        if explicit_motion and code in ('G10', 'G28', 'G30', 'G52', 'G92'):
+            fail('Cannot use two g codes that both use axis values', 'G')
+        if code in ('G52', 'G92') and not axes:
+            fail(f'All axes missing with G52 or G92 ({code} needs X, Y or Z)', 'G')
         if codes.get('nonmodal') in _AXIS_DATA or codes.get('tool_length') in _AXIS_DATA:
             for a, v in axes.items():
                 if not abs(v) <= MAX_OFFSET_M:
@@ -262,7 +270,6 @@ class Coords(ToolTable):
         system = codes.get('coord')
         if system is not None:
             self.select_system(system, fail=fail)
-        code = codes.get('nonmodal')
         if code == 'G10':
             data = dict(axes)
             r = value('R')

@@ -199,7 +199,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
             has_axes = self.check_extras(d, is_arc, has_axes, dwell, g64) or has_axes
         if self.pending_lineno == self.lineno:
             self.before_motion(d)
-        if self.coord_line == self.lineno and self.apply_coords(d):
+        if self.coord_line == self.lineno and self.apply_coords(d, motion is not None):
             pass                # the axis words were G10/G92/... data, or G28/G30 moved
         elif has_axes:
             if mode is None:
@@ -358,7 +358,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         if arg in ('G43', 'G43.2'):
             self.g43_lineno = self.lineno       # its H word is legal here
 
-    def apply_coords(self, d: dict[str, str]) -> bool:
+    def apply_coords(self, d: dict[str, str], explicit_motion: bool = False) -> bool:
         """Run the line's coordinate codes; True if they used the axis words (or moved)."""
         todo = self.coord_todo
         self.coord_todo = {}
@@ -385,7 +385,8 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                                      'LinuxCNC runs it')
         effect = coords.execute(todo, value, position=self.pos, scale=self.scale,
                                 motion=self.motion, absolute=self.absolute,
-                                comp_active=self.comp.active, fail=fail)
+                                comp_active=self.comp.active,
+                                explicit_motion=explicit_motion, fail=fail)
         self.frame = coords.offset
         self.rotated = coords.rotated
         self.coord = coords.system

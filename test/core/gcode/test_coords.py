@@ -387,6 +387,10 @@ def test_live_position_reads_program_coordinates():
     ('G10 L2 P1 R30\nG18 G0 X1\nG2 X0 Z1 I-1 K0 F100', 3, 10, 'G18 arcs in a rotated'),
     ('G41 D0 G1 X10 F100\nG92 X0', 2, 1, 'cutter radius'),
     ('G1 X1 F100\nG4 G92 X0 P1', 2, 4, 'same modal group'),
+    ('G0 G92 X0', 1, 4, 'both use axis values'),
+    ('G10 L2 P1 G1 X1 F100', 1, 1, 'both use axis values'),
+    ('G92', 1, 1, 'All axes missing'),
+    ('G52 (no axes)', 1, 1, 'All axes missing'),
 ])
 def test_errors_name_line_and_column(text, line, column, words):
     from feed_axis_energy.core.gcode import parse_gcode
