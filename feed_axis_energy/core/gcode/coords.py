@@ -251,15 +251,15 @@ class Coords(ToolTable):
             fail('Cannot use two g codes that both use axis values', 'G')
         if code in ('G52', 'G92') and not axes:
             fail(f'All axes missing with G52 or G92 ({code} needs X, Y or Z)', 'G')
-        if codes.get('nonmodal') in _AXIS_DATA or codes.get('tool_length') in _AXIS_DATA:
+        if code in _AXIS_DATA or codes.get('tool_length') in _AXIS_DATA:
             for a, v in axes.items():
                 if not abs(v) <= MAX_OFFSET_M:
                     shown = f'{v:.6g} m' if math.isfinite(v) else 'beyond any float'
                     fail(f'{a} value ({shown}) is not a plausible offset (at most '
                          f'{MAX_OFFSET_M:g} m)', a)
         if comp_active:
-            for code in (codes.get('tool_length'), codes.get('nonmodal')):
-                key = _COMP_KEY.get(code, code)
+            for refused in (codes.get('tool_length'), code):
+                key = _COMP_KEY.get(refused, refused)
                 if key in _COMP_MESSAGES and not (
                         key == 'G10' and not self._g10_hits_active(value)):
                     fail(_COMP_MESSAGES[key], 'G')
@@ -294,8 +294,8 @@ class Coords(ToolTable):
 
     def _g10_hits_active(self, value: Value) -> bool:
         l_word, p_word = value('L'), value('P')
-        if l_word not in (2.0, 20.0) or p_word is None:
-            return False
+        if l_word not in (2.0, 20.0) or p_word is None or not abs(p_word) <= 1e9:
+            return False        # not a coordinate system G10 (g10() names what is wrong)
         p = round(p_word)
         return p == 0 or p == self.system
 

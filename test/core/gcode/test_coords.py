@@ -523,3 +523,10 @@ def test_grbl_dialect_warns_once_per_code_grbl_lacks():
     assert [w.split(':')[1] for w in prog.warnings] == ['2', '5', '6']
     assert 'G52 is not a grbl 1.1 code' in prog.warnings[0]
     assert parse_gcode(text, file='l.nc', tools={1: (0.0, 0.0)}).warnings == ()
+
+
+def test_g10_with_an_absurd_p_under_cutter_compensation_is_a_clean_error():
+    from feed_axis_energy.core.gcode import parse_gcode
+    with pytest.raises(GcodeError) as err:
+        parse_gcode('G41 D0 G1 X10 F100\nG10 L2 P1' + '0' * 400 + ' X1\n', file='t.nc')
+    assert err.value.line == 2
