@@ -630,7 +630,8 @@ def acceptance_table(report: Report) -> list[dict[str, Any]]:
                            and report.agree[e.file].status == 'ok'
                            and e.file not in set(report.disagreeing_files()))
     order = sorted(k for k in rows if k != 'all') + ['all']
-    return [dict(dialect=k, **rows[k]) for k in order]
+    empty = dict(programs=0, reference=0, ours=0, both=0, agree=0)
+    return [dict(empty, dialect=k, **rows.get(k, {})) for k in order]
 
 
 def summary(report: Report) -> dict[str, Any]:
