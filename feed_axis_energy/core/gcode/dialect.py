@@ -5,15 +5,18 @@ the rules below, each copied from the control named in its profile. Choose one w
 ``--dialect`` (``simulate``), ``gcode.dialect`` in the machine config, or
 ``parse_gcode(dialect=...)``; the default is ``linuxcnc``.
 
-=============  ============  ===========  ===================  ==========================
-dialect        G4 P          G4 X         ``K0`` on a G17 arc  M98/M99 subprograms
-=============  ============  ===========  ===================  ==========================
-``linuxcnc``   seconds       (axis word)  error (as LinuxCNC)  yes (LinuxCNC 2.9 has them)
-``fanuc``      milliseconds  seconds      ignored, warning     yes
-``haas``       see below     (axis word)  ignored, warning     yes
-``grbl``       seconds       (axis word)  ignored, warning     no
-``mach3``      seconds       (axis word)  ignored, warning     yes
-=============  ============  ===========  ===================  ==========================
+=============  ============  ===========  ===================  ===========  =============
+dialect        G4 P          G4 X         ``K0`` on a G17 arc  M98/M99      Macro B (1)
+=============  ============  ===========  ===================  ===========  =============
+``linuxcnc``   seconds       (axis word)  error (as LinuxCNC)  yes          no
+``fanuc``      milliseconds  seconds      ignored, warning     yes          yes
+``haas``       see below     (axis word)  ignored, warning     yes          yes (+ M97)
+``grbl``       seconds       (axis word)  ignored, warning     no           no
+``mach3``      seconds       (axis word)  ignored, warning     yes          no
+=============  ============  ===========  ===================  ===========  =============
+
+(1) Fanuc Custom Macro B: ``WHILE``/``DO``/``END``, ``IF``/``GOTO``/``THEN``, ``G65``
+macro calls (and Haas ``M97`` local subprograms), read by the front (:mod:`.flow`).
 
 * G4 P: LinuxCNC, grbl and Mach3 (its default configuration) read seconds. Fanuc (Series
   0i/30i: ``G04 P`` in milliseconds without a decimal point, ``G04 X`` in seconds) reads
@@ -67,6 +70,9 @@ class Dialect:
         M codes accepted and ignored besides M0-M9 and M30.
     fanuc_subprograms
         ``O1234`` blocks with ``M98 P.. L..`` / ``M99`` are subprograms (read by the front).
+    fanuc_macro
+        Fanuc Custom Macro B (``WHILE``/``DO``/``END``, ``IF``/``GOTO``/``THEN``, ``G65``,
+        Haas ``M97``), read by the front.
     """
 
     name: str
@@ -76,14 +82,16 @@ class Dialect:
     normal_centre_zero: str = 'warn'
     harmless_m: frozenset[int] = _LINUXCNC_M
     fanuc_subprograms: bool = True
+    fanuc_macro: bool = False
 
 
 DIALECTS: dict[str, Dialect] = {
     'linuxcnc': Dialect('linuxcnc', 'LinuxCNC 2.9 (RS274NGC)', normal_centre_zero='error'),
     'fanuc': Dialect('fanuc', 'Fanuc Series 0i-MF / 30i (milling)', dwell_p='milliseconds',
-                     dwell_x_seconds=True, harmless_m=_LINUXCNC_M | _FANUC_M),
+                     dwell_x_seconds=True, harmless_m=_LINUXCNC_M | _FANUC_M,
+                     fanuc_macro=True),
     'haas': Dialect('haas', 'Haas mill (NGC control)', dwell_p='haas',
-                    harmless_m=_LINUXCNC_M | _FANUC_M),
+                    harmless_m=_LINUXCNC_M | _FANUC_M, fanuc_macro=True),
     'grbl': Dialect('grbl', 'grbl 1.1', fanuc_subprograms=False),
     'mach3': Dialect('mach3', 'Mach3 Mill (default configuration)',
                      harmless_m=_LINUXCNC_M | {40, 41}),

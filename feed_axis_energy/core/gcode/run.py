@@ -68,8 +68,7 @@ class GcodeRun:
                                   tools=tools, dialect=dialect, params=self.params,
                                   ignore_axes=ignore_axes)
         p = self.interp
-        coords = p.coords
-        self.params.provider = lambda key: coords.system_value(key, p.pos, p.scale)
+        self.params.provider = p.system_value
 
     def __iter__(self) -> Iterator[list[Move]]:
         """Run the program; yield the moves in batches."""
@@ -103,6 +102,7 @@ class GcodeRun:
         findall = WORD_RE.findall
         interpret = p.line
         fanuc = self.dialect.fanuc_subprograms
+        macro = self.dialect.fanuc_macro
         batch = self.batch or 0
         seen_code = False
         end_at = 0
@@ -126,7 +126,7 @@ class GcodeRun:
             words = findall(code)
             if not words:
                 continue
-            if fanuc and 'M9' in code and _fanuc_call(words):
+            if ((fanuc and 'M9' in code) or (macro and 'G65' in code)) and _fanuc_call(words):
                 return lineno - 1
             seen_code = True
             p.lineno = lineno
@@ -168,13 +168,16 @@ class GcodeRun:
 
 
 def _fanuc_call(words: list[tuple[str, str]]) -> bool:
-    """True if the line has M98 or M99 (Fanuc subprograms: the front's reader runs them)."""
+    """True if the line has M97, M98, M99 or G65 (subprograms and macro calls: the front's
+    reader runs them)."""
     for letter, value in words:
-        if letter == 'M':
+        if letter == 'M' or letter == 'G':
             try:
-                if float(''.join(value.split())) in (98.0, 99.0):
-                    return True
+                number = float(''.join(value.split()))
             except ValueError:
+                return True
+            if (letter == 'M' and number in (97.0, 98.0, 99.0)) or (letter == 'G'
+                                                                    and number == 65.0):
                 return True
     return False
 

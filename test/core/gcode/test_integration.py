@@ -72,3 +72,11 @@ def test_line_ends(ends):
     prog = parse_gcode(ends.join(['G21 G0 X1', 'Y2', '(c)', 'Z3']) + ends, file='t.nc')
     assert [m.line for m in prog.moves] == [1, 2, 4]
     assert prog.moves[-1].end == pytest.approx((1 * MM, 2 * MM, 3 * MM))
+
+
+def test_fanuc_subprogram_after_plain_lines():
+    # The fast path hands the M98 line (and everything after it) to the front's reader.
+    text = 'G21 G0 X1\nM98 P100 L2\nM30\nO100\nG91 G1 X5 F100\nG90\nM99\n'
+    prog = parse_gcode(text, file='f.nc', dialect='fanuc')
+    feeds = [m for m in prog.moves if m.kind == MoveKind.LINEAR]
+    assert [round(m.end[0] / MM, 9) for m in feeds] == [6, 11]
