@@ -777,11 +777,21 @@ def write_cam_program(path: Path, n_lines: int) -> None:
 
 
 _CHILD = textwrap.dedent('''
-    import resource, sys, time
+    import sys, time
     sys.path.insert(0, sys.argv[2])
+
+    def status_kb(key):
+        # VmHWM (peak) belongs to this process image: unlike ru_maxrss it does not carry
+        # the forking parent's peak over the exec.
+        with open('/proc/self/status') as fh:
+            for line in fh:
+                if line.startswith(key + ':'):
+                    return int(line.split()[1])
+        return 0
+
     import feed_axis_energy.core.gcode as g
     from feed_axis_energy.core.gcode_stats import MoveStats
-    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    base = status_kb('VmRSS')
     t0 = time.perf_counter()
     acc = MoveStats()
     if sys.argv[3] == 'stream' and hasattr(g, 'iter_moves'):
@@ -794,7 +804,7 @@ _CHILD = textwrap.dedent('''
             acc.add(m)
         how = 'load_gcode (whole Program)'
     dt = time.perf_counter() - t0
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    peak = status_kb('VmHWM')
     s = acc.result()
     print(how, dt, base, peak, s.n_motions)
 ''')
@@ -827,7 +837,7 @@ def memory_figure(n_lines: int, *, mode: str = 'stream') -> dict[str, Any]:
         return dict(lines=n_lines, error=_one_line(proc.stderr.strip().splitlines()[-1]
                                                    if proc.stderr.strip() else 'failed'))
     how, dt, base, peak, moves = proc.stdout.strip().rsplit('\n', 1)[-1].rsplit(' ', 4)
-    # ru_maxrss is in KiB on Linux.
+    # /proc/self/status figures are in KiB.
     return dict(lines=n_lines, file_mb=round(size / 1e6, 1), how=how, seconds=round(float(dt), 2),
                 rss_before_mb=round(int(base) / 1024, 1), peak_rss_mb=round(int(peak) / 1024, 1),
                 moves=int(moves))
