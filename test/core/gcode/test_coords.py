@@ -530,3 +530,9 @@ def test_g10_with_an_absurd_p_under_cutter_compensation_is_a_clean_error():
     with pytest.raises(GcodeError) as err:
         parse_gcode('G41 D0 G1 X10 F100\nG10 L2 P1' + '0' * 400 + ' X1\n', file='t.nc')
     assert err.value.line == 2
+
+
+def test_live_tool_values_after_a_tool_change():
+    # #5400 is the loaded tool, #5410 its diameter in mm (tool table radius 2.5 mm)
+    text = 'G21 G90\nT3 M6\nG0 X#5400 Y#5410\n'
+    assert ends_mm(text, tools={3: (0.0025, 0.0)}) == [(3.0, 5.0, 0.0)]
