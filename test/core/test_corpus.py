@@ -38,25 +38,30 @@ CORPUS = corpus.find_corpus()
 needs_corpus = pytest.mark.skipif(CORPUS is None,
                                   reason='shared corpus (corpus/gcode) not found')
 
-ACCEPTANCE_FLOOR = 0.85
+ACCEPTANCE_FLOOR = 0.95
 """Share of the programs the reference accepts that we accept (issue 8 target: 0.95).
 
-Measured 91/143 (0.636) before the issue-8 work; 122/143 (0.853) with canned cycles, cutter
-compensation, coordinate systems, parameters, expressions and O-words wired in."""
+Measured 91/143 (0.636) before the issue-8 work; 136/143 (0.951) with canned cycles, cutter
+compensation, coordinate systems, parameters, expressions, O-words, polar words, probing and
+rigid tapping wired in (the 7 left: 5 with rotary axes, 2 with G5.x splines)."""
 
 # Programs both accept on which some figure differs, with the reason found by
 # `bench/corpus.py --locate` (first differing move). Remove an entry when it agrees.
 KNOWN_DISAGREEMENTS = {
-    # cutter compensation with the reference's zero-diameter tools: the traverse after G40
-    # ends elsewhere (ours to X50.8 Y76.2, 25.4 mm; reference to X35.56 Y71.12, 30.05 mm,
-    # at line 23)
-    'LinuxCNC__linuxcnc/nc_files__comp-g1.ngc': 'cutter comp exit move after G40',
-    'LinuxCNC__linuxcnc/nc_files__comp311.ngc': 'cutter comp exit move after G40',
+    # Reference artifact: after a tool change (M6, line 22) LinuxCNC's preview module (the
+    # `gcode` module the oracle drives) re-reads the position of the last STRAIGHT move and
+    # forgets the arc after it, so the next traverse (line 23) starts from the wrong point
+    # (checked: `G1 X10 / G2 X20 Y0 I5 / T1 M6 / G0 Z1` gives a traverse to X10 there).
+    'LinuxCNC__linuxcnc/nc_files__comp-g1.ngc': 'preview re-reads a stale position after M6',
+    'LinuxCNC__linuxcnc/nc_files__comp311.ngc': 'preview re-reads a stale position after M6',
     # Convention, kept on purpose: after `G43.1 Z5` (line 37), `G53 G0 Z3` (line 39) puts
     # the machine at Z3 in our moves; the reference's canon positions exclude the tool length
     # offset (run_oracle.py treats it as zero), so oracle.json has Z-2 there.
     'LinuxCNC__linuxcnc/tests__interp__machine-coord-params__test.ngc':
         'tool length offset: ours machine (motor) positions, the oracle\'s exclude it',
+    # Convention, kept on purpose: G33.1 (line 314) is one rigid_tap call in the reference
+    # (counted as one feed move of twice the depth); ours are two feed moves, in and out.
+    'LinuxCNC__linuxcnc/nc_files__mmount.ngc': 'rigid tap: two feed moves (in, out), not one',
 }
 
 
