@@ -33,6 +33,11 @@ def _tool(text: str) -> tuple:
         raise argparse.ArgumentTypeError(str(err)) from None
 
 
+def _ignored_axes(text: str) -> tuple[str, ...]:
+    from feed_axis_energy.cli.common import _axes   # the same rule as simulate's option
+    return _axes(text)
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the subcommand."""
     from feed_axis_energy.core.gcode_check import DEFAULT_MAX_DWELL_S
@@ -56,6 +61,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='tool T with radius R and length offset L in mm (default 0) for '
                         'G41/G42 and G43, added to the machine config\'s gcode.tools or '
                         'replacing its entry; repeat for more tools (e.g. --tool 1:3:45.2)')
+    p.add_argument('--ignore-axes', type=_ignored_axes, default=(), metavar='A,B',
+                   help='drop the words of these axes (A, B, C, U, V, W) with one warning '
+                        'each; without it a program moving such an axis is an error')
     p.add_argument('--dialect', default=None, choices=DIALECTS,
                    help='G-code dialect (default: the machine config\'s gcode.dialect)')
     p.add_argument('--max-dwell-s', type=_max_dwell, default=DEFAULT_MAX_DWELL_S, metavar='S',
@@ -79,10 +87,11 @@ def _limits(machine: Any, max_dwell_s: float):
     return CheckLimits(travel_m=travel, velocity_m_s=velocity, max_dwell_s=max_dwell_s)
 
 
-def _parse_keywords(machine: Any, dialect: str | None) -> dict[str, Any]:
-    """Keywords for ``load_gcode`` on this machine: tools, G28 position and dialect."""
-    kw = dict(machine.gcode_keywords())
-    kw['dialect'] = dialect if dialect is not None else machine.gcode.dialect
+def _parse_keywords(machine: Any, args: argparse.Namespace) -> dict[str, Any]:
+    """Keywords for ``load_gcode``: tools, G28 position, dialect, axes to ignore."""
+    from feed_axis_energy.cli.common import program_keywords
+    kw = program_keywords(machine, args)
+    kw['dialect'] = args.dialect if args.dialect is not None else machine.gcode.dialect
     return kw
 
 
@@ -184,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
     if args.tool:
         from feed_axis_energy.core.machine_gcode import with_tools
         machine = replace(machine, gcode=with_tools(machine.gcode, dict(args.tool)))
-    keywords = _parse_keywords(machine, args.dialect)
+    keywords = _parse_keywords(machine, args)
     results = []
     n = len(args.programs)
     for i, path in enumerate(args.programs, 1):

@@ -93,6 +93,7 @@ def test_missing_program_is_an_error_of_that_program(tmp_path, capsys):
     ['check', 'x.nc', '--max-dwell-s', 'nan'],
     ['check', 'x.nc', '--max-dwell-s', '-1'],
     ['check', 'x.nc', '--dialect', 'heidenhain'],
+    ['check', 'x.nc', '--ignore-axes', 'X'],
 ])
 def test_usage_errors_exit_2(argv):
     with pytest.raises(SystemExit) as info:
@@ -149,3 +150,14 @@ def test_parser_warnings_are_listed_with_their_line_and_text(tmp_path, capsys):
     out = capsys.readouterr().out
     assert f"{prog}:4:0: warning: lines after the end of the program (line 3) are ignored " \
            f"near 'G1 X5'" in out
+
+
+def test_rotary_axis_is_an_error_unless_ignored(tmp_path, capsys):
+    prog = _write(tmp_path, 'rot.nc', 'G21 G90 F100\nG1 X10 A90\nM2\n')
+    assert main(['check', str(prog), '--machine', str(MILL), '--quiet']) == 1
+    assert f'{prog}:2:' in capsys.readouterr().out
+    assert main(['check', str(prog), '--machine', str(MILL), '--ignore-axes', 'A',
+                 '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc['warnings'] == 1 and doc['programs'][0]['warnings'][0]['line'] == 2
+    assert doc['programs'][0]['summary']['feed_length_m'] == pytest.approx(0.01)
