@@ -75,7 +75,7 @@ from .codes import IGNORABLE_AXES
 from .dialect import Dialect, dialect_by_name
 from .run import GcodeRun
 from .source import read_program
-from ..errors import ConfigError
+from ..errors import ConfigError, GcodeError
 from ..program import Move, Program
 
 __all__ = ['parse_gcode', 'load_gcode', 'iter_moves', 'MoveStream',
@@ -169,20 +169,38 @@ class MoveStream:
         Number of lines of the program.
     """
 
-    def __init__(self, run: GcodeRun):
-        self._run = run
-        self.file = run.file
-        self.n_lines = run.n_lines
+    def __init__(self, path: str | PathLike[str], kw: dict):
+        self._path = path
+        self._kw = kw
+        self._run: GcodeRun | None = None
+        self.file = str(path)
 
     @property
     def warnings(self) -> list[str]:
         """Warnings so far (all of them after the last move)."""
-        return self._run.warnings
+        return [] if self._run is None else self._run.warnings
+
+    @property
+    def n_lines(self) -> int:
+        """Lines of the program read so far (all of them after the last move)."""
+        return 0 if self._run is None else self._run.n_lines
 
     def __iter__(self) -> Iterator[Move]:
-        """The moves in order."""
-        for batch in self._run:
-            yield from batch
+        """The moves in order (the file is open while the iteration runs)."""
+        name = self.file
+        try:
+            fh = open(self._path, encoding='utf-8-sig', newline=None)
+        except OSError as err:
+            msg = f'cannot read the program: {err.strerror or err}'
+            raise GcodeError(msg, file=name, line=0, column=0) from err
+        with fh:
+            self._run = GcodeRun(stream=fh, file=name, **self._kw)
+            try:
+                for batch in self._run:
+                    yield from batch
+            except UnicodeDecodeError:
+                read_program(self._path, file=name)     # raises, naming line and column
+                raise
 
 
 def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
@@ -191,7 +209,11 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                dialect: str | Dialect | None = None,
                search_path: Sequence[str | PathLike[str]] = (),
                ignore_axes: Sequence[str] = (), batch: int = 4096) -> MoveStream:
-    """Read a program file and stream its moves (memory: the text plus ``batch`` moves).
+    """Stream the moves of a program file in bounded memory.
+
+    Plain lines are read one at a time, so memory stays at ``batch`` moves however long
+    the program; from the first line that needs the front's reader (parameters, O-words,
+    ...) on, the rest of the text is read into memory.
 
     Parameters
     ----------
@@ -208,12 +230,10 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
         Iterate over it for the moves; its ``warnings`` are complete at the end. Errors
         (:class:`GcodeError`) are raised during the iteration, at the line concerned.
     """
-    name = str(path)
-    text = read_program(path, file=name)
-    return MoveStream(GcodeRun(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
-                               home=home, tools=tools, dialect=dialect_by_name(dialect),
-                               search_path=search_path, batch=max(1, int(batch)),
-                               ignore_axes=_axes(ignore_axes)))
+    kw = dict(start=start, arc_tolerance_m=arc_tolerance_m, home=home, tools=tools,
+              dialect=dialect_by_name(dialect), search_path=search_path,
+              batch=max(1, int(batch)), ignore_axes=_axes(ignore_axes))
+    return MoveStream(path, kw)
 
 
 def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
 from os import PathLike
+from typing import TextIO
 
 from .dialect import Dialect
 from .flow import read_blocks
@@ -26,13 +27,29 @@ __all__ = ['GcodeRun']
 Vec3 = tuple[float, float, float]
 
 
+class _Recent:
+    """Stands in for the interpreter's list of lines on the streaming path: whatever line
+    is asked for, it is the one being interpreted (errors are raised at that line)."""
+
+    __slots__ = ('raw',)
+
+    def __init__(self) -> None:
+        self.raw = ''
+
+    def __getitem__(self, index: int) -> str:
+        return self.raw
+
+
 class GcodeRun:
     """Iterate over the moves of one program in batches (lists of :class:`Move`).
 
     Parameters
     ----------
     text
-        The program text (LF, CRLF or CR line ends).
+        The program text (LF, CRLF or CR line ends), or ``None`` with ``stream``.
+    stream
+        A text file opened with universal newlines, read line by line (bounded memory on
+        the fast path; the front's reader gets the rest of the text if it is needed).
     file, start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
         As for :func:`~.parse_gcode` (``dialect`` already a :class:`Dialect`, the axes
         checked).
@@ -44,39 +61,47 @@ class GcodeRun:
     warnings
         ``file:line: message`` texts; complete once the iteration has ended.
     n_lines
-        Number of lines of the program file.
+        Number of lines of the program file (complete once the iteration has ended).
     """
 
-    def __init__(self, text: str, *, file: str, start: Vec3, arc_tolerance_m: float | None,
-                 home: Vec3 | None, tools: Mapping[int, object] | None, dialect: Dialect,
+    def __init__(self, text: str | None = None, *, stream: TextIO | None = None, file: str,
+                 start: Vec3, arc_tolerance_m: float | None, home: Vec3 | None,
+                 tools: Mapping[int, object] | None, dialect: Dialect,
                  search_path: Sequence[str | PathLike[str]] = (), batch: int | None = None,
                  ignore_axes: Sequence[str] = ()):
-        if '\r' in text:
-            text = text.replace('\r\n', '\n').replace('\r', '\n')
-        self.text = text
-        self.lines = text.split('\n')
-        if self.lines and self.lines[-1] == '':
-            self.lines.pop()
-        self.n_lines = len(self.lines)
+        self.recent = _Recent()
+        if text is not None:
+            if '\r' in text:
+                text = text.replace('\r\n', '\n').replace('\r', '\n')
+            lines = text.split('\n')
+            if lines and lines[-1] == '':
+                lines.pop()
+            self.source: Iterator[str] = iter(lines)
+            self.stream = None
+            ref_lines: object = lines
+        else:
+            self.source = _file_lines(stream)
+            self.stream = stream
+            ref_lines = self.recent
+        self.n_lines = 0
         self.file = file
         self.dialect = dialect
         self.search_path = tuple(search_path)
         self.batch = batch
         self.warnings: list[str] = []
         self.params = Parameters()
-        self.interp = Interpreter(file, start, arc_tolerance_m, lines=self.lines, home=home,
+        self.interp = Interpreter(file, start, arc_tolerance_m, lines=ref_lines, home=home,
                                   tools=tools, dialect=dialect, params=self.params,
                                   ignore_axes=ignore_axes)
-        p = self.interp
-        self.params.provider = p.system_value
+        self.params.provider = self.interp.system_value
 
     def __iter__(self) -> Iterator[list[Move]]:
         """Run the program; yield the moves in batches."""
         p = self.interp
-        rest = yield from self._plain()
+        first = yield from self._plain()
         reader_warnings: list[str] = []
-        if rest is not None:
-            reader_warnings = yield from self._blocks(rest)
+        if first is not None:
+            reader_warnings = yield from self._blocks(first)
         p.close()
         self.warnings = reader_warnings + p.warnings
         if p.moves:
@@ -89,15 +114,18 @@ class GcodeRun:
         p.moves = []
         return out
 
+    def _rest(self) -> str:
+        """The text after the lines read so far."""
+        if self.stream is not None:
+            return self.stream.read()
+        return '\n'.join(self.source)
+
     def _plain(self) -> Iterator[list[Move]]:
-        """The fast path; returns the 0-based index of the first line it cannot take, or
-        ``None`` when the program ended."""
+        """The fast path; returns the first line (1-based number, raw text) it cannot take,
+        or ``None`` when the program ended."""
         p = self.interp
         file = self.file
-        lines = self.lines
-        # Upper-casing the whole text once keeps lines aligned: it adds or removes no '\n'.
-        upper_lines = self.text.upper().split('\n')
-        ascii_text = self.text.isascii()
+        recent = self.recent
         line_re = LINE_RE.fullmatch
         findall = WORD_RE.findall
         interpret = p.line
@@ -106,12 +134,15 @@ class GcodeRun:
         batch = self.batch or 0
         seen_code = False
         end_at = 0
-        for lineno, code in enumerate(upper_lines[:len(lines)], 1):
+        lineno = 0
+        for lineno, raw in enumerate(self.source, 1):
+            recent.raw = raw
+            code = raw.upper()
             if '(' in code or ';' in code:
                 code = blank_comments(code, file=file, line=lineno)
-            if line_re(code) is None or not (ascii_text or lines[lineno - 1].isascii()):
+            if line_re(code) is None or not raw.isascii():
                 # Not plain words: block delete, a % marker, or a line for the front.
-                code = blank_comments(lines[lineno - 1], file=file, line=lineno)
+                code = blank_comments(raw, file=file, line=lineno)
                 stripped = code.strip()
                 if stripped[:1] == '/':
                     continue
@@ -121,13 +152,15 @@ class GcodeRun:
                         break
                     continue
                 if not code.isascii() or line_re(code.upper()) is None:
-                    return lineno - 1
+                    self.n_lines = lineno - 1
+                    return lineno, raw
                 code = code.upper()
             words = findall(code)
             if not words:
                 continue
             if ((fanuc and 'M9' in code) or (macro and 'G65' in code)) and _fanuc_call(words):
-                return lineno - 1
+                self.n_lines = lineno - 1
+                return lineno, raw
             seen_code = True
             p.lineno = lineno
             interpret(words)
@@ -136,15 +169,23 @@ class GcodeRun:
                 break
             if batch and len(p.moves) >= batch:
                 yield self._take()
+        self.n_lines = lineno
         if end_at:
-            _warn_trailing(p, lines, end_at)
+            self.n_lines += _warn_trailing(p, self.source, end_at)
         return None
 
-    def _blocks(self, first: int) -> Iterator[list[Move]]:
-        """The front's reader from line ``first`` (0-based) on; returns its warnings."""
+    def _blocks(self, first: tuple[int, str]) -> Iterator[list[Move]]:
+        """The front's reader from line ``first`` on; returns its warnings."""
         p = self.interp
         file = self.file
-        text = '\n' * first + '\n'.join(self.lines[first:])
+        lineno, raw = first
+        rest = self._rest()
+        text = '\n' * (lineno - 1) + raw + '\n' + rest
+        lines = text.split('\n')
+        if lines and lines[-1] == '':
+            lines.pop()
+        self.n_lines = len(lines)
+        p.lines = lines
         reader = read_blocks(text, file=file, params=self.params, dialect=self.dialect,
                              search_path=self.search_path)
         interpret = p.line
@@ -163,8 +204,15 @@ class GcodeRun:
                 yield self._take()
         p.src = None
         if end_at:
-            _warn_trailing(p, self.lines, end_at)
+            _warn_trailing(p, iter(lines[end_at:]), end_at)
         return list(reader.warnings)
+
+
+def _file_lines(stream: TextIO) -> Iterator[str]:
+    """Lines of a text file opened with universal newlines, without their line ends (a
+    ``UnicodeDecodeError`` passes: the caller finds its place in the file)."""
+    for line in stream:
+        yield line[:-1] if line.endswith('\n') else line
 
 
 def _fanuc_call(words: list[tuple[str, str]]) -> bool:
@@ -182,10 +230,15 @@ def _fanuc_call(words: list[tuple[str, str]]) -> bool:
     return False
 
 
-def _warn_trailing(p: Interpreter, lines: list[str], end_at: int) -> None:
-    """Warn once if code follows the end of the program."""
-    for lineno in range(end_at + 1, len(lines) + 1):
-        raw = lines[lineno - 1]
+def _warn_trailing(p: Interpreter, rest: Iterator[str], end_at: int) -> int:
+    """Warn once if code follows the end of the program (line ``end_at``); return the number
+    of lines after it (all of them are read, none kept)."""
+    warned = False
+    count = 0
+    for count, raw in enumerate(rest, 1):
+        if warned:
+            continue
+        lineno = end_at + count
         try:
             code = blank_comments(raw, file=p.file, line=lineno).strip()
         except GcodeError:
@@ -193,4 +246,5 @@ def _warn_trailing(p: Interpreter, lines: list[str], end_at: int) -> None:
         if code and code != '%':
             p.warnings.append(f'{p.file}:{lineno}: lines after the end of the program '
                               f'(line {end_at}) are ignored')
-            return
+            warned = True
+    return count

@@ -80,3 +80,27 @@ def test_fanuc_subprogram_after_plain_lines():
     prog = parse_gcode(text, file='f.nc', dialect='fanuc')
     feeds = [m for m in prog.moves if m.kind == MoveKind.LINEAR]
     assert [round(m.end[0] / MM, 9) for m in feeds] == [6, 11]
+
+
+@pytest.mark.parametrize('ends', ['\n', '\r\n', '\r'])
+def test_stream_reads_every_line_end_and_counts_lines(tmp_path, ends):
+    path = tmp_path / 'p.nc'
+    path.write_bytes(ends.join(['G21 G0 X1', 'G1 Y2 F100', 'M2', 'G0 X9', '']).encode())
+    stream = iter_moves(path)
+    moves = list(stream)
+    assert [m.line for m in moves] == [1, 2, 3]
+    assert stream.n_lines == 4
+    assert stream.warnings == [f'{path}:4: lines after the end of the program (line 3) are '
+                               'ignored']
+    assert moves == list(load_gcode(path).moves)
+
+
+def test_stream_file_errors(tmp_path):
+    with pytest.raises(GcodeError) as info:
+        list(iter_moves(tmp_path / 'missing.nc'))
+    assert (info.value.line, info.value.column) == (0, 0)
+    bad = tmp_path / 'latin1.nc'
+    bad.write_bytes(b'G0 X1\n' * 3 + b'(Gr\xf6\xdfe)\n')
+    with pytest.raises(GcodeError, match='not UTF-8') as info:
+        list(iter_moves(bad))
+    assert (info.value.line, info.value.column) == (4, 4)
