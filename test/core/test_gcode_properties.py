@@ -16,7 +16,8 @@ from pathlib import Path
 from hypothesis import given, HealthCheck, settings, strategies as st
 
 from feed_axis_energy.core.errors import FeedAxisError, GcodeError
-from feed_axis_energy.core.gcode import load_gcode, parse_gcode
+from feed_axis_energy.core.gcode import iter_moves, load_gcode, parse_gcode
+from feed_axis_energy.core.gcode_check import check_moves, CheckLimits
 from feed_axis_energy.core.gcode_stats import summarize
 from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.planstream import estimate_plan, iter_motion
@@ -214,3 +215,34 @@ def test_cr_line_ends_give_the_same_moves_as_lf(body):
     """A file with CR-only line ends (old Mac editors) is read line by line (issue 8)."""
     ref = parse_gcode('\n'.join(body), file='p.nc')
     assert parse_gcode('\r'.join(body), file='p.nc').moves == ref.moves
+
+
+CHECK_LIMITS = CheckLimits(travel_m={'X': (-0.6, 0.6), 'Y': (-0.4, 0.4), 'Z': (-0.4, 0.15)},
+                           velocity_m_s={'X': 0.5, 'Y': 0.5, 'Z': 0.2}, max_dwell_s=1.0)
+
+
+@settings(max_examples=150, derandomize=True, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
+                                 HealthCheck.function_scoped_fixture])
+@given(programs())
+def test_streamed_moves_equal_the_whole_program_and_check_never_fails(tmp_path, text):
+    """iter_moves (bounded memory, batch of 3) gives the moves parse_gcode gives, or the
+    same refusal; `check`'s sanity pass over them only ever returns problems."""
+    path = tmp_path / 'r.nc'
+    path.write_text(text, encoding='utf-8', newline='')
+    kw = MILL.gcode_keywords()
+    try:
+        whole = load_gcode(path, **kw)
+    except GcodeError as err:
+        try:
+            list(iter_moves(path, batch=3, **kw))
+        except GcodeError as err2:
+            assert (err2.line, err2.column) == (err.line, err.column)
+            return
+        raise AssertionError(f'iter_moves accepted what load_gcode refused: {err}')
+    assert list(iter_moves(path, batch=3, **kw)) == list(whole.moves)
+    problems, stats = check_moves(whole.moves, file=str(path), limits=CHECK_LIMITS)
+    for p in problems:
+        assert p.severity == 'warning' and p.line >= 0 and len(p.message) < 500
+        assert str(p).startswith(f'{path}:')
+    assert stats == summarize(whole.moves)
