@@ -119,16 +119,19 @@ def program_problems(path: Path, *, machine: Any, keywords: dict[str, Any],
         when the program is refused).
     """
     from feed_axis_energy.core.errors import GcodeError
-    from feed_axis_energy.core.gcode import load_gcode
+    from feed_axis_energy.core.gcode import iter_moves
     from feed_axis_energy.core.gcode_check import (check_moves, problem_from_error,
                                                    problems_from_warnings)
     name = str(path)
+    # Streamed: a program of any length is checked in bounded memory.
+    stream = iter_moves(path, **keywords)
     try:
-        program = load_gcode(path, **keywords)
+        sanity, stats = check_moves(stream, file=name, limits=_limits(machine, max_dwell_s))
     except GcodeError as err:
-        return [problem_from_error(err)], None
-    problems = problems_from_warnings(program.warnings, file=name)
-    sanity, stats = check_moves(program.moves, file=name, limits=_limits(machine, max_dwell_s))
+        # The parser's warnings before the error are still problems of the program.
+        found = problems_from_warnings(stream.warnings, file=name) + [problem_from_error(err)]
+        return sorted(_with_text(found, path), key=lambda p: p.line), None
+    problems = problems_from_warnings(stream.warnings, file=name)
     # In line order (a file-level warning, line 0, first), as a reader goes through the file.
     return sorted(_with_text(problems + sanity, path), key=lambda p: p.line), stats
 
