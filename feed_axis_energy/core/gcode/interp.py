@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 import math
 
+from .canon import CENTER_ARC_RADIUS_TOLERANCE_MM
 from .codes import ALLOWED_LETTERS, COMP_FORBIDDEN
 from .coords import COORD_G_CODES, Coords, foreign_codes, MAX_OFFSET_M
 from .cutter import CutterComp
@@ -71,7 +72,8 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                  'cycle_memory', 'series', 'comp', 'routing',
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
                  'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
-                 'warned', 'ignore_axes', 'rpm', 'polar_line', 'polar_inc')
+                 'warned', 'ignore_axes', 'rpm', 'polar_line', 'polar_inc',
+                 'arc_quick')
 
     def __init__(self, file: str, start: tuple[float, float, float],
                  arc_tolerance_m: float | None,
@@ -80,6 +82,10 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                  params: object | None = None, ignore_axes: Iterable[str] = ()):
         self.file = file
         self.arc_tol = None if arc_tolerance_m is None else float(arc_tolerance_m)
+        # radius differences below this pass every arc check (interp_motion)
+        self.arc_quick = CENTER_ARC_RADIUS_TOLERANCE_MM * 1e-3
+        if self.arc_tol is not None:
+            self.arc_quick = min(self.arc_quick, self.arc_tol)
         self.pos = (float(start[0]), float(start[1]), float(start[2]))
         self.motion: int | None = None      # G80 at start-up
         self.plane = 17

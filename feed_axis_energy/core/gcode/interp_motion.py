@@ -22,10 +22,10 @@ _CENTRE_LETTERS = ('I', 'J', 'K')
 # LinuxCNC's TINY (interp_internal.hh): an R this close to half the chord is a half circle.
 _TINY = 1e-12
 _TWO_PI = 2.0 * math.pi
-# Radii above RADIUS_TOLERANCE (1.27e-6 m in either unit system) whose difference is at
-# most 1e-9 m pass every check of canon: 1e-9 m is below 0.1 % of such a radius.
+# Radii above RADIUS_TOLERANCE (1.27e-6 m in either unit system) whose difference is within
+# the smallest absolute tolerance in force pass every check of canon (the interpreter keeps
+# that bound in ``arc_quick``: LinuxCNC's G21 value 2.83e-5 m, or a smaller arc_tolerance_m).
 _R_MIN = RADIUS_TOLERANCE_MM * 1e-3
-_QUICK_DIFF = 1e-9
 
 
 class MotionMixin:
@@ -69,7 +69,7 @@ class MotionMixin:
         eb = end[b] - cb
         r0 = math.hypot(sa, sb)
         r1 = math.hypot(ea, eb)
-        if r0 < _R_MIN or r1 < _R_MIN or abs(r1 - r0) > _QUICK_DIFF:
+        if r0 < _R_MIN or r1 < _R_MIN or abs(r1 - r0) > self.arc_quick:
             self.check_radii(d, r0, r1, explicit)
         # canon.arc_sweep_rad, inline on this hot path (same rule, same arithmetic).
         ang = math.atan2(sa * eb - sb * ea, sa * ea + sb * eb)
