@@ -8,11 +8,13 @@ from pathlib import Path
 
 from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.machine import load_machine, Machine
+from feed_axis_energy.core.machine_gcode import DIALECTS, parse_tool_option, with_tools
 from feed_axis_energy.core.trajectory import PlannerOptions
 from feed_axis_energy.paths import default_machine
 
 __all__ = ['add_machine_options', 'load_machine_and_options', 'print_summary',
-           'program_text_lines', 'format_table', 'METRIC_HEADER', 'metric_cells']
+           'program_text_lines', 'format_table', 'METRIC_HEADER', 'metric_cells',
+           'program_keywords']
 
 # Column heads of the paper's Table-1 metrics plus energy error and RMSE, as printed by the
 # commands that compare measured and simulated power (compare, analyze).
@@ -20,8 +22,35 @@ METRIC_HEADER = ['avg dP [W]', 'avg dP [%]', 'max dP [W]', 'max dP [%]', 'dE [J]
                  'RMSE [W]']
 
 
+def _tool(text: str) -> tuple:
+    try:
+        return parse_tool_option(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def _axes(text: str) -> tuple[str, ...]:
+    axes = tuple(a.strip().upper() for a in text.split(',') if a.strip())
+    bad = [a for a in axes if a not in ('A', 'B', 'C', 'U', 'V', 'W')]
+    if bad or not axes:
+        shown = text[:60]
+        msg = f'expected axis letters among A,B,C,U,V,W separated by commas, got {shown!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return axes
+
+
+def program_keywords(machine: Machine, args: argparse.Namespace) -> dict:
+    """Keywords for ``load_gcode`` on ``machine`` with the command line's
+    ``--ignore-axes``."""
+    kw = dict(machine.gcode_keywords())
+    if getattr(args, 'ignore_axes', None):
+        kw['ignore_axes'] = args.ignore_axes
+    return kw
+
+
 def add_machine_options(p: argparse.ArgumentParser) -> None:
-    """Add ``--machine``, ``--load-kg``, ``--rate-hz`` and ``--profile``."""
+    """Add ``--machine``, ``--load-kg``, ``--rate-hz``, ``--profile``, ``--tool``,
+    ``--dialect`` and ``--ignore-axes``."""
     p.add_argument('--machine', type=Path, metavar='YAML', default=None,
                    help='machine config (default: the paper\'s demonstrator, '
                         'config/demonstrator.yaml)')
@@ -32,6 +61,16 @@ def add_machine_options(p: argparse.ArgumentParser) -> None:
                         'at most 1e6)')
     p.add_argument('--profile', choices=('jerk', 'trapezoid'), default=None,
                    help='velocity profile (default: machine config)')
+    p.add_argument('--tool', type=_tool, action='append', default=[], metavar='T:R[:L]',
+                   help='tool T with radius R and length offset L in mm (default 0) for '
+                        'G41/G42 and G43, added to the machine config\'s gcode.tools or '
+                        'replacing its entry; repeat for more tools (e.g. --tool 1:3:45.2)')
+    p.add_argument('--dialect', choices=DIALECTS, default=None,
+                   help='G-code dialect of the program (default: the machine config\'s '
+                        'gcode.dialect, else linuxcnc; docs in core/gcode/dialect.py)')
+    p.add_argument('--ignore-axes', type=_axes, default=(), metavar='A,B',
+                   help='drop the words of these axes (A, B, C, U, V, W) with one warning '
+                        'each; without it a program moving such an axis is refused')
 
 
 def load_machine_and_options(args: argparse.Namespace) -> tuple[Machine, PlannerOptions]:
@@ -50,6 +89,10 @@ def load_machine_and_options(args: argparse.Namespace) -> tuple[Machine, Planner
         options = replace(options, rate_hz=args.rate_hz)
     if args.profile is not None:
         options = replace(options, profile=args.profile)
+    if getattr(args, 'tool', None):
+        machine = replace(machine, gcode=with_tools(machine.gcode, dict(args.tool)))
+    if getattr(args, 'dialect', None) is not None:
+        machine = replace(machine, gcode=replace(machine.gcode, dialect=args.dialect))
     return machine, options
 
 

@@ -55,7 +55,7 @@ def _simulate_all(args: argparse.Namespace, machine, staged: Path | None) -> lis
     progress = Progress('demo', enabled=not args.quiet, delay_s=0.0)
     summaries = []
     programs = {feed: load_gcode(program_path(f'demonstrator_f{feed}.nc'),
-                                 home=machine.home_point())
+                                 **machine.gcode_keywords())
                 for feed in PAPER_FEEDS_MM_S}
     if staged is not None:
         staged.mkdir()

@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     # imported here: ``feed-axis-energy --help`` must not pay for the simulation's imports
     from feed_axis_energy.cli.common import (load_machine_and_options, print_summary,
-                                             program_text_lines)
+                                             program_keywords, program_text_lines)
     from feed_axis_energy.cli.progress import Progress
     from feed_axis_energy.core.gcode import load_gcode
     from feed_axis_energy.core.simstream import streamable
@@ -80,15 +80,15 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(msg, file='command line', key='max-samples')
     progress = Progress('simulate', enabled=not args.quiet)
     trajectory = args.program.suffix.lower() == '.csv'
+    warnings: list[str] = []
     if trajectory or not streamable(machine):
-        summary = _run_whole(args, machine, options, progress, trajectory=trajectory)
+        summary = _run_whole(args, machine, options, progress, trajectory=trajectory,
+                             warnings=warnings)
     else:
-        program = load_gcode(args.program, home=machine.home_point())
-        for warning in program.warnings:
-            print(f'warning: {warning}', file=sys.stderr)
-        if not program.moves:
-            print(f'warning: {args.program}: the program has no motion', file=sys.stderr)
+        program = load_gcode(args.program, **program_keywords(machine, args))
+        warnings = _warn(args, program, machine)
         summary = _run_stream(args, machine, options, program, progress)
+    summary['warnings'] = warnings
     if args.out is not None:
         summary['bag'] = str(args.out)
     if args.json:
@@ -166,8 +166,19 @@ def _run_stream(args, machine, options, program, progress) -> dict:
     return summary
 
 
-def _run_whole(args, machine, options, progress, *, trajectory: bool) -> dict:
+def _warn(args, program, machine) -> list[str]:
+    """Print the parser's and ``check``'s sanity warnings on stderr; return them."""
+    from feed_axis_energy.cli.check import warning_texts
+    texts = warning_texts(args.program, program, machine)
+    for text in texts:
+        print(f'warning: {text}', file=sys.stderr)
+    return texts
+
+
+def _run_whole(args, machine, options, progress, *, trajectory: bool,
+               warnings: list[str]) -> dict:
     """Whole-record path: trajectory CSVs and declared effects that need the whole record."""
+    from feed_axis_energy.cli.common import program_keywords
     from feed_axis_energy.cli.progress import Progress
     from feed_axis_energy.core.gcode import load_gcode
     from feed_axis_energy.core.measured.trajcsv import load_trajectory_csv
@@ -177,11 +188,8 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool) -> dict:
         motion = load_trajectory_csv(args.program, axes=machine.axis_names)
         result = simulate_motion(motion, machine, load_kg=args.load_kg)
     else:
-        program = load_gcode(args.program, home=machine.home_point())
-        for warning in program.warnings:
-            print(f'warning: {warning}', file=sys.stderr)
-        if not program.moves:
-            print(f'warning: {args.program}: the program has no motion', file=sys.stderr)
+        program = load_gcode(args.program, **program_keywords(machine, args))
+        warnings.extend(_warn(args, program, machine))
         result = simulate_program(program, machine, load_kg=args.load_kg, options=options,
                                   progress=progress)
     progress.done()

@@ -17,6 +17,11 @@ A machine file looks like (see ``config/demonstrator.yaml``)::
         loss: {model: power_regression, a: 0.2505, b: 0.3471}
     effects:                     # optional: catalog effects added on top of the power
       - {id: load_friction, axis: X, params: {mu: 0.012}}
+    gcode:                       # optional: dialect and tool table (see .machine_gcode)
+      dialect: linuxcnc
+      tools: {1: {radius_m: 0.003, length_m: 0.045}}
+
+Each axis may also give ``travel_m: [min, max]``, its travel in machine coordinates [m].
 
 ``effects`` lists effects of the catalog (:mod:`.effects`, ``docs/effects.md``) that the
 model declares in addition to the loss function, usually written by ``feed-axis-energy
@@ -28,19 +33,22 @@ dotted key (``axes.X.screw.lead_m``); unknown keys are rejected so that typos do
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 import math
 from pathlib import Path
 from typing import Any
 
+from .configcheck import check_choice as _choice, check_float as _float
+from .configcheck import check_mapping as _mapping, join_key as _join
 from .errors import ConfigError, describe, shorten
 from .losses import LossModel, loss_from_dict
+from .machine_gcode import (GcodeSettings, gcode_from_dict, gcode_to_dict, ToolSpec,
+                            travel_from_value)
 from .safeyaml import load_yaml_file
 from .trajectory import AxisLimits, PlannerOptions
 
 __all__ = ['ScrewSpec', 'InertiaSpec', 'LimitSpec', 'PlannerSettings', 'AxisSpec', 'Machine',
-           'DeclaredEffect',
+           'DeclaredEffect', 'GcodeSettings', 'ToolSpec',
            'load_machine', 'machine_from_dict', 'machine_to_dict', 'moved_mass_kg',
            'carried_axes', 'AXIS_NAMES', 'BRAKING_MODES', 'GRAVITY_M_S2']
 
@@ -145,6 +153,8 @@ class AxisSpec:
         Name of the axis that carries this one (its whole moved mass), or ``None``.
     inclination_deg
         Angle of the positive direction above the horizontal [deg]; 90 is vertical upward.
+    travel_m
+        ``(min, max)`` travel limits in machine coordinates [m], or ``None`` (unknown).
     """
 
     name: str
@@ -155,6 +165,7 @@ class AxisSpec:
     loss: LossModel
     rides_on: str | None = None
     inclination_deg: float = 0.0
+    travel_m: tuple[float, float] | None = None
 
     @property
     def screw_inertia_kg_m2(self) -> float:
@@ -213,8 +224,11 @@ class Machine:
     effects
         Catalog effects added on top of the power (empty for the paper's model).
     home_m
-        The reference point G28 moves to, ``((axis, position [m]), ...)`` in program
-        coordinates (work offsets are not simulated); empty: G28 is refused.
+        The reference point G28 moves to, ``((axis, position [m]), ...)`` in machine
+        coordinates: the initial ``#5161..#5163`` of a program run (empty: 0, as in
+        LinuxCNC's fresh parameter file).
+    gcode
+        Dialect and tool table of the G-code front end (:mod:`.machine_gcode`).
     """
 
     name: str
@@ -224,6 +238,7 @@ class Machine:
     planner: PlannerSettings = PlannerSettings()
     effects: tuple[DeclaredEffect, ...] = ()
     home_m: tuple[tuple[str, float], ...] = ()
+    gcode: GcodeSettings = GcodeSettings()
 
     def home_point(self) -> tuple[float, float, float] | None:
         """The G28 reference point as program ``(X, Y, Z)`` [m] (0 for other axes), or None."""
@@ -231,6 +246,15 @@ class Machine:
             return None
         home = dict(self.home_m)
         return (home.get('X', 0.0), home.get('Y', 0.0), home.get('Z', 0.0))
+
+    def gcode_keywords(self) -> dict[str, Any]:
+        """Keywords for :func:`.gcode.load_gcode` from this machine: G28 position, tool
+        table and dialect.
+
+        ``load_gcode(path, **machine.gcode_keywords())`` runs a program on this machine.
+        """
+        return {'home': self.home_point(), 'tools': self.gcode.tools,
+                'dialect': self.gcode.dialect}
 
     @property
     def axis_names(self) -> tuple[str, ...]:
@@ -310,64 +334,9 @@ def moved_mass_kg(machine: Machine, axis: str, load_kg: float = 0.0) -> float:
 
 # ----------------------------------------------------------------------------- YAML I/O
 
-_REQUIRED = object()
 # Accepted ranges of values that the dynamics divide by or raise to powers: far outside any
 # machine tool, and narrow enough that no simulated quantity can overflow (docs/measured.md).
 _LIMIT_RANGES = ((1.0e-3, 1.0e3), (1.0e-3, 1.0e5), (1.0e-3, 1.0e8))
-
-
-def _join(key: str, name: str) -> str:
-    return f'{key}.{name}' if key else name
-
-
-def _mapping(value: Any, *, file: str, key: str,
-             allowed: tuple[str, ...] | None) -> Mapping[str, Any]:
-    if not isinstance(value, Mapping):
-        msg = f'expected a mapping, got {describe(value)}'
-        raise ConfigError(msg, file=file, key=key or '<top>')
-    for name in value:
-        if allowed is not None and name not in allowed:
-            msg = f'unknown key {shorten(str(name))!r}; expected one of {", ".join(allowed)}'
-            raise ConfigError(msg, file=file, key=_join(key, shorten(str(name))))
-    return value
-
-
-def _float(d: Mapping[str, Any], name: str, *, file: str, key: str, default: Any = _REQUIRED,
-           minimum: float | None = None, strict: bool = True,
-           maximum: float | None = None) -> float:
-    where = _join(key, name)
-    if name not in d:
-        if default is _REQUIRED:
-            msg = 'missing required value; expected a number'
-            raise ConfigError(msg, file=file, key=where)
-        return default
-    value = d[name]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        msg = f'expected a finite number, got {describe(value)}'
-        raise ConfigError(msg, file=file, key=where)
-    if minimum is not None and (value <= minimum if strict else value < minimum):
-        msg = f'expected a number {">" if strict else ">="} {minimum}, got {describe(value)}'
-        raise ConfigError(msg, file=file, key=where)
-    if maximum is not None and value > maximum:
-        msg = f'expected a number <= {maximum}, got {describe(value)}'
-        raise ConfigError(msg, file=file, key=where)
-    return float(value)
-
-
-def _choice(d: Mapping[str, Any], name: str, choices: tuple[Any, ...], *, file: str, key: str,
-            default: Any = _REQUIRED) -> Any:
-    where = _join(key, name)
-    if name not in d:
-        if default is _REQUIRED:
-            msg = f'missing required value; expected one of {", ".join(map(str, choices))}'
-            raise ConfigError(msg, file=file, key=where)
-        return default
-    value = d[name]
-    if value not in choices:
-        shown = ', '.join('null' if c is None else str(c) for c in choices)
-        msg = f'expected one of {shown}, got {describe(value)}'
-        raise ConfigError(msg, file=file, key=where)
-    return value
 
 
 def _screw(d: Any, *, file: str, key: str) -> ScrewSpec:
@@ -417,7 +386,7 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         msg = f'unknown axis name {shorten(str(name))!r}; expected one of {", ".join(AXIS_NAMES)}'
         raise ConfigError(msg, file=file, key=key)
     allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
-               'loss')
+               'loss', 'travel_m')
     d = _mapping(d, file=file, key=key, allowed=allowed)
     for part in ('screw', 'inertias', 'limits', 'loss'):
         if part not in d:
@@ -434,7 +403,8 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         loss=loss_from_dict(d['loss'], file=file, key=f'{key}.loss'),
         rides_on=rides_on,
         inclination_deg=_float(d, 'inclination_deg', file=file, key=key, default=0.0,
-                               minimum=-90.0, strict=False, maximum=90.0))
+                               minimum=-90.0, strict=False, maximum=90.0),
+        travel_m=travel_from_value(d.get('travel_m'), file=file, key=f'{key}.travel_m'))
 
 
 def _check_stacking(axes: tuple[AxisSpec, ...], *, file: str) -> None:
@@ -510,7 +480,7 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
     """
     d = _mapping(d, file=file, key='',
                  allowed=('name', 'braking', 'load_axis', 'planner', 'axes', 'effects',
-                          'home_m'))
+                          'home_m', 'gcode'))
     name = d.get('name', Path(file).stem)
     if not isinstance(name, str) or not name:
         msg = f'expected a non-empty string, got {describe(name)}'
@@ -540,7 +510,8 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
         load_axis=_choice(d, 'load_axis', tuple(a.name for a in axes), file=file, key=''),
         planner=planner,
         effects=_effects(d.get('effects'), tuple(a.name for a in axes), file=file),
-        home_m=_home(d.get('home_m'), tuple(a.name for a in axes), file=file))
+        home_m=_home(d.get('home_m'), tuple(a.name for a in axes), file=file),
+        gcode=gcode_from_dict(d.get('gcode'), file=file))
 
 
 def _home(value: Any, axis_names: tuple[str, ...], *,
@@ -609,6 +580,8 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
                        'jerk_m_s3': a.limits.jerk_m_s3},
             'loss': dict(a.loss.to_dict()),
         }
+        if a.travel_m is not None:
+            axes[a.name]['travel_m'] = [float(v) for v in a.travel_m]
     out = {
         'name': machine.name,
         'braking': machine.braking,
@@ -621,6 +594,9 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
     }
     if machine.home_m:
         out['home_m'] = {a: float(v) for a, v in machine.home_m}
+    gcode = gcode_to_dict(machine.gcode)
+    if gcode is not None:
+        out['gcode'] = gcode
     if machine.effects:
         # only when present, so that the paper's model keeps its plain form
         out['effects'] = [{'id': e.id, 'axis': e.axis,

@@ -335,6 +335,9 @@ def _geometry(seg: _Segments, file: str) -> _Geometry:
         # start == end in the plane is a full circle
         raw = np.where(raw < 1e-9, _TWO_PI, raw) + _TWO_PI * turns
         sw = np.where(ccw, raw, -raw)
+        # The parser's sweep wins where it gave one (one full-circle rule for both).
+        given = np.array([np.nan if x.sweep_rad is None else x.sweep_rad for x in mv])
+        sw = np.where(np.isnan(given), sw, given)
         theta0[arcs] = th0
         sweep[arcs] = sw
         r0[arcs] = ra

@@ -105,7 +105,7 @@ class GcodeTrajectory(LifecycleNode):
             options = machine.planner.options()
             if self.rate_hz > 0:
                 options = replace(options, rate_hz=float(self.rate_hz))
-            program = load_gcode(self.program, home=machine.home_point())
+            program = load_gcode(self.program, **machine.gcode_keywords())
             self.motion = plan(program, machine.limits(), options=options)
         except STARTUP_ERRORS as err:
             self._error = str(err)

@@ -250,7 +250,7 @@ class _MotionCache:
 
     def program_motion(self, path: Path) -> Motion:
         if path not in self._plans:
-            program = load_gcode(path, home=self.machine.home_point())
+            program = load_gcode(path, **self.machine.gcode_keywords())
             self._plans[path] = plan(program, self.machine.limits(),
                                      options=self.machine.planner.options())
         return self._plans[path]

@@ -1,0 +1,238 @@
+"""``feed-axis-energy check``: every problem of every program, without simulating it."""
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+import json
+import math
+from pathlib import Path
+import sys
+from typing import Any
+
+__all__ = ['add_parser', 'run', 'program_problems', 'warning_texts']
+
+HELP = 'list the errors and warnings of NC programs on a machine (no simulation)'
+
+
+def _max_dwell(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0.0):
+        msg = f'must be a number of seconds > 0, got {text[:60]!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def _tool(text: str) -> tuple:
+    from feed_axis_energy.core.machine_gcode import parse_tool_option
+    try:
+        return parse_tool_option(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def _ignored_axes(text: str) -> tuple[str, ...]:
+    from feed_axis_energy.cli.common import _axes   # the same rule as simulate's option
+    return _axes(text)
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the subcommand."""
+    from feed_axis_energy.core.gcode_check import DEFAULT_MAX_DWELL_S
+    from feed_axis_energy.core.machine_gcode import DIALECTS
+    p = sub.add_parser(
+        'check', help=HELP,
+        description='Parse each PROGRAM as `simulate` would and list its problems: the '
+                    'error that stops the parser (file:line:column and the offending text; '
+                    'checking goes on with the next program), the parser\'s warnings, and '
+                    'sanity warnings from the parsed moves: moves beyond the machine\'s '
+                    'travel (axes.<A>.travel_m), feeds above an axis\'s velocity limit, '
+                    'dwells longer than --max-dwell-s, programs that never move.',
+        epilog='Exit status: 0 no program has an error (warnings allowed), 1 at least one '
+               'program has an error (or the machine config is bad), 2 usage error.')
+    p.add_argument('programs', type=Path, nargs='+', metavar='PROGRAM',
+                   help='NC program (G-code) files')
+    p.add_argument('--machine', type=Path, metavar='YAML', default=None,
+                   help='machine config: travel and velocity limits, tool table, G28 position, '
+                        'default dialect (default: config/demonstrator.yaml)')
+    p.add_argument('--tool', type=_tool, action='append', default=[], metavar='T:R[:L]',
+                   help='tool T with radius R and length offset L in mm (default 0) for '
+                        'G41/G42 and G43, added to the machine config\'s gcode.tools or '
+                        'replacing its entry; repeat for more tools (e.g. --tool 1:3:45.2)')
+    p.add_argument('--ignore-axes', type=_ignored_axes, default=(), metavar='A,B',
+                   help='drop the words of these axes (A, B, C, U, V, W) with one warning '
+                        'each; without it a program moving such an axis is an error')
+    p.add_argument('--dialect', default=None, choices=DIALECTS,
+                   help='G-code dialect (default: the machine config\'s gcode.dialect)')
+    p.add_argument('--max-dwell-s', type=_max_dwell, default=DEFAULT_MAX_DWELL_S, metavar='S',
+                   help=f'report dwells longer than S seconds (default {DEFAULT_MAX_DWELL_S:g} '
+                        's)')
+    p.add_argument('--json', action='store_true',
+                   help='print one JSON object (keys in README) instead of the list')
+    p.add_argument('--quiet', action='store_true', help='no progress on stderr')
+    p.set_defaults(run=run)
+
+
+def _limits(machine: Any, max_dwell_s: float):
+    from feed_axis_energy.core.gcode_check import CheckLimits
+    travel = {}
+    velocity = {}
+    for axis in machine.axes:
+        t = getattr(axis, 'travel_m', None)
+        if t is not None:
+            travel[axis.name] = (float(t[0]), float(t[1]))
+        velocity[axis.name] = float(axis.limits.velocity_m_s)
+    return CheckLimits(travel_m=travel, velocity_m_s=velocity, max_dwell_s=max_dwell_s)
+
+
+def _parse_keywords(machine: Any, args: argparse.Namespace) -> dict[str, Any]:
+    """Keywords for ``load_gcode``: tools, G28 position, dialect, axes to ignore."""
+    from feed_axis_energy.cli.common import program_keywords
+    kw = program_keywords(machine, args)
+    kw['dialect'] = args.dialect if args.dialect is not None else machine.gcode.dialect
+    return kw
+
+
+def program_problems(path: Path, *, machine: Any, keywords: dict[str, Any],
+                     max_dwell_s: float) -> tuple[list[Any], Any]:
+    """Parse one program and check its moves.
+
+    Parameters
+    ----------
+    path
+        The program file.
+    machine
+        The :class:`~feed_axis_energy.core.machine.Machine`.
+    keywords
+        Keywords for ``load_gcode`` (tools, G28 position, dialect).
+    max_dwell_s
+        Dwell threshold [s].
+
+    Returns
+    -------
+    tuple
+        The problems (:class:`~feed_axis_energy.core.gcode_check.Problem`: the error if
+        any, the parser's warnings, the sanity warnings with the source text of their
+        line) and the :class:`~feed_axis_energy.core.gcode_stats.ProgramStats` (``None``
+        when the program is refused).
+    """
+    from feed_axis_energy.core.errors import GcodeError
+    from feed_axis_energy.core.gcode import iter_moves
+    from feed_axis_energy.core.gcode_check import (check_moves, problem_from_error,
+                                                   problems_from_warnings)
+    name = str(path)
+    # Streamed: a program of any length is checked in bounded memory.
+    stream = iter_moves(path, **keywords)
+    try:
+        sanity, stats = check_moves(stream, file=name, limits=_limits(machine, max_dwell_s))
+    except GcodeError as err:
+        # The parser's warnings before the error are still problems of the program.
+        found = problems_from_warnings(stream.warnings, file=name) + [problem_from_error(err)]
+        return sorted(_with_text(found, path), key=lambda p: p.line), None
+    problems = problems_from_warnings(stream.warnings, file=name)
+    # In line order (a file-level warning, line 0, first), as a reader goes through the file.
+    return sorted(_with_text(problems + sanity, path), key=lambda p: p.line), stats
+
+
+def _with_text(problems: list[Any], path: Path) -> list[Any]:
+    """Fill in the source text of the lines the problems name (one streaming pass)."""
+    from feed_axis_energy.core.errors import shorten
+    name = str(path)
+    wanted = {p.line for p in problems if p.line > 0 and not p.text and p.file == name}
+    if not wanted:
+        return problems
+    texts: dict[int, str] = {}
+    try:
+        with open(path, 'rb') as fh:
+            for n, raw in enumerate(fh, 1):
+                if n in wanted:
+                    texts[n] = shorten(raw.decode('utf-8', 'replace').strip())
+                    if len(texts) == len(wanted):
+                        break
+    except OSError:
+        return problems
+    return [replace(p, text=texts.get(p.line, p.text)) if p.file == name else p
+            for p in problems]
+
+
+def warning_texts(path: Path, program: Any, machine: Any) -> list[str]:
+    """The parser's and the sanity checks' warnings of a parsed program, as text lines.
+
+    Used by ``simulate`` for its ``warnings`` (JSON) and its stderr lines.
+    """
+    from feed_axis_energy.core.gcode_check import (check_moves, DEFAULT_MAX_DWELL_S,
+                                                   problems_from_warnings)
+    name = str(path)
+    problems = problems_from_warnings(program.warnings, file=name)
+    sanity, _ = check_moves(program.moves, file=name,
+                            limits=_limits(machine, DEFAULT_MAX_DWELL_S))
+    return [_warning_line(p) for p in sorted(problems + sanity, key=lambda p: p.line)]
+
+
+def _warning_line(p: Any) -> str:
+    where = f'{p.file}:{p.line}' if p.line else p.file
+    near = f' near {p.text!r}' if p.text else ''
+    return f'{where}: {p.message}{near}'
+
+
+def _stats_dict(s: Any) -> dict[str, Any] | None:
+    if s is None:
+        return None
+    return dict(feed_moves=s.n_feed_moves, traverses=s.n_traverses, arcs=s.n_arcs,
+                dwells=s.n_dwells, feed_length_m=s.feed_length_m,
+                traverse_length_m=s.traverse_length_m, dwell_s=s.dwell_s,
+                final_position_m=list(s.final_position),
+                bbox_min_m=None if s.bbox_min is None else list(s.bbox_min),
+                bbox_max_m=None if s.bbox_max is None else list(s.bbox_max))
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand."""
+    from feed_axis_energy.core.machine import load_machine
+    from feed_axis_energy.paths import default_machine
+    machine = load_machine(args.machine if args.machine is not None else default_machine())
+    if args.tool:
+        from feed_axis_energy.core.machine_gcode import with_tools
+        machine = replace(machine, gcode=with_tools(machine.gcode, dict(args.tool)))
+    keywords = _parse_keywords(machine, args)
+    results = []
+    n = len(args.programs)
+    for i, path in enumerate(args.programs, 1):
+        if not args.quiet and n > 1:
+            print(f'check: [{i}/{n}] {path}', file=sys.stderr, flush=True)
+        problems, stats = program_problems(path, machine=machine, keywords=keywords,
+                                           max_dwell_s=args.max_dwell_s)
+        results.append((path, problems, stats))
+    n_err = sum(1 for _, ps, _ in results for p in ps if p.severity == 'error')
+    n_warn = sum(1 for _, ps, _ in results for p in ps if p.severity == 'warning')
+    if args.json:
+        doc = dict(machine=machine.name, errors=n_err, warnings=n_warn, programs=[
+            dict(program=str(path), ok=not any(p.severity == 'error' for p in ps),
+                 errors=[p.as_dict() for p in ps if p.severity == 'error'],
+                 warnings=[p.as_dict() for p in ps if p.severity == 'warning'],
+                 summary=_stats_dict(stats)) for path, ps, stats in results])
+        print(json.dumps(doc, indent=2))
+    else:
+        for path, problems, stats in results:
+            for p in problems:
+                print(p)
+            print(_program_line(path, problems, stats))
+        bad = sum(1 for _, ps, _ in results if any(p.severity == 'error' for p in ps))
+        print(f'checked {n} program{"s" if n != 1 else ""} on {machine.name}: {bad} with '
+              f'errors, {n_err} error{"s" if n_err != 1 else ""}, {n_warn} '
+              f'warning{"s" if n_warn != 1 else ""}')
+    return 1 if n_err else 0
+
+
+def _program_line(path: Path, problems: list[Any], stats: Any) -> str:
+    errs = sum(1 for p in problems if p.severity == 'error')
+    warns = len(problems) - errs
+    head = f'{path}: {"refused" if errs else "ok"}, {warns} warning{"s" if warns != 1 else ""}'
+    if stats is None:
+        return head
+    return (f'{head}; {stats.n_feed_moves} feed moves, {stats.n_arcs} arcs, '
+            f'{stats.n_traverses} traverses, {stats.n_dwells} dwells; feed path '
+            f'{stats.feed_length_m * 1e3:.3f} mm, traverse path '
+            f'{stats.traverse_length_m * 1e3:.3f} mm, dwell {stats.dwell_s:.3f} s')

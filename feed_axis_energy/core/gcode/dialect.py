@@ -1,0 +1,119 @@
+"""Dialect profiles: where the controls that programs are written for differ.
+
+The interpreter follows LinuxCNC 2.9 (RS274NGC) everywhere; a :class:`Dialect` changes only
+the rules below, each copied from the control named in its profile. Choose one with
+``--dialect`` (``simulate``), ``gcode.dialect`` in the machine config, or
+``parse_gcode(dialect=...)``; the default is ``linuxcnc``.
+
+=============  ============  ===========  ===================  ===========  =============
+dialect        G4 P          G4 X         ``K0`` on a G17 arc  M98/M99      Macro B (1)
+=============  ============  ===========  ===================  ===========  =============
+``linuxcnc``   seconds       (axis word)  error (as LinuxCNC)  yes          no
+``fanuc``      milliseconds  seconds      ignored, warning     yes          yes
+``haas``       see below     (axis word)  ignored, warning     yes          yes (+ M97)
+``grbl``       seconds       (axis word)  ignored, warning     no           no
+``mach3``      seconds       (axis word)  ignored, warning     yes          no
+=============  ============  ===========  ===================  ===========  =============
+
+(1) Fanuc Custom Macro B: ``WHILE``/``DO``/``END``, ``IF``/``GOTO``/``THEN``, ``G65``
+macro calls (and Haas ``M97`` local subprograms), read by the front (:mod:`.flow`).
+
+* G4 P: LinuxCNC, grbl and Mach3 (its default configuration) read seconds. Fanuc (Series
+  0i/30i: ``G04 P`` in milliseconds without a decimal point, ``G04 X`` in seconds) reads
+  milliseconds; Haas mills read ``P`` with a decimal point as seconds and without one as
+  milliseconds (``G04 P2.5`` and ``G04 P2500`` both dwell 2.5 s).
+* An in-plane-normal centre word of zero (``K0`` in G17, ``J0`` in G18, ``I0`` in G19, as
+  FreeCAD's post-processors write it) is an error in LinuxCNC; other controls ignore it, so
+  there it is accepted with one warning. A non-zero one is always an error.
+* Harmless M codes: machine functions that do not move the feed axes are accepted and
+  ignored. Every dialect: M0-M9, M30 (and M48-M53 overrides, M19 spindle orientation,
+  M61 Q set current tool, M62-M68 digital/analog I/O, as LinuxCNC implements them); Fanuc
+  and Haas add their machine M codes (brakes M10-M13, chip conveyor M31-M33, coolant
+  variants M34/M35/M88/M89, gear range M40-M42, user relays M51-M59/M61-M69, air blast
+  M73-M76/M83/M84, tool clamp M82/M86); Mach3 adds M40/M41. Any other M code is an error
+  naming the dialect.
+* grbl ``$`` lines and ``%`` lines with text are handled by the reader for every dialect
+  (skipped, with a warning for ``$``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import ConfigError
+
+__all__ = ['Dialect', 'DIALECTS', 'dialect_by_name', 'DEFAULT_DIALECT']
+
+_LINUXCNC_M = frozenset({19, 48, 49, 50, 51, 52, 53, 61, 62, 63, 64, 65, 66, 67, 68})
+_FANUC_M = frozenset({10, 11, 12, 13, 16, 17, 19, 21, 22, 23, 24, 25, 26, 27, 28, 31, 32,
+                      33, 34, 35, 36, 39, 40, 41, 42, 46, 48, 49, 50, 51, 52, 53, 54, 55,
+                      56, 57, 58, 59, 62, 63, 64, 65, 66, 67, 68, 69, 73, 74, 75, 76, 83,
+                      84, 82, 86, 88, 89})
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """The rules in which a control differs from LinuxCNC (see the module table).
+
+    Attributes
+    ----------
+    name
+        Registry name.
+    control
+        The control whose behaviour the profile copies.
+    dwell_p
+        ``'seconds'``, ``'milliseconds'`` or ``'haas'`` (decimal point: seconds, else ms).
+    dwell_x_seconds
+        ``G4 X`` is a dwell in seconds (Fanuc) instead of an axis word.
+    normal_centre_zero
+        ``'error'`` or ``'warn'``: a zero centre word along the plane normal.
+    harmless_m
+        M codes accepted and ignored besides M0-M9 and M30.
+    fanuc_subprograms
+        ``O1234`` blocks with ``M98 P.. L..`` / ``M99`` are subprograms (read by the front).
+    fanuc_macro
+        Fanuc Custom Macro B (``WHILE``/``DO``/``END``, ``IF``/``GOTO``/``THEN``, ``G65``,
+        Haas ``M97``), read by the front.
+    """
+
+    name: str
+    control: str
+    dwell_p: str = 'seconds'
+    dwell_x_seconds: bool = False
+    normal_centre_zero: str = 'warn'
+    harmless_m: frozenset[int] = _LINUXCNC_M
+    fanuc_subprograms: bool = True
+    fanuc_macro: bool = False
+
+
+DIALECTS: dict[str, Dialect] = {
+    'linuxcnc': Dialect('linuxcnc', 'LinuxCNC 2.9 (RS274NGC)', normal_centre_zero='error'),
+    'fanuc': Dialect('fanuc', 'Fanuc Series 0i-MF / 30i (milling)', dwell_p='milliseconds',
+                     dwell_x_seconds=True, harmless_m=_LINUXCNC_M | _FANUC_M,
+                     fanuc_macro=True),
+    'haas': Dialect('haas', 'Haas mill (NGC control)', dwell_p='haas',
+                    harmless_m=_LINUXCNC_M | _FANUC_M, fanuc_macro=True),
+    'grbl': Dialect('grbl', 'grbl 1.1', fanuc_subprograms=False),
+    'mach3': Dialect('mach3', 'Mach3 Mill (default configuration)',
+                     harmless_m=_LINUXCNC_M | {40, 41}),
+}
+DEFAULT_DIALECT = DIALECTS['linuxcnc']
+
+
+def dialect_by_name(name: str | Dialect | None) -> Dialect:
+    """The profile called ``name`` (case-insensitive); ``None`` gives ``linuxcnc``.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown name (the message lists the known ones).
+    """
+    if name is None:
+        return DEFAULT_DIALECT
+    if isinstance(name, Dialect):
+        return name
+    key = str(name).strip().lower()
+    if key not in DIALECTS:
+        shown = str(name)[:60]
+        msg = f'unknown G-code dialect {shown!r}; known: {", ".join(DIALECTS)}'
+        raise ConfigError(msg, key='gcode.dialect')
+    return DIALECTS[key]

@@ -1,0 +1,526 @@
+"""Modal interpreter of the G-code parser: words of one line -> moves in SI units.
+
+The dialect is documented in :mod:`.gcode`. :class:`Interpreter` keeps the whole modal state;
+:meth:`Interpreter.line` handles the common contour line (one motion G word, axis, centre, F
+and N words) inline and hands anything rarer to small helpers, so the hot path allocates
+little more than the :class:`~.program.Move` it produces.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+import math
+
+from .canon import CENTER_ARC_RADIUS_TOLERANCE_MM
+from .codes import ALLOWED_LETTERS, COMP_FORBIDDEN
+from .coords import COORD_G_CODES, Coords, foreign_codes, MAX_OFFSET_M
+from .cutter import CutterComp
+from .cycles import CycleMemory
+from .dialect import Dialect, dialect_by_name
+from .interp_comp import CompMixin
+from .interp_modes import ModesMixin
+from .interp_motion import MotionMixin
+from .lexer import blank_comments, locate_word
+from ..errors import GcodeError
+from ..program import Move, MoveKind
+
+__all__ = ['Interpreter']
+
+_INF = float('inf')
+
+# Plane -> (first in-plane axis, second in-plane axis, normal axis), right-handed.
+_PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
+_CENTRE_LETTERS = ('I', 'J', 'K')
+_AXIS_LETTERS = ('X', 'Y', 'Z')
+_MOTION_TEXT = {t: int(t) for t in ('0', '00', '1', '01', '2', '02', '3', '03')}
+# Letters that need no check beyond the motion itself (T is recorded by check_extras).
+_STRAIGHT_WORDS = frozenset('XYZFN')
+_ARC_WORDS = frozenset('XYZIJKRPFN')
+
+
+class Interpreter(MotionMixin, CompMixin, ModesMixin):
+    """Modal state of a program being parsed and the interpretation of its lines.
+
+    Parameters
+    ----------
+    file
+        Name used in errors and warnings.
+    start
+        Tool position [m] before the first line.
+    arc_tolerance_m
+        Absolute part of the arc end-point tolerance [m].
+    lines
+        The source lines (as split by the caller), to show the offending word in errors.
+    home
+        The G28 position [m] in machine coordinates (initial #5161..#5163), or ``None``:
+        0, as in LinuxCNC's fresh parameter file (G28 then warns).
+    tools
+        Tool table for cutter compensation: tool number -> radius [m] (a number, a mapping
+        with ``radius_m`` or an object with a ``radius_m`` attribute); ``None``: no table
+        (G41/G42 with a D word is then an error).
+    dialect
+        The :class:`~.dialect.Dialect` (or its name); ``None``: linuxcnc.
+    params
+        The parameter table shared with the front's reader (``None``: a private one).
+    ignore_axes
+        Axis letters (A, B, C, U, V, W) whose words are dropped with one warning each.
+    """
+
+    __slots__ = ('file', 'arc_tol', 'pos', 'motion', 'plane', 'scale', 'absolute',
+                 'arc_absolute', 'inverse_time', 'feed', 'exact', 'coord', 'moves',
+                 'warnings', 'lineno', 'lines', 'ended', 'g_cache', 'g43_lineno', 'home',
+                 'coords', 'frame', 'rotated', 'coord_line', 'coord_todo', 'retract',
+                 'cycle_memory', 'series', 'comp', 'routing',
+                 'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
+                 'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
+                 'warned', 'ignore_axes', 'rpm', 'polar_line', 'polar_inc',
+                 'arc_quick')
+
+    def __init__(self, file: str, start: tuple[float, float, float],
+                 arc_tolerance_m: float | None,
+                 *, lines: list[str] | None, home: tuple[float, float, float] | None = None,
+                 tools: Mapping[int, object] | None = None, dialect: Dialect | None = None,
+                 params: object | None = None, ignore_axes: Iterable[str] = ()):
+        self.file = file
+        self.arc_tol = None if arc_tolerance_m is None else float(arc_tolerance_m)
+        # radius differences below this pass every arc check (interp_motion)
+        self.arc_quick = CENTER_ARC_RADIUS_TOLERANCE_MM * 1e-3
+        if self.arc_tol is not None:
+            self.arc_quick = min(self.arc_quick, self.arc_tol)
+        self.pos = (float(start[0]), float(start[1]), float(start[2]))
+        self.motion: int | None = None      # G80 at start-up
+        self.plane = 17
+        self.scale = 0.001                  # G21: program units are mm
+        self.absolute = True                # G90
+        self.arc_absolute = False           # G91.1
+        self.inverse_time = False           # G94
+        self.feed: float | None = None      # m/s under G94, 1/min (this line only) under G93
+        self.exact = False                  # G64
+        self.coord = 1                      # G54 (coordinate system 1..9, see coords.py)
+        self.moves: list[Move] = []
+        self.warnings: list[str] = []
+        self.lineno = 0
+        self.lines = lines
+        self.ended = False
+        self.g_cache: dict[str, tuple[str, object, int]] = {}
+        self.g43_lineno = -1                # line of the last G43 (its H word is legal there)
+        self.home = None if home is None else tuple(float(v) for v in home)
+        self.coords = Coords(tools=tools, home_m=self.home, params=params)
+        self.frame = self.coords.offset     # machine - program for absolute axis words
+        self.rotated = False                # G10 L2 R: target() turns the whole point
+        self.coord_line = -1                # line with coordinate codes to execute
+        self.coord_todo: dict[str, object] = {}
+        self.retract = 99                   # G99: LinuxCNC's start-up canned-cycle return
+        self.cycle_memory = CycleMemory()   # sticky cycle words, initial level of a series
+        self.series = False                 # the last motion was a canned cycle
+        self.comp = CutterComp(file=file, units_m=self.scale)
+        self.routing = False                # moves go through self.comp (comp.engaged)
+        self.comp_code: int | None = None   # the G40/G41/G42(.1) of the pending line
+        self.pending_lineno = -1            # line with work to do before its motion
+        self.tool_change = False            # M6 on the pending line
+        self.tools = None if tools is None else self.coords.tools  # G10 L1 writes reach G41
+        self.tool_selected = 0              # T word
+        self.tool_loaded = 0                # tool in the spindle (after M6); 0 = none
+        self.spindle = 0                    # 1 M3, -1 M4, 0 stopped (M5 / start-up)
+        self.p_unit = 1.0                   # seconds per unit of a dwell's P word
+        self.dialect = dialect_by_name(dialect)
+        if self.dialect.dwell_p == 'milliseconds':
+            self.p_unit = 0.001
+        self.src = None                     # the front's current Block (None: plain lines)
+        self.io_lineno = -1                 # line with an I/O M code (its P/Q/E/L words)
+        self.warned: set[str] = set()       # warnings given once
+        self.ignore_axes = frozenset(ignore_axes)   # axis letters dropped with a warning
+        self.rpm = 0.0                      # S word (spindle speed, rev/min)
+        self.polar_line = -1                # line with G91 polar words (@ [m], ^ [rad])
+        self.polar_inc = (0.0, 0.0)
+
+    # -- errors ---------------------------------------------------------------------------
+    def fail(self, msg: str, letter: str, *, value: float | None = None, nth: int = 0):
+        """Raise a :class:`GcodeError` at the word ``letter`` (``value``, ``nth``) of the line."""
+        src = self.src
+        if src is None:
+            file, line, raw = self.file, self.lineno, self.lines[self.lineno - 1]
+        else:           # a block of the front's reader (perhaps in a subroutine file)
+            file, line, raw = src.file, src.line, src.text
+        code = blank_comments(raw, file=file, line=line)
+        column, text = locate_word(code, letter, value=value, nth=nth)
+        raise GcodeError(msg, file=file, line=line, column=column, text=text[:60])
+
+    def end_block(self) -> None:
+        """After a block of the front's reader: its markers must not reach the next block,
+        which may carry the same (main-program) line number."""
+        self.pending_lineno = self.coord_line = self.g43_lineno = self.io_lineno = -1
+        self.polar_line = -1
+
+    def num(self, letter: str, text: str) -> float:
+        """Value of a word; blanks inside the number are ignored (LinuxCNC rule)."""
+        try:
+            return float(text)
+        except ValueError:
+            pass
+        try:
+            return float(''.join(text.split()))
+        except ValueError:
+            self.fail(f'{letter}{"".join(text.split())} is not a number', letter)
+
+    def first_axis(self, d: dict[str, str]) -> str:
+        """First axis letter present on the line (for error places)."""
+        return next(a for a in _AXIS_LETTERS if a in d)
+
+    # -- one line -------------------------------------------------------------------------
+    def line(self, words: list[tuple[str, str]]) -> None:
+        """Interpret the ``(letter, number text)`` words of one line (letters upper case)."""
+        d = dict(words)
+        dwell = g9 = g64 = False
+        if len(d) == len(words):
+            g = d.pop('G', None)
+            ml = d.pop('M', None)
+            if ml is not None:
+                ml = (ml,)
+            if g is None:
+                motion = None
+            else:
+                motion = _MOTION_TEXT.get(g)
+                if motion is None:
+                    motion, dwell, g9, g64 = self.g_words((g,))
+        else:
+            gl, ml = self.split_repeated(words, d)
+            motion = None
+            if gl:
+                motion, dwell, g9, g64 = self.g_words(gl)
+        if not d.keys() <= ALLOWED_LETTERS:
+            self.unknown_letter(d)
+        if ml:
+            ml = self.m_words(ml)
+        if 'F' in d:
+            self.set_feed(d['F'])
+        if motion is not None:
+            self.motion = motion
+        if dwell and 'X' in d and self.dialect.dwell_x_seconds:
+            self.dwell_x(d)
+        mode = self.motion
+        has_axes = 'X' in d or 'Y' in d or 'Z' in d
+        is_arc = mode == 2 or mode == 3
+        if dwell or g64 or not d.keys() <= (_ARC_WORDS if is_arc and has_axes
+                                            else _STRAIGHT_WORDS):
+            has_axes = self.check_extras(d, is_arc, has_axes, dwell, g64) or has_axes
+        if self.pending_lineno == self.lineno:
+            self.before_motion(d)
+        if self.coord_line == self.lineno and self.apply_coords(d, motion is not None):
+            pass                # the axis words were G10/G92/... data, or G28/G30 moved
+        elif has_axes:
+            if mode is None:
+                self.fail('axis words but no motion mode (G0/G1/G2/G3) is active',
+                          self.first_axis(d))
+            if mode > 3:
+                if mode < 100:
+                    self.cycle(d, mode)
+                else:
+                    self.probe_or_tap(d, mode, g9)
+            else:
+                if self.series:
+                    self.end_series()
+                if is_arc:
+                    self.arc(d, mode, g9, motion is not None)
+                else:
+                    self.straight(d, mode, g9, motion is not None)
+        elif motion is not None and motion <= 1:
+            self.stand_still(d, motion, g9)
+        if ml:
+            self.stop(ml)
+
+    def check_extras(self, d: dict[str, str], is_arc: bool, has_axes: bool, dwell: bool,
+                     g64: bool) -> bool:
+        """Words other than axes/F/N/S: run the dwell, refuse words nothing uses.
+
+        Returns True for a full circle written without axis words (it moves all the same).
+        """
+        if 'O' in d:
+            o = self.num('O', d['O'])
+            if len(d) > 1 or o != int(o):
+                self.fail('O-word subroutines and control flow are not supported', 'O')
+        if 'H' in d and self.g43_lineno != self.lineno:
+            self.fail('H word with no G43 to use it', 'H')
+        if 'T' in d:
+            self.select_tool(d['T'])
+        if 'S' in d:
+            self.rpm = self.num('S', d['S'])
+        if self.io_lineno == self.lineno:
+            d = {k: v for k, v in d.items() if k not in 'PQEL'}    # the I/O M code's words
+        elif 'E' in d:
+            self.fail('E word with no M66/M67/M68 to use it', 'E')
+        if 'D' in d and not (self.pending_lineno == self.lineno
+                             and self.comp_code not in (None, 40)):
+            self.fail('D word with no G41/G42 (or G41.1/G42.1) to use it', 'D')
+        if self.coord_line == self.lineno and self.coord_todo.get('nonmodal') == 'G10':
+            return              # coords.py checks G10's L, P and R words
+        cycle_move = has_axes and (self.motion or 0) > 3
+        if cycle_move:
+            if dwell:
+                self.fail('G4 and a canned cycle on one line would share the P word', 'G',
+                          value=4.0)
+            return False        # cycles.py checks the cycle's words
+        if 'Q' in d and not g64:
+            self.fail('Q word with no canned cycle (G73, G83) or G64 to use it', 'Q')
+        if 'L' in d:
+            self.fail('L word with no canned cycle to use it', 'L')
+        arc_move = is_arc and has_axes
+        if is_arc and not has_axes:
+            if 'R' in d:
+                self.fail('an R-form arc needs an end point (use I/J/K for a full circle)',
+                          'R')
+            # LinuxCNC: a full circle may be written with its centre offsets only.
+            arc_move = 'I' in d or 'J' in d or 'K' in d
+        if not arc_move:
+            for letter in 'IJKR':
+                if letter in d:
+                    self.fail(f'{letter} word with no G2/G3 arc to use it', letter)
+        if dwell:
+            if arc_move:
+                self.fail('G4 and an arc on one line would share the P word', 'G', value=4.0)
+            self.dwell(d)
+        elif 'P' in d and not (arc_move or g64):
+            self.fail('P word with no G4, G2/G3 or G64 to use it', 'P')
+        return arc_move and not has_axes
+
+    def g_words(self, gl) -> tuple[int | None, bool, bool, bool]:
+        """Apply the modal G codes of a line; return (motion, dwell, G9, G64 present)."""
+        seen: dict[str, int] = {}
+        motion = None
+        dwell = g9 = g64 = False
+        cache = self.g_cache
+        for text in gl:
+            entry = cache.get(text)
+            if entry is None:
+                entry = self.g_lookup(text)
+                cache[text] = entry
+            group, arg, code = entry
+            if group in seen:
+                if group == 'motion' and 800 in (code, seen[group]) and code != seen[group]:
+                    # LinuxCNC 2.9 lets G80 stand beside another motion code (Fanuc safety
+                    # blocks such as G0 G17 G40 G49 G80 G90): the other code wins.
+                    if code == 800:
+                        continue
+                else:
+                    same = seen[group] == code
+                    self.fail(f'G{seen[group] / 10:g} and G{code / 10:g} are in the same '
+                              f'modal group ({group}) on one line', 'G', value=code / 10,
+                              nth=int(same))
+            seen[group] = code
+            if self.comp.active and group in COMP_FORBIDDEN:
+                self.comp_forbidden(group, arg, code)
+            if group == 'motion':
+                motion = -1 if arg is None else arg
+            elif group == 'nonmodal':
+                dwell = arg == 'dwell'
+                g9 = arg == 'exact'
+                if code in COORD_G_CODES:
+                    self.coord_codes(group, arg, code)
+            elif group == 'plane':
+                self.plane = arg
+            elif group == 'units':
+                self.scale = arg
+                self.comp.units_m = arg
+            elif group == 'distance':
+                self.absolute = arg
+            elif group == 'arc_distance':
+                self.arc_absolute = arg
+            elif group == 'feed_mode':
+                if arg != self.inverse_time:
+                    self.inverse_time = arg
+                    self.feed = None
+            elif group == 'control':
+                self.exact = arg
+                g64 = code == 640
+            elif group == 'cutter':
+                self.comp_code = arg
+                self.pending_lineno = self.lineno
+            elif group == 'retract':
+                self.retract = arg
+            elif group == 'tool_length' or group == 'coord':
+                self.coord_codes(group, arg, code)
+        if motion == -1:
+            # G80: no motion mode until the next G0/G1/G2/G3; a series of cycles ends.
+            self.motion = None
+            motion = None
+            self.end_series()
+        return motion, dwell, g9, g64
+
+    # ---- coords hooks (owned by coords) ----------------------------------------------------
+    def offset(self) -> tuple[float, float, float]:
+        """``machine - program`` [m]: work offset, G92, G52 and tool length (canned cycles;
+        they are refused in a rotated coordinate system, where this is no translation)."""
+        if self.rotated:
+            self.fail('canned cycles in a rotated coordinate system (G10 L2 R) are not '
+                      'supported', 'G', value=float(self.motion))
+        return self.coords.offset
+
+    def coord_codes(self, group: str, arg: object, code: int) -> None:
+        """Note a code of coords.py on this line; :meth:`apply_coords` runs them."""
+        if self.coord_line != self.lineno:
+            self.coord_line = self.lineno
+            self.coord_todo = {}
+        self.coord_todo[group] = arg
+        self.coord_todo['_code_' + group] = code
+        if arg in ('G43', 'G43.2'):
+            self.g43_lineno = self.lineno       # its H word is legal here
+
+    def apply_coords(self, d: dict[str, str], explicit_motion: bool = False) -> bool:
+        """Run the line's coordinate codes; True if they used the axis words (or moved)."""
+        todo = self.coord_todo
+        self.coord_todo = {}
+        coords = self.coords
+        coords.selected_tool = self.tool_selected
+        coords.loaded_tool = self.tool_loaded
+
+        def value(letter: str) -> float | None:
+            return self.num(letter, d[letter]) if letter in d else None
+
+        def fail(msg: str, letter: str):
+            if letter != 'G':
+                self.fail(msg, letter)
+            code = next(todo['_code_' + g] for g in ('nonmodal', 'tool_length', 'coord')
+                        if '_code_' + g in todo)
+            self.fail(msg, 'G', value=code / 10)
+
+        control, foreign = foreign_codes(self.dialect.name, todo, value)
+        for code in foreign:
+            if code not in self.warned:
+                self.warned.add(code)
+                self.warnings.append(f'{self.file}:{self.lineno}: {code} is not a {control} '
+                                     'code (the control would stop here); simulated as '
+                                     'LinuxCNC runs it')
+        effect = coords.execute(todo, value, position=self.pos, scale=self.scale,
+                                motion=self.motion, absolute=self.absolute,
+                                comp_active=self.comp.active,
+                                explicit_motion=explicit_motion, fail=fail)
+        self.frame = coords.offset
+        self.rotated = coords.rotated
+        self.coord = coords.system
+        if effect.home is not None:
+            self.home_return(d, effect.home)
+            return True
+        if todo.get('nonmodal') == 'G53':
+            self.machine_words(d)
+        return effect.axes_used
+
+    def machine_words(self, d: dict[str, str]) -> None:
+        """G53: this line's axis words are machine coordinates; give them as program ones
+        (in a rotated system X and Y both, since each depends on the other)."""
+        s = self.scale
+        end = list(self.pos)
+        given = [letter in d for letter in _AXIS_LETTERS]
+        for i, letter in enumerate(_AXIS_LETTERS):
+            if given[i]:
+                v = self.num(letter, d[letter]) * s
+                if not abs(v) <= MAX_OFFSET_M:
+                    self.fail(f'G53 {letter}: not a machine position within '
+                              f'{MAX_OFFSET_M:g} m of the machine origin', letter)
+                end[i] = v
+        if self.rotated and (given[0] or given[1]):
+            given[0] = given[1] = True
+        program = self.coords.to_program(tuple(end))
+        for i, letter in enumerate(_AXIS_LETTERS):
+            if given[i]:
+                d[letter] = program[i] / s
+
+    def rotated_target(self, d: dict[str, str]) -> tuple[float, float, float]:
+        """:meth:`target` in a rotated coordinate system: the point is turned as a whole; on
+        an arc line the I/J words become machine-frame offsets (G17 only)."""
+        coords = self.coords
+        s = self.scale
+        prog = list(coords.to_program(self.pos))
+        for i, letter in enumerate(_AXIS_LETTERS):
+            if letter in d:
+                v = self.num(letter, d[letter]) * s
+                prog[i] = v if self.absolute else prog[i] + v
+        if (self.motion == 2 or self.motion == 3) and ('I' in d or 'J' in d or 'K' in d):
+            if self.plane != 17:
+                self.fail(f'G{self.plane} arcs in a rotated coordinate system (G10 L2 R) '
+                          'are not supported', next(c for c in 'IJK' if c in d))
+            i = self.num('I', d['I']) if 'I' in d else 0.0
+            j = self.num('J', d['J']) if 'J' in d else 0.0
+            d['I'], d['J'] = coords.rotate(i, j)
+        return coords.to_machine(tuple(prog))
+
+    def home_return(self, d: dict[str, str], code: str) -> None:
+        """G28/G30: rapid to the intermediate point, then the named axes (all without axis
+        words) to the stored position; both rapids stop at their end."""
+        if self.home is None and code == 'G28' and not self.coords.home_used:
+            self.warnings.append(f'{self.file}:{self.lineno}: G28 returns to the stored '
+                                 'position #5161..#5163 (0 unless the program set it): the '
+                                 'machine config has no home_m')
+        if self.series:
+            self.end_series()
+        named = tuple(letter in d for letter in _AXIS_LETTERS)
+        path = self.coords.home_path(code, self.target(d), named,
+                                     fail=lambda msg, letter: self.fail(msg, 'G', value=float(
+                                         code[1:])))
+        for end in path:
+            # both rapids, even of zero length: LinuxCNC issues both (the planner drops them)
+            self.emit(Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos, end=end,
+                           feed_m_s=_INF, exact_stop=True, length_m=math.dist(self.pos, end)))
+            self.pos = end
+
+    def system_value(self, key: int | str) -> float | None:
+        """Live coordinate values for ``Parameters.provider`` (``#5420..#5428``, ``#5400``,
+        ``#5401..#5410``, ``#<_x>``.., ``#<_abs_x>``.., ``#<_coord_system>``, tool numbers);
+        ``None`` for any other key."""
+        coords = self.coords
+        coords.selected_tool = self.tool_selected
+        coords.loaded_tool = self.tool_loaded
+        return coords.system_value(key, self.pos, self.scale)
+
+    def probe_result(self) -> None:
+        """After a G38.x move: the probe parameters #5061.. (see Coords.probe_result)."""
+        self.coords.probe_result(self.pos, self.scale)
+    # ---- end of coords hooks -----------------------------------------------------------------
+
+    # -- motion ---------------------------------------------------------------------------
+    def target(self, d: dict[str, str]) -> tuple[float, float, float]:
+        """End point [m] of a move from the axis words of the line."""
+        if self.rotated:
+            return self.rotated_target(d)
+        x, y, z = pos = self.pos
+        s = self.scale
+        try:
+            if self.absolute:
+                ox, oy, oz = self.frame
+                if 'X' in d:
+                    x = float(d['X']) * s + ox
+                if 'Y' in d:
+                    y = float(d['Y']) * s + oy
+                if 'Z' in d:
+                    z = float(d['Z']) * s + oz
+            else:
+                if 'X' in d:
+                    x += float(d['X']) * s
+                if 'Y' in d:
+                    y += float(d['Y']) * s
+                if 'Z' in d:
+                    z += float(d['Z']) * s
+        except ValueError:
+            # Rare: blanks inside a number, or not a number at all.
+            new = list(pos)
+            for i, letter in enumerate(_AXIS_LETTERS):
+                if letter in d:
+                    v = self.num(letter, d[letter]) * s
+                    new[i] = v + self.frame[i] if self.absolute else pos[i] + v
+            x, y, z = new
+        return (x, y, z)
+
+    def centre_from_offsets(self, d: dict[str, str], start: tuple[float, float, float],
+                            a: int, b: int, n: int) -> tuple[float, float]:
+        """In-plane centre [m] from I/J/K (incremental under G91.1, absolute under G90.1)."""
+        normal = _CENTRE_LETTERS[n]
+        if normal in d:
+            self.normal_centre_word(normal, d[normal])
+        la = _CENTRE_LETTERS[a]
+        lb = _CENTRE_LETTERS[b]
+        if la not in d and lb not in d:
+            self.fail(f'arc needs {la}/{lb} (centre) or R (radius) in G{self.plane}',
+                      self.first_axis(d))
+        oa = self.num(la, d[la]) * self.scale if la in d else 0.0
+        ob = self.num(lb, d[lb]) * self.scale if lb in d else 0.0
+        if self.arc_absolute:
+            return oa + self.frame[a], ob + self.frame[b]
+        return start[a] + oa, start[b] + ob

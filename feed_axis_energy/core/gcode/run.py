@@ -1,0 +1,250 @@
+"""One run of a program through the interpreter, as a stream of moves.
+
+Plain lines (``letter number`` words only: most CAM output) are read here, line by line
+with two precompiled regular expressions, and handed straight to the interpreter. At the
+first line that needs more (parameters, expressions, O-words, ``M98``/``M99``, ``$`` lines,
+anything to diagnose) the rest of the program goes to the front's reader
+(:func:`.flow.read_blocks`) with the same interpreter and parameter table: the lines
+already run are blanked for it, so its line numbers stay those of the file. Nothing is read
+twice and memory is bounded by the batch size (plus the program text itself).
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+from os import PathLike
+from typing import TextIO
+
+from .dialect import Dialect
+from .flow import read_blocks
+from .interp import Interpreter
+from .lexer import blank_comments, LINE_RE, WORD_RE
+from .params import Parameters
+from ..errors import GcodeError
+from ..program import Move
+
+__all__ = ['GcodeRun']
+
+Vec3 = tuple[float, float, float]
+
+
+class _Recent:
+    """Stands in for the interpreter's list of lines on the streaming path: whatever line
+    is asked for, it is the one being interpreted (errors are raised at that line)."""
+
+    __slots__ = ('raw',)
+
+    def __init__(self) -> None:
+        self.raw = ''
+
+    def __getitem__(self, index: int) -> str:
+        return self.raw
+
+
+class GcodeRun:
+    """Iterate over the moves of one program in batches (lists of :class:`Move`).
+
+    Parameters
+    ----------
+    text
+        The program text (LF, CRLF or CR line ends), or ``None`` with ``stream``.
+    stream
+        A text file opened with universal newlines, read line by line (bounded memory on
+        the fast path; the front's reader gets the rest of the text if it is needed).
+    file, start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
+        As for :func:`~.parse_gcode` (``dialect`` already a :class:`Dialect`, the axes
+        checked).
+    batch
+        Hand on the moves whenever this many have gathered (``None``: once, at the end).
+
+    Attributes
+    ----------
+    warnings
+        ``file:line: message`` texts; complete once the iteration has ended.
+    n_lines
+        Number of lines of the program file (complete once the iteration has ended).
+    """
+
+    def __init__(self, text: str | None = None, *, stream: TextIO | None = None, file: str,
+                 start: Vec3, arc_tolerance_m: float | None, home: Vec3 | None,
+                 tools: Mapping[int, object] | None, dialect: Dialect,
+                 search_path: Sequence[str | PathLike[str]] = (), batch: int | None = None,
+                 ignore_axes: Sequence[str] = ()):
+        self.recent = _Recent()
+        if text is not None:
+            if '\r' in text:
+                text = text.replace('\r\n', '\n').replace('\r', '\n')
+            lines = text.split('\n')
+            if lines and lines[-1] == '':
+                lines.pop()
+            self.source: Iterator[str] = iter(lines)
+            self.stream = None
+            ref_lines: object = lines
+        else:
+            self.source = _file_lines(stream)
+            self.stream = stream
+            ref_lines = self.recent
+        self.n_lines = 0
+        self.file = file
+        self.dialect = dialect
+        self.search_path = tuple(search_path)
+        self.batch = batch
+        self.warnings: list[str] = []
+        self.params = Parameters()
+        self.interp = Interpreter(file, start, arc_tolerance_m, lines=ref_lines, home=home,
+                                  tools=tools, dialect=dialect, params=self.params,
+                                  ignore_axes=ignore_axes)
+        self.params.provider = self.interp.system_value
+
+    def __iter__(self) -> Iterator[list[Move]]:
+        """Run the program; yield the moves in batches."""
+        p = self.interp
+        first = yield from self._plain()
+        reader_warnings: list[str] = []
+        if first is not None:
+            reader_warnings = yield from self._blocks(first)
+        p.close()
+        self.warnings = reader_warnings + p.warnings
+        if p.moves:
+            yield p.moves
+            p.moves = []
+
+    def _take(self) -> list[Move]:
+        p = self.interp
+        out = p.moves
+        p.moves = []
+        return out
+
+    def _rest(self) -> str:
+        """The text after the lines read so far."""
+        if self.stream is not None:
+            return self.stream.read()
+        return '\n'.join(self.source)
+
+    def _plain(self) -> Iterator[list[Move]]:
+        """The fast path; returns the first line (1-based number, raw text) it cannot take,
+        or ``None`` when the program ended."""
+        p = self.interp
+        file = self.file
+        recent = self.recent
+        line_re = LINE_RE.fullmatch
+        findall = WORD_RE.findall
+        interpret = p.line
+        fanuc = self.dialect.fanuc_subprograms
+        macro = self.dialect.fanuc_macro
+        batch = self.batch or 0
+        seen_code = False
+        end_at = 0
+        lineno = 0
+        for lineno, raw in enumerate(self.source, 1):
+            recent.raw = raw
+            code = raw.upper()
+            if '(' in code or ';' in code:
+                code = blank_comments(code, file=file, line=lineno)
+            if line_re(code) is None or not raw.isascii():
+                # Not plain words: block delete, a % marker, or a line for the front.
+                code = blank_comments(raw, file=file, line=lineno)
+                stripped = code.strip()
+                if stripped[:1] == '/':
+                    continue
+                if stripped == '%':
+                    if seen_code:
+                        end_at = lineno
+                        break
+                    continue
+                if not code.isascii() or line_re(code.upper()) is None:
+                    self.n_lines = lineno - 1
+                    return lineno, raw
+                code = code.upper()
+            words = findall(code)
+            if not words:
+                continue
+            if ((fanuc and 'M9' in code) or (macro and 'G65' in code)) and _fanuc_call(words):
+                self.n_lines = lineno - 1
+                return lineno, raw
+            seen_code = True
+            p.lineno = lineno
+            interpret(words)
+            if p.ended:
+                end_at = lineno
+                break
+            if batch and len(p.moves) >= batch:
+                yield self._take()
+        self.n_lines = lineno
+        if end_at:
+            self.n_lines += _warn_trailing(p, self.source, end_at)
+        return None
+
+    def _blocks(self, first: tuple[int, str]) -> Iterator[list[Move]]:
+        """The front's reader from line ``first`` on; returns its warnings."""
+        p = self.interp
+        file = self.file
+        lineno, raw = first
+        rest = self._rest()
+        text = '\n' * (lineno - 1) + raw + '\n' + rest
+        lines = text.split('\n')
+        if lines and lines[-1] == '':
+            lines.pop()
+        self.n_lines = len(lines)
+        p.lines = lines
+        reader = read_blocks(text, file=file, params=self.params, dialect=self.dialect,
+                             search_path=self.search_path)
+        interpret = p.line
+        batch = self.batch or 0
+        end_at = 0
+        for block in reader:
+            p.src = block
+            p.lineno = block.main_line
+            interpret(block.words)
+            p.end_block()
+            if p.ended:
+                if block.file == file and block.line == block.main_line:
+                    end_at = block.line
+                break
+            if batch and len(p.moves) >= batch:
+                yield self._take()
+        p.src = None
+        if end_at:
+            _warn_trailing(p, iter(lines[end_at:]), end_at)
+        return list(reader.warnings)
+
+
+def _file_lines(stream: TextIO) -> Iterator[str]:
+    """Lines of a text file opened with universal newlines, without their line ends (a
+    ``UnicodeDecodeError`` passes: the caller finds its place in the file)."""
+    for line in stream:
+        yield line[:-1] if line.endswith('\n') else line
+
+
+def _fanuc_call(words: list[tuple[str, str]]) -> bool:
+    """True if the line has M97, M98, M99 or G65 (subprograms and macro calls: the front's
+    reader runs them)."""
+    for letter, value in words:
+        if letter == 'M' or letter == 'G':
+            try:
+                number = float(''.join(value.split()))
+            except ValueError:
+                return True
+            if (letter == 'M' and number in (97.0, 98.0, 99.0)) or (letter == 'G'
+                                                                    and number == 65.0):
+                return True
+    return False
+
+
+def _warn_trailing(p: Interpreter, rest: Iterator[str], end_at: int) -> int:
+    """Warn once if code follows the end of the program (line ``end_at``); return the number
+    of lines after it (all of them are read, none kept)."""
+    warned = False
+    count = 0
+    for count, raw in enumerate(rest, 1):
+        if warned:
+            continue
+        lineno = end_at + count
+        try:
+            code = blank_comments(raw, file=p.file, line=lineno).strip()
+        except GcodeError:
+            code = raw.strip()
+        if code and code != '%':
+            p.warnings.append(f'{p.file}:{lineno}: lines after the end of the program '
+                              f'(line {end_at}) are ignored')
+            warned = True
+    return count
