@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
 from os import PathLike
+import re
 from typing import TextIO
 
 from .dialect import Dialect
@@ -21,6 +22,11 @@ from .lexer import blank_comments, LINE_RE, WORD_RE
 from .params import Parameters
 from ..errors import GcodeError
 from ..program import Move
+
+# A number whose integer part has 13 or more digits (blanks allowed between them) is beyond
+# the reader's magnitude limit (expr.MAX_MAGNITUDE, 1e12) or overflows a float: such a line
+# goes to the front's reader, which reports it at its column instead of handing on inf.
+_LONG_INTEGER_PART = re.compile(r'(?<![0-9.])[0-9](?:\s*[0-9]){12}')
 
 __all__ = ['GcodeRun']
 
@@ -128,6 +134,7 @@ class GcodeRun:
         recent = self.recent
         line_re = LINE_RE.fullmatch
         findall = WORD_RE.findall
+        long_number = _LONG_INTEGER_PART.search
         interpret = p.line
         fanuc = self.dialect.fanuc_subprograms
         macro = self.dialect.fanuc_macro
@@ -158,6 +165,9 @@ class GcodeRun:
             words = findall(code)
             if not words:
                 continue
+            if long_number(code) is not None:
+                self.n_lines = lineno - 1
+                return lineno, raw
             if ((fanuc and 'M9' in code) or (macro and 'G65' in code)) and _fanuc_call(words):
                 self.n_lines = lineno - 1
                 return lineno, raw
