@@ -431,10 +431,10 @@ BIG = '1' + '0' * 300
     (f'G10 L2 P1 X{BIG}\nG0 X0\n', 1, 11),
     (f'G0 X1\nG92 Y{BIG}\n', 2, 5),
     (f'G43.1 Z{BIG}\n', 1, 7),
-    (f'G52 X1{"0" * 400}\n', 1, 5),
+    (f'G52 X1{"0" * 400}\n', 1, 6),        # a literal beyond float range: at its first digit
     (f'G10 L1 P{BIG} Z1\n', 1, 8),
     ('G10 L1 P2 R2000\n', 1, 11),
-    (f'G53 G0 X-1{"0" * 320}\n', 1, 8),
+    (f'G53 G0 X-1{"0" * 320}\n', 1, 9),
     ('G53 G0 Z2000000\n', 1, 8),
     # each offset is plausible, G92 (-900 m) plus the G55 origin (-900 m) is not
     ('G10 L2 P1 X900000\nG10 L2 P2 X-900000\nG92 X0\nG55\n', 4, 1),
