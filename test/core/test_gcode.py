@@ -296,7 +296,7 @@ BAD = {
     'missing_feed.nc': (3, 10, 'feed rate is zero'),
     'arc_off_circle.nc': (2, 4, 'not on the circle'),
     'r_too_small.nc': (2, 11, 'smaller than half the chord'),
-    'bad_number.nc': (2, 4, 'not a number'),
+    'bad_number.nc': (2, 5, 'bad number'),
     'not_a_number.nc': (2, 8, 'where a value was expected'),
     'motion_conflict.nc': (2, 4, 'same modal group'),
     'distance_conflict.nc': (3, 11, 'same modal group'),

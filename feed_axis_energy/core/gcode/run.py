@@ -18,15 +18,18 @@ from typing import TextIO
 from .dialect import Dialect
 from .flow import read_blocks
 from .interp import Interpreter
-from .lexer import blank_comments, LINE_RE, WORD_RE
+from .lexer import blank_comments, WORD_RE
 from .params import Parameters
 from ..errors import GcodeError
 from ..program import Move
 
-# A number whose integer part has 13 or more digits (blanks allowed between them) is beyond
-# the reader's magnitude limit (expr.MAX_MAGNITUDE, 1e12) or overflows a float: such a line
-# goes to the front's reader, which reports it at its column instead of handing on inf.
-_LONG_INTEGER_PART = re.compile(r'(?<![0-9.])[0-9](?:\s*[0-9]){12}')
+# The lines the fast path takes: words of a letter and a plain number whose integer part has
+# at most 12 digits (no blanks inside). Anything else, e.g. a number beyond the reader's
+# magnitude limit (expr.MAX_MAGNITUDE, 1e12) or one that overflows a float, or LinuxCNC's
+# blanks inside a number, goes to the front's reader, which reads it or reports it at its
+# column instead of handing on inf.
+_PLAIN_LINE = re.compile(
+    r'\s*+(?:[A-Z]\s*+[-+]?+\s*+(?:[0-9]{1,12}+(?:\.[0-9]*+)?+|\.[0-9]++)\s*+)*+')
 
 __all__ = ['GcodeRun']
 
@@ -132,9 +135,8 @@ class GcodeRun:
         p = self.interp
         file = self.file
         recent = self.recent
-        line_re = LINE_RE.fullmatch
+        line_re = _PLAIN_LINE.fullmatch
         findall = WORD_RE.findall
-        long_number = _LONG_INTEGER_PART.search
         interpret = p.line
         fanuc = self.dialect.fanuc_subprograms
         macro = self.dialect.fanuc_macro
@@ -165,9 +167,6 @@ class GcodeRun:
             words = findall(code)
             if not words:
                 continue
-            if long_number(code) is not None:
-                self.n_lines = lineno - 1
-                return lineno, raw
             if ((fanuc and 'M9' in code) or (macro and 'G65' in code)) and _fanuc_call(words):
                 self.n_lines = lineno - 1
                 return lineno, raw
