@@ -101,7 +101,7 @@ class McapRecorder(Node):
         self._acked_all = -1
         self._streams = {t for t in topics if not KNOWN_TOPICS[t][2] and t != '/clock'}
         self.received = 0
-        self._closing = False
+        self._end_pending = False
         # (handle, message class, (logical topic, bag topic)) of each serialized subscription
         self._subs: list[tuple[object, type, tuple[str, str]]] = []
         for topic in topics:
@@ -128,16 +128,27 @@ class McapRecorder(Node):
 
         Every ready subscription is drained until its queue is empty (take returns ``None``);
         then what arrived is written and acknowledged (:meth:`_drain`) once per ``ack_every``
-        messages taken, and at least every ``ack_period_s``.
+        messages taken, and at least every ``ack_period_s``. Closing at the end of the
+        program happens here, after the take loop, never inside it: the loop must not take
+        from a subscription that the close has destroyed.
         """
-        if self.bag.closed:
+        if not self._subs:
             time.sleep(min(timeout_s, self.ack_period_s))
             return
+        self._take(min(timeout_s, self.ack_period_s))
+        if self._rx and time.monotonic() - self._last_ack >= self.ack_period_s:
+            self._drain()
+        self._flush_if_due()
+        if self._end_pending:
+            self._finish()
+
+    def _take(self, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` on the wait set, then take every ready queue empty."""
         ws = self._waitset
         ws.clear_entities()
         for handle, _, _ in self._subs:
             ws.add_subscription(handle)
-        ws.wait(int(min(timeout_s, self.ack_period_s) * 1e9))
+        ws.wait(int(timeout_s * 1e9))
         ready = ws.get_ready_entities('subscription')   # handle pointers
         rx = self._rx
         every = self.ack_every
@@ -151,10 +162,8 @@ class McapRecorder(Node):
                     break
                 rx.append((key, got[0]))
                 if len(rx) >= every:
-                    self._drain()
+                    self._drain()   # never closes (see poll)
                     rx = self._rx
-        if rx and time.monotonic() - self._last_ack >= self.ack_period_s:
-            self._drain()
 
     def _drain(self) -> None:
         """Write what arrived into the bag buffer, then acknowledge it on recorder/progress."""
@@ -209,31 +218,43 @@ class McapRecorder(Node):
         self.bag.flush()
         self._last_flush = time.monotonic()
 
-    def _on_timer(self) -> None:
-        self._drain()
-        self._publish_acks()
+    def _flush_if_due(self) -> None:
         if time.monotonic() - self._last_flush >= self.chunk_period_s:
             self._flush()
-        self._check_end()
+
+    def _on_timer(self) -> None:
+        # Runs from the executor, outside the take loop: closing here is safe.
+        if not self._subs:
+            return
+        self._drain()
+        self._publish_acks()
+        self._flush_if_due()
+        if self._end_pending:
+            self._finish()
 
     def _check_end(self) -> None:
+        """Note that the program has ended; the close follows outside the take loop."""
         if self.exit_at_end and self.tracker.done and self.exit_code is None:
-            self.close()
-            self.exit_code = 0
+            self._end_pending = True
+
+    def _finish(self) -> None:
+        self._end_pending = False
+        self.close()
+        self.exit_code = 0
 
     def close(self) -> None:
-        """Flush the last chunk and finish the bag (idempotent)."""
-        if self.bag.closed or self._closing:
+        """Take what is still queued in DDS, write the last chunk, finish the bag (idempotent)."""
+        if not self._subs:
             return
-        self._closing = True
-        self.poll(0.0)   # what is still queued in DDS
+        self._take(0.0)
         self._drain()
-        if self.bag.closed:   # _drain reached the end and closed the bag already
-            return
-        self.bag.close()
-        for handle, _, _ in self._subs:
-            handle.destroy_when_not_in_use()
-        self._subs = []
+        subs, self._subs = self._subs, []
+        self._waitset.clear_entities()
+        try:
+            self.bag.close()
+        finally:
+            for handle, _, _ in subs:
+                handle.destroy_when_not_in_use()
         counts = ', '.join(f'{t} {n}' for t, n in sorted(self.bag.counts.items()))
         self.get_logger().info(f'closed {self.bag.path}: {counts or "no messages"}')
 
