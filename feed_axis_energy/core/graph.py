@@ -351,6 +351,11 @@ class EndTracker:
         self._extra = {e: False for e in extra}
         self.end: ProgramEnd | None = None
 
+    @property
+    def streams(self) -> tuple[str, ...]:
+        """The topics that must reach the end marker's last stamp."""
+        return tuple(self._last)
+
     def seen(self, topic: str, stamp_ns: int) -> None:
         """Record a message of ``topic`` with header stamp ``stamp_ns``."""
         if topic in self._last:

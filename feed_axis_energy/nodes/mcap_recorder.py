@@ -92,9 +92,12 @@ class McapRecorder(Node):
         self.bag = ChunkedBagWriter(out, typestore=bagio.typestore())
         self.tracker = EndTracker([t for t in end_streams if t in topics],
                                   [t for t in end_extra if t in topics])
-        self.pub_progress = self.create_publisher(Header, 'recorder/progress', stream_qos())
-        self.pub_streams = self.create_publisher(Header, 'recorder/stream_progress',
-                                                 stream_qos())
+        # The ack publishers appear only once every end stream has a matched publisher
+        # (:meth:`_announce`): producers start when they see them, so no batch goes out before
+        # the recorder can receive it (streams are volatile; a batch lost at start-up would
+        # hold the recorder's ack back for good).
+        self.pub_progress = None
+        self.pub_streams = None
         self._rx: list[tuple[tuple[str, str], bytes]] = []
         self._newest: dict[str, int] = {}
         self._acked: dict[str, int] = {}
@@ -114,8 +117,20 @@ class McapRecorder(Node):
         self._waitset = _rclpy.WaitSet(len(self._subs), 0, 0, 0, 0, 0, self.context.handle)
         self._last_flush = time.monotonic()
         self._last_ack = time.monotonic()
+        self._announce()
         steady_timer(self, min(self.chunk_period_s, 0.2), self._on_timer)
         self.get_logger().info(f'recording {", ".join(topics)} to {out}')
+
+    def _announce(self) -> None:
+        """Create the ack publishers once every end stream has a matched publisher."""
+        if self.pub_progress is not None:
+            return
+        for handle, _, (topic, _) in self._subs:
+            if topic in self.tracker.streams and handle.get_publisher_count() < 1:
+                return
+        self.pub_progress = self.create_publisher(Header, 'recorder/progress', stream_qos())
+        self.pub_streams = self.create_publisher(Header, 'recorder/stream_progress',
+                                                 stream_qos())
 
     def _raw_subscription(self, cls: type, topic: str, qos):
         """An rcl subscription the executor does not know about (only :meth:`poll` takes)."""
@@ -195,6 +210,8 @@ class McapRecorder(Node):
     def _publish_acks(self) -> None:
         # Also called by the slow timer: an ack skipped while its subscriber was still being
         # discovered goes out then, even if no further message arrives.
+        if self.pub_progress is None:
+            return
         newest = self._newest
         per_stream = self.pub_streams.get_subscription_count() > 0
         for topic, stamp in newest.items():
@@ -226,6 +243,7 @@ class McapRecorder(Node):
         # Runs from the executor, outside the take loop: closing here is safe.
         if not self._subs:
             return
+        self._announce()
         self._drain()
         self._publish_acks()
         self._flush_if_due()
