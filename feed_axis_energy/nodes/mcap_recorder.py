@@ -5,9 +5,11 @@ time), never the receive time. The subscriptions are not handed to the executor:
 (called by :func:`runner.run` between executor turns) waits on an rclpy wait set and drains
 every ready subscription with repeated ``take_message`` calls, so a message costs one take
 and one list append instead of an executor dispatch and a Python callback. Messages are
-flushed as complete MCAP chunk files with a refreshed ``metadata.yaml``
-(:class:`core.graph.ChunkedBagWriter`), so SIGKILL leaves a readable bag holding everything up
-to the last flush. Topics are stored under their logical
+flushed as complete MCAP files with a refreshed ``metadata.yaml``
+(:class:`core.graph_bag.ChunkedBagWriter`; the bag is readable from start-up) after
+``chunk_messages`` messages and once ``chunk_period_s`` has passed (checked on every poll), so
+SIGKILL loses only what was taken in the last ``chunk_period_s`` + 0.1 s, fewer than
+``chunk_messages`` + ``ack_every`` messages (docs/nodes.md). Topics are stored under their logical
 name (``/setpoints`` ...), whatever namespace or remapping the node runs with, so the bag reads
 like an offline ``simulate --out`` recording.
 
@@ -66,7 +68,7 @@ class McapRecorder(Node):
         topics = declare(self, 'topics', DEFAULT_TOPICS, 'logical topics to record')
         self.chunk_period_s = declare(self, 'chunk_period_s', 1.0,
                                       'flush a chunk file at least this often [s]')
-        self.chunk_messages = declare(self, 'chunk_messages', 5000,
+        self.chunk_messages = declare(self, 'chunk_messages', 1000,
                                       'flush a chunk file after this many messages')
         self.exit_at_end = declare(self, 'exit_at_end', False,
                                    'close the bag and exit (code 0) when the program has '
@@ -89,7 +91,6 @@ class McapRecorder(Node):
             raise StartupError('chunk_period_s must be > 0 and chunk_messages >= 1')
         if self.ack_every < 1 or self.ack_period_s <= 0:
             raise StartupError('ack_every must be >= 1 and ack_period_s > 0')
-        self.bag = ChunkedBagWriter(out, typestore=bagio.typestore())
         self.tracker = EndTracker([t for t in end_streams if t in topics],
                                   [t for t in end_extra if t in topics])
         # The ack publishers appear only once every end stream has a matched publisher
@@ -110,11 +111,14 @@ class McapRecorder(Node):
         for topic in topics:
             cls, msgtype, latched = KNOWN_TOPICS[topic]
             name = topic if topic.startswith('/') else '/' + topic
-            self.bag.add_topic(name, msgtype)
             qos = latched_qos() if latched else (clock_qos() if topic == '/clock'
                                                  else stream_qos())
             self._subs.append((self._raw_subscription(cls, topic, qos), cls, (topic, name)))
         self._waitset = _rclpy.WaitSet(len(self._subs), 0, 0, 0, 0, 0, self.context.handle)
+        # Created last (nothing left behind if a step above fails); from here on the
+        # directory holds a readable bag at every moment.
+        self.bag = ChunkedBagWriter(out, typestore=bagio.typestore(), topics={
+            name: KNOWN_TOPICS[topic][1] for _, _, (topic, name) in self._subs})
         self._last_flush = time.monotonic()
         self._last_ack = time.monotonic()
         self._announce()

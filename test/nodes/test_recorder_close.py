@@ -77,3 +77,40 @@ def test_end_reached_inside_the_take_loop(context, tmp_path, ack_every):
         rec.destroy_node()
     got = bagio.read_series(bag, bagio.TOPIC_POWER)
     assert got.t.shape[0] >= 100   # at least the ten batches up to the end
+
+
+def test_flush_is_due_by_wall_time_without_the_timer(context, tmp_path):
+    """The take loop itself flushes once ``chunk_period_s`` has passed (no 0.2 s timer lag).
+
+    Only ``poll`` runs here (no executor, so no timer): the message must reach the bag
+    within ``chunk_period_s`` plus a few polls.
+    """
+    from trajectory_msgs.msg import JointTrajectory
+    bag = tmp_path / 'rec'
+    rec = McapRecorder(context=context, parameter_overrides=[
+        Parameter('output', value=str(bag)), Parameter('topics', value=['power']),
+        Parameter('chunk_period_s', value=0.3)])
+    writer = rclpy.create_node('writer', context=context)
+    try:
+        assert read_count(bag) == 0   # readable from the start
+        pub = writer.create_publisher(JointTrajectory, 'power', stream_qos())
+        deadline = time.monotonic() + 20
+        while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        rec.poll(0.01)
+        rec._flush()   # start the period now
+        ((_, cdr),) = _batches(1)
+        pub.publish(cdr)
+        t_pub = time.monotonic()
+        while read_count(bag) == 0 and time.monotonic() - t_pub < 2.0:
+            rec.poll(0.005)
+        assert read_count(bag) == 1
+        assert time.monotonic() - t_pub < 0.3 + 0.1
+    finally:
+        writer.destroy_node()
+        rec.close()
+        rec.destroy_node()
+
+
+def read_count(bag):
+    return sum(n for _, n in bagio.bag_topics(bag).values())
