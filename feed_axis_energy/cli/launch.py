@@ -120,6 +120,8 @@ class Supervisor:
         Environment of the children.
     """
 
+    FINISH_GRACE_S = 10.0
+
     def __init__(self, commands: dict[str, list[str]], *, finishers: set[str],
                  env: dict[str, str], echo: bool = True) -> None:
         self.commands = commands
@@ -128,6 +130,7 @@ class Supervisor:
         self.echo = echo
         self.procs: dict[str, subprocess.Popen] = {}
         self.pgid: int | None = None
+        self._finished_at: dict[str, float] = {}
         self.logs: dict[str, list[str]] = {name: [] for name in commands}
         self._threads: list[threading.Thread] = []
 
@@ -171,8 +174,15 @@ class Supervisor:
                 print(f'[{name}] {line}', flush=True)
 
     def poll(self) -> tuple[str, str | None]:
-        """``('running', None)``, ``('done', None)`` or ``('failed', reason)``."""
-        finished = 0
+        """``('running', None)``, ``('done', None)`` or ``('failed', reason)``.
+
+        The finishers end within moments of each other (the recorder closes when the energy
+        estimator's summary arrives, the estimator exits when it is acknowledged); one that
+        exited cleanly :attr:`FINISH_GRACE_S` before the others was stopped from outside
+        (SIGINT/SIGTERM of that node alone), and the rest would wait for it until a stall
+        timeout: that is a failure at once.
+        """
+        finished = []
         for name, proc in self.procs.items():
             code = proc.poll()
             if code is None:
@@ -181,8 +191,16 @@ class Supervisor:
                 return 'failed', f'{name} exited with code {code}'
             if name not in self.finishers:
                 return 'failed', f'{name} exited before the program finished'
-            finished += 1
-        return ('done', None) if finished == len(self.finishers) else ('running', None)
+            finished.append(name)
+            self._finished_at.setdefault(name, time.monotonic())
+        if len(finished) == len(self.finishers):
+            return 'done', None
+        if finished and time.monotonic() - min(
+                self._finished_at.values()) > self.FINISH_GRACE_S:
+            waiting = sorted(self.finishers - set(finished))
+            return 'failed', (f'{finished[0]} exited but {", ".join(waiting)} did not finish '
+                              f'within {self.FINISH_GRACE_S:g} s (was it stopped?)')
+        return 'running', None
 
     def stop(self, *, timeout_s: float = 5.0) -> None:
         """SIGINT every running child, then SIGKILL the group if any is left after ``timeout_s``.
@@ -233,7 +251,8 @@ def _describe_bag(path: Path) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
-    if args.record is not None and args.record.exists():
+    if args.record is not None and os.path.lexists(args.record):
+        # lexists: a dangling symlink counts (the recorder would refuse it after start-up)
         msg = f'{args.record} exists already; choose a new output directory'
         raise FileExistsError(msg)
     if args.program is not None and not args.program.is_file():
