@@ -12,9 +12,12 @@ three streams and notes when each batch passes. After the round it reports:
 * orphans: graph processes (by pid) still alive 2 s after the launcher has gone;
 * whether the bag reads with rosbags (``bagio.bag_topics`` plus every message) and with the
   ``mcap`` library (every file ``metadata.yaml`` lists);
-* messages recovered vs sent (batches the probe saw on ``setpoints``, ``axis_state`` and
-  ``power``), and how many of those the probe saw more than ``chunk_period_s`` + 0.1 s before
-  the kill are missing from the bag (the documented bound says: none).
+* batches recovered per stream (``setpoints``, ``axis_state``, ``power``) vs planned for the
+  whole program, and whether each stream in the bag is an unbroken prefix of the planned
+  stamps;
+* lost: batches the probe saw on the wire that are not in the bag, and how many of those it
+  saw more than ``chunk_period_s`` + 0.1 s before the kill (the documented bound says: none).
+  The probe joins each new graph late (discovery), so it is a lower bound of what was sent.
 
 Progress per round on stderr, the summary table on stdout. Bounded in time: ``--rounds`` and a
 per-round timeout (``--round-timeout``, default 60 s).
@@ -52,6 +55,18 @@ def _program(path: Path, seconds: float) -> Path:
         lines += [f'G1 X{400 if i % 2 == 0 else 0} F6000', 'G4 P1']
     path.write_text('\n'.join(lines) + '\n')
     return path
+
+
+def planned_stamps(program: Path) -> list[int]:
+    """Header stamps of the program's batches (100 samples), as gcode_trajectory sends them."""
+    from feed_axis_energy.core.gcode import load_gcode
+    from feed_axis_energy.core.graph import seconds_to_ns
+    from feed_axis_energy.core.machine import load_machine
+    from feed_axis_energy.core.trajectory import plan
+    from feed_axis_energy.paths import default_machine
+    machine = load_machine(default_machine())
+    motion = plan(load_gcode(program), machine.limits(), options=machine.planner.options())
+    return seconds_to_ns(motion.t[::100]).tolist()
 
 
 def _children(pid: int) -> list[tuple[int, str]]:
@@ -149,7 +164,7 @@ def read_bag(path: Path) -> dict:
 
 def run_round(k: int, *, mode: str, target: str, sig: signal.Signals, delay_s: float,
               domain: int, probe: Probe, tmp: Path, programs: dict[str, Path],
-              timeout_s: float) -> dict:
+              planned: dict[str, list[int]], timeout_s: float) -> dict:
     bag = tmp / f'bag{k}'
     env = dict(os.environ, PYTHONPATH=str(ROOT), ROS_DOMAIN_ID=str(domain))
     probe.reset()
@@ -202,43 +217,55 @@ def run_round(k: int, *, mode: str, target: str, sig: signal.Signals, delay_s: f
             os.kill(pid, signal.SIGKILL)
     finished = any('graph finished' in line for line in log)
     content = read_bag(bag)
-    sent = sum(len(probe.seen[t]) for t in STREAMS)
-    recovered = sum(len(content['stamps'].get(t, ())) for t in STREAMS)
+    state = ('readable' if content['rosbags'] and content['mcap'] else
+             'none' if content['error'] == 'no bag directory' else 'UNREADABLE')
+    plan_ns = planned[mode]
+    recovered = {t: sorted(content['stamps'].get(t, ())) for t in STREAMS}
+    prefix = all(recovered[t] == plan_ns[:len(recovered[t])] for t in STREAMS)
+    lost = sum(1 for t in STREAMS for stamp in probe.seen[t]
+               if stamp not in content['stamps'].get(t, ()))
     old_missing = sum(1 for t in STREAMS for stamp, seen_at in probe.seen[t].items()
                       if seen_at < t_kill - BOUND_S
                       and stamp not in content['stamps'].get(t, ()))
     return {'round': k, 'mode': mode, 'target': target, 'signal': sig.name,
             'delay_s': delay_s, 'killed': killed, 'finished': finished, 'code': code,
-            'exit_s': t_exit, 'orphans': orphans, 'rosbags': content['rosbags'],
-            'mcap': content['mcap'], 'error': content['error'], 'sent': sent,
-            'recovered': recovered, 'old_missing': old_missing}
+            'exit_s': t_exit, 'orphans': orphans, 'state': state, 'error': content['error'],
+            'planned': 3 * len(plan_ns), 'recovered': sum(len(v) for v in recovered.values()),
+            'prefix': prefix, 'lost': lost, 'old_missing': old_missing}
 
 
 def summarize(results: list[dict]) -> str:
-    rows = ['| target | signal | rounds | launcher exit codes | exit after kill [s] (max) '
-            '| bag readable rosbags / mcap | batches recovered / seen | missing older than '
-            f'{BOUND_S:g} s | orphans |',
-            '| --- | --- | --- | --- | --- | --- | --- | --- | --- |']
+    rows = ['| target | signal | rounds | launcher exit codes | exit after kill, max [s] '
+            '| bag: readable / none (killed before the recorder started) / unreadable '
+            '| stream batches recovered / planned | unbroken prefix | lost (seen on the wire, '
+            f'not in the bag) | of those older than {BOUND_S:g} s | orphans |',
+            '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |']
     for target in TARGETS:
         for sig in SIGNALS:
             rs = [r for r in results if r['target'] == target and r['signal'] == sig.name]
             if not rs:
                 continue
-            codes = ', '.join(f'{c}×{n}' for c, n in sorted(
+            codes = ', '.join(f'{c} ({n}x)' for c, n in sorted(
                 {r['code']: sum(1 for x in rs if x['code'] == r['code']) for r in rs}.items()))
+            states = ' / '.join(str(sum(r['state'] == st for r in rs))
+                                for st in ('readable', 'none', 'UNREADABLE'))
             rows.append(
                 f'| {target} | {sig.name} | {len(rs)} | {codes} | '
-                f'{max(r["exit_s"] for r in rs):.1f} | '
-                f'{sum(r["rosbags"] for r in rs)}/{len(rs)} / {sum(r["mcap"] for r in rs)}'
-                f'/{len(rs)} | {sum(r["recovered"] for r in rs)} / '
-                f'{sum(r["sent"] for r in rs)} | {sum(r["old_missing"] for r in rs)} | '
+                f'{max(r["exit_s"] for r in rs):.1f} | {states} | '
+                f'{sum(r["recovered"] for r in rs)} / {sum(r["planned"] for r in rs)} | '
+                f'{sum(r["prefix"] for r in rs)}/{len(rs)} | {sum(r["lost"] for r in rs)} | '
+                f'{sum(r["old_missing"] for r in rs)} | '
                 f'{sum(len(r["orphans"]) for r in rs)} |')
     late = sum(1 for r in results if not r['killed'])
-    total = (f'{len(results)} rounds; target already gone at the kill (program finished '
-             f'first): {late}; bags readable by rosbags {sum(r["rosbags"] for r in results)}'
-             f'/{len(results)}, by mcap {sum(r["mcap"] for r in results)}/{len(results)}; '
-             f'orphaned processes {sum(len(r["orphans"]) for r in results)}; messages missing '
-             f'beyond the bound {sum(r["old_missing"] for r in results)}')
+    n = len(results)
+    total = (f'{n} rounds (target already gone at the kill: {late}); bags readable by rosbags '
+             f'and mcap {sum(r["state"] == "readable" for r in results)}, no bag '
+             f'{sum(r["state"] == "none" for r in results)}, unreadable '
+             f'{sum(r["state"] == "UNREADABLE" for r in results)}; unbroken prefix '
+             f'{sum(r["prefix"] for r in results)}/{n}; lost beyond the bound '
+             f'{sum(r["old_missing"] for r in results)}; orphaned processes '
+             f'{sum(len(r["orphans"]) for r in results)}; launcher exit 0 after a kill of a '
+             f'running target: {sum(1 for r in results if r["killed"] and r["code"] == 0)}')
     return '\n'.join(rows + ['', total])
 
 
@@ -264,6 +291,7 @@ def main(argv: list[str] | None = None) -> int:
             tmp = Path(tmpdir)
             programs = {'fast': _program(tmp / 'fast.nc', 240),
                         'realtime': _program(tmp / 'rt.nc', 12)}
+            planned = {m: planned_stamps(path) for m, path in programs.items()}
             streaming_s = {'fast': 4.0, 'realtime': 10.0}
             for k in range(args.rounds):
                 target, sig = combos[k % len(combos)]
@@ -271,13 +299,14 @@ def main(argv: list[str] | None = None) -> int:
                 delay = rng.uniform(-1.0, streaming_s[mode])
                 r = run_round(k, mode=mode, target=target, sig=sig, delay_s=delay,
                               domain=args.domain_id, probe=probe, tmp=tmp,
-                              programs=programs, timeout_s=args.round_timeout)
+                              programs=programs, planned=planned,
+                              timeout_s=args.round_timeout)
                 results.append(r)
                 print(f'[{k + 1}/{args.rounds}] {mode:8} {target:16} {sig.name:7} at '
                       f'{delay:+.2f} s: launcher exit {r["code"]} after {r["exit_s"]:.1f} s, '
-                      f'orphans {r["orphans"] or "none"}, bag rosbags={r["rosbags"]} '
-                      f'mcap={r["mcap"]}, batches {r["recovered"]}/{r["sent"]}, missing '
-                      f'beyond bound {r["old_missing"]}'
+                      f'orphans {r["orphans"] or "none"}, bag {r["state"]}, batches '
+                      f'{r["recovered"]}/{r["planned"]}, prefix {r["prefix"]}, lost '
+                      f'{r["lost"]} (beyond the bound {r["old_missing"]})'
                       + (f', {r["error"]}' if r['error'] else '')
                       + ('' if r['killed'] else ' (target gone: program finished)'),
                       file=sys.stderr, flush=True)
