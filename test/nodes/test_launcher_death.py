@@ -129,3 +129,32 @@ def test_arm_from_env(monkeypatch):
     assert lifeline.arm_from_env(sig=0) is True
     monkeypatch.setenv(lifeline.ENV, str(os.getpid()))   # not our parent: it has gone
     assert lifeline.arm_from_env(sig=0) is False
+
+
+def test_recorder_stopped_alone_fails_the_launch_before_the_stall_timeout(
+        tmp_path, node_env, domain_id):
+    """SIGTERM of the recorder only: it closes its bag and exits 0, the launcher exits 1.
+
+    Without the finisher grace rule the launcher waited for gcode_trajectory's 30 s stall
+    timeout (the recorder's acks never come again).
+    """
+    bag = tmp_path / 'rec'
+    launcher, kids, want, streaming = _start_launcher(tmp_path, node_env, domain_id,
+                                                      record=bag)
+    try:
+        assert len(kids) == want, kids
+        assert streaming.wait(timeout=30)
+        time.sleep(1.5)
+        rec = next(pid for pid, cmd in kids if 'nodes.mcap_recorder' in cmd)
+        os.kill(rec, signal.SIGTERM)
+        t_kill = time.monotonic()
+        code = launcher.wait(timeout=40)
+        took = time.monotonic() - t_kill
+    finally:
+        launcher.kill()
+        for pid, _ in kids:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+    assert code == 1
+    assert took < 25.0   # grace 10 s + the stop; the stall timeout alone is 30 s
+    assert bagio.read_series(bag, bagio.TOPIC_POWER).t.shape[0] >= 100
