@@ -209,6 +209,8 @@ class McapRecorder(Node):
         self._last_ack = time.monotonic()
         if self.bag.buffered >= self.chunk_messages:
             self._flush()
+        else:
+            self._flush_if_due()   # also inside a long take loop: the bound holds there too
         self._check_end()
 
     def _publish_acks(self) -> None:

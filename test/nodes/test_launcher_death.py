@@ -158,3 +158,18 @@ def test_recorder_stopped_alone_fails_the_launch_before_the_stall_timeout(
     assert code == 1
     assert took < 25.0   # grace 10 s + the stop; the stall timeout alone is 30 s
     assert bagio.read_series(bag, bagio.TOPIC_POWER).t.shape[0] >= 100
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_stop_while_importing_is_quiet(tmp_path, node_env, sig):
+    """A launcher-started node stopped during its imports: no traceback, code 128 + signal."""
+    env = {**node_env, lifeline.ENV: str(os.getpid())}
+    proc = subprocess.Popen([PY, '-m', 'feed_axis_energy.nodes.mcap_recorder', '--ros-args',
+                             '-p', f'output:={tmp_path / "rec"}'], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    time.sleep(0.3)   # rclpy, numpy and rosbags take longer than this to import
+    proc.send_signal(sig)
+    out, _ = proc.communicate(timeout=30)
+    assert 'Traceback' not in out, out
+    assert proc.returncode == 128 + sig
+    assert not (tmp_path / 'rec').exists()
