@@ -222,6 +222,13 @@ def run_round(k: int, *, mode: str, target: str, sig: signal.Signals, delay_s: f
     plan_ns = planned[mode]
     recovered = {t: sorted(content['stamps'].get(t, ())) for t in STREAMS}
     prefix = all(recovered[t] == plan_ns[:len(recovered[t])] for t in STREAMS)
+    broken = []
+    for t in STREAMS:
+        got = recovered[t]
+        if got != plan_ns[:len(got)]:
+            at = next(i for i, (a, b) in enumerate(zip(got, plan_ns)) if a != b) if any(
+                a != b for a, b in zip(got, plan_ns)) else len(plan_ns)
+            broken.append(f'{t}: {len(got)} batches, first differs at index {at}')
     lost = sum(1 for t in STREAMS for stamp in probe.seen[t]
                if stamp not in content['stamps'].get(t, ()))
     old_missing = sum(1 for t in STREAMS for stamp, seen_at in probe.seen[t].items()
@@ -231,7 +238,8 @@ def run_round(k: int, *, mode: str, target: str, sig: signal.Signals, delay_s: f
             'delay_s': delay_s, 'killed': killed, 'finished': finished, 'code': code,
             'exit_s': t_exit, 'orphans': orphans, 'state': state, 'error': content['error'],
             'planned': 3 * len(plan_ns), 'recovered': sum(len(v) for v in recovered.values()),
-            'prefix': prefix, 'lost': lost, 'old_missing': old_missing}
+            'prefix': prefix, 'lost': lost, 'old_missing': old_missing,
+            'broken': '; '.join(broken)}
 
 
 def summarize(results: list[dict]) -> str:
@@ -308,6 +316,7 @@ def main(argv: list[str] | None = None) -> int:
                       f'{r["recovered"]}/{r["planned"]}, prefix {r["prefix"]}, lost '
                       f'{r["lost"]} (beyond the bound {r["old_missing"]})'
                       + (f', {r["error"]}' if r['error'] else '')
+                      + (f', NOT A PREFIX: {r["broken"]}' if r['broken'] else '')
                       + ('' if r['killed'] else ' (target gone: program finished)'),
                       file=sys.stderr, flush=True)
     finally:

@@ -19,7 +19,8 @@ import signal
 import sys
 from typing import Callable
 
-__all__ = ['ENV', 'PR_SET_PDEATHSIG', 'set_parent_death_signal', 'preexec', 'arm_from_env']
+__all__ = ['ENV', 'PR_SET_PDEATHSIG', 'set_parent_death_signal', 'preexec', 'arm_from_env',
+           'parent_gone']
 
 ENV = 'FAE_PARENT_PID'
 PR_SET_PDEATHSIG = 1   # <linux/prctl.h>
@@ -75,3 +76,9 @@ def arm_from_env(*, sig: int = signal.SIGTERM) -> bool | None:
         return None
     set_parent_death_signal(sig)
     return os.getppid() == int(text)
+
+
+def parent_gone() -> bool:
+    """True if :data:`ENV` names a parent that is no longer this process's parent."""
+    text = os.environ.get(ENV, '')
+    return text.isdigit() and os.getppid() != int(text)

@@ -13,6 +13,7 @@ bag there). A node started by ``feed-axis-energy launch`` (environment variable
 from __future__ import annotations
 
 import inspect
+import os
 import signal
 import sys
 from typing import Callable
@@ -111,10 +112,21 @@ def run(factory: Callable[[], object], args: list[str] | None, *, name: str) -> 
         # as an orphan (the node still starts and closes, so a recorder leaves a valid bag).
         stop.append(signal.SIGTERM)
     try:
-        return _spin(factory, name=name, stop=stop)
+        code = _spin(factory, name=name, stop=stop)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+    if lifeline.parent_gone():
+        # The launcher died (parent-death signal): the bag is closed and rclpy shut down;
+        # skip the interpreter's teardown (a second or more on a busy machine) so that no
+        # node outlives the launcher by more than moments. Nobody reads our output now.
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(code)
+    return code
 
 
 def _spin(factory: Callable[[], object], *, name: str, stop: list[int]) -> int:
