@@ -198,6 +198,7 @@ def run_round(k: int, *, mode: str, target: str, sig: signal.Signals, delay_s: f
         (pid for pid, cmd in kids if f'nodes.{target} ' in cmd), None)
     t_kill = time.monotonic()
     killed = False
+    early = launcher.poll()   # the launch ended before the kill: say why
     if victim is not None:
         try:
             os.kill(victim, sig)
@@ -239,7 +240,8 @@ def run_round(k: int, *, mode: str, target: str, sig: signal.Signals, delay_s: f
             'exit_s': t_exit, 'orphans': orphans, 'state': state, 'error': content['error'],
             'planned': 3 * len(plan_ns), 'recovered': sum(len(v) for v in recovered.values()),
             'prefix': prefix, 'lost': lost, 'old_missing': old_missing,
-            'broken': '; '.join(broken)}
+            'broken': '; '.join(broken),
+            'why': ''.join(log[-3:]).strip()[-300:] if early is not None else ''}
 
 
 def summarize(results: list[dict]) -> str:
@@ -317,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
                       f'{r["lost"]} (beyond the bound {r["old_missing"]})'
                       + (f', {r["error"]}' if r['error'] else '')
                       + (f', NOT A PREFIX: {r["broken"]}' if r['broken'] else '')
-                      + ('' if r['killed'] else ' (target gone: program finished)'),
+                      + ('' if r['killed'] else f' (target gone before the kill: {r["why"]})'),
                       file=sys.stderr, flush=True)
     finally:
         probe.close()

@@ -294,6 +294,15 @@ def run(args: argparse.Namespace) -> int:
     if state == 'failed':
         print(f'error: {reason}; all nodes stopped', file=sys.stderr)
         return 1
+    if args.record is not None:
+        # A recorder stopped alone near the end exits 0 like a finished one; its bag must
+        # hold what the end marker says was sent, or the launch is not a success.
+        from feed_axis_energy.core.graph import recording_gaps
+        gaps = recording_gaps(args.record)
+        if gaps:
+            print(f'error: {args.record}: incomplete recording: {"; ".join(gaps)}',
+                  file=sys.stderr)
+            return 1
     print(f'graph finished in {time.monotonic() - t0:.2f} s')
     if args.record is not None:
         _describe_bag(args.record)

@@ -27,7 +27,8 @@ from .simulate import declared_effects_power_w
 
 __all__ = ['NS_PER_S', 'seconds_to_ns', 'ns_to_seconds', 'batch_bounds', 'FlowWindow',
            'pacing_delay_s', 'block_starts', 'lines_at', 'StreamingPower', 'header_stamp_ns',
-           'ProgramEnd', 'EndTracker', 'ChunkedBagWriter', 'latency_stats', 'read_raw']
+           'ProgramEnd', 'EndTracker', 'ChunkedBagWriter', 'latency_stats', 'read_raw',
+           'recording_gaps']
 
 NS_PER_S = 1_000_000_000
 
@@ -404,3 +405,28 @@ def read_raw(path: str | Path, topics: Sequence[str]) -> list[tuple[str, int, by
         out = [(c.topic, int(t), bytes(raw)) for c, t, raw in reader.messages(connections=conns)]
     out.sort(key=lambda m: m[1])
     return out
+
+
+def recording_gaps(path: str | Path, streams: Sequence[str] = (
+        '/setpoints', '/axis_state', '/power')) -> list[str]:
+    """What a graph recording lacks against its own end-of-program marker (empty: complete).
+
+    The marker (``/program/end``) says how many batches each stream sent and the last stamp;
+    a recorder stopped before the end (a signal to it alone) leaves a bag that reads well but
+    holds fewer. Used by ``feed-axis-energy launch`` before it reports success.
+    """
+    from .bagio import DIAGNOSTIC_ARRAY, typestore
+    ts = typestore()
+    raw = read_raw(path, ['/program/end', *streams])
+    ends = [cdr for topic, _, cdr in raw if topic == '/program/end']
+    if not ends:
+        return ['no /program/end marker: the recording stopped before the program ended']
+    msg = ts.deserialize_cdr(ends[-1], DIAGNOSTIC_ARRAY)
+    end = ProgramEnd.from_pairs((kv.key, kv.value) for st in msg.status for kv in st.values)
+    gaps = []
+    for stream in streams:
+        stamps = [stamp for topic, stamp, _ in raw if topic == stream]
+        want = end.last_ns_of(stream)
+        if len(stamps) != end.batches or (stamps and stamps[-1] != want):
+            gaps.append(f'{stream}: {len(stamps)} of {end.batches} batches')
+    return gaps

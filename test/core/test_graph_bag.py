@@ -179,3 +179,40 @@ def test_metadata_text_equals_the_metadata_dict(tmp_path):
     text = (tmp_path / 'odd: #name' / 'metadata.yaml').read_text()
     assert yaml.safe_load(text) == bag.metadata()
     assert len(read_rosbags(tmp_path / 'odd: #name')) == 4
+
+
+def _end_marker(end, ts=bagio.typestore()):
+    """``/program/end`` CDR as gcode_trajectory publishes it (built with rosbags)."""
+    arr = ts.types[bagio.DIAGNOSTIC_ARRAY]
+    status = ts.types['diagnostic_msgs/msg/DiagnosticStatus']
+    kv = ts.types['diagnostic_msgs/msg/KeyValue']
+    hdr = ts.types['std_msgs/msg/Header']
+    tm = ts.types['builtin_interfaces/msg/Time']
+    msg = arr(header=hdr(stamp=tm(sec=0, nanosec=end.last_ns), frame_id=''), status=[status(
+        level=0, name='program_end', message='', hardware_id='',
+        values=[kv(key=k, value=v) for k, v in end.to_pairs()])])
+    return bytes(ts.serialize_cdr(msg, bagio.DIAGNOSTIC_ARRAY))
+
+
+@pytest.mark.parametrize('drop', [None, '/power', 'marker'])
+def test_recording_gaps_against_the_end_marker(tmp_path, drop):
+    from feed_axis_energy.core.graph import ProgramEnd, recording_gaps
+    streams = ('/setpoints', '/axis_state', '/power')
+    topics = {t: bagio.JOINT_TRAJECTORY for t in streams}
+    topics['/program/end'] = bagio.DIAGNOSTIC_ARRAY
+    bag = ChunkedBagWriter(tmp_path / 'b', typestore=bagio.typestore(), topics=topics)
+    stamps = [100, 200, 300]
+    for t in streams:
+        for s in stamps[:2] if t == drop else stamps:
+            bag.write(t, s, _cdr(s))
+    if drop != 'marker':
+        end = ProgramEnd('p.nc', 300, 3, 100, 300)
+        bag.write('/program/end', 300, _end_marker(end))
+    bag.close()
+    gaps = recording_gaps(tmp_path / 'b')
+    if drop is None:
+        assert gaps == []
+    elif drop == 'marker':
+        assert len(gaps) == 1 and 'no /program/end' in gaps[0]
+    else:
+        assert gaps == ['/power: 2 of 3 batches']
