@@ -415,18 +415,13 @@ def recording_gaps(path: str | Path, streams: Sequence[str] = (
     a recorder stopped before the end (a signal to it alone) leaves a bag that reads well but
     holds fewer. Used by ``feed-axis-energy launch`` before it reports success.
     """
-    from .bagio import DIAGNOSTIC_ARRAY, typestore
-    ts = typestore()
-    raw = read_raw(path, ['/program/end', *streams])
-    ends = [cdr for topic, _, cdr in raw if topic == '/program/end']
-    if not ends:
+    from .bagio import bag_topics, DIAGNOSTIC_ARRAY, typestore
+    # Counts from the metadata and only the marker read: bounded memory for any length.
+    counts = {topic: n for topic, (_, n) in bag_topics(path).items()}
+    if not counts.get('/program/end'):
         return ['no /program/end marker: the recording stopped before the program ended']
-    msg = ts.deserialize_cdr(ends[-1], DIAGNOSTIC_ARRAY)
+    ends = [cdr for _, _, cdr in read_raw(path, ['/program/end'])]
+    msg = typestore().deserialize_cdr(ends[-1], DIAGNOSTIC_ARRAY)
     end = ProgramEnd.from_pairs((kv.key, kv.value) for st in msg.status for kv in st.values)
-    gaps = []
-    for stream in streams:
-        stamps = [stamp for topic, stamp, _ in raw if topic == stream]
-        want = end.last_ns_of(stream)
-        if len(stamps) != end.batches or (stamps and stamps[-1] != want):
-            gaps.append(f'{stream}: {len(stamps)} of {end.batches} batches')
-    return gaps
+    return [f'{stream}: {counts.get(stream, 0)} of {end.batches} batches'
+            for stream in streams if counts.get(stream, 0) != end.batches]
