@@ -156,10 +156,11 @@ class Supervisor:
             proc = subprocess.Popen(cmd, env=env, stdin=subprocess.DEVNULL,
                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                     process_group=group, preexec_fn=arm)
-        except subprocess.SubprocessError:
+        except (OSError, subprocess.SubprocessError):
             if group == 0:
                 raise
-            # The group's first process is gone already (it failed at once): a new group.
+            # setpgid refused: the group's first process is gone already (it failed at
+            # once and was reaped); start a new group (a real start failure raises again).
             self.pgid = None
             return self._spawn(cmd, env, arm)
         if self.pgid is None:
