@@ -5,6 +5,12 @@ with ``--record``) as ``python -m feed_axis_energy.nodes.<name> --ros-args ...``
 ``config/graph.yaml`` plus the options given here, waits until the energy estimator has
 published the block energies (and the recorder has closed its bag), then stops the rest.
 If any node dies, every other node is stopped and the exit code is 1.
+
+The nodes die with the launcher: they run in one process group of their own (so Ctrl-C in a
+terminal reaches only the launcher, which stops them in order, and a last SIGKILL of the group
+catches whatever is left) and each has ``prctl(PR_SET_PDEATHSIG, SIGTERM)`` armed
+(:mod:`feed_axis_energy.lifeline`), so even a SIGKILL of the launcher stops every node: they
+get SIGTERM and shut down as on Ctrl-C.
 """
 from __future__ import annotations
 
@@ -17,6 +23,7 @@ import sys
 import threading
 import time
 
+from feed_axis_energy import lifeline
 from feed_axis_energy.paths import config_dir, program_path
 
 __all__ = ['add_parser', 'run', 'node_command', 'Supervisor']
@@ -113,6 +120,8 @@ class Supervisor:
         Environment of the children.
     """
 
+    FINISH_GRACE_S = 10.0
+
     def __init__(self, commands: dict[str, list[str]], *, finishers: set[str],
                  env: dict[str, str], echo: bool = True) -> None:
         self.commands = commands
@@ -120,19 +129,43 @@ class Supervisor:
         self.env = env
         self.echo = echo
         self.procs: dict[str, subprocess.Popen] = {}
+        self.pgid: int | None = None
+        self._finished_at: dict[str, float] = {}
         self.logs: dict[str, list[str]] = {name: [] for name in commands}
         self._threads: list[threading.Thread] = []
 
     def start(self) -> None:
-        """Start every child in its own session (Ctrl-C reaches only the launcher)."""
+        """Start every child in one new process group that dies with the launcher.
+
+        All children are started before the first log thread: ``preexec_fn`` (which arms
+        the parent-death signal) is not safe while other threads run.
+        """
+        env = dict(self.env)
+        env[lifeline.ENV] = str(os.getpid())
+        arm = lifeline.preexec(os.getpid())
         for name, cmd in self.commands.items():
-            proc = subprocess.Popen(cmd, env=self.env, stdout=subprocess.PIPE,
-                                    stderr=subprocess.STDOUT, text=True,
-                                    start_new_session=True)
-            self.procs[name] = proc
+            self.procs[name] = self._spawn(cmd, env, arm)
+        for name, proc in self.procs.items():
             thread = threading.Thread(target=self._pump, args=(name, proc), daemon=True)
             thread.start()
             self._threads.append(thread)
+
+    def _spawn(self, cmd: list[str], env: dict[str, str], arm) -> subprocess.Popen:
+        group = 0 if self.pgid is None else self.pgid
+        try:
+            proc = subprocess.Popen(cmd, env=env, stdin=subprocess.DEVNULL,
+                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                    process_group=group, preexec_fn=arm)
+        except (OSError, subprocess.SubprocessError):
+            if group == 0:
+                raise
+            # setpgid refused: the group's first process is gone already (it failed at
+            # once and was reaped); start a new group (a real start failure raises again).
+            self.pgid = None
+            return self._spawn(cmd, env, arm)
+        if self.pgid is None:
+            self.pgid = proc.pid
+        return proc
 
     def _pump(self, name: str, proc: subprocess.Popen) -> None:
         for line in proc.stdout:
@@ -142,8 +175,15 @@ class Supervisor:
                 print(f'[{name}] {line}', flush=True)
 
     def poll(self) -> tuple[str, str | None]:
-        """``('running', None)``, ``('done', None)`` or ``('failed', reason)``."""
-        finished = 0
+        """``('running', None)``, ``('done', None)`` or ``('failed', reason)``.
+
+        The finishers end within moments of each other (the recorder closes when the energy
+        estimator's summary arrives, the estimator exits when it is acknowledged); one that
+        exited cleanly :attr:`FINISH_GRACE_S` before the others was stopped from outside
+        (SIGINT/SIGTERM of that node alone), and the rest would wait for it until a stall
+        timeout: that is a failure at once.
+        """
+        finished = []
         for name, proc in self.procs.items():
             code = proc.poll()
             if code is None:
@@ -152,11 +192,23 @@ class Supervisor:
                 return 'failed', f'{name} exited with code {code}'
             if name not in self.finishers:
                 return 'failed', f'{name} exited before the program finished'
-            finished += 1
-        return ('done', None) if finished == len(self.finishers) else ('running', None)
+            finished.append(name)
+            self._finished_at.setdefault(name, time.monotonic())
+        if len(finished) == len(self.finishers):
+            return 'done', None
+        if finished and time.monotonic() - min(
+                self._finished_at.values()) > self.FINISH_GRACE_S:
+            waiting = sorted(self.finishers - set(finished))
+            return 'failed', (f'{finished[0]} exited but {", ".join(waiting)} did not finish '
+                              f'within {self.FINISH_GRACE_S:g} s (was it stopped?)')
+        return 'running', None
 
     def stop(self, *, timeout_s: float = 5.0) -> None:
-        """SIGINT every running child, then SIGKILL what is left after ``timeout_s``."""
+        """SIGINT every running child, then SIGKILL the group if any is left after ``timeout_s``.
+
+        The group is signalled only while one of its children is unreaped, so its id cannot
+        have been reused by an unrelated process.
+        """
         for proc in self.procs.values():
             if proc.poll() is None:
                 proc.send_signal(signal.SIGINT)
@@ -165,10 +217,19 @@ class Supervisor:
             try:
                 proc.wait(timeout=max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
+                self._kill_group()
                 proc.kill()
                 proc.wait()
         for thread in self._threads:
             thread.join(timeout=1.0)
+
+    def _kill_group(self) -> None:
+        if self.pgid is None:
+            return
+        try:
+            os.killpg(self.pgid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
 
 
 def _describe_bag(path: Path) -> None:
@@ -191,7 +252,8 @@ def _describe_bag(path: Path) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
-    if args.record is not None and args.record.exists():
+    if args.record is not None and os.path.lexists(args.record):
+        # lexists: a dangling symlink counts (the recorder would refuse it after start-up)
         msg = f'{args.record} exists already; choose a new output directory'
         raise FileExistsError(msg)
     if args.program is not None and not args.program.is_file():
@@ -233,6 +295,15 @@ def run(args: argparse.Namespace) -> int:
     if state == 'failed':
         print(f'error: {reason}; all nodes stopped', file=sys.stderr)
         return 1
+    if args.record is not None:
+        # A recorder stopped alone near the end exits 0 like a finished one; its bag must
+        # hold what the end marker says was sent, or the launch is not a success.
+        from feed_axis_energy.core.graph import recording_gaps
+        gaps = recording_gaps(args.record)
+        if gaps:
+            print(f'error: {args.record}: incomplete recording: {"; ".join(gaps)}',
+                  file=sys.stderr)
+            return 1
     print(f'graph finished in {time.monotonic() - t0:.2f} s')
     if args.record is not None:
         _describe_bag(args.record)

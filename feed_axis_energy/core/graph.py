@@ -11,27 +11,24 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 import math
-import os
 from pathlib import Path
-import shutil
 import struct
 from typing import Iterable, Sequence
 
 import numpy as np
-from rosbags.rosbag2 import StoragePlugin, Writer
-import yaml
 
 from .dynamics import compute_dynamics
 from .energy import apply_braking, compute_power, energy_by_line, EnergyIntegrator, PowerResult
 from .errors import ConfigError, DataError
+from .graph_bag import ChunkedBagWriter
 from .machine import Machine
 from .motion import Motion
 from .simulate import declared_effects_power_w
 
 __all__ = ['NS_PER_S', 'seconds_to_ns', 'ns_to_seconds', 'batch_bounds', 'FlowWindow',
            'pacing_delay_s', 'block_starts', 'lines_at', 'StreamingPower', 'header_stamp_ns',
-           'ProgramEnd', 'EndTracker', 'ChunkedBagWriter', 'merge_bag_metadata',
-           'latency_stats', 'read_raw']
+           'ProgramEnd', 'EndTracker', 'ChunkedBagWriter', 'latency_stats', 'read_raw',
+           'recording_gaps']
 
 NS_PER_S = 1_000_000_000
 
@@ -351,6 +348,11 @@ class EndTracker:
         self._extra = {e: False for e in extra}
         self.end: ProgramEnd | None = None
 
+    @property
+    def streams(self) -> tuple[str, ...]:
+        """The topics that must reach the end marker's last stamp."""
+        return tuple(self._last)
+
     def seen(self, topic: str, stamp_ns: int) -> None:
         """Record a message of ``topic`` with header stamp ``stamp_ns``."""
         if topic in self._last:
@@ -373,166 +375,6 @@ class EndTracker:
         return (end is not None and all(last >= end.last_ns_of(topic)
                                         for topic, last in self._last.items())
                 and all(self._extra.values()))
-
-
-def merge_bag_metadata(parts: Sequence[dict]) -> dict:
-    """Merge the ``metadata.yaml`` contents of single-file rosbag2 bags into one bag.
-
-    Topics are matched by name; counts, file lists and the time span are combined.
-    """
-    if not parts:
-        msg = 'nothing to merge'
-        raise ValueError(msg)
-    infos = [p['rosbag2_bagfile_information'] for p in parts]
-    topics: dict[str, dict] = {}
-    files: list[dict] = []
-    start = min(i['starting_time']['nanoseconds_since_epoch'] for i in infos)
-    end = max(i['starting_time']['nanoseconds_since_epoch'] + i['duration']['nanoseconds']
-              for i in infos)
-    for info in infos:
-        for entry in info['topics_with_message_count']:
-            name = entry['topic_metadata']['name']
-            if name in topics:
-                topics[name]['message_count'] += entry['message_count']
-            else:
-                topics[name] = {'topic_metadata': dict(entry['topic_metadata']),
-                                'message_count': entry['message_count']}
-        files.extend(info['files'])
-    merged = dict(infos[-1])
-    merged.update({
-        'relative_file_paths': [f['path'] for f in files],
-        'files': files,
-        'duration': {'nanoseconds': max(0, end - start)},
-        'starting_time': {'nanoseconds_since_epoch': start},
-        'message_count': sum(i['message_count'] for i in infos),
-        'topics_with_message_count': list(topics.values()),
-    })
-    return {'rosbag2_bagfile_information': merged}
-
-
-class ChunkedBagWriter:
-    """A rosbag2 directory (MCAP storage) that stays readable if the writer is killed.
-
-    Messages are buffered; :meth:`flush` writes them as one complete, closed MCAP file
-    (``<bag>_<i>.mcap``, written by rosbags into a scratch directory, then renamed into the
-    bag) and atomically replaces ``metadata.yaml`` with one that lists every flushed file.
-    A crash (even SIGKILL) loses at most the messages buffered since the last flush.
-
-    Parameters
-    ----------
-    path
-        Bag directory to create; must not exist.
-    typestore
-        rosbags typestore for the message definitions.
-    """
-
-    def __init__(self, path: str | Path, *, typestore) -> None:
-        self.path = Path(path)
-        if self.path.exists():
-            msg = f'{self.path} exists already; choose a new output directory'
-            raise FileExistsError(msg)
-        self.path.mkdir(parents=True)
-        self._typestore = typestore
-        self._types: dict[str, str] = {}
-        self._buffer: list[tuple[str, int, bytes]] = []
-        self._parts: list[dict] = []
-        self._custom: dict[str, str] = {}
-        self.counts: dict[str, int] = {}
-        self.closed = False
-
-    @property
-    def buffered(self) -> int:
-        """Messages waiting for the next flush."""
-        return len(self._buffer)
-
-    @property
-    def files(self) -> int:
-        """Number of chunk files written."""
-        return len(self._parts)
-
-    def add_topic(self, topic: str, msgtype: str) -> None:
-        """Declare a topic and its message type (before writing to it)."""
-        self._types[topic] = msgtype
-
-    def write(self, topic: str, stamp_ns: int, data: bytes) -> None:
-        """Buffer one serialized (CDR) message logged at ``stamp_ns``."""
-        if topic not in self._types:
-            msg = f'topic {topic!r} was not declared with add_topic'
-            raise KeyError(msg)
-        self._buffer.append((topic, int(stamp_ns), data))
-
-    def set_custom_data(self, key: str, value: str) -> None:
-        """Store a string in the bag's metadata (written with the next flush)."""
-        self._custom[key] = value
-
-    def flush(self) -> int:
-        """Write the buffered messages as one chunk file; returns how many were written."""
-        if not self._buffer:
-            return 0
-        buffer, self._buffer = self._buffer, []
-        name = f'{self.path.name}_{len(self._parts)}'
-        scratch = self.path / f'.{name}.tmp'
-        if scratch.exists():
-            shutil.rmtree(scratch)
-        writer = Writer(scratch, version=9, storage_plugin=StoragePlugin.MCAP)
-        writer.open()
-        conns = {}
-        for topic in sorted({b[0] for b in buffer}):
-            conns[topic] = writer.add_connection(topic, self._types[topic],
-                                                 typestore=self._typestore)
-        for key, value in self._custom.items():
-            writer.set_custom_data(key, value)
-        for topic, stamp, data in buffer:
-            writer.write(conns[topic], stamp, data)
-            self.counts[topic] = self.counts.get(topic, 0) + 1
-        writer.close()
-        (scratch / f'.{name}.tmp.mcap').replace(self.path / f'{name}.mcap')
-        part = yaml.safe_load((scratch / 'metadata.yaml').read_text())
-        info = part['rosbag2_bagfile_information']
-        info['relative_file_paths'] = [f'{name}.mcap']
-        for f in info['files']:
-            f['path'] = f'{name}.mcap'
-        shutil.rmtree(scratch)
-        self._parts.append(part)
-        self._write_metadata()
-        return len(buffer)
-
-    def _write_metadata(self) -> None:
-        merged = merge_bag_metadata(self._parts)
-        if self._custom:
-            merged['rosbag2_bagfile_information']['custom_data'] = dict(self._custom)
-        tmp = self.path / 'metadata.yaml.tmp'
-        with open(tmp, 'w', encoding='utf8') as fh:
-            yaml.safe_dump(merged, fh, default_flow_style=False)
-            fh.flush()
-            os.fsync(fh.fileno())
-        tmp.replace(self.path / 'metadata.yaml')
-
-    def close(self) -> None:
-        """Flush what is left; an empty recording still gets a valid (empty) bag."""
-        if self.closed:
-            return
-        self.flush()
-        if not self._parts:
-            # An empty bag: write a single empty chunk so that readers accept the directory.
-            writer = Writer(self.path / '.empty.tmp', version=9,
-                            storage_plugin=StoragePlugin.MCAP)
-            writer.open()
-            for topic, msgtype in self._types.items():
-                writer.add_connection(topic, msgtype, typestore=self._typestore)
-            writer.close()
-            name = f'{self.path.name}_0'
-            (self.path / '.empty.tmp' / '.empty.tmp.mcap').replace(self.path / f'{name}.mcap')
-            part = yaml.safe_load((self.path / '.empty.tmp' / 'metadata.yaml').read_text())
-            info = part['rosbag2_bagfile_information']
-            info['relative_file_paths'] = [f'{name}.mcap']
-            info['starting_time'] = {'nanoseconds_since_epoch': 0}
-            for f in info['files']:
-                f['path'] = f'{name}.mcap'
-            shutil.rmtree(self.path / '.empty.tmp')
-            self._parts.append(part)
-            self._write_metadata()
-        self.closed = True
 
 
 def latency_stats(latencies_s: Sequence[float]) -> dict[str, float]:
@@ -563,3 +405,23 @@ def read_raw(path: str | Path, topics: Sequence[str]) -> list[tuple[str, int, by
         out = [(c.topic, int(t), bytes(raw)) for c, t, raw in reader.messages(connections=conns)]
     out.sort(key=lambda m: m[1])
     return out
+
+
+def recording_gaps(path: str | Path, streams: Sequence[str] = (
+        '/setpoints', '/axis_state', '/power')) -> list[str]:
+    """What a graph recording lacks against its own end-of-program marker (empty: complete).
+
+    The marker (``/program/end``) says how many batches each stream sent and the last stamp;
+    a recorder stopped before the end (a signal to it alone) leaves a bag that reads well but
+    holds fewer. Used by ``feed-axis-energy launch`` before it reports success.
+    """
+    from .bagio import bag_topics, DIAGNOSTIC_ARRAY, typestore
+    # Counts from the metadata and only the marker read: bounded memory for any length.
+    counts = {topic: n for topic, (_, n) in bag_topics(path).items()}
+    if not counts.get('/program/end'):
+        return ['no /program/end marker: the recording stopped before the program ended']
+    ends = [cdr for _, _, cdr in read_raw(path, ['/program/end'])]
+    msg = typestore().deserialize_cdr(ends[-1], DIAGNOSTIC_ARRAY)
+    end = ProgramEnd.from_pairs((kv.key, kv.value) for st in msg.status for kv in st.values)
+    return [f'{stream}: {counts.get(stream, 0)} of {end.batches} batches'
+            for stream in streams if counts.get(stream, 0) != end.batches]

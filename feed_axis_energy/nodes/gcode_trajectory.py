@@ -179,12 +179,17 @@ class GcodeTrajectory(LifecycleNode):
         self._pump()
 
     def _graph_matched(self) -> bool:
+        # With a recorder, axis_state and power each need its subscription too: streams are
+        # volatile, so a batch sent before the recorder's reader is known would never be
+        # recorded and the recorder's ack would wait for it forever (seen once in 14 runs).
         need = 2 if self.ack_recorder else 1
         if self.pub_setpoints.get_subscription_count() < need:
             return False
         if self.sub_power.get_publisher_count() < 1:
             return False
-        if self.count_subscribers(self.resolve_topic_name('axis_state')) < 1:
+        if self.count_subscribers(self.resolve_topic_name('axis_state')) < need:
+            return False
+        if self.count_subscribers(self.resolve_topic_name('power')) < need:
             return False
         if self.ack_recorder and self.sub_progress.get_publisher_count() < 1:
             return False

@@ -5,9 +5,11 @@ time), never the receive time. The subscriptions are not handed to the executor:
 (called by :func:`runner.run` between executor turns) waits on an rclpy wait set and drains
 every ready subscription with repeated ``take_message`` calls, so a message costs one take
 and one list append instead of an executor dispatch and a Python callback. Messages are
-flushed as complete MCAP chunk files with a refreshed ``metadata.yaml``
-(:class:`core.graph.ChunkedBagWriter`), so SIGKILL leaves a readable bag holding everything up
-to the last flush. Topics are stored under their logical
+flushed as complete MCAP files with a refreshed ``metadata.yaml``
+(:class:`core.graph_bag.ChunkedBagWriter`; the bag is readable from start-up) after
+``chunk_messages`` messages and once ``chunk_period_s`` has passed (checked on every poll), so
+SIGKILL loses only what was taken in the last ``chunk_period_s`` + 0.1 s, fewer than
+``chunk_messages`` + ``ack_every`` messages (docs/nodes.md). Topics are stored under their logical
 name (``/setpoints`` ...), whatever namespace or remapping the node runs with, so the bag reads
 like an offline ``simulate --out`` recording.
 
@@ -66,7 +68,7 @@ class McapRecorder(Node):
         topics = declare(self, 'topics', DEFAULT_TOPICS, 'logical topics to record')
         self.chunk_period_s = declare(self, 'chunk_period_s', 1.0,
                                       'flush a chunk file at least this often [s]')
-        self.chunk_messages = declare(self, 'chunk_messages', 5000,
+        self.chunk_messages = declare(self, 'chunk_messages', 1000,
                                       'flush a chunk file after this many messages')
         self.exit_at_end = declare(self, 'exit_at_end', False,
                                    'close the bag and exit (code 0) when the program has '
@@ -89,33 +91,50 @@ class McapRecorder(Node):
             raise StartupError('chunk_period_s must be > 0 and chunk_messages >= 1')
         if self.ack_every < 1 or self.ack_period_s <= 0:
             raise StartupError('ack_every must be >= 1 and ack_period_s > 0')
-        self.bag = ChunkedBagWriter(out, typestore=bagio.typestore())
         self.tracker = EndTracker([t for t in end_streams if t in topics],
                                   [t for t in end_extra if t in topics])
-        self.pub_progress = self.create_publisher(Header, 'recorder/progress', stream_qos())
-        self.pub_streams = self.create_publisher(Header, 'recorder/stream_progress',
-                                                 stream_qos())
+        # The ack publishers appear only once every end stream has a matched publisher
+        # (:meth:`_announce`): producers start when they see them, so no batch goes out before
+        # the recorder can receive it (streams are volatile; a batch lost at start-up would
+        # hold the recorder's ack back for good).
+        self.pub_progress = None
+        self.pub_streams = None
         self._rx: list[tuple[tuple[str, str], bytes]] = []
         self._newest: dict[str, int] = {}
         self._acked: dict[str, int] = {}
         self._acked_all = -1
         self._streams = {t for t in topics if not KNOWN_TOPICS[t][2] and t != '/clock'}
         self.received = 0
-        self._closing = False
+        self._end_pending = False
         # (handle, message class, (logical topic, bag topic)) of each serialized subscription
         self._subs: list[tuple[object, type, tuple[str, str]]] = []
         for topic in topics:
             cls, msgtype, latched = KNOWN_TOPICS[topic]
             name = topic if topic.startswith('/') else '/' + topic
-            self.bag.add_topic(name, msgtype)
             qos = latched_qos() if latched else (clock_qos() if topic == '/clock'
                                                  else stream_qos())
             self._subs.append((self._raw_subscription(cls, topic, qos), cls, (topic, name)))
         self._waitset = _rclpy.WaitSet(len(self._subs), 0, 0, 0, 0, 0, self.context.handle)
+        # Created last (nothing left behind if a step above fails); from here on the
+        # directory holds a readable bag at every moment.
+        self.bag = ChunkedBagWriter(out, typestore=bagio.typestore(), topics={
+            name: KNOWN_TOPICS[topic][1] for _, _, (topic, name) in self._subs})
         self._last_flush = time.monotonic()
         self._last_ack = time.monotonic()
+        self._announce()
         steady_timer(self, min(self.chunk_period_s, 0.2), self._on_timer)
         self.get_logger().info(f'recording {", ".join(topics)} to {out}')
+
+    def _announce(self) -> None:
+        """Create the ack publishers once every end stream has a matched publisher."""
+        if self.pub_progress is not None:
+            return
+        for handle, _, (topic, _) in self._subs:
+            if topic in self.tracker.streams and handle.get_publisher_count() < 1:
+                return
+        self.pub_progress = self.create_publisher(Header, 'recorder/progress', stream_qos())
+        self.pub_streams = self.create_publisher(Header, 'recorder/stream_progress',
+                                                 stream_qos())
 
     def _raw_subscription(self, cls: type, topic: str, qos):
         """An rcl subscription the executor does not know about (only :meth:`poll` takes)."""
@@ -128,16 +147,27 @@ class McapRecorder(Node):
 
         Every ready subscription is drained until its queue is empty (take returns ``None``);
         then what arrived is written and acknowledged (:meth:`_drain`) once per ``ack_every``
-        messages taken, and at least every ``ack_period_s``.
+        messages taken, and at least every ``ack_period_s``. Closing at the end of the
+        program happens here, after the take loop, never inside it: the loop must not take
+        from a subscription that the close has destroyed.
         """
-        if self.bag.closed:
+        if not self._subs:
             time.sleep(min(timeout_s, self.ack_period_s))
             return
+        self._take(min(timeout_s, self.ack_period_s))
+        if self._rx and time.monotonic() - self._last_ack >= self.ack_period_s:
+            self._drain()
+        self._flush_if_due()
+        if self._end_pending:
+            self._finish()
+
+    def _take(self, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` on the wait set, then take every ready queue empty."""
         ws = self._waitset
         ws.clear_entities()
         for handle, _, _ in self._subs:
             ws.add_subscription(handle)
-        ws.wait(int(min(timeout_s, self.ack_period_s) * 1e9))
+        ws.wait(int(timeout_s * 1e9))
         ready = ws.get_ready_entities('subscription')   # handle pointers
         rx = self._rx
         every = self.ack_every
@@ -151,10 +181,8 @@ class McapRecorder(Node):
                     break
                 rx.append((key, got[0]))
                 if len(rx) >= every:
-                    self._drain()
+                    self._drain()   # never closes (see poll)
                     rx = self._rx
-        if rx and time.monotonic() - self._last_ack >= self.ack_period_s:
-            self._drain()
 
     def _drain(self) -> None:
         """Write what arrived into the bag buffer, then acknowledge it on recorder/progress."""
@@ -181,11 +209,15 @@ class McapRecorder(Node):
         self._last_ack = time.monotonic()
         if self.bag.buffered >= self.chunk_messages:
             self._flush()
+        else:
+            self._flush_if_due()   # also inside a long take loop: the bound holds there too
         self._check_end()
 
     def _publish_acks(self) -> None:
         # Also called by the slow timer: an ack skipped while its subscriber was still being
         # discovered goes out then, even if no further message arrives.
+        if self.pub_progress is None:
+            return
         newest = self._newest
         per_stream = self.pub_streams.get_subscription_count() > 0
         for topic, stamp in newest.items():
@@ -209,31 +241,44 @@ class McapRecorder(Node):
         self.bag.flush()
         self._last_flush = time.monotonic()
 
-    def _on_timer(self) -> None:
-        self._drain()
-        self._publish_acks()
+    def _flush_if_due(self) -> None:
         if time.monotonic() - self._last_flush >= self.chunk_period_s:
             self._flush()
-        self._check_end()
+
+    def _on_timer(self) -> None:
+        # Runs from the executor, outside the take loop: closing here is safe.
+        if not self._subs:
+            return
+        self._announce()
+        self._drain()
+        self._publish_acks()
+        self._flush_if_due()
+        if self._end_pending:
+            self._finish()
 
     def _check_end(self) -> None:
+        """Note that the program has ended; the close follows outside the take loop."""
         if self.exit_at_end and self.tracker.done and self.exit_code is None:
-            self.close()
-            self.exit_code = 0
+            self._end_pending = True
+
+    def _finish(self) -> None:
+        self._end_pending = False
+        self.close()
+        self.exit_code = 0
 
     def close(self) -> None:
-        """Flush the last chunk and finish the bag (idempotent)."""
-        if self.bag.closed or self._closing:
+        """Take what is still queued in DDS, write the last chunk, finish the bag (idempotent)."""
+        if not self._subs:
             return
-        self._closing = True
-        self.poll(0.0)   # what is still queued in DDS
+        self._take(0.0)
         self._drain()
-        if self.bag.closed:   # _drain reached the end and closed the bag already
-            return
-        self.bag.close()
-        for handle, _, _ in self._subs:
-            handle.destroy_when_not_in_use()
-        self._subs = []
+        subs, self._subs = self._subs, []
+        self._waitset.clear_entities()
+        try:
+            self.bag.close()
+        finally:
+            for handle, _, _ in subs:
+                handle.destroy_when_not_in_use()
         counts = ', '.join(f'{t} {n}' for t, n in sorted(self.bag.counts.items()))
         self.get_logger().info(f'closed {self.bag.path}: {counts or "no messages"}')
 

@@ -1,8 +1,14 @@
 """QoS profiles of the graph (see docs/nodes.md).
 
 * Streams (``setpoints``, ``axis_state``, ``power``, ``measured/*``, acknowledgements):
-  reliable, keep last ``depth``, volatile. No sample is lost because the producer never has
-  more than ``flow_window`` batches in flight (< ``depth``), see :class:`core.graph.FlowWindow`.
+  reliable, keep last ``depth``, transient local. No sample is lost because the producer never
+  has more than ``flow_window`` batches in flight (< ``depth``), see
+  :class:`core.graph.FlowWindow`. Transient local because discovery is not symmetric: a reader
+  can see its writer matched while the writer has not matched the reader yet, and a batch
+  sent in between was never delivered to a volatile reader (the recorder then waited for it
+  forever, 1 of 40 fast runs); the writer's history (at most ``flow_window`` unacknowledged
+  batches at start) now reaches a reader that matches late. Volatile readers (tools) still
+  match these writers.
 * Data published once (``block_energy``, ``program/lines``, ``program/end``): reliable,
   keep last 1, transient local, so a late subscriber (a recorder started afterwards) gets it.
 * ``/clock``: reliable, keep last 1, volatile (only the newest time matters).
@@ -17,10 +23,10 @@ STREAM_DEPTH = 100
 
 
 def stream_qos(depth: int = STREAM_DEPTH) -> QoSProfile:
-    """Reliable, keep-last ``depth``, volatile: for batched time series."""
+    """Reliable, keep-last ``depth``, transient local: for batched time series."""
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
                       reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.VOLATILE)
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def latched_qos(depth: int = 1) -> QoSProfile:

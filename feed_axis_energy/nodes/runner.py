@@ -6,11 +6,14 @@ traceback. A node asks to stop by setting ``exit_code``. A node with a ``poll(ti
 method takes its own messages (``mcap_recorder``): the loop alternates ``poll`` and one
 non-blocking executor turn. SIGINT/SIGTERM set a flag (no exception in the middle of a bag
 flush) and shut down cleanly (exit 0) after the node's ``close()`` (the recorder flushes its
-bag there).
+bag there). A node started by ``feed-axis-energy launch`` (environment variable
+``FAE_PARENT_PID``) gets SIGTERM when the launcher dies, even by SIGKILL
+(:mod:`feed_axis_energy.lifeline`), and shuts down the same way.
 """
 from __future__ import annotations
 
 import inspect
+import os
 import signal
 import sys
 from typing import Callable
@@ -21,6 +24,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 from rcl_interfaces.msg import ParameterDescriptor
 
+from feed_axis_energy import lifeline
 from feed_axis_energy.core.errors import FeedAxisError
 from feed_axis_energy.paths import config_dir
 
@@ -30,6 +34,9 @@ __all__ = ['StartupError', 'run', 'make_executor', 'declare', 'steady_timer', 'S
 class StartupError(RuntimeError):
     """A node cannot start (bad parameter, missing file); the message says what and where."""
 
+
+# Longest wait of one spin turn: how late a stop request (signal, parent death) is seen.
+_TURN_S = 0.05
 
 STARTUP_ERRORS = (StartupError, FeedAxisError, OSError, ParameterException, KeyError)
 
@@ -94,17 +101,32 @@ def run(factory: Callable[[], object], args: list[str] | None, *, name: str) -> 
     if '-h' in own or '--help' in own:
         print(node_help(factory, name=name))
         return 0
-    # SIGINT/SIGTERM only set a flag that the spin loop checks (every <= 0.2 s): an exception
+    # SIGINT/SIGTERM only set a flag that the spin loop checks (every <= 0.05 s): an exception
     # raised wherever the signal lands (e.g. in the middle of a bag flush) could lose data.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop: list[int] = []
     previous = {sig: signal.signal(sig, lambda signum, frame: stop.append(signum))
                 for sig in (signal.SIGINT, signal.SIGTERM)}
+    if lifeline.arm_from_env() is False:
+        # The launcher died before this node armed its parent-death signal: do not run on
+        # as an orphan (the node still starts and closes, so a recorder leaves a valid bag).
+        stop.append(signal.SIGTERM)
     try:
-        return _spin(factory, name=name, stop=stop)
+        code = _spin(factory, name=name, stop=stop)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+    if lifeline.parent_gone():
+        # The launcher died (parent-death signal): the bag is closed and rclpy shut down;
+        # skip the interpreter's teardown (a second or more on a busy machine) so that no
+        # node outlives the launcher by more than moments. Nobody reads our output now.
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(code)
+    return code
 
 
 def _spin(factory: Callable[[], object], *, name: str, stop: list[int]) -> int:
@@ -122,11 +144,11 @@ def _spin(factory: Callable[[], object], *, name: str, stop: list[int]) -> int:
     try:
         while code is None and rclpy.ok() and not stop:
             if poll is None:
-                executor.spin_once(timeout_sec=0.2)
+                executor.spin_once(timeout_sec=_TURN_S)
             else:
                 # The node takes its own messages in poll (which waits at most a few ms);
                 # the executor only runs timers, services and the rest in between.
-                poll(0.2)
+                poll(_TURN_S)
                 executor.spin_once(timeout_sec=0.0)
             code = getattr(node, 'exit_code', None)
     except (KeyboardInterrupt, ExternalShutdownException):

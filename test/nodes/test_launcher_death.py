@@ -1,0 +1,175 @@
+"""The nodes die with the launcher, even when the launcher is killed with SIGKILL."""
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+pytest.importorskip('rclpy')
+
+from feed_axis_energy import lifeline  # noqa: E402
+from feed_axis_energy.core import bagio  # noqa: E402
+
+PY = sys.executable
+
+
+def _children(pid):
+    """``[(pid, cmdline)]`` of the processes whose parent is ``pid``."""
+    kids = []
+    for entry in Path('/proc').iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / 'stat').read_text()
+                cmd = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
+            except OSError:
+                continue
+            if int(stat.rsplit(')', 1)[1].split()[1]) == pid:
+                kids.append((int(entry.name), cmd))
+    return kids
+
+
+def _alive(pid):
+    """Running (a zombie waiting for its new parent to reap it counts as dead)."""
+    try:
+        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != 'Z'
+
+
+def _start_launcher(tmp_path, node_env, domain_id, *, record):
+    prog = tmp_path / 'long.nc'
+    prog.write_text('G21 G90 G94 G61\nG0 X0\nG1 X300 F600\n')   # 30 s in real time
+    cmd = [PY, '-m', 'feed_axis_energy', 'launch', '--program', str(prog), '--mode',
+           'realtime', '--domain-id', str(domain_id), '--timeout', '60']
+    if record is not None:
+        cmd += ['--record', str(record)]
+    launcher = subprocess.Popen(cmd, env=node_env, stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True)
+    streaming = threading.Event()
+
+    def _read():
+        for line in launcher.stdout:
+            if 'streaming starts' in line:
+                streaming.set()
+    threading.Thread(target=_read, daemon=True).start()
+    want = 4 if record is not None else 3
+    deadline = time.monotonic() + 30
+    kids = []
+    while time.monotonic() < deadline:
+        kids = [k for k in _children(launcher.pid) if 'feed_axis_energy.nodes.' in k[1]]
+        if len(kids) == want:
+            break
+        time.sleep(0.1)
+    return launcher, kids, want, streaming
+
+
+@pytest.mark.parametrize('sig', [signal.SIGKILL, signal.SIGTERM])
+def test_no_node_survives_the_launcher_by_2_s(tmp_path, node_env, domain_id, sig):
+    bag = tmp_path / 'rec'
+    launcher, kids, want, streaming = _start_launcher(tmp_path, node_env, domain_id,
+                                                      record=bag)
+    try:
+        assert len(kids) == want, kids
+        assert streaming.wait(timeout=30)
+        time.sleep(1.5)   # 0.5 s start delay, then about a second of streaming
+        os.kill(launcher.pid, sig)
+        t_kill = time.monotonic()
+        launcher.wait(timeout=10)
+        while any(_alive(pid) for pid, _ in kids) and time.monotonic() - t_kill < 2.0:
+            time.sleep(0.05)
+        survivors = [cmd for pid, cmd in kids if _alive(pid)]
+    finally:
+        launcher.kill()
+        for pid, _ in kids:   # never leave a node running, even when the test fails
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+    assert survivors == [], f'alive 2 s after {sig.name} of the launcher: {survivors}'
+    # The recorder got SIGTERM and closed its bag: it is complete and readable.
+    power = bagio.read_series(bag, bagio.TOPIC_POWER)
+    assert power.t.shape[0] >= 100
+
+
+def test_preexec_child_gets_sigterm_when_its_parent_dies(tmp_path):
+    """The parent-death signal alone (no process group): a middle process killed by SIGKILL."""
+    pid_file = tmp_path / 'grandchild.pid'
+    middle = subprocess.Popen([PY, '-c', (
+        'import os, subprocess, sys, time\n'
+        'from feed_axis_energy import lifeline\n'
+        f'p = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"],\n'
+        '                      preexec_fn=lifeline.preexec(os.getpid()))\n'
+        f'open({str(pid_file)!r}, "w").write(str(p.pid))\n'
+        'time.sleep(60)\n')], env={**os.environ, 'PYTHONPATH': str(Path(
+            __file__).resolve().parents[2])})
+    try:
+        deadline = time.monotonic() + 20
+        while not pid_file.exists() or not pid_file.read_text():
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        grandchild = int(pid_file.read_text())
+        assert _alive(grandchild)
+        middle.kill()
+        middle.wait()
+        deadline = time.monotonic() + 2.0
+        while _alive(grandchild) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert not _alive(grandchild)
+    finally:
+        middle.kill()
+
+
+def test_arm_from_env(monkeypatch):
+    monkeypatch.delenv(lifeline.ENV, raising=False)
+    assert lifeline.arm_from_env(sig=0) is None   # not started by the launcher: not armed
+    monkeypatch.setenv(lifeline.ENV, str(os.getppid()))
+    assert lifeline.arm_from_env(sig=0) is True
+    monkeypatch.setenv(lifeline.ENV, str(os.getpid()))   # not our parent: it has gone
+    assert lifeline.arm_from_env(sig=0) is False
+
+
+def test_recorder_stopped_alone_fails_the_launch_before_the_stall_timeout(
+        tmp_path, node_env, domain_id):
+    """SIGTERM of the recorder only: it closes its bag and exits 0, the launcher exits 1.
+
+    Without the finisher grace rule the launcher waited for gcode_trajectory's 30 s stall
+    timeout (the recorder's acks never come again).
+    """
+    bag = tmp_path / 'rec'
+    launcher, kids, want, streaming = _start_launcher(tmp_path, node_env, domain_id,
+                                                      record=bag)
+    try:
+        assert len(kids) == want, kids
+        assert streaming.wait(timeout=30)
+        time.sleep(1.5)
+        rec = next(pid for pid, cmd in kids if 'nodes.mcap_recorder' in cmd)
+        os.kill(rec, signal.SIGTERM)
+        t_kill = time.monotonic()
+        code = launcher.wait(timeout=40)
+        took = time.monotonic() - t_kill
+    finally:
+        launcher.kill()
+        for pid, _ in kids:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+    assert code == 1
+    assert took < 25.0   # grace 10 s + the stop; the stall timeout alone is 30 s
+    assert bagio.read_series(bag, bagio.TOPIC_POWER).t.shape[0] >= 100
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_stop_while_importing_is_quiet(tmp_path, node_env, sig):
+    """A launcher-started node stopped during its imports: no traceback, code 128 + signal."""
+    env = {**node_env, lifeline.ENV: str(os.getpid())}
+    proc = subprocess.Popen([PY, '-m', 'feed_axis_energy.nodes.mcap_recorder', '--ros-args',
+                             '-p', f'output:={tmp_path / "rec"}'], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    time.sleep(0.3)   # rclpy, numpy and rosbags take longer than this to import
+    proc.send_signal(sig)
+    out, _ = proc.communicate(timeout=30)
+    assert 'Traceback' not in out, out
+    assert proc.returncode == 128 + sig
+    assert not (tmp_path / 'rec').exists()

@@ -1,0 +1,116 @@
+"""mcap_recorder in-process: reaching the end in the middle of a take loop closes cleanly."""
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+from rclpy.context import Context  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+
+from feed_axis_energy.core import bagio  # noqa: E402
+from feed_axis_energy.core.graph import ProgramEnd  # noqa: E402
+from feed_axis_energy.nodes import convert  # noqa: E402
+from feed_axis_energy.nodes.mcap_recorder import McapRecorder  # noqa: E402
+from feed_axis_energy.nodes.qos import latched_qos, stream_qos  # noqa: E402
+
+
+@pytest.fixture
+def context(domain_id):
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    yield ctx
+    rclpy.shutdown(context=ctx)
+
+
+def _batches(n_batches, batch=10):
+    out = []
+    for i in range(n_batches):
+        t = (i * batch + np.arange(batch)) * 1e-3
+        s = bagio.Series(t=t, names=('X', 'total'), positions=np.ones((batch, 2)),
+                         velocities=np.ones((batch, 2)))
+        out += convert.series_to_cdr(s, batch=batch)
+    return out
+
+
+@pytest.mark.parametrize('ack_every', [1, 3])
+def test_end_reached_inside_the_take_loop(context, tmp_path, ack_every):
+    """The end completes while more messages wait in the queue: no take on a closed handle.
+
+    Before the fix, ``_drain`` closed the bag and destroyed the subscriptions from inside the
+    take loop, and the next ``take`` raised ``RCLError: subscription pointer is invalid``.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+    from trajectory_msgs.msg import JointTrajectory
+    bag = tmp_path / 'rec'
+    rec = McapRecorder(context=context, parameter_overrides=[
+        Parameter('output', value=str(bag)),
+        Parameter('topics', value=['power', 'block_energy', 'program/end']),
+        Parameter('end_streams', value=['power']), Parameter('exit_at_end', value=True),
+        Parameter('ack_every', value=ack_every)])
+    writer = rclpy.create_node('writer', context=context)
+    try:
+        pub = writer.create_publisher(JointTrajectory, 'power', stream_qos())
+        pub_end = writer.create_publisher(DiagnosticArray, 'program/end', latched_qos())
+        pub_blocks = writer.create_publisher(DiagnosticArray, 'block_energy', latched_qos())
+        deadline = time.monotonic() + 20
+        while (pub.get_subscription_count() < 1 or pub_end.get_subscription_count() < 1
+               or pub_blocks.get_subscription_count() < 1) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        batches = _batches(30)
+        # The end marker names batch 9 as the last one: batches 10.. are still queued when
+        # the recorder sees the end complete.
+        end = ProgramEnd('p.nc', 100, 10, batches[0][0], batches[9][0])
+        pub_end.publish(convert.program_end_msg(end))
+        pub_blocks.publish(convert.block_energy_msg([(1, 1.0, 0.1)], stamp_ns=batches[9][0]))
+        time.sleep(0.3)
+        rec.poll(0.1)   # takes the latched marker and block energies first
+        for _, cdr in batches:
+            pub.publish(cdr)
+        time.sleep(0.5)   # everything sits in the recorder's DDS queue
+        rec.poll(0.1)
+        assert rec.exit_code == 0
+        rec.poll(0.01)   # after the close: nothing to take, no error
+        rec.close()
+    finally:
+        writer.destroy_node()
+        rec.destroy_node()
+    got = bagio.read_series(bag, bagio.TOPIC_POWER)
+    assert got.t.shape[0] >= 100   # at least the ten batches up to the end
+
+
+def test_flush_is_due_by_wall_time_without_the_timer(context, tmp_path):
+    """The take loop itself flushes once ``chunk_period_s`` has passed (no 0.2 s timer lag).
+
+    Only ``poll`` runs here (no executor, so no timer): the message must reach the bag
+    within ``chunk_period_s`` plus a few polls.
+    """
+    from trajectory_msgs.msg import JointTrajectory
+    bag = tmp_path / 'rec'
+    rec = McapRecorder(context=context, parameter_overrides=[
+        Parameter('output', value=str(bag)), Parameter('topics', value=['power']),
+        Parameter('chunk_period_s', value=0.3)])
+    writer = rclpy.create_node('writer', context=context)
+    try:
+        assert read_count(bag) == 0   # readable from the start
+        pub = writer.create_publisher(JointTrajectory, 'power', stream_qos())
+        deadline = time.monotonic() + 20
+        while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        rec.poll(0.01)
+        rec._flush()   # start the period now
+        ((_, cdr),) = _batches(1)
+        pub.publish(cdr)
+        t_pub = time.monotonic()
+        while read_count(bag) == 0 and time.monotonic() - t_pub < 2.0:
+            rec.poll(0.005)
+        assert read_count(bag) == 1
+        assert time.monotonic() - t_pub < 0.3 + 0.1
+    finally:
+        writer.destroy_node()
+        rec.close()
+        rec.destroy_node()
+
+
+def read_count(bag):
+    return sum(n for _, n in bagio.bag_topics(bag).values())
