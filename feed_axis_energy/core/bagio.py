@@ -325,7 +325,10 @@ def bag_topics(path: str | Path) -> dict[str, tuple[str, int]]:
         Not a bag, or a bag whose metadata or storage cannot be read.
     """
     with _open_reader(path) as reader:
-        return {c.topic: (c.msgtype, max(int(c.msgcount), 0)) for c in reader.connections}
+        # the counts come from metadata.yaml as written: a damaged one may hold any text
+        with guard(Path(path), doing='read the message counts of metadata.yaml'):
+            return {c.topic: (c.msgtype, max(int(c.msgcount), 0))
+                    for c in reader.connections}
 
 
 def _connections(reader: Reader, path: Path, topics: Sequence[str], *,

@@ -58,6 +58,18 @@ def test_missing_topic_and_non_bag_are_clear_errors(tmp_path: Path) -> None:
         bagio.read_series(tmp_path / 'bag', bagio.TOPIC_SETPOINTS)
 
 
+def test_text_as_message_count_in_metadata_is_a_clear_error(tmp_path: Path) -> None:
+    # found by test_hostile_properties: a ValueError of int() escaped bag_topics
+    with bagio.BagWriter(tmp_path / 'bag') as writer:
+        writer.write_series(bagio.TOPIC_POWER, _series(5))
+    meta = tmp_path / 'bag' / 'metadata.yaml'
+    text = meta.read_text()
+    assert '  - message_count: 1\n' in text
+    meta.write_text(text.replace('  - message_count: 1\n', '  - message_count: x\n'))
+    with pytest.raises(DataError, match='message counts of metadata.yaml'):
+        bagio.bag_topics(tmp_path / 'bag')
+
+
 def test_mcap_file_is_readable_by_plain_mcap_reader(tmp_path: Path) -> None:
     from mcap.reader import make_reader
     with bagio.BagWriter(tmp_path / 'bag') as writer:
