@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 import subprocess
 import sys
+import threading
 
 import pytest
 
@@ -64,6 +65,22 @@ def test_serial_equals_two_processes(progs, capsys):
     assert [r['job'] for r in serial['results']] == [1, 2, 3, 4, 5, 6]
     assert [r['status'] for r in serial['results']] == ['ok'] * 4 + ['failed'] * 2
     assert len(serial['results'][0]['summary']['top_blocks']) == 2
+
+
+def test_two_processes_from_a_threaded_caller(progs, capsys):
+    # with another thread running the workers start from a fork server, not by fork
+    argv = ['batch', str(progs / 'demonstrator_f200.nc'), str(progs / 'demonstrator_f400.nc'),
+            '--rate-hz', '200', '--json', '--quiet']
+    _, serial = _json(capsys, argv)
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        rc, parallel = _json(capsys, argv + ['--jobs', '2'])
+    finally:
+        stop.set()
+        other.join()
+    assert rc == 0 and parallel == serial
 
 
 def test_dask_local_cluster_on_loopback_equals_serial(progs, capsys):

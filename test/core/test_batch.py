@@ -1,6 +1,7 @@
 """Campaign runner: jobs as plain data, results in job order whatever the executor."""
 import concurrent.futures as cf
 import math
+import multiprocessing
 import os
 from pathlib import Path
 import pickle
@@ -42,7 +43,9 @@ def _dicts(results):
 
 def test_serial_equals_process_pool_and_thread_pool(campaign):
     serial = run_batch(campaign)
-    with cf.ProcessPoolExecutor(max_workers=2) as pool:
+    # forkserver: pytest may run threads (a Dask cluster of another test) that fork would copy
+    ctx = multiprocessing.get_context('forkserver')
+    with cf.ProcessPoolExecutor(max_workers=2, mp_context=ctx) as pool:
         procs = run_batch(campaign, executor=pool)
     with cf.ThreadPoolExecutor(max_workers=3) as pool:
         threads = run_batch(campaign, executor=pool)
