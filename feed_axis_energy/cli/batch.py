@@ -55,15 +55,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         'batch', help=_HELP,
         description='Simulate every PROGRAM on every --machine at every --load-kg (or the '
-                    'campaign of a YAML file) as independent jobs, each one "simulate" run '
+                    'jobs of a --batch-file YAML) as independent jobs, each one "simulate" run '
                     'without a recording, and print one table (or --json, --csv). A job '
                     'that fails is a row with its error. Exit 0 when every job succeeded, '
                     '1 when a job failed or the input is bad, 2 on a usage error.')
     p.add_argument('programs', nargs='*', metavar='PROGRAM',
                    help='NC program files, quoted globs ("parts/*.nc") or directories (their '
                         '*.nc, *.ngc, *.gcode, *.tap, *.cnc files); *.csv: a trajectory')
-    p.add_argument('--campaign', type=Path, metavar='YAML',
-                   help='campaign file (programs, machines, loads_kg, rate_hz, profile; '
+    p.add_argument('--batch-file', type=Path, metavar='YAML',
+                   help='batch file (programs, machines, loads_kg, rate_hz, profile; '
                         'README "batch"); options given on the command line replace its values')
     p.add_argument('--machine', type=Path, metavar='YAML', action='append',
                    help='machine config; repeat for several machines (default: the paper\'s '
@@ -100,16 +100,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _jobs(args: argparse.Namespace) -> list:
-    """The campaign's jobs from the command line and the campaign file; checks machines."""
-    from feed_axis_energy.core.batchspec import expand_programs, load_campaign, make_jobs
+    """The campaign's jobs from the command line and the batch file; checks machines."""
+    from feed_axis_energy.core.batchspec import expand_programs, load_batch_file, make_jobs
     from feed_axis_energy.core.errors import ConfigError
     from feed_axis_energy.core.machine import load_machine
     from feed_axis_energy.paths import default_machine
-    if args.campaign is not None and args.programs:
-        msg = 'give programs either on the command line or in --campaign, not both'
-        raise ConfigError(msg, file='command line', key='campaign')
-    if args.campaign is None and not args.programs:
-        msg = 'no programs: name PROGRAM files, globs or directories, or a --campaign file'
+    if args.batch_file is not None and args.programs:
+        msg = 'give programs either on the command line or in --batch-file, not both'
+        raise ConfigError(msg, file='command line', key='batch-file')
+    if args.batch_file is None and not args.programs:
+        msg = 'no programs: name PROGRAM files, globs or directories, or a --batch-file'
         raise ConfigError(msg, file='command line', key='programs')
     if args.rate_hz is not None and not 0.0 < args.rate_hz <= 1.0e6:
         msg = f'--rate-hz must be > 0 and <= 1e6 Hz, got {args.rate_hz}'
@@ -117,8 +117,8 @@ def _jobs(args: argparse.Namespace) -> list:
     if not 0.0 < args.connect_timeout <= 3600.0:
         msg = f'--connect-timeout must be > 0 and <= 3600 s, got {args.connect_timeout}'
         raise ConfigError(msg, file='command line', key='connect-timeout')
-    if args.campaign is not None:
-        spec = load_campaign(args.campaign)
+    if args.batch_file is not None:
+        spec = load_batch_file(args.batch_file)
         programs, machines = list(spec.programs), list(spec.machines)
         loads, rate, profile = list(spec.loads_kg), spec.rate_hz, spec.profile
     else:

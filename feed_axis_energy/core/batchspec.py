@@ -27,7 +27,7 @@ from typing import Any
 from .batch import BatchJob, MAX_JOBS, PROFILES
 from .errors import ConfigError, describe, shorten
 
-__all__ = ['GCODE_SUFFIXES', 'CampaignSpec', 'expand_programs', 'make_jobs', 'load_campaign']
+__all__ = ['GCODE_SUFFIXES', 'BatchSpec', 'expand_programs', 'make_jobs', 'load_batch_file']
 
 GCODE_SUFFIXES = ('.nc', '.ngc', '.gcode', '.tap', '.cnc')
 """File name endings taken as programs when a directory is named (case-insensitive)."""
@@ -36,8 +36,8 @@ _KEYS = ('programs', 'machines', 'loads_kg', 'rate_hz', 'profile')
 
 
 @dataclass(frozen=True)
-class CampaignSpec:
-    """The inputs of a campaign file (shown names with their absolute paths).
+class BatchSpec:
+    """The inputs of a batch file (shown names with their absolute paths).
 
     Attributes
     ----------
@@ -74,9 +74,9 @@ def expand_programs(items: Iterable[str], *, base: Path | None = None,
     items
         As given; relative ones are relative to ``base`` (``None``: the working directory).
     base
-        Directory of relative names (a campaign file's directory).
+        Directory of relative names (a batch file's directory).
     where
-        Source of the names, for messages (``'command line'`` or the campaign file).
+        Source of the names, for messages (``'command line'`` or the batch file).
 
     Returns
     -------
@@ -195,8 +195,8 @@ def _number(value: Any, key: str, *, file: str, low: float, high: float,
     return float(value)
 
 
-def load_campaign(path: str | Path) -> CampaignSpec:
-    """Read a campaign file (format in the module docstring).
+def load_batch_file(path: str | Path) -> BatchSpec:
+    """Read a batch file (format in the module docstring).
 
     Parameters
     ----------
@@ -205,7 +205,7 @@ def load_campaign(path: str | Path) -> CampaignSpec:
 
     Returns
     -------
-    CampaignSpec
+    BatchSpec
         Programs expanded, paths made absolute (relative to the file's directory).
 
     Raises
@@ -216,7 +216,7 @@ def load_campaign(path: str | Path) -> CampaignSpec:
     """
     from .safeyaml import load_yaml_file
     file = str(path)
-    data = load_yaml_file(path, what='campaign file')
+    data = load_yaml_file(path, what='batch file')
     if not isinstance(data, dict):
         msg = f'expected a mapping with the key "programs", got {describe(data)}'
         raise ConfigError(msg, file=file)
@@ -249,5 +249,5 @@ def load_campaign(path: str | Path) -> CampaignSpec:
     if profile is not None and profile not in PROFILES:
         msg = f'expected one of {", ".join(PROFILES)}, got {describe(profile)}'
         raise ConfigError(msg, file=file, key='profile')
-    return CampaignSpec(programs=tuple(programs), machines=tuple(machines),
-                        loads_kg=tuple(loads), rate_hz=rate, profile=profile)
+    return BatchSpec(programs=tuple(programs), machines=tuple(machines),
+                     loads_kg=tuple(loads), rate_hz=rate, profile=profile)

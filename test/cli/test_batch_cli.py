@@ -50,7 +50,7 @@ def test_help():
     proc = _run('batch', '--help')
     assert proc.returncode == 0
     assert 'usage: feed-axis-energy batch' in proc.stdout
-    for option in ('--jobs', '--scheduler', '--campaign', '--csv', '--load-kg'):
+    for option in ('--jobs', '--scheduler', '--batch-file', '--csv', '--load-kg'):
         assert option in proc.stdout
 
 
@@ -121,18 +121,18 @@ def test_failed_job_row_and_exit_code(progs):
     assert '[batch] 3 jobs (1 failed)' in proc.stderr
 
 
-def test_all_ok_exits_zero_and_campaign_file(tmp_path):
+def test_all_ok_exits_zero_and_batch_file(tmp_path):
     (tmp_path / 'a.nc').write_text((PROGRAMS / 'demonstrator_f500.nc').read_text())
     camp = tmp_path / 'c.yaml'
     camp.write_text(f'programs: [a.nc]\nmachines: [{str(MILL)!r}]\nloads_kg: [0, 50]\n'
                     'rate_hz: 100\n')
-    proc = _run('batch', '--campaign', str(camp), '--json', '--quiet')
+    proc = _run('batch', '--batch-file', str(camp), '--json', '--quiet')
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     assert doc['failed'] == 0 and [r['load_kg'] for r in doc['results']] == [0.0, 50.0]
     assert doc['results'][0]['summary']['rate_hz'] == pytest.approx(100.0)
     # a command-line option replaces the file's value
-    proc = _run('batch', '--campaign', str(camp), '--load-kg', '7', '--json', '--quiet')
+    proc = _run('batch', '--batch-file', str(camp), '--load-kg', '7', '--json', '--quiet')
     assert [r['load_kg'] for r in json.loads(proc.stdout)['results']] == [7.0]
 
 
@@ -178,8 +178,8 @@ def test_csv_written_safely(progs, tmp_path, capsys):
     (['batch', 'config/programs/demonstrator_f100.nc', '--rate-hz', 'nan'], 1, '--rate-hz'),
     (['batch', 'config/programs/demonstrator_f100.nc', '--scheduler', 'inproc://x'], 1,
      'expected a scheduler address tcp://HOST:PORT'),
-    (['batch', 'config/programs/demonstrator_f100.nc', '--campaign', 'c.yaml'], 1,
-     'either on the command line or in --campaign'),
+    (['batch', 'config/programs/demonstrator_f100.nc', '--batch-file', 'c.yaml'], 1,
+     'either on the command line or in --batch-file'),
     (['batch', 'config/programs/demonstrator_f100.nc', '--load-kg', '1,abc'], 2,
      "expected masses [kg] separated by commas, got 'abc'"),
     (['batch', 'config/programs/demonstrator_f100.nc', '--load-kg', '-1'], 2, '0 to 1e6 kg'),

@@ -9,7 +9,7 @@ import pickle
 import pytest
 
 from feed_axis_energy.core.batch import BatchJob, JobResult, MAX_JOBS, run_batch, run_job
-from feed_axis_energy.core.batchspec import expand_programs, load_campaign, make_jobs
+from feed_axis_energy.core.batchspec import expand_programs, load_batch_file, make_jobs
 from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.gcode import load_gcode
 from feed_axis_energy.core.machine import load_machine
@@ -172,13 +172,13 @@ def test_expand_programs_files_globs_and_directories(tmp_path):
         expand_programs(['parts/sub'], base=tmp_path)
 
 
-def test_campaign_file(tmp_path):
+def test_batch_file(tmp_path):
     (tmp_path / 'progs').mkdir()
     (tmp_path / 'progs' / 'a.nc').write_text('G1 X1 F100\n')
     f = tmp_path / 'campaign.yaml'
     f.write_text('programs: [progs/*.nc]\nmachines: [m.yaml]\nloads_kg: [0, 17.336]\n'
                  'rate_hz: 250\nprofile: trapezoid\n')
-    spec = load_campaign(f)
+    spec = load_batch_file(f)
     assert spec.programs == (('progs/a.nc', str(tmp_path / 'progs' / 'a.nc')),)
     assert spec.machines == (('m.yaml', str(tmp_path / 'm.yaml')),)
     assert spec.loads_kg == (0.0, 17.336)
@@ -198,9 +198,9 @@ def test_campaign_file(tmp_path):
     ('programs: [nothing/*.nc]\n', 'no program file matches'),
     ('programs: [a.nc\n', 'YAML'),
 ])
-def test_bad_campaign_file_names_file_and_key(tmp_path, text, match):
+def test_bad_batch_file_names_file_and_key(tmp_path, text, match):
     f = tmp_path / 'c.yaml'
     f.write_text(text)
     with pytest.raises(ConfigError, match=match) as err:
-        load_campaign(f)
+        load_batch_file(f)
     assert str(f) in str(err.value)
