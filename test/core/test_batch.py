@@ -5,8 +5,12 @@ import multiprocessing
 import os
 from pathlib import Path
 import pickle
+import shutil
+import tempfile
 
+from hypothesis import given, settings, strategies as st
 import pytest
+import yaml
 
 from feed_axis_energy.core.batch import BatchJob, JobResult, MAX_JOBS, run_batch, run_job
 from feed_axis_energy.core.batchspec import expand_programs, load_batch_file, make_jobs
@@ -204,3 +208,31 @@ def test_bad_batch_file_names_file_and_key(tmp_path, text, match):
     with pytest.raises(ConfigError, match=match) as err:
         load_batch_file(f)
     assert str(f) in str(err.value)
+
+
+_VALUES = st.recursive(
+    st.none() | st.booleans() | st.integers(-10**30, 10**30)
+    | st.floats(allow_nan=True, allow_infinity=True) | st.text(max_size=20),
+    lambda inner: (st.lists(inner, max_size=4)
+                   | st.dictionaries(st.text(max_size=8), inner, max_size=4)),
+    max_leaves=10)
+
+
+@settings(derandomize=True, database=None, deadline=None, max_examples=150)
+@given(st.dictionaries(st.sampled_from(['programs', 'machines', 'loads_kg', 'rate_hz',
+                                        'profile', 'jobs']), _VALUES, max_size=5))
+def test_any_batch_file_is_a_spec_or_a_config_error(doc):
+    d = Path(tempfile.mkdtemp(prefix='fae-batch-'))
+    try:
+        f = d / 'b.yaml'
+        f.write_text(yaml.safe_dump(doc))
+        try:
+            spec = load_batch_file(f)
+        except ConfigError as err:
+            assert str(f) in str(err) and len(str(err)) < 400
+        else:
+            assert spec.programs and all(os.path.isabs(p) for _, p in spec.programs)
+            assert all(math.isfinite(x) and 0 <= x <= 1e6 for x in spec.loads_kg)
+            assert spec.rate_hz is None or 0 < spec.rate_hz <= 1e6
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
