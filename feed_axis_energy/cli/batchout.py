@@ -1,0 +1,155 @@
+"""Output of ``batch``: the text table, the CSV text and a safe CSV write.
+
+The CSV file is written to a hidden temporary sibling (``.<name>.tmp-<pid>``, created
+exclusively, never through a symbolic link), flushed, then linked into place (renamed with
+``--force``), so an existing file is never replaced without ``--force`` and nothing is left
+on failure.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import os
+from pathlib import Path
+
+from feed_axis_energy.cli.common import format_table
+from feed_axis_energy.core.batch import JobResult
+from feed_axis_energy.core.errors import ConfigError, shorten
+
+__all__ = ['print_table', 'csv_text', 'check_csv_target', 'write_text_atomic']
+
+
+def _axes(results: list[JobResult]) -> list[str]:
+    """Axis names of all successful jobs, in the order first seen."""
+    names: dict[str, None] = {}
+    for r in results:
+        if r.ok:
+            names.update((a, None) for a in r.summary['energy_j'] if a != 'total')
+    return list(names)
+
+
+def print_table(results: list[JobResult]) -> None:
+    """Print one row per job (errors listed below the table)."""
+    header = ['job', 'program', 'machine', 'load [kg]', 'duration [s]', 'samples',
+              'energy [J]', 'peak power [W]', 'loss energy [J]', 'status']
+    rows = []
+    for r in results:
+        job = r.job
+        cells = [str(job.index + 1), shorten(job.program), shorten(Path(job.machine).name),
+                 f'{job.load_kg:.3f}']
+        if r.ok:
+            s = r.summary
+            cells += [f'{s["duration_s"]:.3f}', str(s['samples']),
+                      f'{s["energy_j"]["total"]:.2f}', f'{s["peak_power_w"]["total"]:.1f}',
+                      f'{s["loss_energy_j"]:.2f}', 'ok']
+        else:
+            cells += ['-', '-', '-', '-', '-', 'failed']
+        rows.append(cells)
+    print(format_table(header, rows))
+    failed = [r for r in results if not r.ok]
+    if failed:
+        print()
+        print(f'{len(failed)} of {len(results)} jobs failed:')
+        for r in failed:
+            print(f'job {r.job.index + 1}: {r.error}')
+
+
+def csv_text(results: list[JobResult]) -> str:
+    """One CSV row per job: inputs, status, summary values (full precision) or the error."""
+    axes = _axes(results)
+    header = (['job', 'program', 'machine', 'load [kg]', 'status', 'duration [s]', 'samples',
+               'rate [Hz]', 'energy [J]', 'peak power [W]', 'loss energy [J]',
+               'braking energy [J]']
+              + [f'energy {a} [J]' for a in axes] + [f'peak power {a} [W]' for a in axes]
+              + ['machine name', 'error'])
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator='\n')
+    writer.writerow(header)
+    for r in results:
+        job = r.job
+        row = [job.index + 1, job.program, job.machine, repr(job.load_kg)]
+        if r.ok:
+            s = r.summary
+            row += ['ok', repr(s['duration_s']), s['samples'], repr(s['rate_hz']),
+                    repr(s['energy_j']['total']), repr(s['peak_power_w']['total']),
+                    repr(s['loss_energy_j']), repr(s['regenerated_energy_j'])]
+            row += [repr(s['energy_j'][a]) if a in s['energy_j'] else '' for a in axes]
+            row += [repr(s['peak_power_w'][a]) if a in s['peak_power_w'] else '' for a in axes]
+            row += [s['machine'], '']
+        else:
+            row += ['failed'] + [''] * (7 + 2 * len(axes)) + ['', r.error]
+        writer.writerow(row)
+    return buf.getvalue()
+
+
+def check_csv_target(path: Path, *, force: bool) -> None:
+    """Refuse a --csv target that is a link, a directory, exists (without force) or has no parent.
+
+    Raises
+    ------
+    ConfigError
+        Naming the option and the path.
+    """
+    shown = shorten(str(path))
+    if os.path.islink(path):
+        msg = f'{shown!r} is a symbolic link; not written through'
+        raise ConfigError(msg, file='command line', key='csv')
+    if os.path.lexists(path):
+        if os.path.isdir(path):
+            msg = f'{shown!r} is a directory; name a file'
+            raise ConfigError(msg, file='command line', key='csv')
+        if not force:
+            msg = f'{shown!r} exists already; choose a new name or add --force'
+            raise ConfigError(msg, file='command line', key='csv')
+    parent = Path(path).parent
+    if os.path.islink(parent) or not parent.is_dir():
+        msg = f'the directory of {shown!r} does not exist or is a symbolic link'
+        raise ConfigError(msg, file='command line', key='csv')
+
+
+def write_text_atomic(path: Path, text: str, *, force: bool = False) -> None:
+    """Write ``text`` (UTF-8) to ``path`` through a temporary sibling; nothing left on failure.
+
+    Parameters
+    ----------
+    path
+        The file.
+    text
+        Its contents.
+    force
+        Replace an existing file (never a symbolic link or a directory).
+
+    Raises
+    ------
+    ConfigError
+        As :func:`check_csv_target`, also when the file appeared while writing.
+    OSError
+        When the disk refuses (the temporary file is removed).
+    """
+    path = Path(path)
+    check_csv_target(path, force=force)
+    tmp = path.parent / f'.{path.name}.tmp-{os.getpid()}'
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, 'O_NOFOLLOW', 0)
+    fd = os.open(tmp, flags, 0o644)
+    try:
+        with os.fdopen(fd, 'w', encoding='utf-8', newline='') as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        check_csv_target(path, force=force)
+        if force:
+            os.replace(tmp, path)
+        else:
+            try:
+                # a hard link fails if the name appeared meanwhile: nothing is replaced
+                os.link(tmp, path, follow_symlinks=False)
+            except FileExistsError:
+                msg = f'{shorten(str(path))!r} appeared while writing; not replaced'
+                raise ConfigError(msg, file='command line', key='csv') from None
+            os.unlink(tmp)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
