@@ -9,7 +9,8 @@ from pathlib import Path
 import sys
 from typing import Any
 
-__all__ = ['add_parser', 'run', 'program_problems', 'warning_texts']
+__all__ = ['add_parser', 'run', 'program_problems', 'warning_texts', 'sanity_checker',
+           'checked_warning_texts']
 
 HELP = 'list the errors and warnings of NC programs on a machine (no simulation)'
 
@@ -158,16 +159,26 @@ def _with_text(problems: list[Any], path: Path) -> list[Any]:
 
 
 def warning_texts(path: Path, program: Any, machine: Any) -> list[str]:
-    """The parser's and the sanity checks' warnings of a parsed program, as text lines.
+    """The parser's and the sanity checks' warnings of a parsed program, as text lines."""
+    checker = sanity_checker(path, machine)
+    for move in program.moves:
+        checker.add(move)
+    return checked_warning_texts(path, program.warnings, checker)
 
-    Used by ``simulate`` for its ``warnings`` (JSON) and its stderr lines.
-    """
-    from feed_axis_energy.core.gcode_check import (check_moves, DEFAULT_MAX_DWELL_S,
-                                                   problems_from_warnings)
-    name = str(path)
-    problems = problems_from_warnings(program.warnings, file=name)
-    sanity, _ = check_moves(program.moves, file=name,
-                            limits=_limits(machine, DEFAULT_MAX_DWELL_S))
+
+def sanity_checker(path: Path, machine: Any) -> Any:
+    """A :class:`~feed_axis_energy.core.gcode_check.MoveChecker` with ``check``'s default
+    limits on ``machine``: feed it moves one by one (``add``), e.g. while they stream."""
+    from feed_axis_energy.core.gcode_check import DEFAULT_MAX_DWELL_S, MoveChecker
+    return MoveChecker(file=str(path), limits=_limits(machine, DEFAULT_MAX_DWELL_S))
+
+
+def checked_warning_texts(path: Path, parser_warnings: list[str], checker: Any) -> list[str]:
+    """The parser's warnings and those of a fed :func:`sanity_checker`, as text lines in line
+    order. Used by ``simulate`` for its ``warnings`` (JSON) and its stderr lines."""
+    from feed_axis_energy.core.gcode_check import problems_from_warnings
+    problems = problems_from_warnings(parser_warnings, file=str(path))
+    sanity = checker.problems()
     return [_warning_line(p) for p in sorted(problems + sanity, key=lambda p: p.line)]
 
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterable, Mapping
 from dataclasses import replace
 import math
 from pathlib import Path
@@ -96,12 +97,24 @@ def load_machine_and_options(args: argparse.Namespace) -> tuple[Machine, Planner
     return machine, options
 
 
-def program_text_lines(path: Path) -> list[str]:
-    """Return the program's lines (for showing block texts), or [] if unreadable."""
+def program_text_lines(path: Path, lines: Iterable[int]) -> dict[int, str]:
+    """Return the texts of the given 1-based ``lines`` of a program (for showing block
+    texts), reading the file line by line; {} if unreadable."""
+    wanted = {int(n) for n in lines}
+    out: dict[int, str] = {}
+    if not wanted:
+        return out
+    last = max(wanted)
     try:
-        return Path(path).read_text(errors='replace').splitlines()
+        with open(path, encoding='utf-8', errors='replace', newline=None) as fh:
+            for n, text in enumerate(fh, 1):
+                if n in wanted:
+                    out[n] = text.rstrip('\n')
+                if n >= last:
+                    break
     except OSError:
-        return []
+        return {}
+    return out
 
 
 def _finite(value: float, fmt: str) -> str:
@@ -128,7 +141,7 @@ def format_table(header: list[str], rows: list[list[str]]) -> str:
     return '\n'.join(lines)
 
 
-def print_summary(summary: dict, *, source_lines: list[str]) -> None:
+def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
     """Print a simulation summary (see README for the keys) as readable tables."""
     print(f'program   {summary["program"]}')
     print(f'machine   {summary["machine"]} (braking: {summary["braking"]})')
@@ -149,8 +162,7 @@ def print_summary(summary: dict, *, source_lines: list[str]) -> None:
         print('blocks with the most energy:')
         rows = []
         for b in summary['top_blocks']:
-            text = source_lines[b['line'] - 1].strip() if 0 < b['line'] <= len(
-                source_lines) else ''
+            text = source_lines.get(b['line'], '').strip()
             rows.append([str(b['line']), f'{b["energy_j"]:.2f}', f'{b["duration_s"]:.3f}',
                          text[:48]])
         print(format_table(['line', 'energy [J]', 'duration [s]', 'block'], rows))

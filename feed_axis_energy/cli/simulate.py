@@ -63,9 +63,8 @@ def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     # imported here: ``feed-axis-energy --help`` must not pay for the simulation's imports
     from feed_axis_energy.cli.common import (load_machine_and_options, print_summary,
-                                             program_keywords, program_text_lines)
+                                             program_text_lines)
     from feed_axis_energy.cli.progress import Progress
-    from feed_axis_energy.core.gcode import load_gcode
     from feed_axis_energy.core.simstream import streamable
 
     from feed_axis_energy.core.outputs import check_target, is_bag_directory
@@ -85,16 +84,15 @@ def run(args: argparse.Namespace) -> int:
         summary = _run_whole(args, machine, options, progress, trajectory=trajectory,
                              warnings=warnings)
     else:
-        program = load_gcode(args.program, **program_keywords(machine, args))
-        warnings = _warn(args, program, machine)
-        summary = _run_stream(args, machine, options, program, progress)
+        summary, warnings = _run_stream(args, machine, options, progress)
     summary['warnings'] = warnings
     if args.out is not None:
         summary['bag'] = str(args.out)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
-        print_summary(summary, source_lines=program_text_lines(args.program))
+        lines = [b['line'] for b in summary['top_blocks']]
+        print_summary(summary, source_lines=program_text_lines(args.program, lines))
         if args.out is not None:
             print(f'recording: {args.out} (topics /setpoints, /axis_state, /power, '
                   '/block_energy; units in README)')
@@ -131,39 +129,94 @@ def _staged_out(args: argparse.Namespace):
                             replaceable=is_bag_directory)
 
 
-def _run_stream(args, machine, options, program, progress) -> dict:
-    """Plan, simulate and record chunk by chunk (memory: one chunk)."""
+class _Moves:
+    """One pass over the program's moves, streamed from the file (memory: one batch of
+    moves, not the program), feeding the sanity checks and reporting progress by line."""
+
+    def __init__(self, args: argparse.Namespace, machine, *, check: bool,
+                 progress=None, n_lines: int = 0) -> None:
+        from feed_axis_energy.cli.check import sanity_checker
+        from feed_axis_energy.cli.common import program_keywords
+        from feed_axis_energy.core.gcode import iter_moves
+        self.stream = iter_moves(args.program, **program_keywords(machine, args))
+        self.file = self.stream.file
+        self.checker = sanity_checker(args.program, machine) if check else None
+        self.progress = progress if n_lines > 0 else None
+        self.n_lines = n_lines
+        self.count = 0
+
+    def __iter__(self):
+        add = None if self.checker is None else self.checker.add
+        progress, n_lines = self.progress, self.n_lines
+        count = 0
+        for move in self.stream:
+            if add is not None:
+                add(move)
+            count += 1
+            if progress is not None and not count & 4095:
+                progress(min(move.line / n_lines, 1.0))
+            yield move
+        self.count = count
+
+    def warnings(self, args: argparse.Namespace) -> list[str]:
+        """Print the parser's and ``check``'s warnings on stderr (after the pass); return
+        them."""
+        from feed_axis_energy.cli.check import checked_warning_texts
+        texts = checked_warning_texts(args.program, self.stream.warnings, self.checker)
+        for text in texts:
+            print(f'warning: {text}', file=sys.stderr)
+        return texts
+
+
+def _count_lines(path: Path) -> int:
+    """Lines of a file (for progress), counted in 1 MiB blocks; 0 if unreadable."""
+    n = 0
+    try:
+        with open(path, 'rb') as fh:
+            while block := fh.read(1 << 20):
+                n += block.count(b'\n') + block.count(b'\r') - block.count(b'\r\n')
+    except OSError:
+        return 0
+    return n + 1
+
+
+def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
+    """Parse, plan, simulate and record chunk by chunk: memory holds one batch of moves and
+    one chunk of samples, never the program. With ``--out`` or ``--max-samples`` a first
+    pass over the moves (parsing and planning without samples) gives the cost and the
+    warnings before any output; otherwise the single pass checks as it goes and the
+    warnings follow the simulation."""
     from feed_axis_energy.core.planstream import estimate_plan
     from feed_axis_energy.core.simstream import simulate_stream
     limits = machine.limits()
     duration = None
+    warnings = None
     if args.max_samples or args.out is not None:
-        # a planning pass without samples (cost: per block) to refuse before any output
-        estimate = estimate_plan(program.moves, limits, options=options, file=program.file)
+        first = _Moves(args, machine, check=True)
+        estimate = estimate_plan(first, limits, options=options, file=first.file)
+        warnings = first.warnings(args)
         _check_cost(args, estimate, n_axes=len(limits), rate_hz=options.rate_hz,
-                    file=program.file)
+                    file=first.file)
         duration = estimate.duration_s
+        moves = _Moves(args, machine, check=False)
+    else:
+        moves = _Moves(args, machine, check=True, progress=progress,
+                       n_lines=_count_lines(args.program))
     top = args.top
-    total = len(program.moves)
+    kw = dict(file=moves.file, load_kg=args.load_kg, options=options, top_blocks=top,
+              duration_s=duration, progress=progress if duration else None, limits=limits)
     if args.out is None:
-        summary, _ = simulate_stream(program.moves, machine, file=program.file,
-                                     load_kg=args.load_kg, options=options, top_blocks=top,
-                                     total_moves=total, duration_s=duration,
-                                     progress=progress, limits=limits)
-        progress.done()
-        return summary
-    from feed_axis_energy.core.recording import SimulationBagWriter
-    with _staged_out(args) as staged, \
-            SimulationBagWriter(staged, compression=args.compression) as writer:
-        summary, blocks = simulate_stream(program.moves, machine, file=program.file,
-                                          load_kg=args.load_kg, options=options,
-                                          top_blocks=top, total_moves=total,
-                                          duration_s=duration, on_chunk=writer.write,
-                                          progress=progress,
-                                          limits=limits)
-        writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
+        summary, _ = simulate_stream(moves, machine, **kw)
+    else:
+        from feed_axis_energy.core.recording import SimulationBagWriter
+        with _staged_out(args) as staged, \
+                SimulationBagWriter(staged, compression=args.compression) as writer:
+            summary, blocks = simulate_stream(moves, machine, on_chunk=writer.write, **kw)
+            writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
     progress.done()
-    return summary
+    if warnings is None:
+        warnings = moves.warnings(args)
+    return summary, warnings
 
 
 def _warn(args, program, machine) -> list[str]:
