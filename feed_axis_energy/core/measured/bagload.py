@@ -34,8 +34,8 @@ import numpy as np
 from .. import bagio
 from ..errors import ConfigError, DataError, describe, shorten
 from ..units import check_si_values, si_unit_of
-from .csvload import check_duration, GAP_FACTOR, MeasuredRun
 from .manifest import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, RunSpec
+from .run import check_duration, GAP_FACTOR, MeasuredRun
 
 __all__ = [
     'TOPIC_MEASURED_COMMAND', 'TOPIC_MEASURED_ELECTRICAL', 'RUN_KEY', 'QUANTITY_TOPIC',
