@@ -2,6 +2,8 @@
 import itertools
 import os
 from pathlib import Path
+import subprocess
+import sys
 
 import pytest
 
@@ -32,3 +34,25 @@ def short_program(tmp_path):
     path = tmp_path / 'short.nc'
     path.write_text('G21 G90 G94 G61\nG0 X0\nG1 X100 F3000\nG4 P0.2\nG1 X80 F3000\n')
     return path
+
+
+IN_CHILD = os.environ.get('FAE_NODE_TEST_CHILD') == '1'
+"""True inside the interpreter :func:`run_module_in_child` starts."""
+child_only = pytest.mark.skipif(not IN_CHILD, reason='runs in its own interpreter '
+                                '(the test_in_a_child_process of its module)')
+"""Mark of tests that create rclpy contexts in the test process: they run in a child."""
+
+
+def run_module_in_child(module: str) -> None:
+    """Run the ``child_only`` tests of ``module`` (a file path) in a fresh interpreter.
+
+    In-process rclpy tests create and destroy contexts and nodes in the pytest process; a
+    crash there (one segmentation fault in a full suite run after several in-process
+    contexts) would end the whole suite. In a child, it fails this one test instead.
+    """
+    env = dict(os.environ, FAE_NODE_TEST_CHILD='1', PYTHONUNBUFFERED='1')
+    proc = subprocess.run([sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider',
+                           module], cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, (f'exit {proc.returncode}\n{proc.stdout[-4000:]}\n'
+                                  f'{proc.stderr[-2000:]}')

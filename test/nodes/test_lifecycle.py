@@ -2,6 +2,7 @@
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
+from conftest import child_only, IN_CHILD, run_module_in_child  # noqa: E402
 from rclpy.context import Context  # noqa: E402
 from rclpy.lifecycle import TransitionCallbackReturn  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
@@ -22,6 +23,7 @@ def _node(context, program):
         Parameter('program', value=str(program)), Parameter('autostart', value=False)])
 
 
+@child_only
 def test_configure_activate_deactivate_cleanup(context, short_program):
     node = _node(context, short_program)
     try:
@@ -38,6 +40,7 @@ def test_configure_activate_deactivate_cleanup(context, short_program):
         node.destroy_node()
 
 
+@child_only
 def test_configure_fails_on_a_bad_program(context, tmp_path):
     bad = tmp_path / 'bad.nc'
     bad.write_text('G1 X10 F100\nG5 X3\n')
@@ -58,6 +61,7 @@ def _lifecycle_call(node, executor, srv_type, name, request, timeout_s=15.0):
     return future.result()
 
 
+@child_only
 def test_lifecycle_services_under_the_nodes_executor(tmp_path, short_program, node_env,
                                                      context):
     """~/change_state and ~/get_state of a gcode_trajectory process (runner: EventsExecutor)."""
@@ -120,3 +124,9 @@ def test_lifecycle_services_under_the_nodes_executor(tmp_path, short_program, no
             out, _ = proc.communicate(timeout=5)
             # shown by pytest only when the test fails: what each node logged
             print(f'--- {proc.args[2]} (exit {proc.returncode}) ---\n{out or ""}')
+
+
+@pytest.mark.skipif(IN_CHILD, reason='the wrapper itself')
+def test_in_a_child_process():
+    """The tests above, in their own interpreter (see conftest.run_module_in_child)."""
+    run_module_in_child(__file__)

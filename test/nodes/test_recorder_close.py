@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
+from conftest import child_only, IN_CHILD, run_module_in_child  # noqa: E402
 from rclpy.context import Context  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
@@ -33,6 +34,7 @@ def _batches(n_batches, batch=10):
     return out
 
 
+@child_only
 @pytest.mark.parametrize('ack_every', [1, 3])
 def test_end_reached_inside_the_take_loop(context, tmp_path, ack_every):
     """The end completes while more messages wait in the queue: no take on a closed handle.
@@ -79,6 +81,7 @@ def test_end_reached_inside_the_take_loop(context, tmp_path, ack_every):
     assert got.t.shape[0] >= 100   # at least the ten batches up to the end
 
 
+@child_only
 def test_flush_is_due_by_wall_time_without_the_timer(context, tmp_path):
     """The take loop itself flushes once ``chunk_period_s`` has passed (no 0.2 s timer lag).
 
@@ -114,3 +117,9 @@ def test_flush_is_due_by_wall_time_without_the_timer(context, tmp_path):
 
 def read_count(bag):
     return sum(n for _, n in bagio.bag_topics(bag).values())
+
+
+@pytest.mark.skipif(IN_CHILD, reason='the wrapper itself')
+def test_in_a_child_process():
+    """The tests above, in their own interpreter (see conftest.run_module_in_child)."""
+    run_module_in_child(__file__)
