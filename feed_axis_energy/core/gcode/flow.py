@@ -50,7 +50,7 @@ from typing import Any, Iterator
 
 from .block import Block
 from .control import Frame, goto, run_structure
-from .expr import compact, MAX_MAGNITUDE, Reader
+from .expr import compact, Reader
 from .fanuc import END, fanuc_m, FanucCalls, MAX_CALL_DEPTH, SWITCH
 from .lexer import blank_comments, LINE_RE, read_items, WORD_RE
 from .macrob import is_macro_statement, run_macro
@@ -157,7 +157,6 @@ class BlockReader(FanucCalls):
             find = text.find
             end = len(text)
             fname = f.name
-            big = f.big
             ascii_file = f.ascii
             main_line = fr.main_line
             pc = fr.pc
@@ -182,8 +181,7 @@ class BlockReader(FanucCalls):
                         vals = [(letter, float(t)) for letter, t in words]
                     except ValueError:
                         vals = None   # blanks inside a number, or a bad one: slow path
-                    if vals is not None and (not big or all(
-                            -MAX_MAGNITUDE <= v <= MAX_MAGNITUDE for _, v in vals)) and (
+                    if vals is not None and (
                             'M9' not in code or not fanuc_m(vals)) and (
                             not macro or ('G', 65.0) not in vals):
                         fast += 1

@@ -22,8 +22,13 @@ __all__ = ['blank_comments', 'WORD_RE', 'LINE_RE', 'locate_word', 'read_items', 
 # ``X1.2.3`` is reported as a bad number rather than as two words.
 _NUM = r'[-+]?\s*[0-9.]+(?:\s+[0-9.]+)*'
 WORD_RE = re.compile(r'([A-Z])\s*(' + _NUM + r')')
-# The same language as a sequence of WORD_RE matches, written possessively: it only checks.
-LINE_RE = re.compile(r'\s*+(?:[A-Z]\s*+[-+]?+\s*+[0-9.]++(?:\s++[0-9.]++)*+\s*+)*+')
+# The plain lines the fast paths take (:mod:`.run`, :mod:`.flow`), written possessively: it
+# only checks. Words of a letter and a number with at most one point, at most 12 integer
+# digits and no blanks inside, so every value is below expr.MAX_MAGNITUDE (1e12) and finite.
+# Anything else (a longer number, a bad one such as ``1.2.3``, LinuxCNC's blanks inside a
+# number) goes to the full reader, which reads it or reports it at its column.
+LINE_RE = re.compile(
+    r'\s*+(?:[A-Z]\s*+[-+]?+\s*+(?:[0-9]{1,12}+(?:\.[0-9]*+)?+|\.[0-9]++)\s*+)*+')
 
 
 def blank_comments(text: str, *, file: str, line: int) -> str:

@@ -20,8 +20,6 @@ __all__ = ['ProgramFile', 'read_head', 'expect_end', 'shown', 'KEYWORDS', 'FANUC
 
 # A line that may be an O-word line: optional N number, then O (blanks allowed).
 _OLINE_RE = re.compile(r'[ \t]*(?:[Nn][ \t]*[0-9][0-9. \t]*)?[Oo]')
-# A literal with 13 integer digits can exceed expr.MAX_MAGNITUDE: only then check values.
-_BIG_RE = re.compile(r'[0-9]{13}')
 
 KEYWORDS = ('SUB', 'ENDSUB', 'CALL', 'DO', 'WHILE', 'REPEAT', 'IF', 'ELSEIF', 'ELSE',
             'ENDIF', 'BREAK', 'CONTINUE', 'ENDWHILE', 'ENDREPEAT', 'RETURN')
@@ -46,7 +44,7 @@ class ProgramFile:
         Whether bare ``O1234`` lines define Fanuc subprograms.
     """
 
-    __slots__ = ('name', 'text', 'big', 'ascii', 'params', 'fanuc', 'starts', 'olines',
+    __slots__ = ('name', 'text', 'ascii', 'params', 'fanuc', 'starts', 'olines',
                  'heads', 'defs')
 
     def __init__(self, name: str, text: str, *, params: Parameters, fanuc: bool = True):
@@ -54,7 +52,6 @@ class ProgramFile:
         if '\r' in text:
             text = text.replace('\r\n', '\n').replace('\r', '\n')
         self.text = text
-        self.big = _BIG_RE.search(text) is not None
         self.ascii = text.isascii()
         self.params = params
         self.fanuc = fanuc

@@ -12,24 +12,15 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
 from os import PathLike
-import re
 from typing import TextIO
 
 from .dialect import Dialect
 from .flow import read_blocks
 from .interp import Interpreter
-from .lexer import blank_comments, WORD_RE
+from .lexer import blank_comments, LINE_RE, WORD_RE
 from .params import Parameters
 from ..errors import GcodeError
 from ..program import Move
-
-# The lines the fast path takes: words of a letter and a plain number whose integer part has
-# at most 12 digits (no blanks inside). Anything else, e.g. a number beyond the reader's
-# magnitude limit (expr.MAX_MAGNITUDE, 1e12) or one that overflows a float, or LinuxCNC's
-# blanks inside a number, goes to the front's reader, which reads it or reports it at its
-# column instead of handing on inf.
-_PLAIN_LINE = re.compile(
-    r'\s*+(?:[A-Z]\s*+[-+]?+\s*+(?:[0-9]{1,12}+(?:\.[0-9]*+)?+|\.[0-9]++)\s*+)*+')
 
 __all__ = ['GcodeRun']
 
@@ -135,7 +126,7 @@ class GcodeRun:
         p = self.interp
         file = self.file
         recent = self.recent
-        line_re = _PLAIN_LINE.fullmatch
+        line_re = LINE_RE.fullmatch
         findall = WORD_RE.findall
         interpret = p.line
         fanuc = self.dialect.fanuc_subprograms
