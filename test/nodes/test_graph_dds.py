@@ -11,6 +11,7 @@ import pytest
 
 pytest.importorskip('rclpy')
 
+from conftest import child_processes  # noqa: E402
 from feed_axis_energy.core import bagio  # noqa: E402
 from feed_axis_energy.core.energy import energy_by_line  # noqa: E402
 from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
@@ -268,20 +269,6 @@ def test_bad_machine_config_exits_nonzero(tmp_path, node_env):
     assert proc.returncode == 1 and 'Traceback' not in out and 'bad.yaml' in out
 
 
-def _children(pid):
-    kids = []
-    for entry in Path('/proc').iterdir():
-        if entry.name.isdigit():
-            try:
-                stat = (entry / 'stat').read_text()
-                cmd = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
-            except OSError:
-                continue
-            if int(stat.rsplit(')', 1)[1].split()[1]) == pid:
-                kids.append((int(entry.name), cmd))
-    return kids
-
-
 def test_launcher_stops_everything_when_a_node_dies(tmp_path, node_env, domain_id):
     prog = tmp_path / 'long.nc'
     prog.write_text('G21 G90 G94 G61\nG0 X0\nG1 X300 F600\n')   # 30 s in real time
@@ -293,7 +280,7 @@ def test_launcher_stops_everything_when_a_node_dies(tmp_path, node_env, domain_i
         deadline = time.monotonic() + 20
         kids = []
         while time.monotonic() < deadline:
-            kids = _children(launcher.pid)
+            kids = child_processes(launcher.pid)
             if len(kids) == 3:
                 break
             time.sleep(0.2)

@@ -11,25 +11,11 @@ import pytest
 
 pytest.importorskip('rclpy')
 
+from conftest import child_processes  # noqa: E402
 from feed_axis_energy import lifeline  # noqa: E402
 from feed_axis_energy.core import bagio  # noqa: E402
 
 PY = sys.executable
-
-
-def _children(pid):
-    """``[(pid, cmdline)]`` of the processes whose parent is ``pid``."""
-    kids = []
-    for entry in Path('/proc').iterdir():
-        if entry.name.isdigit():
-            try:
-                stat = (entry / 'stat').read_text()
-                cmd = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
-            except OSError:
-                continue
-            if int(stat.rsplit(')', 1)[1].split()[1]) == pid:
-                kids.append((int(entry.name), cmd))
-    return kids
 
 
 def _alive(pid):
@@ -61,7 +47,7 @@ def _start_launcher(tmp_path, node_env, domain_id, *, record):
     deadline = time.monotonic() + 30
     kids = []
     while time.monotonic() < deadline:
-        kids = [k for k in _children(launcher.pid) if 'feed_axis_energy.nodes.' in k[1]]
+        kids = [k for k in child_processes(launcher.pid) if 'feed_axis_energy.nodes.' in k[1]]
         if len(kids) == want:
             break
         time.sleep(0.1)
