@@ -143,7 +143,6 @@ class _Moves:
         self.checker = sanity_checker(args.program, machine) if check else None
         self.progress = progress if n_lines > 0 else None
         self.n_lines = n_lines
-        self.count = 0
 
     def __iter__(self):
         add = None if self.checker is None else self.checker.add
@@ -156,7 +155,6 @@ class _Moves:
             if progress is not None and not count & 4095:
                 progress(min(move.line / n_lines, 1.0))
             yield move
-        self.count = count
 
     def warnings(self, args: argparse.Namespace) -> list[str]:
         """Print the parser's and ``check``'s warnings on stderr (after the pass); return
