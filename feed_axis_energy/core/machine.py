@@ -40,8 +40,10 @@ from typing import Any
 
 from .configcheck import check_choice as _choice, check_float as _float
 from .configcheck import check_mapping as _mapping, join_key as _join
+from .effects import EFFECTS
 from .errors import ConfigError, describe, shorten
 from .losses import LossModel, loss_from_dict
+from .mass import carried_axes, GRAVITY_M_S2, moved_mass_kg  # noqa: F401  (re-exported)
 from .machine_gcode import (GcodeSettings, gcode_from_dict, gcode_to_dict, ToolSpec,
                             travel_from_value)
 from .safeyaml import load_yaml_file
@@ -55,7 +57,6 @@ __all__ = ['ScrewSpec', 'InertiaSpec', 'LimitSpec', 'PlannerSettings', 'AxisSpec
 AXIS_NAMES = ('X', 'Y', 'Z')
 BRAKING_MODES = ('regenerative', 'dissipated')
 PROFILES = ('jerk', 'trapezoid')
-GRAVITY_M_S2 = 9.80665
 STEEL_DENSITY_KG_M3 = 7850.0
 
 
@@ -276,62 +277,6 @@ class Machine:
                                    jerk_m_s3=a.limits.jerk_m_s3) for a in self.axes}
 
 
-def carried_axes(machine: Machine, axis: str) -> tuple[str, ...]:
-    """Return ``axis`` and every axis riding on it, directly or through others.
-
-    Parameters
-    ----------
-    machine
-        The machine.
-    axis
-        Axis name.
-
-    Returns
-    -------
-    tuple of str
-        Names in machine order.
-    """
-    machine.axis(axis)
-    out = []
-    for spec in machine.axes:
-        current: str | None = spec.name
-        seen = set()
-        while current is not None and current not in seen:
-            if current == axis:
-                out.append(spec.name)
-                break
-            seen.add(current)
-            current = machine.axis(current).rides_on
-    return tuple(out)
-
-
-def moved_mass_kg(machine: Machine, axis: str, load_kg: float = 0.0) -> float:
-    """Return the translational mass moved by ``axis`` [kg].
-
-    Its own table, plus the table of every axis riding on it (recursively), plus
-    ``load_kg`` if it is, or carries, the machine's ``load_axis``.
-
-    Parameters
-    ----------
-    machine
-        The machine.
-    axis
-        Axis name.
-    load_kg
-        Mass of the clamped workpiece (and fixtures not in the table mass) [kg].
-
-    Returns
-    -------
-    float
-        Moved mass [kg].
-    """
-    names = carried_axes(machine, axis)
-    mass = sum(machine.axis(n).table_mass_kg for n in names)
-    if machine.load_axis in names:
-        mass += load_kg
-    return float(mass)
-
-
 # ----------------------------------------------------------------------------- YAML I/O
 
 # Accepted ranges of values that the dynamics divide by or raise to powers: far outside any
@@ -428,8 +373,6 @@ def _check_stacking(axes: tuple[AxisSpec, ...], *, file: str) -> None:
 
 def _effects(value: Any, axis_names: tuple[str, ...], *,
              file: str) -> tuple[DeclaredEffect, ...]:
-    # imported here: the effect catalog itself imports this module
-    from .effects import EFFECTS
     if value is None:
         return ()
     if not isinstance(value, list):

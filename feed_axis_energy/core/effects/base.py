@@ -15,12 +15,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import ClassVar, TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import ConfigError
-from ..machine import GRAVITY_M_S2, Machine, moved_mass_kg
+from ..mass import GRAVITY_M_S2, moved_mass_kg
+
+if TYPE_CHECKING:  # annotations only: the machine loader imports this catalog
+    from ..machine import Machine
 
 __all__ = ['Param', 'EffectState', 'Effect', 'EFFECTS', 'register_effect', 'get_effect',
            'effect_state', 'state_from_simulation', 'effects_power_w', 'ParamValue']

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..machine import GRAVITY_M_S2
+from ..mass import GRAVITY_M_S2
 from .base import Effect, EffectState, Param, ParamValue, register_effect
 
 __all__ = ['Coulomb', 'Viscous', 'LoadFriction', 'Stribeck', 'PositionFriction',
