@@ -442,7 +442,8 @@ def first_difference(moves: list[Any], trace: list[list[Any]]) -> str:
     str
         ``''`` when the sequences agree, else the index, kind, line and end point of both.
     """
-    ours = [m for m in moves if m.kind.name in _KIND_NAMES]
+    # A rigid tap's way back is part of the reference's one 'tap' call (length in and back).
+    ours = [m for m in moves if m.kind.name in _KIND_NAMES and not m.tap_return]
     for i in range(max(len(ours), len(trace))):
         if i >= len(ours):
             return f'move {i}: ours ended; reference {_call(trace[i])}'
@@ -457,6 +458,8 @@ def first_difference(moves: list[Any], trace: list[list[Any]]) -> str:
         elif same:
             same = all(abs(a * 1e3 - b) <= POSITION_TOL_MM for a, b in zip(m.end, ref[2:5]))
             length = m.length_m if kind == 'arc' else math.dist(m.start, m.end)
+            if ref[0] == 'tap':
+                length *= 2.0
             if same and len(ref) > 5:
                 same = _close(length * 1e3, ref[5], rel=REL_LENGTH_TOL,
                               absolute=ABS_LENGTH_TOL_MM)

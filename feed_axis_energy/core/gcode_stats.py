@@ -6,6 +6,7 @@ two can be compared:
 
 * every canonical call counts once, zero-length moves included (LinuxCNC issues them);
   arcs are not counted as feed moves; a G4 dwell and a canned-cycle dwell count as dwells;
+  a G33.1 rigid tap, in and back, is one call (``Move.tap_return`` marks the way back);
 * the feed path is the XYZ length of feed moves plus arcs, an arc or helix taken as
   ``hypot(|sweep| * (r_start + r_end) / 2, axial travel)``; the traverse path is the XYZ
   length of rapids;
@@ -183,7 +184,8 @@ class MoveStats:
             The next move of the program.
         """
         kind = move.kind
-        self.counts[kind] += 1
+        if not move.tap_return:
+            self.counts[kind] += 1
         if kind == MoveKind.DWELL:
             self.dwell_s += move.dwell_s
             return

@@ -60,6 +60,10 @@ class Move:
         Signed sweep of an arc [rad] (counter-clockwise positive in the plane's first and
         second axes, extra turns included), as the parser decided it; ``None``: the planner
         derives it from start, end and ``turns`` (start == end in the plane: full circle).
+    tap_return
+        True for the way back of a G33.1 rigid tap. RS274NGC issues the way in and back as
+        one canonical call (``RIGID_TAP``); the planner runs both moves, the program's
+        summary (:mod:`.gcode_stats`) counts the pair once, as the reference does.
     """
 
     kind: MoveKind
@@ -74,6 +78,7 @@ class Move:
     dwell_s: float = 0.0
     length_m: float = 0.0
     sweep_rad: float | None = None
+    tap_return: bool = False
 
 
 _NEW = object.__new__

@@ -59,9 +59,6 @@ KNOWN_DISAGREEMENTS = {
     # offset (run_oracle.py treats it as zero), so oracle.json has Z-2 there.
     'LinuxCNC__linuxcnc/tests__interp__machine-coord-params__test.ngc':
         'tool length offset: ours machine (motor) positions, the oracle\'s exclude it',
-    # Convention, kept on purpose: G33.1 (line 314) is one rigid_tap call in the reference
-    # (counted as one feed move of twice the depth); ours are two feed moves, in and out.
-    'LinuxCNC__linuxcnc/nc_files__mmount.ngc': 'rigid tap: two feed moves (in, out), not one',
 }
 
 

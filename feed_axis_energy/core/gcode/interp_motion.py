@@ -132,9 +132,9 @@ class MotionMixin:
         end = self.target(d)
         feed = pitch * self.rpm / 60.0
         length = math.dist(start, end)
-        for a, b in ((start, end), (end, start)):
+        for a, b, back in ((start, end, False), (end, start, True)):
             self.emit(Move(kind=MoveKind.LINEAR, line=self.lineno, start=a, end=b,
-                           feed_m_s=feed, exact_stop=True, length_m=length))
+                           feed_m_s=feed, exact_stop=True, length_m=length, tap_return=back))
 
     def check_radii(self, d: dict, r0: float, r1: float, explicit: bool) -> None:
         """LinuxCNC's zero-radius and end-on-circle checks (see :mod:`.canon`)."""

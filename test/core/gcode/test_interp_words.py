@@ -7,6 +7,7 @@ import pytest
 
 from feed_axis_energy.core.errors import ConfigError, GcodeError
 from feed_axis_energy.core.gcode import parse_gcode
+from feed_axis_energy.core.gcode_stats import summarize
 
 MM = 1e-3
 
@@ -52,6 +53,11 @@ def test_rigid_tap_goes_in_and_back_at_k_times_s():
     assert [round(m.end[2] / MM, 9) for m in taps] == [-10, 5]
     assert [m.length_m for m in taps] == pytest.approx([15 * MM, 15 * MM])
     assert all(m.feed_m_s == pytest.approx(900 * MM / 60) for m in taps)
+    assert [m.tap_return for m in taps] == [False, True]
+    # One canonical RIGID_TAP call, as the reference counts it: one feed move, in and back.
+    stats = summarize(prog.moves)
+    assert stats.n_feed_moves == 1
+    assert stats.feed_length_m == pytest.approx(30 * MM)
     with pytest.raises(GcodeError, match='spindle speed S'):
         parse_gcode('G21 G33.1 Z-10 K1.5\n')
 
