@@ -6,9 +6,9 @@
 
 Corpus: what must hold now: no traceback on any program; on
 every program both we and the reference accept, the same moves within the tolerances of
-``bench/corpus.py`` except the programs listed in :data:`KNOWN_DISAGREEMENTS` (each with its
-reason); an acceptance rate of at least :data:`ACCEPTANCE_FLOOR`. A listed program that
-now agrees fails the test, so the list only shrinks; raise the floor as work lands.
+``bench/corpus.py``, or a disagreement that a model of a known quirk of the reference run
+reproduces (``bench/oracle_quirks.py``); an acceptance rate of at least
+:data:`ACCEPTANCE_FLOOR`; raise the floor as work lands.
 """
 from __future__ import annotations
 
@@ -45,22 +45,6 @@ Measured 91/143 (0.636) before the issue-8 work; 136/143 (0.951) with canned cyc
 compensation, coordinate systems, parameters, expressions, O-words, polar words, probing and
 rigid tapping wired in (the 7 left: 5 with rotary axes, 2 with G5.x splines)."""
 
-# Programs both accept on which some figure differs, with the reason found by
-# `bench/corpus.py --locate` (first differing move). Remove an entry when it agrees.
-KNOWN_DISAGREEMENTS = {
-    # Reference artifact: after a tool change (M6, line 22) LinuxCNC's preview module (the
-    # `gcode` module the oracle drives) re-reads the position of the last STRAIGHT move and
-    # forgets the arc after it, so the next traverse (line 23) starts from the wrong point
-    # (checked: `G1 X10 / G2 X20 Y0 I5 / T1 M6 / G0 Z1` gives a traverse to X10 there).
-    'LinuxCNC__linuxcnc/nc_files__comp-g1.ngc': 'preview re-reads a stale position after M6',
-    'LinuxCNC__linuxcnc/nc_files__comp311.ngc': 'preview re-reads a stale position after M6',
-    # Convention, kept on purpose: after `G43.1 Z5` (line 37), `G53 G0 Z3` (line 39) puts
-    # the machine at Z3 in our moves; the reference's canon positions exclude the tool length
-    # offset (run_oracle.py treats it as zero), so oracle.json has Z-2 there.
-    'LinuxCNC__linuxcnc/tests__interp__machine-coord-params__test.ngc':
-        'tool length offset: ours machine (motor) positions, the oracle\'s exclude it',
-}
-
 
 @pytest.fixture(scope='module')
 def report():
@@ -82,23 +66,16 @@ def test_acceptance_floor(report):
 
 @needs_corpus
 def test_agreement_on_programs_both_accept(report):
-    new = [d.text() for d in report.disagreements if d.file not in KNOWN_DISAGREEMENTS]
-    assert not new, 'new disagreements with the reference:\n' + '\n'.join(new)
+    """Every disagreement is one a model of a reference quirk reproduces (bench/oracle_quirks.py:
+    with the quirk copied, every figure of the program agrees)."""
+    new = [d.text() for d in report.disagreements if d.file not in report.explained]
+    assert not new, 'disagreements no reference quirk explains:\n' + '\n'.join(new)
 
 
 @needs_corpus
-def test_known_disagreements_still_accurate(report):
-    """A listed program that is refused or now agrees must leave the list."""
-    disagreeing = set(report.disagreeing_files())
-    stale = []
-    for name in KNOWN_DISAGREEMENTS:
-        ours = report.agree.get(name)
-        if ours is None or ours.status != 'ok':
-            stale.append(f'{name}: no longer accepted by both ({ours and ours.status})')
-        elif name not in disagreeing:
-            stale.append(f'{name}: now agrees with the reference')
-    assert not stale, ('remove from KNOWN_DISAGREEMENTS in test/core/test_corpus.py:\n'
-                       + '\n'.join(stale))
+def test_explained_programs_really_disagree(report):
+    """A program is only explained when it disagrees without the quirk model."""
+    assert set(report.explained) <= set(report.disagreeing_files())
 
 
 @needs_corpus
@@ -264,3 +241,54 @@ def test_live_reference_agrees_on_each_construct(tmp_path, name):
     assert ours.stats.n_motions > 0
     diffs = corpus.compare(name, ours, ref)
     assert not diffs, '\n'.join(d.text() for d in diffs)
+
+
+# --------------------------------------------------------------------------------------
+# the models of the reference run's quirks (bench/oracle_quirks.py), by hand
+# --------------------------------------------------------------------------------------
+MM = 1e-3
+quirk_models = corpus.oracle_quirks
+
+
+def _ends(program):
+    return [(m.kind.name, tuple(round(v / MM, 9) for v in m.start),
+             tuple(round(v / MM, 9) for v in m.end)) for m in program.moves]
+
+
+def test_stale_after_arc_model_restarts_from_the_last_straight_end():
+    from feed_axis_energy.core.gcode import parse_gcode
+    text = 'G21 G1 X10 F100\nG2 X20 Y0 I5\nT1 M6\nG0 Z1\n'
+    plain = _ends(parse_gcode(text, tools={1: (0.0, 0.0)}))
+    assert plain[-1] == ('RAPID', (20, 0, 0), (20, 0, 1))
+    with quirk_models.quirks(('stale-after-arc',)):
+        modelled = _ends(parse_gcode(text, tools={1: (0.0, 0.0)}))
+    # The interpreter re-reads X10 (end of the G1) at M6; the move is measured from the arc's
+    # end, X20, as the reference's harness does.
+    assert modelled[:2] == plain[:2]
+    assert modelled[-1] == ('RAPID', (20, 0, 0), (10, 0, 1))
+    # Outside the block the interpreter is ours again.
+    assert _ends(parse_gcode(text, tools={1: (0.0, 0.0)})) == plain
+
+
+def test_no_tool_length_model_leaves_g43_1_out_of_positions():
+    from feed_axis_energy.core.gcode import parse_gcode
+    text = 'G21 G0 X1\nG43.1 Z5\nG0 Z3\nG49\nG0 X2\n'
+    plain = _ends(parse_gcode(text))
+    assert plain[1:] == [('RAPID', (1, 0, 0), (1, 0, 8)), ('RAPID', (1, 0, 8), (2, 0, 8))]
+    with quirk_models.quirks(('no-tool-length',)):
+        modelled = _ends(parse_gcode(text))
+    assert modelled[1:] == [('RAPID', (1, 0, 0), (1, 0, 3)), ('RAPID', (1, 0, 3), (2, 0, 8))]
+
+
+def test_explain_names_no_quirk_when_none_reproduces():
+    calls = []
+
+    def run():
+        calls.append(1)
+        return 'result'
+    assert quirk_models.explain(run, lambda r: False) is None
+    assert len(calls) == 3          # each quirk alone, then both
+    assert quirk_models.explain(run, lambda r: True) == ('stale-after-arc',)
+    with pytest.raises(ValueError, match='unknown quirk'):
+        with quirk_models.quirks(('no-such-quirk',)):
+            pass
