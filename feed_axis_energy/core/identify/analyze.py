@@ -26,7 +26,7 @@ parameters are found by a profile search and carry no uncertainty (``None``).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 import math
 from typing import Any
 
@@ -36,254 +36,19 @@ from scipy.optimize import minimize_scalar
 
 from ..effects import EFFECTS, EffectState, get_effect, state_from_simulation
 from ..errors import ConfigError
-from ..machine import DeclaredEffect, load_machine, Machine
+from ..machine import load_machine, Machine
 from ..measured.align import align_simulated
-from ..measured.compare import (_MotionCache, _simulate, compare_campaign, json_clean,
-                                RunComparison)
+from ..measured.compare import _MotionCache, _simulate, compare_campaign, RunComparison
 from ..measured.csvload import load_run
 from ..measured.manifest import Campaign
-from ..measured.metrics import group_metrics, Metrics, table1_metrics
+from ..measured.metrics import table1_metrics
 from .diagnostics import binned_structure, Diagnostic, noise_sigma, spectrum_structure
+from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
+                      RunOutcome, STATE_NAMES)
 from .selection import Block, Design, forward_select, loro_folds, Step
 
 __all__ = ['AnalyzeOptions', 'AnalysisResult', 'FittedEffect', 'ParamEstimate', 'RunOutcome',
            'analyze_campaign', 'HOLDOUTS', 'STATE_NAMES']
-
-HOLDOUTS = ('loro', 'roles')
-STATE_NAMES = ('velocity', 'position', 'acceleration', 'time')
-
-
-@dataclass(frozen=True)
-class AnalyzeOptions:
-    """Settings of :func:`analyze_campaign`.
-
-    Attributes
-    ----------
-    holdout
-        ``'loro'`` (leave one run out) or ``'roles'`` (fit on ``calibrate`` runs, score on
-        ``validate`` runs of the manifest).
-    effects
-        Catalog ids to consider (default: all).
-    se_factor, min_gain
-        Acceptance: mean relative held-out gain above ``se_factor`` standard errors and
-        above ``min_gain`` (see :func:`.selection.forward_select`).
-    max_effects
-        Most effects added.
-    max_heterogeneity, heterogeneity_alpha
-        An effect is inconsistent across runs when per-run refits add more than
-        ``max_heterogeneity`` of what it explains and that improvement is significant
-        against the noise (chi-square probability below ``heterogeneity_alpha``).
-    min_share
-        Smallest share of the structured baseline residual an effect must explain to stay
-        (pruning after the forward pass; see :func:`_prune`).
-    min_explained
-        The selected effects together must explain at least this share of the structured
-        baseline residual; otherwise none is claimed (the structure is reported instead).
-    shape_grid_points
-        Grid size of each shape parameter before the refinement.
-    """
-
-    holdout: str = 'loro'
-    effects: tuple[str, ...] | None = None
-    se_factor: float = 2.0
-    min_gain: float = 0.01
-    max_effects: int = 4
-    max_heterogeneity: float = 0.05
-    heterogeneity_alpha: float = 1e-3
-    min_share: float = 0.01
-    min_explained: float = 0.5
-    shape_grid_points: int = 8
-
-
-@dataclass(frozen=True)
-class ParamEstimate:
-    """A fitted effect parameter: value, unit and standard uncertainty (``None``: none)."""
-
-    name: str
-    value: float
-    unit: str
-    uncertainty: float | None
-    method: str
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain dict."""
-        return {'name': self.name, 'value': self.value, 'unit': self.unit,
-                'uncertainty': self.uncertainty, 'method': self.method}
-
-
-@dataclass(frozen=True)
-class FittedEffect:
-    """A selected effect.
-
-    Attributes
-    ----------
-    id, axis
-        Catalog id and measured axis.
-    params
-        Linear parameters (jackknife uncertainty) then shape parameters.
-    share_of_residual
-        Drop in the in-sample residual sum of squares when the effect is added last,
-        relative to the baseline residual sum of squares.
-    share_of_structured
-        The same relative to the structured part of the baseline residual
-        (``SSE - N sigma²``), clipped to [0, 1].
-    heldout_gain_w2, heldout_gain_rel
-        Mean over held-out runs of ``mse(without it) - mse(with it)`` [W²] and of the same
-        relative to ``mse(without it)``.
-    heterogeneity
-        Share of its explained variance per-run refits would add (0: same on every run).
-    aliases
-        Candidates that fit nearly as well in its place (``id@axis``).
-    """
-
-    id: str
-    axis: str
-    params: tuple[ParamEstimate, ...]
-    share_of_residual: float
-    share_of_structured: float
-    heldout_gain_w2: float
-    heldout_gain_rel: float
-    heterogeneity: float
-    aliases: tuple[str, ...] = ()
-
-    def values(self) -> dict[str, float]:
-        """Parameter values by name."""
-        return {p.name: p.value for p in self.params}
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain dict (keys in docs/analyze.md)."""
-        return {'id': self.id, 'axis': self.axis,
-                'parameters': [p.to_dict() for p in self.params],
-                'share_of_residual': self.share_of_residual,
-                'share_of_structured_residual': self.share_of_structured,
-                'heldout_gain_w2': self.heldout_gain_w2,
-                'heldout_gain_rel': self.heldout_gain_rel,
-                'heterogeneity': self.heterogeneity,
-                'aliases': list(self.aliases)}
-
-
-@dataclass(frozen=True)
-class RunOutcome:
-    """One run before and after (series on the measured stamps, sums of measured axes).
-
-    ``heldout`` is ``False`` for ``calibrate`` runs with ``holdout='roles'``: their
-    ``after`` is in-sample and they are left out of the overall before/after.
-    """
-
-    name: str
-    load_kg: float
-    role: str | None
-    heldout: bool
-    before: Metrics
-    after: Metrics
-    t: np.ndarray = field(repr=False)
-    meas_w: np.ndarray = field(repr=False)
-    sim_w: np.ndarray = field(repr=False)
-    after_w: np.ndarray = field(repr=False)
-    residual_before_w: np.ndarray = field(repr=False)
-    residual_after_w: np.ndarray = field(repr=False)
-    states: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
-
-
-@dataclass(frozen=True)
-class AnalysisResult:
-    """Outcome of :func:`analyze_campaign`; a poor fit or no finding is a result.
-
-    Attributes
-    ----------
-    status
-        ``'effects'`` (effects found, no structure left), ``'partial'`` (effects found,
-        structure left), ``'unexplained'`` (structure, no catalog effect explains it),
-        ``'clean'`` (no effect, no structure), ``'too_few_runs'``.
-    message
-        One sentence.
-    """
-
-    status: str
-    message: str
-    campaign: str
-    manifest: str
-    machine: Machine
-    machine_file: str
-    holdout: str
-    axes: tuple[str, ...]
-    noise_sigma_w: dict[str, float]
-    runs: tuple[RunOutcome, ...]
-    effects: tuple[FittedEffect, ...]
-    unexplained: tuple[dict[str, Any], ...]
-    diagnostics_before: tuple[Diagnostic, ...]
-    diagnostics_after: tuple[Diagnostic, ...]
-    steps: tuple[Step, ...]
-    spectra: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
-        repr=False, default_factory=dict)
-
-    @property
-    def heldout_runs(self) -> tuple[RunOutcome, ...]:
-        """Runs scored by a fit without them."""
-        return tuple(r for r in self.runs if r.heldout)
-
-    @property
-    def before(self) -> Metrics:
-        """Pooled baseline metrics of the held-out runs."""
-        return group_metrics([r.before for r in self.heldout_runs])
-
-    @property
-    def after(self) -> Metrics:
-        """Pooled held-out metrics with the selected effects."""
-        return group_metrics([r.after for r in self.heldout_runs])
-
-    def by_load(self) -> list[tuple[float, Metrics, Metrics]]:
-        """``[(load_kg, before, after), ...]`` of held-out runs, by increasing load."""
-        loads = sorted({r.load_kg for r in self.heldout_runs})
-        return [(load, group_metrics([r.before for r in self.heldout_runs
-                                      if r.load_kg == load]),
-                 group_metrics([r.after for r in self.heldout_runs if r.load_kg == load]))
-                for load in loads]
-
-    def augmented_machine(self) -> Machine:
-        """The declared machine plus the selected effects with their fitted parameters.
-
-        Effects that describe the comparison rather than the machine (``time_offset``: how
-        the two records line up, which ``compare`` estimates anew for every run) are left out.
-        """
-        added = tuple(DeclaredEffect(id=e.id, axis=e.axis,
-                                     params=tuple((p.name, float(p.value)) for p in e.params))
-                      for e in self.effects if get_effect(e.id).machine_property)
-        return replace(self.machine, effects=self.machine.effects + added)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able summary (keys in docs/analyze.md); NaN becomes ``None``."""
-        def metrics(which: str) -> dict[str, Any]:
-            held = self.heldout_runs
-            return {
-                'total': (self.before if which == 'before' else self.after).to_dict(),
-                'loads': [{'load_kg': load, 'metrics': (b if which == 'before' else a).to_dict()}
-                          for load, b, a in self.by_load()],
-                'runs': [{'name': r.name, 'load_kg': r.load_kg, 'role': r.role,
-                          'metrics': getattr(r, which).to_dict()} for r in held],
-            }
-        return json_clean({
-            'campaign': self.campaign,
-            'manifest': self.manifest,
-            'machine': self.machine.name,
-            'machine_file': self.machine_file,
-            'holdout': self.holdout,
-            'status': self.status,
-            'message': self.message,
-            'noise_sigma_w': self.noise_sigma_w,
-            'before': metrics('before'),
-            'after': metrics('after'),
-            'effects': [e.to_dict() for e in self.effects],
-            'unexplained': [dict(u) for u in self.unexplained],
-            'diagnostics': {'before': [d.to_dict() for d in self.diagnostics_before],
-                            'after': [d.to_dict() for d in self.diagnostics_after]},
-            'selection': [{'effect': s.key[0], 'axis': s.key[1],
-                           'shape': {k: float(v) for k, v in s.shape.items()},
-                           'heldout_gain_rel': s.mean_gain, 'heldout_gain_se': s.se_gain,
-                           'bic_before': s.bic_before, 'bic_after': s.bic_after,
-                           'accepted': s.accepted, 'reason': s.reason}
-                          for s in self.steps],
-        })
 
 
 # ----------------------------------------------------------------------------- run data
