@@ -121,20 +121,31 @@ def program_problems(path: Path, *, machine: Any, keywords: dict[str, Any],
     """
     from feed_axis_energy.core.errors import GcodeError
     from feed_axis_energy.core.gcode import iter_moves
-    from feed_axis_energy.core.gcode_check import (check_moves, problem_from_error,
+    from feed_axis_energy.core.gcode_check import (MAX_ERRORS, MoveChecker, problem_from_error,
                                                    problems_from_warnings)
     name = str(path)
-    # Streamed: a program of any length is checked in bounded memory.
-    stream = iter_moves(path, **keywords)
+    # Streamed: a program of any length is checked in bounded memory. An error in a line is
+    # kept and checking goes on with the next line (up to MAX_ERRORS).
+    stream = iter_moves(path, **keywords, max_errors=MAX_ERRORS)
+    checker = MoveChecker(file=name, limits=_limits(machine, max_dwell_s))
+    add = checker.add
+    errors: list[Any] = []
     try:
-        sanity, stats = check_moves(stream, file=name, limits=_limits(machine, max_dwell_s))
+        for move in stream:
+            add(move)
     except GcodeError as err:
-        # The parser's warnings before the error are still problems of the program.
-        found = problems_from_warnings(stream.warnings, file=name) + [problem_from_error(err)]
-        return sorted(_with_text(found, path), key=lambda p: p.line), None
-    problems = problems_from_warnings(stream.warnings, file=name)
+        errors.append(err)
+    errors = stream.errors + errors
+    # The parser's warnings and those of the moves of the lines that parsed, before and
+    # after an error, are problems of the program too.
+    sanity = checker.problems()
+    if errors:      # lines were dropped: "never moves" would say nothing about the program
+        sanity = [p for p in sanity if p.kind != 'no-motion']
+    problems = problems_from_warnings(stream.warnings, file=name) + sanity
+    problems += [problem_from_error(err) for err in errors]
     # In line order (a file-level warning, line 0, first), as a reader goes through the file.
-    return sorted(_with_text(problems + sanity, path), key=lambda p: p.line), stats
+    ordered = sorted(_with_text(problems, path), key=lambda p: p.line)
+    return ordered, None if errors else checker.result()
 
 
 def _with_text(problems: list[Any], path: Path) -> list[Any]:

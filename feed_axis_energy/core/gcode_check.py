@@ -1,7 +1,10 @@
-"""Problems of an NC program on a machine: the parser's error and warnings, plus sanity checks.
+"""Problems of an NC program on a machine: the parser's errors and warnings, plus sanity checks.
 
-The parser stops at the first error of a program; :func:`problem_from_error` turns it into a
-:class:`Problem` with file, line, column and the offending text. The sanity checks run over
+``check`` runs the parser so that an error in a line is kept and parsing goes on with the
+next line (at most :data:`MAX_ERRORS` errors; an error in an O-word, macro or subprogram
+line, or in the program's structure, such as an O-word without its end, still stops it);
+:func:`problem_from_error` turns each error into a :class:`Problem` with file, line, column
+and the offending text. The sanity checks run over
 the parsed moves in one streaming pass (:class:`MoveChecker`) and give warnings, each naming
 the first line concerned:
 
@@ -31,8 +34,11 @@ from .gcode_stats import arc_extremes, arc_geometry, MoveStats, ProgramStats
 from .program import Move, MoveKind, PROGRAM_AXES
 
 __all__ = ['Problem', 'CheckLimits', 'MoveChecker', 'check_moves', 'problem_from_error',
-           'problems_from_warnings', 'DEFAULT_MAX_DWELL_S', 'MAX_LISTED_DWELLS']
+           'problems_from_warnings', 'DEFAULT_MAX_DWELL_S', 'MAX_LISTED_DWELLS', 'MAX_ERRORS']
 
+MAX_ERRORS = 100
+"""Errors listed per program at most: checking goes on after each line with an error, and
+the 100th ends it."""
 DEFAULT_MAX_DWELL_S = 3600.0
 """Dwells longer than this [s] are reported (``--max-dwell-s``)."""
 MAX_LISTED_DWELLS = 100

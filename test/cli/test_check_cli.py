@@ -43,14 +43,15 @@ def test_every_program_is_checked_and_any_error_gives_exit_1(tmp_path, capsys):
     rc = main(['check', str(bad), str(idle), str(far), '--machine', str(MILL), '--quiet'])
     out = capsys.readouterr().out
     assert rc == 1
-    # The parser stops at the first error of a program (line 3), names line and column,
-    # and checking goes on with the next programs.
-    assert f'{bad}:3:' in out and ': error: ' in out and f'{bad}:4:' not in out
+    # Every error of a program is listed with its line and column (checking goes on with
+    # the next line), and checking goes on with the next programs.
+    assert f"{bad}:3:5: error: bad number '1.2.3'" in out
+    assert f"{bad}:4:5: error: bad number '2.3.4'" in out
     assert f'{idle}:0:0: warning: the program never moves the tool' in out
     assert f'{far}:2:0: warning: move goes beyond the X travel (max 600.000 mm)' in out
     assert "near 'G1 X700 F1000'" in out
     assert f'{far}:3:0: warning: dwell of 4000 s is longer than 3600 s' in out
-    assert 'checked 3 programs on three_axis_mill: 1 with errors, 1 error, 3 warnings' in out
+    assert 'checked 3 programs on three_axis_mill: 1 with errors, 2 errors, 3 warnings' in out
 
 
 def test_warnings_alone_exit_zero_and_the_dwell_threshold_is_an_option(tmp_path, capsys):
@@ -161,3 +162,44 @@ def test_rotary_axis_is_an_error_unless_ignored(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     assert doc['warnings'] == 1 and doc['programs'][0]['warnings'][0]['line'] == 2
     assert doc['programs'][0]['summary']['feed_length_m'] == pytest.approx(0.01)
+
+
+def test_errors_and_warnings_before_and_after_an_error_are_all_listed(tmp_path, capsys):
+    prog = _write(tmp_path, 'many.nc',
+                  'G21 G90\nG4 P4000\nG1 X1 F100 Q3\nG1 X700 F1000\n#1=[2+]\n'
+                  'G38.2 Z-1 F10\nG1 X2 A5\nG4 P5000\nM2\n')
+    rc = main(['check', str(prog), '--machine', str(MILL), '--quiet', '--json'])
+    doc = json.loads(capsys.readouterr().out)
+    assert rc == 1
+    (program,) = doc['programs']
+    assert program['ok'] is False and program['summary'] is None
+    # Errors of the interpreter (lines 3, 7) and of the reader (line 5), in line order.
+    assert [(e['line'], e['column']) for e in program['errors']] == [(3, 12), (5, 7), (7, 7)]
+    # Warnings from both sides of the errors: the parser's (probing, line 6) and the
+    # sanity checks' (dwells on lines 2 and 8, travel on line 4).
+    kinds = sorted((w['line'], w['kind']) for w in program['warnings'])
+    assert kinds == [(2, 'dwell'), (4, 'travel'), (6, 'parse'), (8, 'dwell')]
+
+
+def test_checking_stops_after_max_errors(tmp_path, capsys):
+    from feed_axis_energy.core.gcode_check import MAX_ERRORS
+    prog = _write(tmp_path, 'bad.nc', 'G21\n' + 'G1 X1.2.3\n' * (MAX_ERRORS + 50) + 'M2\n')
+    assert main(['check', str(prog), '--machine', str(MILL), '--quiet', '--json']) == 1
+    (program,) = json.loads(capsys.readouterr().out)['programs']
+    lines = [e['line'] for e in program['errors']]
+    assert lines == list(range(2, MAX_ERRORS + 2))
+
+
+def test_an_error_in_an_o_word_line_ends_the_check(tmp_path, capsys):
+    prog = _write(tmp_path, 'flow.nc',
+                  'G21\nG1 X1.2.3 F100\no100 if [1 GT]\nG1 X2\no100 endif\nG1 X3.4.5\nM2\n')
+    assert main(['check', str(prog), '--machine', str(MILL), '--quiet', '--json']) == 1
+    (program,) = json.loads(capsys.readouterr().out)['programs']
+    assert [e['line'] for e in program['errors']] == [2, 3]
+
+
+def test_simulate_still_stops_at_the_first_error(tmp_path, capsys):
+    prog = _write(tmp_path, 'bad.nc', 'G21\nG1 X1.2.3 F100\nG1 X2.3.4\nM2\n')
+    assert main(['simulate', str(prog), '--machine', str(MILL), '--quiet']) == 1
+    err = capsys.readouterr().err
+    assert ':2:' in err and ':3:' not in err

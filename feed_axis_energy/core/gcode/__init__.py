@@ -185,6 +185,11 @@ class MoveStream:
         """Lines of the program read so far (all of them after the last move)."""
         return 0 if self._run is None else self._run.n_lines
 
+    @property
+    def errors(self) -> list[GcodeError]:
+        """Errors the run went on after (``max_errors`` of :func:`iter_moves`)."""
+        return [] if self._run is None else self._run.errors
+
     def __iter__(self) -> Iterator[Move]:
         """The moves in order (the file is open while the iteration runs)."""
         name = self.file
@@ -208,7 +213,8 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                tools: Mapping[int, object] | None = None,
                dialect: str | Dialect | None = None,
                search_path: Sequence[str | PathLike[str]] = (),
-               ignore_axes: Sequence[str] = (), batch: int = 4096) -> MoveStream:
+               ignore_axes: Sequence[str] = (), batch: int = 4096,
+               max_errors: int = 0) -> MoveStream:
     """Stream the moves of a program file in bounded memory.
 
     Plain lines are read one at a time, so memory stays at ``batch`` moves however long
@@ -223,6 +229,10 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
         As for :func:`parse_gcode`.
     batch
         Moves interpreted ahead of the consumer (at least 1).
+    max_errors
+        0: the first error is raised. ``N > 0`` (``check``): errors in lines are kept in
+        the stream's ``errors`` and the run goes on with the next line; the ``N``-th error
+        is raised (see :class:`~.run.GcodeRun`).
 
     Returns
     -------
@@ -232,7 +242,8 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     """
     kw = dict(start=start, arc_tolerance_m=arc_tolerance_m, home=home, tools=tools,
               dialect=dialect_by_name(dialect), search_path=search_path,
-              batch=max(1, int(batch)), ignore_axes=_axes(ignore_axes))
+              batch=max(1, int(batch)), ignore_axes=_axes(ignore_axes),
+              max_errors=max(0, int(max_errors)))
     return MoveStream(path, kw)
 
 

@@ -44,6 +44,7 @@ a table of line start offsets (8 bytes a line) and an index of its O-word lines.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from os import PathLike
 from pathlib import Path
 from typing import Any, Iterator
@@ -135,6 +136,9 @@ class BlockReader(FanucCalls):
         self.executed = 0
         self.seen_code = False
         self._warned_dollar = False
+        # Set by GcodeRun(max_errors=...): called with an error in an ordinary line (not an
+        # O-word, macro or subprogram line), which is then skipped; it raises to stop.
+        self.on_error: Callable[[GcodeError], None] | None = None
 
     def __iter__(self) -> Iterator[Block]:
         """Run the program, yielding blocks."""
@@ -252,8 +256,8 @@ class BlockReader(FanucCalls):
         if not code.isascii():
             col = next(i for i, ch in enumerate(code, 1) if not ch.isascii())
             msg = f'unexpected character {code[col - 1]!r} (not part of G-code)'
-            raise GcodeError(msg, file=fname, line=lineno, column=col,
-                             text=shorten(raw[col - 1:].strip(), limit=20))
+            return self._line_error(GcodeError(msg, file=fname, line=lineno, column=col,
+                                               text=shorten(raw[col - 1:].strip(), limit=20)))
         s, cols = compact(code.upper())
         r = Reader(s, cols, raw, file=fname, line=lineno, params=self.params)
         if s[0] == 'N':
@@ -264,13 +268,23 @@ class BlockReader(FanucCalls):
         if self.macro and is_macro_statement(s, r.pos):
             return run_macro(fr, r, lineno)
         r.pos = 0
-        words, assigns = read_items(r, open_assign=self.macro)
+        try:
+            words, assigns = read_items(r, open_assign=self.macro)
+        except GcodeError as err:
+            return self._line_error(err)
         self.seen_code = self.seen_code or bool(words)
         if self.fanuc and fanuc_m(words):
             return self._fanuc(fr, r, words, assigns, lineno)
         if self.macro and ('G', 65.0) in words:
             return self._g65(fr, r, words, assigns, lineno)
         return words, assigns
+
+    def _line_error(self, err: GcodeError) -> None:
+        """An error in an ordinary line: raised, or handed to :attr:`on_error` and the line
+        skipped."""
+        if self.on_error is None:
+            raise err
+        self.on_error(err)
 
     def _percent(self, fr: Frame, lineno: int) -> Any:
         """A ``%`` line: ignored before the first code, the end of the program after it."""

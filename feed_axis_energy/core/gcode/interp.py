@@ -151,6 +151,15 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         self.pending_lineno = self.coord_line = self.g43_lineno = self.io_lineno = -1
         self.polar_line = -1
 
+    def abandon_line(self) -> None:
+        """After an error in a line that the run goes on from (``GcodeRun(max_errors=...)``):
+        drop what the line left pending (tool change, cutter compensation and coordinate
+        codes, line markers); modes it set before the error stay set."""
+        self.end_block()
+        self.tool_change = False
+        self.comp_code = None
+        self.coord_todo = {}
+
     def num(self, letter: str, text: str) -> float:
         """Value of a word; blanks inside the number are ignored (LinuxCNC rule)."""
         try:

@@ -10,7 +10,7 @@ twice and memory is bounded by the batch size (plus the program text itself).
 """
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from os import PathLike
 from typing import TextIO
 
@@ -55,11 +55,20 @@ class GcodeRun:
         checked).
     batch
         Hand on the moves whenever this many have gathered (``None``: once, at the end).
+    max_errors
+        0 (the default): the first error ends the run (raised). ``N > 0``: an error in the
+        interpretation of a line is kept in :attr:`errors`, the rest of that line is dropped
+        and the run goes on with the next line; the ``N``-th error is raised.
+        An error the front's reader finds in an ordinary line (a bad number or expression)
+        is kept the same way; errors in O-word, macro and subprogram lines end the run.
+        For ``check``: later errors may follow from an earlier one.
 
     Attributes
     ----------
     warnings
-        ``file:line: message`` texts; complete once the iteration has ended.
+        ``file:line: message`` texts so far; complete once the iteration has ended.
+    errors
+        The errors kept under ``max_errors`` (:class:`~..errors.GcodeError`), in order.
     n_lines
         Number of lines of the program file (complete once the iteration has ended).
     """
@@ -68,7 +77,7 @@ class GcodeRun:
                  start: Vec3, arc_tolerance_m: float | None, home: Vec3 | None,
                  tools: Mapping[int, object] | None, dialect: Dialect,
                  search_path: Sequence[str | PathLike[str]] = (), batch: int | None = None,
-                 ignore_axes: Sequence[str] = ()):
+                 ignore_axes: Sequence[str] = (), max_errors: int = 0):
         self.recent = _Recent()
         if text is not None:
             if '\r' in text:
@@ -88,12 +97,45 @@ class GcodeRun:
         self.dialect = dialect
         self.search_path = tuple(search_path)
         self.batch = batch
-        self.warnings: list[str] = []
+        self.max_errors = max(0, int(max_errors))
+        self.errors: list[GcodeError] = []
+        self._warnings: list[str] | None = None     # all of them, once the run has ended
+        self._reader_warnings: list[str] = []        # the front's reader's, while it runs
         self.params = Parameters()
         self.interp = Interpreter(file, start, arc_tolerance_m, lines=ref_lines, home=home,
                                   tools=tools, dialect=dialect, params=self.params,
                                   ignore_axes=ignore_axes)
         self.params.provider = self.interp.system_value
+
+    @property
+    def warnings(self) -> list[str]:
+        """``file:line: message`` texts so far (all of them once the run has ended)."""
+        if self._warnings is not None:
+            return self._warnings
+        return self._reader_warnings + self.interp.warnings
+
+    def _interpreter(self) -> Callable[[list[tuple[str, str]]], None]:
+        """The interpreter's ``line``; under ``max_errors``, one that keeps an error and
+        goes on with the next line."""
+        p = self.interp
+        line = p.line
+        if not self.max_errors:
+            return line
+        keep = self._keep
+
+        def tolerant(words: list[tuple[str, str]]) -> None:
+            try:
+                line(words)
+            except GcodeError as err:
+                keep(err)
+                p.abandon_line()
+        return tolerant
+
+    def _keep(self, err: GcodeError) -> None:
+        """Keep an error and go on, or raise it when it is the ``max_errors``-th."""
+        if len(self.errors) + 1 >= self.max_errors:
+            raise err
+        self.errors.append(err)
 
     def __iter__(self) -> Iterator[list[Move]]:
         """Run the program; yield the moves in batches."""
@@ -103,7 +145,7 @@ class GcodeRun:
         if first is not None:
             reader_warnings = yield from self._blocks(first)
         p.close()
-        self.warnings = reader_warnings + p.warnings
+        self._warnings = reader_warnings + p.warnings
         if p.moves:
             yield p.moves
             p.moves = []
@@ -128,7 +170,7 @@ class GcodeRun:
         recent = self.recent
         line_re = LINE_RE.fullmatch
         findall = WORD_RE.findall
-        interpret = p.line
+        interpret = self._interpreter()
         fanuc = self.dialect.fanuc_subprograms
         macro = self.dialect.fanuc_macro
         batch = self.batch or 0
@@ -188,7 +230,10 @@ class GcodeRun:
         p.lines = lines
         reader = read_blocks(text, file=file, params=self.params, dialect=self.dialect,
                              search_path=self.search_path)
-        interpret = p.line
+        self._reader_warnings = reader.warnings
+        if self.max_errors:
+            reader.on_error = self._keep
+        interpret = self._interpreter()
         batch = self.batch or 0
         end_at = 0
         for block in reader:
