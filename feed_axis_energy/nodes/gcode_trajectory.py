@@ -1,8 +1,11 @@
 """``gcode_trajectory``: plans an NC program and streams its setpoints (a lifecycle node).
 
-configure: load machine + program and plan (all in the core); activate: wait until the graph
-is matched, publish ``program/lines``, stream ``setpoints`` with at most ``flow_window`` batches
-in flight, publish ``program/end``; deactivate: pause; cleanup: forget the plan.
+configure: load the machine and survey the program (a first planning pass: samples, duration,
+the table of source lines; :class:`~feed_axis_energy.core.graph_source.SetpointSource`);
+activate: wait until the graph is matched, publish ``program/lines``, stream ``setpoints``
+planned anew chunk by chunk (bounded memory: one planner chunk and one batch, never every
+sample of the program) with at most ``flow_window`` batches in flight, publish
+``program/end``; deactivate: pause; cleanup: forget the program.
 With ``autostart`` (default) the node configures and activates itself.
 """
 from __future__ import annotations
@@ -17,13 +20,12 @@ from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 from diagnostic_msgs.msg import DiagnosticArray
 
-from feed_axis_energy.core import recording
-from feed_axis_energy.core.gcode import load_gcode
-from feed_axis_energy.core.graph import (batch_bounds, block_starts, FlowWindow,
-                                         header_stamp_ns, pacing_delay_s, ProgramEnd,
-                                         seconds_to_ns)
+from feed_axis_energy.core.gcode import iter_moves
+from feed_axis_energy.core.graph import (FlowWindow, header_stamp_ns, NS_PER_S, pacing_delay_s,
+                                         ProgramEnd)
+from feed_axis_energy.core.graph_source import SetpointSource
 from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.trajectory import plan
+from feed_axis_energy.core.planstream import iter_motion
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import clock_qos, latched_qos, stream_qos
 from feed_axis_energy.nodes.runner import declare, run, STARTUP_ERRORS, StartupError, steady_timer
@@ -85,10 +87,11 @@ class GcodeTrajectory(LifecycleNode):
 
     def _reset(self) -> None:
         self._error = ''
-        self.motion = None
-        self._bounds: list[tuple[int, int]] = []
-        self._t_ns = None
-        self._next = 0
+        self.survey = None
+        self._source: SetpointSource | None = None
+        self._batches = None            # the iterator of batches while streaming
+        self._pending = None            # a batch waiting for pacing or the flow window
+        self._sent = 0
         self._streaming = False
         self._matched_at: float | None = None
         self._t_start: float | None = None
@@ -105,19 +108,21 @@ class GcodeTrajectory(LifecycleNode):
             options = machine.planner.options()
             if self.rate_hz > 0:
                 options = replace(options, rate_hz=float(self.rate_hz))
-            program = load_gcode(self.program, **machine.gcode_keywords())
-            self.motion = plan(program, machine.limits(), options=options)
+            program, keywords, limits = self.program, machine.gcode_keywords(), machine.limits()
+
+            def open_motion():
+                return iter_motion(iter_moves(program, **keywords), limits, options=options,
+                                   file=program)
+            self._source = SetpointSource(open_motion, batch=self.batch)
+            self.survey = self._source.survey()
         except STARTUP_ERRORS as err:
             self._error = str(err)
             self.get_logger().error(f'configure failed: {err}')
             return TransitionCallbackReturn.FAILURE
-        if self.motion.n_samples == 0:
+        if self.survey.n_samples == 0:
             self._error = f'{self.program}: the program has no motion'
             self.get_logger().error(self._error)
             return TransitionCallbackReturn.FAILURE
-        self._t_ns = seconds_to_ns(self.motion.t)
-        self._bounds = batch_bounds(self.motion.n_samples, self.batch)
-        self._series = recording.setpoint_series(self.motion)
         self.pub_setpoints = self.create_publisher(JointTrajectory, 'setpoints', stream_qos())
         self.pub_lines = self.create_publisher(JointTrajectory, 'program/lines', latched_qos())
         self.pub_end = self.create_publisher(DiagnosticArray, 'program/end', latched_qos())
@@ -128,9 +133,10 @@ class GcodeTrajectory(LifecycleNode):
             JointTrajectory, 'power', self._on_power, stream_qos(), raw=True)
         self.sub_progress = self.create_subscription(
             Header, 'recorder/progress', self._on_progress, stream_qos())
+        sv = self.survey
         self.get_logger().info(
-            f'planned {self.program}: {self.motion.n_samples} samples, '
-            f'{self.motion.duration_s:.3f} s, {len(self._bounds)} batches, mode {self.mode}')
+            f'planned {self.program}: {sv.n_samples} samples, {sv.duration_s:.3f} s, '
+            f'{sv.n_batches} batches, mode {self.mode}')
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -172,7 +178,7 @@ class GcodeTrajectory(LifecycleNode):
         self._ack('recorder', convert.time_to_ns(msg.stamp))
 
     def _ack(self, source: str, stamp_ns: int) -> None:
-        if self._t_ns is None:
+        if self.survey is None:
             return
         if self.flow.ack(source, stamp_ns):
             self._last_progress = time.monotonic()
@@ -210,28 +216,33 @@ class GcodeTrajectory(LifecycleNode):
                 return
             self._t_start = now
             self._last_progress = now
-            starts, lines = block_starts(self._t_ns, self.motion.line)
-            self.pub_lines.publish(convert.lines_to_cdr(starts, lines,
-                                                        first_ns=int(self._t_ns[0])))
-        while self._next < len(self._bounds) and self.flow.can_send():
-            i0, i1 = self._bounds[self._next]
+            sv = self.survey
+            self.pub_lines.publish(convert.lines_to_cdr(sv.starts_ns, sv.lines,
+                                                        first_ns=sv.first_ns))
+            self._batches = self._source.batches()
+        sv = self.survey
+        while self._sent < sv.n_batches and self.flow.can_send():
+            if self._pending is None:
+                self._pending = next(self._batches)
+            b = self._pending
             if self.mode == 'realtime' and pacing_delay_s(
-                    float(self.motion.t[i0]), float(self.motion.t[0]),
-                    now - self._t_start) > 0:
+                    (int(b.t_ns[0]) - sv.first_ns) / NS_PER_S, 0.0, now - self._t_start) > 0:
                 break
-            self._send(i0, i1)
-            self._next += 1
-        if self._next == len(self._bounds) and not self._end_sent:
-            end = ProgramEnd(program=str(self.program), samples=self.motion.n_samples,
-                             batches=len(self._bounds), first_ns=int(self._t_ns[0]),
-                             last_ns=int(self._t_ns[self._bounds[-1][0]]))
+            self._send(b)
+            self._pending = None
+            self._sent += 1
+        if self._sent == sv.n_batches and not self._end_sent:
+            end = ProgramEnd(program=str(self.program), samples=sv.n_samples,
+                             batches=sv.n_batches, first_ns=sv.first_ns,
+                             last_ns=sv.last_batch_ns)
             self.pub_end.publish(convert.program_end_msg(end))
             self._end_sent = True
+            self._batches = None
         if self._end_sent and self.flow.in_flight == 0 and not self._done_logged:
             wall = time.monotonic() - self._t_start
             self.get_logger().info(
-                f'program done: {self.motion.n_samples} samples, {self.motion.duration_s:.3f} s '
-                f'simulated in {wall:.3f} s wall (x{self.motion.duration_s / wall:.1f})')
+                f'program done: {sv.n_samples} samples, {sv.duration_s:.3f} s '
+                f'simulated in {wall:.3f} s wall (x{sv.duration_s / wall:.1f})')
             self._done_logged = True
         if self.flow.in_flight and now - self._last_progress > self.stall_timeout_s:
             self.get_logger().error(
@@ -239,13 +250,11 @@ class GcodeTrajectory(LifecycleNode):
                 'batches in flight: is energy_estimator (or the recorder) running?')
             self.exit_code = 1
 
-    def _send(self, i0: int, i1: int) -> None:
-        stamp = int(self._t_ns[i0])
-        s = self._series
+    def _send(self, b) -> None:
+        stamp = int(b.t_ns[0])
         data = convert.encode_trajectory(
-            stamp, self._t_ns[i0:i1] - stamp, s.names,
-            {'positions': s.positions[i0:i1], 'velocities': s.velocities[i0:i1],
-             'accelerations': s.accelerations[i0:i1]})
+            stamp, b.t_ns - stamp, self.survey.axes,
+            {'positions': b.pos, 'velocities': b.vel, 'accelerations': b.acc})
         self.flow.sent(stamp)
         self.pub_setpoints.publish(data)
         if self.mode == 'fast':

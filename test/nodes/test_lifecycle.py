@@ -27,15 +27,15 @@ def _node(context, program):
 def test_configure_activate_deactivate_cleanup(context, short_program):
     node = _node(context, short_program)
     try:
-        assert node.motion is None
+        assert node.survey is None
         assert node.trigger_configure() == TransitionCallbackReturn.SUCCESS
-        assert node.motion.n_samples > 2000   # 2 s move + dwell at 1 kHz
+        assert node.survey.n_samples > 2000   # 2 s move + dwell at 1 kHz
         assert node.trigger_activate() == TransitionCallbackReturn.SUCCESS
         assert node._streaming
         assert node.trigger_deactivate() == TransitionCallbackReturn.SUCCESS
         assert not node._streaming
         assert node.trigger_cleanup() == TransitionCallbackReturn.SUCCESS
-        assert node.motion is None
+        assert node.survey is None
     finally:
         node.destroy_node()
 
