@@ -18,7 +18,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from .dynamics import compute_dynamics
-from .energy import apply_braking, compute_power, energy_by_line, EnergyIntegrator, PowerResult
+from .energy import apply_braking, compute_power, EnergyIntegrator
 from .errors import ConfigError, DataError
 from .graph_bag import ChunkedBagWriter
 from .machine import Machine
@@ -152,8 +152,11 @@ class StreamingPower:
 
     Applies the same operations as :func:`.energy.compute_power` in the same order
     (``M·omega``, braking rule, sum over axes, :class:`.energy.EnergyIntegrator` over axes +
-    total), so the numbers equal the offline result for the same samples. Every batch is kept
-    so that the per-block summary at the end comes from :func:`.energy.energy_by_line` itself.
+    total), so the numbers equal the offline result for the same samples. Memory is bounded:
+    no batch is kept. The energy and time per source line (:func:`.energy.energy_by_line`'s
+    rule: an interval counts for the line of its end sample) are summed as batches come, once
+    the program's line table (``program/lines``) is known (:meth:`set_lines`); the few
+    batches that arrive before it keep only their times and total power until then.
 
     With a ``machine`` that declares effects (``effects:`` in its YAML, e.g. written by
     ``analyze``), their extra power is added after the braking rule, as
@@ -187,10 +190,12 @@ class StreamingPower:
                 msg = f'declared effects {local} need whole records; the graph cannot stream them'
                 raise ConfigError(msg, file=self.machine.name, key='effects')
         self._integrator = EnergyIntegrator(len(self.axes) + 1)
-        self._t: list[np.ndarray] = []
-        self._mech: list[np.ndarray] = []
-        self._power: list[np.ndarray] = []
-        self._energy: list[np.ndarray] = []
+        self._n = 0
+        self._energy_last = np.zeros(len(self.axes) + 1)
+        self._prev: tuple[float, float] | None = None        # (t, total power) of the last
+        self._table: tuple[np.ndarray, np.ndarray] | None = None   # (starts_ns, lines)
+        self._waiting: list[tuple[np.ndarray, np.ndarray]] = []    # (t, total) before it
+        self._by_line: dict[int, list[float]] = {}            # line -> [energy J, time s]
 
     @property
     def last_time_s(self) -> float | None:
@@ -200,7 +205,12 @@ class StreamingPower:
     @property
     def n_samples(self) -> int:
         """Samples integrated so far."""
-        return int(sum(t.shape[0] for t in self._t))
+        return self._n
+
+    @property
+    def energy_j(self) -> np.ndarray:
+        """Cumulative energy so far [J]: per axis, then the total (``k + 1`` values)."""
+        return self._energy_last.copy()
 
     def update(self, t_s: np.ndarray, torque_nm: np.ndarray, omega_rad_s: np.ndarray, *,
                motion: Motion | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -226,35 +236,61 @@ class StreamingPower:
                 power = power + extra
         total = power.sum(axis=1)
         both = np.column_stack((power, total))
-        energy = self._integrator.update(t_s, both)
-        self._t.append(np.asarray(t_s, dtype=float))
-        self._mech.append(mechanical)
-        self._power.append(both)
-        self._energy.append(energy)
+        t = np.asarray(t_s, dtype=float)
+        energy = self._integrator.update(t, both)
+        if t.shape[0]:
+            self._n += t.shape[0]
+            self._energy_last = energy[-1].copy()
+            if self._table is None:
+                self._waiting.append((t.copy(), total.copy()))
+            else:
+                self._add_lines(t, total)
         return both, energy
 
-    def result(self, line: np.ndarray | None = None) -> PowerResult:
-        """Everything integrated so far as a :class:`.energy.PowerResult`.
+    def set_lines(self, starts_ns: np.ndarray, lines: np.ndarray) -> None:
+        """The program's line table (:func:`block_starts`); batches that waited for it are
+        attributed now."""
+        if self._table is not None:
+            return
+        self._table = (np.asarray(starts_ns, dtype=np.int64), np.asarray(lines, dtype=np.int64))
+        waiting, self._waiting = self._waiting, []
+        for t, total in waiting:
+            self._add_lines(t, total)
 
-        ``line`` gives the source line of every sample (zeros if ``None``). Loss power is not
-        carried on ``axis_state`` and is ``NaN`` here.
-        """
-        k = len(self.axes)
-        t = np.concatenate(self._t) if self._t else np.zeros(0)
-        both = np.vstack(self._power) if self._power else np.zeros((0, k + 1))
-        energy = np.vstack(self._energy) if self._energy else np.zeros((0, k + 1))
-        mech = np.vstack(self._mech) if self._mech else np.zeros((0, k))
-        lines = np.zeros(t.shape[0], dtype=np.int64) if line is None else np.asarray(line)
-        return PowerResult(t=t, axes=self.axes, power_w=both[:, :k], total_w=both[:, k],
-                           energy_j=energy[:, :k], total_energy_j=energy[:, k],
-                           mechanical_w=mech, loss_power_w=np.full_like(mech, np.nan),
-                           line=lines, braking=self.braking)
+    def _add_lines(self, t: np.ndarray, total: np.ndarray) -> None:
+        line = lines_at(seconds_to_ns(t), *self._table)
+        if self._prev is not None:          # the interval from the previous batch's last sample
+            t0, p0 = self._prev
+            t = np.concatenate(([t0], t))
+            total = np.concatenate(([p0], total))
+            line = np.concatenate(([0], line))
+        self._prev = (float(t[-1]), float(total[-1]))
+        if t.shape[0] < 2:
+            return
+        dt = np.diff(t)
+        de = 0.5 * (total[1:] + total[:-1]) * dt
+        keys, inverse = np.unique(line[1:], return_inverse=True)
+        energy = np.bincount(inverse, weights=de, minlength=keys.shape[0])
+        duration = np.bincount(inverse, weights=dt, minlength=keys.shape[0])
+        by_line = self._by_line
+        for k, e, d in zip(keys.tolist(), energy.tolist(), duration.tolist()):
+            acc = by_line.get(k)
+            if acc is None:
+                by_line[k] = [e, d]
+            else:
+                acc[0] += e
+                acc[1] += d
 
-    def block_energy(self, starts_ns: np.ndarray,
-                     lines: np.ndarray) -> list[tuple[int, float, float]]:
-        """Per-line ``(line, energy_j, duration_s)`` via :func:`.energy.energy_by_line`."""
-        t = np.concatenate(self._t) if self._t else np.zeros(0)
-        return energy_by_line(self.result(lines_at(seconds_to_ns(t), starts_ns, lines)))
+    def block_energy(self, starts_ns: np.ndarray | None = None,
+                     lines: np.ndarray | None = None) -> list[tuple[int, float, float]]:
+        """Per-line ``(line, energy_j, duration_s)`` sorted by line (the rule of
+        :func:`.energy.energy_by_line`); the line table may be given here if
+        :meth:`set_lines` was not called."""
+        if self._table is None:
+            if starts_ns is None or lines is None:
+                raise ValueError('the line table (program/lines) is not known yet')
+            self.set_lines(starts_ns, lines)
+        return [(k, float(v[0]), float(v[1])) for k, v in sorted(self._by_line.items())]
 
 
 _STAMP = struct.Struct('<iI')

@@ -70,6 +70,8 @@ class EnergyEstimator(Node):
             if self.power is None:
                 self.power = StreamingPower(axes, braking=self.machine.braking,
                                             machine=self.machine, load_kg=self.load_kg)
+                if self.lines is not None:
+                    self.power.set_lines(*self.lines)
             n = s.t.shape[0]
             motion = Motion(t=s.t, axes=axes, pos=s.positions[:, :k], vel=s.velocities[:, :k],
                             acc=s.accelerations[:, :k], line=np.zeros(n, dtype=np.int32))
@@ -91,6 +93,8 @@ class EnergyEstimator(Node):
         except FeedAxisError as err:
             self.get_logger().error(str(err))
             return
+        if self.power is not None:
+            self.power.set_lines(*self.lines)
         self._maybe_finish()
 
     def _on_end(self, msg: DiagnosticArray) -> None:
@@ -105,15 +109,15 @@ class EnergyEstimator(Node):
         if self.published or not self.tracker.done or self.lines is None or self.power is None:
             return
         end = self.tracker.end
-        blocks = self.power.block_energy(*self.lines)
+        blocks = self.power.block_energy()
         self.pub_blocks.publish(convert.block_energy_msg(
             blocks, stamp_ns=int(seconds_to_ns(self.power.last_time_s)), program=end.program))
         self.published = True
-        result = self.power.result()
-        per_axis = ', '.join(f'{a} {e:.3f} J' for a, e in zip(result.axes, result.energy_j[-1]))
+        energy = self.power.energy_j
+        per_axis = ', '.join(f'{a} {e:.3f} J' for a, e in zip(self.power.axes, energy[:-1]))
         self.get_logger().info(
             f'program end: {self.power.n_samples} samples, energy {per_axis}, '
-            f'total {result.total_energy_j[-1]:.3f} J, {len(blocks)} blocks')
+            f'total {energy[-1]:.3f} J, {len(blocks)} blocks')
         if self.power.n_samples != end.samples:
             self.get_logger().error(
                 f'{end.samples - self.power.n_samples} samples lost before energy_estimator')

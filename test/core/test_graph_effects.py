@@ -37,16 +37,22 @@ def test_batches_give_the_offline_power_and_energy_bit_for_bit(seed):
     rng = np.random.default_rng(seed)
     n = dyn.t.shape[0]
     cuts = np.unique(np.concatenate(([0, n], rng.integers(1, n, size=40))))
+    got_power, got_energy = [], []
     for i0, i1 in zip(cuts[:-1], cuts[1:]):
         sl = slice(i0, i1)
         motion = Motion(t=dyn.t[sl], axes=dyn.axes, pos=result.motion.pos[sl],
                         vel=result.motion.vel[sl], acc=result.motion.acc[sl],
                         line=np.zeros(i1 - i0, dtype=np.int32))
-        stream.update(dyn.t[sl], dyn.torque_nm[sl], dyn.omega_rad_s[sl], motion=motion)
-    got = stream.result()
-    assert_array_equal(got.power_w, power.power_w)
-    assert_array_equal(got.total_w, power.total_w)
-    assert_array_equal(got.total_energy_j, power.total_energy_j)
+        both, energy = stream.update(dyn.t[sl], dyn.torque_nm[sl], dyn.omega_rad_s[sl],
+                                     motion=motion)
+        got_power.append(both)
+        got_energy.append(energy)
+    both, energy = np.vstack(got_power), np.vstack(got_energy)
+    k = len(dyn.axes)
+    assert_array_equal(both[:, :k], power.power_w)
+    assert_array_equal(both[:, k], power.total_w)
+    assert_array_equal(energy[:, k], power.total_energy_j)
+    assert_array_equal(stream.energy_j, energy[-1])
 
 
 def test_effects_need_the_motion():

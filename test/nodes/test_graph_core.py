@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from feed_axis_energy.core import bagio, graph
-from feed_axis_energy.core.energy import energy_by_line, EnergyIntegrator
+from feed_axis_energy.core.energy import energy_by_line, EnergyIntegrator, PowerResult
 
 
 def test_flow_window_waits_for_every_source():
@@ -39,18 +39,46 @@ def test_streaming_power_equals_offline_by_hand():
     sp = graph.StreamingPower(('X', 'Y'), braking='dissipated')
     for i0, i1 in graph.batch_bounds(50, 7):
         sp.update(t[i0:i1], torque[i0:i1], omega[i0:i1])
-    res = sp.result()
     p = np.maximum(torque * omega, 0.0)
     # trapezoid by hand, total = sum of axes
     e_hand = np.concatenate(([0.0], np.cumsum(0.5 * (p[1:] + p[:-1]).sum(axis=1) * 0.01)))
-    np.testing.assert_allclose(res.total_energy_j, e_hand, rtol=1e-12, atol=1e-15)
+    assert sp.energy_j[-1] == pytest.approx(e_hand[-1], rel=1e-12)
     whole = EnergyIntegrator(3).update(t, np.column_stack((p, p.sum(axis=1))))
-    np.testing.assert_array_equal(res.total_energy_j, whole[:, 2])
+    np.testing.assert_array_equal(sp.energy_j, whole[-1])
+    assert sp.n_samples == 50
+    # Per line: the offline rule on the whole record (lines change inside a batch, at 25).
     line = np.repeat([1, 2], 25)
     starts, lines = graph.block_starts(graph.seconds_to_ns(t), line)
     blocks = sp.block_energy(starts, lines)
-    assert blocks == energy_by_line(sp.result(line))
-    assert sum(b[1] for b in blocks) == pytest.approx(res.total_energy_j[-1], rel=1e-12)
+    ref = energy_by_line(PowerResult(
+        t=t, axes=('X', 'Y'), power_w=p, total_w=p.sum(axis=1), energy_j=whole[:, :2],
+        total_energy_j=whole[:, 2], mechanical_w=torque * omega,
+        loss_power_w=np.zeros_like(p), line=line, braking='dissipated'))
+    assert [b[0] for b in blocks] == [b[0] for b in ref] == [1, 2]
+    np.testing.assert_allclose([b[1:] for b in blocks], [b[1:] for b in ref], rtol=1e-12)
+    assert sum(b[1] for b in blocks) == pytest.approx(sp.energy_j[-1], rel=1e-12)
+
+
+def test_streaming_power_lines_may_come_before_or_after_batches():
+    rng = np.random.default_rng(2)
+    t = np.arange(40) * 0.01
+    torque, omega = rng.normal(size=(40, 1)), rng.normal(size=(40, 1))
+    line = np.repeat([3, 5, 4, 3], 10)
+    table = graph.block_starts(graph.seconds_to_ns(t), line)
+    early = graph.StreamingPower(('X',), braking='regenerative')
+    early.set_lines(*table)
+    late = graph.StreamingPower(('X',), braking='regenerative')
+    for i0, i1 in graph.batch_bounds(40, 6):
+        early.update(t[i0:i1], torque[i0:i1], omega[i0:i1])
+        late.update(t[i0:i1], torque[i0:i1], omega[i0:i1])
+    with pytest.raises(ValueError, match='line table'):
+        late.block_energy()
+    got_late = late.block_energy(*table)
+    got_early = early.block_energy()
+    assert [b[0] for b in got_early] == [3, 4, 5]
+    np.testing.assert_allclose(got_late, got_early, rtol=1e-12)
+    # line 3 has two runs: its time is 9 + 10 intervals (the first sample has none)
+    assert got_early[0][2] == pytest.approx(0.19, rel=1e-9)
 
 
 def test_header_stamp_from_cdr():
