@@ -40,7 +40,7 @@ from ..machine import load_machine, Machine
 from ..measured.align import align_simulated
 from ..measured.compare import _MotionCache, _simulate, compare_campaign, RunComparison
 from ..measured.csvload import load_run
-from ..measured.manifest import Campaign
+from ..measured.campaign import Campaign
 from ..measured.metrics import table1_metrics
 from .diagnostics import binned_structure, Diagnostic, noise_sigma, spectrum_structure
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,

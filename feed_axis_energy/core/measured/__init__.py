@@ -10,8 +10,9 @@ Typical use::
     print(table1_metrics(run.t, run.total_power_w, p_sim).to_dict())
 """
 from .align import align_simulated, estimate_offset, interval_average, OffsetResult
+from .campaign import Campaign, ColumnSpec, RowFilter, RunSpec
 from .csvload import load_run, MeasuredRun
-from .manifest import Campaign, campaign_from_dict, ColumnSpec, load_campaign, RowFilter, RunSpec
+from .manifest import campaign_from_dict, load_campaign
 from .metrics import group_metrics, Metrics, table1_metrics
 
 __all__ = [

@@ -34,7 +34,7 @@ import numpy as np
 from .. import bagio
 from ..errors import ConfigError, DataError, describe, shorten
 from ..units import check_si_values, si_unit_of
-from .manifest import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, RunSpec
+from .campaign import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, RunSpec
 from .run import check_duration, GAP_FACTOR, MeasuredRun
 
 __all__ = [

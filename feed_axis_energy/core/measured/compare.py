@@ -34,7 +34,7 @@ from ..simulate import simulate_motion, SimulationResult
 from ..trajectory import motion_from_samples, plan
 from .align import align_simulated, estimate_offset, OffsetResult
 from .csvload import load_run, MeasuredRun
-from .manifest import Campaign, RunSpec
+from .campaign import Campaign, RunSpec
 from .metrics import group_metrics, Metrics, table1_metrics
 
 __all__ = [

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import DataError, shorten
 from ..units import check_si_values, to_si
-from .manifest import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, ColumnSpec, RowFilter, RunSpec
+from .campaign import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, ColumnSpec, RowFilter, RunSpec
 from .run import check_duration, GAP_FACTOR, MeasuredRun, MIN_STEP_S
 
 __all__ = ['GAP_FACTOR', 'MIN_STEP_S', 'MeasuredRun', 'check_duration', 'load_run']

@@ -28,7 +28,7 @@ from ..units import si_unit_of
 from .bagload import (QUANTITY_TOPIC, RUN_KEY, TOPIC_MEASURED_COMMAND,
                       TOPIC_MEASURED_ELECTRICAL, electrical_joint)
 from .csvload import load_run, MeasuredRun
-from .manifest import AXIS_QUANTITIES, Campaign, RunSpec
+from .campaign import AXIS_QUANTITIES, Campaign, RunSpec
 
 __all__ = ['FORMAT_VERSION', 'ImportedRun', 'ImportResult', 'excerpt_run', 'run_series',
            'run_metadata', 'write_run_bag', 'bag_manifest', 'import_campaign']

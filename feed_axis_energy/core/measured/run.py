@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError, shorten
-from .manifest import RunSpec
+from .campaign import RunSpec
 
 __all__ = ['GAP_FACTOR', 'MIN_STEP_S', 'MeasuredRun', 'check_duration']
 
