@@ -5,7 +5,9 @@
 
 Parameters come from ``config/graph.yaml``; the arguments override them. The launch ends
 when energy_estimator exits (it does after publishing block_energy); with ``record`` the
-recorder closes its bag first.
+recorder closes its bag first. Every node gets ``FAE_PARENT_PID`` (this launch process), so
+it arms the parent-death signal (``feed_axis_energy.lifeline``) and stops if the launch
+process is killed, as with ``feed-axis-energy launch``.
 """
 import os
 
@@ -29,23 +31,27 @@ def _graph(context):
                                              'demonstrator_f100.nc')
     machine = {'machine': arg['machine']} if arg['machine'] else {}
     record = arg['record']
+    # the nodes are this process's children: tie their lives to it (lifeline.arm_from_env)
+    lifeline = {'FAE_PARENT_PID': str(os.getpid())}
     energy = Node(package=PACKAGE, executable='energy_estimator', name='energy_estimator',
                   parameters=[params, {**machine, 'load_kg': float(arg['load_kg']),
-                                       'exit_at_end': True}], output='screen')
+                                       'exit_at_end': True}], output='screen',
+                  additional_env=lifeline)
     nodes = [
         Node(package=PACKAGE, executable='gcode_trajectory', name='gcode_trajectory',
              parameters=[params, {**machine, 'program': program, 'mode': arg['mode'],
-                                  'ack_recorder': bool(record)}], output='screen'),
+                                  'ack_recorder': bool(record)}], output='screen',
+             additional_env=lifeline),
         Node(package=PACKAGE, executable='axis_dynamics', name='axis_dynamics',
              parameters=[params, {**machine, 'load_kg': float(arg['load_kg'])}],
-             output='screen'),
+             output='screen', additional_env=lifeline),
         energy,
     ]
     done = energy
     if record:
         done = Node(package=PACKAGE, executable='mcap_recorder', name='mcap_recorder',
                     parameters=[params, {'output': record, 'exit_at_end': True}],
-                    output='screen')
+                    output='screen', additional_env=lifeline)
         nodes.insert(0, done)
     nodes.append(RegisterEventHandler(OnProcessExit(
         target_action=done, on_exit=[EmitEvent(event=Shutdown(reason='program finished'))])))
