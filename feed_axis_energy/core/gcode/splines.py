@@ -53,7 +53,8 @@ from typing import NamedTuple
 
 from ..program import make_move, MoveKind
 
-__all__ = ['ControlPoint', 'NurbsState', 'SplineMixin', 'knot_vector', 'nurbs_polyline',
+__all__ = ['ControlPoint', 'NurbsState', 'SplineMixin', 'knot_vector', 'nurbs_point',
+           'nurbs_polyline',
            'SAMPLES_PER_POINT', 'MAX_CONTROL_POINTS', 'MAX_ORDER', 'SPLINE_WORDS']
 
 SAMPLES_PER_POINT = 15
@@ -141,6 +142,15 @@ def _basis(u: float, span: int, order: int, knots: Sequence[float]) -> list[floa
     return values
 
 
+def nurbs_point(points: Sequence[ControlPoint], order: int, u: float) -> tuple[float, float]:
+    """The point of a NURBS at parameter ``u`` (``0 <= u < len(points) - order + 1``).
+
+    ``sum(N_i(u) w_i P_i) / sum(N_i(u) w_i)`` with the B-spline basis ``N_i`` of
+    :func:`knot_vector`.
+    """
+    return _Curve(points, order).at(u)
+
+
 def nurbs_polyline(points: Sequence[ControlPoint], order: int) -> list[tuple[float, float]]:
     """The points LinuxCNC's preview canon feeds to for a NURBS (the start excluded).
 
@@ -158,31 +168,46 @@ def nurbs_polyline(points: Sequence[ControlPoint], order: int) -> list[tuple[flo
         ``h = umax / (15 (n + 1))`` (``n + 1`` points; accumulated as LinuxCNC does), then
         the last control point exactly.
     """
+    curve = _Curve(points, order)
     count = len(points)
-    n = count - 1
-    knots = knot_vector(count, order)
-    umax = float(n - order + 2)
+    umax = float(count - order + 1)
     div = count * SAMPLES_PER_POINT
-    wx = [p.w * p.x for p in points]
-    wy = [p.w * p.y for p in points]
-    w = [p.w for p in points]
     out: list[tuple[float, float]] = []
     u = 0.0
     while u + umax / div < umax:
         u = u + umax / div
+        out.append(curve.at(u))
+    out.append((points[-1].x, points[-1].y))
+    return out
+
+
+class _Curve:
+    """A NURBS ready for evaluation: knots and the weighted coordinates."""
+
+    __slots__ = ('order', 'last', 'knots', 'wx', 'wy', 'w')
+
+    def __init__(self, points: Sequence[ControlPoint], order: int) -> None:
+        self.order = order
+        self.last = len(points) - 1
+        self.knots = knot_vector(len(points), order)
+        self.wx = [p.w * p.x for p in points]
+        self.wy = [p.w * p.y for p in points]
+        self.w = [p.w for p in points]
+
+    def at(self, u: float) -> tuple[float, float]:
+        """The point at ``u``."""
+        order = self.order
         # Interior knots are the integers 1 .. n - order + 1: the span is found directly.
-        span = min(order - 1 + int(u), n)
+        span = min(order - 1 + int(u), self.last)
         first = span - order + 1
-        values = _basis(u, span, order, knots)
+        wx, wy, w = self.wx, self.wy, self.w
         sx = sy = sw = 0.0
-        for s, v in enumerate(values):
+        for s, v in enumerate(_basis(u, span, order, self.knots)):
             i = first + s
             sx += v * wx[i]
             sy += v * wy[i]
             sw += v * w[i]
-        out.append((sx / sw, sy / sw))
-    out.append((points[-1].x, points[-1].y))
-    return out
+        return (sx / sw, sy / sw)
 
 
 class SplineMixin:
