@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+from hypothesis import given, settings, strategies as st
 import pytest
 
 from feed_axis_energy.core.errors import GcodeError
@@ -278,3 +279,36 @@ def test_too_many_control_points_is_refused(monkeypatch):
     with pytest.raises(GcodeError, match='more than 3 control points') as info:
         run('G0 X0 Y0\nG5.2 X1 Y1 P1\nX2 Y0 P1\nX3 Y1 P1\nG5.3')
     assert info.value.line == 5
+
+
+# -- properties ----------------------------------------------------------------------------
+_COORD = st.floats(-500, 500, allow_nan=False).map(lambda v: round(v, 4))
+_WEIGHT = st.floats(0.01, 100, allow_nan=False).map(lambda v: round(v, 4))
+
+
+@settings(max_examples=150, derandomize=True, deadline=None, database=None)
+@given(points=st.lists(st.tuples(_COORD, _COORD, _WEIGHT), min_size=1, max_size=12),
+       order=st.integers(0, 8), start=st.tuples(_COORD, _COORD))
+def test_random_nurbs_stays_in_the_hull_and_ends_on_the_last_point(points, order, start):
+    """Positive weights: every point of a NURBS is a convex combination of its control
+    points, so it stays in their bounding box; the last feed ends on the last point."""
+    body = [f'G0 X{start[0]} Y{start[1]} Z1', f'G5.2 X{points[0][0]} Y{points[0][1]} '
+            f'P{points[0][2]} L{order}']
+    body += [f'X{x} Y{y} P{w}' for x, y, w in points[1:]]
+    body.append('G5.3')
+    count = len(points) + 1
+    text = '\n'.join(body)
+    if count < max(order, 3):
+        with pytest.raises(GcodeError, match='at least equal to the order'):
+            run(text)
+        return
+    f = feeds(run(text))
+    xs = [start[0]] + [p[0] for p in points]
+    ys = [start[1]] + [p[1] for p in points]
+    assert len(f) in (15 * count, 15 * count + 1)
+    assert f[-1].end == pytest.approx((xs[-1] * MM, ys[-1] * MM, 1 * MM), abs=1e-15)
+    assert chained(f[0].start, f)
+    for m in f:
+        assert all(math.isfinite(v) for v in m.end) and m.length_m >= 0.0
+        assert min(xs) * MM - 1e-12 <= m.end[0] <= max(xs) * MM + 1e-12
+        assert min(ys) * MM - 1e-12 <= m.end[1] <= max(ys) * MM + 1e-12
