@@ -59,8 +59,10 @@ __all__ = ['ControlPoint', 'NurbsState', 'SplineMixin', 'knot_vector', 'nurbs_po
 
 SAMPLES_PER_POINT = 15
 """Straight feeds per control point of LinuxCNC's preview canon (gcodemodule.cc)."""
-MAX_CONTROL_POINTS = 10_000
-"""Control points of one curve (150 000 feeds at most, issued at once)."""
+MAX_CONTROL_POINTS = 2_000
+"""Control points of one curve: at most 30 000 feeds, issued at once (about 25 MB). LinuxCNC
+itself evaluates a curve in time growing at least with the cube of its points: a curve
+this long would take it hours."""
 MAX_ORDER = 16
 """Highest NURBS order L (LinuxCNC's own evaluation time doubles with each order)."""
 
