@@ -33,8 +33,8 @@ the oracle drives) issues ``NURBS_FEED`` as straight feeds: with ``n + 1`` contr
 whose parameter stays below ``umax``, then a feed to the last control point itself. We issue
 the same feeds (same parameters, accumulated the same way), so counts and lengths agree.
 LinuxCNC's task (the real machine) issues biarcs instead, 4 per control point; the
-lengths differ by the chord error of the finer polyline (below 1e-4 relative on smooth
-curves). The feeds run at the current Z: LinuxCNC's preview uses the Z of the last
+lengths differ by about the chord error of the polyline (a quarter circle in 45 chords is
+5e-5 shorter). The feeds run at the current Z: LinuxCNC's preview uses the Z of the last
 straight move there, so after a helix or an arc out of the XY plane its picture differs.
 
 Refused beyond LinuxCNC (it runs them with undefined results): a first G5.2 point without
