@@ -70,8 +70,9 @@ Refused with a clear message
 ----------------------------
 Axes A/B/C/U/V/W (or dropped with ``ignore_axes``/``--ignore-axes``, one warning each),
 G5.2 without a positive weight on its first point, G5.2 under G93 or cutter compensation
-(G5/G5.1 under compensation as LinuxCNC), G33 spindle-synchronised motion, G95 feed per revolution, G7
-lathe mode, G17.1-G19.1 UVW planes, unknown G and M codes, words nothing uses.
+(G5/G5.1 under compensation as LinuxCNC), G33 spindle-synchronised motion, G95 feed per
+revolution, G7 lathe mode, G17.1-G19.1 UVW planes, unknown G and M codes, words nothing
+uses.
 """
 from __future__ import annotations
 
