@@ -22,7 +22,10 @@ Reading
   ``/``; ``%`` lines (the second ends the program); grbl ``$`` lines skipped with a warning.
   Blanks inside words and lower-case letters are read as LinuxCNC reads them.
 * Parameters ``#1``..``#5601``, ``#<local>``, ``#<_global>``, expressions ``[ ]`` with
-  LinuxCNC's operators and functions; assignments take effect after their line.
+  LinuxCNC's operators and functions; assignments take effect after their line. In the
+  Macro B dialects (``fanuc``, ``haas``) Fanuc's read-only system variables: modal groups
+  ``#4001``.. and positions ``#5001``.., ``#5021``.., ``#5041``.., ``#5081``..
+  (:mod:`.fanuc_vars`: given from the modal state, or refused by number).
 * O-word subroutines (in the program, or ``<name>.ngc`` next to it or on ``search_path``)
   and ``if/elseif/else``, ``while``, ``do``, ``repeat``, ``break/continue``; Fanuc
   ``O1234`` + ``M98 P.. L..`` / ``M99``. Loops stop with an error after 10^6 passes.

@@ -16,6 +16,7 @@ from .coords import COORD_G_CODES, Coords, foreign_codes, MAX_OFFSET_M
 from .cutter import CutterComp
 from .cycles import CycleMemory
 from .dialect import Dialect, dialect_by_name
+from .fanuc_vars import fanuc_system_value
 from .interp_comp import CompMixin
 from .interp_modes import ModesMixin
 from .interp_motion import MotionMixin
@@ -478,8 +479,13 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
 
     def system_value(self, key: int | str) -> float | None:
         """Live coordinate values for ``Parameters.provider`` (``#5420..#5428``, ``#5400``,
-        ``#5401..#5410``, ``#<_x>``.., ``#<_abs_x>``.., ``#<_coord_system>``, tool numbers);
+        ``#5401..#5410``, ``#<_x>``.., ``#<_abs_x>``.., ``#<_coord_system>``, tool numbers;
+        in Macro B dialects Fanuc's ``#4001..``, ``#5001..``: :mod:`.fanuc_vars`);
         ``None`` for any other key."""
+        if self.dialect.fanuc_macro and isinstance(key, int) and 4000 < key < 5100:
+            value = fanuc_system_value(self, key)
+            if value is not None:
+                return value
         coords = self.coords
         coords.selected_tool = self.tool_selected
         coords.loaded_tool = self.tool_loaded
