@@ -250,6 +250,20 @@ LIVE_PROGRAMS = {
         G55 G5.1 X10 Y10 I3 J-2       (rotated system: I, J turn too)
         G54 G0 Z5
         M2''',
+    'splines_after_g40': '''
+        G21 G90 G17 F300
+        G0 X0 Y0
+        G41.1 D2 G1 X10 Y0
+        G1 X20
+        G40
+        G5.1 X30 Y5 I5 J0             (its first feed leaves the offset point)
+        G42.1 D4 G1 X40
+        G40
+        G5.2 X45 Y10 P1
+             X50 Y0 P2
+             X55 Y5 P1
+        G5.3
+        M2''',
     'dwells_and_safety_block': '''
         %
         G0 G17 G40 G49 G80 G90

@@ -20,8 +20,9 @@ all three into one NURBS in the XY plane and hands it to the canonical call ``NU
   for n + 1 points).
 
 Their checks and messages are LinuxCNC's: G5/G5.1 only in G17, without Z, never under
-cutter compensation, with a feed rate (F on the line under G93); G5.2 points need X and Y
-together and a positive weight P. G5/G5.1 leave the motion mode as it was (LinuxCNC's
+cutter compensation (right after G40 the curve's first feed is the exit move from the offset
+point, as in the reference), with a feed rate (F on the line under G93); G5.2 points need
+X and Y together and a positive weight P. G5/G5.1 leave the motion mode as it was (LinuxCNC's
 ``convert_spline`` does not set it: ``G0 ... G5.1 ... X5`` traverses to X5). LinuxCNC keeps
 one list of control points for all three: a G5.2 curve left without G5.3 is dropped by
 the next G5.2, but a G5/G5.1 before that takes its points as the first of its own; we do
@@ -301,7 +302,9 @@ class SplineMixin:
     def spline_checks(self, d: dict[str, str], name: str, code: float) -> None:
         """LinuxCNC's checks of G5/G5.1 before their geometry: no cutter compensation, a
         feed rate, the XY plane."""
-        if self.comp.active or self.routing:
+        # Right after G40 (the exit still pending) the first feed is the exit move, as the
+        # reference runs it: from the offset point to the curve's first point.
+        if self.comp.active:
             self.fail('Cannot convert spline with cutter radius compensation (LinuxCNC)', 'G',
                       value=code)
         if self.inverse_time:
@@ -348,7 +351,7 @@ class SplineMixin:
                             '(LinuxCNC)', d)
         if self.inverse_time:
             self.nurbs_fail('G5.2 NURBS in inverse time (G93) is not supported: use G94', d)
-        if self.comp.active or self.routing:
+        if self.comp.active:
             self.nurbs_fail('G5.2 NURBS with cutter radius compensation is not supported '
                             '(LinuxCNC issues it uncompensated)', d)
         if self.series:

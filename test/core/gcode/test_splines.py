@@ -231,6 +231,19 @@ def test_g51_takes_the_points_of_an_unfinished_nurbs_as_linuxcnc():
     assert any('also takes the 3 control points' in w for w in p.warnings)
 
 
+def test_spline_right_after_g40_makes_the_exit_move():
+    # G41.1 D2: offset 1 mm to the left of +X travel, so the tool is at (20, 1) after X20;
+    # after G40 the spline's first feed leaves the offset point (as LinuxCNC's reference)
+    p = run('G0 X0 Y0\nG41.1 D2 G1 X10 Y0\nG1 X20\nG40\nG5.1 X30 Y5 I5 J0')
+    f = feeds(p, 6)
+    assert f[0].start == pytest.approx((20 * MM, 1 * MM, 0.0))
+    # P0 (20, 0), P1 (25, 0), P2 (30, 5): x = 20 + 10 t, y = 5 t^2
+    for m in f:
+        x, y = m.end[0] / MM, m.end[1] / MM
+        assert y == pytest.approx(5 * ((x - 20) / 10) ** 2, abs=1e-9)
+    assert chained(f[0].start, f) and f[-1].end == (30 * MM, 5 * MM, 0.0)
+
+
 def test_g5_3_leaves_no_motion_mode():
     with pytest.raises(GcodeError, match='no motion mode'):
         run('G0 X0 Y0\nG5.2 X3 Y0 P1\nX6 Y0 P1\nG5.3\nX9')
