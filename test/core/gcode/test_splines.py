@@ -9,7 +9,14 @@ program ``splines`` and the corpus' butterfly).
 """
 from __future__ import annotations
 
+import importlib.util
+import json
 import math
+import os
+from pathlib import Path
+import random
+import subprocess
+import sys
 
 from hypothesis import given, settings, strategies as st
 import pytest
@@ -21,6 +28,7 @@ from feed_axis_energy.core.gcode.splines import (ControlPoint, knot_vector, MAX_
 from feed_axis_energy.core.program import MoveKind
 
 MM = 1e-3
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def run(text: str, **kw):
@@ -325,3 +333,72 @@ def test_random_nurbs_stays_in_the_hull_and_ends_on_the_last_point(points, order
         assert all(math.isfinite(v) for v in m.end) and m.length_m >= 0.0
         assert min(xs) * MM - 1e-12 <= m.end[0] <= max(xs) * MM + 1e-12
         assert min(ys) * MM - 1e-12 <= m.end[1] <= max(ys) * MM + 1e-12
+
+
+# -- against the reference interpreter (where linuxcnc-uspace is installed) --------------------
+def _oracle_script() -> Path | None:
+    for folder in (os.environ.get('FAE_SHARED', ''), str(ROOT.parent / 'shared'), '/work/shared'):
+        if folder and (Path(folder) / 'tools' / 'run_oracle.py').is_file():
+            return Path(folder) / 'tools' / 'run_oracle.py'
+    return None
+
+
+def _has_reference() -> bool:
+    if _oracle_script() is None or not Path('/usr/bin/python3').exists():
+        return False
+    proc = subprocess.run(['/usr/bin/python3', '-c', 'import gcode; gcode.parse'],
+                          capture_output=True, cwd='/', timeout=60)
+    return proc.returncode == 0
+
+
+def _random_program(rng: random.Random) -> str:
+    """G5, G5.1 and G5.2 curves mixed with G90/G91, G20/G21, rotated systems and G92."""
+    def num(lo: float = -20.0, hi: float = 20.0) -> str:
+        return f'{rng.uniform(lo, hi):.3f}'
+    out = [rng.choice(['G21', 'G20']) + ' G17 F' + num(10, 500)]
+    if rng.random() < 0.4:
+        out.append(f'G10 L2 P1 X{num()} Y{num()} R{rng.choice(["0", num(-90, 90)])}')
+    out.append(f'G0 X{num()} Y{num()} Z{num(0, 5)}')
+    for _ in range(rng.randint(2, 6)):
+        r = rng.random()
+        dist = rng.choice(['G90 ', 'G91 ', ''])
+        if r < 0.3:
+            ij = f'I{num(-5, 5)} J{num(-5, 5)} ' if rng.random() < 0.7 else ''
+            out.append(f'{dist}G5 X{num()} Y{num()} {ij}P{num(-5, 5)} Q{num(-5, 5)}')
+        elif r < 0.5:
+            out.append(f'{dist}G5.1 X{num()} Y{num()} I{num(-5, 5)} J{num(-5, 5)}')
+        elif r < 0.85:
+            n = rng.randint(3, 8)
+            order = rng.choice(['', 'L3', 'L4', 'L5'])
+            out.append(f'{dist}G5.2 X{num()} Y{num()} P{num(0.2, 3)} {order}')
+            out += [f'X{num()} Y{num()} P{num(0.2, 3)}' for _ in range(n - 1)]
+            out.append('G5.3')
+        else:
+            out.append(f'G92 X{num()} Y{num()}')
+        out.append(f'G1 X{num()}')
+    return '\n'.join(out + ['G90 G0 Z10', 'M2']) + '\n'
+
+
+@pytest.mark.skipif(not _has_reference(), reason='reference interpreter (linuxcnc-uspace, '
+                    'shared/tools/run_oracle.py) not available')
+def test_random_spline_programs_agree_with_the_reference(tmp_path):
+    spec = importlib.util.spec_from_file_location('fae_bench_corpus_splines',
+                                                  ROOT / 'bench' / 'corpus.py')
+    corpus = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = corpus
+    spec.loader.exec_module(corpus)
+    rng = random.Random(2026)
+    for k in range(12):
+        path = tmp_path / f'random{k}.ngc'
+        path.write_text(_random_program(rng))
+        proc = subprocess.run([sys.executable, str(_oracle_script()), '--one', str(path)],
+                              cwd='/', capture_output=True, text=True, timeout=300)
+        ref = json.loads(proc.stdout.strip().splitlines()[-1])
+        ours = corpus.run_ours(path, dialect='linuxcnc', search_path=[tmp_path])
+        if ref['status'] != 'ok':
+            assert ours.status == 'error', (path.read_text(), ref['error'])
+            assert ref['error'] in ours.error
+            continue
+        assert ours.status == 'ok', ours.error
+        diffs = corpus.compare(path.name, ours, ref)
+        assert not diffs, path.read_text() + '\n'.join(d.text() for d in diffs)
