@@ -59,6 +59,8 @@ Motion (canonical moves, :mod:`.canon`)
   L above 3, else 3; lines without G continue), issued at G5.3 (at least L points; no
   motion mode after it). All are issued as LinuxCNC's preview issues them: straight feeds,
   15 per control point, at the current Z. An unfinished G5.2 is dropped with a warning.
+  Only in the ``linuxcnc`` dialect: the others refuse G5.x (Fanuc's G05/G05.1 are
+  high-speed machining modes).
 * G4 dwell (P unit per dialect); M0/M1 stop; M2/M30 end (later lines warned about).
 
 Modes and coordinates

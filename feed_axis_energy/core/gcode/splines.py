@@ -38,6 +38,9 @@ lengths differ by about the chord error of the polyline (a quarter circle in 45 
 5e-5 shorter). The feeds run at the current Z: LinuxCNC's preview uses the Z of the last
 straight move there, so after a helix or an arc out of the XY plane its picture differs.
 
+Only where ``Dialect.g5_splines`` (the ``linuxcnc`` dialect): the other controls have no
+such codes or, on Fanuc, use G05/G05.1 for high-speed machining modes; they are refused.
+
 Refused beyond LinuxCNC (it runs them with undefined results): a first G5.2 point without
 a positive P (LinuxCNC reads a missing P as weight -1 and may divide by zero), G5.2 under
 G93 or cutter compensation, axis words on the G5.3 line, more than
@@ -233,6 +236,8 @@ class SplineMixin:
     def spline_g_codes(self, motion: int | None, end: bool) -> None:
         """Note the spline G codes of a line (called from ``g_words`` before the line's
         motion mode is set): the mode before it, and a G5.3 to run before the motion."""
+        if not self.dialect.g5_splines:
+            self.foreign_spline(motion if motion is not None and 50 <= motion <= 52 else 53)
         state = self.nurbs
         if motion is not None and 50 <= motion <= 52:
             state.before = self.motion
@@ -243,6 +248,18 @@ class SplineMixin:
                           'allowed (LinuxCNC)', 'G', value=53 / 10)
             state.end_line = self.lineno
             self.pending_lineno = self.lineno
+
+    def foreign_spline(self, code: int):
+        """Refuse a G5.x code in a dialect whose control does not have LinuxCNC's splines."""
+        name = self.dialect.name
+        if name == 'fanuc':
+            why = ('there G05/G05.1 select high-speed machining modes (G05.1 Q1: AI contour '
+                   'control), not splines')
+        else:
+            why = f'{self.dialect.control} has no such spline code'
+        self.fail(f'{_NAMES[code]} is not simulated in the {name} dialect: {why}; LinuxCNC '
+                  'programs with G5.x splines are read with --dialect linuxcnc', 'G',
+                  value=code / 10)
 
     # -- G5 / G5.1 ----------------------------------------------------------------------
     def spline(self, d: dict[str, str], mode: int, g9: bool) -> None:

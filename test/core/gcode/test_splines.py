@@ -402,3 +402,12 @@ def test_random_spline_programs_agree_with_the_reference(tmp_path):
         assert ours.status == 'ok', ours.error
         diffs = corpus.compare(path.name, ours, ref)
         assert not diffs, path.read_text() + '\n'.join(d.text() for d in diffs)
+
+
+@pytest.mark.parametrize('dialect', ['fanuc', 'haas', 'grbl', 'mach3'])
+@pytest.mark.parametrize('text', ['G05.1 Q1', 'G5 X1 Y1 I1 J1 P1 Q1', 'G5.2 X1 Y1 P1', 'G5.3'])
+def test_other_dialects_refuse_g5_codes(dialect, text):
+    # Fanuc's G05/G05.1 are high-speed machining modes; grbl, Mach3, Haas have no G5 spline
+    with pytest.raises(GcodeError, match=f'not simulated in the {dialect} dialect') as info:
+        parse_gcode('G21 F100\n' + text + '\nM30\n', dialect=dialect, file='f.nc')
+    assert (info.value.line, info.value.column) == (2, 1)
