@@ -37,7 +37,7 @@ def progs(tmp_path):
     d.mkdir()
     for name in ('demonstrator_f200.nc', 'demonstrator_f400.nc'):
         (d / name).write_text((PROGRAMS / name).read_text())
-    (d / 'zz_bad.nc').write_text('G21 G90\nG1 X10 F600\nG5.2 X1 Y2\nM30\n')
+    (d / 'zz_bad.nc').write_text('G21 G90\nG1 X10 F600\nG33 Z-1 K1\nM30\n')
     return d
 
 
@@ -117,7 +117,7 @@ def test_failed_job_row_and_exit_code(progs):
     assert 'energy [J]' in lines[0] and 'load [kg]' in lines[0]
     assert sum(line.rstrip().endswith(' ok') for line in lines) == 2
     assert '1 of 3 jobs failed:' in proc.stdout
-    assert 'zz_bad.nc:3:1: G5.2 is not supported' in proc.stdout
+    assert 'zz_bad.nc:3:1: G33 is not supported' in proc.stdout
     assert '[batch] 3 jobs (1 failed)' in proc.stderr
 
 
@@ -152,7 +152,7 @@ def test_csv_written_safely(progs, tmp_path, capsys):
             assert float(row['energy X [J]']) == res['summary']['energy_j']['X']
             assert int(row['samples']) == res['summary']['samples']
         else:
-            assert 'G5.2' in row['error'] and row['energy [J]'] == ''
+            assert 'G33' in row['error'] and row['energy [J]'] == ''
     assert len({len(r) for r in rows}) == 1
     # an existing file is refused (before any job runs) unless --force
     before = out.read_text()

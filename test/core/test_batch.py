@@ -34,7 +34,7 @@ def _job(i, program, machine=DEMO, **kw):
 def campaign(tmp_path):
     """Jobs of two shipped programs at two loads, a refused program and a missing one."""
     bad = tmp_path / 'bad.nc'
-    bad.write_text('G21 G90\nG1 X10 F600\nG5.2 X1 Y2\nM30\n')
+    bad.write_text('G21 G90\nG1 X10 F600\nG33 Z-1 K1\nM30\n')
     progs = [(p.name, str(p)) for p in (PROGRAMS / 'demonstrator_f500.nc',
                                         PROGRAMS / 'demonstrator_f100.nc')]
     progs += [('bad.nc', str(bad)), ('missing.nc', str(tmp_path / 'missing.nc'))]
@@ -100,7 +100,7 @@ def test_failed_job_is_a_row_naming_the_place(campaign):
     bad = [r for r in results if r.job.program == 'bad.nc']
     assert len(bad) == 2 and not any(r.ok for r in bad)
     assert bad[0].error_type == 'GcodeError'
-    assert 'bad.nc:3:1' in bad[0].error and 'G5.2' in bad[0].error
+    assert 'bad.nc:3:1' in bad[0].error and 'G33' in bad[0].error
     missing = [r for r in results if r.job.program == 'missing.nc'][0]
     assert 'missing.nc' in missing.error and 'cannot read' in missing.error
     row = missing.to_dict()

@@ -11,7 +11,8 @@ Layout (as LinuxCNC's rs274ngc): :mod:`.source` (bytes, line ends), :mod:`.lexer
 :mod:`.expr` and :mod:`.params` (words, expressions, parameters), :mod:`.flow` (O-words,
 Fanuc subprograms), :mod:`.interp` with :mod:`.interp_motion`, :mod:`.interp_modes`,
 :mod:`.interp_comp` (modal state), :mod:`.coords` (coordinate systems, tool length),
-:mod:`.cycles` and :mod:`.cutter` (canned cycles, cutter compensation), :mod:`.canon` (the
+:mod:`.cycles` and :mod:`.cutter` (canned cycles, cutter compensation), :mod:`.splines`
+(G5.x), :mod:`.canon` (the
 canonical moves and arc rules), :mod:`.run` (one pass: plain lines on a fast path, the rest
 through the front's reader).
 
@@ -21,7 +22,10 @@ Reading
   ``/``; ``%`` lines (the second ends the program); grbl ``$`` lines skipped with a warning.
   Blanks inside words and lower-case letters are read as LinuxCNC reads them.
 * Parameters ``#1``..``#5601``, ``#<local>``, ``#<_global>``, expressions ``[ ]`` with
-  LinuxCNC's operators and functions; assignments take effect after their line.
+  LinuxCNC's operators and functions; assignments take effect after their line. In the
+  Macro B dialects (``fanuc``, ``haas``) Fanuc's read-only system variables: modal groups
+  ``#4001``.. and positions ``#5001``.., ``#5021``.., ``#5041``.., ``#5081``..
+  (:mod:`.fanuc_vars`: given from the modal state, or refused by number).
 * O-word subroutines (in the program, or ``<name>.ngc`` next to it or on ``search_path``)
   and ``if/elseif/else``, ``while``, ``do``, ``repeat``, ``break/continue``; Fanuc
   ``O1234`` + ``M98 P.. L..`` / ``M99``. Loops stop with an error after 10^6 passes.
@@ -48,6 +52,15 @@ Motion (canonical moves, :mod:`.canon`)
   the path unchanged; what LinuxCNC refuses under compensation is refused.
 * G38.2..G38.5 probing runs to its end point (no contact simulated, one warning); G33.1
   rigid tapping goes in and back at K x S.
+* Splines (:mod:`.splines`, LinuxCNC 2.9's rules and messages): G5 cubic (``I J`` first
+  offset from the start, ``P Q`` second offset from the end; without I/J minus the previous
+  P/Q) and G5.1 quadratic (``I J``), in G17 only, without Z; they leave the motion mode as
+  it was. G5.2 NURBS: the start and one point per line (X Y together, weight P > 0, order
+  L above 3, else 3; lines without G continue), issued at G5.3 (at least L points; no
+  motion mode after it). All are issued as LinuxCNC's preview issues them: straight feeds,
+  15 per control point, at the current Z. An unfinished G5.2 is dropped with a warning.
+  Only in the ``linuxcnc`` dialect: the others refuse G5.x (Fanuc's G05/G05.1 are
+  high-speed machining modes).
 * G4 dwell (P unit per dialect); M0/M1 stop; M2/M30 end (later lines warned about).
 
 Modes and coordinates
@@ -61,8 +74,10 @@ without D uses the loaded tool); harmless I/O M codes per dialect are accepted.
 Refused with a clear message
 ----------------------------
 Axes A/B/C/U/V/W (or dropped with ``ignore_axes``/``--ignore-axes``, one warning each),
-G5/G5.1/G5.2/G5.3 splines, G33 spindle-synchronised motion, G95 feed per revolution, G7
-lathe mode, G17.1-G19.1 UVW planes, unknown G and M codes, words nothing uses.
+G5.2 without a positive weight on its first point, G5.2 under G93 or cutter compensation
+(G5/G5.1 under compensation as LinuxCNC), G33 spindle-synchronised motion, G95 feed per
+revolution, G7 lathe mode, G17.1-G19.1 UVW planes, unknown G and M codes, words nothing
+uses.
 """
 from __future__ import annotations
 

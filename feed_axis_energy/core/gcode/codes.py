@@ -10,10 +10,12 @@ from .coords import COORD_G_CODES
 
 __all__ = ['G_CODES', 'G_UNSUPPORTED', 'M_CODES', 'ALLOWED_LETTERS', 'UNSUPPORTED_LETTERS',
            'IGNORABLE_AXES',
-           'CYCLE_MOTIONS', 'COMP_FORBIDDEN']
+           'CYCLE_MOTIONS', 'SPLINE_MOTIONS', 'COMP_FORBIDDEN']
 
 # Canned cycles are motion modes (LinuxCNC: modal group 1): the argument is the cycle code.
 CYCLE_MOTIONS = frozenset({73, 81, 82, 83, 84, 85, 86, 87, 88, 89})
+# G5, G5.1, G5.2 (splines.py): motion group, argument 10 x code (below the cycles' 73).
+SPLINE_MOTIONS = frozenset({50, 51, 52})
 
 G_CODES: dict[int, tuple[str, object]] = {
     0: ('motion', 0), 10: ('motion', 1), 20: ('motion', 2), 30: ('motion', 3),
@@ -21,6 +23,9 @@ G_CODES: dict[int, tuple[str, object]] = {
     # Probing (run to the end point: no contact is simulated) and rigid tapping.
     382: ('motion', 382), 383: ('motion', 383), 384: ('motion', 384), 385: ('motion', 385),
     331: ('motion', 331),
+    **{c: ('motion', c) for c in SPLINE_MOTIONS},
+    # G5.3 ends a G5.2 NURBS: LinuxCNC's modal group 0 (splines.py).
+    53: ('nonmodal', 'nurbs_end'),
     **{c * 10: ('motion', c) for c in CYCLE_MOTIONS},
     40: ('nonmodal', 'dwell'), 90: ('nonmodal', 'exact'),
     170: ('plane', 17), 180: ('plane', 18), 190: ('plane', 19),
@@ -42,7 +47,6 @@ G_CODES: dict[int, tuple[str, object]] = {
 
 # Codes we know and refuse, with the reason shown to the user.
 G_UNSUPPORTED: dict[int, str] = {
-    50: 'spline moves', 51: 'spline moves', 52: 'spline moves', 53: 'spline moves',
     70: 'lathe diameter mode',
     330: 'spindle-synchronised motion',
     740: 'lathe/left-hand tapping cycle', 760: 'lathe threading cycle',

@@ -16,7 +16,9 @@ dialect        G4 P          G4 X         ``K0`` on a G17 arc  M98/M99      Macr
 =============  ============  ===========  ===================  ===========  =============
 
 (1) Fanuc Custom Macro B: ``WHILE``/``DO``/``END``, ``IF``/``GOTO``/``THEN``, ``G65``
-macro calls (and Haas ``M97`` local subprograms), read by the front (:mod:`.flow`).
+macro calls (and Haas ``M97`` local subprograms), read by the front (:mod:`.flow`), and
+the read-only system variables ``#4001..#4130`` and ``#5001..#5083`` from the modal state
+(:mod:`.fanuc_vars`; in LinuxCNC they are ordinary parameters).
 
 * G4 P: LinuxCNC, grbl and Mach3 (its default configuration) read seconds. Fanuc (Series
   0i/30i: ``G04 P`` in milliseconds without a decimal point, ``G04 X`` in seconds) reads
@@ -34,6 +36,10 @@ macro calls (and Haas ``M97`` local subprograms), read by the front (:mod:`.flow
   naming the dialect.
 * grbl ``$`` lines and ``%`` lines with text are handled by the reader for every dialect
   (skipped, with a warning for ``$``).
+* G5, G5.1, G5.2/G5.3 are LinuxCNC's splines (:mod:`.splines`) in the ``linuxcnc`` dialect
+  only; elsewhere they are refused with the line and column: on Fanuc controls ``G05`` and
+  ``G05.1`` select high-speed machining modes (``G05.1 Q1``: AI contour control), grbl and
+  Mach3 have no such codes.
 """
 from __future__ import annotations
 
@@ -73,6 +79,8 @@ class Dialect:
     fanuc_macro
         Fanuc Custom Macro B (``WHILE``/``DO``/``END``, ``IF``/``GOTO``/``THEN``, ``G65``,
         Haas ``M97``), read by the front.
+    g5_splines
+        G5/G5.1/G5.2/G5.3 are LinuxCNC's splines (else they are refused).
     """
 
     name: str
@@ -83,10 +91,12 @@ class Dialect:
     harmless_m: frozenset[int] = _LINUXCNC_M
     fanuc_subprograms: bool = True
     fanuc_macro: bool = False
+    g5_splines: bool = False
 
 
 DIALECTS: dict[str, Dialect] = {
-    'linuxcnc': Dialect('linuxcnc', 'LinuxCNC 2.9 (RS274NGC)', normal_centre_zero='error'),
+    'linuxcnc': Dialect('linuxcnc', 'LinuxCNC 2.9 (RS274NGC)', normal_centre_zero='error',
+                        g5_splines=True),
     'fanuc': Dialect('fanuc', 'Fanuc Series 0i-MF / 30i (milling)', dwell_p='milliseconds',
                      dwell_x_seconds=True, harmless_m=_LINUXCNC_M | _FANUC_M,
                      fanuc_macro=True),

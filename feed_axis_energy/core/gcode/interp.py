@@ -11,15 +11,17 @@ from collections.abc import Iterable, Mapping
 import math
 
 from .canon import CENTER_ARC_RADIUS_TOLERANCE_MM
-from .codes import ALLOWED_LETTERS, COMP_FORBIDDEN
+from .codes import ALLOWED_LETTERS, COMP_FORBIDDEN, SPLINE_MOTIONS
 from .coords import COORD_G_CODES, Coords, foreign_codes, MAX_OFFSET_M
 from .cutter import CutterComp
 from .cycles import CycleMemory
 from .dialect import Dialect, dialect_by_name
+from .fanuc_vars import fanuc_system_value
 from .interp_comp import CompMixin
 from .interp_modes import ModesMixin
 from .interp_motion import MotionMixin
 from .lexer import blank_comments, locate_word
+from .splines import NurbsState, SplineMixin
 from ..errors import GcodeError
 from ..program import Move, MoveKind
 
@@ -37,7 +39,7 @@ _STRAIGHT_WORDS = frozenset('XYZFN')
 _ARC_WORDS = frozenset('XYZIJKRPFN')
 
 
-class Interpreter(MotionMixin, CompMixin, ModesMixin):
+class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
     """Modal state of a program being parsed and the interpretation of its lines.
 
     Parameters
@@ -73,7 +75,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
                  'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
                  'warned', 'ignore_axes', 'rpm', 'polar_line', 'polar_inc',
-                 'arc_quick')
+                 'arc_quick', 'nurbs')
 
     def __init__(self, file: str, start: tuple[float, float, float],
                  arc_tolerance_m: float | None,
@@ -132,6 +134,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         self.rpm = 0.0                      # S word (spindle speed, rev/min)
         self.polar_line = -1                # line with G91 polar words (@ [m], ^ [rad])
         self.polar_inc = (0.0, 0.0)
+        self.nurbs = NurbsState()           # G5.x control points and modes (splines.py)
 
     # -- errors ---------------------------------------------------------------------------
     def fail(self, msg: str, letter: str, *, value: float | None = None, nth: int = 0):
@@ -150,6 +153,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         which may carry the same (main-program) line number."""
         self.pending_lineno = self.coord_line = self.g43_lineno = self.io_lineno = -1
         self.polar_line = -1
+        self.nurbs.motion_line = self.nurbs.end_line = -1
 
     def abandon_line(self) -> None:
         """After an error in a line that the run goes on from (``GcodeRun(max_errors=...)``):
@@ -211,7 +215,8 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         is_arc = mode == 2 or mode == 3
         if dwell or g64 or not d.keys() <= (_ARC_WORDS if is_arc and has_axes
                                             else _STRAIGHT_WORDS):
-            has_axes = self.check_extras(d, is_arc, has_axes, dwell, g64) or has_axes
+            has_axes = self.check_extras(d, is_arc, has_axes, dwell, g64,
+                                         motion is not None) or has_axes
         if self.pending_lineno == self.lineno:
             self.before_motion(d)
         if self.coord_line == self.lineno and self.apply_coords(d, motion is not None):
@@ -221,7 +226,9 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                 self.fail('axis words but no motion mode (G0/G1/G2/G3) is active',
                           self.first_axis(d))
             if mode > 3:
-                if mode < 100:
+                if mode < 60:
+                    self.spline(d, mode, g9)
+                elif mode < 100:
                     self.cycle(d, mode)
                 else:
                     self.probe_or_tap(d, mode, g9)
@@ -234,12 +241,15 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                     self.straight(d, mode, g9, motion is not None)
         elif motion is not None and motion <= 1:
             self.stand_still(d, motion, g9)
+        elif motion in SPLINE_MOTIONS:
+            self.spline(d, motion, g9)      # G5.2 P.. L..; G5/G5.1 fail (no end point)
         if ml:
             self.stop(ml)
 
     def check_extras(self, d: dict[str, str], is_arc: bool, has_axes: bool, dwell: bool,
-                     g64: bool) -> bool:
-        """Words other than axes/F/N/S: run the dwell, refuse words nothing uses.
+                     g64: bool, explicit: bool = False) -> bool:
+        """Words other than axes/F/N/S: run the dwell, refuse words nothing uses
+        (``explicit``: the line has a motion G word).
 
         Returns True for a full circle written without axis words (it moves all the same).
         """
@@ -262,6 +272,9 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
             self.fail('D word with no G41/G42 (or G41.1/G42.1) to use it', 'D')
         if self.coord_line == self.lineno and self.coord_todo.get('nonmodal') == 'G10':
             return              # coords.py checks G10's L, P and R words
+        if self.motion in SPLINE_MOTIONS and (has_axes or explicit):
+            self.spline_words(d, self.motion, dwell)
+            return False        # splines.py checks the spline's words
         cycle_move = has_axes and (self.motion or 0) > 3
         if cycle_move:
             if dwell:
@@ -295,7 +308,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
         """Apply the modal G codes of a line; return (motion, dwell, G9, G64 present)."""
         seen: dict[str, int] = {}
         motion = None
-        dwell = g9 = g64 = False
+        dwell = g9 = g64 = nurbs_end = False
         cache = self.g_cache
         for text in gl:
             entry = cache.get(text)
@@ -322,6 +335,7 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
             elif group == 'nonmodal':
                 dwell = arg == 'dwell'
                 g9 = arg == 'exact'
+                nurbs_end = arg == 'nurbs_end'
                 if code in COORD_G_CODES:
                     self.coord_codes(group, arg, code)
             elif group == 'plane':
@@ -347,6 +361,8 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
                 self.retract = arg
             elif group == 'tool_length' or group == 'coord':
                 self.coord_codes(group, arg, code)
+        if nurbs_end or motion in SPLINE_MOTIONS:
+            self.spline_g_codes(motion, nurbs_end)
         if motion == -1:
             # G80: no motion mode until the next G0/G1/G2/G3; a series of cycles ends.
             self.motion = None
@@ -472,8 +488,13 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
 
     def system_value(self, key: int | str) -> float | None:
         """Live coordinate values for ``Parameters.provider`` (``#5420..#5428``, ``#5400``,
-        ``#5401..#5410``, ``#<_x>``.., ``#<_abs_x>``.., ``#<_coord_system>``, tool numbers);
+        ``#5401..#5410``, ``#<_x>``.., ``#<_abs_x>``.., ``#<_coord_system>``, tool numbers;
+        in Macro B dialects Fanuc's ``#4001..``, ``#5001..``: :mod:`.fanuc_vars`);
         ``None`` for any other key."""
+        if self.dialect.fanuc_macro and isinstance(key, int) and 4000 < key < 5100:
+            value = fanuc_system_value(self, key)
+            if value is not None:
+                return value
         coords = self.coords
         coords.selected_tool = self.tool_selected
         coords.loaded_tool = self.tool_loaded

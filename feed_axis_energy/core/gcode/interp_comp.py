@@ -49,7 +49,9 @@ class CompMixin:
         self.routing = comp.engaged
 
     def close(self) -> None:
-        """End of the program text: release the moves the compensation still holds."""
+        """End of the program text: release the moves the compensation still holds; drop
+        (with a warning) a G5.2 curve no G5.3 ended."""
+        self.nurbs_close()
         comp = self.comp
         if comp.active or self.routing:
             self.moves += comp.finish(fail=self.fail, line=self.lineno)
@@ -68,7 +70,8 @@ class CompMixin:
         self.tool_selected = int(t)
 
     def before_motion(self, d: dict[str, str]) -> None:
-        """Work that LinuxCNC does after the modes and before the motion: M6, G40/G41/G42."""
+        """Work that LinuxCNC does after the modes and before the motion: M6, G40/G41/G42,
+        G5.3."""
         if self.tool_change:
             self.tool_change = False
             if self.io_lineno == self.lineno:      # M61 Q
@@ -81,18 +84,19 @@ class CompMixin:
             else:
                 self.tool_loaded = self.tool_selected
         code = self.comp_code
-        if code is None:
-            return
-        self.comp_code = None
-        comp = self.comp
-        if code == 40:
-            self.moves += comp.finish(fail=self.fail, line=self.lineno)
-        else:
-            comp.units_m = self.scale
-            side = LEFT if code in (41, 411) else RIGHT
-            comp.start(side, self.comp_radius(d, code), self.plane, fail=self.fail,
-                       line=self.lineno)
-        self.routing = comp.engaged
+        if code is not None:
+            self.comp_code = None
+            comp = self.comp
+            if code == 40:
+                self.moves += comp.finish(fail=self.fail, line=self.lineno)
+            else:
+                comp.units_m = self.scale
+                side = LEFT if code in (41, 411) else RIGHT
+                comp.start(side, self.comp_radius(d, code), self.plane, fail=self.fail,
+                           line=self.lineno)
+            self.routing = comp.engaged
+        if self.nurbs.end_line == self.lineno:
+            self.nurbs_end(d)           # G5.3 (LinuxCNC's modal group 0, after G40..G42)
 
     def comp_radius(self, d: dict[str, str], code: int) -> float:
         """Tool radius [m] for G41/G42 (tool table via D or the loaded tool), G41.1/G42.1."""

@@ -77,7 +77,7 @@ class Parameters:
         Live system values, asked first on every read (see the module docstring).
     """
 
-    __slots__ = ('numbered', 'globals', 'scopes', 'provider')
+    __slots__ = ('numbered', 'globals', 'scopes', 'provider', 'read_only')
 
     def __init__(self, *, provider: Provider | None = None):
         self.numbered = [0.0] * (MAX_PARAMETER + 1)
@@ -86,6 +86,8 @@ class Parameters:
         # One dict of local named parameters per call level; [0] is the main program's.
         self.scopes: list[dict[str, float]] = [{}]
         self.provider = provider
+        # Numbers a dialect adds to the read-only ones (Fanuc system variables).
+        self.read_only: frozenset[int] = frozenset()
 
     # -- numbered --------------------------------------------------------------------------
     def get(self, n: int) -> float:
@@ -118,6 +120,8 @@ class Parameters:
             raise ParameterError(msg)
         if n in READ_ONLY_PARAMETERS:
             raise ParameterError(f'parameter #{n} is read-only')
+        if n in self.read_only:
+            raise ParameterError(f'#{n} is a read-only system variable in this dialect')
 
     def set(self, n: int, value: float) -> None:
         """Assign ``#n`` (the interpreter also uses this for persistent system values)."""

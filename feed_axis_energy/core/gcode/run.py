@@ -15,6 +15,7 @@ from os import PathLike
 from typing import TextIO
 
 from .dialect import Dialect
+from .fanuc_vars import READ_ONLY as FANUC_READ_ONLY
 from .flow import read_blocks
 from .interp import Interpreter
 from .lexer import blank_comments, LINE_RE, WORD_RE
@@ -106,6 +107,8 @@ class GcodeRun:
                                   tools=tools, dialect=dialect, params=self.params,
                                   ignore_axes=ignore_axes)
         self.params.provider = self.interp.system_value
+        if self.dialect.fanuc_macro:
+            self.params.read_only = FANUC_READ_ONLY     # #4001.., #5001..: fanuc_vars
 
     @property
     def warnings(self) -> list[str]:
