@@ -37,9 +37,14 @@ the read-only system variables ``#4001..#4130`` and ``#5001..#5083`` from the mo
 * grbl ``$`` lines and ``%`` lines with text are handled by the reader for every dialect
   (skipped, with a warning for ``$``).
 * G5, G5.1, G5.2/G5.3 are LinuxCNC's splines (:mod:`.splines`) in the ``linuxcnc`` dialect
-  only; elsewhere they are refused with the line and column: on Fanuc controls ``G05`` and
-  ``G05.1`` select high-speed machining modes (``G05.1 Q1``: AI contour control), grbl and
-  Mach3 have no such codes.
+  only; grbl and Mach3 refuse them with the line and column.
+* Contouring modes of the control (:data:`CONTROL_MODE_CODES`): Fanuc ``G05 P10000`` /
+  ``G05 P0`` (high-speed machining, HPCC), ``G05.1 Q1`` / ``Q0`` (AI contour control) and
+  ``G08 P1`` / ``P0`` (look-ahead control); Haas ``G187`` (smoothness and accuracy, ``P1-3``
+  and ``E``) and ``G103`` (block look-ahead limit). CAM post-processors for these controls
+  write them around every toolpath. They change how the control itself smooths and
+  accelerates, which the planner takes from the machine config, so they are accepted with
+  one warning each and their ``P``/``Q``/``E``/``L`` words ignored.
 """
 from __future__ import annotations
 
@@ -47,7 +52,16 @@ from dataclasses import dataclass
 
 from ..errors import ConfigError
 
-__all__ = ['Dialect', 'DIALECTS', 'dialect_by_name', 'DEFAULT_DIALECT']
+__all__ = ['Dialect', 'DIALECTS', 'dialect_by_name', 'DEFAULT_DIALECT', 'CONTROL_MODE_CODES']
+
+# 10 x G code -> what it selects on the control (see the module docstring).
+CONTROL_MODE_CODES: dict[int, str] = {
+    50: 'G05 high-speed machining mode (Fanuc HPCC)',
+    51: 'G05.1 AI contour control (Fanuc)',
+    80: 'G08 look-ahead control (Fanuc)',
+    1870: 'G187 smoothness and accuracy setting (Haas)',
+    1030: 'G103 block look-ahead limit (Haas)',
+}
 
 _LINUXCNC_M = frozenset({19, 48, 49, 50, 51, 52, 53, 61, 62, 63, 64, 65, 66, 67, 68})
 _FANUC_M = frozenset({10, 11, 12, 13, 16, 17, 19, 21, 22, 23, 24, 25, 26, 27, 28, 31, 32,
@@ -81,6 +95,9 @@ class Dialect:
         Haas ``M97``), read by the front.
     g5_splines
         G5/G5.1/G5.2/G5.3 are LinuxCNC's splines (else they are refused).
+    control_modes
+        G codes (10 x code, keys of :data:`CONTROL_MODE_CODES`) that select the control's
+        own contouring mode: accepted with a warning, their P/Q/E/L words ignored.
     """
 
     name: str
@@ -92,6 +109,7 @@ class Dialect:
     fanuc_subprograms: bool = True
     fanuc_macro: bool = False
     g5_splines: bool = False
+    control_modes: frozenset[int] = frozenset()
 
 
 DIALECTS: dict[str, Dialect] = {
@@ -99,9 +117,10 @@ DIALECTS: dict[str, Dialect] = {
                         g5_splines=True),
     'fanuc': Dialect('fanuc', 'Fanuc Series 0i-MF / 30i (milling)', dwell_p='milliseconds',
                      dwell_x_seconds=True, harmless_m=_LINUXCNC_M | _FANUC_M,
-                     fanuc_macro=True),
+                     fanuc_macro=True, control_modes=frozenset({50, 51, 80})),
     'haas': Dialect('haas', 'Haas mill (NGC control)', dwell_p='haas',
-                    harmless_m=_LINUXCNC_M | _FANUC_M, fanuc_macro=True),
+                    harmless_m=_LINUXCNC_M | _FANUC_M, fanuc_macro=True,
+                    control_modes=frozenset({1870, 1030})),
     'grbl': Dialect('grbl', 'grbl 1.1', fanuc_subprograms=False),
     'mach3': Dialect('mach3', 'Mach3 Mill (default configuration)',
                      harmless_m=_LINUXCNC_M | {40, 41}),

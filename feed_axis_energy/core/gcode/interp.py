@@ -361,6 +361,8 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
                 self.retract = arg
             elif group == 'tool_length' or group == 'coord':
                 self.coord_codes(group, arg, code)
+            elif group == 'control_mode':
+                self.control_mode(code)
         if nurbs_end or motion in SPLINE_MOTIONS:
             self.spline_g_codes(motion, nurbs_end)
         if motion == -1:

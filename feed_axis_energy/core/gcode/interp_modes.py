@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 from .codes import ALLOWED_LETTERS, G_CODES, G_UNSUPPORTED, M_CODES, UNSUPPORTED_LETTERS
+from .dialect import CONTROL_MODE_CODES
 from .lexer import blank_comments, locate_word
 from ..errors import GcodeError
 from ..program import Move, MoveKind
@@ -190,11 +191,25 @@ class ModesMixin:
         d.pop('M', None)
         return gl, ml
 
+    def control_mode(self, code: int) -> None:
+        """A G code selecting the control's own contouring mode (``Dialect.control_modes``):
+        one warning per code; the line's P/Q/E/L words are its settings."""
+        self.io_lineno = self.lineno
+        key = f'G{code}'
+        if key not in self.warned:
+            self.warned.add(key)
+            self.warnings.append(
+                f'{self.file}:{self.lineno}: {CONTROL_MODE_CODES[code]} changes how the '
+                'control smooths and accelerates; it is not modelled (the planner uses the '
+                'machine config\'s limits) and its words are ignored')
+
     def g_lookup(self, text: str) -> tuple[str, object, int]:
         """(group, argument, 10 x code) of a G word, or fail naming why it is refused."""
         value = self.num('G', text)
         code = round(value * 10.0)
         whole = abs(value * 10.0 - code) <= 1e-6
+        if whole and code in self.dialect.control_modes:
+            return 'control_mode', None, code
         if whole and code in G_CODES:
             group, arg = G_CODES[code]
             return group, arg, code

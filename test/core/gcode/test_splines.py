@@ -407,7 +407,33 @@ def test_random_spline_programs_agree_with_the_reference(tmp_path):
 @pytest.mark.parametrize('dialect', ['fanuc', 'haas', 'grbl', 'mach3'])
 @pytest.mark.parametrize('text', ['G05.1 Q1', 'G5 X1 Y1 I1 J1 P1 Q1', 'G5.2 X1 Y1 P1', 'G5.3'])
 def test_other_dialects_refuse_g5_codes(dialect, text):
-    # Fanuc's G05/G05.1 are high-speed machining modes; grbl, Mach3, Haas have no G5 spline
+    # grbl, Mach3, Haas have no G5 spline; on Fanuc G05/G05.1 are high-speed machining
+    # modes (accepted with a warning: test_fanuc_high_speed_modes_are_accepted_with_a_warning)
+    if dialect == 'fanuc' and text.split()[0] in ('G05.1', 'G5'):
+        return
     with pytest.raises(GcodeError, match=f'not simulated in the {dialect} dialect') as info:
         parse_gcode('G21 F100\n' + text + '\nM30\n', dialect=dialect, file='f.nc')
     assert (info.value.line, info.value.column) == (2, 1)
+
+
+@pytest.mark.parametrize('dialect, codes', [
+    ('fanuc', ['G05.1 Q1', 'G05 P10000', 'G08 P1', 'G05.1 Q0', 'G05 P0', 'G08 P0']),
+    ('haas', ['G187 P1 E0.05', 'G103 P4', 'G187'])])
+def test_control_modes_are_accepted_with_one_warning_each(dialect, codes):
+    text = 'G21 G90\n' + ''.join(f'{c}\nG1 X{i + 1} F600\n' for i, c in enumerate(codes))
+    prog = parse_gcode(text + 'M30\n', dialect=dialect, file='f.nc')
+    # the modes change nothing of the path: one feed per G1 line, in order
+    ends = [round(m.end[0] * 1e3, 9) for m in prog.moves if m.kind.name == 'LINEAR']
+    assert ends == [float(i + 1) for i in range(len(codes))]
+    names = {c.split()[0].replace('G05.1', 'G5.1').replace('G05', 'G5').replace('G08', 'G8')
+             for c in codes}
+    assert len(prog.warnings) == len(names)
+    assert all('not modelled' in w and w.startswith('f.nc:') for w in prog.warnings)
+
+
+def test_control_modes_belong_to_their_dialect():
+    with pytest.raises(GcodeError, match='unknown G code G187'):
+        parse_gcode('G21\nG187 P1\n', dialect='fanuc', file='f.nc')
+    # LinuxCNC's G8 is lathe radius mode: no P word there
+    with pytest.raises(GcodeError, match='P word'):
+        parse_gcode('G21\nG08 P1\n', dialect='linuxcnc', file='f.nc')
