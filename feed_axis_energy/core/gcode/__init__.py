@@ -65,19 +65,20 @@ Motion (canonical moves, :mod:`.canon`)
 
 Modes and coordinates
 ---------------------
-G17/G18/G19, G20/G21, G90/G91, G90.1/G91.1, G93/G94 (F cleared on a switch), G61/G61.1/G64,
+G17/G18/G19, G20/G21, G90/G91, G90.1/G91.1, G93/G94/G95 (F cleared on a switch; G95: F per
+spindle revolution times S), G61/G61.1/G64,
 G9; G54..G59.3, G10 L1/L2/L10/L11/L20, G92/G92.1/G92.2/G92.3, G52, G53, G28/G30 (+ .1),
 G43/G43.1/G43.2/G49 as LinuxCNC 2.9 (:mod:`.coords`); moves are in machine coordinates.
 S, T, M6, M61, M3..M9 are tracked where they matter (G84/G86 need a turning spindle, G41
-without D uses the loaded tool); harmless I/O M codes per dialect are accepted.
+without D uses the loaded tool, or in the Fanuc/Haas dialects the D of an earlier line);
+harmless I/O M codes and the control's contouring modes per dialect are accepted.
 
 Refused with a clear message
 ----------------------------
 Axes A/B/C/U/V/W (or dropped with ``ignore_axes``/``--ignore-axes``, one warning each),
 G5.2 without a positive weight on its first point, G5.2 under G93 or cutter compensation
-(G5/G5.1 under compensation as LinuxCNC), G33 spindle-synchronised motion, G95 feed per
-revolution, G7 lathe mode, G17.1-G19.1 UVW planes, unknown G and M codes, words nothing
-uses.
+(G5/G5.1 under compensation as LinuxCNC), G33 spindle-synchronised motion, G7 lathe mode,
+G17.1-G19.1 UVW planes, unknown G and M codes, words nothing uses.
 """
 from __future__ import annotations
 

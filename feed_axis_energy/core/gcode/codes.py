@@ -32,7 +32,8 @@ G_CODES: dict[int, tuple[str, object]] = {
     200: ('units', 0.0254), 210: ('units', 0.001),
     900: ('distance', True), 910: ('distance', False),
     901: ('arc_distance', True), 911: ('arc_distance', False),
-    930: ('feed_mode', True), 940: ('feed_mode', False),
+    # Feed mode: G93 inverse time, G94 units per minute, G95 units per spindle revolution.
+    930: ('feed_mode', True), 940: ('feed_mode', False), 950: ('feed_mode', 'rev'),
     610: ('control', True), 611: ('control', True), 640: ('control', False),
     # Cutter radius compensation (group 7): 40 off, 41 left, 42 right; .1 = D is a diameter.
     400: ('cutter', 40), 410: ('cutter', 41), 420: ('cutter', 42),
@@ -50,7 +51,7 @@ G_UNSUPPORTED: dict[int, str] = {
     70: 'lathe diameter mode',
     330: 'spindle-synchronised motion',
     740: 'lathe/left-hand tapping cycle', 760: 'lathe threading cycle',
-    950: 'feed per revolution', 171: 'UVW planes', 181: 'UVW planes', 191: 'UVW planes',
+    171: 'UVW planes', 181: 'UVW planes', 191: 'UVW planes',
 }
 
 # M codes keyed by integer: (group, action); ``None`` action means ignored for the feed axes.

@@ -38,6 +38,10 @@ the read-only system variables ``#4001..#4130`` and ``#5001..#5083`` from the mo
   (skipped, with a warning for ``$``).
 * G5, G5.1, G5.2/G5.3 are LinuxCNC's splines (:mod:`.splines`) in the ``linuxcnc`` dialect
   only; grbl and Mach3 refuse them with the line and column.
+* The ``D`` word: LinuxCNC accepts it only beside G41/G42 (the tool whose radius they use);
+  Fanuc and Haas read a ``D`` on any line as the choice of the radius offset that the next
+  G41/G42 without a ``D`` uses (``T11 D11 M06``), and so do these dialects (the offset is
+  looked up in the tool table by its number, as LinuxCNC looks up D).
 * Contouring modes of the control (:data:`CONTROL_MODE_CODES`): Fanuc ``G05 P10000`` /
   ``G05 P0`` (high-speed machining, HPCC), ``G05.1 Q1`` / ``Q0`` (AI contour control) and
   ``G08 P1`` / ``P0`` (look-ahead control); Haas ``G187`` (smoothness and accuracy, ``P1-3``
@@ -98,6 +102,9 @@ class Dialect:
     control_modes
         G codes (10 x code, keys of :data:`CONTROL_MODE_CODES`) that select the control's
         own contouring mode: accepted with a warning, their P/Q/E/L words ignored.
+    modal_d
+        A ``D`` word on any line selects the cutter radius offset that later G41/G42 use
+        (Fanuc, Haas: ``T11 D11 M06``); LinuxCNC allows D only with G41/G42.
     """
 
     name: str
@@ -110,6 +117,7 @@ class Dialect:
     fanuc_macro: bool = False
     g5_splines: bool = False
     control_modes: frozenset[int] = frozenset()
+    modal_d: bool = False
 
 
 DIALECTS: dict[str, Dialect] = {
@@ -117,10 +125,10 @@ DIALECTS: dict[str, Dialect] = {
                         g5_splines=True),
     'fanuc': Dialect('fanuc', 'Fanuc Series 0i-MF / 30i (milling)', dwell_p='milliseconds',
                      dwell_x_seconds=True, harmless_m=_LINUXCNC_M | _FANUC_M,
-                     fanuc_macro=True, control_modes=frozenset({50, 51, 80})),
+                     fanuc_macro=True, control_modes=frozenset({50, 51, 80}), modal_d=True),
     'haas': Dialect('haas', 'Haas mill (NGC control)', dwell_p='haas',
                     harmless_m=_LINUXCNC_M | _FANUC_M, fanuc_macro=True,
-                    control_modes=frozenset({1870, 1030})),
+                    control_modes=frozenset({1870, 1030}), modal_d=True),
     'grbl': Dialect('grbl', 'grbl 1.1', fanuc_subprograms=False),
     'mach3': Dialect('mach3', 'Mach3 Mill (default configuration)',
                      harmless_m=_LINUXCNC_M | {40, 41}),

@@ -114,6 +114,8 @@ def _modal(interp, n: int) -> float | None:
     if n == 4003:
         return 90.0 if interp.absolute else 91.0
     if n == 4005:
+        if interp.feed_per_rev is not None:
+            return 95.0
         return 93.0 if interp.inverse_time else 94.0
     if n == 4006:
         return 21.0 if interp.scale == 0.001 else 20.0
@@ -131,6 +133,8 @@ def _modal(interp, n: int) -> float | None:
     if n == 4015:
         return 61.0 if interp.exact else 64.0
     if n == 4109:
+        if interp.feed_per_rev is not None:
+            return interp.feed_per_rev / interp.scale
         feed = interp.feed
         if not feed or feed == float('inf'):
             return 0.0

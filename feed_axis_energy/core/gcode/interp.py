@@ -75,7 +75,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
                  'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
                  'warned', 'ignore_axes', 'rpm', 'polar_line', 'polar_inc',
-                 'arc_quick', 'nurbs')
+                 'arc_quick', 'nurbs', 'd_selected', 'feed_per_rev')
 
     def __init__(self, file: str, start: tuple[float, float, float],
                  arc_tolerance_m: float | None,
@@ -95,6 +95,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
         self.absolute = True                # G90
         self.arc_absolute = False           # G91.1
         self.inverse_time = False           # G94
+        self.feed_per_rev: float | None = None  # under G95: F [m/rev] (0: none given yet)
         self.feed: float | None = None      # m/s under G94, 1/min (this line only) under G93
         self.exact = False                  # G64
         self.coord = 1                      # G54 (coordinate system 1..9, see coords.py)
@@ -134,6 +135,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
         self.rpm = 0.0                      # S word (spindle speed, rev/min)
         self.polar_line = -1                # line with G91 polar words (@ [m], ^ [rad])
         self.polar_inc = (0.0, 0.0)
+        self.d_selected: int | None = None  # Fanuc/Haas: D chosen on an earlier line
         self.nurbs = NurbsState()           # G5.x control points and modes (splines.py)
 
     # -- errors ---------------------------------------------------------------------------
@@ -263,13 +265,17 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
             self.select_tool(d['T'])
         if 'S' in d:
             self.rpm = self.num('S', d['S'])
+            if self.feed_per_rev:
+                self.feed = self.feed_per_rev * self.rpm / 60.0 or None
         if self.io_lineno == self.lineno:
             d = {k: v for k, v in d.items() if k not in 'PQEL'}    # the I/O M code's words
         elif 'E' in d:
             self.fail('E word with no M66/M67/M68 to use it', 'E')
         if 'D' in d and not (self.pending_lineno == self.lineno
                              and self.comp_code not in (None, 40)):
-            self.fail('D word with no G41/G42 (or G41.1/G42.1) to use it', 'D')
+            if not self.dialect.modal_d:
+                self.fail('D word with no G41/G42 (or G41.1/G42.1) to use it', 'D')
+            self.d_selected = self.d_number(d['D'])     # Fanuc/Haas: for the next G41/G42
         if self.coord_line == self.lineno and self.coord_todo.get('nonmodal') == 'G10':
             return              # coords.py checks G10's L, P and R words
         if self.motion in SPLINE_MOTIONS and (has_axes or explicit):
@@ -348,8 +354,11 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
             elif group == 'arc_distance':
                 self.arc_absolute = arg
             elif group == 'feed_mode':
-                if arg != self.inverse_time:
-                    self.inverse_time = arg
+                inverse, per_rev = arg is True, arg == 'rev'
+                if inverse != self.inverse_time or per_rev != (self.feed_per_rev is not None):
+                    # a new feed mode needs a new F (LinuxCNC)
+                    self.inverse_time = inverse
+                    self.feed_per_rev = 0.0 if per_rev else None
                     self.feed = None
             elif group == 'control':
                 self.exact = arg

@@ -98,18 +98,27 @@ class CompMixin:
         if self.nurbs.end_line == self.lineno:
             self.nurbs_end(d)           # G5.3 (LinuxCNC's modal group 0, after G40..G42)
 
+    def d_number(self, text: str) -> int:
+        """The tool number of a D word (for G41/G42)."""
+        t = self.num('D', text)
+        if t != int(t) or t < 0:
+            self.fail('D (tool number for G41/G42) must be a whole number >= 0', 'D')
+        return int(t)
+
     def comp_radius(self, d: dict[str, str], code: int) -> float:
-        """Tool radius [m] for G41/G42 (tool table via D or the loaded tool), G41.1/G42.1."""
+        """Tool radius [m] for G41/G42 (tool table via D, the D of an earlier line in the
+        Fanuc/Haas dialects, or the loaded tool), G41.1/G42.1."""
         if code > 100:
             if 'D' not in d:
                 self.fail(f'G{code / 10:g} needs a D word (the tool diameter)', 'G',
                           value=code / 10)
             return 0.5 * self.num('D', d['D']) * self.scale
         if 'D' in d:
-            t = self.num('D', d['D'])
-            if t != int(t) or t < 0:
-                self.fail('D (tool number for G41/G42) must be a whole number >= 0', 'D')
-            number, letter = int(t), 'D'
+            number, letter = self.d_number(d['D']), 'D'
+            if self.dialect.modal_d:
+                self.d_selected = number
+        elif self.dialect.modal_d and self.d_selected is not None:
+            number, letter = self.d_selected, 'G'    # the D of an earlier line (Fanuc, Haas)
         else:
             number, letter = self.tool_loaded, 'G'
         if number == 0:

@@ -23,10 +23,15 @@ class ModesMixin:
     __slots__ = ()
 
     def set_feed(self, text: str) -> None:
-        """Read F: m/s under G94 (in the units now in force), 1/min under G93."""
+        """Read F: m/s under G94 (in the units now in force), 1/min under G93; under G95 F
+        is per spindle revolution and the feed follows the spindle speed S."""
         f = self.num('F', text)
         if f < 0.0:
             self.fail('negative feed rate', 'F')
+        if self.feed_per_rev is not None:
+            self.feed_per_rev = f * self.scale
+            self.feed = self.feed_per_rev * self.rpm / 60.0 or None
+            return
         # Under G93 the raw number (1/min) is kept; it is used only on this line.
         self.feed = f if self.inverse_time else f * self.scale / 60.0
 

@@ -177,6 +177,9 @@ class MotionMixin:
     def feed_for(self, d: dict[str, str], length: float, explicit: bool) -> float:
         """Path feed [m/s] of a feed move of ``length`` metres on this line."""
         feed = self.feed
+        if self.feed_per_rev is not None:
+            what = 'an F (per revolution)' if not self.feed_per_rev else 'a spindle speed S'
+            self.fail_motion(f'G95 feed per revolution: a feed move needs {what}', explicit, d)
         if self.inverse_time:
             if 'F' not in d:
                 self.fail_motion('G93 inverse time: every feed move needs F on its line',
