@@ -11,7 +11,7 @@ import math
 
 from .canon import (centre_tolerance_m, FULL_TURN_EPS_RAD, radius_error, RADIUS_TOLERANCE_MM,
                     radius_tolerance_m)
-from ..program import make_move, Move, MoveKind
+from ..program import arc_move, Move, MoveKind, straight_move
 
 __all__ = ['MotionMixin']
 
@@ -93,10 +93,9 @@ class MotionMixin:
             c[n] = start[n]
             centre = (c[0], c[1], c[2])
         # canon.arc_feed, inline on this hot path.
-        m = make_move(MoveKind.ARC_CCW if turn > 0 else MoveKind.ARC_CW, self.lineno, start,
-                      end, feed_m_s=feed, exact_stop=self.exact or g9, center=centre,
-                      plane=self.plane, turns=abs(turn) - 1, length_m=length,
-                      sweep_rad=sweep)
+        m = arc_move(MoveKind.ARC_CCW if turn > 0 else MoveKind.ARC_CW, self.lineno, start,
+                     end, feed, self.exact or g9, centre, self.plane, abs(turn) - 1, length,
+                     sweep)
         if self.routing:
             self.route(m)
         else:
@@ -211,8 +210,8 @@ class MotionMixin:
             feed = self.feed
             if not feed or self.inverse_time:
                 feed = self.feed_for(d, length, explicit)
-        m = make_move(_MOTION_KIND[mode], self.lineno, start, end, feed_m_s=feed,
-                      exact_stop=self.exact or g9, length_m=length)
+        m = straight_move(_MOTION_KIND[mode], self.lineno, start, end, feed, self.exact or g9,
+                          length)
         if self.routing:
             self.route(m)
         else:
