@@ -163,8 +163,9 @@ class Interpreter(MotionMixin, CompMixin, ModesMixin):
             self.fail(f'{letter}{"".join(text.split())} is not a number', letter)
 
     def first_axis(self, d: dict[str, str]) -> str:
-        """First axis letter present on the line (for error places)."""
-        return next(a for a in _AXIS_LETTERS if a in d)
+        """First axis letter present on the line, else ``G`` (for error places: a full circle
+        may be written without axis words)."""
+        return next((a for a in _AXIS_LETTERS if a in d), 'G')
 
     # -- one line -------------------------------------------------------------------------
     def line(self, words: list[tuple[str, str]]) -> None:
