@@ -1,7 +1,9 @@
 """One run of a program through the interpreter, as a stream of moves.
 
 Plain lines (``letter number`` words only: most CAM output) are read here, line by line
-with two precompiled regular expressions, and handed straight to the interpreter. At the
+with precompiled regular expressions, and handed straight to the interpreter: a motion line
+in the usual word order as :data:`.lexer.CONTOUR_RE`'s groups (``Interpreter.contour_line``),
+any other plain line as its words (``Interpreter.line``). At the
 first line that needs more (parameters, expressions, O-words, ``M98``/``M99``, ``$`` lines,
 anything to diagnose) the rest of the program goes to the front's reader
 (:func:`.flow.read_blocks`) with the same interpreter and parameter table: the lines
@@ -17,7 +19,7 @@ from typing import TextIO
 from .dialect import Dialect
 from .flow import read_blocks
 from .interp import Interpreter
-from .lexer import blank_comments, LINE_RE, WORD_RE
+from .lexer import blank_comments, CONTOUR_RE, LINE_RE, WORD_RE
 from .params import Parameters
 from ..errors import GcodeError
 from ..program import Move
@@ -127,8 +129,10 @@ class GcodeRun:
         file = self.file
         recent = self.recent
         line_re = LINE_RE.fullmatch
+        contour = CONTOUR_RE.fullmatch
         findall = WORD_RE.findall
         interpret = p.line
+        contour_line = p.contour_line
         fanuc = self.dialect.fanuc_subprograms
         macro = self.dialect.fanuc_macro
         batch = self.batch or 0
@@ -140,6 +144,15 @@ class GcodeRun:
             code = raw.upper()
             if '(' in code or ';' in code:
                 code = blank_comments(code, file=file, line=lineno)
+            m = contour(code)
+            if m is not None and m.lastindex and raw.isascii():
+                # The usual motion line, split by the expression: no word list, no dict.
+                p.lineno = lineno
+                if contour_line(*m.groups()):
+                    seen_code = True
+                    if batch and len(p.moves) >= batch:
+                        yield self._take()
+                    continue
             if line_re(code) is None or not raw.isascii():
                 # Not plain words: block delete, a % marker, or a line for the front.
                 code = blank_comments(raw, file=file, line=lineno)
