@@ -142,8 +142,10 @@ class GcodeRun:
         for lineno, raw in enumerate(self.source, 1):
             recent.raw = raw
             code = raw.upper()
-            if '(' in code or ';' in code:
+            if '(' in code:
                 code = blank_comments(code, file=file, line=lineno)
+            elif ';' in code:
+                code = code.partition(';')[0]     # blank_comments without a '(' before it
             m = contour(code)
             if m is not None and m.lastindex and raw.isascii():
                 # The usual motion line, split by the expression: no word list, no dict.
