@@ -14,7 +14,7 @@ from hypothesis import given, HealthCheck, settings, strategies as st
 import pytest
 
 from feed_axis_energy.core.errors import GcodeError
-from feed_axis_energy.core.gcode import parse_gcode
+from feed_axis_energy.core.gcode import iter_moves, parse_gcode
 from feed_axis_energy.core.gcode.interp import Interpreter
 from feed_axis_energy.core.gcode.lexer import CONTOUR_RE, LINE_RE, WORD_RE
 from feed_axis_energy.core.program import MoveKind
@@ -208,6 +208,20 @@ def test_running_programs_give_the_same_moves_with_and_without_the_lane(lines, d
 ])
 def test_chosen_programs_give_the_same_result_with_and_without_the_lane(text):
     assert _outcome(text, 'linuxcnc') == _without_lane(text, 'linuxcnc')
+
+
+@pytest.mark.parametrize('batch', [1, 3, 4096])
+def test_streamed_moves_equal_the_parsed_ones(tmp_path, batch):
+    # iter_moves hands on the lane's moves in batches as they gather.
+    pairs = (f'G{2 + k % 2} X0 Y0 I{k % 7 - 3}.5 J{k % 5}\nG1 X{k % 3}.25 Y-{k % 4}'
+             for k in range(30))
+    text = 'G91 G17 F600\n' + '\n'.join(pairs)
+    path = tmp_path / 'p.nc'
+    path.write_text(text + '\nM30\n')
+    parsed = parse_gcode(path.read_text(), file=str(path))
+    stream = iter_moves(path, batch=batch)
+    assert list(stream) == list(parsed.moves) and len(parsed.moves) == 61
+    assert stream.n_lines == parsed.n_lines == 62
 
 
 def test_lane_moves_by_hand():
