@@ -54,10 +54,16 @@ class MotionMixin:
         bool
             False, having changed nothing, for a line off the common path: no axis word,
             no G0..G3 in force, a canned-cycle series, G93, a rotated coordinate system,
-            codes pending on the line, a centre word the move does not use, an R/I/J/K mix,
-            a negative F, a feed move without a feed rate, an arc that needs LinuxCNC's
-            radius checks. The caller then gives the line to :meth:`line`, which runs it or
-            reports the error at its word. True when the move has been issued.
+            G90.1, a centre word the move does not use, an R/I/J/K mix, a negative F, a
+            feed move without a feed rate, an arc that needs LinuxCNC's radius checks. The
+            caller then gives the line to :meth:`line`, which runs it or reports the error
+            at its word. True when the move has been issued.
+
+        Raises
+        ------
+        GcodeError
+            Only for an R word that cannot make the arc (the error :meth:`line` would
+            report first for that line).
         """
         if x is None and y is None and z is None:
             return False
