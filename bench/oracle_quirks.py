@@ -76,27 +76,33 @@ def quirks(names: tuple[str, ...]) -> Iterator[None]:
     # which follows arcs): chain our moves the same way, shifted by the tool length offset
     # under 'no-tool-length'. Without a quirk this changes nothing (our moves are chained).
     shift_tlo = 'no-tool-length' in names
-    saved['line'] = Interpreter.line
     last_end: dict[int, tuple[float, float, float]] = {}   # id(interpreter) -> harness end
 
-    def line(self: Interpreter, words: list[tuple[str, str]]) -> None:
-        n = len(self.moves)
-        saved['line'](self, words)
-        tlo = self.coords.tlo if shift_tlo else (0.0, 0.0, 0.0)
-        moves = self.moves
-        prev = last_end.get(id(self))
-        for i in range(n, len(moves)):
-            m: Move = moves[i]
-            if m.kind not in _MOTION:
-                continue
-            start = prev if prev is not None else _shift(m.start, tlo)
-            end = _shift(m.end, tlo)
-            moves[i] = dataclasses.replace(m, start=start, end=end,
-                                           center=_shift(m.center, tlo))
-            prev = end
-        if prev is not None:
-            last_end[id(self)] = prev
-    Interpreter.line = line
+    def chained(method: Callable[..., Any]) -> Callable[..., Any]:
+        def run_line(self: Interpreter, *args: Any) -> Any:
+            n = len(self.moves)
+            result = method(self, *args)
+            tlo = self.coords.tlo if shift_tlo else (0.0, 0.0, 0.0)
+            moves = self.moves
+            prev = last_end.get(id(self))
+            for i in range(n, len(moves)):
+                m: Move = moves[i]
+                if m.kind not in _MOTION:
+                    continue
+                start = prev if prev is not None else _shift(m.start, tlo)
+                end = _shift(m.end, tlo)
+                moves[i] = dataclasses.replace(m, start=start, end=end,
+                                               center=_shift(m.center, tlo))
+                prev = end
+            if prev is not None:
+                last_end[id(self)] = prev
+            return result
+        return run_line
+    # Both ways a line is run: the word-list path and the fast lane for plain motion lines.
+    for attr in ('line', 'contour_line'):
+        if hasattr(Interpreter, attr):
+            saved[attr] = getattr(Interpreter, attr)
+            setattr(Interpreter, attr, chained(saved[attr]))
     try:
         yield
     finally:

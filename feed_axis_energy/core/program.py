@@ -8,7 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import IntEnum
 
-__all__ = ['MoveKind', 'Move', 'Program', 'PROGRAM_AXES', 'make_move']
+__all__ = ['MoveKind', 'Move', 'Program', 'PROGRAM_AXES', 'make_move', 'straight_move',
+           'arc_move']
 
 PROGRAM_AXES = ('X', 'Y', 'Z')
 
@@ -82,8 +83,11 @@ class Move:
 
 
 _NEW = object.__new__
+_SET = object.__setattr__
 _MOVE_DEFAULTS = {name: f.default for name, f in Move.__dataclass_fields__.items()
                   if name not in ('kind', 'line', 'start', 'end')}
+_PLANE = _MOVE_DEFAULTS['plane']
+_DWELL = _MOVE_DEFAULTS['dwell_s']
 
 
 def make_move(kind: MoveKind, line: int, start: Vec3, end: Vec3, **fields) -> Move:
@@ -101,6 +105,31 @@ def make_move(kind: MoveKind, line: int, start: Vec3, end: Vec3, **fields) -> Mo
     d['start'] = start
     d['end'] = end
     d.update(fields)
+    return m
+
+
+def straight_move(kind: MoveKind, line: int, start: Vec3, end: Vec3, feed_m_s: float,
+                  exact_stop: bool, length_m: float) -> Move:
+    """A RAPID or LINEAR :class:`Move` from positional fields: :func:`make_move` without
+    its keyword dictionary and dictionary growth (the field dictionary is built whole, in
+    field order; about a third faster than ``make_move``)."""
+    m = _NEW(Move)
+    _SET(m, '__dict__', {'kind': kind, 'line': line, 'start': start, 'end': end,
+                         'feed_m_s': feed_m_s, 'exact_stop': exact_stop, 'center': None,
+                         'plane': _PLANE, 'turns': 0, 'dwell_s': _DWELL,
+                         'length_m': length_m, 'sweep_rad': None, 'tap_return': False})
+    return m
+
+
+def arc_move(kind: MoveKind, line: int, start: Vec3, end: Vec3, feed_m_s: float,
+             exact_stop: bool, center: Vec3, plane: int, turns: int, length_m: float,
+             sweep_rad: float) -> Move:
+    """An ARC_CW or ARC_CCW :class:`Move` from positional fields (as :func:`straight_move`)."""
+    m = _NEW(Move)
+    _SET(m, '__dict__', {'kind': kind, 'line': line, 'start': start, 'end': end,
+                         'feed_m_s': feed_m_s, 'exact_stop': exact_stop, 'center': center,
+                         'plane': plane, 'turns': turns, 'dwell_s': _DWELL,
+                         'length_m': length_m, 'sweep_rad': sweep_rad, 'tap_return': False})
     return m
 
 

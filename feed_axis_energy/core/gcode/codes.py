@@ -10,7 +10,7 @@ from .coords import COORD_G_CODES
 
 __all__ = ['G_CODES', 'G_UNSUPPORTED', 'M_CODES', 'ALLOWED_LETTERS', 'UNSUPPORTED_LETTERS',
            'IGNORABLE_AXES',
-           'CYCLE_MOTIONS', 'SPLINE_MOTIONS', 'COMP_FORBIDDEN']
+           'CYCLE_MOTIONS', 'SPLINE_MOTIONS', 'COMP_FORBIDDEN', 'MOTION_TEXT']
 
 # Canned cycles are motion modes (LinuxCNC: modal group 1): the argument is the cycle code.
 CYCLE_MOTIONS = frozenset({73, 81, 82, 83, 84, 85, 86, 87, 88, 89})
@@ -45,6 +45,10 @@ G_CODES: dict[int, tuple[str, object]] = {
     960: ('spindle_mode', None), 970: ('spindle_mode', None),
     80: ('lathe', None),
 }
+
+# The motion G words as written on most lines (G0..G3, G00..G03): number text -> mode, so
+# that the common line needs no G_CODES lookup.
+MOTION_TEXT: dict[str, int] = {t: int(t) for t in ('0', '00', '1', '01', '2', '02', '3', '03')}
 
 # Codes we know and refuse, with the reason shown to the user.
 G_UNSUPPORTED: dict[int, str] = {

@@ -1,9 +1,11 @@
 """Modal interpreter of the G-code parser: words of one line -> moves in SI units.
 
 The dialect is documented in :mod:`.gcode`. :class:`Interpreter` keeps the whole modal state;
-:meth:`Interpreter.line` handles the common contour line (one motion G word, axis, centre, F
-and N words) inline and hands anything rarer to small helpers, so the hot path allocates
-little more than the :class:`~.program.Move` it produces.
+:meth:`Interpreter.line` runs a line's words, handling the common case (one motion G word,
+axis, centre, F and N words) inline and anything rarer in small helpers. The plain-line fast
+path (:mod:`.run`) first offers the usual CAM line to ``contour_line`` (:mod:`.interp_motion`),
+which runs it without a word dictionary and allocates little more than its
+:class:`~.program.Move`.
 """
 from __future__ import annotations
 
@@ -11,7 +13,7 @@ from collections.abc import Iterable, Mapping
 import math
 
 from .canon import CENTER_ARC_RADIUS_TOLERANCE_MM
-from .codes import ALLOWED_LETTERS, COMP_FORBIDDEN, SPLINE_MOTIONS
+from .codes import ALLOWED_LETTERS, COMP_FORBIDDEN, MOTION_TEXT, SPLINE_MOTIONS
 from .coords import COORD_G_CODES, Coords, foreign_codes, MAX_OFFSET_M
 from .cutter import CutterComp
 from .cycles import CycleMemory
@@ -29,11 +31,7 @@ __all__ = ['Interpreter']
 
 _INF = float('inf')
 
-# Plane -> (first in-plane axis, second in-plane axis, normal axis), right-handed.
-_PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
-_CENTRE_LETTERS = ('I', 'J', 'K')
 _AXIS_LETTERS = ('X', 'Y', 'Z')
-_MOTION_TEXT = {t: int(t) for t in ('0', '00', '1', '01', '2', '02', '3', '03')}
 # Letters that need no check beyond the motion itself (T is recorded by check_extras).
 _STRAIGHT_WORDS = frozenset('XYZFN')
 _ARC_WORDS = frozenset('XYZIJKRPFN')
@@ -178,8 +176,9 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
             self.fail(f'{letter}{"".join(text.split())} is not a number', letter)
 
     def first_axis(self, d: dict[str, str]) -> str:
-        """First axis letter present on the line (for error places)."""
-        return next(a for a in _AXIS_LETTERS if a in d)
+        """First axis letter present on the line, else ``G`` (for error places: a full circle
+        may be written without axis words)."""
+        return next((a for a in _AXIS_LETTERS if a in d), 'G')
 
     # -- one line -------------------------------------------------------------------------
     def line(self, words: list[tuple[str, str]]) -> None:
@@ -194,7 +193,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
             if g is None:
                 motion = None
             else:
-                motion = _MOTION_TEXT.get(g)
+                motion = MOTION_TEXT.get(g)
                 if motion is None:
                     motion, dwell, g9, g64 = self.g_words((g,))
         else:
@@ -515,53 +514,3 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
         """After a G38.x move: the probe parameters #5061.. (see Coords.probe_result)."""
         self.coords.probe_result(self.pos, self.scale)
     # ---- end of coords hooks -----------------------------------------------------------------
-
-    # -- motion ---------------------------------------------------------------------------
-    def target(self, d: dict[str, str]) -> tuple[float, float, float]:
-        """End point [m] of a move from the axis words of the line."""
-        if self.rotated:
-            return self.rotated_target(d)
-        x, y, z = pos = self.pos
-        s = self.scale
-        try:
-            if self.absolute:
-                ox, oy, oz = self.frame
-                if 'X' in d:
-                    x = float(d['X']) * s + ox
-                if 'Y' in d:
-                    y = float(d['Y']) * s + oy
-                if 'Z' in d:
-                    z = float(d['Z']) * s + oz
-            else:
-                if 'X' in d:
-                    x += float(d['X']) * s
-                if 'Y' in d:
-                    y += float(d['Y']) * s
-                if 'Z' in d:
-                    z += float(d['Z']) * s
-        except ValueError:
-            # Rare: blanks inside a number, or not a number at all.
-            new = list(pos)
-            for i, letter in enumerate(_AXIS_LETTERS):
-                if letter in d:
-                    v = self.num(letter, d[letter]) * s
-                    new[i] = v + self.frame[i] if self.absolute else pos[i] + v
-            x, y, z = new
-        return (x, y, z)
-
-    def centre_from_offsets(self, d: dict[str, str], start: tuple[float, float, float],
-                            a: int, b: int, n: int) -> tuple[float, float]:
-        """In-plane centre [m] from I/J/K (incremental under G91.1, absolute under G90.1)."""
-        normal = _CENTRE_LETTERS[n]
-        if normal in d:
-            self.normal_centre_word(normal, d[normal])
-        la = _CENTRE_LETTERS[a]
-        lb = _CENTRE_LETTERS[b]
-        if la not in d and lb not in d:
-            self.fail(f'arc needs {la}/{lb} (centre) or R (radius) in G{self.plane}',
-                      self.first_axis(d))
-        oa = self.num(la, d[la]) * self.scale if la in d else 0.0
-        ob = self.num(lb, d[lb]) * self.scale if lb in d else 0.0
-        if self.arc_absolute:
-            return oa + self.frame[a], ob + self.frame[b]
-        return start[a] + oa, start[b] + ob

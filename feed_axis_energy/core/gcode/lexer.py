@@ -2,7 +2,8 @@
 
 Everything here works on one source line at a time; columns are 1-based positions in the
 original line (comments are blanked with spaces, never removed, so columns never shift).
-``LINE_RE``/``WORD_RE`` are the fast path for plain lines (letters and numbers only);
+``LINE_RE``/``WORD_RE`` are the fast path for plain lines (letters and numbers only), and
+``CONTOUR_RE`` splits the most common of them (a motion in the usual word order) at once;
 :func:`read_items` reads any other line through :mod:`.expr`. The G/M code tables live in
 :mod:`.codes` (the interpreter's).
 """
@@ -15,7 +16,8 @@ from .expr import Reader
 from .params import ParameterError
 from ..errors import GcodeError, shorten
 
-__all__ = ['blank_comments', 'WORD_RE', 'LINE_RE', 'locate_word', 'read_items', 'Assignment']
+__all__ = ['blank_comments', 'WORD_RE', 'LINE_RE', 'CONTOUR_RE', 'locate_word', 'read_items',
+           'Assignment']
 
 # A number as LinuxCNC reads it: optional sign, digits and at most one point, and (like
 # LinuxCNC) blanks anywhere inside; the value is validated by float() afterwards so that
@@ -29,6 +31,15 @@ WORD_RE = re.compile(r'([A-Z])\s*(' + _NUM + r')')
 # number) goes to the full reader, which reads it or reports it at its column.
 LINE_RE = re.compile(
     r'\s*+(?:[A-Z]\s*+[-+]?+\s*+(?:[0-9]{1,12}+(?:\.[0-9]*+)?+|\.[0-9]++)\s*+)*+')
+# The usual CAM line, tokenised by the expression itself: an optional N word, an optional
+# G0..G3 (or G00..G03), then X Y Z I J K R F, each at most once and in this order, with no
+# blank between a letter and its number (``N10 G1 X1.5 Y-2 F300``, ``G2X1Y2I3J-4``). Every
+# such line is a LINE_RE line and its groups are the texts WORD_RE reads (checked by
+# test_lexer_contour): (G, X, Y, Z, I, J, K, R, F), ``None`` for a word not given. run.py
+# gives a match to Interpreter.contour_line and any other line to the word reader.
+_PLAIN_NUM = r'[-+]?+(?:[0-9]{1,12}+(?:\.[0-9]*+)?+|\.[0-9]++)'
+CONTOUR_RE = re.compile(r'\s*+(?:N[0-9]{1,12}+\s*+)?+(?:G(0?[0-3])\s*+)?+' + ''.join(
+    rf'(?:{letter}({_PLAIN_NUM})\s*+)?+' for letter in 'XYZIJKRF'))
 
 
 def blank_comments(text: str, *, file: str, line: int) -> str:

@@ -1,7 +1,9 @@
 """One run of a program through the interpreter, as a stream of moves.
 
 Plain lines (``letter number`` words only: most CAM output) are read here, line by line
-with two precompiled regular expressions, and handed straight to the interpreter. At the
+with precompiled regular expressions, and handed straight to the interpreter: a motion line
+in the usual word order as :data:`.lexer.CONTOUR_RE`'s groups (``Interpreter.contour_line``),
+any other plain line as its words (``Interpreter.line``). At the
 first line that needs more (parameters, expressions, O-words, ``M98``/``M99``, ``$`` lines,
 anything to diagnose) the rest of the program goes to the front's reader
 (:func:`.flow.read_blocks`) with the same interpreter and parameter table: the lines
@@ -18,7 +20,7 @@ from .dialect import Dialect
 from .fanuc_vars import READ_ONLY as FANUC_READ_ONLY
 from .flow import read_blocks
 from .interp import Interpreter
-from .lexer import blank_comments, LINE_RE, WORD_RE
+from .lexer import blank_comments, CONTOUR_RE, LINE_RE, WORD_RE
 from .params import Parameters
 from ..errors import GcodeError
 from ..program import Move
@@ -117,21 +119,22 @@ class GcodeRun:
             return self._warnings
         return self._reader_warnings + self.interp.warnings
 
-    def _interpreter(self) -> Callable[[list[tuple[str, str]]], None]:
-        """The interpreter's ``line``; under ``max_errors``, one that keeps an error and
-        goes on with the next line."""
-        p = self.interp
-        line = p.line
+    def _guarded(self, method: Callable[..., bool | None]) -> Callable[..., bool | None]:
+        """An interpreter method that runs one line (``line``, ``contour_line``); under
+        ``max_errors``, one that keeps an error, drops the rest of the line and reports the
+        line as done."""
         if not self.max_errors:
-            return line
+            return method
+        p = self.interp
         keep = self._keep
 
-        def tolerant(words: list[tuple[str, str]]) -> None:
+        def tolerant(*args: object) -> bool | None:
             try:
-                line(words)
+                return method(*args)
             except GcodeError as err:
                 keep(err)
                 p.abandon_line()
+                return True
         return tolerant
 
     def _keep(self, err: GcodeError) -> None:
@@ -172,8 +175,10 @@ class GcodeRun:
         file = self.file
         recent = self.recent
         line_re = LINE_RE.fullmatch
+        contour = CONTOUR_RE.fullmatch
         findall = WORD_RE.findall
-        interpret = self._interpreter()
+        interpret = self._guarded(p.line)
+        contour_line = self._guarded(p.contour_line)
         fanuc = self.dialect.fanuc_subprograms
         macro = self.dialect.fanuc_macro
         batch = self.batch or 0
@@ -183,8 +188,19 @@ class GcodeRun:
         for lineno, raw in enumerate(self.source, 1):
             recent.raw = raw
             code = raw.upper()
-            if '(' in code or ';' in code:
+            if '(' in code:
                 code = blank_comments(code, file=file, line=lineno)
+            elif ';' in code:
+                code = code.partition(';')[0]     # blank_comments without a '(' before it
+            m = contour(code)
+            if m is not None and m.lastindex and raw.isascii():
+                # The usual motion line, split by the expression: no word list, no dict.
+                p.lineno = lineno
+                if contour_line(*m.groups()):
+                    seen_code = True
+                    if batch and len(p.moves) >= batch:
+                        yield self._take()
+                    continue
             if line_re(code) is None or not raw.isascii():
                 # Not plain words: block delete, a % marker, or a line for the front.
                 code = blank_comments(raw, file=file, line=lineno)
@@ -236,7 +252,7 @@ class GcodeRun:
         self._reader_warnings = reader.warnings
         if self.max_errors:
             reader.on_error = self._keep
-        interpret = self._interpreter()
+        interpret = self._guarded(p.line)
         batch = self.batch or 0
         end_at = 0
         for block in reader:

@@ -83,3 +83,13 @@ def test_polar_increments_repeat_in_a_g91_cycle():
         assert (x, y, z) == pytest.approx((1.5 * inch * math.cos(angle),
                                            1.5 * inch * math.sin(angle), -0.4 * inch))
     assert prog.moves[-1].end == pytest.approx((1.5 * inch, 0.0, 0.1 * inch))
+
+
+@pytest.mark.parametrize('text, column', [('G17 F100\nG2 K0\n', 1), ('G18 F100\nG3 J0\n', 1)])
+def test_ignored_normal_centre_word_alone_is_an_error_at_the_g_word(text, column):
+    # Dialects that ignore K0 on a G17 arc (FreeCAD writes it) leave no centre and no end
+    # point: an error at the arc's G word, not a StopIteration from the error locator.
+    with pytest.raises(GcodeError) as info:
+        parse_gcode(text, dialect='fanuc')
+    assert (info.value.line, info.value.column) == (2, column)
+    assert 'arc needs' in info.value.reason
