@@ -40,6 +40,7 @@ from .lookahead import BlockGroups, group_blocks, path_cumsum, through_accelerat
 from .motion import Motion
 from .profiles import plan_profiles, reach_speed
 from .program import Move, PROGRAM_AXES
+from .standstill import standstill_runs
 from .trajectory import (_apply_steps, _BlockLocator, _check_limits, _Collector,
                          _corner_terms, _Geometry, _geometry, _junction_speeds, _junction_times,
                          _path_limits, _phase_table, _REST, _sample, _Segments, AxisLimits,
@@ -242,38 +243,87 @@ def iter_plan(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         collector.drop(nb)
 
 
-class _Samples:
-    """Samples being assembled: ``t, pos, vel, acc, line`` from sample index ``base`` on."""
+class _Chunk:
+    """Rows being filled: ``t, pos, vel, acc, line`` of grid samples from ``base`` on.
 
-    def __init__(self, k: int, base: int) -> None:
-        self.base = base
-        self.t = np.zeros(0)
-        self.pos = np.zeros((0, k))
-        self.vel = np.zeros((0, k))
-        self.acc = np.zeros((0, k))
-        self.line = np.zeros(0, np.int32)
+    Rows are written in place by the sampler (no concatenation); ``gaps`` records the
+    standstill samples left out between rows (``Motion.gaps``), so ``base`` counts grid
+    samples, not rows.
+    """
 
-    def __len__(self) -> int:
-        return int(self.t.shape[0])
+    def __init__(self, k: int, capacity: int, base: int) -> None:
+        self.k = k
+        self.capacity = capacity
+        self.base = base           # grid index of the next row to be written
+        self.fill = 0
+        self.t = np.empty(capacity)
+        self.pos = np.empty((capacity, k))
+        self.vel = np.empty((capacity, k))
+        self.acc = np.empty((capacity, k))
+        self.line = np.empty(capacity, np.int32)
+        self.gaps: list[tuple[int, int, int]] = []
+        self.index = np.empty(capacity, np.int64)    # grid index of every row
 
-    def extend(self, t, pos, vel, acc, line) -> None:
-        if len(self) == 0:
-            self.t, self.pos, self.vel, self.acc, self.line = t, pos, vel, acc, line
-            return
-        self.t = np.concatenate((self.t, t))
-        self.pos = np.concatenate((self.pos, pos))
-        self.vel = np.concatenate((self.vel, vel))
-        self.acc = np.concatenate((self.acc, acc))
-        self.line = np.concatenate((self.line, line))
+    @property
+    def space(self) -> int:
+        return self.capacity - self.fill
 
-    def split(self, count: int) -> tuple:
-        """Remove and return the first ``count`` samples as a tuple of arrays."""
-        head = (self.t[:count], self.pos[:count], self.vel[:count], self.acc[:count],
-                self.line[:count])
-        self.t, self.pos, self.vel = self.t[count:], self.pos[count:], self.vel[count:]
-        self.acc, self.line = self.acc[count:], self.line[count:]
-        self.base += count
-        return head
+    def rows(self, lo: int, hi: int) -> tuple[slice, np.ndarray]:
+        """Reserve rows for grid samples ``lo .. hi - 1`` (``lo`` must be ``base``)."""
+        r0 = self.fill
+        r1 = r0 + hi - lo
+        self.index[r0:r1] = np.arange(lo, hi)
+        self.fill = r1
+        self.base = hi
+        return slice(r0, r1), self.t[r0:r1]
+
+    def skip(self, lo: int, hi: int) -> None:
+        """Leave grid samples ``lo .. hi - 1`` out (a standstill gap before the next row)."""
+        self.gaps.append((self.fill, lo, hi - lo))
+        self.base = hi
+
+    def apply(self, steps, sample_s: float):
+        """Add the velocity steps that fall on rows held here; return the steps left."""
+        idx = steps[0]
+        if idx.size == 0 or self.fill == 0:
+            return steps
+        held = self.index[:self.fill]
+        ready = idx <= held[-1]
+        if not np.any(ready):
+            return steps
+        sel = np.nonzero(ready)[0]
+        rows = np.searchsorted(held, idx[sel])
+        fill = self.fill
+        _apply_steps(self.t[:fill], rows, steps[1][sel], steps[2][sel], sample_s,
+                     vel=self.vel[:fill], acc=self.acc[:fill])
+        keep = np.nonzero(~ready)[0]
+        return (idx[keep], steps[1][keep], steps[2][keep])
+
+    def take(self, count: int, axes: tuple[str, ...], file: str) -> Motion:
+        """The first ``count`` rows as a Motion; the rows after them start a new chunk."""
+        n = self.fill
+        gaps_here = tuple(g for g in self.gaps if g[0] < count)
+        if count == n:
+            arrays = (self.t[:n], self.pos[:n], self.vel[:n], self.acc[:n], self.line[:n])
+            rest = None
+        else:
+            arrays = (self.t[:count], self.pos[:count], self.vel[:count], self.acc[:count],
+                      self.line[:count])
+            rest = (self.t[count:n].copy(), self.pos[count:n].copy(),
+                    self.vel[count:n].copy(), self.acc[count:n].copy(),
+                    self.line[count:n].copy(), self.index[count:n].copy())
+        later = [(row - count, first, c) for row, first, c in self.gaps if row >= count]
+        base = self.base
+        self.__init__(self.k, self.capacity, base)
+        if rest is not None and rest[0].size:
+            m = rest[0].size
+            self.t[:m], self.pos[:m], self.vel[:m], self.acc[:m], self.line[:m] = rest[:5]
+            self.index[:m] = rest[5]
+            self.fill = m
+        self.gaps = later
+        t, pos, vel, acc, line = arrays
+        return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line, source=file,
+                      gaps=gaps_here)
 
 
 def _first_index_at_or_after(t: float, rate_hz: float) -> int:
@@ -286,11 +336,43 @@ def _first_index_at_or_after(t: float, rate_hz: float) -> int:
     return i
 
 
+class _WindowSampler:
+    """Evaluates grid samples of one planned window into a chunk's rows."""
+
+    def __init__(self, win: PlannedWindow, cols: list[int]) -> None:
+        seg, geo = win.seg, win.geo
+        self.win = win
+        self.cols = cols
+        self.lines = np.array([x.line for x in seg.move], dtype=np.int32)
+        self.locate = _BlockLocator(win.groups, geo.length, path_start_m=win.path_start_m)
+        self.p0c, self.uc = seg.p0[:, cols], geo.u[:, cols]
+        self.t0 = win.phases[0]
+
+    def fill(self, chunk: _Chunk, lo: int, hi: int, rate: float, t_last: float | None) -> None:
+        """Samples ``lo .. hi - 1`` into ``chunk``; ``t_last`` replaces the last one's time."""
+        rows, t = chunk.rows(lo, hi)
+        np.divide(np.arange(lo, hi, dtype=float), rate, out=t)
+        if t_last is not None:
+            t[-1] = t_last
+        n = t.size
+        t0 = self.t0
+        # each phase owns the samples from the first one at or after its start
+        p_lo = max(int(np.searchsorted(t0, t[0], side='right')) - 1, 0)
+        p_hi = max(int(np.searchsorted(t0, t[-1], side='right')), p_lo + 1)
+        first = np.searchsorted(t, t0[p_lo:p_hi], side='left')
+        owner = np.repeat(np.arange(p_lo, p_hi), np.diff(np.append(first, n)))
+        win = self.win
+        mi = _sample(t, owner, win.phases, self.locate, win.seg, win.geo, self.cols, self.p0c,
+                     self.uc, out=(chunk.pos[rows], chunk.vel[rows], chunk.acc[rows]))
+        chunk.line[rows] = self.lines[mi]
+
+
 def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
                 options: PlannerOptions = PlannerOptions(), file: str = '',
                 chunk_samples: int = DEFAULT_CHUNK_SAMPLES, window_blocks: int = WINDOW_BLOCKS,
                 total_moves: int | None = None, duration_s: float | None = None,
-                progress: Callable[[float], None] | None = None) -> Iterator[Motion]:
+                progress: Callable[[float], None] | None = None,
+                compact_min_samples: int = 0) -> Iterator[Motion]:
     """Plan ``moves`` and yield the sampled motion in chunks of at most ``chunk_samples``.
 
     The concatenated chunks equal :func:`.trajectory.plan` of the same moves (same samples,
@@ -307,7 +389,7 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
     file
         Program file (error messages, ``Motion.source``).
     chunk_samples
-        Largest chunk [samples], ``>= 2``.
+        Largest chunk [rows], ``>= 2``.
     window_blocks
         Passed on to :func:`iter_plan`.
     total_moves
@@ -318,11 +400,15 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
     progress
         Called with the fraction of time sampled (with ``duration_s``) or of moves planned
         (with ``total_moves``).
+    compact_min_samples
+        0 (default): every sample is a row. Otherwise the interior of every standstill phase
+        (a dwell) of at least this many samples is left out of the rows and listed in
+        ``Motion.gaps`` (:mod:`.standstill`); chunks then hold up to ``chunk_samples`` rows.
 
     Yields
     ------
     Motion
-        Consecutive chunks; every chunk has at least one sample.
+        Consecutive chunks; every chunk has at least one row.
     """
     if chunk_samples < 2:
         msg = f'chunk_samples must be >= 2, got {chunk_samples}'
@@ -345,15 +431,20 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
                 moves_seen.append(mv)
             yield mv
 
-    buf = _Samples(k, 0)                  # samples whose steps may not all be known yet
-    out = _Samples(k, 0)                  # finished samples waiting to fill a chunk
+    def emit(count: int, *, report: bool = True) -> Motion:
+        motion = chunk.take(count, axes, file)
+        if report and progress is not None and duration_s:
+            progress(min(float(motion.t[-1]) / duration_s, 1.0))
+        return motion
+
+    chunk = _Chunk(k, chunk_samples, 0)
     steps = (np.zeros(0, np.int64), np.zeros(0), np.zeros((0, k)))   # not yet applied
     next_index = 0
     any_window = False
     for win in iter_plan(first_move(moves), limits, options=options, file=file,
                          window_blocks=window_blocks, on_move=on_move):
         any_window = True
-        seg, geo, grp = win.seg, win.geo, win.groups
+        geo, grp = win.geo, win.groups
         gv = grp.v_junction
         t_j, v_j = _junction_times(grp, win.t_start, gv, win.phases)
         tan_in, tan_out = geo.tan1[:-1], geo.tan0[1:]
@@ -366,62 +457,51 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         steps = (np.concatenate((steps[0], idx)), np.concatenate((steps[1], tc)),
                  np.concatenate((steps[2], dv)))
         t_end = win.t_end
+        t_last = None
         if win.final:
             n_last = int(math.floor(t_end * rate + 1e-9))
             stop_index = max(n_last + 1, next_index)
+            if stop_index > next_index and t_end - (stop_index - 1) / rate <= 1e-9:
+                t_last = t_end               # the last grid sample becomes the program end
+            else:
+                stop_index += 1              # one more sample at the program end
+                t_last = t_end
+            steps = (np.minimum(steps[0], stop_index - 1), steps[1], steps[2])
+            final_until = stop_index         # samples below this have all their steps
         else:
             stop_index = _first_index_at_or_after(t_end, rate)
-        lines = np.array([x.line for x in seg.move], dtype=np.int32)
-        locate = _BlockLocator(grp, geo.length, path_start_m=win.path_start_m)
-        p0c, uc = seg.p0[:, cols], geo.u[:, cols]
-        t0_phase = win.phases[0]
+            # later junctions (at or after the window end) reach back to these samples
+            final_until = int(np.rint(t_end / sample_s))
+        # rows held from the previous window may now be complete
+        steps = chunk.apply(steps, sample_s)
+        if chunk.fill == chunk.capacity:
+            yield emit(chunk.fill)
+        sampler = _WindowSampler(win, cols)
+        runs = []
+        if compact_min_samples > 0:
+            limit = stop_index - 2 if win.final else min(stop_index, final_until) - 1
+            runs = standstill_runs(win.phases, rate_hz=rate, lo=next_index, hi=limit,
+                                   min_samples=compact_min_samples)
+            if runs and steps[0].size:
+                # a run keeps no sample a pending velocity step would land on
+                order = np.sort(steps[0])
+                runs = [r for r in runs
+                        if np.searchsorted(order, r[1] + 1) == np.searchsorted(order, r[0] - 1)]
         lo = next_index
-        while True:
-            hi = min(lo + chunk_samples, stop_index)
-            last_piece = hi >= stop_index
-            t = np.arange(lo, hi, dtype=float) / rate
-            if win.final and last_piece:
-                if t.size and t_end - t[-1] <= 1e-9:
-                    t[-1] = t_end
-                else:
-                    t = np.append(t, t_end)
-            n = t.size
-            pos = np.empty((n, k))
-            vel = np.empty((n, k))
-            acc = np.empty((n, k))
-            if n:
-                # each phase owns the samples from the first one at or after its start
-                first = np.searchsorted(t, t0_phase, side='left')
-                owner = np.repeat(np.arange(first.size), np.diff(np.append(first, n)))
-                mi = _sample(t, owner, win.phases, locate, seg, geo, cols, p0c, uc,
-                             out=(pos, vel, acc))
-                buf.extend(t, pos, vel, acc, lines[mi])
-            end_index = buf.base + len(buf)
-            if win.final and last_piece:
-                steps = (np.minimum(steps[0], end_index - 1), steps[1], steps[2])
-            ready = steps[0] < end_index
-            if np.any(ready):
-                sel = np.nonzero(ready)[0]
-                _apply_steps(buf.t, steps[0][sel] - buf.base, steps[1][sel], steps[2][sel],
-                             sample_s, vel=buf.vel, acc=buf.acc)
-                keep = np.nonzero(~ready)[0]
-                steps = (steps[0][keep], steps[1][keep], steps[2][keep])
-            if win.final and last_piece:
-                done = len(buf)
-            else:
-                # later junctions (at or after the window end) reach back to this sample
-                cut = int(np.rint(t_end / sample_s))
-                done = max(min(cut - buf.base, len(buf)), 0) if last_piece else len(buf)
-            if done:
-                out.extend(*buf.split(done))
-            while len(out) >= chunk_samples:
-                chunk = _motion(out.split(chunk_samples), axes, file)
-                if progress is not None and duration_s:
-                    progress(min(float(chunk.t[-1]) / duration_s, 1.0))
-                yield chunk
-            lo = hi
-            if last_piece:
-                break
+        for a, b, _phase in runs + [(stop_index, stop_index, -1)]:
+            while lo < a:
+                hi = min(lo + chunk.space, a)
+                sampler.fill(chunk, lo, hi, rate, t_last if hi == stop_index else None)
+                lo = hi
+                steps = chunk.apply(steps, sample_s)
+                if chunk.fill == chunk.capacity:
+                    # rows from final_until on wait for the next window's steps
+                    ready = int(np.searchsorted(chunk.index[:chunk.fill], final_until))
+                    if ready:
+                        yield emit(ready)
+            if a < b:
+                chunk.skip(a, b)
+                lo = b
         next_index = stop_index
     if not any_window:
         start = moves_seen[0].start if moves_seen else (0.0, 0.0, 0.0)
@@ -429,27 +509,31 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         yield Motion(t=np.zeros(1), axes=axes, pos=pos, vel=np.zeros_like(pos),
                      acc=np.zeros_like(pos), line=np.zeros(1, np.int32), source=file)
         return
-    if len(out):
-        yield _motion(out.split(len(out)), axes, file)
-
-
-def _motion(arrays: tuple, axes: tuple[str, ...], file: str) -> Motion:
-    t, pos, vel, acc, line = arrays
-    return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line, source=file)
+    if chunk.fill:
+        yield emit(chunk.fill, report=False)
 
 
 def concat_motion(chunks: Iterable[Motion]) -> Motion:
-    """Join consecutive motion chunks into one :class:`Motion` (for small programs, tests)."""
+    """Join consecutive motion chunks into one :class:`Motion` (for small programs, tests).
+
+    ``gaps`` are carried over with their rows shifted.
+    """
     parts = list(chunks)
     if not parts:
         msg = 'concat_motion: no chunks'
         raise ValueError(msg)
     first = parts[0]
+    gaps = []
+    offset = 0
+    for c in parts:
+        gaps += [(row + offset, lo, count) for row, lo, count in c.gaps]
+        offset += c.n_samples
     return Motion(t=np.concatenate([c.t for c in parts]), axes=first.axes,
                   pos=np.concatenate([c.pos for c in parts]),
                   vel=np.concatenate([c.vel for c in parts]),
                   acc=np.concatenate([c.acc for c in parts]),
-                  line=np.concatenate([c.line for c in parts]), source=first.source)
+                  line=np.concatenate([c.line for c in parts]), source=first.source,
+                  gaps=tuple(gaps))
 
 
 @dataclass(frozen=True)
