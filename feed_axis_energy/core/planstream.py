@@ -40,7 +40,7 @@ from .lookahead import BlockGroups, group_blocks, path_cumsum, through_accelerat
 from .motion import Motion
 from .profiles import plan_profiles, reach_speed
 from .program import Move, PROGRAM_AXES
-from .standstill import standstill_runs
+from .standstill import first_grid_index, standstill_runs
 from .trajectory import (_apply_steps, _BlockLocator, _check_limits, _Collector,
                          _corner_terms, _Geometry, _geometry, _junction_speeds, _junction_times,
                          _path_limits, _phase_table, _REST, _sample, _Segments, AxisLimits,
@@ -244,17 +244,15 @@ def iter_plan(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
 
 
 class _Chunk:
-    """Rows being filled: ``t, pos, vel, acc, line`` of grid samples from ``base`` on.
+    """Rows being filled: ``t, pos, vel, acc, line`` and the grid index of each row.
 
     Rows are written in place by the sampler (no concatenation); ``gaps`` records the
-    standstill samples left out between rows (``Motion.gaps``), so ``base`` counts grid
-    samples, not rows.
+    standstill samples left out between rows (``Motion.gaps``).
     """
 
-    def __init__(self, k: int, capacity: int, base: int) -> None:
+    def __init__(self, k: int, capacity: int) -> None:
         self.k = k
         self.capacity = capacity
-        self.base = base           # grid index of the next row to be written
         self.fill = 0
         self.t = np.empty(capacity)
         self.pos = np.empty((capacity, k))
@@ -268,19 +266,16 @@ class _Chunk:
     def space(self) -> int:
         return self.capacity - self.fill
 
-    def rows(self, lo: int, hi: int) -> tuple[slice, np.ndarray]:
-        """Reserve rows for grid samples ``lo .. hi - 1`` (``lo`` must be ``base``)."""
+    def rows_at(self, index: np.ndarray,
+                gaps: list[tuple[int, int, int]]) -> tuple[slice, np.ndarray]:
+        """Reserve rows for grid samples ``index``; ``gaps`` (offsets into ``index``) lists
+        the samples left out before them."""
         r0 = self.fill
-        r1 = r0 + hi - lo
-        self.index[r0:r1] = np.arange(lo, hi)
+        r1 = r0 + index.size
+        self.index[r0:r1] = index
+        self.gaps += [(r0 + offset, first, count) for offset, first, count in gaps]
         self.fill = r1
-        self.base = hi
         return slice(r0, r1), self.t[r0:r1]
-
-    def skip(self, lo: int, hi: int) -> None:
-        """Leave grid samples ``lo .. hi - 1`` out (a standstill gap before the next row)."""
-        self.gaps.append((self.fill, lo, hi - lo))
-        self.base = hi
 
     def apply(self, steps, sample_s: float):
         """Add the velocity steps that fall on rows held here; return the steps left."""
@@ -313,8 +308,7 @@ class _Chunk:
                     self.vel[count:n].copy(), self.acc[count:n].copy(),
                     self.line[count:n].copy(), self.index[count:n].copy())
         later = [(row - count, first, c) for row, first, c in self.gaps if row >= count]
-        base = self.base
-        self.__init__(self.k, self.capacity, base)
+        self.__init__(self.k, self.capacity)
         if rest is not None and rest[0].size:
             m = rest[0].size
             self.t[:m], self.pos[:m], self.vel[:m], self.acc[:m], self.line[:m] = rest[:5]
@@ -326,14 +320,47 @@ class _Chunk:
                       gaps=gaps_here)
 
 
-def _first_index_at_or_after(t: float, rate_hz: float) -> int:
-    """Smallest ``i >= 0`` with ``i / rate_hz >= t`` (the test the samples use)."""
-    i = max(int(math.ceil(t * rate_hz)), 0)
-    while i > 0 and (i - 1) / rate_hz >= t:
-        i -= 1
-    while i / rate_hz < t:
-        i += 1
-    return i
+class _GridCursor:
+    """Walks the grid samples ``[lo[i], hi[i])`` of a window in order (the rest are gaps)."""
+
+    def __init__(self, lo: list[int], hi: list[int]) -> None:
+        self.lo, self.hi = lo, hi
+        self.i = 0
+        self.at = lo[0] if lo else 0
+        self.gap: tuple[int, int] | None = None       # left out before the next sample
+
+    @property
+    def done(self) -> bool:
+        return self.i >= len(self.lo)
+
+    def _advance(self) -> None:
+        """Step past exhausted ranges; the samples between ranges become the next gap."""
+        while self.i < len(self.lo) and self.at >= self.hi[self.i]:
+            end = self.hi[self.i]
+            self.i += 1
+            if self.i < len(self.lo):
+                if self.lo[self.i] > end:
+                    self.gap = (end, self.lo[self.i] - end)
+                self.at = self.lo[self.i]
+
+    def take(self, count: int) -> tuple[np.ndarray, list[tuple[int, int, int]]]:
+        """Up to ``count`` next grid indices and the gaps before them (offset, first, n)."""
+        parts: list[np.ndarray] = []
+        gaps: list[tuple[int, int, int]] = []
+        got = 0
+        self._advance()
+        while got < count and self.i < len(self.lo):
+            n = min(self.hi[self.i] - self.at, count - got)
+            if self.gap is not None:
+                gaps.append((got, self.gap[0], self.gap[1]))
+                self.gap = None
+            parts.append(np.arange(self.at, self.at + n, dtype=np.int64))
+            got += n
+            self.at += n
+            self._advance()
+        if not parts:
+            return np.zeros(0, np.int64), gaps
+        return (parts[0] if len(parts) == 1 else np.concatenate(parts)), gaps
 
 
 class _WindowSampler:
@@ -348,10 +375,11 @@ class _WindowSampler:
         self.p0c, self.uc = seg.p0[:, cols], geo.u[:, cols]
         self.t0 = win.phases[0]
 
-    def fill(self, chunk: _Chunk, lo: int, hi: int, rate: float, t_last: float | None) -> None:
-        """Samples ``lo .. hi - 1`` into ``chunk``; ``t_last`` replaces the last one's time."""
-        rows, t = chunk.rows(lo, hi)
-        np.divide(np.arange(lo, hi, dtype=float), rate, out=t)
+    def fill(self, chunk: _Chunk, index: np.ndarray, gaps: list[tuple[int, int, int]],
+             rate: float, t_last: float | None) -> None:
+        """Grid samples ``index`` into ``chunk``; ``t_last`` replaces the last one's time."""
+        rows, t = chunk.rows_at(index, gaps)
+        np.divide(index, rate, out=t)
         if t_last is not None:
             t[-1] = t_last
         n = t.size
@@ -437,7 +465,7 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
             progress(min(float(motion.t[-1]) / duration_s, 1.0))
         return motion
 
-    chunk = _Chunk(k, chunk_samples, 0)
+    chunk = _Chunk(k, chunk_samples)
     steps = (np.zeros(0, np.int64), np.zeros(0), np.zeros((0, k)))   # not yet applied
     next_index = 0
     any_window = False
@@ -469,7 +497,7 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
             steps = (np.minimum(steps[0], stop_index - 1), steps[1], steps[2])
             final_until = stop_index         # samples below this have all their steps
         else:
-            stop_index = _first_index_at_or_after(t_end, rate)
+            stop_index = first_grid_index(t_end, rate)
             # later junctions (at or after the window end) reach back to these samples
             final_until = int(np.rint(t_end / sample_s))
         # rows held from the previous window may now be complete
@@ -487,21 +515,20 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
                 order = np.sort(steps[0])
                 runs = [r for r in runs
                         if np.searchsorted(order, r[1] + 1) == np.searchsorted(order, r[0] - 1)]
-        lo = next_index
-        for a, b, _phase in runs + [(stop_index, stop_index, -1)]:
-            while lo < a:
-                hi = min(lo + chunk.space, a)
-                sampler.fill(chunk, lo, hi, rate, t_last if hi == stop_index else None)
-                lo = hi
-                steps = chunk.apply(steps, sample_s)
-                if chunk.fill == chunk.capacity:
-                    # rows from final_until on wait for the next window's steps
-                    ready = int(np.searchsorted(chunk.index[:chunk.fill], final_until))
-                    if ready:
-                        yield emit(ready)
-            if a < b:
-                chunk.skip(a, b)
-                lo = b
+        cursor = _GridCursor([next_index] + [b for _a, b, _p in runs],
+                             [a for a, _b, _p in runs] + [stop_index])
+        while not cursor.done:
+            index, gaps = cursor.take(chunk.space)
+            if index.size == 0:
+                break
+            sampler.fill(chunk, index, gaps, rate,
+                         t_last if index[-1] == stop_index - 1 else None)
+            steps = chunk.apply(steps, sample_s)
+            if chunk.fill == chunk.capacity:
+                # rows from final_until on wait for the next window's steps
+                ready = int(np.searchsorted(chunk.index[:chunk.fill], final_until))
+                if ready:
+                    yield emit(ready)
         next_index = stop_index
     if not any_window:
         start = moves_seen[0].start if moves_seen else (0.0, 0.0, 0.0)

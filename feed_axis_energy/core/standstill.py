@@ -20,14 +20,14 @@ import math
 
 import numpy as np
 
-__all__ = ['first_grid_indices', 'standstill_runs', 'grid_interval_counts',
+__all__ = ['first_grid_index', 'first_grid_indices', 'standstill_runs', 'grid_interval_counts',
            'STANDSTILL_MARGIN']
 
 # Samples kept at each end of a standstill phase: the velocity step of a corner goes to the
 # sample nearest to its junction, which can be the first or the last sample of a neighbouring
 # rest; the second and the second-last are at rest whatever happens next to the phase.
 STANDSTILL_MARGIN = 2
-_DIRECT_INTERVALS = 4096     # shorter runs of intervals are counted from the samples
+_DIRECT_INTERVALS = 64       # shorter runs of intervals are counted from the samples
 
 
 def first_grid_indices(t: np.ndarray, rate_hz: float) -> np.ndarray:
@@ -45,6 +45,16 @@ def first_grid_indices(t: np.ndarray, rate_hz: float) -> np.ndarray:
         if not np.any(up):
             break
         i = i + up
+    return i
+
+
+def first_grid_index(t: float, rate_hz: float) -> int:
+    """Smallest ``i >= 0`` with ``i / rate_hz >= t`` (the test the samples use)."""
+    i = max(int(math.ceil(t * rate_hz)), 0)
+    while i > 0 and (i - 1) / rate_hz >= t:
+        i -= 1
+    while i / rate_hz < t:
+        i += 1
     return i
 
 
@@ -132,12 +142,12 @@ def grid_interval_counts(i0: int, i1: int, rate_hz: float) -> dict[float, int]:
         t_i = i / rate_hz
         _, e = math.frexp(t_i)                  # t_i in [2^(e-1), 2^e)
         ulp = math.ldexp(1.0, e - 53)
-        j = int(first_grid_indices(np.array([math.ldexp(1.0, e)]), rate_hz)[0]) - 1
+        j = first_grid_index(math.ldexp(1.0, e), rate_hz) - 1
         j = min(j, i1)                          # samples i .. j share the binade
         n = j - i
         if n > 0:
             span = j / rate_hz - t_i            # exact: both are multiples of ulp
-            c, r = divmod(int(round(span / ulp)), n)
+            c, r = divmod(int(span / ulp), n)
             for mult, count in ((c, n - r), (c + 1, r)):
                 if count:
                     value = mult * ulp
