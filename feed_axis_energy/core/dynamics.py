@@ -136,7 +136,8 @@ def compute_dynamics(motion: Motion, machine: Machine, *, load_kg: float = 0.0) 
     omega = vel * scale
     alpha = acc * scale
 
-    gravity = np.broadcast_to(mass * GRAVITY_M_S2 * np.sin(incl), vel.shape).copy()
+    gravity = np.empty_like(vel)       # keeps the layout of vel (column-major from the planner)
+    gravity[...] = mass * GRAVITY_M_S2 * np.sin(incl)
     normal = mass * GRAVITY_M_S2 * np.abs(np.cos(incl))
     loss = np.empty_like(vel)
     for j, spec in enumerate(specs):

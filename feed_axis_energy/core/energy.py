@@ -20,6 +20,7 @@ from .errors import ConfigError, DataError
 from .machine import BRAKING_MODES
 
 __all__ = ['PowerResult', 'EnergyIntegrator', 'compute_power', 'energy_by_line',
+           'power_with_total',
            'apply_braking']
 
 
@@ -97,7 +98,7 @@ def apply_braking(mechanical_w: np.ndarray, *, braking: str) -> np.ndarray:
     mechanical_w = np.asarray(mechanical_w, dtype=float)
     if braking == 'dissipated':
         return np.maximum(mechanical_w, 0.0)
-    return mechanical_w.copy()
+    return mechanical_w.copy(order='K')
 
 
 class EnergyIntegrator:
@@ -195,6 +196,15 @@ class EnergyIntegrator:
         return out[:, 0] if flat else out
 
 
+def power_with_total(power_w: np.ndarray, total_w: np.ndarray) -> np.ndarray:
+    """``(n, k + 1)`` columns: axes then total, column-major (see ``EnergyIntegrator``)."""
+    k = power_w.shape[1]
+    out = np.empty((power_w.shape[0], k + 1), order='F')
+    out[:, :k] = power_w
+    out[:, k] = total_w
+    return out
+
+
 def compute_power(dyn: AxisDynamics, *, braking: str) -> PowerResult:
     """Actual power ``M·omega`` per axis (eq. 1) and cumulative energy (eq. 2).
 
@@ -215,7 +225,7 @@ def compute_power(dyn: AxisDynamics, *, braking: str) -> PowerResult:
     total = power.sum(axis=1)
     k = power.shape[1]
     integrator = EnergyIntegrator(k + 1)
-    energy = integrator.update(dyn.t, np.column_stack((power, total)))
+    energy = integrator.update(dyn.t, power_with_total(power, total))
     return PowerResult(t=dyn.t, axes=dyn.axes, power_w=power, total_w=total,
                        energy_j=energy[:, :k], total_energy_j=energy[:, k],
                        mechanical_w=mechanical, loss_power_w=dyn.loss_power_w, line=dyn.line,

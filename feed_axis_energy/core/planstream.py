@@ -255,9 +255,10 @@ class _Chunk:
         self.capacity = capacity
         self.fill = 0
         self.t = np.empty(capacity)
-        self.pos = np.empty((capacity, k))
-        self.vel = np.empty((capacity, k))
-        self.acc = np.empty((capacity, k))
+        # column-major: each axis is contiguous, so per-axis work runs along the rows
+        self.pos = np.empty((capacity, k), order='F')
+        self.vel = np.empty((capacity, k), order='F')
+        self.acc = np.empty((capacity, k), order='F')
         self.line = np.empty(capacity, np.int32)
         self.gaps: list[tuple[int, int, int]] = []
         self.index = np.empty(capacity, np.int64)    # grid index of every row

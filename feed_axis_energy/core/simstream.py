@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from .dynamics import compute_dynamics
-from .energy import apply_braking, EnergyIntegrator, PowerResult
+from .energy import apply_braking, EnergyIntegrator, power_with_total, PowerResult
 from .errors import ConfigError
 from .machine import Machine
 from .motion import Motion
@@ -93,20 +93,21 @@ def iter_simulation(motions: Iterable[Motion], machine: Machine, *, load_kg: flo
         mechanical = dyn.torque_nm * dyn.omega_rad_s
         drawn = apply_braking(mechanical, braking=machine.braking)
         k = drawn.shape[1]
+        loss_power = dyn.loss_power_w          # a property: computed on every access
         if integrator is None:
             integrator = EnergyIntegrator(k + 1)
         base = PowerResult(t=dyn.t, axes=dyn.axes, power_w=drawn, total_w=drawn[:, 0],
                            energy_j=drawn, total_energy_j=drawn[:, 0],
-                           mechanical_w=mechanical, loss_power_w=dyn.loss_power_w,
+                           mechanical_w=mechanical, loss_power_w=loss_power,
                            line=dyn.line, braking=machine.braking)
         extra = declared_effects_power_w(dyn, base, machine)
         if extra is not None:
             drawn = drawn + extra
         total = _row_sum(drawn)
-        energy = integrator.update(dyn.t, np.column_stack((drawn, total)))
+        energy = integrator.update(dyn.t, power_with_total(drawn, total))
         power = PowerResult(t=dyn.t, axes=dyn.axes, power_w=drawn, total_w=total,
                             energy_j=energy[:, :k], total_energy_j=energy[:, k],
-                            mechanical_w=mechanical, loss_power_w=dyn.loss_power_w,
+                            mechanical_w=mechanical, loss_power_w=loss_power,
                             line=dyn.line, braking=machine.braking)
         yield SimulationResult(program=program or motion.source, machine=machine,
                                load_kg=float(load_kg), motion=motion, dynamics=dyn,
