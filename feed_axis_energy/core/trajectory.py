@@ -570,13 +570,35 @@ class _BlockLocator:
         self.group_start = cum[grp.first]     # program path length at each group's start
         self.block_start = cum                # ... at each block's start
         self.offset = grp.offset              # block start within its group
+        self.single = bool(np.all(self.group_last == self.group_first))
 
     def __call__(self, group: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Block index and path length inside that block for group-local ``s``."""
-        b = np.searchsorted(self.block_start, np.take(self.group_start, group) + s,
-                            side='right') - 1
+        if self.single:                       # every group is one block
+            b = np.take(self.group_first, group)
+            return b, s - np.take(self.offset, b)
+        b = _last_at_or_below(self.block_start, np.take(self.group_start, group) + s)
         b = np.clip(b, np.take(self.group_first, group), np.take(self.group_last, group))
         return b, s - np.take(self.offset, b)
+
+
+def _last_at_or_below(starts: np.ndarray, key: np.ndarray) -> np.ndarray:
+    """``searchsorted(starts, key, side='right') - 1`` for sorted ``starts``.
+
+    Samples come in time order, so ``key`` (program path length) is usually sorted too, and
+    many samples share a block: then the blocks are searched among the samples (a few
+    thousand searches instead of one per sample) and counted up.
+    """
+    n = key.shape[0]
+    if n < 256 or not np.all(key[1:] >= key[:-1]):
+        return np.searchsorted(starts, key, side='right') - 1
+    lo = int(np.searchsorted(starts, key[0], side='right'))
+    hi = int(np.searchsorted(starts, key[-1], side='right'))
+    # block j in lo..hi-1 holds the samples from the first key >= starts[j] on
+    first = np.searchsorted(key, starts[lo:hi], side='left')
+    b = np.cumsum(np.bincount(first, minlength=n))
+    b += lo - 1
+    return b
 
 
 def _junction_times(grp: BlockGroups, t_start: np.ndarray, gv: np.ndarray,
