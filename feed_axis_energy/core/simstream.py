@@ -164,7 +164,7 @@ class SummaryAccumulator:
         self.t_last = 0.0
         self.total_last = 0.0
         self.loss_last: float = 0.0
-        self.neg_last: np.ndarray | None = None
+        self.neg_last = 0.0
         self.line_last = 0
         self.axes: tuple[str, ...] = ()
         self.peak: np.ndarray | None = None
@@ -196,7 +196,8 @@ class SummaryAccumulator:
                         + [p.total_w.max()])
         self.peak = peak if self.peak is None else np.maximum(self.peak, peak)
         loss = _row_sum(p.loss_power_w)
-        neg = np.minimum(p.mechanical_w, 0.0)
+        # braking power summed over the axes first: one trapezoid instead of one per axis
+        neg = _row_sum(np.minimum(p.mechanical_w, 0.0))
         t, total, lines = p.t, p.total_w, p.line[1:]
         dt = np.diff(t)
         gaps = chunk.motion.gaps
@@ -204,7 +205,7 @@ class SummaryAccumulator:
             # the interval from the previous chunk's last sample to this chunk's first
             d0 = float(t[0] - self.t_last)
             self.loss_energy += 0.5 * (loss[0] + self.loss_last) * d0
-            self.regenerated += float(np.sum(0.5 * (neg[0] + self.neg_last) * d0))
+            self.regenerated += 0.5 * (float(neg[0]) + self.neg_last) * d0
             if not (gaps and gaps[0][0] == 0):
                 self._count_dt(np.array([d0]))
             self._add_lines(np.array([p.line[0]]),
@@ -212,7 +213,7 @@ class SummaryAccumulator:
                             np.array([d0]))
         if dt.size:
             self.loss_energy += float(np.sum(0.5 * (loss[1:] + loss[:-1]) * dt))
-            self.regenerated += float(np.sum(0.5 * (neg[1:] + neg[:-1]) * dt[:, None]))
+            self.regenerated += float(np.sum(0.5 * (neg[1:] + neg[:-1]) * dt))
             inner = [row - 1 for row, _, _ in gaps if row > 0]
             self._count_dt(np.delete(dt, inner) if inner else dt)
             self._add_lines(lines, 0.5 * (total[1:] + total[:-1]) * dt, dt)
@@ -222,7 +223,7 @@ class SummaryAccumulator:
         self.t_last = float(p.t[-1])
         self.total_last = float(total[-1])
         self.loss_last = float(loss[-1])
-        self.neg_last = neg[-1].copy()
+        self.neg_last = float(neg[-1])
         self.energy = np.append(p.energy_j[-1], p.total_energy_j[-1])
 
     def _count_gaps(self, gaps) -> None:
