@@ -4,7 +4,9 @@ Every stage of :func:`.simulate.simulate_program` is per sample except the energ
 which :class:`.energy.EnergyIntegrator` continues across chunks with the same bits; the
 summary (:func:`.simulate.summarize`) is accumulated by :class:`SummaryAccumulator`. Memory is
 one chunk of samples (:data:`.planstream.DEFAULT_CHUNK_SAMPLES`) plus one entry per source
-line, whatever the program's length.
+line, whatever the program's length. The interior of a dwell is not computed sample by
+sample (:mod:`.standstill`, ``Motion.gaps``): every stage integrates across the gap by the
+trapezoid rule with the same power at both ends, which is the sum over its samples.
 """
 from __future__ import annotations
 
