@@ -1,12 +1,14 @@
 """Long programs end to end: wall time and peak RSS of ``simulate`` as a child process.
 
-Usage: python bench/bench_scale.py [--hours H] [--case demonstrator|contour|both] [--out]
+Usage: python bench/bench_scale.py [--hours H] [--case demonstrator|contour|dwell|both] [--out]
 
 Writes two programs of H hours (default 8) to a temporary directory:
 * demonstrator: the paper's reciprocating 400 mm strokes at 100..500 mm/s with a 1 s dwell
   after every stroke (as config/programs/demonstrator_f*.nc), repeated; 1 axis.
 * contour: a dense 3-axis contour of short G1/G2/G3 blocks (about 20 blocks/s), on
   config/three_axis_mill.yaml.
+* dwell (only with ``--case dwell``): ``G4 P604800``, one week of dwell between two short
+  moves, on config/demonstrator.yaml (``--hours`` is ignored).
 Each is run as ``python -m feed_axis_energy simulate PROGRAM --json --quiet`` (and with
 ``--out BAG`` when asked); process start is included. Prints program duration, wall time,
 real-time factor, samples/s, peak RSS (``ru_maxrss`` of the child via ``os.wait4``) and, with
@@ -73,21 +75,28 @@ def contour_program(hours: float) -> str:
     return '\n'.join(lines) + '\n'
 
 
+def dwell_program(hours: float) -> str:
+    """One week of dwell (``hours`` is ignored): 11 bytes of G-code, 605 million samples."""
+    return 'G21 G90\nG1 X10 F600\nG4 P604800\nG1 X0\nM30\n'
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--hours', type=float, default=8.0)
-    ap.add_argument('--case', choices=('demonstrator', 'contour', 'both'), default='both')
+    ap.add_argument('--case', choices=('demonstrator', 'contour', 'dwell', 'both'),
+                    default='both')
     ap.add_argument('--out', action='store_true', help='also write the bag (--out)')
     args = ap.parse_args()
     cases = ('demonstrator', 'contour') if args.case == 'both' else (args.case,)
     with tempfile.TemporaryDirectory() as tmp:
         for case in cases:
-            text = (demonstrator_program if case == 'demonstrator' else contour_program)(
-                args.hours)
+            make = {'demonstrator': demonstrator_program, 'contour': contour_program,
+                    'dwell': dwell_program}[case]
+            text = make(args.hours)
             prog = Path(tmp) / f'{case}.nc'
             prog.write_text(text)
-            machine = ROOT / 'config' / ('demonstrator.yaml' if case == 'demonstrator'
-                                         else 'three_axis_mill.yaml')
+            machine = ROOT / 'config' / ('three_axis_mill.yaml' if case == 'contour'
+                                         else 'demonstrator.yaml')
             argv = ['simulate', str(prog), '--machine', str(machine), '--json', '--quiet']
             bag = Path(tmp) / f'{case}.bag'
             if args.out:

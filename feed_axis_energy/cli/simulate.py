@@ -145,16 +145,23 @@ class _Moves:
         self.n_lines = n_lines
 
     def __iter__(self):
-        add = None if self.checker is None else self.checker.add
         progress, n_lines = self.progress, self.n_lines
         count = 0
+        batch: list = []                # checked 4096 at a time (add_many: arrays)
         for move in self.stream:
-            if add is not None:
-                add(move)
+            batch.append(move)
             count += 1
-            if progress is not None and not count & 4095:
-                progress(min(move.line / n_lines, 1.0))
+            if not count & 4095:
+                self._check(batch)
+                batch = []
+                if progress is not None:
+                    progress(min(move.line / n_lines, 1.0))
             yield move
+        self._check(batch)
+
+    def _check(self, batch: list) -> None:
+        if self.checker is not None and batch:
+            self.checker.add_many(batch)
 
     def warnings(self, args: argparse.Namespace) -> list[str]:
         """Print the parser's and ``check``'s warnings on stderr (after the pass); return

@@ -136,16 +136,16 @@ def compute_dynamics(motion: Motion, machine: Machine, *, load_kg: float = 0.0) 
     omega = vel * scale
     alpha = acc * scale
 
-    gravity = np.broadcast_to(mass * GRAVITY_M_S2 * np.sin(incl), vel.shape).copy()
+    gravity = np.empty_like(vel)       # keeps the layout of vel (column-major from the planner)
+    gravity[...] = mass * GRAVITY_M_S2 * np.sin(incl)
     normal = mass * GRAVITY_M_S2 * np.abs(np.cos(incl))
     loss = np.empty_like(vel)
     for j, spec in enumerate(specs):
         loss[:, j] = -np.asarray(spec.loss.force_n(vel[:, j], normal_force_n=normal[j]))
     force = mass * acc + gravity + loss
 
-    driving = force * vel >= 0.0
     to_torque = lead / TWO_PI
-    torque_f = np.where(driving, force * to_torque / eta, force * to_torque * eta)
+    torque_f = _screw_torque(force, vel, to_torque, eta)
     torque = inertia * alpha + torque_f
 
     return AxisDynamics(
@@ -154,3 +154,15 @@ def compute_dynamics(motion: Motion, machine: Machine, *, load_kg: float = 0.0) 
         alpha_rad_s2=alpha, force_n=force, loss_force_n=loss, gravity_force_n=gravity,
         torque_nm=torque, line=np.asarray(motion.line), mass_kg=mass, inertia_kg_m2=inertia,
         lead_m=lead, efficiency=eta, load_kg=float(load_kg), source=motion.source)
+
+
+def _screw_torque(force: np.ndarray, vel: np.ndarray, to_torque: np.ndarray,
+                  eta: np.ndarray) -> np.ndarray:
+    """``F lead / (2 pi eta)`` where the motor drives (``F v >= 0``), else ``F lead eta / (2 pi)``.
+
+    With ``eta = 1`` on every axis both are ``F lead / (2 pi)`` (``x / 1 == x * 1 == x``),
+    so the element-wise select is skipped.
+    """
+    if np.all(eta == 1.0):
+        return force * to_torque
+    return np.where(force * vel >= 0.0, force * to_torque / eta, force * to_torque * eta)

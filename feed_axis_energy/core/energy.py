@@ -20,6 +20,7 @@ from .errors import ConfigError, DataError
 from .machine import BRAKING_MODES
 
 __all__ = ['PowerResult', 'EnergyIntegrator', 'compute_power', 'energy_by_line',
+           'power_with_total',
            'apply_braking']
 
 
@@ -97,7 +98,7 @@ def apply_braking(mechanical_w: np.ndarray, *, braking: str) -> np.ndarray:
     mechanical_w = np.asarray(mechanical_w, dtype=float)
     if braking == 'dissipated':
         return np.maximum(mechanical_w, 0.0)
-    return mechanical_w.copy()
+    return mechanical_w.copy(order='K')
 
 
 class EnergyIntegrator:
@@ -162,25 +163,46 @@ class EnergyIntegrator:
             raise DataError(msg, file='<power>')
         if t.shape[0] == 0:
             return p.copy()
-        if self._t is None:
-            t_all, p_all, start = t, p2, self._e
-            head = [start[None, :]]
+        first = self._t is None
+        if first:
+            dt = np.diff(t)
         else:
-            t_all = np.concatenate(([self._t], t))
-            p_all = np.vstack((self._p[None, :], p2))
-            head = [self._e[None, :]]
-        dt = np.diff(t_all)
+            dt = np.empty(t.shape[0])
+            dt[0] = t[0] - self._t
+            np.subtract(t[1:], t[:-1], out=dt[1:])
         if np.any(dt <= 0.0):
             bad = int(np.argmax(dt <= 0.0))
-            msg = f'EnergyIntegrator.update: time does not increase at t = {t_all[bad + 1]!r} s'
+            at = t[bad + 1] if first else t[bad]
+            msg = f'EnergyIntegrator.update: time does not increase at t = {at!r} s'
             raise DataError(msg, file='<power>', row=bad + 1)
-        increments = 0.5 * (p_all[1:] + p_all[:-1]) * dt[:, None]
-        cumulative = np.add.accumulate(np.vstack(head + [increments]), axis=0)
-        out = cumulative if self._t is None else cumulative[1:]
+        # channel-major: the running sum is one contiguous accumulate per channel (a sum
+        # along the rows of a narrow row-major array is slow); same additions, same bits
+        pt = p2.T
+        acc = np.empty((self.n_channels, dt.shape[0] + 1))
+        acc[:, 0] = self._e
+        inc = acc[:, 1:]
+        if first:
+            np.add(pt[:, 1:], pt[:, :-1], out=inc)
+        else:
+            np.add(pt[:, :1], self._p[:, None], out=inc[:, :1])
+            np.add(pt[:, 1:], pt[:, :-1], out=inc[:, 1:])
+        inc *= 0.5
+        inc *= dt
+        np.add.accumulate(acc, axis=1, out=acc)
+        out = (acc if first else acc[:, 1:]).T
         self._t = float(t[-1])
         self._p = p2[-1].copy()
-        self._e = out[-1].copy()
+        self._e = acc[:, -1].copy()
         return out[:, 0] if flat else out
+
+
+def power_with_total(power_w: np.ndarray, total_w: np.ndarray) -> np.ndarray:
+    """``(n, k + 1)`` columns: axes then total, column-major (see ``EnergyIntegrator``)."""
+    k = power_w.shape[1]
+    out = np.empty((power_w.shape[0], k + 1), order='F')
+    out[:, :k] = power_w
+    out[:, k] = total_w
+    return out
 
 
 def compute_power(dyn: AxisDynamics, *, braking: str) -> PowerResult:
@@ -203,7 +225,7 @@ def compute_power(dyn: AxisDynamics, *, braking: str) -> PowerResult:
     total = power.sum(axis=1)
     k = power.shape[1]
     integrator = EnergyIntegrator(k + 1)
-    energy = integrator.update(dyn.t, np.column_stack((power, total)))
+    energy = integrator.update(dyn.t, power_with_total(power, total))
     return PowerResult(t=dyn.t, axes=dyn.axes, power_w=power, total_w=total,
                        energy_j=energy[:, :k], total_energy_j=energy[:, k],
                        mechanical_w=mechanical, loss_power_w=dyn.loss_power_w, line=dyn.line,

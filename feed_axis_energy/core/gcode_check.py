@@ -27,7 +27,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 import re
-from typing import Callable, Iterable, Mapping
+from typing import Callable, Iterable, Mapping, Sequence
+
+import numpy as np
 
 from .errors import GcodeError, shorten
 from .gcode_stats import arc_extremes, arc_geometry, MoveStats, ProgramStats
@@ -45,6 +47,7 @@ MAX_LISTED_DWELLS = 100
 """Long dwells listed one by one; more are summed up in one further warning."""
 _FEED_MARGIN = 1.0 + 1e-9     # a feed equal to the limit is not above it
 _TRAVEL_MARGIN_M = 1e-9
+_MIN_ARRAY_RUN = 16           # shorter runs of straight moves are checked one by one
 
 
 @dataclass(frozen=True)
@@ -192,6 +195,74 @@ class MoveChecker:
                 v = _axis_speed(move, i)
                 if v > vmax * _FEED_MARGIN:
                     self._note(self.feed, name, move.line, v, lower=False)
+
+    def add_many(self, moves: Sequence[Move]) -> None:
+        """Check a batch of moves: the same warnings as :meth:`add` on each in turn.
+
+        Runs of straight moves (feeds and rapids) are checked with arrays (``simulate``
+        feeds its moves this way: checked one by one they cost as much as parsing); arcs,
+        dwells, stops and short runs go through :meth:`add`. Moves are taken in program
+        order, so every warning names the same first line, count and extreme value as
+        with :meth:`add`; the program statistics (:meth:`result`) are those of :meth:`add`
+        except that the lengths of a run are computed with arrays (equal to the last bits).
+        """
+        run: list[Move] = []
+        for move in moves:
+            if move.kind == MoveKind.LINEAR or move.kind == MoveKind.RAPID:
+                run.append(move)
+                continue
+            self._add_run(run)
+            run = []
+            self.add(move)
+        self._add_run(run)
+
+    def _add_run(self, run: list[Move]) -> None:
+        if len(run) < _MIN_ARRAY_RUN:
+            for move in run:
+                self.add(move)
+        else:
+            self._add_straight(run)
+
+    def _add_straight(self, moves: Sequence[Move]) -> None:
+        start = np.array([m.start for m in moves], dtype=float)
+        end = np.array([m.end for m in moves], dtype=float)
+        line = np.array([m.line for m in moves], dtype=np.int64)
+        rapid = np.array([m.kind == MoveKind.RAPID for m in moves])
+        feed = np.array([m.feed_m_s for m in moves], dtype=float)
+        self.stats.add_straight(moves, start, end, rapid)
+        d = end - start
+        length = np.sqrt(np.einsum('ij,ij->i', d, d))
+        lo = np.minimum(start, end)
+        hi = np.maximum(start, end)
+        usable = ~rapid & np.isfinite(feed) & (feed > 0.0) & (length > 0.0)
+        for i, name, travel, vmax in self._axes:
+            if travel is not None:
+                self._note_many(self.travel, (name, 'min'), line, lo[:, i],
+                                lo[:, i] < travel[0] - _TRAVEL_MARGIN_M, lower=True)
+                self._note_many(self.travel, (name, 'max'), line, hi[:, i],
+                                hi[:, i] > travel[1] + _TRAVEL_MARGIN_M, lower=False)
+            if vmax is not None:
+                with np.errstate(invalid='ignore', divide='ignore'):
+                    v = np.where(usable, feed * np.abs(d[:, i]) / length, 0.0)
+                self._note_many(self.feed, name, line, v, v > vmax * _FEED_MARGIN,
+                                lower=False)
+
+    @staticmethod
+    def _note_many(table: dict, key: object, line: np.ndarray, value: np.ndarray,
+                   hit: np.ndarray, *, lower: bool) -> None:
+        """:meth:`_note` for every ``hit`` of a run, in order."""
+        idx = np.nonzero(hit)[0]
+        if idx.size == 0:
+            return
+        e = table.get(key)
+        if e is None:
+            e = table[key] = _Excess()
+            e.line = int(line[idx[0]])
+            e.worst = float(value[idx[0]])
+        e.count += int(idx.size)
+        worst = float(value[idx].min() if lower else value[idx].max())
+        if (worst < e.worst) if lower else (worst > e.worst):
+            e.worst = worst
 
     @staticmethod
     def _note(table: dict, key: object, line: int, value: float, *, lower: bool) -> None:

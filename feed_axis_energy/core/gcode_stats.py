@@ -22,7 +22,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Iterable
+from typing import Iterable, Sequence
+
+import numpy as np
 
 from .program import Move, MoveKind
 
@@ -205,6 +207,38 @@ class MoveStats:
                 self._grow(p)
         self._grow(move.end)
         self.position = move.end
+
+    def add_straight(self, moves: Sequence[Move], start: np.ndarray, end: np.ndarray,
+                     rapid: np.ndarray) -> None:
+        """Count a run of feeds and rapids (no arcs, dwells or stops) given as arrays.
+
+        Parameters
+        ----------
+        moves
+            The moves, in order.
+        start, end
+            Their start and end points [m], ``(n, 3)``.
+        rapid
+            True for the rapids, ``(n,)``.
+        """
+        if not moves:
+            return
+        n_rapid = int(np.count_nonzero(rapid))
+        self.counts[MoveKind.RAPID] += n_rapid
+        self.counts[MoveKind.LINEAR] += len(moves) - n_rapid
+        d = end - start
+        dist = np.sqrt(np.einsum('ij,ij->i', d, d))
+        # added one by one as add() does (sum() adds in order)
+        self.traverse_length_m = sum(dist[rapid].tolist(), self.traverse_length_m)
+        self.feed_length_m = sum(dist[~rapid].tolist(), self.feed_length_m)
+        if self.lo is None:
+            self.lo = list(self.position)
+            self.hi = list(self.position)
+        low = np.minimum(start.min(axis=0), end.min(axis=0)).tolist()
+        high = np.maximum(start.max(axis=0), end.max(axis=0)).tolist()
+        self.lo = [min(a, b) for a, b in zip(self.lo, low)]
+        self.hi = [max(a, b) for a, b in zip(self.hi, high)]
+        self.position = moves[-1].end
 
     def result(self) -> ProgramStats:
         """Return the summary of the moves added so far.

@@ -40,10 +40,11 @@ from .lookahead import BlockGroups, group_blocks, path_cumsum, through_accelerat
 from .motion import Motion
 from .profiles import plan_profiles, reach_speed
 from .program import Move, PROGRAM_AXES
-from .trajectory import (_apply_steps, _BlockLocator, _check_limits, _Collector,
-                         _corner_terms, _Geometry, _geometry, _junction_speeds, _junction_times,
-                         _path_limits, _phase_table, _REST, _sample, _Segments, AxisLimits,
-                         PlannerOptions)
+from .samplechunk import Chunk, GridCursor, WindowSampler
+from .standstill import first_grid_index, standstill_runs
+from .trajectory import (_check_limits, _Collector, _corner_terms, _Geometry, _geometry,
+                         _junction_speeds, _junction_times, _path_limits, _phase_table, _REST,
+                         _Segments, AxisLimits, PlannerOptions)
 
 __all__ = ['DEFAULT_CHUNK_SAMPLES', 'WINDOW_BLOCKS', 'PlannedWindow', 'iter_plan',
            'iter_motion', 'concat_motion', 'PlanEstimate', 'estimate_plan']
@@ -242,55 +243,12 @@ def iter_plan(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         collector.drop(nb)
 
 
-class _Samples:
-    """Samples being assembled: ``t, pos, vel, acc, line`` from sample index ``base`` on."""
-
-    def __init__(self, k: int, base: int) -> None:
-        self.base = base
-        self.t = np.zeros(0)
-        self.pos = np.zeros((0, k))
-        self.vel = np.zeros((0, k))
-        self.acc = np.zeros((0, k))
-        self.line = np.zeros(0, np.int32)
-
-    def __len__(self) -> int:
-        return int(self.t.shape[0])
-
-    def extend(self, t, pos, vel, acc, line) -> None:
-        if len(self) == 0:
-            self.t, self.pos, self.vel, self.acc, self.line = t, pos, vel, acc, line
-            return
-        self.t = np.concatenate((self.t, t))
-        self.pos = np.concatenate((self.pos, pos))
-        self.vel = np.concatenate((self.vel, vel))
-        self.acc = np.concatenate((self.acc, acc))
-        self.line = np.concatenate((self.line, line))
-
-    def split(self, count: int) -> tuple:
-        """Remove and return the first ``count`` samples as a tuple of arrays."""
-        head = (self.t[:count], self.pos[:count], self.vel[:count], self.acc[:count],
-                self.line[:count])
-        self.t, self.pos, self.vel = self.t[count:], self.pos[count:], self.vel[count:]
-        self.acc, self.line = self.acc[count:], self.line[count:]
-        self.base += count
-        return head
-
-
-def _first_index_at_or_after(t: float, rate_hz: float) -> int:
-    """Smallest ``i >= 0`` with ``i / rate_hz >= t`` (the test the samples use)."""
-    i = max(int(math.ceil(t * rate_hz)), 0)
-    while i > 0 and (i - 1) / rate_hz >= t:
-        i -= 1
-    while i / rate_hz < t:
-        i += 1
-    return i
-
-
 def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
                 options: PlannerOptions = PlannerOptions(), file: str = '',
                 chunk_samples: int = DEFAULT_CHUNK_SAMPLES, window_blocks: int = WINDOW_BLOCKS,
                 total_moves: int | None = None, duration_s: float | None = None,
-                progress: Callable[[float], None] | None = None) -> Iterator[Motion]:
+                progress: Callable[[float], None] | None = None,
+                compact_min_samples: int = 0) -> Iterator[Motion]:
     """Plan ``moves`` and yield the sampled motion in chunks of at most ``chunk_samples``.
 
     The concatenated chunks equal :func:`.trajectory.plan` of the same moves (same samples,
@@ -307,7 +265,7 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
     file
         Program file (error messages, ``Motion.source``).
     chunk_samples
-        Largest chunk [samples], ``>= 2``.
+        Largest chunk [rows], ``>= 2``.
     window_blocks
         Passed on to :func:`iter_plan`.
     total_moves
@@ -318,11 +276,15 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
     progress
         Called with the fraction of time sampled (with ``duration_s``) or of moves planned
         (with ``total_moves``).
+    compact_min_samples
+        0 (default): every sample is a row. Otherwise the interior of every standstill phase
+        (a dwell) of at least this many samples is left out of the rows and listed in
+        ``Motion.gaps`` (:mod:`.standstill`); chunks then hold up to ``chunk_samples`` rows.
 
     Yields
     ------
     Motion
-        Consecutive chunks; every chunk has at least one sample.
+        Consecutive chunks; every chunk has at least one row.
     """
     if chunk_samples < 2:
         msg = f'chunk_samples must be >= 2, got {chunk_samples}'
@@ -345,15 +307,20 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
                 moves_seen.append(mv)
             yield mv
 
-    buf = _Samples(k, 0)                  # samples whose steps may not all be known yet
-    out = _Samples(k, 0)                  # finished samples waiting to fill a chunk
+    def emit(count: int, *, report: bool = True) -> Motion:
+        motion = chunk.take(count, axes, file)
+        if report and progress is not None and duration_s:
+            progress(min(float(motion.t[-1]) / duration_s, 1.0))
+        return motion
+
+    chunk = Chunk(k, chunk_samples)
     steps = (np.zeros(0, np.int64), np.zeros(0), np.zeros((0, k)))   # not yet applied
     next_index = 0
     any_window = False
     for win in iter_plan(first_move(moves), limits, options=options, file=file,
                          window_blocks=window_blocks, on_move=on_move):
         any_window = True
-        seg, geo, grp = win.seg, win.geo, win.groups
+        geo, grp = win.geo, win.groups
         gv = grp.v_junction
         t_j, v_j = _junction_times(grp, win.t_start, gv, win.phases)
         tan_in, tan_out = geo.tan1[:-1], geo.tan0[1:]
@@ -366,62 +333,50 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         steps = (np.concatenate((steps[0], idx)), np.concatenate((steps[1], tc)),
                  np.concatenate((steps[2], dv)))
         t_end = win.t_end
+        t_last = None
         if win.final:
             n_last = int(math.floor(t_end * rate + 1e-9))
             stop_index = max(n_last + 1, next_index)
-        else:
-            stop_index = _first_index_at_or_after(t_end, rate)
-        lines = np.array([x.line for x in seg.move], dtype=np.int32)
-        locate = _BlockLocator(grp, geo.length, path_start_m=win.path_start_m)
-        p0c, uc = seg.p0[:, cols], geo.u[:, cols]
-        t0_phase = win.phases[0]
-        lo = next_index
-        while True:
-            hi = min(lo + chunk_samples, stop_index)
-            last_piece = hi >= stop_index
-            t = np.arange(lo, hi, dtype=float) / rate
-            if win.final and last_piece:
-                if t.size and t_end - t[-1] <= 1e-9:
-                    t[-1] = t_end
-                else:
-                    t = np.append(t, t_end)
-            n = t.size
-            pos = np.empty((n, k))
-            vel = np.empty((n, k))
-            acc = np.empty((n, k))
-            if n:
-                # each phase owns the samples from the first one at or after its start
-                first = np.searchsorted(t, t0_phase, side='left')
-                owner = np.repeat(np.arange(first.size), np.diff(np.append(first, n)))
-                mi = _sample(t, owner, win.phases, locate, seg, geo, cols, p0c, uc,
-                             out=(pos, vel, acc))
-                buf.extend(t, pos, vel, acc, lines[mi])
-            end_index = buf.base + len(buf)
-            if win.final and last_piece:
-                steps = (np.minimum(steps[0], end_index - 1), steps[1], steps[2])
-            ready = steps[0] < end_index
-            if np.any(ready):
-                sel = np.nonzero(ready)[0]
-                _apply_steps(buf.t, steps[0][sel] - buf.base, steps[1][sel], steps[2][sel],
-                             sample_s, vel=buf.vel, acc=buf.acc)
-                keep = np.nonzero(~ready)[0]
-                steps = (steps[0][keep], steps[1][keep], steps[2][keep])
-            if win.final and last_piece:
-                done = len(buf)
+            if stop_index > next_index and t_end - (stop_index - 1) / rate <= 1e-9:
+                t_last = t_end               # the last grid sample becomes the program end
             else:
-                # later junctions (at or after the window end) reach back to this sample
-                cut = int(np.rint(t_end / sample_s))
-                done = max(min(cut - buf.base, len(buf)), 0) if last_piece else len(buf)
-            if done:
-                out.extend(*buf.split(done))
-            while len(out) >= chunk_samples:
-                chunk = _motion(out.split(chunk_samples), axes, file)
-                if progress is not None and duration_s:
-                    progress(min(float(chunk.t[-1]) / duration_s, 1.0))
-                yield chunk
-            lo = hi
-            if last_piece:
+                stop_index += 1              # one more sample at the program end
+                t_last = t_end
+            steps = (np.minimum(steps[0], stop_index - 1), steps[1], steps[2])
+            final_until = stop_index         # samples below this have all their steps
+        else:
+            stop_index = first_grid_index(t_end, rate)
+            # later junctions (at or after the window end) reach back to these samples
+            final_until = int(np.rint(t_end / sample_s))
+        # rows held from the previous window may now be complete
+        steps = chunk.apply(steps, sample_s)
+        if chunk.fill == chunk.capacity:
+            yield emit(chunk.fill)
+        sampler = WindowSampler(win, cols)
+        runs = []
+        if compact_min_samples > 0:
+            limit = stop_index - 2 if win.final else min(stop_index, final_until) - 1
+            runs = standstill_runs(win.phases, rate_hz=rate, lo=next_index, hi=limit,
+                                   min_samples=compact_min_samples)
+            if runs and steps[0].size:
+                # a run keeps no sample a pending velocity step would land on
+                order = np.sort(steps[0])
+                runs = [r for r in runs
+                        if np.searchsorted(order, r[1] + 1) == np.searchsorted(order, r[0] - 1)]
+        cursor = GridCursor([next_index] + [b for _a, b, _p in runs],
+                            [a for a, _b, _p in runs] + [stop_index])
+        while not cursor.done:
+            index, gaps = cursor.take(chunk.space)
+            if index.size == 0:
                 break
+            sampler.fill(chunk, index, gaps, rate,
+                         t_last if index[-1] == stop_index - 1 else None)
+            steps = chunk.apply(steps, sample_s)
+            if chunk.fill == chunk.capacity:
+                # rows from final_until on wait for the next window's steps
+                ready = int(np.searchsorted(chunk.index[:chunk.fill], final_until))
+                if ready:
+                    yield emit(ready)
         next_index = stop_index
     if not any_window:
         start = moves_seen[0].start if moves_seen else (0.0, 0.0, 0.0)
@@ -429,27 +384,31 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         yield Motion(t=np.zeros(1), axes=axes, pos=pos, vel=np.zeros_like(pos),
                      acc=np.zeros_like(pos), line=np.zeros(1, np.int32), source=file)
         return
-    if len(out):
-        yield _motion(out.split(len(out)), axes, file)
-
-
-def _motion(arrays: tuple, axes: tuple[str, ...], file: str) -> Motion:
-    t, pos, vel, acc, line = arrays
-    return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line, source=file)
+    if chunk.fill:
+        yield emit(chunk.fill, report=False)
 
 
 def concat_motion(chunks: Iterable[Motion]) -> Motion:
-    """Join consecutive motion chunks into one :class:`Motion` (for small programs, tests)."""
+    """Join consecutive motion chunks into one :class:`Motion` (for small programs, tests).
+
+    ``gaps`` are carried over with their rows shifted.
+    """
     parts = list(chunks)
     if not parts:
         msg = 'concat_motion: no chunks'
         raise ValueError(msg)
     first = parts[0]
+    gaps = []
+    offset = 0
+    for c in parts:
+        gaps += [(row + offset, lo, count) for row, lo, count in c.gaps]
+        offset += c.n_samples
     return Motion(t=np.concatenate([c.t for c in parts]), axes=first.axes,
                   pos=np.concatenate([c.pos for c in parts]),
                   vel=np.concatenate([c.vel for c in parts]),
                   acc=np.concatenate([c.acc for c in parts]),
-                  line=np.concatenate([c.line for c in parts]), source=first.source)
+                  line=np.concatenate([c.line for c in parts]), source=first.source,
+                  gaps=tuple(gaps))
 
 
 @dataclass(frozen=True)

@@ -4,28 +4,34 @@ Every stage of :func:`.simulate.simulate_program` is per sample except the energ
 which :class:`.energy.EnergyIntegrator` continues across chunks with the same bits; the
 summary (:func:`.simulate.summarize`) is accumulated by :class:`SummaryAccumulator`. Memory is
 one chunk of samples (:data:`.planstream.DEFAULT_CHUNK_SAMPLES`) plus one entry per source
-line, whatever the program's length.
+line, whatever the program's length. The interior of a dwell is not computed sample by
+sample (:mod:`.standstill`, ``Motion.gaps``): every stage integrates across the gap by the
+trapezoid rule with the same power at both ends, which is the sum over its samples.
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import replace
 import math
 from typing import Any
 
 import numpy as np
 
 from .dynamics import compute_dynamics
-from .energy import apply_braking, EnergyIntegrator, PowerResult
+from .energy import apply_braking, EnergyIntegrator, power_with_total, PowerResult
 from .errors import ConfigError
 from .machine import Machine
 from .motion import Motion
 from .planstream import DEFAULT_CHUNK_SAMPLES, iter_motion
 from .program import Move
 from .simulate import declared_effects_power_w, SimulationResult
+from .standstill import grid_interval_counts
 from .trajectory import PlannerOptions
 
-__all__ = ['streamable', 'iter_simulation', 'LineEnergy', 'SummaryAccumulator',
-           'simulate_stream']
+__all__ = ['streamable', 'compactable', 'iter_simulation', 'LineEnergy', 'SummaryAccumulator',
+           'expand_gaps', 'simulate_stream', 'COMPACT_MIN_SAMPLES']
+
+COMPACT_MIN_SAMPLES = 64    # standstill phases with more samples are left out of the rows
 
 
 def _row_sum(a: np.ndarray) -> np.ndarray:
@@ -42,6 +48,16 @@ def streamable(machine: Machine) -> bool:
         return True
     from .effects import get_effect
     return all(get_effect(e.id).sample_local for e in machine.effects)
+
+
+def compactable(machine: Machine) -> bool:
+    """True when standstill samples may be left out: every declared effect is sample-local
+    and constant at rest (``Effect.constant_at_rest``), so the power is the same at every
+    sample of a dwell."""
+    if not streamable(machine):
+        return False
+    from .effects import get_effect
+    return all(get_effect(e.id).constant_at_rest for e in machine.effects)
 
 
 def iter_simulation(motions: Iterable[Motion], machine: Machine, *, load_kg: float = 0.0,
@@ -79,20 +95,21 @@ def iter_simulation(motions: Iterable[Motion], machine: Machine, *, load_kg: flo
         mechanical = dyn.torque_nm * dyn.omega_rad_s
         drawn = apply_braking(mechanical, braking=machine.braking)
         k = drawn.shape[1]
+        loss_power = dyn.loss_power_w          # a property: computed on every access
         if integrator is None:
             integrator = EnergyIntegrator(k + 1)
         base = PowerResult(t=dyn.t, axes=dyn.axes, power_w=drawn, total_w=drawn[:, 0],
                            energy_j=drawn, total_energy_j=drawn[:, 0],
-                           mechanical_w=mechanical, loss_power_w=dyn.loss_power_w,
+                           mechanical_w=mechanical, loss_power_w=loss_power,
                            line=dyn.line, braking=machine.braking)
         extra = declared_effects_power_w(dyn, base, machine)
         if extra is not None:
             drawn = drawn + extra
         total = _row_sum(drawn)
-        energy = integrator.update(dyn.t, np.column_stack((drawn, total)))
+        energy = integrator.update(dyn.t, power_with_total(drawn, total))
         power = PowerResult(t=dyn.t, axes=dyn.axes, power_w=drawn, total_w=total,
                             energy_j=energy[:, :k], total_energy_j=energy[:, k],
-                            mechanical_w=mechanical, loss_power_w=dyn.loss_power_w,
+                            mechanical_w=mechanical, loss_power_w=loss_power,
                             line=dyn.line, braking=machine.braking)
         yield SimulationResult(program=program or motion.source, machine=machine,
                                load_kg=float(load_kg), motion=motion, dynamics=dyn,
@@ -132,15 +149,24 @@ class SummaryAccumulator:
 
     Sums are taken per chunk and added, so they agree with the whole-record sums to rounding
     (``1e-12`` relative); the median sample interval is exact (intervals are counted by value).
+    Standstill samples left out of a chunk (``Motion.gaps``) count as samples; the trapezoid
+    across a gap is the sum over its intervals (same power at both ends), and its intervals
+    are counted on the grid of ``rate_hz``.
+
+    Parameters
+    ----------
+    rate_hz
+        Sample rate of the grid [Hz]; needed only for chunks with ``gaps``.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, *, rate_hz: float | None = None) -> None:
+        self.rate_hz = rate_hz
         self.n = 0
         self.t_first = 0.0
         self.t_last = 0.0
         self.total_last = 0.0
         self.loss_last: float = 0.0
-        self.neg_last: np.ndarray | None = None
+        self.neg_last = 0.0
         self.line_last = 0
         self.axes: tuple[str, ...] = ()
         self.peak: np.ndarray | None = None
@@ -172,29 +198,44 @@ class SummaryAccumulator:
                         + [p.total_w.max()])
         self.peak = peak if self.peak is None else np.maximum(self.peak, peak)
         loss = _row_sum(p.loss_power_w)
-        neg = np.minimum(p.mechanical_w, 0.0)
+        # braking power summed over the axes first: one trapezoid instead of one per axis
+        neg = _row_sum(np.minimum(p.mechanical_w, 0.0))
         t, total, lines = p.t, p.total_w, p.line[1:]
         dt = np.diff(t)
+        gaps = chunk.motion.gaps
         if self.n:
             # the interval from the previous chunk's last sample to this chunk's first
             d0 = float(t[0] - self.t_last)
             self.loss_energy += 0.5 * (loss[0] + self.loss_last) * d0
-            self.regenerated += float(np.sum(0.5 * (neg[0] + self.neg_last) * d0))
-            self._count_dt(np.array([d0]))
+            self.regenerated += 0.5 * (float(neg[0]) + self.neg_last) * d0
+            if not (gaps and gaps[0][0] == 0):
+                self._count_dt(np.array([d0]))
             self._add_lines(np.array([p.line[0]]),
                             np.array([0.5 * (total[0] + self.total_last) * d0]),
                             np.array([d0]))
         if dt.size:
             self.loss_energy += float(np.sum(0.5 * (loss[1:] + loss[:-1]) * dt))
-            self.regenerated += float(np.sum(0.5 * (neg[1:] + neg[:-1]) * dt[:, None]))
-            self._count_dt(dt)
+            self.regenerated += float(np.sum(0.5 * (neg[1:] + neg[:-1]) * dt))
+            inner = [row - 1 for row, _, _ in gaps if row > 0]
+            self._count_dt(np.delete(dt, inner) if inner else dt)
             self._add_lines(lines, 0.5 * (total[1:] + total[:-1]) * dt, dt)
-        self.n += m
+        if gaps:
+            self._count_gaps(gaps)
+        self.n += m + chunk.motion.omitted_samples
         self.t_last = float(p.t[-1])
         self.total_last = float(total[-1])
         self.loss_last = float(loss[-1])
-        self.neg_last = neg[-1].copy()
+        self.neg_last = float(neg[-1])
         self.energy = np.append(p.energy_j[-1], p.total_energy_j[-1])
+
+    def _count_gaps(self, gaps) -> None:
+        """Count the grid intervals spanned by every gap (from the row before to the row after)."""
+        if self.rate_hz is None:
+            msg = 'SummaryAccumulator needs rate_hz for chunks with standstill gaps'
+            raise ValueError(msg)
+        for _row, first, count in gaps:
+            for value, c in grid_interval_counts(first - 1, first + count, self.rate_hz).items():
+                self.dt_counts[value] = self.dt_counts.get(value, 0) + c
 
     def _count_dt(self, dt: np.ndarray) -> None:
         """Count the sample intervals by value (few distinct values on a uniform grid)."""
@@ -294,13 +335,99 @@ class SummaryAccumulator:
         }
 
 
+_MOTION_ROWS = ('t', 'pos', 'vel', 'acc', 'line')
+_DYNAMICS_ROWS = ('t', 'position_m', 'velocity_m_s', 'acceleration_m_s2', 'angle_rad',
+                  'omega_rad_s', 'alpha_rad_s2', 'force_n', 'loss_force_n', 'gravity_force_n',
+                  'torque_nm', 'line')
+_POWER_ROWS = ('t', 'power_w', 'total_w', 'energy_j', 'total_energy_j', 'mechanical_w',
+               'loss_power_w', 'line')
+
+
+def _gap_pieces(chunk: SimulationResult, size: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """``(source rows, grid index or -1)`` of every full-rate sample, ``size`` at a time."""
+    m = chunk.power.t.shape[0]
+    parts: list[tuple[int, int, int]] = []        # (row, grid first, count); grid -1: a row
+    row = 0
+    for gap_row, first, count in chunk.motion.gaps:
+        if gap_row > row:
+            parts.append((row, -1, gap_row - row))
+        parts.append((gap_row, first, count))
+        row = gap_row
+    if m > row:
+        parts.append((row, -1, m - row))
+    src: list[np.ndarray] = []
+    grid: list[np.ndarray] = []
+    held = 0
+    for row, first, count in parts:
+        done = 0
+        while done < count:
+            take = min(count - done, size - held)
+            if first < 0:
+                src.append(np.arange(row + done, row + done + take))
+                grid.append(np.full(take, -1, np.int64))
+            else:
+                src.append(np.full(take, row, np.int64))
+                grid.append(np.arange(first + done, first + done + take, dtype=np.int64))
+            done += take
+            held += take
+            if held == size:
+                yield np.concatenate(src), np.concatenate(grid)
+                src, grid, held = [], [], 0
+    if held:
+        yield np.concatenate(src), np.concatenate(grid)
+
+
+def expand_gaps(chunk: SimulationResult, *, rate_hz: float,
+                chunk_samples: int = DEFAULT_CHUNK_SAMPLES) -> Iterator[SimulationResult]:
+    """The chunk at the full rate: standstill samples left out (``Motion.gaps``) put back.
+
+    A left-out sample equals the row after its gap except its time (``i / rate_hz``) and its
+    cumulative energy, ``E = E_row - P (t_row - t)`` (constant power across the gap).
+
+    Parameters
+    ----------
+    chunk
+        A chunk of :func:`iter_simulation`.
+    rate_hz
+        Sample rate of the grid [Hz].
+    chunk_samples
+        Largest result yielded [samples].
+
+    Yields
+    ------
+    SimulationResult
+        Consecutive pieces without gaps; the chunk itself when it has none.
+    """
+    if not chunk.motion.gaps:
+        yield chunk
+        return
+    mo, dyn, pw = chunk.motion, chunk.dynamics, chunk.power
+    for src, grid in _gap_pieces(chunk, max(int(chunk_samples), 1)):
+        fill = np.nonzero(grid >= 0)[0]
+        t = mo.t[src]
+        t[fill] = grid[fill].astype(float) / rate_hz
+        back = (pw.t[src[fill]] - t[fill])
+        energy = pw.energy_j[src]
+        energy[fill] -= pw.power_w[src[fill]] * back[:, None]
+        total_energy = pw.total_energy_j[src]
+        total_energy[fill] -= pw.total_w[src[fill]] * back
+        motion = replace(mo, **{f: (t if f == 't' else getattr(mo, f)[src])
+                                for f in _MOTION_ROWS}, gaps=())
+        dynamics = replace(dyn, **{f: (t if f == 't' else getattr(dyn, f)[src])
+                                   for f in _DYNAMICS_ROWS})
+        rows = {f: getattr(pw, f)[src] for f in _POWER_ROWS[1:]}
+        rows.update(t=t, energy_j=energy, total_energy_j=total_energy)
+        yield replace(chunk, motion=motion, dynamics=dynamics, power=replace(pw, **rows))
+
+
 def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
                     load_kg: float = 0.0, options: PlannerOptions | None = None,
                     top_blocks: int = 5, chunk_samples: int = DEFAULT_CHUNK_SAMPLES,
                     total_moves: int | None = None, duration_s: float | None = None,
                     on_chunk: Callable[[SimulationResult], None] | None = None,
                     progress: Callable[[float], None] | None = None,
-                    limits: Mapping | None = None) -> tuple[dict[str, Any], LineEnergy]:
+                    limits: Mapping | None = None, compact: bool = True,
+                    chunk_gaps: bool = False) -> tuple[dict[str, Any], LineEnergy]:
     """Simulate a program chunk by chunk; return its summary and energy per block.
 
     Equal (``1e-12`` relative) to ``summarize(simulate_program(...))`` and
@@ -328,11 +455,19 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
     duration_s
         Program duration if known (progress by time, see :func:`.planstream.iter_motion`).
     on_chunk
-        Called with every chunk's :class:`.simulate.SimulationResult` (e.g. a bag writer).
+        Called with every chunk's :class:`.simulate.SimulationResult` (e.g. a bag writer), at
+        the full rate (:func:`expand_gaps`) unless ``chunk_gaps``.
     progress
         Called with the fraction of moves planned.
     limits
         Axis limits; ``None`` uses ``machine.limits()``.
+    compact
+        Leave the interior of standstill phases (dwells) of more than
+        :data:`COMPACT_MIN_SAMPLES` samples out of the rows (:mod:`.standstill`; results
+        equal to rounding) where :func:`compactable` allows it. ``False``: every sample.
+    chunk_gaps
+        ``on_chunk`` receives the chunks as computed, with ``Motion.gaps``, instead of
+        expanded to the full rate.
 
     Returns
     -------
@@ -342,15 +477,22 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
     """
     if options is None:
         options = machine.planner.options()
+    compact_min = COMPACT_MIN_SAMPLES if compact and compactable(machine) else 0
     motions = iter_motion(moves, machine.limits() if limits is None else limits,
                           options=options, file=file, chunk_samples=chunk_samples,
                           total_moves=total_moves, duration_s=duration_s,
-                          progress=progress)
-    acc = SummaryAccumulator()
+                          progress=progress, compact_min_samples=compact_min)
+    rate = options.rate_hz
+    acc = SummaryAccumulator(rate_hz=rate)
     for chunk in iter_simulation(motions, machine, load_kg=load_kg, program=file):
         acc.add(chunk)
-        if on_chunk is not None:
+        if on_chunk is None:
+            continue
+        if chunk_gaps:
             on_chunk(chunk)
+        else:
+            for piece in expand_gaps(chunk, rate_hz=rate, chunk_samples=chunk_samples):
+                on_chunk(piece)
     summary = acc.summary(program=file, machine=machine, load_kg=load_kg,
                           top_blocks=top_blocks)
     return summary, acc.block_energy()

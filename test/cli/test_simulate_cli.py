@@ -118,3 +118,13 @@ def test_simulate_streamed_json_equals_whole_summary(capsys) -> None:
     assert got['samples'] == ref['samples']
     assert_allclose(got['energy_j']['total'], ref['energy_j']['total'], rtol=1e-12)
     assert_allclose(got['loss_energy_j'], ref['loss_energy_j'], rtol=1e-12)
+
+
+def test_week_long_dwell_without_out(tmp_path: Path, capsys) -> None:
+    week = tmp_path / 'week.nc'
+    week.write_text('G1 X0.01 F600\nG4 P604800\nG1 X0\nM2\n')
+    assert main(['simulate', str(week), '--json', '--quiet']) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got['samples'] > 604_800_000 and got['duration_s'] > 604800.0
+    assert [b['line'] for b in got['top_blocks']][-1] == 2       # the dwell, 604 800 s
+    assert got['top_blocks'][-1]['duration_s'] == pytest.approx(604800.0, abs=2e-3)

@@ -115,3 +115,40 @@ def test_parser_warnings_keep_file_and_line():
     ps = problems_from_warnings(['a.nc:12: G43 without a tool', 'odd text'], file='a.nc')
     assert [(p.file, p.line, p.message) for p in ps] == [('a.nc', 12, 'G43 without a tool'),
                                                          ('a.nc', 0, 'odd text')]
+
+
+def _batch_program() -> str:
+    """Runs of straight moves (some beyond X travel or the Y feed limit) between arcs,
+    dwells and a subroutine-like jump back to smaller line numbers."""
+    out = ['G21 G90 G94 G17', 'G0 X0 Y0 Z0', 'G1 F3000']
+    for row in range(6):
+        for j in range(40):
+            x = -90.0 + 5.0 * j + (30.0 if row == 3 else 0.0)
+            y = 2.0 * row + (0.5 if j % 2 else 0.0)
+            out.append(f'G1 X{x:.3f} Y{y:.3f} F{40000 if row == 4 else 3000}')
+        out.append(f'G2 X{x:.3f} Y{y + 4.0:.3f} I0 J2')
+        out.append('G4 P0.1')
+    out.append('G0 Z-70')
+    out.append('M2')
+    return '\n'.join(out) + '\n'
+
+
+@pytest.mark.parametrize('batch', [1, 7, 40, 4096])
+def test_batches_of_moves_give_the_warnings_of_one_by_one(batch):
+    from feed_axis_energy.core.gcode_check import MoveChecker
+    moves = parse_gcode(_batch_program(), file='b.nc').moves
+    one = MoveChecker(file='b.nc', limits=LIMITS)
+    for mv in moves:
+        one.add(mv)
+    many = MoveChecker(file='b.nc', limits=LIMITS)
+    for lo in range(0, len(moves), batch):
+        many.add_many(moves[lo:lo + batch])
+    ref, got = one.problems(), many.problems()
+    assert {p.kind for p in ref} >= {'travel', 'feed'}
+    assert [str(p) for p in got] == [str(p) for p in ref]
+    a, b = one.result(), many.result()
+    assert (b.n_feed_moves, b.n_traverses, b.n_arcs, b.n_dwells, b.final_position,
+            b.bbox_min, b.bbox_max) == (a.n_feed_moves, a.n_traverses, a.n_arcs, a.n_dwells,
+                                        a.final_position, a.bbox_min, a.bbox_max)
+    assert b.feed_length_m == pytest.approx(a.feed_length_m, rel=1e-14)
+    assert b.traverse_length_m == pytest.approx(a.traverse_length_m, rel=1e-14)

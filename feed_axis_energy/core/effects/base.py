@@ -180,6 +180,11 @@ class Effect:
     sample_local
         ``True`` when the power of a sample depends only on that sample's state, so the
         effect can be applied batch by batch in the node graph with offline-equal results.
+    constant_at_rest
+        ``True`` when the power at standstill (constant position, zero velocity and
+        acceleration) does not change with time, so the samples of a dwell need not be
+        computed one by one (:mod:`..standstill`). An effect whose power depends on ``t``
+        sets it ``False`` unless that term vanishes at rest.
     """
 
     id: ClassVar[str] = ''
@@ -189,6 +194,7 @@ class Effect:
     exact_basis: ClassVar[bool] = True
     machine_property: ClassVar[bool] = True
     sample_local: ClassVar[bool] = True
+    constant_at_rest: ClassVar[bool] = True
 
     @classmethod
     def param_names(cls) -> tuple[str, ...]:

@@ -113,6 +113,7 @@ class TimeOffset(Effect):
     # Describes how two records line up, not the machine; needs neighbouring samples.
     machine_property = False
     sample_local = False
+    constant_at_rest = False
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
         if state.t.shape[0] < 2:

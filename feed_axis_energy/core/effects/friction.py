@@ -127,6 +127,7 @@ class ThermalDrift(Effect):
     description = 'friction force changing linearly with time since program start'
     formula = 'P = r · max(t, 0) · |v|'
     params = (Param('rate_n_s', 'N/s', 0.0, -1.0, 1.0, 0.05, 'growth of the friction force'),)
+    constant_at_rest = True     # grows with t, but is proportional to |v|: zero at rest
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
         t = np.maximum(state.t, 0.0)[:, None]
