@@ -34,6 +34,7 @@ __all__ = [
     'Series', 'BagWriter', 'read_series', 'read_block_energy', 'read_custom_data', 'bag_topics',
     'typestore', 'series_to_messages', 'messages_to_series', 'read_metadata',
     'read_raw_messages', 'check_trajectory', 'BAG_COMPRESSIONS', 'BLOCK_ENERGY_PER_MESSAGE',
+    'block_energy_cdr',
 ]
 
 TOPIC_SETPOINTS = '/setpoints'
@@ -157,6 +158,31 @@ def messages_to_series(messages: Iterable) -> Series:
     return Series(t=np.concatenate(t_parts), names=names, **arrays)
 
 
+def block_energy_cdr(blocks: Sequence[tuple[int, float, float]], *, stamp_s: float,
+                     program: str = '') -> Iterator[tuple[int, bytearray]]:
+    """``(stamp_ns, CDR)`` of the ``/block_energy`` DiagnosticArrays (one status per line).
+
+    At most :data:`BLOCK_ENERGY_PER_MESSAGE` statuses per message, all at ``stamp_s``
+    (:func:`read_block_energy` joins them); serialised status by status
+    (:func:`.cdr.diagnostic_array_cdr`), so a program of a million lines costs a few
+    megabytes at a time, not a million message objects.
+    """
+    sec, nsec = _split_ns(stamp_s)
+    stamp = sec * _NS + nsec
+    rows = iter(blocks)
+    left = len(blocks)
+    while True:
+        count = min(left, BLOCK_ENERGY_PER_MESSAGE)
+        statuses = ((0, f'{program}:{line}', 'block energy', '',
+                     (('line', str(line)), ('energy_j', repr(float(e))),
+                      ('duration_s', repr(float(d)))))
+                    for line, e, d in itertools.islice(rows, count))
+        yield stamp, diagnostic_array_cdr(stamp, count, statuses)
+        left -= count
+        if left <= 0:
+            break
+
+
 class BagWriter:
     """Write a rosbag2 directory with MCAP storage (context manager).
 
@@ -225,28 +251,10 @@ class BagWriter:
 
     def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
                            stamp_s: float, program: str = '') -> None:
-        """Write the per-block energy summary as DiagnosticArrays (one status per line).
-
-        At most :data:`BLOCK_ENERGY_PER_MESSAGE` statuses per message, all at ``stamp_s``
-        (:func:`read_block_energy` joins them); serialised status by status
-        (:func:`.cdr.diagnostic_array_cdr`), so a program of a million lines costs a few
-        megabytes at a time, not a million message objects.
-        """
-        sec, nsec = _split_ns(stamp_s)
-        stamp = sec * _NS + nsec
+        """Write the per-block energy summary as DiagnosticArrays (:func:`block_energy_cdr`)."""
         conn = self._connection(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY)
-        rows = iter(blocks)
-        left = len(blocks)
-        while True:
-            count = min(left, BLOCK_ENERGY_PER_MESSAGE)
-            statuses = ((0, f'{program}:{line}', 'block energy', '',
-                         (('line', str(line)), ('energy_j', repr(float(e))),
-                          ('duration_s', repr(float(d)))))
-                        for line, e, d in itertools.islice(rows, count))
-            self._writer.write(conn, stamp, diagnostic_array_cdr(stamp, count, statuses))
-            left -= count
-            if left <= 0:
-                break
+        for stamp, data in block_energy_cdr(blocks, stamp_s=stamp_s, program=program):
+            self._writer.write(conn, stamp, data)
 
     def set_custom_data(self, key: str, value: object) -> None:
         """Store a JSON-serialisable value in the bag's metadata (``custom_data``)."""
