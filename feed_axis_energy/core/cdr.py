@@ -17,6 +17,7 @@ and ``time_from_start`` as int32 sec, uint32 nanosec aligned to 4).
 """
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import numpy as np
@@ -82,6 +83,34 @@ def _strided(view: np.ndarray, col: int, shape: tuple[int, ...], step: int) -> n
     item = view.itemsize
     strides = (view.strides[0], step * item) + ((item,) if len(shape) == 3 else ())
     return np.lib.stride_tricks.as_strided(base, shape=shape, strides=strides, writeable=True)
+
+
+@functools.lru_cache(maxsize=64)
+def _template(names: tuple[str, ...], frame_id: str, points: int, widths: tuple[int, ...],
+              lead: int) -> tuple[np.ndarray, int, tuple]:
+    """The bytes every message of this layout shares, and where the rest goes (cached).
+
+    Returns ``(template row, payload column, (value_at, time_at, point groups, message
+    length))``; the
+    arrays are read-only.
+    """
+    prefix = _prefix(names, frame_id)
+    begin = len(prefix) + 4                       # after the points count
+    count_at, value_at, time_at, end = _layout(begin, points, list(widths))
+    # the payload (after the 4-byte encapsulation) starts 8-aligned: float64 views fit
+    payload = lead + 4 + (-(lead + 4) % 8)
+    width = payload + end + (-end % 8)
+    template = np.zeros(width, np.uint8)
+    template[payload - 4:payload] = np.frombuffer(_ENCAPSULATION, np.uint8)
+    template[payload:payload + len(prefix)] = np.frombuffer(prefix, np.uint8)
+    t32 = template[payload:].view('<u4')
+    t32[(begin - 4) // 4] = points
+    for f, w in enumerate(widths):
+        t32[count_at[:, f] // 4] = w
+    groups = _point_groups(np.column_stack((count_at, value_at, time_at)))
+    for arr in (template, value_at, time_at):
+        arr.flags.writeable = False
+    return template, payload, (value_at, time_at, groups, end + 4)
 
 
 def _layout(start: int, n_points: int,
@@ -207,20 +236,9 @@ def joint_trajectory_rows(t_ns: np.ndarray, names: tuple[str, ...],
         if v is not None and sum(p.shape[1] for p in _parts(v)) != len(names):
             msg = f'joint_trajectory_rows: columns do not match the {len(names)} joint names'
             raise ValueError(msg)
-    prefix = _prefix(tuple(names), frame_id)
-    begin = len(prefix) + 4                       # after the points count
-    count_at, value_at, time_at, end = _layout(begin, points, widths)
-    # the payload (after the 4-byte encapsulation) starts 8-aligned: float64 views fit
-    payload = lead + 4 + (-(lead + 4) % 8)
-    width = payload + end + (-end % 8)
-    # what every message shares (encapsulation, names, counts) is copied from one template
-    template = np.zeros(width, np.uint8)
-    template[payload - 4:payload] = np.frombuffer(_ENCAPSULATION, np.uint8)
-    template[payload:payload + len(prefix)] = np.frombuffer(prefix, np.uint8)
-    t32 = template[payload:].view('<u4')
-    t32[(begin - 4) // 4] = points
-    for f, w in enumerate(widths):
-        t32[count_at[:, f] // 4] = w
+    template, payload, (value_at, time_at, groups, length) = _template(
+        tuple(names), frame_id, points, tuple(widths), lead)
+    width = template.shape[0]
     rows = np.empty((n_msgs, width), np.uint8)
     rows[:] = template
     u32 = rows[:, payload:].view('<u4')
@@ -230,8 +248,7 @@ def joint_trajectory_rows(t_ns: np.ndarray, names: tuple[str, ...],
     u32[:, 0] = (first // _NS).astype('<u4')
     u32[:, 1] = (first % _NS).astype('<u4')
     rel = stamps - first[:, None]
-    offsets = np.column_stack((count_at, value_at, time_at))
-    for first_point, period, n_r in _point_groups(offsets):
+    for first_point, period, n_r in groups:
         idx = slice(first_point, first_point + period * n_r, period)
         step = (int(time_at[first_point + period] - time_at[first_point]) if n_r > 1
                 else 8)
@@ -248,7 +265,7 @@ def joint_trajectory_rows(t_ns: np.ndarray, names: tuple[str, ...],
                 for j in range(part.shape[1]):
                     _strided(f64, col, (n_msgs, n_r), step // 8)[...] = src[:, idx, j]
                     col += 1
-    return MessageRows(stamps=first.copy(), rows=rows, start=payload - 4, length=end + 4)
+    return MessageRows(stamps=first.copy(), rows=rows, start=payload - 4, length=length)
 
 
 def _put_string(buf: bytearray, text: str) -> None:

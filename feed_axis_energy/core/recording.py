@@ -14,6 +14,7 @@ from feed_axis_energy.core import bagio
 from feed_axis_energy.core.bagwrite import StreamBagWriter
 from feed_axis_energy.core.cdr import joint_trajectory_rows, MessageRows
 from feed_axis_energy.core.motion import Motion
+from feed_axis_energy.core.recthin import STANDSTILL_PERIOD_S, StandstillThinner
 
 __all__ = ['setpoint_series', 'axis_state_series', 'power_series', 'simulation_series',
            'write_simulation_bag', 'SimulationBagWriter', 'SUMMARY_KEY', 'screw_joint']
@@ -111,6 +112,13 @@ def _prepend(head: list, fields: list, count: int) -> list:
             zip(head, fields)]
 
 
+def _compared(result) -> list[np.ndarray]:
+    """The recorded arrays that are constant during a standstill (all but time and energy)."""
+    mo, dyn, pw = result.motion, result.dynamics, result.power
+    return [mo.pos, mo.vel, mo.acc, dyn.angle_rad, dyn.omega_rad_s, dyn.alpha_rad_s2,
+            dyn.force_n, dyn.torque_nm, pw.power_w, pw.total_w[:, None]]
+
+
 class SimulationBagWriter:
     """Write a simulation to a rosbag2/MCAP directory chunk by chunk (context manager).
 
@@ -129,11 +137,22 @@ class SimulationBagWriter:
         Samples per JointTrajectory message.
     compression
         ``'zstd'``, ``'lz4'`` or ``'none'`` (MCAP chunk compression, :mod:`.mcapstream`).
+    standstill_period_s
+        During a standstill keep the first and last sample and one per this period
+        (:mod:`.recthin`); ``None`` records every sample.
+    rate_hz
+        Sample rate of the grid: needed for chunks with left-out samples (``Motion.gaps``).
     """
 
-    def __init__(self, path: str | Path, *, batch: int = 100, compression: str = 'none') -> None:
+    def __init__(self, path: str | Path, *, batch: int = 100, compression: str = 'none',
+                 standstill_period_s: float | None = STANDSTILL_PERIOD_S,
+                 rate_hz: float | None = None) -> None:
         self._bag = StreamBagWriter(path, compression=compression)
         self.batch = int(batch)
+        self._thin = (None if standstill_period_s is None else
+                      StandstillThinner(period_s=standstill_period_s, rate_hz=rate_hz))
+        self._last: list[np.ndarray] | None = None      # last row of the compared arrays
+        self._held: tuple[float, dict] | None = None    # the row the thinner holds back
         # samples waiting for a full message: times [ns] and per topic the joined fields
         self._rest_t = np.zeros(0, np.int64)
         self._rest: dict[str, tuple[tuple[str, ...], list]] = {}
@@ -157,7 +176,10 @@ class SimulationBagWriter:
     def write(self, chunk) -> None:
         """Write the series of one ``SimulationResult`` chunk (whole messages only)."""
         columns = simulation_columns(chunk)
-        t_ns = _t_ns(chunk.motion.t)
+        t = chunk.motion.t
+        if self._thin is not None and t.shape[0]:
+            t, columns = self._thinned(chunk, t, columns)
+        t_ns = _t_ns(t)
         n, r, batch = int(t_ns.shape[0]), int(self._rest_t.shape[0]), self.batch
         lead = self._bag.lead
         first: dict[str, MessageRows] = {}
@@ -185,11 +207,59 @@ class SimulationBagWriter:
             self.messages += self._bag.write_rows(topic, block)
         self._write_interleaved(blocks)
 
+    def _thinned(self, chunk, t: np.ndarray, columns: dict) -> tuple[np.ndarray, dict]:
+        """The chunk's samples the recording keeps (:mod:`.recthin`), as times and columns."""
+        compared = _compared(chunk)
+        still = np.ones(t.shape[0], bool)
+        for j, a in enumerate(compared):
+            for c in range(a.shape[1]):
+                col = a[:, c]
+                still[1:] &= col[1:] == col[:-1]
+                still[0] &= self._last is not None and bool(col[0] == self._last[j][c])
+        self._last = [a[-1].copy() for a in compared]
+        sel = self._thin.select(t, still, getattr(chunk.motion, 'gaps', ()))
+        if sel is None:
+            return t, columns
+        held = self._held
+        self._held = None
+        if sel.hold_last:
+            last = {topic: [None if f is None else tuple(a[-1:].copy() for a in f)
+                            for f in fields] for topic, (_, fields) in columns.items()}
+            self._held = (float(t[-1]), last)
+        shift = 1 if held is not None and bool((sel.src < 0).any()) else 0
+        idx = sel.src + shift
+        t_src = t[np.maximum(sel.src, 0)]
+        back = (t_src - sel.t)[sel.filled]
+        out = {}
+        for topic, (names, fields) in columns.items():
+            taken = []
+            for i, f in enumerate(fields):
+                if f is None:
+                    taken.append(None)
+                    continue
+                parts = [a if not shift else np.concatenate((held[1][topic][i][k], a))
+                         for k, a in enumerate(f)]
+                taken.append(tuple(a[idx] for a in parts))
+            if topic == bagio.TOPIC_POWER and back.size:
+                # energy (positions) of a left-out sample: E_row - P_row (t_row - t)
+                for energy, power in zip(taken[0], taken[1]):
+                    energy[sel.filled] -= power[sel.filled] * back[:, None]
+            out[topic] = (names, taken)
+        return sel.t, out
+
     def _keep(self, t_ns: np.ndarray, columns: dict, lo: int, hi: int) -> None:
         """Keep samples ``lo:hi`` (fewer than a message) for the next chunk, as copies."""
         self._rest_t = t_ns[lo:hi].copy()
         self._rest = {topic: (names, [None if f is None else np.hstack([a[lo:hi] for a in f])
                                       for f in fields])
+                      for topic, (names, fields) in columns.items()}
+
+    def _append_rest(self, t_ns: np.ndarray, columns: dict) -> None:
+        """Add samples (a few) to those waiting for a message."""
+        self._rest_t = np.concatenate((self._rest_t, t_ns))
+        self._rest = {topic: (names, [None if f is None else
+                                      np.concatenate((old, np.hstack(f)))
+                                      for old, f in zip(self._rest[topic][1], fields)])
                       for topic, (names, fields) in columns.items()}
 
     def _write_interleaved(self, blocks: dict[str, MessageRows]) -> None:
@@ -209,6 +279,11 @@ class SimulationBagWriter:
     def finish(self, blocks: Sequence[tuple[int, float, float]], *, summary: dict,
                stamp_s: float) -> None:
         """Write the samples still waiting, the per-block energy and the summary."""
+        if self._held is not None:         # the program ends in a standstill: its last sample
+            t_held, fields = self._held
+            self._held = None
+            columns = {topic: (names, fields[topic]) for topic, (names, _) in self._rest.items()}
+            self._append_rest(_t_ns(np.array([t_held])), columns)
         r = int(self._rest_t.shape[0])
         if r:
             for topic, (names, fields) in self._rest.items():
