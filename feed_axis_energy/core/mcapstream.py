@@ -11,7 +11,8 @@ little-endian):
   data``; a block of messages of one size is one ``(m, width)`` byte array whose rows get
   their 31-byte record header in place (:meth:`McapStream.add_block`);
 * Chunk (0x06): ``message_start_time u64, message_end_time u64, uncompressed_size u64,
-  uncompressed_crc u32 (CRC-32 of the records), compression string, records u64 + bytes``;
+  uncompressed_crc u32 (CRC-32 of the records; 0, "not computed", for zstd chunks, whose
+  frames carry their own checksum), compression string, records u64 + bytes``;
 * MessageIndex (0x07), one per channel after each chunk: ``channel_id u16``, then
   ``u32`` byte length and ``(log_time u64, offset u64)`` pairs, offsets into the
   uncompressed records.
@@ -51,7 +52,9 @@ def _compressor(compression: str):
     """``(name in the chunk record, function bytes -> bytes)`` for a compression."""
     if compression == 'zstd':
         import zstandard
-        return 'zstd', zstandard.ZstdCompressor(level=ZSTD_LEVEL).compress
+        # the frame's own checksum (XXH64, checked by every zstd decoder) stands in for the
+        # chunk's CRC-32, which would cost a tenth of the writer's time
+        return 'zstd', zstandard.ZstdCompressor(level=ZSTD_LEVEL, write_checksum=True).compress
     if compression == 'lz4':
         import lz4.frame
         return 'lz4', lz4.frame.compress
@@ -199,7 +202,10 @@ class McapStream:
         if not self._blocks:
             return
         data = self._blocks[0] if len(self._blocks) == 1 else b''.join(self._blocks)
-        crc = zlib.crc32(data)
+        if self._compress is None or self._compression != 'zstd':
+            crc = zlib.crc32(data)
+        else:
+            crc = 0                              # "not computed": see _compressor
         packed = data if self._compress is None else self._compress(data)
         name = self._compression.encode()
         content = 8 + 8 + 8 + 4 + 4 + len(name) + 8 + len(packed)

@@ -144,3 +144,23 @@ def test_negative_times_are_refused(tmp_path):
         with StreamBagWriter(tmp_path / 'b') as writer:
             writer.write_series('/s', series)
     assert not (tmp_path / 'b').exists()
+
+
+def test_a_damaged_compressed_chunk_is_detected(tmp_path):
+    from feed_axis_energy.core.errors import DataError
+    rng = np.random.default_rng(3)
+    series = bagio.Series(t=np.arange(20_000) * 1e-3, names=('X',),
+                          positions=np.cumsum(rng.normal(size=(20_000, 1)), axis=0))
+    out = tmp_path / 'b'
+    with StreamBagWriter(out, compression='zstd') as writer:
+        writer.write_series('/s', series)
+    (path,) = out.glob('*.mcap')
+    with open(path, 'rb') as fh:
+        chunk = make_reader(fh).get_summary().chunk_indexes[0]
+    raw = bytearray(path.read_bytes())
+    raw[chunk.chunk_start_offset + chunk.chunk_length // 2] ^= 0x5A   # inside its zstd data
+    path.write_bytes(bytes(raw))
+    with pytest.raises(DataError, match=str(out)):
+        bagio.read_series(out, '/s')
+    with open(path, 'rb') as fh, pytest.raises(Exception):
+        list(make_reader(fh).iter_messages())
