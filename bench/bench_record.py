@@ -2,14 +2,17 @@
 
 Usage: PYTHONPATH=. python bench/bench_record.py [--case demonstrator|contour|both]
        [--minutes M] [--compression zstd,lz4,none] [--repeat R]
+       [--background]
 
 Simulates M minutes (default 20) of the bench_scale programs (1 axis demonstrator, 3 axis
 contour) once, keeps the chunks in memory, then times only the writing of those chunks as a
 recording (default batch of 100 samples per message, MCAP chunks of 1 MiB) into a temporary
-directory, best of R (default 3), for each compression. Printed per case and compression:
-samples, wall time of the writer, samples/s by wall and by CPU time (issue 10 target: >= 2e6
-on one core), bag bytes per sample; and the share of each stage (CDR encoding with
-numpy, MCAP records and CRC, compression, file writes) from a second, profiled run.
+directory, best of R (default 3), for each compression, in the caller's thread (one core)
+or, with ``--background``, with compression and file writes in a second thread. Printed per
+case and compression: samples simulated (and recorded: a standstill is recorded at 1 Hz),
+wall time of the writer, simulated samples/s by wall and by CPU time (issue 10 target:
+>= 2e6 on one core), bag bytes per simulated sample; and the share of each stage (CDR
+encoding with numpy, compression, CRC, file writes) from a profiled run in one thread.
 """
 import argparse
 import cProfile
@@ -52,11 +55,13 @@ def _chunks(case: str, minutes: float) -> list:
     return list(iter_simulation(motions, machine))
 
 
-def _write(chunks: list, path: Path, compression: str) -> None:
-    with SimulationBagWriter(path, compression=compression) as writer:
+def _write(chunks: list, path: Path, compression: str, background: bool = False) -> int:
+    """Write the chunks as a recording; return the number of samples recorded."""
+    with SimulationBagWriter(path, compression=compression, background=background) as writer:
         for chunk in chunks:
             writer.write(chunk)
         writer.finish([], summary={}, stamp_s=float(chunks[-1].power.t[-1]))
+    return writer.samples
 
 
 def main() -> None:
@@ -65,6 +70,8 @@ def main() -> None:
     ap.add_argument('--minutes', type=float, default=20.0)
     ap.add_argument('--compression', default='zstd,none')
     ap.add_argument('--repeat', type=int, default=3)
+    ap.add_argument('--background', action='store_true',
+                    help='compress and write in a second thread (as simulate --out does)')
     args = ap.parse_args()
     cases = ('demonstrator', 'contour') if args.case == 'both' else (args.case,)
     for case in cases:
@@ -76,13 +83,13 @@ def main() -> None:
                 for i in range(args.repeat):
                     path = Path(tmp) / f'run{i}'
                     t0, c0 = time.perf_counter(), time.process_time()
-                    _write(chunks, path, compression)
+                    kept = _write(chunks, path, compression, args.background)
                     best = min(best, time.perf_counter() - t0)
                     cpu = min(cpu, time.process_time() - c0)
                     size = sum(f.stat().st_size for f in path.rglob('*') if f.is_file())
                 prof = cProfile.Profile()
                 prof.enable()
-                _write(chunks, Path(tmp) / 'profiled', compression)
+                _write(chunks, Path(tmp) / 'profiled', compression)   # one thread
                 prof.disable()
             stats = pstats.Stats(prof).stats
             total = sum(v[2] for v in stats.values())
@@ -90,7 +97,8 @@ def main() -> None:
                                if any(p in f'{k[0]}:{k[2]}' for p in pats)) / total
                      for name, pats in _STAGES.items()}
             split = ', '.join(f'{name} {100 * s:.0f} %' for name, s in share.items())
-            print(f'{case:12s} {compression:5s} {n:,} samples  writer {best:.3f} s  '
+            print(f'{case:12s} {compression:5s} {n:,} samples ({kept:,} recorded)  '
+                  f'writer {best:.3f} s  '
                   f'{n / best:,.0f} samples/s (CPU {cpu:.3f} s: {n / cpu:,.0f}/s)  '
                   f'bag {size / n:.1f} B/sample  '
                   f'(profiled: {split}, rest {100 * (1 - sum(share.values())):.0f} %)',

@@ -45,13 +45,16 @@ class StreamBagWriter:
         MCAP chunk compression: ``'zstd'`` (default), ``'lz4'`` or ``'none'``.
     chunk_bytes
         Uncompressed size at which a chunk is closed.
+    background
+        Compress and write in a second thread (:class:`.mcapstream.McapStream`).
     """
 
     def __init__(self, path: str | Path, *, compression: str = 'zstd',
-                 chunk_bytes: int = CHUNK_BYTES) -> None:
+                 chunk_bytes: int = CHUNK_BYTES, background: bool = False) -> None:
         self.path = Path(path)
         self.compression = compression
         self.chunk_bytes = int(chunk_bytes)
+        self.background = bool(background)
         self._types: dict[str, str] = {}
         self._channels: dict[str, int] = {}
         self._schemas: dict[str, int] = {}
@@ -66,7 +69,7 @@ class StreamBagWriter:
             fd = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
             self._fh = os.fdopen(fd, 'wb', buffering=1 << 20)
             self._mcap = McapStream(self._fh, compression=self.compression,
-                                    chunk_bytes=self.chunk_bytes)
+                                    chunk_bytes=self.chunk_bytes, background=self.background)
         except BaseException:
             self._discard()
             raise
@@ -83,6 +86,8 @@ class StreamBagWriter:
             raise
 
     def _discard(self) -> None:
+        if self._mcap is not None:
+            self._mcap.abort()                  # the writer thread stops before the removal
         if self._fh is not None:
             try:
                 self._fh.close()

@@ -25,7 +25,9 @@ library and the common viewers (Foxglove, PlotJuggler), or none.
 """
 from __future__ import annotations
 
+import queue
 import struct
+import threading
 from typing import BinaryIO
 import zlib
 
@@ -34,10 +36,11 @@ from mcap.records import (Channel, ChunkIndex, DataEnd, Footer, Header, Metadata
                           MetadataIndex, Schema, Statistics, SummaryOffset)
 import numpy as np
 
-__all__ = ['McapStream', 'MCAP_COMPRESSIONS', 'CHUNK_BYTES', 'RECORD_HEAD']
+__all__ = ['McapStream', 'MCAP_COMPRESSIONS', 'CHUNK_BYTES', 'QUEUED_CHUNKS', 'RECORD_HEAD']
 
 MCAP_COMPRESSIONS = ('none', 'zstd', 'lz4')
 CHUNK_BYTES = 1 << 20          # uncompressed records per chunk (as rosbag2 and mcap write)
+QUEUED_CHUNKS = 2              # chunks waiting for the writer thread (memory bound)
 RECORD_HEAD = 31               # opcode, length, channel, sequence, log and publish time
 ZSTD_LEVEL = 1
 _MAGIC = b'\x89MCAP0\r\n'
@@ -77,11 +80,25 @@ class McapStream:
         A chunk is closed once its uncompressed records reach this size.
     profile, library
         The header record's fields (``'ros2'`` for rosbag2 bags).
+    background
+        Compress and write in a second thread (the compressors and file writes release the
+        GIL, so on a machine with a free core the caller's encoding and the compression
+        overlap; at most :data:`QUEUED_CHUNKS` chunks wait). ``False``: all in the caller's
+        thread. Either way the file is the same. An error of the thread (a full disk) is
+        raised by the next call.
     """
 
     def __init__(self, fh: BinaryIO, *, compression: str = 'zstd',
                  chunk_bytes: int = CHUNK_BYTES, profile: str = 'ros2',
-                 library: str = 'feed_axis_energy') -> None:
+                 library: str = 'feed_axis_energy', background: bool = False) -> None:
+        self._error: BaseException | None = None
+        self._queue: queue.Queue | None = None
+        self._thread: threading.Thread | None = None
+        if background:
+            self._queue = queue.Queue(maxsize=QUEUED_CHUNKS)
+            self._thread = threading.Thread(target=self._work, name='mcap-writer',
+                                            daemon=True)
+            self._thread.start()
         self._fh = fh
         self._compression, self._compress = _compressor(compression)
         self.chunk_bytes = int(chunk_bytes)
@@ -94,10 +111,50 @@ class McapStream:
         self.t_min: int | None = None
         self.t_max: int | None = None
         self._reset_chunk()
-        self._write(_MAGIC)
+        self._do(self._write, _MAGIC)
         self._framing(Header(profile=profile, library=library))
 
     # ------------------------------------------------------------------ low level
+    # Everything that writes to the file, and so knows file offsets, runs through _do: in
+    # order, in the caller's thread or in the writer thread.
+    def _work(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            if self._error is None:
+                fn, args = item
+                try:
+                    fn(*args)
+                except BaseException as err:  # noqa: B902 - handed to the caller's thread
+                    self._error = err
+
+    def _do(self, fn, *args) -> None:
+        if self._error is not None:
+            raise self._error
+        if self._queue is None:
+            fn(*args)
+        else:
+            self._queue.put((fn, args))
+
+    def _stop(self) -> None:
+        """End the writer thread after the work queued so far."""
+        if self._thread is not None:
+            self._queue.put(None)
+            self._thread.join()
+            self._thread = None
+        if self._error is not None:
+            raise self._error
+
+    def abort(self) -> None:
+        """Stop writing (after an error of the caller): the queued work is dropped."""
+        if self._error is None:
+            self._error = RuntimeError('aborted')
+        try:
+            self._stop()
+        except BaseException:  # noqa: B902 - the caller's own error is the one that counts
+            pass
+
     def _write(self, data) -> None:
         self._fh.write(data)
         self._pos += len(data) if isinstance(data, bytes) else memoryview(data).nbytes
@@ -106,7 +163,7 @@ class McapStream:
         builder = RecordBuilder()
         for record in records:
             record.write(builder)
-        self._write(builder.end())
+        self._do(self._write, builder.end())
 
     def _reset_chunk(self) -> None:
         self._blocks: list[bytes] = []
@@ -202,6 +259,18 @@ class McapStream:
         if not self._blocks:
             return
         data = self._blocks[0] if len(self._blocks) == 1 else b''.join(self._blocks)
+        indexes = []
+        for channel in sorted(self._index):
+            parts = self._index[channel]
+            pairs = np.empty((sum(p[0].shape[0] for p in parts), 2), '<u8')
+            pairs[:, 0] = np.concatenate([p[0] for p in parts])
+            pairs[:, 1] = np.concatenate([p[1] for p in parts])
+            indexes.append((channel, pairs.tobytes()))
+        self._do(self._write_chunk, data, indexes, self._start, self._end)
+        self._reset_chunk()
+
+    def _write_chunk(self, data: bytes, indexes: list[tuple[int, bytes]], start: int,
+                     end: int) -> None:
         if self._compress is None or self._compression != 'zstd':
             crc = zlib.crc32(data)
         else:
@@ -210,44 +279,43 @@ class McapStream:
         name = self._compression.encode()
         content = 8 + 8 + 8 + 4 + 4 + len(name) + 8 + len(packed)
         chunk_at = self._pos
-        self._write(struct.pack('<BQQQQI', _OP_CHUNK, content, self._start, self._end,
-                                len(data), crc) + struct.pack('<I', len(name)) + name
-                    + struct.pack('<Q', len(packed)))
+        self._write(struct.pack('<BQQQQI', _OP_CHUNK, content, start, end, len(data), crc)
+                    + struct.pack('<I', len(name)) + name + struct.pack('<Q', len(packed)))
         self._write(packed)
         index_at = self._pos
         offsets: dict[int, int] = {}
-        for channel in sorted(self._index):
-            parts = self._index[channel]
-            pairs = np.empty((sum(p[0].shape[0] for p in parts), 2), '<u8')
-            pairs[:, 0] = np.concatenate([p[0] for p in parts])
-            pairs[:, 1] = np.concatenate([p[1] for p in parts])
+        for channel, pairs in indexes:
             offsets[channel] = self._pos
-            self._write(struct.pack('<BQHI', _OP_MESSAGE_INDEX, 2 + 4 + pairs.nbytes, channel,
-                                    pairs.nbytes))
-            self._write(pairs.tobytes())
+            self._write(struct.pack('<BQHI', _OP_MESSAGE_INDEX, 2 + 4 + len(pairs), channel,
+                                    len(pairs)) + pairs)
         self._chunk_indexes.append(ChunkIndex(
-            message_start_time=self._start, message_end_time=self._end,
+            message_start_time=start, message_end_time=end,
             chunk_start_offset=chunk_at, chunk_length=index_at - chunk_at,
             message_index_offsets=offsets, message_index_length=self._pos - index_at,
             compression=self._compression, compressed_size=len(packed),
             uncompressed_size=len(data)))
-        self._reset_chunk()
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         """Write a metadata record (after the open chunk)."""
         self.close_chunk()
-        at = self._pos
         builder = RecordBuilder()
         Metadata(name=name, metadata=dict(data)).write(builder)
-        raw = builder.end()
+        self._do(self._write_metadata, name, builder.end())
+
+    def _write_metadata(self, name: str, raw: bytes) -> None:
+        self._metadata_indexes.append(MetadataIndex(offset=self._pos, length=len(raw),
+                                                    name=name))
         self._write(raw)
-        self._metadata_indexes.append(MetadataIndex(offset=at, length=len(raw), name=name))
 
     # ------------------------------------------------------------------ end
     def finish(self) -> None:
         """Write the last chunk, the summary section and the footer (the file is complete)."""
         self.close_chunk()
         self._framing(DataEnd(data_section_crc=0))
+        self._do(self._write_summary)
+        self._stop()
+
+    def _write_summary(self) -> None:
         summary_at = self._pos
         builder = RecordBuilder()
         groups = []
@@ -278,7 +346,7 @@ class McapStream:
         summary = builder.end()
         crc = zlib.crc32(summary)
         crc = zlib.crc32(struct.pack('<BQQQ', 0x02, 20, summary_at, offsets_at), crc)
-        self._write(summary)
-        self._framing(Footer(summary_start=summary_at, summary_offset_start=offsets_at,
-                             summary_crc=crc))
-        self._write(_MAGIC)
+        footer = RecordBuilder()
+        Footer(summary_start=summary_at, summary_offset_start=offsets_at,
+               summary_crc=crc).write(footer)
+        self._write(summary + footer.end() + _MAGIC)

@@ -142,17 +142,21 @@ class SimulationBagWriter:
         (:mod:`.recthin`); ``None`` records every sample.
     rate_hz
         Sample rate of the grid: needed for chunks with left-out samples (``Motion.gaps``).
+    background
+        Compress and write the MCAP chunks in a second thread (same file; see
+        :class:`.mcapstream.McapStream`).
     """
 
     def __init__(self, path: str | Path, *, batch: int = 100, compression: str = 'none',
                  standstill_period_s: float | None = STANDSTILL_PERIOD_S,
-                 rate_hz: float | None = None) -> None:
-        self._bag = StreamBagWriter(path, compression=compression)
+                 rate_hz: float | None = None, background: bool = False) -> None:
+        self._bag = StreamBagWriter(path, compression=compression, background=background)
         self.batch = int(batch)
         self._thin = (None if standstill_period_s is None else
                       StandstillThinner(period_s=standstill_period_s, rate_hz=rate_hz))
         self._last: list[np.ndarray] | None = None      # last row of the compared arrays
         self._held: tuple[float, dict] | None = None    # the row the thinner holds back
+        self.samples = 0                                # samples recorded (per topic)
         # samples waiting for a full message: times [ns] and per topic the joined fields
         self._rest_t = np.zeros(0, np.int64)
         self._rest: dict[str, tuple[tuple[str, ...], list]] = {}
@@ -196,6 +200,7 @@ class SimulationBagWriter:
                                                   lead=lead)
                      for topic, (names, fields) in heads.items()}
         full = (n - start) // batch * batch
+        self.samples += full + (batch if first else 0)
         blocks = {}
         if full:
             blocks = {topic: joint_trajectory_rows(t_ns[start:start + full], names,
@@ -290,6 +295,7 @@ class SimulationBagWriter:
                 block = joint_trajectory_rows(self._rest_t, names, fields, points=r,
                                               lead=self._bag.lead)
                 self.messages += self._bag.write_rows(topic, block)
+            self.samples += r
         self._rest_t = np.zeros(0, np.int64)
         self._rest = {}
         self._bag.write_block_energy(blocks, stamp_s=stamp_s,

@@ -164,3 +164,40 @@ def test_a_damaged_compressed_chunk_is_detected(tmp_path):
         bagio.read_series(out, '/s')
     with open(path, 'rb') as fh, pytest.raises(Exception):
         list(make_reader(fh).iter_messages())
+
+
+def test_writer_thread_gives_the_same_file(tmp_path):
+    machine, prog = _contour()
+    files = []
+    for background in (False, True):
+        out = tmp_path / f'bg{int(background)}' / 'rec'
+        with SimulationBagWriter(out, compression='zstd', background=background) as writer:
+            writer._bag.chunk_bytes = 30_000
+            summary, blocks = simulate_stream(prog.moves, machine, file=prog.file,
+                                              chunk_samples=2000, on_chunk=writer.write)
+            writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
+        files.append(((out / 'rec.mcap').read_bytes(), (out / 'metadata.yaml').read_text()))
+    assert files[0] == files[1]
+
+
+def test_writer_thread_error_reaches_the_caller_and_nothing_is_left(tmp_path, monkeypatch):
+    from feed_axis_energy.core import mcapstream
+    real = mcapstream.McapStream._write_chunk
+    calls = []
+
+    def full_disk(self, *args):
+        calls.append(1)
+        if len(calls) == 3:
+            raise OSError(28, 'No space left on device (simulated)')
+        return real(self, *args)
+
+    monkeypatch.setattr(mcapstream.McapStream, '_write_chunk', full_disk)
+    machine, prog = _contour()
+    with pytest.raises(OSError, match='simulated'):
+        with SimulationBagWriter(tmp_path / 'rec', compression='zstd',
+                                 background=True) as writer:
+            writer._bag.chunk_bytes = 30_000
+            summary, blocks = simulate_stream(prog.moves, machine, file=prog.file,
+                                              chunk_samples=2000, on_chunk=writer.write)
+            writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
+    assert list(tmp_path.iterdir()) == []
