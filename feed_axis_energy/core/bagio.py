@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 from contextlib import contextmanager
-import itertools
 from dataclasses import dataclass
 import json
 import math
@@ -22,7 +21,7 @@ from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StorageP
 from rosbags.typesys import get_typestore, Stores
 
 from feed_axis_energy.core.bagcheck import check_trajectory, field_layout, guard
-from feed_axis_energy.core.cdr import diagnostic_array_cdr, joint_trajectory_cdr
+from feed_axis_energy.core.cdr import block_energy_cdr_array, joint_trajectory_cdr
 from feed_axis_energy.core.errors import DataError, describe, shorten
 from feed_axis_energy.core.mcapcheck import check_mcap
 from feed_axis_energy.core.safeyaml import load_yaml_file
@@ -159,28 +158,29 @@ def messages_to_series(messages: Iterable) -> Series:
 
 
 def block_energy_cdr(blocks: Sequence[tuple[int, float, float]], *, stamp_s: float,
-                     program: str = '') -> Iterator[tuple[int, bytearray]]:
+                     program: str = '') -> Iterator[tuple[int, bytes]]:
     """``(stamp_ns, CDR)`` of the ``/block_energy`` DiagnosticArrays (one status per line).
 
     At most :data:`BLOCK_ENERGY_PER_MESSAGE` statuses per message, all at ``stamp_s``
-    (:func:`read_block_energy` joins them); serialised status by status
-    (:func:`.cdr.diagnostic_array_cdr`), so a program of a million lines costs a few
-    megabytes at a time, not a million message objects.
+    (:func:`read_block_energy` joins them), laid out with numpy
+    (:func:`.cdr.block_energy_cdr_array`), so a program of a million lines costs a few
+    megabytes at a time, not a million message objects. ``blocks`` may be a
+    :class:`.simstream.LineEnergy` (its arrays are used directly).
     """
     sec, nsec = _split_ns(stamp_s)
     stamp = sec * _NS + nsec
-    rows = iter(blocks)
-    left = len(blocks)
-    while True:
-        count = min(left, BLOCK_ENERGY_PER_MESSAGE)
-        statuses = ((0, f'{program}:{line}', 'block energy', '',
-                     (('line', str(line)), ('energy_j', repr(float(e))),
-                      ('duration_s', repr(float(d)))))
-                    for line, e, d in itertools.islice(rows, count))
-        yield stamp, diagnostic_array_cdr(stamp, count, statuses)
-        left -= count
-        if left <= 0:
-            break
+    columns = getattr(blocks, 'lines', None) is not None
+    total = len(blocks)
+    step = BLOCK_ENERGY_PER_MESSAGE
+    for lo in range(0, max(total, 1), step):
+        if columns:
+            lines = blocks.lines[lo:lo + step]
+            energy, duration = blocks.energy_j[lo:lo + step], blocks.duration_s[lo:lo + step]
+        else:
+            rows = np.array([(int(a), float(b), float(c)) for a, b, c in blocks[lo:lo + step]],
+                            dtype=[('l', np.int64), ('e', float), ('d', float)])
+            lines, energy, duration = rows['l'], rows['e'], rows['d']
+        yield stamp, block_energy_cdr_array(stamp, program, lines, energy, duration)
 
 
 class BagWriter:

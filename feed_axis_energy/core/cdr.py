@@ -323,3 +323,66 @@ def diagnostic_array_cdr(stamp_ns: int, count: int, statuses, *,
         msg = f'diagnostic_array_cdr: {written} statuses given, {count} announced'
         raise ValueError(msg)
     return buf
+
+
+def block_energy_cdr_array(stamp_ns: int, program: str, lines: np.ndarray,
+                           energy_j: np.ndarray, duration_s: np.ndarray, *,
+                           frame_id: str = '') -> bytes:
+    """The ``/block_energy`` DiagnosticArray of many source lines, laid out with numpy.
+
+    Equal to :func:`diagnostic_array_cdr` of the statuses ``(0, f'{program}:{line}',
+    'block energy', '', (('line', str(line)), ('energy_j', repr(e)), ('duration_s',
+    repr(d))))`` (a test compares them) at a few microseconds per line instead of tens.
+
+    Every string starts 4-aligned (its length prefix), so the distance from one string's
+    start to the next element's is ``ceil4(5 + bytes)`` (length, bytes, NUL, padding), or
+    ``ceil4(6 + bytes)`` when a status's level byte sits in between: all offsets are one
+    cumulative sum, and the string bytes are scattered into place in one assignment.
+    """
+    lines = np.asarray(lines, np.int64)
+    n = int(lines.shape[0])
+    head = bytearray(_ENCAPSULATION)
+    _put_u32(head, stamp_ns // _NS)
+    _put_u32(head, stamp_ns % _NS)
+    _put_string(head, frame_id)
+    _put_u32(head, n)
+    if n == 0:
+        return bytes(head)
+    line_txt = list(map(str, lines.tolist()))
+    e_txt = list(map(repr, np.asarray(energy_j, float).tolist()))
+    d_txt = list(map(repr, np.asarray(duration_s, float).tolist()))
+    prefix = f'{program}:'
+    # per status, the strings in order: name, message, hardware id, then key, value x 3
+    fixed = [None, 'block energy', '', 'line', None, 'energy_j', None, 'duration_s', None]
+    lens = np.empty((n, 9), np.int64)
+    digits = np.fromiter(map(len, line_txt), np.int64, n)
+    lens[:, 0] = len(prefix.encode('utf-8')) + digits
+    for j, text in enumerate(fixed):
+        if text is not None:
+            lens[:, j] = len(text.encode('utf-8'))
+    lens[:, 4] = digits
+    lens[:, 6] = np.fromiter(map(len, e_txt), np.int64, n)
+    lens[:, 8] = np.fromiter(map(len, d_txt), np.int64, n)
+    # slots from each element's (aligned) start to the next element's; the values count
+    # (u32 3) follows the hardware id
+    slot = np.empty((n, 10), np.int64)
+    slot[:, :3] = (5 + lens[:, :3] + 3) // 4 * 4
+    slot[:, 3] = 4
+    slot[:, 4:] = (5 + lens[:, 3:] + 3) // 4 * 4
+    slot[:-1, 9] = (6 + lens[:-1, 8] + 3) // 4 * 4      # the next status's level byte
+    p0 = len(head) - 4 + 4           # payload offset of the first name: after level byte + pad
+    starts = p0 + np.concatenate(([0], np.cumsum(slot.ravel())[:-1])).reshape(n, 10)
+    end = int(starts[-1, 9]) + 5 + int(lens[-1, 8])
+    payload = np.zeros(end + (-end % 4), np.uint8)
+    payload[:len(head) - 4] = np.frombuffer(bytes(head[4:]), np.uint8)
+    u32 = payload.view('<u4')
+    str_starts = np.delete(starts, 3, axis=1)            # (n, 9): the strings' starts
+    u32[str_starts.ravel() // 4] = (lens + 1).ravel()
+    u32[starts[:, 3] // 4] = 3
+    text = ''.join(f'{prefix}{a}block energyline{a}energy_j{b}duration_s{c}'
+                   for a, b, c in zip(line_txt, e_txt, d_txt)).encode('utf-8')
+    flat = lens.ravel()
+    src0 = np.concatenate(([0], np.cumsum(flat)[:-1]))
+    dest = np.repeat(str_starts.ravel() + 4 - src0, flat) + np.arange(int(flat.sum()))
+    payload[dest] = np.frombuffer(text, np.uint8)
+    return _ENCAPSULATION + payload[:end].tobytes()
