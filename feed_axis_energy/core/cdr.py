@@ -261,9 +261,10 @@ def joint_trajectory_rows(t_ns: np.ndarray, names: tuple[str, ...],
             # column by column: numpy copies long strided rows fast, short ones slowly
             col = int(value_at[first_point, f]) // 8
             for part in _parts(values[f]):
-                src = part[:n_msgs * points].reshape(n_msgs, points, part.shape[1])
                 for j in range(part.shape[1]):
-                    _strided(f64, col, (n_msgs, n_r), step // 8)[...] = src[:, idx, j]
+                    # a column is a view in either memory order (C or Fortran)
+                    src = part[:n_msgs * points, j].reshape(n_msgs, points)
+                    _strided(f64, col, (n_msgs, n_r), step // 8)[...] = src[:, idx]
                     col += 1
     return MessageRows(stamps=first.copy(), rows=rows, start=payload - 4, length=length)
 

@@ -67,3 +67,20 @@ def test_block_energy_array_equals_the_status_by_status_bytes(program, n):
     ref = bytes(diagnostic_array_cdr(123_456_789_012, n, statuses, frame_id=frame))
     assert block_energy_cdr_array(123_456_789_012, program, lines, energy, duration,
                                   frame_id=frame) == ref
+
+
+def test_rows_do_not_depend_on_memory_order_or_column_blocks():
+    # the planner may hand over column-major arrays; a field may come as column blocks
+    from feed_axis_energy.core.cdr import joint_trajectory_rows
+    rng = np.random.default_rng(5)
+    t = np.arange(600, dtype=np.int64) * 1_000_000
+    a = rng.normal(size=(600, 3))
+    f = np.asfortranarray(a)
+    names = ('X', 'Y', 'Z')
+    c_order = joint_trajectory_rows(t, names, [a, a, None, a], points=100, lead=31)
+    mixed = joint_trajectory_rows(t, names, [f, (f[:, :2], a[:, 2:]), None, (a[:, :1], f[:, 1:])],
+                                  points=100, lead=31)
+    np.testing.assert_array_equal(mixed.rows, c_order.rows)
+    ref = joint_trajectory_cdr(t, names, [a, a, None, a], batch=100)
+    stop = c_order.start + c_order.length
+    assert [bytes(r[c_order.start:stop]) for r in c_order.rows] == [b for _, b in ref]
