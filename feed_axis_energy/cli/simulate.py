@@ -209,7 +209,7 @@ def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
         from feed_axis_energy.core.recording import SimulationBagWriter
         with _staged_out(args) as staged, \
                 SimulationBagWriter(staged, compression=args.compression,
-                                    rate_hz=options.rate_hz, background=True) as writer:
+                                    rate_hz=options.rate_hz) as writer:
             summary, blocks = simulate_stream(moves, machine, on_chunk=writer.write, **kw)
             writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
     progress.done()
