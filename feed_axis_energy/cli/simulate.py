@@ -46,8 +46,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='replace an existing --out bag directory (only a rosbag2 directory, '
                         'never a symbolic link) once the new one is complete')
     p.add_argument('--compression', choices=('none', 'zstd'), default='zstd',
-                   help='MCAP chunk compression of the --out recording (default zstd, level '
-                        '1: 5-6x smaller for 1.3-1.6x the writer\'s CPU time)')
+                   help='MCAP chunk compression of the --out recording (default zstd at the '
+                        'fast level -1: about 5x smaller for 1.2-1.5x the writer\'s CPU time)')
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the table (keys in README)')
     p.add_argument('--top', type=int, default=5, metavar='N',
