@@ -21,7 +21,8 @@ from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StorageP
 from rosbags.typesys import get_typestore, Stores
 
 from feed_axis_energy.core.bagcheck import check_trajectory, field_layout, guard
-from feed_axis_energy.core.cdr import block_energy_cdr_array, joint_trajectory_cdr
+from feed_axis_energy.core.cdr import (
+    BLOCK_ENERGY_PER_MESSAGE, block_energy_cdr, joint_trajectory_cdr)
 from feed_axis_energy.core.errors import DataError, describe, shorten
 from feed_axis_energy.core.mcapcheck import check_mcap
 from feed_axis_energy.core.safeyaml import load_yaml_file
@@ -48,7 +49,6 @@ DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 
 _NS = 1_000_000_000
 BAG_COMPRESSIONS = ('none', 'zstd')
-BLOCK_ENERGY_PER_MESSAGE = 10_000   # statuses per /block_energy message
 _TYPESTORE = None
 
 
@@ -88,11 +88,6 @@ class Series:
             if arr is not None and arr.shape != (n, m):
                 msg = f'Series.{field} has shape {arr.shape}, expected ({n}, {m})'
                 raise ValueError(msg)
-
-
-def _split_ns(t_s: float) -> tuple[int, int]:
-    ns = int(round(t_s * _NS))
-    return ns // _NS, ns % _NS
 
 
 def series_to_messages(series: Series, *, batch: int = 100, frame_id: str = '') -> list:
@@ -155,32 +150,6 @@ def messages_to_series(messages: Iterable) -> Series:
         arr = np.concatenate(parts, axis=0) if parts else np.zeros((0, 0))
         arrays[field] = arr if arr.shape[1] == m and m > 0 else None
     return Series(t=np.concatenate(t_parts), names=names, **arrays)
-
-
-def block_energy_cdr(blocks: Sequence[tuple[int, float, float]], *, stamp_s: float,
-                     program: str = '') -> Iterator[tuple[int, bytes]]:
-    """``(stamp_ns, CDR)`` of the ``/block_energy`` DiagnosticArrays (one status per line).
-
-    At most :data:`BLOCK_ENERGY_PER_MESSAGE` statuses per message, all at ``stamp_s``
-    (:func:`read_block_energy` joins them), laid out with numpy
-    (:func:`.cdr.block_energy_cdr_array`), so a program of a million lines costs a few
-    megabytes at a time, not a million message objects. ``blocks`` may be a
-    :class:`.simstream.LineEnergy` (its arrays are used directly).
-    """
-    sec, nsec = _split_ns(stamp_s)
-    stamp = sec * _NS + nsec
-    columns = getattr(blocks, 'lines', None) is not None
-    total = len(blocks)
-    step = BLOCK_ENERGY_PER_MESSAGE
-    for lo in range(0, max(total, 1), step):
-        if columns:
-            lines = blocks.lines[lo:lo + step]
-            energy, duration = blocks.energy_j[lo:lo + step], blocks.duration_s[lo:lo + step]
-        else:
-            rows = np.array([(int(a), float(b), float(c)) for a, b, c in blocks[lo:lo + step]],
-                            dtype=[('l', np.int64), ('e', float), ('d', float)])
-            lines, energy, duration = rows['l'], rows['e'], rows['d']
-        yield stamp, block_energy_cdr_array(stamp, program, lines, energy, duration)
 
 
 class BagWriter:

@@ -18,14 +18,16 @@ and ``time_from_start`` as int32 sec, uint32 nanosec aligned to 4).
 from __future__ import annotations
 
 import functools
-from typing import NamedTuple
+from typing import Iterator, NamedTuple, Sequence
 
 import numpy as np
 
 __all__ = ['joint_trajectory_cdr', 'joint_trajectory_rows', 'MessageRows',
-           'diagnostic_array_cdr']
+           'diagnostic_array_cdr', 'block_energy_cdr', 'block_energy_cdr_array',
+           'BLOCK_ENERGY_PER_MESSAGE']
 
 _NS = 1_000_000_000
+BLOCK_ENERGY_PER_MESSAGE = 10_000   # statuses per /block_energy message
 _ENCAPSULATION = b'\x00\x01\x00\x00'
 _FIELDS = ('positions', 'velocities', 'accelerations', 'effort')
 
@@ -387,3 +389,28 @@ def block_energy_cdr_array(stamp_ns: int, program: str, lines: np.ndarray,
     dest = np.repeat(str_starts.ravel() + 4 - src0, flat) + np.arange(int(flat.sum()))
     payload[dest] = np.frombuffer(text, np.uint8)
     return _ENCAPSULATION + payload[:end].tobytes()
+
+
+def block_energy_cdr(blocks: Sequence[tuple[int, float, float]], *, stamp_s: float,
+                     program: str = '') -> Iterator[tuple[int, bytes]]:
+    """``(stamp_ns, CDR)`` of the ``/block_energy`` DiagnosticArrays (one status per line).
+
+    At most :data:`BLOCK_ENERGY_PER_MESSAGE` statuses per message, all at ``stamp_s``
+    (:func:`.bagio.read_block_energy` joins them), laid out with numpy
+    (:func:`block_energy_cdr_array`), so a program of a million lines costs a few
+    megabytes at a time, not a million message objects. ``blocks`` may be a
+    :class:`.simstream.LineEnergy` (its arrays are used directly).
+    """
+    stamp = int(round(stamp_s * _NS))
+    columns = getattr(blocks, 'lines', None) is not None
+    total = len(blocks)
+    step = BLOCK_ENERGY_PER_MESSAGE
+    for lo in range(0, max(total, 1), step):
+        if columns:
+            lines = blocks.lines[lo:lo + step]
+            energy, duration = blocks.energy_j[lo:lo + step], blocks.duration_s[lo:lo + step]
+        else:
+            rows = np.array([(int(a), float(b), float(c)) for a, b, c in blocks[lo:lo + step]],
+                            dtype=[('l', np.int64), ('e', float), ('d', float)])
+            lines, energy, duration = rows['l'], rows['e'], rows['d']
+        yield stamp, block_energy_cdr_array(stamp, program, lines, energy, duration)
