@@ -101,11 +101,11 @@ def main() -> None:
             bag = Path(tmp) / f'{case}.bag'
             if args.out:
                 argv += ['--out', str(bag)]
-            wall, rss, summary, _ = _wait_run(argv)
+            wall, rss, summary, cpu = _wait_run(argv)
             dur, n = summary['duration_s'], summary['samples']
             line = (f'{case:12s} {len(text.splitlines()):8d} lines  program {dur / 3600:.2f} h  '
                     f'{n:,} samples  wall {wall:.1f} s  {dur / wall:,.0f}x real time  '
-                    f'{n / wall:,.0f} samples/s  peak RSS {rss / 2**20:.0f} MiB')
+                    f'{n / wall:,.0f} samples/s  CPU {cpu:.1f} s  peak RSS {rss / 2**20:.0f} MiB')
             if args.out:
                 size = sum(f.stat().st_size for f in bag.rglob('*') if f.is_file())
                 line += f'  bag {size / 1e9:.2f} GB ({size / n:.0f} B/sample)'
@@ -113,8 +113,9 @@ def main() -> None:
             print(line, flush=True)
 
 
-def _wait_run(argv: list[str]) -> tuple[float, int, dict, str]:
-    """Like :func:`run` but reaps the child with ``os.wait4`` to get its own rusage."""
+def _wait_run(argv: list[str]) -> tuple[float, int, dict, float]:
+    """Run the child; reap it with ``os.wait4`` for its own rusage: wall [s], peak RSS
+    [bytes], the JSON summary, CPU time (user + system) [s]."""
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, '-m', 'feed_axis_energy', *argv], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -125,7 +126,8 @@ def _wait_run(argv: list[str]) -> tuple[float, int, dict, str]:
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode != 0:
         sys.exit(f'{argv}: exit {proc.returncode}: {err.decode()[-500:]}')
-    return wall, usage.ru_maxrss * 1024, json.loads(out), err.decode()
+    return (wall, usage.ru_maxrss * 1024, json.loads(out),
+            usage.ru_utime + usage.ru_stime)
 
 
 if __name__ == '__main__':

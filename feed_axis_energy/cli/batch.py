@@ -1,6 +1,7 @@
 """``feed-axis-energy batch``: a campaign of programs x machines x loads, in parallel.
 
-Each job is one ``simulate`` run without a recording (:func:`.core.batch.run_job`); the jobs
+Each job is one ``simulate`` run, with a recording under ``--out DIR`` if asked
+(:func:`.core.batch.run_job`; each worker writes its own jobs' bags); the jobs
 run in this process (``--jobs 1``), in local worker processes (``--jobs N``,
 ``concurrent.futures.ProcessPoolExecutor``) or on a Dask cluster (``--scheduler ADDRESS``,
 ``distributed.Client(ADDRESS).get_executor()``), with identical results. A job that fails
@@ -56,9 +57,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         'batch', help=_HELP,
         description='Simulate every PROGRAM on every --machine at every --load-kg (or the '
                     'jobs of a --batch-file YAML) as independent jobs, each one "simulate" run '
-                    'without a recording, and print one table (or --json, --csv). A job '
-                    'that fails is a row with its error. Exit 0 when every job succeeded, '
-                    '1 when a job failed or the input is bad, 2 on a usage error.')
+                    '(with its recording under --out DIR), and print one table (or --json, '
+                    '--csv). A job that fails is a row with its error. Exit 0 when every job '
+                    'succeeded, 1 when a job failed or the input is bad, 2 on a usage error.')
     p.add_argument('programs', nargs='*', metavar='PROGRAM',
                    help='NC program files, quoted globs ("parts/*.nc") or directories (their '
                         '*.nc, *.ngc, *.gcode, *.tap, *.cnc files); *.csv: a trajectory')
@@ -89,7 +90,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='print one JSON object instead of the table (keys in README)')
     p.add_argument('--csv', type=Path, metavar='FILE',
                    help='also write the table as CSV (one row per job, full precision)')
-    p.add_argument('--force', action='store_true', help='replace an existing --csv file')
+    p.add_argument('--out', type=Path, metavar='DIR',
+                   help='write one recording per job into DIR (a rosbag2/MCAP directory as '
+                        '"simulate --out", named NNN-PROGRAM[-MACHINE][-LOADkg] by job number; '
+                        'README "batch"); a job that fails leaves no recording')
+    p.add_argument('--compression', choices=('zstd', 'none'), default='zstd',
+                   help='MCAP chunk compression of the --out recordings (default zstd)')
+    p.add_argument('--force', action='store_true',
+                   help='replace an existing --csv file and existing recordings in --out '
+                        '(bag directories only)')
     p.add_argument('--top', type=_positive_int, default=0, metavar='N',
                    help='blocks with the most energy listed per job in --json (default 0)')
     p.add_argument('--max-samples', type=_positive_int, default=0, metavar='N',
@@ -138,7 +147,37 @@ def _jobs(args: argparse.Namespace) -> list:
     for _, path in dict.fromkeys(machines):
         load_machine(path)
     return make_jobs(programs, machines, loads, rate_hz=rate, profile=profile,
-                     top_blocks=args.top, max_samples=args.max_samples)
+                     top_blocks=args.top, max_samples=args.max_samples, out_dir=args.out,
+                     force=args.force, compression=args.compression)
+
+
+def _check_out(args: argparse.Namespace, jobs: list) -> list[Path]:
+    """Refuse existing recordings (unless --force) before any job runs; create --out.
+
+    Returns the directories created here, deepest first (removed again if they stay empty).
+    """
+    from feed_axis_energy.core.errors import OutputError
+    from feed_axis_energy.core.outputs import check_target, is_bag_directory
+    out = args.out
+    if out.is_symlink() and not out.is_dir():
+        raise OutputError('is a dangling symbolic link', path=out, option='--out')
+    if out.exists() and not out.is_dir():
+        raise OutputError('exists and is not a directory', path=out, option='--out')
+    for job in jobs:
+        check_target(job.out, option='--out', force=args.force, kind='directory',
+                     replaceable=is_bag_directory)
+    if out.is_dir():
+        return []
+    created = [Path(os.path.abspath(out))]
+    while not os.path.lexists(created[-1].parent) and created[-1].parent != created[-1]:
+        created.append(created[-1].parent)
+    try:
+        out.mkdir(parents=True)
+    except OSError as err:
+        _remove_if_empty(created)
+        msg = f'cannot create the directory: {err.strerror or err}'
+        raise OutputError(msg, path=out, option='--out') from None
+    return created
 
 
 class _JobProgress:
@@ -184,6 +223,15 @@ def _execute(args: argparse.Namespace, jobs: list, progress: _JobProgress) -> tu
     with ProcessPoolExecutor(max_workers=workers, mp_context=_mp_context()) as pool:
         results = run_batch(jobs, executor=pool, progress=progress)
     return results, f'{workers} worker processes'
+
+
+def _remove_if_empty(directories: list[Path]) -> None:
+    """Remove the directories this run created (deepest first) that stayed empty."""
+    for directory in directories:
+        try:
+            directory.rmdir()
+        except OSError:
+            return
 
 
 def check_address(address: str) -> str:
@@ -248,8 +296,12 @@ def run(args: argparse.Namespace) -> int:
     jobs = _jobs(args)
     if args.csv is not None:
         check_csv_target(args.csv, force=args.force)
+    created = [] if args.out is None else _check_out(args, jobs)
     progress = _JobProgress(enabled=not args.quiet)
-    results, where = _execute(args, jobs, progress)
+    try:
+        results, where = _execute(args, jobs, progress)
+    finally:
+        _remove_if_empty(created)
     failed = sum(1 for r in results if not r.ok)
     if not args.quiet:
         print(f'[batch] {len(jobs)} jobs ({failed} failed) in '

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 from contextlib import contextmanager
-import itertools
 from dataclasses import dataclass
 import json
 import math
@@ -22,7 +21,8 @@ from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StorageP
 from rosbags.typesys import get_typestore, Stores
 
 from feed_axis_energy.core.bagcheck import check_trajectory, field_layout, guard
-from feed_axis_energy.core.cdr import diagnostic_array_cdr, joint_trajectory_cdr
+from feed_axis_energy.core.cdr import (
+    BLOCK_ENERGY_PER_MESSAGE, block_energy_cdr, joint_trajectory_cdr)
 from feed_axis_energy.core.errors import DataError, describe, shorten
 from feed_axis_energy.core.mcapcheck import check_mcap
 from feed_axis_energy.core.safeyaml import load_yaml_file
@@ -34,6 +34,7 @@ __all__ = [
     'Series', 'BagWriter', 'read_series', 'read_block_energy', 'read_custom_data', 'bag_topics',
     'typestore', 'series_to_messages', 'messages_to_series', 'read_metadata',
     'read_raw_messages', 'check_trajectory', 'BAG_COMPRESSIONS', 'BLOCK_ENERGY_PER_MESSAGE',
+    'block_energy_cdr',
 ]
 
 TOPIC_SETPOINTS = '/setpoints'
@@ -48,7 +49,6 @@ DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 
 _NS = 1_000_000_000
 BAG_COMPRESSIONS = ('none', 'zstd')
-BLOCK_ENERGY_PER_MESSAGE = 10_000   # statuses per /block_energy message
 _TYPESTORE = None
 
 
@@ -88,11 +88,6 @@ class Series:
             if arr is not None and arr.shape != (n, m):
                 msg = f'Series.{field} has shape {arr.shape}, expected ({n}, {m})'
                 raise ValueError(msg)
-
-
-def _split_ns(t_s: float) -> tuple[int, int]:
-    ns = int(round(t_s * _NS))
-    return ns // _NS, ns % _NS
 
 
 def series_to_messages(series: Series, *, batch: int = 100, frame_id: str = '') -> list:
@@ -225,28 +220,10 @@ class BagWriter:
 
     def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
                            stamp_s: float, program: str = '') -> None:
-        """Write the per-block energy summary as DiagnosticArrays (one status per line).
-
-        At most :data:`BLOCK_ENERGY_PER_MESSAGE` statuses per message, all at ``stamp_s``
-        (:func:`read_block_energy` joins them); serialised status by status
-        (:func:`.cdr.diagnostic_array_cdr`), so a program of a million lines costs a few
-        megabytes at a time, not a million message objects.
-        """
-        sec, nsec = _split_ns(stamp_s)
-        stamp = sec * _NS + nsec
+        """Write the per-block energy summary as DiagnosticArrays (:func:`block_energy_cdr`)."""
         conn = self._connection(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY)
-        rows = iter(blocks)
-        left = len(blocks)
-        while True:
-            count = min(left, BLOCK_ENERGY_PER_MESSAGE)
-            statuses = ((0, f'{program}:{line}', 'block energy', '',
-                         (('line', str(line)), ('energy_j', repr(float(e))),
-                          ('duration_s', repr(float(d)))))
-                        for line, e, d in itertools.islice(rows, count))
-            self._writer.write(conn, stamp, diagnostic_array_cdr(stamp, count, statuses))
-            left -= count
-            if left <= 0:
-                break
+        for stamp, data in block_energy_cdr(blocks, stamp_s=stamp_s, program=program):
+            self._writer.write(conn, stamp, data)
 
     def set_custom_data(self, key: str, value: object) -> None:
         """Store a JSON-serialisable value in the bag's metadata (``custom_data``)."""

@@ -24,11 +24,12 @@ from typing import Any
 
 from .errors import ConfigError, FeedAxisError, PlanningError, shorten
 
-__all__ = ['MAX_JOBS', 'PROFILES', 'BatchJob', 'JobResult', 'run_job', 'run_batch']
+__all__ = ['MAX_JOBS', 'PROFILES', 'COMPRESSIONS', 'BatchJob', 'JobResult', 'run_job', 'run_batch']
 
 MAX_JOBS = 100_000
 """Most jobs one batch may hold (the results are kept in memory: about 2 kB each)."""
 PROFILES = ('jerk', 'trapezoid')
+COMPRESSIONS = ('zstd', 'none')
 _MAX_WARNINGS = 5          # warnings kept per job (a program may warn on every line)
 _ERROR_CHARS = 300         # longest error text kept from an unexpected exception
 
@@ -59,6 +60,14 @@ class BatchJob:
         Source lines listed in the summary's ``top_blocks``.
     max_samples
         Refuse (as a failed job) a program needing more samples; 0: no limit.
+    out
+        Absolute path of the job's recording (a rosbag2 directory, as ``simulate --out``),
+        or ``''`` for none. Built under a hidden temporary name and renamed when complete;
+        a job that fails leaves nothing.
+    force
+        Replace an existing recording at ``out`` (only a bag directory).
+    compression
+        MCAP chunk compression of the recording: ``'zstd'`` or ``'none'``.
     """
 
     index: int
@@ -71,6 +80,9 @@ class BatchJob:
     profile: str | None = None
     top_blocks: int = 0
     max_samples: int = 0
+    out: str = ''
+    force: bool = False
+    compression: str = 'zstd'
 
     def __post_init__(self) -> None:
         where = f'job {self.index + 1}'
@@ -86,6 +98,10 @@ class BatchJob:
         if self.top_blocks < 0 or self.max_samples < 0:
             msg = 'top_blocks and max_samples must be >= 0'
             raise ConfigError(msg, file=where, key='top_blocks')
+        if self.compression not in COMPRESSIONS:
+            msg = (f'compression must be one of {", ".join(COMPRESSIONS)}, got '
+                   f'{shorten(self.compression)!r}')
+            raise ConfigError(msg, file=where, key='compression')
 
 
 @dataclass(frozen=True)
@@ -162,7 +178,19 @@ def _all_finite(value: Any) -> bool:
 
 
 def _simulate(job: BatchJob) -> tuple[dict[str, Any], list[str]]:
-    """Run one job; raises the core's errors."""
+    """Run one job, with its recording when it has one; raises the core's errors."""
+    if not job.out:
+        return _run(job, None)
+    from .outputs import is_bag_directory, staged_directory
+    with staged_directory(job.out, option='--out', force=job.force,
+                          replaceable=is_bag_directory) as staged:
+        summary, warnings = _run(job, staged)
+    summary['bag'] = job.out
+    return summary, warnings
+
+
+def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
+    """Simulate one job; write its recording to the new directory ``bag`` unless None."""
     from .simstream import simulate_stream, streamable
     machine = _machine(job.machine_path)
     options = _options(job, machine)
@@ -175,7 +203,9 @@ def _simulate(job: BatchJob) -> tuple[dict[str, Any], list[str]]:
                    f'max_samples {job.max_samples:,}')
             raise PlanningError(msg, file=job.program_path)
         result = simulate_motion(motion, machine, load_kg=job.load_kg)
-        return summarize(result, top_blocks=0), []
+        summary = summarize(result, top_blocks=0)
+        _record_whole(job, bag, result, summary)
+        return summary, []
     from .gcode import load_gcode
     program = load_gcode(job.program_path, home=machine.home_point())
     warnings = list(program.warnings)
@@ -190,15 +220,34 @@ def _simulate(job: BatchJob) -> tuple[dict[str, Any], list[str]]:
                    f'a rate of {max(rate, 1e-3):.3g} Hz fits')
             raise PlanningError(msg, file=program.file)
     if streamable(machine):
-        summary, _ = simulate_stream(program.moves, machine, file=program.file,
-                                     load_kg=job.load_kg, options=options,
-                                     top_blocks=job.top_blocks,
-                                     total_moves=len(program.moves), limits=limits)
+        kw = dict(file=program.file, load_kg=job.load_kg, options=options,
+                  top_blocks=job.top_blocks, total_moves=len(program.moves), limits=limits)
+        if bag is None:
+            summary, _ = simulate_stream(program.moves, machine, **kw)
+        else:
+            from .recording import SimulationBagWriter
+            with SimulationBagWriter(bag, compression=job.compression,
+                                     rate_hz=options.rate_hz) as writer:
+                summary, blocks = simulate_stream(program.moves, machine,
+                                                  on_chunk=writer.write, chunk_gaps=True,
+                                                  **kw)
+                summary['program'] = job.program
+                writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
     else:
         from .simulate import simulate_program, summarize
         result = simulate_program(program, machine, load_kg=job.load_kg, options=options)
         summary = summarize(result, top_blocks=job.top_blocks)
+        _record_whole(job, bag, result, summary)
     return summary, warnings
+
+
+def _record_whole(job: BatchJob, bag, result, summary: dict[str, Any]) -> None:
+    """The recording of a whole-record result (trajectory CSV, effects on the whole record)."""
+    if bag is None:
+        return
+    from .recording import write_simulation_bag
+    summary['program'] = job.program
+    write_simulation_bag(bag, result, summary=summary, compression=job.compression)
 
 
 def _kept_warnings(warnings: list[str]) -> tuple[str, ...]:

@@ -22,12 +22,15 @@ import glob
 import itertools
 import os
 from pathlib import Path
+import re
 from typing import Any
 
 from .batch import BatchJob, MAX_JOBS, PROFILES
 from .errors import ConfigError, describe, shorten
+from .outputs import confined
 
-__all__ = ['GCODE_SUFFIXES', 'BatchSpec', 'expand_programs', 'make_jobs', 'load_batch_file']
+__all__ = ['GCODE_SUFFIXES', 'BatchSpec', 'expand_programs', 'make_jobs', 'load_batch_file',
+           'bag_name']
 
 GCODE_SUFFIXES = ('.nc', '.ngc', '.gcode', '.tap', '.cnc')
 """File name endings taken as programs when a directory is named (case-insensitive)."""
@@ -129,7 +132,8 @@ def _limited(paths: Iterable[str], *, where: str) -> list[str]:
 def make_jobs(programs: Sequence[tuple[str, str]], machines: Sequence[tuple[str, str]],
               loads_kg: Sequence[float], *, rate_hz: float | None = None,
               profile: str | None = None, top_blocks: int = 0,
-              max_samples: int = 0) -> list[BatchJob]:
+              max_samples: int = 0, out_dir: str | os.PathLike[str] | None = None,
+              force: bool = False, compression: str = 'zstd') -> list[BatchJob]:
     """Every program x machine x load, program-major (program 1 on every machine first).
 
     Parameters
@@ -139,6 +143,10 @@ def make_jobs(programs: Sequence[tuple[str, str]], machines: Sequence[tuple[str,
     loads_kg
         Workpiece masses [kg].
     rate_hz, profile, top_blocks, max_samples
+        As :class:`.batch.BatchJob`.
+    out_dir
+        Directory for one recording per job, named by :func:`bag_name`; ``None``: none.
+    force, compression
         As :class:`.batch.BatchJob`.
 
     Returns
@@ -162,11 +170,39 @@ def make_jobs(programs: Sequence[tuple[str, str]], machines: Sequence[tuple[str,
     jobs = []
     for i, ((prog, prog_path), (mach, mach_path), load) in enumerate(
             itertools.product(programs, machines, loads_kg)):
+        out = ''
+        if out_dir is not None:
+            name = bag_name(i, count, prog_path, mach_path if len(machines) > 1 else None,
+                            float(load) if len(loads_kg) > 1 else None)
+            out = os.path.abspath(confined(out_dir, name, option='--out'))
         jobs.append(BatchJob(index=i, program=prog, program_path=prog_path, machine=mach,
                              machine_path=mach_path, load_kg=float(load), rate_hz=rate_hz,
                              profile=profile, top_blocks=top_blocks,
-                             max_samples=max_samples))
+                             max_samples=max_samples, out=out, force=force,
+                             compression=compression))
     return jobs
+
+
+def _plain(text: str) -> str:
+    """Letters, digits, ``.``, ``_`` and ``-`` of ``text`` (others as ``_``), at most 40."""
+    return re.sub(r'[^A-Za-z0-9._-]+', '_', text)[:40].strip('._-') or 'x'
+
+
+def bag_name(index: int, count: int, program: str, machine: str | None = None,
+             load_kg: float | None = None) -> str:
+    """The recording's name of job ``index`` (0-based) of ``count``.
+
+    The 1-based job number, zero-padded to the width of ``count`` (unique and sorting in
+    job order), then the program file's stem, and the machine file's stem and the load
+    when the campaign has several: ``007-part_a-three_axis_mill-17.336kg``. Characters other
+    than letters, digits, ``.``, ``_`` and ``-`` become ``_``; each part at most 40.
+    """
+    parts = [f'{index + 1:0{len(str(count))}d}', _plain(Path(program).stem)]
+    if machine is not None:
+        parts.append(_plain(Path(machine).stem))
+    if load_kg is not None:
+        parts.append(_plain(f'{load_kg:g}kg'))
+    return '-'.join(parts)
 
 
 def _text_list(value: Any, key: str, *, file: str) -> list[str]:

@@ -11,7 +11,10 @@ from typing import Callable, Sequence
 import numpy as np
 
 from feed_axis_energy.core import bagio
+from feed_axis_energy.core.bagwrite import StreamBagWriter
+from feed_axis_energy.core.cdr import joint_trajectory_rows, MessageRows
 from feed_axis_energy.core.motion import Motion
+from feed_axis_energy.core.recthin import STANDSTILL_PERIOD_S, StandstillThinner
 
 __all__ = ['setpoint_series', 'axis_state_series', 'power_series', 'simulation_series',
            'write_simulation_bag', 'SimulationBagWriter', 'SUMMARY_KEY', 'screw_joint']
@@ -24,59 +27,96 @@ def screw_joint(axis: str) -> str:
     return f'{axis}_screw'
 
 
-def setpoint_series(motion: Motion) -> bagio.Series:
+# A topic's columns: joint names, then per JointTrajectoryPoint field (positions,
+# velocities, accelerations, effort) None or a tuple of (n, k_i) arrays whose columns follow
+# one another. Series for the node graph join the blocks; the bag writer copies them
+# straight into the messages.
+Columns = tuple[tuple[str, ...], list[tuple[np.ndarray, ...] | None]]
+
+
+def setpoint_columns(motion: Motion) -> Columns:
     """Commanded positions [m], velocities [m/s] and accelerations [m/s^2] per axis."""
-    return bagio.Series(t=motion.t, names=tuple(motion.axes), positions=motion.pos,
-                        velocities=motion.vel, accelerations=motion.acc)
+    return tuple(motion.axes), [(motion.pos,), (motion.vel,), (motion.acc,), None]
 
 
-def axis_state_series(motion: Motion, dyn) -> bagio.Series:
+def axis_state_columns(motion: Motion, dyn) -> Columns:
     """Carriage joints (m, m/s, m/s^2, load force N) and screw joints (rad, rad/s, rad/s^2, N·m).
 
     Columns: all carriage joints in axis order, then all screw joints in axis order.
     """
     axes = tuple(motion.axes)
-    names = axes + tuple(screw_joint(a) for a in axes)
-    return bagio.Series(
-        t=motion.t, names=names,
-        positions=np.hstack([motion.pos, dyn.angle_rad]),
-        velocities=np.hstack([motion.vel, dyn.omega_rad_s]),
-        accelerations=np.hstack([motion.acc, dyn.alpha_rad_s2]),
-        effort=np.hstack([dyn.force_n, dyn.torque_nm]))
+    return axes + tuple(screw_joint(a) for a in axes), [
+        (motion.pos, dyn.angle_rad), (motion.vel, dyn.omega_rad_s),
+        (motion.acc, dyn.alpha_rad_s2), (dyn.force_n, dyn.torque_nm)]
+
+
+def power_columns(power) -> Columns:
+    """Per-axis and total actual power [W] (as velocities) and energy [J] (as positions)."""
+    return tuple(power.axes) + ('total',), [
+        (power.energy_j, power.total_energy_j[:, None]),
+        (power.power_w, power.total_w[:, None]), None, None]
+
+
+def simulation_columns(result) -> dict[str, Columns]:
+    """Return ``{topic: Columns}`` for a ``simulate.SimulationResult`` (README topic table)."""
+    return {
+        bagio.TOPIC_SETPOINTS: setpoint_columns(result.motion),
+        bagio.TOPIC_AXIS_STATE: axis_state_columns(result.motion, result.dynamics),
+        bagio.TOPIC_POWER: power_columns(result.power),
+    }
+
+
+def _series(t: np.ndarray, columns: Columns) -> bagio.Series:
+    names, fields = columns
+    joined = [None if f is None else (f[0] if len(f) == 1 else np.hstack(f)) for f in fields]
+    return bagio.Series(t, names, *joined)
+
+
+def setpoint_series(motion: Motion) -> bagio.Series:
+    """:func:`setpoint_columns` as one :class:`.bagio.Series`."""
+    return _series(motion.t, setpoint_columns(motion))
+
+
+def axis_state_series(motion: Motion, dyn) -> bagio.Series:
+    """:func:`axis_state_columns` as one :class:`.bagio.Series`."""
+    return _series(motion.t, axis_state_columns(motion, dyn))
 
 
 def power_series(power) -> bagio.Series:
-    """Per-axis and total actual power [W] (as velocities) and energy [J] (as positions)."""
-    names = tuple(power.axes) + ('total',)
-    return bagio.Series(
-        t=power.t, names=names,
-        positions=np.hstack([power.energy_j, power.total_energy_j[:, None]]),
-        velocities=np.hstack([power.power_w, power.total_w[:, None]]))
+    """:func:`power_columns` as one :class:`.bagio.Series`."""
+    return _series(power.t, power_columns(power))
 
 
 def simulation_series(result) -> dict[str, bagio.Series]:
     """Return ``{topic: Series}`` for a ``simulate.SimulationResult``."""
-    return {
-        bagio.TOPIC_SETPOINTS: setpoint_series(result.motion),
-        bagio.TOPIC_AXIS_STATE: axis_state_series(result.motion, result.dynamics),
-        bagio.TOPIC_POWER: power_series(result.power),
-    }
+    return {topic: _series(result.power.t if topic == bagio.TOPIC_POWER else result.motion.t,
+                           columns)
+            for topic, columns in simulation_columns(result).items()}
 
 
-def _join(head: bagio.Series | None, tail: bagio.Series) -> bagio.Series:
-    if head is None or head.t.shape[0] == 0:
-        return tail
-    fields = {}
-    for name in ('positions', 'velocities', 'accelerations', 'effort'):
-        a, b = getattr(head, name), getattr(tail, name)
-        fields[name] = None if a is None else np.concatenate((a, b))
-    return bagio.Series(t=np.concatenate((head.t, tail.t)), names=tail.names, **fields)
+def _t_ns(t: np.ndarray) -> np.ndarray:
+    if t.shape[0] and float(t.min()) < 0:
+        msg = 'bag time series must not have negative times'
+        raise ValueError(msg)
+    return np.rint(t * 1e9).astype(np.int64)
 
 
-def _rows(series: bagio.Series, i0: int, i1: int) -> bagio.Series:
-    fields = {name: None if getattr(series, name) is None else getattr(series, name)[i0:i1]
-              for name in ('positions', 'velocities', 'accelerations', 'effort')}
-    return bagio.Series(t=series.t[i0:i1], names=series.names, **fields)
+def _slice(fields: list, lo: int, hi: int) -> list:
+    return [None if f is None else tuple(a[lo:hi] for a in f) for f in fields]
+
+
+def _prepend(head: list, fields: list, count: int) -> list:
+    """The rows of ``head`` (joined fields) followed by the first ``count`` rows of ``fields``."""
+    return [None if f is None else
+            (np.concatenate((h, np.hstack([a[:count] for a in f]))),) for h, f in
+            zip(head, fields)]
+
+
+def _compared(result) -> list[np.ndarray]:
+    """The recorded arrays that are constant during a standstill (all but time and energy)."""
+    mo, dyn, pw = result.motion, result.dynamics, result.power
+    return [mo.pos, mo.vel, mo.acc, dyn.angle_rad, dyn.omega_rad_s, dyn.alpha_rad_s2,
+            dyn.force_n, dyn.torque_nm, pw.power_w, pw.total_w[:, None]]
 
 
 class SimulationBagWriter:
@@ -84,7 +124,10 @@ class SimulationBagWriter:
 
     Each chunk's messages are built and written as the chunk arrives; samples that do not fill
     a message of ``batch`` points wait for the next chunk, so the messages are the ones a
-    whole-record write produces (topics interleave in time order). Memory: one chunk.
+    whole-record write produces. The messages of a topic are built with numpy as one byte
+    array (:func:`.cdr.joint_trajectory_rows`) straight from the simulation's arrays, and
+    written in MCAP chunks that each hold the same stretch of time on every topic
+    (:class:`.bagwrite.StreamBagWriter`). Memory: one chunk of samples and its messages.
 
     Parameters
     ----------
@@ -93,17 +136,42 @@ class SimulationBagWriter:
     batch
         Samples per JointTrajectory message.
     compression
-        ``'none'`` or ``'zstd'`` (MCAP chunk compression, see :class:`.bagio.BagWriter`).
+        ``'zstd'``, ``'lz4'`` or ``'none'`` (MCAP chunk compression, :mod:`.mcapstream`).
+    standstill_period_s
+        During a standstill keep the first and last sample and one per this period
+        (:mod:`.recthin`); ``None`` records every sample.
+    rate_hz
+        Sample rate of the grid: needed for chunks with left-out samples (``Motion.gaps``).
+    background
+        Compress and write the MCAP chunks in a second thread (same file; see
+        :class:`.mcapstream.McapStream`).
     """
 
-    def __init__(self, path: str | Path, *, batch: int = 100, compression: str = 'none') -> None:
-        self._bag = bagio.BagWriter(path, compression=compression)
+    def __init__(self, path: str | Path, *, batch: int = 100, compression: str = 'none',
+                 standstill_period_s: float | None = STANDSTILL_PERIOD_S,
+                 rate_hz: float | None = None, background: bool = False) -> None:
+        self._bag = StreamBagWriter(path, compression=compression, background=background)
         self.batch = int(batch)
-        self._rest: dict[str, bagio.Series | None] = {}
+        self._thin = (None if standstill_period_s is None else
+                      StandstillThinner(period_s=standstill_period_s, rate_hz=rate_hz))
+        self._last: list[np.ndarray] | None = None      # last row of the compared arrays
+        self._held: tuple[float, dict] | None = None    # the row the thinner holds back
+        self.samples = 0                                # samples recorded (per topic)
+        # samples waiting for a full message: times [ns] and per topic the joined fields
+        self._rest_t = np.zeros(0, np.int64)
+        self._rest: dict[str, tuple[tuple[str, ...], list]] = {}
         self.messages = 0
 
     def __enter__(self) -> 'SimulationBagWriter':
         self._bag.__enter__()
+        try:
+            # declared up front: a declaration ends the open MCAP chunk
+            for topic in (bagio.TOPIC_SETPOINTS, bagio.TOPIC_AXIS_STATE, bagio.TOPIC_POWER):
+                self._bag.channel(topic, bagio.JOINT_TRAJECTORY)
+            self._bag.channel(bagio.TOPIC_BLOCK_ENERGY, bagio.DIAGNOSTIC_ARRAY)
+        except BaseException as err:
+            self._bag.__exit__(type(err), err, err.__traceback__)
+            raise
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
@@ -111,20 +179,124 @@ class SimulationBagWriter:
 
     def write(self, chunk) -> None:
         """Write the series of one ``SimulationResult`` chunk (whole messages only)."""
-        for topic, series in simulation_series(chunk).items():
-            joined = _join(self._rest.get(topic), series)
-            full = (joined.t.shape[0] // self.batch) * self.batch
-            if full:
-                self.messages += self._bag.write_series(topic, _rows(joined, 0, full),
-                                                        batch=self.batch)
-            self._rest[topic] = _rows(joined, full, joined.t.shape[0])
+        columns = simulation_columns(chunk)
+        t = chunk.motion.t
+        if self._thin is not None and t.shape[0]:
+            t, columns = self._thinned(chunk, t, columns)
+        t_ns = _t_ns(t)
+        n, r, batch = int(t_ns.shape[0]), int(self._rest_t.shape[0]), self.batch
+        lead = self._bag.lead
+        first: dict[str, MessageRows] = {}
+        start = 0
+        if r:
+            start = min(batch - r, n)
+            t_head = np.concatenate((self._rest_t, t_ns[:start]))
+            heads = {topic: (names, _prepend(self._rest[topic][1], fields, start))
+                     for topic, (names, fields) in columns.items()}
+            if t_head.shape[0] < batch:          # still not a whole message
+                self._keep(t_head, heads, 0, t_head.shape[0])
+                return
+            first = {topic: joint_trajectory_rows(t_head, names, fields, points=batch,
+                                                  lead=lead)
+                     for topic, (names, fields) in heads.items()}
+        full = (n - start) // batch * batch
+        self.samples += full + (batch if first else 0)
+        blocks = {}
+        if full:
+            blocks = {topic: joint_trajectory_rows(t_ns[start:start + full], names,
+                                                   _slice(fields, start, start + full),
+                                                   points=batch, lead=lead)
+                      for topic, (names, fields) in columns.items()}
+        self._keep(t_ns, columns, start + full, n)
+        for topic, block in first.items():     # joins the first chunk of the slices below
+            self.messages += self._bag.write_rows(topic, block)
+        self._write_interleaved(blocks)
+
+    def _thinned(self, chunk, t: np.ndarray, columns: dict) -> tuple[np.ndarray, dict]:
+        """The chunk's samples the recording keeps (:mod:`.recthin`), as times and columns."""
+        compared = _compared(chunk)
+        still = np.ones(t.shape[0], bool)
+        for j, a in enumerate(compared):
+            for c in range(a.shape[1]):
+                col = a[:, c]
+                still[1:] &= col[1:] == col[:-1]
+                still[0] &= self._last is not None and bool(col[0] == self._last[j][c])
+        self._last = [a[-1].copy() for a in compared]
+        sel = self._thin.select(t, still, getattr(chunk.motion, 'gaps', ()))
+        if sel is None:
+            return t, columns
+        held = self._held
+        self._held = None
+        if sel.hold_last:
+            last = {topic: [None if f is None else tuple(a[-1:].copy() for a in f)
+                            for f in fields] for topic, (_, fields) in columns.items()}
+            self._held = (float(t[-1]), last)
+        shift = 1 if held is not None and bool((sel.src < 0).any()) else 0
+        idx = sel.src + shift
+        t_src = t[np.maximum(sel.src, 0)]
+        back = (t_src - sel.t)[sel.filled]
+        out = {}
+        for topic, (names, fields) in columns.items():
+            taken = []
+            for i, f in enumerate(fields):
+                if f is None:
+                    taken.append(None)
+                    continue
+                parts = [a if not shift else np.concatenate((held[1][topic][i][k], a))
+                         for k, a in enumerate(f)]
+                taken.append(tuple(a[idx] for a in parts))
+            if topic == bagio.TOPIC_POWER and back.size:
+                # energy (positions) of a left-out sample: E_row - P_row (t_row - t)
+                for energy, power in zip(taken[0], taken[1]):
+                    energy[sel.filled] -= power[sel.filled] * back[:, None]
+            out[topic] = (names, taken)
+        return sel.t, out
+
+    def _keep(self, t_ns: np.ndarray, columns: dict, lo: int, hi: int) -> None:
+        """Keep samples ``lo:hi`` (fewer than a message) for the next chunk, as copies."""
+        self._rest_t = t_ns[lo:hi].copy()
+        self._rest = {topic: (names, [None if f is None else np.hstack([a[lo:hi] for a in f])
+                                      for f in fields])
+                      for topic, (names, fields) in columns.items()}
+
+    def _append_rest(self, t_ns: np.ndarray, columns: dict) -> None:
+        """Add samples (a few) to those waiting for a message."""
+        self._rest_t = np.concatenate((self._rest_t, t_ns))
+        self._rest = {topic: (names, [None if f is None else
+                                      np.concatenate((old, np.hstack(f)))
+                                      for old, f in zip(self._rest[topic][1], fields)])
+                      for topic, (names, fields) in columns.items()}
+
+    def _write_interleaved(self, blocks: dict[str, MessageRows]) -> None:
+        """Write the topics' messages in slices of time, one MCAP chunk per slice."""
+        if not blocks:
+            return
+        m = next(iter(blocks.values())).rows.shape[0]
+        per_message = sum(b.length + self._bag.lead for b in blocks.values())
+        step = max(1, -(-self._bag.chunk_bytes // per_message))
+        for lo in range(0, m, step):
+            for topic, b in blocks.items():
+                part = MessageRows(stamps=b.stamps[lo:lo + step], rows=b.rows[lo:lo + step],
+                                   start=b.start, length=b.length)
+                self.messages += self._bag.write_rows(topic, part)
+            self._bag.close_chunk()
 
     def finish(self, blocks: Sequence[tuple[int, float, float]], *, summary: dict,
                stamp_s: float) -> None:
         """Write the samples still waiting, the per-block energy and the summary."""
-        for topic, rest in self._rest.items():
-            if rest is not None and rest.t.shape[0]:
-                self.messages += self._bag.write_series(topic, rest, batch=self.batch)
+        if self._held is not None:         # the program ends in a standstill: its last sample
+            t_held, fields = self._held
+            self._held = None
+            columns = {topic: (names, fields[topic]) for topic, (names, _) in self._rest.items()}
+            self._append_rest(_t_ns(np.array([t_held])), columns)
+        r = int(self._rest_t.shape[0])
+        if r:
+            for topic, (names, fields) in self._rest.items():
+                block = joint_trajectory_rows(self._rest_t, names, fields, points=r,
+                                              lead=self._bag.lead)
+                self.messages += self._bag.write_rows(topic, block)
+            self.samples += r
+        self._rest_t = np.zeros(0, np.int64)
         self._rest = {}
         self._bag.write_block_energy(blocks, stamp_s=stamp_s,
                                      program=str(summary.get('program', '')))

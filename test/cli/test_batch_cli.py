@@ -50,7 +50,8 @@ def test_help():
     proc = _run('batch', '--help')
     assert proc.returncode == 0
     assert 'usage: feed-axis-energy batch' in proc.stdout
-    for option in ('--jobs', '--scheduler', '--batch-file', '--csv', '--load-kg'):
+    for option in ('--jobs', '--scheduler', '--batch-file', '--csv', '--load-kg', '--out',
+                   '--compression'):
         assert option in proc.stdout
 
 
@@ -214,3 +215,82 @@ def test_real_corpus_directory_every_job_a_row():
         else:
             assert math.isfinite(row['summary']['energy_j']['total'])
             assert row['summary']['samples'] <= 2_000_000
+
+
+# --- recordings: batch --out DIR -------------------------------------------------------------
+
+def _bag_contents(directory: Path) -> dict:
+    """Per recording: metadata (paths left out) and every message (topic, time, bytes)."""
+    from mcap.reader import make_reader
+
+    from feed_axis_energy.core import bagio
+    out = {}
+    for bag in sorted(p for p in directory.iterdir()):
+        info = bagio.read_metadata(bag)
+        info.pop('relative_file_paths')
+        for f in info['files']:
+            f.pop('path')
+        (mcap,) = bag.glob('*.mcap')
+        with open(mcap, 'rb') as fh:
+            msgs = sorted((c.topic, m.log_time, m.data) for _, c, m in
+                          make_reader(fh, validate_crcs=True).iter_messages())
+        out[bag.name] = (info, bagio.bag_topics(bag), msgs)
+    return out
+
+
+def test_out_one_recording_per_job_serial_equals_two_processes(progs, tmp_path, capsys):
+    (progs / 'zz_bad.nc').unlink()
+    base = ['batch', str(progs), '--load-kg', '0,17.336', '--rate-hz', '400', '--json',
+            '--quiet']
+    rc1, serial = _json(capsys, base + ['--out', str(tmp_path / 'serial')])
+    rc2, parallel = _json(capsys, base + ['--out', str(tmp_path / 'parallel'), '--jobs', '2'])
+    assert rc1 == rc2 == 0
+    names = ['1-demonstrator_f200-0kg', '2-demonstrator_f200-17.336kg',
+             '3-demonstrator_f400-0kg', '4-demonstrator_f400-17.336kg']
+    assert sorted(p.name for p in (tmp_path / 'serial').iterdir()) == names
+    a, b = _bag_contents(tmp_path / 'serial'), _bag_contents(tmp_path / 'parallel')
+    assert a == b                                  # same names, counts and message bytes
+    for name, (info, topics, _) in a.items():
+        assert topics['/power'][1] > 10
+    for r in serial['results']:
+        assert Path(r['summary']['bag']).parent == tmp_path / 'serial'
+    # the bag holds the job's summary
+    from feed_axis_energy.core import bagio
+    stored = bagio.read_custom_data(tmp_path / 'serial' / names[1], 'feed_axis_energy/summary')
+    summary = dict(serial['results'][1]['summary'])
+    summary.pop('bag')
+    summary.pop('warnings', None)
+    assert stored == summary
+
+
+def test_out_failed_job_leaves_no_recording_and_existing_ones_are_refused(progs, tmp_path,
+                                                                          capsys):
+    out = tmp_path / 'bags'
+    argv = ['batch', str(progs), '--out', str(out), '--quiet', '--jobs', '2', '--json']
+    rc, doc = _json(capsys, argv)
+    assert rc == 1 and doc['failed'] == 1
+    kept = ['1-demonstrator_f200', '2-demonstrator_f400']            # not 3-zz_bad
+    assert sorted(p.name for p in out.iterdir()) == kept
+    before = {p: p.stat().st_mtime_ns for p in out.rglob('*')}
+    # a second run refuses before any job runs: nothing changes
+    assert main(['batch', str(progs), '--out', str(out), '--quiet']) == 1
+    assert 'exists already' in capsys.readouterr().err
+    assert {p: p.stat().st_mtime_ns for p in out.rglob('*')} == before
+    # --force replaces the recordings (bag directories only)
+    rc, doc = _json(capsys, argv + ['--force'])
+    assert rc == 1 and doc['failed'] == 1
+    assert sorted(p.name for p in out.iterdir()) == kept
+    (out / '1-demonstrator_f200' / 'extra').mkdir()         # not a bag any more
+    assert main(['batch', str(progs), '--out', str(out), '--quiet', '--force']) == 1
+    assert 'not an earlier output' in capsys.readouterr().err
+
+
+def test_out_that_only_fails_leaves_no_directory(tmp_path, capsys):
+    bad = tmp_path / 'bad.nc'
+    bad.write_text('G21 G90\nG5.2 X1 Y2\nM30\n')
+    out = tmp_path / 'new' / 'bags'
+    assert main(['batch', str(bad), '--out', str(out), '--quiet']) == 1
+    assert not (tmp_path / 'new').exists()
+    (tmp_path / 'file').write_text('x')
+    assert main(['batch', str(bad), '--out', str(tmp_path / 'file'), '--quiet']) == 1
+    assert 'not a directory' in capsys.readouterr().err

@@ -1,0 +1,109 @@
+"""The recording writer alone: samples per second of ``SimulationBagWriter`` on one core.
+
+Usage: PYTHONPATH=. python bench/bench_record.py [--case demonstrator|contour|both]
+       [--minutes M] [--compression zstd,lz4,none] [--repeat R]
+       [--background]
+
+Simulates M minutes (default 20) of the bench_scale programs (1 axis demonstrator, 3 axis
+contour) once, keeps the chunks in memory, then times only the writing of those chunks as a
+recording (default batch of 100 samples per message, MCAP chunks of 1 MiB) into a temporary
+directory, best of R (default 3), for each compression, in the caller's thread (one core)
+or, with ``--background``, with compression and file writes in a second thread. Printed per
+case and compression: samples simulated (and recorded: a standstill is recorded at 1 Hz),
+wall time of the writer, simulated samples/s by wall and by CPU time (issue 10 target:
+>= 2e6 on one core), bag bytes per simulated sample; and the share of each stage (CDR
+encoding with numpy, compression, CRC, file writes) from a profiled run in one thread.
+"""
+import argparse
+import cProfile
+from pathlib import Path
+import pstats
+import sys
+import tempfile
+import time
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / 'bench'))
+
+from bench_scale import contour_program, demonstrator_program  # noqa: E402
+
+from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
+from feed_axis_energy.core.machine import load_machine  # noqa: E402
+from feed_axis_energy.core.planstream import iter_motion  # noqa: E402
+from feed_axis_energy.core.recording import SimulationBagWriter  # noqa: E402
+from feed_axis_energy.core.simstream import iter_simulation  # noqa: E402
+
+_STAGES = {
+    'CDR encoding': ('cdr.py',),
+    'compression': ("'compress' of", 'lz4'),
+    'CRC': ('zlib.crc32',),
+    'file writes': ("'write' of '_io",),
+}
+
+
+def _chunks(case: str, minutes: float) -> list:
+    text = (demonstrator_program if case == 'demonstrator' else contour_program)(minutes / 60)
+    name = 'demonstrator.yaml' if case == 'demonstrator' else 'three_axis_mill.yaml'
+    machine = load_machine(ROOT / 'config' / name)
+    with tempfile.TemporaryDirectory() as tmp:
+        prog = Path(tmp) / f'{case}.nc'
+        prog.write_text(text)
+        program = load_gcode(prog)
+    motions = iter_motion(program.moves, machine.limits(), options=machine.planner.options(),
+                          file=str(prog))
+    return list(iter_simulation(motions, machine))
+
+
+def _write(chunks: list, path: Path, compression: str, background: bool = False) -> int:
+    """Write the chunks as a recording; return the number of samples recorded."""
+    with SimulationBagWriter(path, compression=compression, background=background) as writer:
+        for chunk in chunks:
+            writer.write(chunk)
+        writer.finish([], summary={}, stamp_s=float(chunks[-1].power.t[-1]))
+    return writer.samples
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--case', choices=('demonstrator', 'contour', 'both'), default='both')
+    ap.add_argument('--minutes', type=float, default=20.0)
+    ap.add_argument('--compression', default='zstd,none')
+    ap.add_argument('--repeat', type=int, default=3)
+    ap.add_argument('--background', action='store_true',
+                    help='compress and write in a second thread (as simulate --out does)')
+    args = ap.parse_args()
+    cases = ('demonstrator', 'contour') if args.case == 'both' else (args.case,)
+    for case in cases:
+        chunks = _chunks(case, args.minutes)
+        n = sum(c.power.t.shape[0] for c in chunks)
+        for compression in args.compression.split(','):
+            best = cpu = float('inf')
+            with tempfile.TemporaryDirectory() as tmp:
+                for i in range(args.repeat):
+                    path = Path(tmp) / f'run{i}'
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    kept = _write(chunks, path, compression, args.background)
+                    best = min(best, time.perf_counter() - t0)
+                    cpu = min(cpu, time.process_time() - c0)
+                    size = sum(f.stat().st_size for f in path.rglob('*') if f.is_file())
+                prof = cProfile.Profile()
+                prof.enable()
+                _write(chunks, Path(tmp) / 'profiled', compression)   # one thread
+                prof.disable()
+            stats = pstats.Stats(prof).stats
+            total = sum(v[2] for v in stats.values())
+            share = {name: sum(v[2] for k, v in stats.items()
+                               if any(p in f'{k[0]}:{k[2]}' for p in pats)) / total
+                     for name, pats in _STAGES.items()}
+            split = ', '.join(f'{name} {100 * s:.0f} %' for name, s in share.items())
+            print(f'{case:12s} {compression:5s} {n:,} samples ({kept:,} recorded)  '
+                  f'writer {best:.3f} s  '
+                  f'{n / best:,.0f} samples/s (CPU {cpu:.3f} s: {n / cpu:,.0f}/s)  '
+                  f'bag {size / n:.1f} B/sample  '
+                  f'(profiled: {split}, rest {100 * (1 - sum(share.values())):.0f} %)',
+                  flush=True)
+
+
+if __name__ == '__main__':
+    main()
