@@ -117,16 +117,21 @@ def run(factory: Callable[[], object], args: list[str] | None, *, name: str) -> 
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     if lifeline.parent_gone():
-        # The launcher died (parent-death signal): the bag is closed and rclpy shut down;
-        # skip the interpreter's teardown (a second or more on a busy machine) so that no
-        # node outlives the launcher by more than moments. Nobody reads our output now.
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError):
-                pass
-        os._exit(code)
+        _exit_now(code)
     return code
+
+
+def _exit_now(code: int) -> None:
+    """The launcher died (parent-death signal) and the node's own data is safe: skip the
+    executor's, rclpy's and the interpreter's teardown (each a second or more on a busy
+    machine) so that no node outlives the launcher by more than moments. Nobody reads our
+    output now; the DDS peers time the participant out."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
 
 
 def _spin(factory: Callable[[], object], *, name: str, stop: list[int]) -> int:
@@ -161,6 +166,8 @@ def _spin(factory: Callable[[], object], *, name: str, stop: list[int]) -> int:
         except Exception as err:  # noqa: B902 - a failed close must still shut down
             logger.error(f'error while closing: {err}')
             code = 1
+        if lifeline.parent_gone():
+            _exit_now(int(code or 0))       # the bag is closed: nothing else to keep
         executor.remove_node(node)
         executor.shutdown(timeout_sec=1.0)
         node.destroy_node()
