@@ -29,6 +29,17 @@ def node_env(domain_id):
 
 
 @pytest.fixture
+def context(domain_id):
+    """An rclpy context of its own on the test's private domain (in-process node tests)."""
+    from rclpy.context import Context
+    import rclpy
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    yield ctx
+    rclpy.shutdown(context=ctx)
+
+
+@pytest.fixture
 def short_program(tmp_path):
     """A 2-second G1 move (100 mm at 50 mm/s) and a short dwell."""
     path = tmp_path / 'short.nc'

@@ -3,19 +3,10 @@ import pytest
 
 rclpy = pytest.importorskip('rclpy')
 from conftest import child_only, IN_CHILD, run_module_in_child  # noqa: E402
-from rclpy.context import Context  # noqa: E402
 from rclpy.lifecycle import TransitionCallbackReturn  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from feed_axis_energy.nodes.gcode_trajectory import GcodeTrajectory  # noqa: E402
-
-
-@pytest.fixture
-def context(domain_id):
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain_id)
-    yield ctx
-    rclpy.shutdown(context=ctx)
 
 
 def _node(context, program):

@@ -6,7 +6,6 @@ import pytest
 
 rclpy = pytest.importorskip('rclpy')
 from conftest import child_only, IN_CHILD, run_module_in_child  # noqa: E402
-from rclpy.context import Context  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from feed_axis_energy.core import bagio  # noqa: E402
@@ -14,14 +13,6 @@ from feed_axis_energy.core.graph import ProgramEnd  # noqa: E402
 from feed_axis_energy.nodes import convert  # noqa: E402
 from feed_axis_energy.nodes.mcap_recorder import McapRecorder  # noqa: E402
 from feed_axis_energy.nodes.qos import latched_qos, stream_qos  # noqa: E402
-
-
-@pytest.fixture
-def context(domain_id):
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain_id)
-    yield ctx
-    rclpy.shutdown(context=ctx)
 
 
 def _batches(n_batches, batch=10):
