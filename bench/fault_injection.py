@@ -38,6 +38,7 @@ import time
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from feed_axis_energy import lifeline  # noqa: E402
 from feed_axis_energy.core import bagio  # noqa: E402
 from feed_axis_energy.core.graph import header_stamp_ns  # noqa: E402
 
@@ -67,28 +68,6 @@ def planned_stamps(program: Path) -> list[int]:
     machine = load_machine(default_machine())
     motion = plan(load_gcode(program), machine.limits(), options=machine.planner.options())
     return seconds_to_ns(motion.t[::100]).tolist()
-
-
-def _children(pid: int) -> list[tuple[int, str]]:
-    kids = []
-    for entry in Path('/proc').iterdir():
-        if entry.name.isdigit():
-            try:
-                stat = (entry / 'stat').read_text()
-                cmd = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
-            except OSError:
-                continue
-            if int(stat.rsplit(')', 1)[1].split()[1]) == pid:
-                kids.append((int(entry.name), cmd))
-    return kids
-
-
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != 'Z'
 
 
 class Probe:
@@ -185,7 +164,8 @@ def run_round(k: int, *, mode: str, target: str, sig: signal.Signals, delay_s: f
     kids: list[tuple[int, str]] = []
     deadline = time.monotonic() + 40
     while time.monotonic() < deadline and launcher.poll() is None:
-        kids = [c for c in _children(launcher.pid) if 'feed_axis_energy.nodes.' in c[1]]
+        kids = [c for c in lifeline.child_processes(launcher.pid)
+                if 'feed_axis_energy.nodes.' in c[1]]
         if len(kids) == 4:
             break
         time.sleep(0.05)
@@ -212,9 +192,9 @@ def run_round(k: int, *, mode: str, target: str, sig: signal.Signals, delay_s: f
         code = launcher.wait()
     t_exit = time.monotonic() - t_kill
     time.sleep(2.0)
-    orphans = [cmd.split('nodes.')[1].split()[0] for pid, cmd in kids if _alive(pid)]
+    orphans = [cmd.split('nodes.')[1].split()[0] for pid, cmd in kids if lifeline.alive(pid)]
     for pid, _ in kids:   # never leave anything running behind
-        if _alive(pid):
+        if lifeline.alive(pid):
             os.kill(pid, signal.SIGKILL)
     finished = any('graph finished' in line for line in log)
     content = read_bag(bag)

@@ -15,12 +15,13 @@ from __future__ import annotations
 
 import ctypes
 import os
+from pathlib import Path
 import signal
 import sys
 from typing import Callable
 
 __all__ = ['ENV', 'PR_SET_PDEATHSIG', 'set_parent_death_signal', 'preexec', 'arm_from_env',
-           'parent_gone']
+           'parent_gone', 'child_processes', 'alive']
 
 ENV = 'FAE_PARENT_PID'
 PR_SET_PDEATHSIG = 1   # <linux/prctl.h>
@@ -82,3 +83,28 @@ def parent_gone() -> bool:
     """True if :data:`ENV` names a parent that is no longer this process's parent."""
     text = os.environ.get(ENV, '')
     return text.isdigit() and os.getppid() != int(text)
+
+
+# -- watching from outside (tests, bench/fault_injection.py): who outlives the launcher ------
+def child_processes(pid: int) -> list[tuple[int, str]]:
+    """``[(pid, cmdline)]`` of the processes whose parent is ``pid`` (Linux ``/proc``)."""
+    kids = []
+    for entry in Path('/proc').iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / 'stat').read_text()
+                cmd = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
+            except OSError:
+                continue
+            if int(stat.rsplit(')', 1)[1].split()[1]) == pid:
+                kids.append((int(entry.name), cmd))
+    return kids
+
+
+def alive(pid: int) -> bool:
+    """Running: a zombie waiting for its new parent to reap it counts as dead."""
+    try:
+        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != 'Z'

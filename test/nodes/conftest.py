@@ -67,18 +67,3 @@ def run_module_in_child(module: str) -> None:
                           timeout=300)
     assert proc.returncode == 0, (f'exit {proc.returncode}\n{proc.stdout[-4000:]}\n'
                                   f'{proc.stderr[-2000:]}')
-
-
-def child_processes(pid: int) -> list[tuple[int, str]]:
-    """``[(pid, cmdline)]`` of the processes whose parent is ``pid`` (from ``/proc``)."""
-    kids = []
-    for entry in Path('/proc').iterdir():
-        if entry.name.isdigit():
-            try:
-                stat = (entry / 'stat').read_text()
-                cmd = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
-            except OSError:
-                continue
-            if int(stat.rsplit(')', 1)[1].split()[1]) == pid:
-                kids.append((int(entry.name), cmd))
-    return kids

@@ -11,7 +11,7 @@ import pytest
 
 pytest.importorskip('rclpy')
 
-from conftest import child_processes  # noqa: E402
+from feed_axis_energy import lifeline  # noqa: E402
 from feed_axis_energy.core import bagio  # noqa: E402
 from feed_axis_energy.core.energy import energy_by_line  # noqa: E402
 from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
@@ -280,7 +280,7 @@ def test_launcher_stops_everything_when_a_node_dies(tmp_path, node_env, domain_i
         deadline = time.monotonic() + 20
         kids = []
         while time.monotonic() < deadline:
-            kids = child_processes(launcher.pid)
+            kids = lifeline.child_processes(launcher.pid)
             if len(kids) == 3:
                 break
             time.sleep(0.2)

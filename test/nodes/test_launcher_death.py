@@ -11,20 +11,10 @@ import pytest
 
 pytest.importorskip('rclpy')
 
-from conftest import child_processes  # noqa: E402
 from feed_axis_energy import lifeline  # noqa: E402
 from feed_axis_energy.core import bagio  # noqa: E402
 
 PY = sys.executable
-
-
-def _alive(pid):
-    """Running (a zombie waiting for its new parent to reap it counts as dead)."""
-    try:
-        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != 'Z'
 
 
 def _start_launcher(tmp_path, node_env, domain_id, *, record):
@@ -47,7 +37,8 @@ def _start_launcher(tmp_path, node_env, domain_id, *, record):
     deadline = time.monotonic() + 30
     kids = []
     while time.monotonic() < deadline:
-        kids = [k for k in child_processes(launcher.pid) if 'feed_axis_energy.nodes.' in k[1]]
+        kids = [k for k in lifeline.child_processes(launcher.pid)
+                if 'feed_axis_energy.nodes.' in k[1]]
         if len(kids) == want:
             break
         time.sleep(0.1)
@@ -66,13 +57,13 @@ def test_no_node_survives_the_launcher_by_2_s(tmp_path, node_env, domain_id, sig
         os.kill(launcher.pid, sig)
         t_kill = time.monotonic()
         launcher.wait(timeout=10)
-        while any(_alive(pid) for pid, _ in kids) and time.monotonic() - t_kill < 2.0:
+        while any(lifeline.alive(pid) for pid, _ in kids) and time.monotonic() - t_kill < 2.0:
             time.sleep(0.05)
-        survivors = [cmd for pid, cmd in kids if _alive(pid)]
+        survivors = [cmd for pid, cmd in kids if lifeline.alive(pid)]
     finally:
         launcher.kill()
         for pid, _ in kids:   # never leave a node running, even when the test fails
-            if _alive(pid):
+            if lifeline.alive(pid):
                 os.kill(pid, signal.SIGKILL)
     assert survivors == [], f'alive 2 s after {sig.name} of the launcher: {survivors}'
     # The recorder got SIGTERM and closed its bag: it is complete and readable.
@@ -97,13 +88,13 @@ def test_preexec_child_gets_sigterm_when_its_parent_dies(tmp_path):
             assert time.monotonic() < deadline
             time.sleep(0.05)
         grandchild = int(pid_file.read_text())
-        assert _alive(grandchild)
+        assert lifeline.alive(grandchild)
         middle.kill()
         middle.wait()
         deadline = time.monotonic() + 2.0
-        while _alive(grandchild) and time.monotonic() < deadline:
+        while lifeline.alive(grandchild) and time.monotonic() < deadline:
             time.sleep(0.02)
-        assert not _alive(grandchild)
+        assert not lifeline.alive(grandchild)
     finally:
         middle.kill()
 
@@ -139,7 +130,7 @@ def test_recorder_stopped_alone_fails_the_launch_before_the_stall_timeout(
     finally:
         launcher.kill()
         for pid, _ in kids:
-            if _alive(pid):
+            if lifeline.alive(pid):
                 os.kill(pid, signal.SIGKILL)
     assert code == 1
     assert took < 25.0   # grace 10 s + the stop; the stall timeout alone is 30 s
