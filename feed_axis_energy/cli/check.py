@@ -128,11 +128,9 @@ def program_problems(path: Path, *, machine: Any, keywords: dict[str, Any],
     # kept and checking goes on with the next line (up to MAX_ERRORS).
     stream = iter_moves(path, **keywords, max_errors=MAX_ERRORS)
     checker = MoveChecker(file=name, limits=_limits(machine, max_dwell_s))
-    add = checker.add
     errors: list[Any] = []
     try:
-        for move in stream:
-            add(move)
+        checker.add_all(stream)     # the moves before a fatal error are checked too
     except GcodeError as err:
         errors.append(err)
     errors = stream.errors + errors

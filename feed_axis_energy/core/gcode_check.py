@@ -216,6 +216,20 @@ class MoveChecker:
             self.add(move)
         self._add_run(run)
 
+    def add_all(self, moves: Iterable[Move], *, batch: int = 4096) -> None:
+        """Check the moves of any iterable (a stream) in batches of ``batch``
+        (:meth:`add_many`). If the iterable raises (a parse error part-way), the moves it
+        gave before are checked, then the error propagates."""
+        taken: list[Move] = []
+        try:
+            for move in moves:
+                taken.append(move)
+                if len(taken) >= batch:
+                    self.add_many(taken)
+                    taken = []
+        finally:
+            self.add_many(taken)
+
     def _add_run(self, run: list[Move]) -> None:
         if len(run) < _MIN_ARRAY_RUN:
             for move in run:
@@ -378,7 +392,5 @@ def check_moves(moves: Iterable[Move], *, file: str, limits: CheckLimits,
         The warnings and the program's :class:`~.gcode_stats.ProgramStats`.
     """
     checker = MoveChecker(file=file, limits=limits, line_text=line_text)
-    add = checker.add
-    for m in moves:
-        add(m)
+    checker.add_all(moves)
     return checker.problems(), checker.result()

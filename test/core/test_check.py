@@ -152,3 +152,22 @@ def test_batches_of_moves_give_the_warnings_of_one_by_one(batch):
                                         a.final_position, a.bbox_min, a.bbox_max)
     assert b.feed_length_m == pytest.approx(a.feed_length_m, rel=1e-14)
     assert b.traverse_length_m == pytest.approx(a.traverse_length_m, rel=1e-14)
+
+
+def test_add_all_checks_the_moves_taken_before_the_stream_fails():
+    from feed_axis_energy.core.gcode_check import MoveChecker
+    moves = parse_gcode(_batch_program(), file='b.nc').moves
+    cut = len(moves) - 5                    # the travel and feed warnings come before
+    ref = MoveChecker(file='b.nc', limits=LIMITS)
+    for mv in moves[:cut]:
+        ref.add(mv)
+
+    def failing():
+        yield from moves[:cut]
+        raise GcodeError('bad line', file='b.nc', line=999, column=1)
+    got = MoveChecker(file='b.nc', limits=LIMITS)
+    with pytest.raises(GcodeError, match='bad line'):
+        got.add_all(failing(), batch=50)
+    assert {p.kind for p in ref.problems()} >= {'travel', 'feed'}
+    assert [str(p) for p in got.problems()] == [str(p) for p in ref.problems()]
+    assert got.result().n_feed_moves == ref.result().n_feed_moves
