@@ -177,7 +177,7 @@ def warning_texts(path: Path, program: Any, machine: Any) -> list[str]:
 
 def sanity_checker(path: Path, machine: Any) -> Any:
     """A :class:`~feed_axis_energy.core.gcode_check.MoveChecker` with ``check``'s default
-    limits on ``machine``: feed it moves one by one (``add``), e.g. while they stream."""
+    limits on ``machine``: feed it moves (``add``, ``add_many``), e.g. while they stream."""
     from feed_axis_energy.core.gcode_check import DEFAULT_MAX_DWELL_S, MoveChecker
     return MoveChecker(file=str(path), limits=_limits(machine, DEFAULT_MAX_DWELL_S))
 
