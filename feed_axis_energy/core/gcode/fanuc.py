@@ -48,15 +48,12 @@ class FanucCalls:
             if abs(p - round(p)) > 1e-4:
                 raise _err(f'M98 P{p:g}: subprogram number must be an integer', fname,
                            lineno, r.raw, 'P')
-            repeat = d.get('L', 1.0)
-            if repeat < 0 or abs(repeat - round(repeat)) > 1e-4:
-                raise _err(f'M98 L{repeat:g}: repeat count must be a whole number >= 0',
-                           fname, lineno, r.raw, 'L')
+            count = _run_count('M98', d, fname, lineno, r.raw)
             self._apply(assigns)
-            if round(repeat) == 0:
+            if count == 0:
                 return None
             return self._call(fr, str(int(round(p))), None, lineno, kind='m98',
-                              repeats=int(round(repeat)) - 1, raw=r.raw)
+                              repeats=count - 1, raw=r.raw)
         # M99
         if fr.kind == 'm98':
             self._apply(assigns)
@@ -75,12 +72,9 @@ class FanucCalls:
         p = d.get('P')
         if p is None or abs(p - round(p)) > 1e-4:
             raise _err('M97 needs P<sequence number> (an integer)', fname, lineno, r.raw, 'M')
-        repeat = d.get('L', 1.0)
-        if repeat < 0 or abs(repeat - round(repeat)) > 1e-4:
-            raise _err(f'M97 L{repeat:g}: repeat count must be a whole number >= 0', fname,
-                       lineno, r.raw, 'L')
+        count = _run_count('M97', d, fname, lineno, r.raw)
         self._apply(assigns)
-        if round(repeat) == 0:
+        if count == 0:
             return None
         if len(self.frames) > MAX_CALL_DEPTH:
             raise _err(f'calls nested more than {MAX_CALL_DEPTH} deep', fname, lineno,
@@ -90,7 +84,7 @@ class FanucCalls:
         saved = self.params.enter_call(None)
         ml = lineno if fr.file is self.main else fr.main_line
         new = Frame(fr.file, idx, kind='m98', name=f'N{target}', saved=saved,
-                    repeats=int(round(repeat)) - 1,
+                    repeats=count - 1,
                     main_line=None if fr.file is self.main else ml, call_line=lineno)
         self.frames.append(new)
         return SWITCH
@@ -103,16 +97,13 @@ class FanucCalls:
         p = d.get('P')
         if p is None or abs(p - round(p)) > 1e-4:
             raise _err('G65 needs P<program number> (an integer)', fname, lineno, r.raw, 'G')
-        repeat = d.get('L', 1.0)
-        if repeat < 0 or abs(repeat - round(repeat)) > 1e-4:
-            raise _err(f'G65 L{repeat:g}: repeat count must be a whole number >= 0', fname,
-                       lineno, r.raw, 'L')
+        count = _run_count('G65', d, fname, lineno, r.raw)
         args = g65_arguments(words, r)
         self._apply(assigns)
-        if round(repeat) == 0:
+        if count == 0:
             return None
         return self._call(fr, str(int(round(p))), args, lineno, kind='m98',
-                          repeats=int(round(repeat)) - 1, raw=r.raw)
+                          repeats=count - 1, raw=r.raw)
 
     def _return_m98(self, fr: Frame, lineno: int) -> Any:
         """M99 in a subprogram: run it again for ``L`` repeats, else return."""
@@ -130,6 +121,15 @@ class FanucCalls:
 def fanuc_m(words: list[tuple[str, float]]) -> bool:
     """Whether a line holds M97, M98 or M99."""
     return any(letter == 'M' and (v == 98.0 or v == 99.0 or v == 97.0) for letter, v in words)
+
+
+def _run_count(code: str, d: dict[str, float], file: str, line: int, raw: str) -> int:
+    """How many times an M98/M97/G65 call runs its subprogram: its L word (1 without)."""
+    repeat = d.get('L', 1.0)
+    if repeat < 0 or abs(repeat - round(repeat)) > 1e-4:
+        raise _err(f'{code} L{repeat:g}: repeat count must be a whole number >= 0', file,
+                   line, raw, 'L')
+    return int(round(repeat))
 
 
 def _err(msg: str, file: str, line: int, raw: str, letter: str) -> GcodeError:
