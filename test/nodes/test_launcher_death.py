@@ -17,6 +17,21 @@ from feed_axis_energy.core import bagio  # noqa: E402
 PY = sys.executable
 
 
+def _wait_for_power(bag, samples=100, timeout=30.0):
+    """Wait until the recorder's flushed files hold ``samples`` power samples (the bag is
+    readable at every moment), so the kill comes after data has reached the recorder, however
+    slowly the graph starts on a busy machine."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            if bagio.read_series(bag, bagio.TOPIC_POWER).t.shape[0] >= samples:
+                return
+        except Exception:  # noqa: B902 - not written yet, or a file being renamed
+            pass
+        time.sleep(0.1)
+    raise AssertionError(f'no {samples} power samples in the recording after {timeout} s')
+
+
 def _start_launcher(tmp_path, node_env, domain_id, *, record):
     prog = tmp_path / 'long.nc'
     prog.write_text('G21 G90 G94 G61\nG0 X0\nG1 X300 F600\n')   # 30 s in real time
@@ -53,7 +68,7 @@ def test_no_node_survives_the_launcher_by_2_s(tmp_path, node_env, domain_id, sig
     try:
         assert len(kids) == want, kids
         assert streaming.wait(timeout=30)
-        time.sleep(1.5)   # 0.5 s start delay, then about a second of streaming
+        _wait_for_power(bag)
         os.kill(launcher.pid, sig)
         t_kill = time.monotonic()
         launcher.wait(timeout=10)
@@ -121,7 +136,7 @@ def test_recorder_stopped_alone_fails_the_launch_before_the_stall_timeout(
     try:
         assert len(kids) == want, kids
         assert streaming.wait(timeout=30)
-        time.sleep(1.5)
+        _wait_for_power(bag)
         rec = next(pid for pid, cmd in kids if 'nodes.mcap_recorder' in cmd)
         os.kill(rec, signal.SIGTERM)
         t_kill = time.monotonic()
