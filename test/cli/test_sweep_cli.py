@@ -101,3 +101,14 @@ def test_failed_program_is_a_row(tmp_path, capsys):
     assert rc == 1 and doc['failed'] == 3
     assert all(r['status'] == 'failed' and 'bad.nc:3' in r['error'] for r in doc['rows'])
     assert all('energy_j' not in r for r in doc['rows'])
+
+
+def test_two_processes_equal_serial(capsys):
+    argv = ['sweep', str(PROGRAMS / 'demonstrator_f300.nc'),
+            str(PROGRAMS / 'demonstrator_f500.nc'),
+            '--vary', 'jerk*=0.5,2', '--vary', 'load_kg=0,17.336', '--rate-hz', '250', '--json',
+            '--quiet']
+    rc1, serial = _json(capsys, argv)
+    rc2, parallel = _json(capsys, argv + ['--jobs', '2'])
+    assert rc1 == rc2 == 0 and serial['runs'] == 10
+    assert serial == parallel
