@@ -22,6 +22,7 @@ SUBCOMMANDS = {
     'simulate': 'predict power and energy of every feed axis for an NC program',
     'check': 'list the errors and warnings of NC programs on a machine (no simulation)',
     'batch': 'simulate many programs x machines x loads in parallel; one table, JSON or CSV',
+    'sweep': 'what-if: energy against cycle time on variants of the machine and run',
     'demo': "simulate the paper's demonstrator at its 3 loads and 5 feeds",
     'compare': 'compare measured runs of a campaign with the simulation (Table 1)',
     'launch': 'run the ROS 2 node graph on an NC program (separate processes)',

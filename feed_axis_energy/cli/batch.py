@@ -183,8 +183,9 @@ def _check_out(args: argparse.Namespace, jobs: list) -> list[Path]:
 class _JobProgress:
     """``[batch] 12/100 jobs, 1 failed, 3.4 s`` on stderr, at most every 0.5 s (and at the end)."""
 
-    def __init__(self, *, enabled: bool, interval_s: float = 0.5):
+    def __init__(self, *, enabled: bool, interval_s: float = 0.5, label: str = 'batch'):
         self.enabled = enabled
+        self.label = label
         self.interval_s = interval_s
         self.t0 = time.monotonic()
         self._last = -1.0e9
@@ -199,7 +200,7 @@ class _JobProgress:
         tty = sys.stderr.isatty()
         end = '\n' if done == total or not tty else ''
         start = '\r' if tty else ''
-        sys.stderr.write(f'{start}[batch] {done}/{total} jobs, '
+        sys.stderr.write(f'{start}[{self.label}] {done}/{total} jobs, '
                          f'{self.failed} failed, {now - self.t0:.1f} s{end}')
         sys.stderr.flush()
 

@@ -18,7 +18,6 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 import concurrent.futures as cf
 from dataclasses import dataclass, field, replace
-import functools
 import math
 from typing import Any
 
@@ -68,6 +67,11 @@ class BatchJob:
         Replace an existing recording at ``out`` (only a bag directory).
     compression
         MCAP chunk compression of the recording: ``'zstd'`` or ``'none'``.
+    overrides
+        Changes of the machine config, ``(dotted key, value, relative)`` as in
+        :func:`.sweep.apply_overrides` (a what-if variant); empty: the file as it is.
+    feed_override, rapid_override
+        Factors on the programmed feed and on the rapid speed (:func:`.sweep.override_moves`).
     """
 
     index: int
@@ -83,6 +87,9 @@ class BatchJob:
     out: str = ''
     force: bool = False
     compression: str = 'zstd'
+    overrides: tuple[tuple[str, Any, bool], ...] = ()
+    feed_override: float = 1.0
+    rapid_override: float = 1.0
 
     def __post_init__(self) -> None:
         where = f'job {self.index + 1}'
@@ -102,6 +109,10 @@ class BatchJob:
             msg = (f'compression must be one of {", ".join(COMPRESSIONS)}, got '
                    f'{shorten(self.compression)!r}')
             raise ConfigError(msg, file=where, key='compression')
+        if not (0.0 < self.feed_override <= 10.0 and 0.0 < self.rapid_override <= 1.0):
+            msg = (f'feed override must be > 0 and <= 10, rapid override > 0 and <= 1, got '
+                   f'{self.feed_override!r} and {self.rapid_override!r}')
+            raise ConfigError(msg, file=where, key='override')
 
 
 @dataclass(frozen=True)
@@ -151,11 +162,10 @@ class JobResult:
         return out
 
 
-@functools.lru_cache(maxsize=16)
-def _machine(path: str):
-    """Load a machine config once per process (a campaign reuses a few machines)."""
-    from .machine import load_machine
-    return load_machine(path)
+def _machine(job: BatchJob):
+    """The job's machine (each file and variant loaded once per process)."""
+    from .sweep import variant_machine
+    return variant_machine(job.machine_path, job.overrides)
 
 
 def _options(job: BatchJob, machine):
@@ -192,9 +202,13 @@ def _simulate(job: BatchJob) -> tuple[dict[str, Any], list[str]]:
 def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
     """Simulate one job; write its recording to the new directory ``bag`` unless None."""
     from .simstream import simulate_stream, streamable
-    machine = _machine(job.machine_path)
+    machine = _machine(job)
     options = _options(job, machine)
     if job.program_path.lower().endswith('.csv'):
+        if job.feed_override != 1.0 or job.rapid_override != 1.0:
+            msg = ('feed and rapid overrides apply to NC programs, not to a trajectory CSV '
+                   '(its motion is given)')
+            raise ConfigError(msg, file=job.program_path)
         from .measured.trajcsv import load_trajectory_csv
         from .simulate import simulate_motion, summarize
         motion = load_trajectory_csv(job.program_path, axes=machine.axis_names)
@@ -210,6 +224,10 @@ def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
     program = load_gcode(job.program_path, home=machine.home_point())
     warnings = list(program.warnings)
     limits = machine.limits()
+    if job.feed_override != 1.0 or job.rapid_override != 1.0:
+        from .sweep import override_moves
+        program = replace(program, moves=tuple(override_moves(
+            program.moves, feed=job.feed_override, rapid=job.rapid_override, limits=limits)))
     if job.max_samples:
         from .planstream import estimate_plan
         est = estimate_plan(program.moves, limits, options=options, file=program.file)

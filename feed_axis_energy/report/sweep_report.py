@@ -1,0 +1,163 @@
+"""The report of ``feed-axis-energy sweep``: one self-contained ``index.html``.
+
+For each program: a one-line answer (the variant with the least energy, against the
+baseline), energy against cycle time with the Pareto front joined and the baseline marked
+(a PNG embedded as a ``data:`` URI, so the page opens offline and alone), and the table.
+"""
+from __future__ import annotations
+
+import base64
+from html import escape
+import io
+import math
+import os
+from pathlib import Path
+from typing import Sequence
+
+from feed_axis_energy.core.sweep import SweepRow
+
+__all__ = ['write_sweep_report', 'render_sweep']
+
+_CSS = """
+body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 60em; color: #222;
+       padding: 0 1em; }
+.scroll { overflow-x: auto; }
+table { border-collapse: collapse; margin: 0.6em 0 1.2em; font-size: 0.9em; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; }
+th { background: #f1f3f5; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+tr.front td { background: #ebfbee; }
+tr.base td { font-style: italic; }
+img { max-width: 100%; height: auto; }
+.answer { font-size: 1.1em; background: #f8f9fa; padding: 0.5em 0.8em; }
+.note { color: #555; font-size: 0.9em; }
+@media print { body { max-width: none; margin: 0; } section { break-inside: avoid; } }
+"""
+
+
+def _variant(row: SweepRow, names: Sequence[str]) -> str:
+    if row.values is None:
+        return 'the machine as configured'
+    return ', '.join(f'{n}={v:g}' if isinstance(v, float) else f'{n}={v}'
+                     for n, v in zip(names, row.values))
+
+
+def _answer(rows: Sequence[SweepRow], names: Sequence[str]) -> str:
+    ok = [r for r in rows if r.ok]
+    if not ok:
+        return 'every run of this program failed (errors in the table)'
+    best = min(ok, key=lambda r: (r.energy_j, r.cycle_time_s))
+    text = (f'least energy: {best.energy_j:,.1f} J per run ({best.energy_per_part_j:,.1f} J per '
+            f'part) in {best.cycle_time_s:,.2f} s with {escape(_variant(best, names))}')
+    if not best.baseline and math.isfinite(best.d_energy_pct):
+        text += (f': {best.d_energy_pct:+.1f} % energy and {best.d_time_pct:+.1f} % time '
+                 f'against the baseline')
+    return text
+
+
+def _plot(rows: Sequence[SweepRow], title: str) -> str:
+    """Energy against cycle time as a PNG ``data:`` URI (Agg canvas, no display)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    ok = [r for r in rows if r.ok]
+    fig = Figure(figsize=(7.0, 4.2))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.scatter([r.cycle_time_s for r in ok], [r.energy_j for r in ok], s=18,
+               color='#868e96', label='variant')
+    front = sorted((r for r in ok if r.pareto), key=lambda r: r.cycle_time_s)
+    if front:
+        ax.plot([r.cycle_time_s for r in front], [r.energy_j for r in front], '-o',
+                color='#2b8a3e', markersize=5, label='Pareto front')
+    base = [r for r in ok if r.baseline]
+    if base:
+        ax.scatter([base[0].cycle_time_s], [base[0].energy_j], marker='*', s=160,
+                   color='#e8590c', zorder=3, label='baseline')
+    ax.set_xlabel('cycle time [s]')
+    ax.set_ylabel('energy [J]')
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc='best', fontsize=8)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format='png', dpi=100)
+    return 'data:image/png;base64,' + base64.b64encode(buf.getvalue()).decode('ascii')
+
+
+def _num(value: float, fmt: str) -> str:
+    return format(value, fmt) if math.isfinite(value) else '&ndash;'
+
+
+def _table(rows: Sequence[SweepRow], names: Sequence[str]) -> str:
+    head = list(names) + ['cycle time [s]', 'energy [J]', 'energy per part [J]',
+                          'energy change [%]', 'time change [%]', 'on the front']
+    out = ['<div class="scroll"><table><tr>' + ''.join(f'<th>{escape(h)}</th>' for h in head)
+           + '</tr>']
+    for r in rows:
+        cls = ' class="base"' if r.baseline else (' class="front"' if r.pareto else '')
+        if r.values is None:
+            cells = [f'<td colspan="{len(names)}">baseline (as configured)</td>'] if names else []
+        else:
+            cells = [f'<td class="num">{v:g}</td>' if isinstance(v, float)
+                     else f'<td>{escape(str(v))}</td>' for v in r.values]
+        if r.ok:
+            cells += [f'<td class="num">{_num(r.cycle_time_s, ",.3f")}</td>',
+                      f'<td class="num">{_num(r.energy_j, ",.1f")}</td>',
+                      f'<td class="num">{_num(r.energy_per_part_j, ",.1f")}</td>',
+                      f'<td class="num">{_num(r.d_energy_pct, "+.1f")}</td>',
+                      f'<td class="num">{_num(r.d_time_pct, "+.1f")}</td>',
+                      f'<td>{"yes" if r.pareto else ""}</td>']
+        else:
+            cells += [f'<td colspan="6">failed: {escape(r.error[:300])}</td>']
+        out.append(f'<tr{cls}>' + ''.join(cells) + '</tr>')
+    out.append('</table></div>')
+    return '\n'.join(out)
+
+
+def render_sweep(rows: Sequence[SweepRow], names: Sequence[str]) -> str:
+    """The HTML page (plots embedded)."""
+    programs: dict[str, list[SweepRow]] = {}
+    for r in rows:
+        programs.setdefault(r.program, []).append(r)
+    parts = ['<!DOCTYPE html>', '<html lang="en"><head><meta charset="utf-8">',
+             '<meta name="viewport" content="width=device-width, initial-scale=1">',
+             '<title>feed-axis-energy sweep</title>', f'<style>{_CSS}</style></head><body>',
+             '<h1>What-if sweep: energy against cycle time</h1>',
+             f'<p class="note">{len(rows)} runs of {len(programs)} program(s); varied: '
+             f'{escape(", ".join(names))}. A variant is on the Pareto front when no other run '
+             'of the same program needs at most as much energy and time and less of one. '
+             'Energy is the mechanical energy of all feed axes (braking as the machine config '
+             'says).</p>']
+    for program, prog_rows in programs.items():
+        parts.append(f'<section><h2>{escape(program)}</h2>')
+        parts.append(f'<p class="answer">{_answer(prog_rows, names)}</p>')
+        if any(r.ok for r in prog_rows):
+            uri = _plot(prog_rows, program[-80:])
+            parts.append(f'<img alt="energy against cycle time of {escape(program)}" '
+                         f'src="{uri}">')
+        parts.append(_table(prog_rows, names))
+        parts.append('</section>')
+    parts.append('</body></html>')
+    return '\n'.join(parts)
+
+
+def write_sweep_report(rows: Sequence[SweepRow], names: Sequence[str],
+                       out_dir: str | os.PathLike[str], *, force: bool = False) -> Path:
+    """Write ``index.html`` into ``out_dir``, all or nothing (as the compare report).
+
+    Returns
+    -------
+    pathlib.Path
+        The ``index.html`` file.
+
+    Raises
+    ------
+    OutputError
+        ``out_dir`` exists (without ``force``), or must not be written.
+    """
+    from feed_axis_energy.report import staged_report
+    out = Path(out_dir)
+    text = render_sweep(rows, names)
+    with staged_report(out, written_by='feed-axis-energy sweep --report', force=force) as tmp:
+        (tmp / 'index.html').write_text(text, encoding='utf-8')
+    return out / 'index.html'
