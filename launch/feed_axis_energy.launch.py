@@ -79,16 +79,18 @@ def _graph(context):
     ns = arg['namespace']
     # the nodes are this process's children: tie their lives to it (lifeline.arm_from_env)
     lifeline = {'FAE_PARENT_PID': str(os.getpid())}
-    shared = {'namespace': ns, 'output': 'screen', 'additional_env': lifeline}
+    shared = {'namespace': ns, 'output': 'screen'}
     energy = Node(package=PACKAGE, executable='energy_estimator', name='energy_estimator',
-                  parameters=[params, {**common, **load, 'exit_at_end': True}], **shared)
+                  parameters=[params, {**common, **load, 'exit_at_end': True}],
+                  additional_env=lifeline, **shared)
     nodes = [
         LifecycleNode(package=PACKAGE, executable='gcode_trajectory', name='gcode_trajectory',
                       parameters=[params, {**common, 'program': program, 'mode': arg['mode'],
                                            'autostart': _flag(arg['autostart'], 'autostart'),
-                                           'ack_recorder': bool(record)}], **shared),
+                                           'ack_recorder': bool(record)}],
+                      additional_env=lifeline, **shared),
         Node(package=PACKAGE, executable='axis_dynamics', name='axis_dynamics',
-             parameters=[params, {**common, **load}], **shared),
+             parameters=[params, {**common, **load}], additional_env=lifeline, **shared),
         energy,
     ]
     if replay:
@@ -97,7 +99,8 @@ def _graph(context):
                           parameters=[params, {'use_sim_time': common['use_sim_time'],
                                                'bag': replay,
                                                'rate': float(arg['replay_rate'])}],
-                          remappings=[('program/end', 'measured/end')], **shared))
+                          remappings=[('program/end', 'measured/end')],
+                          additional_env=lifeline, **shared))
     done = energy
     if record:
         recorder = {'use_sim_time': common['use_sim_time'], 'output': record,
@@ -105,7 +108,7 @@ def _graph(context):
         if replay:
             recorder['topics'] = _recorder_topics(params)
         done = Node(package=PACKAGE, executable='mcap_recorder', name='mcap_recorder',
-                    parameters=[params, recorder], **shared)
+                    parameters=[params, recorder], additional_env=lifeline, **shared)
         nodes.insert(0, done)
     nodes.append(RegisterEventHandler(OnProcessExit(
         target_action=done, on_exit=[EmitEvent(event=Shutdown(reason='program finished'))])))
