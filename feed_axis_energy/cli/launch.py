@@ -36,6 +36,7 @@ __all__ = ['add_parser', 'run', 'node_command', 'params_yaml', 'write_params_fil
 
 NODES = ('mcap_recorder', 'axis_dynamics', 'energy_estimator', 'gcode_trajectory')
 _IDENTIFIER = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
+_PRIVATE_PREFIX = 'fae-launch-'
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -123,6 +124,30 @@ def write_params_file(directory: Path, params: dict[str, dict[str, object]]) -> 
     with os.fdopen(fd, 'w', encoding='utf-8') as stream:
         stream.write(params_yaml(params))
     return path
+
+
+def remove_stale_parameter_dirs() -> int:
+    """Remove parameter directories of launchers that are gone (a SIGKILL skips ``finally``).
+
+    Only directories this user owns, named ``fae-launch-<pid>-*`` with no running ``<pid>``.
+    """
+    removed = 0
+    base = Path(tempfile.gettempdir())
+    try:
+        entries = list(base.glob(f'{_PRIVATE_PREFIX}*-*'))
+    except OSError:
+        return 0
+    for path in entries:
+        pid = path.name[len(_PRIVATE_PREFIX):].split('-', 1)[0]
+        try:
+            owned = path.lstat().st_uid == os.getuid() and path.is_dir() and not path.is_symlink()
+        except OSError:
+            continue
+        if not pid.isdigit() or not owned or lifeline.alive(int(pid)):
+            continue
+        shutil.rmtree(path, ignore_errors=True)
+        removed += 1
+    return removed
 
 
 def graph_parameters(args: argparse.Namespace) -> dict[str, dict[str, object]]:
@@ -341,7 +366,8 @@ def run(args: argparse.Namespace) -> int:
         env['ROS_DOMAIN_ID'] = str(args.domain_id)
     finishers = {'energy_estimator'} | ({'mcap_recorder'} if args.record is not None else set())
     # the options' parameter file lives in a private directory (mode 0700) for this run only
-    private = Path(tempfile.mkdtemp(prefix='fae-launch-'))
+    remove_stale_parameter_dirs()
+    private = Path(tempfile.mkdtemp(prefix=f'{_PRIVATE_PREFIX}{os.getpid()}-'))
     try:
         overrides = write_params_file(private, graph_parameters(args))
         state, reason, stop_reason, t0 = _supervise(

@@ -5,6 +5,7 @@ one holding ``: `` ended in a traceback. The parameter file quotes every string.
 """
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -75,3 +76,19 @@ def test_launch_rejects_non_finite_load(tmp_path, node_env):
         env=node_env, capture_output=True, text=True, timeout=60)
     assert out.returncode == 2
     assert '--load-kg' in out.stderr
+
+
+def test_stale_parameter_dirs_of_dead_launchers_removed(tmp_path, monkeypatch):
+    from feed_axis_energy.cli import launch
+    monkeypatch.setattr(launch.tempfile, 'gettempdir', lambda: str(tmp_path))
+    dead = subprocess.run([sys.executable, '-c', 'import os; print(os.getpid())'],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    stale = tmp_path / f'fae-launch-{dead}-abc'
+    stale.mkdir()
+    (stale / 'launch_params.yaml').write_text('x: 1\n')
+    mine = tmp_path / f'fae-launch-{os.getpid()}-def'     # a running launcher's: kept
+    mine.mkdir()
+    other = tmp_path / 'fae-launch-notapid-x'
+    other.mkdir()
+    assert launch.remove_stale_parameter_dirs() == 1
+    assert not stale.exists() and mine.is_dir() and other.is_dir()
