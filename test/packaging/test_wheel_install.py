@@ -61,11 +61,14 @@ def fresh_venv(tmp_path_factory) -> Path:
     wheels = sorted(dist.glob('feed_axis_energy-*.whl'))
     assert len(wheels) == 1, built.stdout
     base_python = getattr(sys, '_base_executable', None) or 'python3'
-    made = _run([base_python, '-m', 'venv', str(venv)], cwd=base)
+    # no PYTHONPATH: with the clone on it, pip would take a feed_axis_energy.egg-info there
+    # (left by an earlier build) for an installed copy and install nothing
+    env = _clean_env(venv)
+    made = _run([base_python, '-m', 'venv', str(venv)], cwd=base, env=env)
     assert made.returncode == 0, made.stderr
     installed = _run([str(venv / 'bin' / 'python'), '-m', 'pip', 'install', '--quiet',
                       '--disable-pip-version-check', f'{wheels[0]}[ros]',
-                      '-c', str(ROOT / 'constraints.txt')], cwd=base, timeout=1200)
+                      '-c', str(ROOT / 'constraints.txt')], cwd=base, timeout=1200, env=env)
     if installed.returncode != 0:
         tail = installed.stderr.strip()[-400:]
         if any(hint in installed.stderr for hint in NETWORK_HINTS):
