@@ -1,24 +1,48 @@
-"""Install script for the feed_axis_energy ament_python package."""
+"""Install script for the feed_axis_energy ament_python package.
+
+The shipped configs (``config/``: machine and node parameter YAML, campaigns, example
+programs) are installed twice, once for each way the package is found at run time
+(``feed_axis_energy.paths``): as package data ``feed_axis_energy/config/`` inside the wheel
+(``importlib.resources``; what ``pip install .`` gives) and, for ROS 2, under
+``share/feed_axis_energy/config`` (the ament index; what colcon gives, beside ``package.xml``
+and the launch file).
+"""
 from glob import glob
 
 from setuptools import find_packages, setup
 
 PACKAGE = 'feed_axis_energy'
+CONFIG_PATTERNS = ['*.yaml', 'programs/*.nc', 'campaigns/*.yaml']
+
+# Runtime dependencies of the package itself (pins: requirements.txt, constraints.txt).
+# zstandard and lz4 compress MCAP chunks (core/mcapstream.py); matplotlib draws the reports.
+INSTALL_REQUIRES = ['numpy', 'scipy', 'PyYAML', 'rosbags', 'mcap', 'zstandard', 'lz4',
+                    'matplotlib']
+# The nodes need rclpy and the message packages. A ROS 2 install provides them (package.xml);
+# without one, the `ros` extra brings the ros-* wheels that requirements.txt pins.
+ROS_WHEELS = ['ros-rclpy[fastrtps]', 'ros-std-msgs', 'ros-builtin-interfaces',
+              'ros-diagnostic-msgs', 'ros-rosgraph-msgs', 'ros-trajectory-msgs',
+              'ros-lifecycle-msgs', 'ros-ament-index-python']
 
 setup(
     name=PACKAGE,
     version='0.1.0',
-    packages=find_packages(exclude=['test', 'test.*']),
+    packages=find_packages(exclude=['test', 'test.*']) + [PACKAGE + '.config'],
+    # config/ is the package data directory feed_axis_energy/config of an installed package
+    package_dir={PACKAGE + '.config': 'config'},
+    package_data={PACKAGE + '.config': CONFIG_PATTERNS},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
         ('share/' + PACKAGE + '/config/programs', glob('config/programs/*.nc')),
+        ('share/' + PACKAGE + '/config/campaigns', glob('config/campaigns/*.yaml')),
         ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
     ],
-    package_data={PACKAGE: ['data/*.yaml', 'data/*.nc']},
-    install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'rosbags', 'mcap'],
-    zip_safe=True,
+    install_requires=INSTALL_REQUIRES,
+    extras_require={'ros': ROS_WHEELS},
+    python_requires='>=3.10',
+    zip_safe=False,
     maintainer='feed_axis_energy maintainers',
     maintainer_email='maintainers@feed-axis-energy.invalid',
     description='Virtual ball-screw feed axis: power and energy from an NC program.',

@@ -130,7 +130,7 @@ def metric_cells(m) -> list[str]:
 
 
 def format_table(header: list[str], rows: list[list[str]]) -> str:
-    """Return a plain-text table with right-aligned numeric columns."""
+    """Return a plain-text table with right-aligned numeric columns (no trailing blanks)."""
     widths = [max(len(str(r[i])) for r in [header] + rows) for i in range(len(header))]
     lines = ['  '.join(h.rjust(w) if i else h.ljust(w) for i, (h, w) in
                        enumerate(zip(header, widths)))]
@@ -138,7 +138,7 @@ def format_table(header: list[str], rows: list[list[str]]) -> str:
     for r in rows:
         lines.append('  '.join(str(c).rjust(w) if i else str(c).ljust(w)
                                for i, (c, w) in enumerate(zip(r, widths))))
-    return '\n'.join(lines)
+    return '\n'.join(line.rstrip() for line in lines)
 
 
 def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:

@@ -15,20 +15,28 @@ get SIGTERM and shut down as on Ctrl-C.
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import os
 from pathlib import Path
+import re
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 
 from feed_axis_energy import lifeline
 from feed_axis_energy.paths import config_dir, program_path
 
-__all__ = ['add_parser', 'run', 'node_command', 'Supervisor']
+__all__ = ['add_parser', 'run', 'node_command', 'params_yaml', 'write_params_file',
+           'graph_parameters', 'Supervisor']
 
 NODES = ('mcap_recorder', 'axis_dynamics', 'energy_estimator', 'gcode_trajectory')
+_IDENTIFIER = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
+_PRIVATE_PREFIX = 'fae-launch-'
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -62,49 +70,110 @@ def _package_root() -> str:
     return str(Path(__file__).resolve().parent.parent.parent)
 
 
-def node_command(name: str, params: dict[str, object], *,
-                 params_file: Path | None = None) -> list[str]:
-    """Command line that starts one node: ``python -m feed_axis_energy.nodes.<name> ...``."""
+def node_command(name: str, *, params_files: list[Path]) -> list[str]:
+    """Command line that starts one node: ``python -m feed_axis_energy.nodes.<name> ...``.
+
+    Parameters reach the node only through parameter files (later files override earlier
+    ones), never as ``-p key:=value``: ROS reads such a value as YAML, so a path holding
+    `` #`` lost its tail and one holding ``: `` did not parse at all.
+    """
     cmd = [sys.executable, '-u', '-m', f'feed_axis_energy.nodes.{name}', '--ros-args']
-    if params_file is not None:
-        cmd += ['--params-file', str(params_file)]
-    for key, value in params.items():
-        if isinstance(value, bool):
-            text = 'true' if value else 'false'
-        elif isinstance(value, str):
-            text = value if value else "''"
-        else:
-            text = repr(value)
-        cmd += ['-p', f'{key}:={text}']
+    for path in params_files:
+        cmd += ['--params-file', str(path)]
     return cmd
 
 
-def graph_commands(args: argparse.Namespace) -> dict[str, list[str]]:
-    """The command of every node of the graph for the parsed options."""
-    params_file = args.params if args.params is not None else config_dir() / 'graph.yaml'
-    if not params_file.is_file():
-        params_file = None
+def _yaml_scalar(value: object) -> str:
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            msg = f'parameter value {value} is not a finite number'
+            raise ValueError(msg)
+        return repr(value)
+    if isinstance(value, str):
+        # a JSON string is a YAML double-quoted scalar: always a string to the rcl parser,
+        # whatever it holds (#, :, quotes, "true", digits); non-ASCII and controls escaped
+        return json.dumps(value)
+    msg = f'unsupported parameter type {type(value).__name__}'
+    raise TypeError(msg)
+
+
+def params_yaml(params: dict[str, dict[str, object]]) -> str:
+    """``{node: {name: value}}`` as a ROS 2 parameter file (``ros__parameters`` per node)."""
+    lines = ['# written by feed-axis-energy launch for this run; removed when it ends']
+    for node, values in params.items():
+        if not _IDENTIFIER.fullmatch(node):
+            msg = f'bad node name {node[:60]!r}'
+            raise ValueError(msg)
+        lines += [f'{node}:', '  ros__parameters:']
+        for key, value in values.items():
+            if not _IDENTIFIER.fullmatch(key):
+                msg = f'bad parameter name {key[:60]!r}'
+                raise ValueError(msg)
+            lines.append(f'    {key}: {_yaml_scalar(value)}')
+    return '\n'.join(lines) + '\n'
+
+
+def write_params_file(directory: Path, params: dict[str, dict[str, object]]) -> Path:
+    """Write :func:`params_yaml` as a new file ``launch_params.yaml`` in ``directory``."""
+    path = directory / 'launch_params.yaml'
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600)
+    with os.fdopen(fd, 'w', encoding='utf-8') as stream:
+        stream.write(params_yaml(params))
+    return path
+
+
+def remove_stale_parameter_dirs() -> int:
+    """Remove parameter directories of launchers that are gone (a SIGKILL skips ``finally``).
+
+    Only directories this user owns, named ``fae-launch-<pid>-*`` with no running ``<pid>``.
+    """
+    removed = 0
+    base = Path(tempfile.gettempdir())
+    try:
+        entries = list(base.glob(f'{_PRIVATE_PREFIX}*-*'))
+    except OSError:
+        return 0
+    for path in entries:
+        pid = path.name[len(_PRIVATE_PREFIX):].split('-', 1)[0]
+        try:
+            owned = path.lstat().st_uid == os.getuid() and path.is_dir() and not path.is_symlink()
+        except OSError:
+            continue
+        if not pid.isdigit() or not owned or lifeline.alive(int(pid)):
+            continue
+        shutil.rmtree(path, ignore_errors=True)
+        removed += 1
+    return removed
+
+
+def graph_parameters(args: argparse.Namespace) -> dict[str, dict[str, object]]:
+    """The parameters the command-line options set, per node."""
     machine = {'machine': str(args.machine.resolve())} if args.machine is not None else {}
     program = args.program if args.program is not None else program_path(
         'demonstrator_f100.nc')
     # Nodes stamp from the data and their timers run on the steady clock, so use_sim_time
     # is not needed (it works if set in the parameter file).
-    sim_time: dict[str, object] = {}
-    cmds = {
-        'gcode_trajectory': node_command('gcode_trajectory', {
-            **machine, 'program': str(Path(program).resolve()), 'mode': args.mode,
-            'ack_recorder': args.record is not None}, params_file=params_file),
-        'axis_dynamics': node_command('axis_dynamics', {
-            **machine, 'load_kg': float(args.load_kg), **sim_time}, params_file=params_file),
-        'energy_estimator': node_command('energy_estimator', {
-            **machine, 'load_kg': float(args.load_kg), 'exit_at_end': True, **sim_time},
-            params_file=params_file),
+    params: dict[str, dict[str, object]] = {
+        'gcode_trajectory': {**machine, 'program': str(Path(program).resolve()),
+                             'mode': args.mode, 'ack_recorder': args.record is not None},
+        'axis_dynamics': {**machine, 'load_kg': float(args.load_kg)},
+        'energy_estimator': {**machine, 'load_kg': float(args.load_kg), 'exit_at_end': True},
     }
     if args.record is not None:
-        cmds['mcap_recorder'] = node_command('mcap_recorder', {
-            'output': str(args.record.resolve()), 'exit_at_end': True, **sim_time},
-            params_file=params_file)
-    return cmds
+        params['mcap_recorder'] = {'output': str(args.record.resolve()), 'exit_at_end': True}
+    return params
+
+
+def graph_commands(args: argparse.Namespace, overrides: Path) -> dict[str, list[str]]:
+    """The command of every node of the graph: ``--params`` (or graph.yaml), then
+    ``overrides`` (the file :func:`write_params_file` made from the options)."""
+    params_file = args.params if args.params is not None else config_dir() / 'graph.yaml'
+    files = ([params_file] if params_file.is_file() else []) + [overrides]
+    return {name: node_command(name, params_files=files) for name in graph_parameters(args)}
 
 
 class Supervisor:
@@ -250,6 +319,33 @@ def _describe_bag(path: Path) -> None:
         print(f'  block energy of {len(blocks)} source lines (topic /block_energy)')
 
 
+def _supervise(sup: Supervisor, *, timeout: float | None):
+    """Start the graph and wait: ``(state, reason, stop signals, start time)``."""
+    stop_reason: list[str] = []
+
+    def on_signal(signum, frame) -> None:
+        stop_reason.append(signal.Signals(signum).name)
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    t0 = time.monotonic()
+    state, reason = 'running', None
+    try:
+        sup.start()
+        while True:
+            state, reason = sup.poll()
+            if state != 'running' or stop_reason:
+                break
+            if timeout is not None and time.monotonic() - t0 > timeout:
+                state, reason = 'failed', f'timeout after {timeout:g} s'
+                break
+            time.sleep(0.1)
+    finally:
+        sup.stop()
+        for s, handler in old.items():
+            signal.signal(s, handler)
+    return state, reason, stop_reason, t0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     if args.record is not None and os.path.lexists(args.record):
@@ -259,34 +355,26 @@ def run(args: argparse.Namespace) -> int:
     if args.program is not None and not args.program.is_file():
         print(f'error: {args.program}: no such program file', file=sys.stderr)
         return 1
+    if not math.isfinite(args.load_kg) or args.load_kg < 0:
+        print(f'error: --load-kg must be a finite mass >= 0 kg, got {args.load_kg}',
+              file=sys.stderr)
+        return 2
     env = dict(os.environ)
     env['PYTHONPATH'] = os.pathsep.join(
         [_package_root()] + ([env['PYTHONPATH']] if env.get('PYTHONPATH') else []))
     if args.domain_id is not None:
         env['ROS_DOMAIN_ID'] = str(args.domain_id)
     finishers = {'energy_estimator'} | ({'mcap_recorder'} if args.record is not None else set())
-    sup = Supervisor(graph_commands(args), finishers=finishers, env=env)
-    stop_reason: list[str] = []
-
-    def on_signal(signum, frame) -> None:
-        stop_reason.append(signal.Signals(signum).name)
-
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    t0 = time.monotonic()
+    # the options' parameter file lives in a private directory (mode 0700) for this run only
+    remove_stale_parameter_dirs()
+    private = Path(tempfile.mkdtemp(prefix=f'{_PRIVATE_PREFIX}{os.getpid()}-'))
     try:
-        sup.start()
-        while True:
-            state, reason = sup.poll()
-            if state != 'running' or stop_reason:
-                break
-            if args.timeout is not None and time.monotonic() - t0 > args.timeout:
-                state, reason = 'failed', f'timeout after {args.timeout:g} s'
-                break
-            time.sleep(0.1)
+        overrides = write_params_file(private, graph_parameters(args))
+        state, reason, stop_reason, t0 = _supervise(
+            Supervisor(graph_commands(args, overrides), finishers=finishers, env=env),
+            timeout=args.timeout)
     finally:
-        sup.stop()
-        for s, handler in old.items():
-            signal.signal(s, handler)
+        shutil.rmtree(private, ignore_errors=True)
     if stop_reason:
         print(f'stopped by {stop_reason[0]}; all nodes shut down', file=sys.stderr)
         if args.record is not None and (args.record / 'metadata.yaml').is_file():

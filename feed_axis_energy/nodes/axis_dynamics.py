@@ -18,7 +18,8 @@ from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.motion import Motion
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import stream_qos
-from feed_axis_energy.nodes.runner import declare, run, StartupError
+from feed_axis_energy.nodes.runner import (check_mass, declare, guard_parameters, LiveParameter,
+                                           run, StartupError)
 from feed_axis_energy.paths import default_machine
 
 __all__ = ['AxisDynamicsNode', 'main']
@@ -40,6 +41,11 @@ class AxisDynamicsNode(Node):
         self.sub = self.create_subscription(JointTrajectory, 'setpoints', self._on_setpoints,
                                             stream_qos(), raw=True)
         self.batches = 0
+        # load_kg may change while running (a new workpiece): it applies from the next batch
+        guard_parameters(self, {'load_kg': LiveParameter(check_mass, self._set_load)})
+
+    def _set_load(self, value: float) -> None:
+        self.load_kg = float(value)
 
     def _on_setpoints(self, data: bytes) -> None:
         try:

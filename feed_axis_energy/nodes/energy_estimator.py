@@ -23,7 +23,8 @@ from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.motion import Motion
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import latched_qos, stream_qos
-from feed_axis_energy.nodes.runner import declare, run, StartupError, steady_timer
+from feed_axis_energy.nodes.runner import (check_mass, declare, guard_parameters, LiveParameter,
+                                           run, StartupError, steady_timer)
 from feed_axis_energy.paths import default_machine
 
 __all__ = ['EnergyEstimator', 'main']
@@ -57,6 +58,13 @@ class EnergyEstimator(Node):
                                  latched_qos(), raw=True)
         self.create_subscription(DiagnosticArray, 'program/end', self._on_end, latched_qos())
         steady_timer(self, 0.1, self._check_exit)
+        # load_kg may change while running: the declared effects use it from the next batch
+        guard_parameters(self, {'load_kg': LiveParameter(check_mass, self._set_load)})
+
+    def _set_load(self, value: float) -> None:
+        self.load_kg = float(value)
+        if self.power is not None:
+            self.power.load_kg = self.load_kg
 
     def _on_state(self, data: bytes) -> None:
         try:

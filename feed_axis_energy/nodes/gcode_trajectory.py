@@ -28,7 +28,9 @@ from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.planstream import iter_motion
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import clock_qos, latched_qos, stream_qos
-from feed_axis_energy.nodes.runner import declare, run, STARTUP_ERRORS, StartupError, steady_timer
+from feed_axis_energy.nodes.runner import (check_positive, declare, guard_parameters,
+                                           LiveParameter, run, STARTUP_ERRORS, StartupError,
+                                           steady_timer)
 from feed_axis_energy.paths import default_machine
 
 __all__ = ['GcodeTrajectory', 'main']
@@ -64,6 +66,10 @@ class GcodeTrajectory(LifecycleNode):
                                  'configure and activate without a lifecycle manager')
         self._check_parameters()
         self._reset()
+        # the program, machine, timing mode and flow window shape the plan and the stream:
+        # fixed once started; the stall timeout may change while it runs
+        guard_parameters(self, {'stall_timeout_s': LiveParameter(check_positive,
+                                                                 self._set_stall_timeout)})
         if self.autostart:
             if self.trigger_configure() != TransitionCallbackReturn.SUCCESS:
                 msg = self._error or 'configure failed'
@@ -84,6 +90,9 @@ class GcodeTrajectory(LifecycleNode):
         if not self.program:
             msg = 'parameter program (the NC file) is required'
             raise StartupError(msg)
+
+    def _set_stall_timeout(self, value: float) -> None:
+        self.stall_timeout_s = float(value)
 
     def _reset(self) -> None:
         self._error = ''

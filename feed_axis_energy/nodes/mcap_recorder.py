@@ -39,7 +39,8 @@ from feed_axis_energy.core.errors import FeedAxisError
 from feed_axis_energy.core.graph import ChunkedBagWriter, EndTracker, header_stamp_ns
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import clock_qos, latched_qos, stream_qos
-from feed_axis_energy.nodes.runner import declare, run, StartupError, steady_timer
+from feed_axis_energy.nodes.runner import (declare, guard_parameters, run, StartupError,
+                                           steady_timer)
 
 __all__ = ['McapRecorder', 'main', 'KNOWN_TOPICS']
 
@@ -124,6 +125,7 @@ class McapRecorder(Node):
         self._announce()
         steady_timer(self, min(self.chunk_period_s, 0.2), self._on_timer)
         self.get_logger().info(f'recording {", ".join(topics)} to {out}')
+        guard_parameters(self, {})   # the bag, its topics and the flush rules are fixed
 
     def _announce(self) -> None:
         """Create the ack publishers once every end stream has a matched publisher."""

@@ -25,7 +25,8 @@ from feed_axis_energy.core import bagio
 from feed_axis_energy.core.graph import FlowWindow, ProgramEnd
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import latched_qos, stream_qos
-from feed_axis_energy.nodes.runner import declare, run, StartupError, steady_timer
+from feed_axis_energy.nodes.runner import (declare, guard_parameters, run, StartupError,
+                                           steady_timer)
 
 __all__ = ['MeasuredReplay', 'main']
 
@@ -81,6 +82,7 @@ class MeasuredReplay(Node):
         steady_timer(self, 0.002 if self.rate > 0 else 0.01, self._tick)
         counts = {t: sum(1 for m in self.messages if m[0] == t) for t in self.pubs}
         self.get_logger().info(f'replaying {bag}: {counts} at rate {self.rate:g}')
+        guard_parameters(self, {})   # the bag, its timing and the flow control are fixed
 
     def _check_stamps(self) -> None:
         if self.rate > 0:

@@ -13,22 +13,25 @@ bag there). A node started by ``feed-axis-energy launch`` (environment variable
 from __future__ import annotations
 
 import inspect
+import math
 import os
 import signal
 import sys
+from dataclasses import dataclass
 from typing import Callable
 
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 
 from feed_axis_energy import lifeline
 from feed_axis_energy.core.errors import FeedAxisError
 from feed_axis_energy.paths import config_dir
 
-__all__ = ['StartupError', 'run', 'make_executor', 'declare', 'steady_timer', 'STARTUP_ERRORS']
+__all__ = ['StartupError', 'run', 'make_executor', 'declare', 'steady_timer', 'STARTUP_ERRORS',
+           'LiveParameter', 'guard_parameters']
 
 
 class StartupError(RuntimeError):
@@ -42,10 +45,81 @@ STARTUP_ERRORS = (StartupError, FeedAxisError, OSError, ParameterException, KeyE
 
 
 def declare(node, name: str, default, description: str):
-    """Declare a parameter with a description and return its value."""
+    """Declare a parameter with a description and return its value.
+
+    The name is remembered (``node._fae_declared``): :func:`guard_parameters` refuses run-time
+    changes of these unless they are declared live.
+    """
     value = node.declare_parameter(
         name, default, ParameterDescriptor(description=description)).value
+    if not hasattr(node, '_fae_declared'):
+        node._fae_declared = []
+    node._fae_declared.append(name)
     return value
+
+
+@dataclass(frozen=True)
+class LiveParameter:
+    """A parameter that may change while the node runs.
+
+    Attributes
+    ----------
+    check
+        Returns why a value is refused, or ``None`` to accept it.
+    apply
+        Takes the accepted value into use (called after rclpy has stored it).
+    """
+
+    check: Callable[[object], str | None]
+    apply: Callable[[object], None]
+
+
+def guard_parameters(node, live: dict[str, LiveParameter]) -> None:
+    """Validate and apply run-time changes of ``live`` parameters; refuse the node's others.
+
+    Call at the end of the node's ``__init__`` (after every :func:`declare`). A change of a
+    parameter declared with :func:`declare` but not in ``live`` is refused with the reason
+    that the node reads it at start-up; parameters the node did not declare itself
+    (``use_sim_time``, QoS overrides ...) are left to rclpy.
+    """
+    static = set(getattr(node, '_fae_declared', ())) - set(live)
+
+    def on_set(params) -> SetParametersResult:
+        for param in params:
+            if param.name in static:
+                return SetParametersResult(successful=False, reason=(
+                    f'{param.name} is read at start-up only; restart the node to change it '
+                    f'(run-time changes: {", ".join(sorted(live)) or "none"})'))
+            rule = live.get(param.name)
+            problem = rule.check(param.value) if rule is not None else None
+            if problem:
+                return SetParametersResult(successful=False,
+                                           reason=f'{param.name}: {problem}')
+        return SetParametersResult(successful=True)
+
+    def after_set(params) -> None:
+        for param in params:
+            rule = live.get(param.name)
+            if rule is not None:
+                rule.apply(param.value)
+                node.get_logger().info(f'parameter {param.name} set to {param.value!r}')
+
+    node.add_on_set_parameters_callback(on_set)
+    node.add_post_set_parameters_callback(after_set)
+
+
+def check_mass(value) -> str | None:
+    """``None`` for a finite mass >= 0 kg, else why not."""
+    if not isinstance(value, float) or not math.isfinite(value) or value < 0.0:
+        return f'must be a finite mass >= 0 kg, got {value!r}'
+    return None
+
+
+def check_positive(value) -> str | None:
+    """``None`` for a finite number > 0, else why not."""
+    if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        return f'must be a finite number > 0, got {value!r}'
+    return None
 
 
 def steady_timer(node, period_s: float, callback):

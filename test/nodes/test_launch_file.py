@@ -16,7 +16,8 @@ def test_launch_description_declares_the_arguments():
     spec.loader.exec_module(module)
     desc = module.generate_launch_description()
     names = {a.name for a in desc.get_launch_arguments()}
-    assert {'program', 'machine', 'load_kg', 'mode', 'record'} <= names
+    assert {'program', 'machine', 'load_kg', 'mode', 'record', 'params_file', 'namespace',
+            'use_sim_time', 'autostart', 'replay', 'replay_rate'} <= names
 
 
 def test_launch_file_ties_every_node_to_the_launch_process():
