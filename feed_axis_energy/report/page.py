@@ -37,7 +37,8 @@ img { max-width: 100%; height: auto; border: 1px solid #eee; margin: 0.3em 0; }
 section { border-top: 2px solid #dee2e6; margin-top: 2em; }
 .note { color: #555; font-size: 0.9em; }
 details { margin: 1em 0; } summary { cursor: pointer; font-weight: 600; }
-@media (max-width: 700px) { table { font-size: 0.78em; } }
+@media (max-width: 900px) { body { padding: 0 0.5em; } table { font-size: 0.78em; }
+                             th, td { padding: 0.15em 0.3em; } }
 @page { size: A4; margin: 14mm; }
 @media print {
   body { max-width: none; margin: 0; padding: 0; font-size: 10pt; }
