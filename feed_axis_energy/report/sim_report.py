@@ -5,8 +5,9 @@ the same plots are written beside it as PNG files. Inputs are plain data: the su
 :func:`feed_axis_energy.core.simulate.summarize`, a :class:`.decimate.PowerTrace` fed with the
 simulation's chunks, and ``(line, energy_j, duration_s)`` per source line. The breakdown by
 cause and the roll-ups per operation and tool are read from the summary through
-:func:`causes_from_summary` and :func:`rollups_from_summary`, the one place that knows their
-keys; without them the page says what it shows instead.
+:func:`causes_from_summary`, :func:`causes_by_axis` and :func:`rollups_from_summary`, the one
+place that knows their keys (those the ``cause`` branch publishes); without them the page says
+what it shows instead.
 """
 from __future__ import annotations
 
@@ -24,30 +25,63 @@ from .decimate import PowerTrace, Trace
 from .page import fmt_duration, fmt_pct, fmt_si, img, page, short, table
 from .sim_plots import plot_bbox_path, plot_blocks, plot_causes, plot_energy, plot_power
 
-__all__ = ['CAUSE_KEY', 'ROLLUP_KEYS', 'causes_from_summary', 'rollups_from_summary',
-           'top_lines', 'write_sim_report']
+__all__ = ['CAUSE_KEY', 'CAUSE_WORDS', 'ROLLUP_KEY', 'causes_by_axis', 'causes_from_summary',
+           'rollups_from_summary', 'top_lines', 'write_sim_report']
 
 CAUSE_KEY = 'energy_by_cause_j'
-"""Summary key of the breakdown by cause: ``{cause name: energy [J]}`` adding up to the total."""
+"""Summary key of the breakdown by cause (branch ``cause``, ``/work/wt/notes/cause-api.md``):
+``{cause: {axis: J, ..., 'total': J}}`` with the causes in the order of ``summary['causes']``;
+for every axis and the total the causes add up to ``energy_j``. A plain ``{cause: J}`` is read
+as the total."""
 
-ROLLUP_KEYS = (('operation', 'energy_by_operation'), ('tool', 'energy_by_tool'))
-"""(label, summary key) of the roll-ups: a list of ``{'name', 'energy_j', 'duration_s'}``."""
+CAUSE_WORDS = {
+    'friction': 'friction (passive resistance)',
+    'screw': 'ball-screw efficiency loss',
+    'gravity_lift': 'lifting against gravity',
+    'gravity_lower': 'lowering with gravity',
+    'linear_inertia': 'accelerating the moved mass (net)',
+    'rotary_inertia': 'accelerating screw and rotor (net)',
+    'braking_burned': 'braking energy burned in the resistor',
+}
+"""Plain words for the cause names; ``effect:<id>[:<axis>]`` reads "declared effect <id>"."""
+
+ROLLUP_KEY = 'rollups'
+"""Summary key of the roll-ups: ``{'operation': [...], 'tool': [...], ...}``, each a list of
+``{'name', 'energy_j', 'duration_s'}``."""
+
+_ROLLUP_SHOWN = ('operation', 'tool')    # per axis is the page's first table already
+
+
+def _cause_words(name: str) -> str:
+    if name.startswith('effect:'):
+        parts = name.split(':')
+        return f'declared effect {parts[1]}' + (f' on {parts[2]}' if len(parts) > 2 else '')
+    return CAUSE_WORDS.get(name, name.replace('_', ' '))
+
+
+def _cause_total(value: Any) -> float | None:
+    if isinstance(value, Mapping):
+        value = value.get('total')
+    return float(value) if _finite(value) else None
 
 
 def causes_from_summary(summary: Mapping[str, Any]
                         ) -> tuple[list[tuple[str, float, bool]], bool]:
-    """Energy by cause ``[(cause, J, part of the total)]`` (largest first) and whether it is
-    the full breakdown (the parts add up to the total).
+    """Energy by cause ``[(cause in words, J, part of the total)]`` and whether it is the full
+    breakdown (the parts add up to the total).
 
-    Without :data:`CAUSE_KEY` in the summary, the two figures every summary has: the energy
-    spent on passive resistance (the loss function) and the braking energy, negative when
-    returned to the supply (regenerative braking), else burned in the brake resistor and not
-    part of the total.
+    With :data:`CAUSE_KEY`: every cause in the order of ``summary['causes']`` (else as
+    stored). Without it, the two figures every summary has: the energy spent on passive
+    resistance (the loss function) and the braking energy, negative when returned to the
+    supply (regenerative braking), else burned in the brake resistor and not part of the
+    total.
     """
     full = summary.get(CAUSE_KEY)
     if isinstance(full, Mapping) and full:
-        rows = [(str(k), float(v), True) for k, v in full.items() if _finite(v)]
-        return sorted(rows, key=lambda r: -abs(r[1])), True
+        order = [c for c in summary.get('causes') or () if c in full]
+        order += [c for c in full if c not in order]
+        rows = [(_cause_words(str(c)), _cause_total(full[c]), True) for c in order]
+        return [r for r in rows if r[1] is not None], True
     rows = []
     if _finite(summary.get('loss_energy_j')):
         rows.append(('friction and passive resistance (loss function)',
@@ -62,11 +96,30 @@ def causes_from_summary(summary: Mapping[str, Any]
     return rows, False
 
 
+def causes_by_axis(summary: Mapping[str, Any]) -> tuple[list[str], list[list[float]]]:
+    """Axis names and, per cause (order of :func:`causes_from_summary`), the energy per axis
+    [J]; empty when the breakdown has no per-axis values."""
+    full = summary.get(CAUSE_KEY)
+    axes = [a for a in summary.get('energy_j', {}) if a != 'total']
+    if not (isinstance(full, Mapping) and full and axes
+            and all(isinstance(v, Mapping) for v in full.values())):
+        return [], []
+    order = [c for c in summary.get('causes') or () if c in full]
+    order += [c for c in full if c not in order]
+    rows = [[float(full[c].get(a, math.nan)) for a in axes] for c in order
+            if _cause_total(full[c]) is not None]
+    return axes, rows
+
+
 def rollups_from_summary(summary: Mapping[str, Any]) -> dict[str, list[tuple[str, float, float]]]:
-    """Roll-ups present in the summary: label -> ``[(name, energy J, duration s)]``."""
+    """Roll-ups per operation and per tool present in the summary: label -> ``[(name, energy J,
+    duration s)]`` (:data:`ROLLUP_KEY`)."""
     out = {}
-    for label, key in ROLLUP_KEYS:
-        rows = summary.get(key)
+    found = summary.get(ROLLUP_KEY)
+    if not isinstance(found, Mapping):
+        return out
+    for label in _ROLLUP_SHOWN:
+        rows = found.get(label)
         if isinstance(rows, list) and rows:
             out[label] = [(str(r.get('name', '')), float(r.get('energy_j', math.nan)),
                            float(r.get('duration_s', math.nan))) for r in rows
@@ -103,10 +156,9 @@ def _answer(summary: Mapping[str, Any], causes: list[tuple[str, float, bool]]) -
     text = (f'This program: <b>{fmt_si(total, "J")} per part</b> on machine '
             f'{escape(short(summary["machine"]))} with {fmt_si(summary["load_kg"], "kg")} '
             f'load, cycle time {fmt_duration(summary["duration_s"])}')
-    if causes and total > 0:
-        name, e, in_total = causes[0]
-        if e > 0 and in_total:
-            text += f'; {fmt_pct(100.0 * e / total)} of it {escape(name)}'
+    largest = max((c for c in causes if c[2] and c[1] > 0), key=lambda c: c[1], default=None)
+    if largest is not None and total > 0:
+        text += f'; {fmt_pct(100.0 * largest[1] / total)} of it {escape(largest[0])}'
     return text + '.'
 
 
@@ -137,17 +189,27 @@ def _blocks_table(rows: list[tuple[int, float, float]], texts: Mapping[int, str]
                   'first runs at'], out)
 
 
-def _causes_html(causes: list[tuple[str, float, bool]], full: bool, total: float,
-                 png: bytes | None) -> str:
+def _causes_html(summary: Mapping[str, Any], causes: list[tuple[str, float, bool]],
+                 full: bool, total: float, png: bytes | None) -> str:
     if not causes:
         return '<p>No breakdown by cause in this simulation.</p>'
-    rows = [[escape(n), f'<td class="num">{fmt_si(e, "J", signed=True)}</td>',
-             f'<td class="num">{fmt_pct(100.0 * e / total) if total and part else "–"}</td>']
-            for n, e, part in causes]
+    axes, per_axis = causes_by_axis(summary) if full else ([], [])
+    if len(per_axis) != len(causes):
+        axes, per_axis = [], [[] for _ in causes]
+    rows = [[escape(n)] + [f'<td class="num">{fmt_si(v, "J", signed=True)}</td>' for v in pa]
+            + [f'<td class="num">{fmt_si(e, "J", signed=True)}</td>',
+               f'<td class="num">{fmt_pct(100.0 * e / total) if total and part else "–"}</td>']
+            for (n, e, part), pa in zip(causes, per_axis)]
+    head = ['cause'] + [f'axis {escape(a)}' for a in axes] + ['total', 'share of total']
+    returned = summary.get('braking_returned_j')
+    extra = (f'<p class="note">Negative parts are energy given back (lowering, braking); '
+             f'in all, {fmt_si(float(returned), "J")} came back while braking '
+             f'({escape(str(summary.get("braking", "")))} braking).</p>'
+             if full and _finite(returned) else '')
     note = ('' if full else '<p class="note">Only the two parts every simulation reports so '
             'far; they do not add up to the total (gravity and inertia are missing). The full '
             'breakdown fills this section when the simulation provides it.</p>')
-    return (note + table(['cause', 'energy', 'share of total'], rows, row_head=True)
+    return (note + table(head, rows, row_head=True) + extra
             + (img(png, 'energy by cause', link='causes.png') if png else ''))
 
 
@@ -199,7 +261,8 @@ def write_sim_report(summary: Mapping[str, Any], trace: PowerTrace,
     ----------
     summary
         The simulation summary (keys of :func:`feed_axis_energy.core.simulate.summarize`;
-        optionally :data:`CAUSE_KEY`, :data:`ROLLUP_KEYS` and ``warnings``).
+        optionally :data:`CAUSE_KEY`, ``causes``, ``braking_returned_j``, :data:`ROLLUP_KEY`
+        and ``warnings``).
     trace
         The decimated series of the whole run.
     blocks
@@ -245,7 +308,7 @@ def write_sim_report(summary: Mapping[str, Any], trace: PowerTrace,
 <h2>Power over time</h2>{img(images['power.png'], 'power over time', link='power.png')}
 <h2>Energy over time</h2>{img(images['energy.png'], 'cumulative energy', link='energy.png')}
 <h2>Where the energy goes: by cause</h2>
-{_causes_html(causes, full, total, images.get('causes.png'))}
+{_causes_html(summary, causes, full, total, images.get('causes.png'))}
 <h2>Where the energy goes: blocks</h2>
 <p class="note">The blocks (source lines) with the most energy; a line that runs several times
 (a loop, a subroutine) adds up. "First runs at" links the power plot's time axis to the block.</p>

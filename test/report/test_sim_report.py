@@ -11,8 +11,9 @@ from feed_axis_energy.core.outputs import OutputError
 from feed_axis_energy.report import MARKER
 from feed_axis_energy.report.decimate import PowerTrace
 from feed_axis_energy.report.page import fmt_duration, fmt_pct, fmt_si, short
-from feed_axis_energy.report.sim_report import (CAUSE_KEY, causes_from_summary, top_lines,
-                                                write_sim_report)
+from feed_axis_energy.report.sim_report import (CAUSE_KEY, causes_by_axis,
+                                                causes_from_summary, rollups_from_summary,
+                                                top_lines, write_sim_report)
 
 
 @pytest.mark.parametrize('value, unit, text', [
@@ -90,16 +91,36 @@ def test_the_page_is_self_contained_and_answers_in_one_line(tmp_path) -> None:
 
 
 def test_a_full_breakdown_and_rollups_plug_in_from_plain_data(tmp_path) -> None:
-    causes = {'friction': 8800.0, 'gravity (lift)': 3000.0, 'rotary inertia': 2700.0,
-              'braking returned': -300.0}
-    summary = _summary(**{CAUSE_KEY: causes, 'energy_by_operation': [
-        {'name': 'O100 pocket', 'energy_j': 9000.0, 'duration_s': 100.0},
-        {'name': 'T2 drill', 'energy_j': 5200.0, 'duration_s': 92.4}]})
+    # the keys the cause branch publishes (/work/wt/notes/cause-api.md); the parts add up
+    causes = {'friction': {'X': 6000.0, 'Y': 2800.0, 'total': 8800.0},
+              'gravity_lift': {'X': 0.0, 'Y': 3000.0, 'total': 3000.0},
+              'gravity_lower': {'X': 0.0, 'Y': -1000.0, 'total': -1000.0},
+              'rotary_inertia': {'X': 2000.0, 'Y': 700.0, 'total': 2700.0},
+              'effect:load_friction:X': {'X': 2000.0, 'Y': 0.0, 'total': 2000.0},
+              'braking_burned': {'X': 0.0, 'Y': -1300.0, 'total': -1300.0}}
+    summary = _summary(**{
+        CAUSE_KEY: causes, 'causes': list(causes), 'braking_returned_j': 300.0,
+        'rollups': {'operation': [{'name': 'O100 pocket', 'energy_j': 9000.0,
+                                   'duration_s': 100.0},
+                                  {'name': 'T2 drill', 'energy_j': 5200.0,
+                                   'duration_s': 92.4}],
+                    'tool': [{'name': 'T2', 'energy_j': 14200.0, 'duration_s': 192.4}],
+                    'axis': [{'name': 'X', 'energy_j': 10000.0, 'duration_s': 192.4}]}})
     rows, full = causes_from_summary(summary)
-    assert full and [r[0] for r in rows][:2] == ['friction', 'gravity (lift)']
+    assert full
+    assert [r[0] for r in rows] == [
+        'friction (passive resistance)', 'lifting against gravity', 'lowering with gravity',
+        'accelerating screw and rotor (net)', 'declared effect load_friction on X',
+        'braking energy burned in the resistor']
+    assert sum(r[1] for r in rows) == pytest.approx(summary['energy_j']['total'])
+    axes, per_axis = causes_by_axis(summary)
+    assert axes == ['X', 'Y'] and per_axis[1] == [0.0, 3000.0]
+    assert set(rollups_from_summary(summary)) == {'operation', 'tool'}
     html = write_sim_report(summary, _trace(), BLOCKS, tmp_path / 'r').read_text()
-    assert 'rotary inertia' in html and 'O100 pocket' in html and 'Per operation' in html
+    assert 'O100 pocket' in html and 'Per operation' in html and 'Per tool' in html
+    assert '<th>axis X</th>' in html and '+3.00 kJ' in html
     assert 'do not add up' not in html
+    assert '62 % of it friction' in html           # the largest part, 8.8 of 14.2 kJ
 
 
 def test_without_a_breakdown_the_page_says_what_it_shows(tmp_path) -> None:
