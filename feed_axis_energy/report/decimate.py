@@ -72,11 +72,12 @@ def _first_peak(peak: np.ndarray, starts: np.ndarray, lengths: np.ndarray) -> np
     """Index of the first largest ``peak`` of every group."""
     gmax = np.maximum.reduceat(peak, starts)
     hit = np.flatnonzero(peak == np.repeat(gmax, lengths))
-    group = np.repeat(np.arange(starts.shape[0]), lengths)[hit]
-    _, first = np.unique(group, return_index=True)
+    # hits are in order and groups contiguous: the first hit of each group starts a new group
+    group = np.searchsorted(starts, hit, side='right') - 1
+    first = hit[np.concatenate(([True], group[1:] != group[:-1]))] if hit.size else hit
     if first.shape[0] != starts.shape[0]:       # a group of NaN only: take its first row
         return starts.copy()
-    return hit[first]
+    return first
 
 
 class PowerTrace:
@@ -133,12 +134,14 @@ class PowerTrace:
             self.t0 = float(t[0])
             self.axes = tuple(p.axes)
             self._allocate(k)
-        power = np.column_stack((p.power_w, p.total_w))
-        energy = np.column_stack((p.energy_j, p.total_energy_j))
-        pos = np.asarray(chunk.motion.pos, dtype=float)
-        self.pos_min = np.minimum(self.pos_min, pos.min(axis=0))
-        self.pos_max = np.maximum(self.pos_max, pos.max(axis=0))
-        self._first_times(t, np.asarray(p.line, dtype=np.int64))
+        # column by column: the chunks' arrays are column-major, a stacked copy costs more
+        # than the reductions
+        columns = [p.power_w[:, j] for j in range(k)] + [p.total_w]
+        pos = chunk.motion.pos
+        self.pos_min = np.minimum(self.pos_min, [pos[:, j].min() for j in range(k)])
+        self.pos_max = np.maximum(self.pos_max, [pos[:, j].max() for j in range(k)])
+        line = np.asarray(p.line)
+        self._first_times(t, line)
         keys = np.floor((t - self.t0) / self.width).astype(np.int64)
         np.maximum(keys, 0, out=keys)
         top = int(keys[-1])
@@ -149,12 +152,15 @@ class PowerTrace:
             self._coarsen(factor)
             keys //= factor
         starts, lengths = _groups(keys)
-        peak = _first_peak(power[:, k], starts, lengths)
+        peak = _first_peak(p.total_w, starts, lengths)
         ends = starts + lengths - 1
+        e_end = np.empty((starts.shape[0], k + 1))
+        e_end[:, :k] = p.energy_j[ends]
+        e_end[:, k] = p.total_energy_j[ends]
         self._combine(keys[starts], lengths, t[starts], t[ends],
-                      np.minimum.reduceat(power, starts, axis=0),
-                      np.maximum.reduceat(power, starts, axis=0),
-                      energy[ends], pos[peak], np.asarray(p.line, dtype=np.int64)[peak])
+                      np.column_stack([np.minimum.reduceat(c, starts) for c in columns]),
+                      np.column_stack([np.maximum.reduceat(c, starts) for c in columns]),
+                      e_end, pos[peak], line[peak].astype(np.int64))
 
     def _combine(self, keys, count, t_lo, t_hi, p_min, p_max, e_end, pos, line) -> None:
         """Add per-column records (unique sorted ``keys``, later in time than or in the same

@@ -62,7 +62,8 @@ def plot_power(tr: Trace, blocks: Sequence[tuple[int, str]], *, dpi: int = 100) 
         _band(ax2, tr, j, _COLOURS[j % len(_COLOURS)], f'axis {axis}')
     ax2.set_ylabel('power per axis [W]')
     ax2.set_xlabel('time [s]')
-    ax2.legend(loc='upper right', fontsize=8)
+    if tr.axes:
+        ax2.legend(loc='upper right', fontsize=8)
     for ax in (ax1, ax2):
         ax.axhline(0.0, color='k', lw=0.5)
         ax.grid(True, alpha=0.3)
@@ -133,6 +134,10 @@ def plot_bbox_path(tr: Trace, *, dpi: int = 100) -> bytes:
     three or more), coloured by the total power at each time column's peak, with the
     program's bounding box; one axis: position over time. Positions in mm."""
     k = len(tr.axes)
+    if k == 0 or tr.t_lo.shape[0] == 0:
+        fig = Figure(figsize=(10, 1.5), layout='constrained')
+        fig.text(0.5, 0.5, 'no samples: no path to draw', ha='center', va='center')
+        return figure_png(fig, dpi=dpi)
     mm = 1e3 * tr.pos_at_peak
     colour = tr.p_max[:, k]
     lo, hi = 1e3 * tr.pos_min, 1e3 * tr.pos_max

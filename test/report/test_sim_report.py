@@ -140,3 +140,10 @@ def test_an_existing_directory_is_kept_unless_force(tmp_path) -> None:
         write_sim_report(_summary(), _trace(), BLOCKS, out)
     write_sim_report(_summary(load_kg=1.0), _trace(), BLOCKS, out, force=True)
     assert '1.00 kg' in (out / 'index.html').read_text()
+
+
+def test_a_report_without_samples(tmp_path) -> None:
+    summary = _summary(samples=0, duration_s=0.0, energy_j={'X': 0.0, 'Y': 0.0, 'total': 0.0},
+                       loss_energy_j=0.0, regenerated_energy_j=0.0)
+    html = write_sim_report(summary, PowerTrace(), [], tmp_path / 'r').read_text()
+    assert '0 J per part' in html and 'No source lines' in html
