@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -73,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     from feed_axis_energy.cli.progress import Progress
     from feed_axis_energy.core.simstream import streamable
 
-    from feed_axis_energy.core.outputs import check_target, is_bag_directory
+    from feed_axis_energy.core.outputs import check_target, is_bag_directory, Rollback
 
     machine, options = load_machine_and_options(args)
     if args.out is not None:
@@ -92,17 +93,24 @@ def run(args: argparse.Namespace) -> int:
     trajectory = args.program.suffix.lower() == '.csv'
     warnings: list[str] = []
     trace = _trace(args)
-    if trajectory or not streamable(machine):
-        summary, blocks = _run_whole(args, machine, options, progress, trajectory=trajectory,
-                                     warnings=warnings, trace=trace)
-    else:
-        summary, warnings, blocks = _run_stream(args, machine, options, progress, trace=trace)
-    summary['warnings'] = warnings
-    if args.out is not None:
-        summary['bag'] = str(args.out)
-    if args.report is not None:
-        summary['report'] = str(args.report / 'index.html')
-        _write_report(args, summary, trace, blocks, trajectory=trajectory)
+    new_bag = args.out is not None and not os.path.lexists(args.out)
+    # the bag and the report or neither: a new bag is removed if the report fails (one that
+    # replaced an earlier bag with --force cannot be brought back)
+    with Rollback() as written:
+        if trajectory or not streamable(machine):
+            summary, blocks = _run_whole(args, machine, options, progress,
+                                         trajectory=trajectory, warnings=warnings, trace=trace)
+        else:
+            summary, warnings, blocks = _run_stream(args, machine, options, progress,
+                                                    trace=trace)
+        if new_bag:
+            written.add(args.out)
+        summary['warnings'] = warnings
+        if args.out is not None:
+            summary['bag'] = str(args.out)
+        if args.report is not None:
+            summary['report'] = str(args.report / 'index.html')
+            _write_report(args, summary, trace, blocks, trajectory=trajectory)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:

@@ -148,7 +148,7 @@ def _html(res: AnalysisResult, images: dict[str, bytes], run_images: dict[str, s
                  [[escape(d.axis), escape(d.name), 'yes' if d.structured else 'no',
                    escape(short(d.message, 300))] for d in res.diagnostics_after])
     runs = ''.join(f'<h3>{escape(short(name))}</h3>'
-                   + img(images[f], escape(name), link=f) for name, f in run_images.items())
+                   + img(images[f], name, link=f) for name, f in run_images.items())
     body = f"""
 <p>The residual is the measured power minus the simulated power. An effect of the catalog
 is added only if it makes the prediction better on runs it was not fitted on: here

@@ -173,3 +173,17 @@ def test_simulate_report_of_a_trajectory_csv(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     html = (tmp_path / 'r' / 'index.html').read_text()
     assert 'No source lines' in html and 'travel range' in html
+
+
+def test_a_failing_report_leaves_no_bag_behind(tmp_path: Path, monkeypatch, capsys) -> None:
+    import feed_axis_energy.report.sim_report as sim_report
+    from feed_axis_energy.core.errors import OutputError
+
+    def broken(*args, **kwargs):
+        raise OutputError('no space left on device', path=str(tmp_path / 'r'))
+
+    monkeypatch.setattr(sim_report, 'write_sim_report', broken)
+    assert main(['simulate', str(PROGRAM), '--quiet', '--out', str(tmp_path / 'bag'),
+                 '--report', str(tmp_path / 'r')]) == 1
+    assert 'no space left' in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
