@@ -202,10 +202,13 @@ def _causes_html(summary: Mapping[str, Any], causes: list[tuple[str, float, bool
             for (n, e, part), pa in zip(causes, per_axis)]
     head = ['cause'] + [f'axis {escape(a)}' for a in axes] + ['total', 'share of total']
     returned = summary.get('braking_returned_j')
-    extra = (f'<p class="note">Negative parts are energy given back (lowering, braking); '
-             f'in all, {fmt_si(float(returned), "J")} came back while braking '
-             f'({escape(str(summary.get("braking", "")))} braking).</p>'
-             if full and _finite(returned) else '')
+    extra = ''
+    if full and _finite(returned):
+        fate = ('returned to the supply' if summary.get('braking') == 'regenerative'
+                else 'burned in the brake resistor')
+        extra = (f'<p class="note">Negative parts are energy the axes give back (lowering, '
+                 f'slowing down); in all they gave back {fmt_si(float(returned), "J")} while '
+                 f'braking, {fate}.</p>')
     note = ('' if full else '<p class="note">Only the two parts every simulation reports so '
             'far; they do not add up to the total (gravity and inertia are missing). The full '
             'breakdown fills this section when the simulation provides it.</p>')
