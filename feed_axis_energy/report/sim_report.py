@@ -25,8 +25,8 @@ from .decimate import PowerTrace, Trace
 from .page import fmt_duration, fmt_pct, fmt_si, img, page, short, table
 from .sim_plots import plot_bbox_path, plot_blocks, plot_causes, plot_energy, plot_power
 
-__all__ = ['CAUSE_KEY', 'CAUSE_WORDS', 'ROLLUP_KEY', 'causes_by_axis', 'causes_from_summary',
-           'rollups_from_summary', 'top_lines', 'write_sim_report']
+__all__ = ['CAUSE_KEY', 'CAUSE_WORDS', 'GROSS_KEY', 'ROLLUP_KEY', 'causes_by_axis',
+           'causes_from_summary', 'rollups_from_summary', 'top_lines', 'write_sim_report']
 
 CAUSE_KEY = 'energy_by_cause_j'
 """Summary key of the breakdown by cause (branch ``cause``, ``/work/wt/notes/cause-api.md``):
@@ -46,10 +46,14 @@ CAUSE_WORDS = {
 """Plain words for the cause names; ``effect:<id>[:<axis>]`` reads "declared effect <id>"."""
 
 ROLLUP_KEY = 'rollups'
-"""Summary key of the roll-ups: ``{'operation': [...], 'tool': [...], ...}``, each a list of
-``{'name', 'energy_j', 'duration_s'}``."""
+"""Summary key of the roll-ups: ``{'operation': [...], 'subroutine': [...], 'tool': [...],
+'axis': [...]}``, each a list of ``{'name', 'energy_j', 'duration_s'}``."""
 
-_ROLLUP_SHOWN = ('operation', 'tool')    # per axis is the page's first table already
+GROSS_KEY = 'gross_by_cause_j'
+"""Summary key of what each cause took before giving back: ``{cause: {axis: J, 'total': J}}``
+(shown as a column when present)."""
+
+_ROLLUP_SHOWN = ('operation', 'subroutine', 'tool')    # per axis: the page's first table
 
 
 def _cause_words(name: str) -> str:
@@ -201,6 +205,12 @@ def _causes_html(summary: Mapping[str, Any], causes: list[tuple[str, float, bool
                f'<td class="num">{fmt_pct(100.0 * e / total) if total and part else "–"}</td>']
             for (n, e, part), pa in zip(causes, per_axis)]
     head = ['cause'] + [f'axis {escape(a)}' for a in axes] + ['total', 'share of total']
+    gross = summary.get(GROSS_KEY) if full else None
+    if isinstance(gross, Mapping) and gross:
+        taken = {_cause_words(str(c)): _cause_total(v) for c, v in gross.items()}
+        head.append('taken before giving back')
+        for row, (n, _, _) in zip(rows, causes):
+            row.append(f'<td class="num">{fmt_si(taken.get(n), "J")}</td>')
     returned = summary.get('braking_returned_j')
     extra = ''
     if full and _finite(returned):

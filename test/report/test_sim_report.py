@@ -100,10 +100,14 @@ def test_a_full_breakdown_and_rollups_plug_in_from_plain_data(tmp_path) -> None:
               'braking_burned': {'X': 0.0, 'Y': -1300.0, 'total': -1300.0}}
     summary = _summary(**{
         CAUSE_KEY: causes, 'causes': list(causes), 'braking_returned_j': 300.0,
+        'gross_by_cause_j': {'gravity_lift': {'X': 0.0, 'Y': 3000.0, 'total': 3000.0},
+                             'rotary_inertia': {'X': 2500.0, 'Y': 1270.0, 'total': 3770.0}},
         'rollups': {'operation': [{'name': 'O100 pocket', 'energy_j': 9000.0,
                                    'duration_s': 100.0},
                                   {'name': 'T2 drill', 'energy_j': 5200.0,
                                    'duration_s': 92.4}],
+                    'subroutine': [{'name': 'o<pocket>', 'energy_j': 14200.0,
+                                    'duration_s': 192.4}],
                     'tool': [{'name': 'T2', 'energy_j': 14200.0, 'duration_s': 192.4}],
                     'axis': [{'name': 'X', 'energy_j': 10000.0, 'duration_s': 192.4}]}})
     rows, full = causes_from_summary(summary)
@@ -115,10 +119,12 @@ def test_a_full_breakdown_and_rollups_plug_in_from_plain_data(tmp_path) -> None:
     assert sum(r[1] for r in rows) == pytest.approx(summary['energy_j']['total'])
     axes, per_axis = causes_by_axis(summary)
     assert axes == ['X', 'Y'] and per_axis[1] == [0.0, 3000.0]
-    assert set(rollups_from_summary(summary)) == {'operation', 'tool'}
+    assert set(rollups_from_summary(summary)) == {'operation', 'subroutine', 'tool'}
     html = write_sim_report(summary, _trace(), BLOCKS, tmp_path / 'r').read_text()
     assert 'O100 pocket' in html and 'Per operation' in html and 'Per tool' in html
     assert '<th>axis X</th>' in html and '+3.00 kJ' in html
+    assert 'taken before giving back' in html and '3.77 kJ' in html
+    assert 'o&lt;pocket&gt;' in html
     assert 'do not add up' not in html
     assert '62 % of it friction' in html           # the largest part, 8.8 of 14.2 kJ
 
