@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -42,9 +43,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='write the full time series as a rosbag2 directory (MCAP storage); '
                         'must not exist unless --force; built in a hidden temporary '
                         'directory and renamed into place when complete')
+    p.add_argument('--report', type=Path, metavar='DIR',
+                   help='write a report: one self-contained index.html (plots embedded, '
+                        'opens offline, prints on A4) and its PNG images: power and '
+                        'cumulative energy over time, energy by cause and per block, path '
+                        'and bounding box; must not exist unless --force')
     p.add_argument('--force', action='store_true',
                    help='replace an existing --out bag directory (only a rosbag2 directory, '
-                        'never a symbolic link) once the new one is complete')
+                        'never a symbolic link) or --report directory (only an earlier '
+                        'report or an empty directory) once the new one is complete')
     p.add_argument('--compression', choices=('none', 'zstd'), default='zstd',
                    help='MCAP chunk compression of the --out recording (default zstd at the '
                         'fast level -1: about 5x smaller for 1.2-1.5x the writer\'s CPU time)')
@@ -67,27 +74,43 @@ def run(args: argparse.Namespace) -> int:
     from feed_axis_energy.cli.progress import Progress
     from feed_axis_energy.core.simstream import streamable
 
-    from feed_axis_energy.core.outputs import check_target, is_bag_directory
+    from feed_axis_energy.core.outputs import check_target, is_bag_directory, Rollback
 
     machine, options = load_machine_and_options(args)
     if args.out is not None:
         # refused before any sample is computed, not after
         check_target(args.out, option='--out', force=args.force, kind='directory',
                      replaceable=is_bag_directory)
+    if args.report is not None:
+        from feed_axis_energy.core.outputs import marked_or_empty
+        from feed_axis_energy.report import MARKER
+        check_target(args.report, option='--report', force=args.force, kind='directory',
+                     replaceable=marked_or_empty(MARKER))
     if args.max_samples < 0:
         msg = f'--max-samples must be >= 0, got {args.max_samples}'
         raise ConfigError(msg, file='command line', key='max-samples')
     progress = Progress('simulate', enabled=not args.quiet)
     trajectory = args.program.suffix.lower() == '.csv'
     warnings: list[str] = []
-    if trajectory or not streamable(machine):
-        summary = _run_whole(args, machine, options, progress, trajectory=trajectory,
-                             warnings=warnings)
-    else:
-        summary, warnings = _run_stream(args, machine, options, progress)
-    summary['warnings'] = warnings
-    if args.out is not None:
-        summary['bag'] = str(args.out)
+    trace = _trace(args)
+    new_bag = args.out is not None and not os.path.lexists(args.out)
+    # the bag and the report or neither: a new bag is removed if the report fails (one that
+    # replaced an earlier bag with --force cannot be brought back)
+    with Rollback() as written:
+        if trajectory or not streamable(machine):
+            summary, blocks = _run_whole(args, machine, options, progress,
+                                         trajectory=trajectory, warnings=warnings, trace=trace)
+        else:
+            summary, warnings, blocks = _run_stream(args, machine, options, progress,
+                                                    trace=trace)
+        if new_bag:
+            written.add(args.out)
+        summary['warnings'] = warnings
+        if args.out is not None:
+            summary['bag'] = str(args.out)
+        if args.report is not None:
+            summary['report'] = str(args.report / 'index.html')
+            _write_report(args, summary, trace, blocks, trajectory=trajectory)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -97,6 +120,28 @@ def run(args: argparse.Namespace) -> int:
             print(f'recording: {args.out} (topics /setpoints, /axis_state, /power, '
                   '/block_energy; units in README)')
     return 0
+
+
+def _trace(args: argparse.Namespace):
+    """The decimated series for ``--report`` (None without it)."""
+    if args.report is None:
+        return None
+    from feed_axis_energy.report.decimate import PowerTrace
+    return PowerTrace()
+
+
+def _write_report(args: argparse.Namespace, summary: dict, trace, blocks, *,
+                  trajectory: bool) -> None:
+    """Write the ``--report`` directory (all or nothing)."""
+    from feed_axis_energy.cli.common import program_text_lines
+    from feed_axis_energy.report.sim_report import write_sim_report
+
+    def text(lines: list[int]) -> dict[int, str]:
+        return {} if trajectory else program_text_lines(args.program, lines)
+
+    if not args.quiet:
+        print('simulate: writing the report', file=sys.stderr)
+    write_sim_report(summary, trace, blocks, args.report, block_text=text, force=args.force)
 
 
 def _check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: float,
@@ -185,7 +230,7 @@ def _count_lines(path: Path) -> int:
     return n + 1
 
 
-def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
+def _run_stream(args, machine, options, progress, *, trace=None):
     """Parse, plan, simulate and record chunk by chunk: memory holds one batch of moves and
     one chunk of samples, never the program. With ``--out`` or ``--max-samples`` a first
     pass over the moves (parsing and planning without samples) gives the cost and the
@@ -211,20 +256,28 @@ def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
     kw = dict(file=moves.file, load_kg=args.load_kg, options=options, top_blocks=top,
               duration_s=duration, progress=progress if duration else None, limits=limits)
     if args.out is None:
-        summary, _ = simulate_stream(moves, machine, **kw)
+        # the report's trace takes the chunks as computed, dwells left out (their power is
+        # constant, so a plot is the same)
+        summary, blocks = simulate_stream(moves, machine, chunk_gaps=True,
+                                          on_chunk=None if trace is None else trace.add, **kw)
     else:
         from feed_axis_energy.core.recording import SimulationBagWriter
         with _staged_out(args) as staged, \
                 SimulationBagWriter(staged, compression=args.compression,
                                     rate_hz=options.rate_hz) as writer:
             # chunk_gaps: the writer takes the left-out dwell samples as they are (recthin)
-            summary, blocks = simulate_stream(moves, machine, on_chunk=writer.write,
+            def on_chunk(chunk) -> None:
+                writer.write(chunk)
+                if trace is not None:
+                    trace.add(chunk)
+
+            summary, blocks = simulate_stream(moves, machine, on_chunk=on_chunk,
                                               chunk_gaps=True, **kw)
             writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
     progress.done()
     if warnings is None:
         warnings = moves.warnings(args)
-    return summary, warnings
+    return summary, warnings, blocks
 
 
 def _warn(args, program, machine) -> list[str]:
@@ -237,13 +290,14 @@ def _warn(args, program, machine) -> list[str]:
 
 
 def _run_whole(args, machine, options, progress, *, trajectory: bool,
-               warnings: list[str]) -> dict:
+               warnings: list[str], trace=None) -> tuple[dict, list]:
     """Whole-record path: trajectory CSVs and declared effects that need the whole record."""
     from feed_axis_energy.cli.common import program_keywords
     from feed_axis_energy.cli.progress import Progress
     from feed_axis_energy.core.gcode import load_gcode
     from feed_axis_energy.core.measured.trajcsv import load_trajectory_csv
     from feed_axis_energy.core.recording import write_simulation_bag
+    from feed_axis_energy.core.energy import energy_by_line
     from feed_axis_energy.core.simulate import simulate_motion, simulate_program, summarize
     if trajectory:
         motion = load_trajectory_csv(args.program, axes=machine.axis_names)
@@ -261,4 +315,8 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool,
             write_simulation_bag(staged, result, summary=summary,
                                  progress=Progress('write bag', enabled=not args.quiet),
                                  compression=args.compression)
-    return summary
+    blocks: list = []
+    if trace is not None:
+        trace.add(result)
+        blocks = [] if trajectory else energy_by_line(result.power)
+    return summary, blocks

@@ -1,4 +1,4 @@
-"""Report of a campaign comparison: the paper's plots per run and one ``index.html``.
+"""Report of a campaign comparison: one ``index.html`` with the paper's plots per run embedded.
 
 Outside :mod:`feed_axis_energy.core` because it uses matplotlib (Agg canvas only); it imports
 no ROS either. Usage::
@@ -21,7 +21,7 @@ from feed_axis_energy.core.measured.compare import CampaignComparison
 from feed_axis_energy.core.outputs import marked_or_empty, REPORT_MARKER, staged_directory
 
 from .html import render_index
-from .plots import PLOT_KINDS, write_run_plots
+from .plots import PLOT_KINDS, run_plots
 
 __all__ = ['MARKER', 'PLOT_KINDS', 'staged_report', 'write_report']
 
@@ -68,8 +68,9 @@ def staged_report(out_dir: str | os.PathLike[str], *, written_by: str, force: bo
 
 
 def write_report(comparison: CampaignComparison, out_dir: str | os.PathLike[str], *,
-                 dpi: int = 100, force: bool = False) -> Path:
-    """Write the plots of every run and ``index.html`` into ``out_dir``, all or nothing.
+                 dpi: int = 90, force: bool = False) -> Path:
+    """Write ``index.html`` with the plots of every run embedded into ``out_dir``, all or
+    nothing (one file however many runs: the plots are ``data:`` URIs).
 
     Everything is written into a temporary directory next to ``out_dir`` and moved into
     place at the end, so a failure leaves no half-written report (and an earlier report in
@@ -82,7 +83,7 @@ def write_report(comparison: CampaignComparison, out_dir: str | os.PathLike[str]
     out_dir
         Report directory: must not exist unless ``force`` (see :func:`staged_report`).
     dpi
-        Resolution of the PNG files.
+        Resolution of the embedded PNG images.
     force
         Replace an earlier report (or an empty directory) in ``out_dir``.
 
@@ -99,7 +100,6 @@ def write_report(comparison: CampaignComparison, out_dir: str | os.PathLike[str]
     out = Path(out_dir)
     with staged_report(out, written_by='feed-axis-energy compare --report',
                        force=force) as tmp:
-        images = {run.name: write_run_plots(run, tmp, _stem(i, run.name), dpi=dpi)
-                  for i, run in enumerate(comparison.runs)}
+        images = {run.name: run_plots(run, dpi=dpi) for run in comparison.runs}
         (tmp / 'index.html').write_text(render_index(comparison, images), encoding='utf-8')
     return out / 'index.html'

@@ -3,7 +3,9 @@
 Agg canvas only (no pyplot). Files: ``residual_states.png`` (residual before and after
 against velocity, position, acceleration and time, every measured axis), ``spectrum.png``
 (run-averaged residual spectrum before and after), ``NN_<run>_after.png`` per held-out run
-(measured, simulated before and after, and both errors), ``index.html``.
+(measured, simulated before and after, and both errors), ``index.html`` (one line
+answering first, plain words before the statistics, which sit in a details section; every
+image embedded as well, so the page alone opens offline).
 """
 from __future__ import annotations
 
@@ -11,7 +13,6 @@ from html import escape
 import os
 from pathlib import Path
 
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 import numpy as np
 
@@ -19,18 +20,21 @@ from feed_axis_energy.core.identify.analyze import AnalysisResult, STATE_NAMES
 
 from . import _stem, staged_report
 from .html import METRIC_ROWS
+from .page import figure_png, fmt_pct, img, page, short, table
 
-__all__ = ['write_analyze_report']
+__all__ = ['analyze_answer', 'write_analyze_report']
 
 _UNITS = {'velocity': 'm/s', 'position': 'm', 'acceleration': 'm/s²', 'time': 's'}
 
 
-def _save(fig: Figure, path: Path, dpi: int) -> None:
-    FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=dpi)
+def _save(fig: Figure, path: Path, dpi: int) -> bytes:
+    """Write ``fig`` to ``path`` as PNG; return the bytes (embedded in the page too)."""
+    png = figure_png(fig, dpi=dpi)
+    path.write_bytes(png)
+    return png
 
 
-def _residual_states(res: AnalysisResult, path: Path, dpi: int) -> None:
+def _residual_states(res: AnalysisResult, path: Path, dpi: int) -> bytes:
     k = len(res.axes)
     fig = Figure(figsize=(12, 3.0 * k + 0.8), layout='constrained')
     axs = fig.subplots(k, len(STATE_NAMES), squeeze=False)
@@ -50,10 +54,10 @@ def _residual_states(res: AnalysisResult, path: Path, dpi: int) -> None:
     axs[0, 0].legend(loc='best', markerscale=6, fontsize=8)
     fig.suptitle('residual = measured - simulated power, against the state '
                  '(after: selected effects fitted on all runs)', fontsize=10)
-    _save(fig, path, dpi)
+    return _save(fig, path, dpi)
 
 
-def _spectrum(res: AnalysisResult, path: Path, dpi: int) -> None:
+def _spectrum(res: AnalysisResult, path: Path, dpi: int) -> bytes:
     fig = Figure(figsize=(10, 3.2 * len(res.axes) + 0.6), layout='constrained')
     axs = fig.subplots(len(res.axes), 1, squeeze=False)[:, 0]
     for ax, axis in zip(axs, res.axes):
@@ -66,10 +70,10 @@ def _spectrum(res: AnalysisResult, path: Path, dpi: int) -> None:
         ax.legend(loc='upper right')
     axs[-1].set_xlabel('frequency [Hz]')
     fig.suptitle('residual spectrum (Welch, averaged over runs)', fontsize=10)
-    _save(fig, path, dpi)
+    return _save(fig, path, dpi)
 
 
-def _run_plot(run, path: Path, dpi: int) -> None:
+def _run_plot(run, path: Path, dpi: int) -> bytes:
     fig = Figure(figsize=(10, 5.6), layout='constrained')
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
     ax1.plot(run.t, run.meas_w, color='#222', lw=1.0, label='measured')
@@ -88,14 +92,33 @@ def _run_plot(run, path: Path, dpi: int) -> None:
     fig.suptitle(f'{run.name}: load {run.load_kg:g} kg; avg percentual error '
                  f'{run.before.avg_pct_error_pct:.2f} % -> {run.after.avg_pct_error_pct:.2f} %',
                  fontsize=10)
-    _save(fig, path, dpi)
+    return _save(fig, path, dpi)
 
 
 def _num(v, fmt: str) -> str:
     return '&ndash;' if v is None or not np.isfinite(v) else format(v, fmt)
 
 
-def _html(res: AnalysisResult, run_images: dict[str, str]) -> str:
+_HOLDOUT_WORDS = {
+    'loro': 'each run is predicted by a model fitted on the other runs only '
+            '(leave-one-run-out)',
+    'roles': 'the model is fitted on the calibration runs and scored on the validation runs',
+}
+
+
+def analyze_answer(res: AnalysisResult) -> str:
+    """The one-line answer: what was added and how much better runs not fitted on got."""
+    added = ', '.join(f'{e.id} on {e.axis}' for e in res.effects)
+    what = f'Added {escape(short(added, 120))}' if res.effects else 'No effect added'
+    before, after = res.before.avg_pct_error_pct, res.after.avg_pct_error_pct
+    text = (f'{what}: on runs the fit did not see, the power error goes from '
+            f'<b>{fmt_pct(before)}</b> to <b>{fmt_pct(after)}</b> on average')
+    if res.unexplained:
+        text += '; some structure is left that no known effect explains'
+    return text + '.'
+
+
+def _html(res: AnalysisResult, images: dict[str, bytes], run_images: dict[str, str]) -> str:
     cols = [('all held-out', res.before, res.after)] + [
         (f'{load:g} kg', b, a) for load, b, a in res.by_load()]
     head = ''.join(f'<th colspan="2">{escape(c)}</th>' for c, _, _ in cols)
@@ -106,47 +129,49 @@ def _html(res: AnalysisResult, run_images: dict[str, str]) -> str:
                         f'<td class="num">{_num(getattr(a, attr), fmt)}</td>'
                         for _, b, a in cols)
         rows.append(f'<tr><th style="text-align:left">{escape(label)}</th>{cells}</tr>')
-    table = '<table>' + '\n'.join(rows) + '</table>'
-    eff = ['<tr><th>effect</th><th>axis</th><th>parameter</th><th>value</th><th>&plusmn;</th>'
-           '<th>unit</th><th>share of structured residual</th><th>held-out gain</th>'
-           '<th>aliases</th></tr>']
+    metrics = '<div class="fit"><table>' + '\n'.join(rows) + '</table></div>'
+    eff = []
     for e in res.effects:
         for p in e.params:
-            eff.append(f'<tr><td>{escape(e.id)}</td><td>{escape(e.axis)}</td>'
-                       f'<td>{escape(p.name)}</td><td class="num">{p.value:.5g}</td>'
-                       f'<td class="num">{_num(p.uncertainty, ".3g")}</td>'
-                       f'<td>{escape(p.unit)}</td>'
-                       f'<td class="num">{100 * e.share_of_structured:.1f} %</td>'
-                       f'<td class="num">{100 * e.heldout_gain_rel:.1f} %</td>'
-                       f'<td>{escape(", ".join(e.aliases))}</td></tr>')
-    effects = ('<table>' + '\n'.join(eff) + '</table>' if res.effects
-               else '<p>No effect added.</p>')
-    unexpl = ''.join(f'<li><b>{escape(u["diagnostic"])}</b>: {escape(u["message"])}</li>'
-                     for u in res.unexplained) or '<li>none</li>'
-    diag = ''.join(f'<tr><td>{escape(d.axis)}</td><td>{escape(d.name)}</td>'
-                   f'<td>{"yes" if d.structured else "no"}</td><td>{escape(d.message)}</td></tr>'
-                   for d in res.diagnostics_after)
-    runs = ''.join(f'<h3>{escape(name)}</h3><p><img src="{escape(f)}" alt="{escape(name)}"></p>'
-                   for name, f in run_images.items())
-    return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>analyze: {escape(res.campaign)}</title>
-<style>body {{ font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 1150px; }}
-table {{ border-collapse: collapse; margin: 0.6em 0 1.2em; font-size: 0.9em; }}
-th, td {{ border: 1px solid #ccc; padding: 0.25em 0.6em; }} th {{ background: #f1f3f5; }}
-td.num {{ text-align: right; }} img {{ max-width: 100%; }}</style></head><body>
-<h1>Residual analysis: {escape(res.campaign)}</h1>
-<p>Manifest {escape(res.manifest)}; machine {escape(res.machine.name)}; held out:
-{escape(res.holdout)}. <b>{escape(res.status)}</b>: {escape(res.message)}</p>
-<h2>Effects</h2>{effects}
-<h2>Unexplained structure</h2><ul>{unexpl}</ul>
-<h2>Before / after on held-out runs</h2>{table}
-<h2>Residual diagnostics (after)</h2>
-<table><tr><th>axis</th><th>test</th><th>structure</th><th>detail</th></tr>{diag}</table>
-<p><img src="residual_states.png" alt="residual vs states"></p>
-<p><img src="spectrum.png" alt="residual spectrum"></p>
+            eff.append([escape(e.id), escape(e.axis), escape(p.name),
+                        f'<td class="num">{p.value:.5g}</td>',
+                        f'<td class="num">{_num(p.uncertainty, ".3g")}</td>', escape(p.unit),
+                        f'<td class="num">{fmt_pct(100 * e.share_of_structured)}</td>',
+                        f'<td class="num">{fmt_pct(100 * e.heldout_gain_rel)}</td>',
+                        escape(short(', '.join(e.aliases), 80))])
+    effects = (table(['effect', 'axis', 'parameter', 'value', '&plusmn;', 'unit',
+                      'share of the pattern explained', 'gain on unseen runs',
+                      'could also be'], eff) if res.effects else '<p>No effect added.</p>')
+    unexpl = ''.join(f'<li><b>{escape(u["diagnostic"])}</b>: {escape(short(u["message"], 300))}'
+                     f'</li>' for u in res.unexplained) or '<li>none</li>'
+    diag = table(['axis', 'test', 'pattern left', 'detail'],
+                 [[escape(d.axis), escape(d.name), 'yes' if d.structured else 'no',
+                   escape(short(d.message, 300))] for d in res.diagnostics_after])
+    runs = ''.join(f'<h3>{escape(short(name))}</h3>'
+                   + img(images[f], name, link=f) for name, f in run_images.items())
+    body = f"""
+<p>The residual is the measured power minus the simulated power. An effect of the catalog
+is added only if it makes the prediction better on runs it was not fitted on: here
+{_HOLDOUT_WORDS.get(res.holdout, escape(res.holdout))}. Machine
+{escape(res.machine.name)}; <b>{escape(res.status)}</b>: {escape(short(res.message, 300))}</p>
+<h2>Effects added</h2>{effects}
+<h2>What is left unexplained</h2><ul>{unexpl}</ul>
+<h2>Before and after, on runs the fit did not see</h2>{metrics}
+<h2>Residual against the state of the axis</h2>
+{img(images['residual_states.png'], 'residual vs states', link='residual_states.png')}
 <h2>Runs</h2>{runs}
-</body></html>
+<details><summary>Details: statistical tests and spectrum</summary>
+<p class="note">Manifest {escape(short(res.manifest, 120))}. "Share of the pattern
+explained" is the drop of the residual sum of squares above the noise level; "gain on
+unseen runs" the relative drop of the mean squared error on held-out runs; the
+&plusmn; values are jackknife uncertainties over runs. An effect is called inconsistent
+across runs when refitting it per run explains much more than one set of parameters for all
+runs and that improvement is significant against the noise (&chi;&sup2; test).</p>
+<h3>Residual tests (after)</h3>{diag}
+{img(images['spectrum.png'], 'residual spectrum', link='spectrum.png')}
+</details>
 """
+    return page(f'Residual analysis: {short(res.campaign)}', analyze_answer(res), body)
 
 
 def write_analyze_report(res: AnalysisResult, out_dir: str | os.PathLike[str], *,
@@ -163,12 +188,13 @@ def write_analyze_report(res: AnalysisResult, out_dir: str | os.PathLike[str], *
     out = Path(out_dir)
     with staged_report(out, written_by='feed-axis-energy analyze --report',
                        force=force) as tmp:
-        _residual_states(res, tmp / 'residual_states.png', dpi)
-        _spectrum(res, tmp / 'spectrum.png', dpi)
+        png = {'residual_states.png': _residual_states(res, tmp / 'residual_states.png', dpi),
+               'spectrum.png': _spectrum(res, tmp / 'spectrum.png', dpi)}
         images = {}
         for i, run in enumerate(res.heldout_runs):
             name = f'{_stem(i, run.name)}_after.png'
-            _run_plot(run, tmp / name, dpi)
+            png[name] = _run_plot(run, tmp / name, dpi)
             images[run.name] = name
-        (tmp / 'index.html').write_text(_html(res, images), encoding='utf-8')
+        html = _html(res, png, images)
+        (tmp / 'index.html').write_text(html, encoding='utf-8')
     return out / 'index.html'

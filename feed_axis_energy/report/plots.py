@@ -5,24 +5,28 @@
 * energy: consumed energy over time, measured vs simulated (Fig 7 kind);
 * error: differential error ``P_meas - P_sim`` [W] and percentual error
   ``100 |dP| / |P_meas|`` [%] over time (Fig 8 kind); the percentual error is drawn only where
-  ``|P_meas|`` is above the run's floor, as in the metrics.
+  ``|P_meas|`` is above the run's floor, as in the metrics. Its scale ends at the 99th
+  percentile (a single sample of 100 % would otherwise flatten the rest); samples above are
+  drawn as markers on the top edge and the plot says how many and how large.
 
 No pyplot: figures are :class:`matplotlib.figure.Figure` objects on an Agg canvas, so nothing
 touches a display or global state.
 """
 from __future__ import annotations
 
-from pathlib import Path
-
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 import numpy as np
 
 from feed_axis_energy.core.measured.compare import RunComparison
 
-__all__ = ['PLOT_KINDS', 'plot_energy', 'plot_error', 'plot_power', 'write_run_plots']
+from .page import figure_png
+
+__all__ = ['PCT_SCALE_PERCENTILE', 'PLOT_KINDS', 'pct_scale', 'plot_energy', 'plot_error',
+           'plot_power', 'run_plots']
 
 PLOT_KINDS = ('power', 'energy', 'error')
+PCT_SCALE_PERCENTILE = 99.0
+"""The percentual-error plot's scale ends at this percentile of its samples (times 1.1)."""
 
 _MEAS = dict(color='#1f4e9a', lw=1.1, label='measured')
 _SIM = dict(color='#d9480f', lw=1.1, ls='--', label='simulated')
@@ -37,14 +41,24 @@ def _offset_note(run: RunComparison) -> str:
             f'simulated power averaged over {run.window_s * 1e3:.0f} ms intervals')
 
 
-def _save(fig: Figure, path: Path, dpi: int) -> Path:
-    FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=dpi)
-    return path
+def pct_scale(pct: np.ndarray) -> tuple[float, int]:
+    """Upper end of the percentual-error scale and how many samples lie above it.
+
+    ``1.1`` times the :data:`PCT_SCALE_PERCENTILE` percentile of the finite samples, but at
+    least 1 % and never more than the largest sample (then nothing is clipped).
+    """
+    finite = pct[np.isfinite(pct)]
+    if finite.size == 0:
+        return 1.0, 0
+    top = float(finite.max())
+    limit = max(1.1 * float(np.percentile(finite, PCT_SCALE_PERCENTILE)), 1.0)
+    if limit >= top:
+        return max(1.05 * top, 1.0), 0
+    return limit, int(np.count_nonzero(finite > limit))
 
 
-def plot_power(run: RunComparison, path: Path, *, dpi: int = 100) -> Path:
-    """Actual power over time, measured vs simulated (Fig 6 kind); returns ``path``."""
+def plot_power(run: RunComparison, *, dpi: int = 100) -> bytes:
+    """Actual power over time, measured vs simulated (Fig 6 kind); returns PNG bytes."""
     panels = [('sum of ' + ', '.join(run.axes) if len(run.axes) > 1 else f'axis {run.axes[0]}',
                run.total_meas_w, run.total_sim_w)]
     if len(run.axes) > 1:
@@ -60,11 +74,11 @@ def plot_power(run: RunComparison, path: Path, *, dpi: int = 100) -> Path:
     axs[0].legend(loc='upper right')
     axs[-1].set_xlabel('time [s]')
     fig.suptitle(f'{_title(run, "actual power")}\n{_offset_note(run)}', fontsize=10)
-    return _save(fig, path, dpi)
+    return figure_png(fig, dpi=dpi)
 
 
-def plot_energy(run: RunComparison, path: Path, *, dpi: int = 100) -> Path:
-    """Consumed energy over time, measured vs simulated (Fig 7 kind); returns ``path``."""
+def plot_energy(run: RunComparison, *, dpi: int = 100) -> bytes:
+    """Consumed energy over time, measured vs simulated (Fig 7 kind); returns PNG bytes."""
     e_meas = run.energy_meas_j()
     e_sim = run.energy_sim_j()
     fig = Figure(figsize=(10, 4.2), layout='constrained')
@@ -82,11 +96,11 @@ def plot_energy(run: RunComparison, path: Path, *, dpi: int = 100) -> Path:
     ax.legend(loc='upper left')
     what = 'consumed energy' + (f' (sum of {", ".join(run.axes)})' if len(run.axes) > 1 else '')
     fig.suptitle(_title(run, what), fontsize=10)
-    return _save(fig, path, dpi)
+    return figure_png(fig, dpi=dpi)
 
 
-def plot_error(run: RunComparison, path: Path, *, dpi: int = 100) -> Path:
-    """Differential [W] and percentual [%] error over time (Fig 8 kind); returns ``path``."""
+def plot_error(run: RunComparison, *, dpi: int = 100) -> bytes:
+    """Differential [W] and percentual [%] error over time (Fig 8 kind); returns PNG bytes."""
     meas = run.total_meas_w
     diff = meas - run.total_sim_w
     m = run.metrics
@@ -108,24 +122,26 @@ def plot_error(run: RunComparison, path: Path, *, dpi: int = 100) -> Path:
     if np.isfinite(m.avg_pct_error_pct):
         ax2.axhline(m.avg_pct_error_pct, color='#2b8a3e', lw=0.9, ls=':',
                     label=f'average {m.avg_pct_error_pct:.2f} %')
+    limit, above = pct_scale(pct)
+    if above:
+        over = np.isfinite(pct) & (pct > limit)
+        ax2.plot(run.t[over], np.full(above, limit), '^', color='#c92a2a', ms=5, clip_on=False,
+                 label=f'{above} sample{"s" if above > 1 else ""} above the scale (up to '
+                       f'{np.nanmax(pct):.0f} %); scale ends at 1.1 x the '
+                       f'{PCT_SCALE_PERCENTILE:g}th percentile')
     ax2.set_ylabel('percentual error [%]')
     ax2.set_xlabel('time [s]')
-    ax2.set_ylim(bottom=0.0)
+    ax2.set_ylim(0.0, limit)
     ax2.legend(loc='best', fontsize=8)
     ax2.grid(True, alpha=0.3)
     what = 'differential and percentual error'
     if len(run.axes) > 1:
         what += f' (sum of {", ".join(run.axes)})'
     fig.suptitle(f'{_title(run, what)}\n{_offset_note(run)}', fontsize=10)
-    return _save(fig, path, dpi)
+    return figure_png(fig, dpi=dpi)
 
 
-def write_run_plots(run: RunComparison, out_dir: Path, stem: str, *,
-                    dpi: int = 100) -> dict[str, str]:
-    """Write the three plots of one run as ``{stem}_{kind}.png``; return kind -> file name."""
-    out = {}
-    for kind, fn in (('power', plot_power), ('energy', plot_energy), ('error', plot_error)):
-        name = f'{stem}_{kind}.png'
-        fn(run, Path(out_dir) / name, dpi=dpi)
-        out[kind] = name
-    return out
+def run_plots(run: RunComparison, *, dpi: int = 100) -> dict[str, bytes]:
+    """The three plots of one run: kind -> PNG bytes (in :data:`PLOT_KINDS` order)."""
+    # looked up by name at call time, so a test can replace one
+    return {kind: globals()[f'plot_{kind}'](run, dpi=dpi) for kind in PLOT_KINDS}

@@ -65,7 +65,8 @@ def test_table_report_and_selection(manifest, tmp_path, capsys):
     lines = [ln for ln in out.splitlines() if ln.startswith(('a ', 'b '))]
     assert len(lines) == 1 and lines[0].split()[0] == 'b'
     assert f'report: {report / "index.html"}' in out
-    assert len(list(report.glob('*.png'))) == 3
+    assert not list(report.glob('*.png'))          # plots embedded in the page
+    assert (report / 'index.html').read_text().count('<img src="data:image/png;base64,') == 3
 
 
 def test_role_selection(manifest, capsys):

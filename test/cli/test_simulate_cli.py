@@ -131,3 +131,59 @@ def test_week_long_dwell_without_out(tmp_path: Path, capsys) -> None:
     assert got['samples'] > 604_800_000 and got['duration_s'] > 604800.0
     assert [b['line'] for b in got['top_blocks']][-1] == 2       # the dwell, 604 800 s
     assert got['top_blocks'][-1]['duration_s'] == pytest.approx(604800.0, abs=2e-3)
+
+
+def test_simulate_report_with_out_agrees_with_the_summary(tmp_path: Path, capsys) -> None:
+    report = tmp_path / 'report'
+    contour = ROOT / 'config' / 'programs' / 'three_axis_contour.nc'
+    assert main(['simulate', str(contour), '--machine', str(ROOT / 'config' /
+                 'three_axis_mill.yaml'), '--load-kg', '50', '--report', str(report),
+                 '--out', str(tmp_path / 'bag'), '--json', '--quiet']) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary['report'] == str(report / 'index.html')
+    html = (report / 'index.html').read_text()
+    for name in ('power.png', 'energy.png', 'path.png', 'blocks.png'):
+        assert (report / name).read_bytes()[:4] == b'\x89PNG'
+    total = summary['energy_j']['total']
+    assert f'{total:.0f} J per part' in html or f'{total / 1e3:.3g} kJ per part' in html
+    # the most energetic block is in the table with its source text
+    top = summary['top_blocks'][0]['line']
+    text = contour.read_text().splitlines()[top - 1].strip()
+    assert f'<td class="num">{top}</td>' in html and text in html
+    assert (tmp_path / 'bag').is_dir()
+
+
+def test_simulate_report_refused_before_simulating(tmp_path: Path) -> None:
+    (tmp_path / 'r').mkdir()
+    (tmp_path / 'r' / 'mine.txt').write_text('keep')
+    proc = _run('simulate', str(PROGRAM), '--report', str(tmp_path / 'r'), '--force')
+    assert proc.returncode == 1 and '--report' in proc.stderr and 'Traceback' not in proc.stderr
+    assert (tmp_path / 'r' / 'mine.txt').read_text() == 'keep'
+    proc = _run('simulate', str(PROGRAM), '--quiet', '--report', str(tmp_path / 'new'))
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / 'new' / 'index.html').is_file()
+
+
+def test_simulate_report_of_a_trajectory_csv(tmp_path: Path) -> None:
+    csv = tmp_path / 'traj.csv'
+    t = np.arange(0.0, 2.0, 0.001)
+    x = 50.0 * (1.0 - np.cos(np.pi * t / 2.0))
+    csv.write_text('time [s],X [mm]\n' + ''.join(f'{a:.4f},{b:.6f}\n' for a, b in zip(t, x)))
+    proc = _run('simulate', str(csv), '--quiet', '--report', str(tmp_path / 'r'))
+    assert proc.returncode == 0, proc.stderr
+    html = (tmp_path / 'r' / 'index.html').read_text()
+    assert 'No source lines' in html and 'travel range' in html
+
+
+def test_a_failing_report_leaves_no_bag_behind(tmp_path: Path, monkeypatch, capsys) -> None:
+    import feed_axis_energy.report.sim_report as sim_report
+    from feed_axis_energy.core.errors import OutputError
+
+    def broken(*args, **kwargs):
+        raise OutputError('no space left on device', path=str(tmp_path / 'r'))
+
+    monkeypatch.setattr(sim_report, 'write_sim_report', broken)
+    assert main(['simulate', str(PROGRAM), '--quiet', '--out', str(tmp_path / 'bag'),
+                 '--report', str(tmp_path / 'r')]) == 1
+    assert 'no space left' in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

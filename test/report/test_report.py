@@ -1,6 +1,7 @@
-"""write_report: three PNGs per run, one index.html referencing them, written all or nothing."""
+"""write_report: one index.html with three plots per run embedded, written all or nothing."""
 from __future__ import annotations
 
+import base64
 from dataclasses import replace
 import importlib.util
 from pathlib import Path
@@ -8,6 +9,7 @@ import re
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from feed_axis_energy.core.measured import load_campaign
@@ -37,19 +39,22 @@ def comparison(tmp_path_factory):
     return compare_campaign(load_campaign(manifest), max_lag_s=1.0)
 
 
-def test_report_has_every_plot_and_the_page_references_them(comparison, tmp_path):
+def test_report_is_one_page_with_every_plot_embedded(comparison, tmp_path):
     out = tmp_path / 'report'
     index = write_report(comparison, out)
     assert index == out / 'index.html'
-    pngs = sorted(p.name for p in out.glob('*.png'))
-    assert len(pngs) == len(PLOT_KINDS) * len(comparison.runs)
-    for p in pngs:
-        assert (out / p).read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, 'index.html'])
     page = index.read_text()
-    referenced = set(re.findall(r'<img src="([^"]+)"', page))
-    assert referenced == set(pngs)
-    # the run with a space in its name gets a safe file name
-    assert '01_zero_load_power.png' in pngs
+    srcs = re.findall(r'<img src="([^"]+)"', page)
+    assert len(srcs) == len(PLOT_KINDS) * len(comparison.runs)
+    for src in srcs:
+        head, data = src.split(',', 1)
+        assert head == 'data:image/png;base64'
+        assert base64.b64decode(data)[:8] == b'\x89PNG\r\n\x1a\n'
+    # the one-line answer comes first and names the worst run
+    answer = re.search(r'<p class="answer">(.*?)</p>', page, re.S).group(1)
+    assert 'simulated energy is within' in answer and 'heavy' in answer
+    assert page.index('class="answer"') < page.index('Per run') < page.index('Per load')
     # summary first: the per-load table comes before the first run section
     assert page.index('Per load') < page.index('<section')
     for label in ('Average differential error [W]', 'Average percentual error [%]',
@@ -106,3 +111,13 @@ def test_report_imports_neither_pyplot_nor_ros():
     proc = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                           timeout=60, check=True)
     assert proc.stdout.strip() == '[]'
+
+
+def test_pct_scale_is_not_set_by_one_sample():
+    pct = np.concatenate((np.linspace(0.0, 5.0, 999), [100.0]))
+    limit, above = plots.pct_scale(pct)
+    assert 5.0 < limit < 6.0 and above == 1
+    # without an outlier nothing is clipped and the largest sample is inside the scale
+    limit, above = plots.pct_scale(np.linspace(0.0, 5.0, 1000))
+    assert above == 0 and limit >= 5.0
+    assert plots.pct_scale(np.full(3, np.nan)) == (1.0, 0)

@@ -1,0 +1,32 @@
+"""Every report page a test writes is rendered in headless Chromium after the test.
+
+A test that leaves a report (``index.html`` beside the report marker) in its ``tmp_path``
+fails at teardown if a table overflows its container, an image does not load or the page
+scrolls sideways, at each width of :data:`report_browser.WIDTHS`. Without Chromium nothing is
+rendered here and ``test/report/test_browser.py`` skips with a message; ``FAE_BROWSER=0``
+turns the check off.
+"""
+from __future__ import annotations
+
+import os
+
+import pytest
+from report_browser import chromium, problems
+
+from feed_axis_energy.core.outputs import REPORT_MARKER
+
+
+@pytest.fixture(autouse=True)
+def _report_pages_render_in_a_browser(request):
+    wanted = ('tmp_path' in request.fixturenames and os.environ.get('FAE_BROWSER') != '0'
+              and chromium() is not None)
+    tmp = request.getfixturevalue('tmp_path') if wanted else None
+    yield
+    if tmp is None:
+        return
+    bad = []
+    for page in sorted(tmp.rglob('index.html')):
+        if (page.parent / REPORT_MARKER).is_file():
+            bad += problems(page)
+    if bad:
+        pytest.fail('report pages do not render well in Chromium:\n' + '\n'.join(bad))
