@@ -77,12 +77,14 @@ def _print_tables(cmp: CampaignComparison) -> None:
     rows = []
     for r in cmp.runs:
         found = f'{r.offset.offset_s:+.3f}' if math.isfinite(r.offset.offset_s) else '-'
+        runner = (f'{r.offset.runner_up_s:+.3f} ({r.offset.runner_up_rms_w:.3g} W)'
+                  if math.isfinite(r.offset.runner_up_s) else '-')
         rows.append([r.name, f'{r.load_kg:g}', found, r.offset.status,
-                     f'{r.offset_used_s:+.3f}'] + metric_cells(r.metrics))
+                     f'{r.offset_used_s:+.3f}', runner] + metric_cells(r.metrics))
     print('per run (sum of the measured axes; dP = measured - simulated power, '
           'dE = simulated - measured energy):')
-    print(format_table(['run', 'load [kg]', 'offset [s]', 'status', 'used [s]']
-                       + METRIC_HEADER, rows))
+    print(format_table(['run', 'load [kg]', 'offset [s]', 'status', 'used [s]',
+                        'runner-up [s] (resid. RMS)'] + METRIC_HEADER, rows))
     print()
     rows = [[f'{g.load_kg:g}', str(len(g.runs))] + metric_cells(g.metrics) for g in cmp.groups]
     print('per load (runs pooled):')

@@ -19,7 +19,7 @@ without a measured counterpart (e.g. a Z axis without a power column) are left o
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 from pathlib import Path
 from typing import Any
@@ -59,6 +59,25 @@ def json_clean(value: Any) -> Any:
     return value
 
 
+def offset_dict(offset: OffsetResult, *, used_s: float) -> dict[str, Any]:
+    """JSON-able offset estimate: found/used offset, scores, runner-up and drift."""
+    runner = None
+    if math.isfinite(offset.runner_up_s):
+        runner = {'offset_s': offset.runner_up_s, 'correlation': offset.runner_up_correlation,
+                  'rms_w': offset.runner_up_rms_w}
+    return {
+        'found_s': offset.offset_s,
+        'used_s': used_s,
+        'correlation': offset.peak_correlation,
+        'rms_w': offset.rms_w,
+        'status': offset.status,
+        'message': offset.message,
+        'runner_up': runner,
+        'drift_ppm': offset.drift_ppm,
+        'drift_message': offset.drift_message,
+    }
+
+
 def _cumulative_energy(t: np.ndarray, p: np.ndarray) -> np.ndarray:
     """Trapezoidal cumulative energy [J] of ``p`` (n,) or (n, k) over ``t``, 0 at t[0]."""
     dt = np.diff(t) if p.ndim == 1 else np.diff(t)[:, None]
@@ -81,7 +100,7 @@ class RunComparison:
     axes
         Axes with measured power, the columns of the power arrays.
     window_s
-        Measuring interval the simulated power was averaged over [s].
+        Measuring interval the simulated power was averaged over [s] (0: point samples).
     offset
         The offset estimate (status ``'ok'``, ``'weak'``, ``'edge'``, ``'ambiguous'`` or
         ``'fixed'`` when the caller gave the offset).
@@ -99,6 +118,8 @@ class RunComparison:
         Length of the simulation [s].
     excluded_rows
         Data rows dropped by the manifest's row filter.
+    stamp
+        Where the instrument stamps its window: ``'end'``, ``'centre'`` or ``'start'``.
     """
 
     name: str
@@ -117,6 +138,7 @@ class RunComparison:
     power_sim_w: np.ndarray = field(repr=False)
     sim_duration_s: float = 0.0
     excluded_rows: int = 0
+    stamp: str = 'end'
 
     @property
     def total_meas_w(self) -> np.ndarray:
@@ -151,13 +173,8 @@ class RunComparison:
             'duration_meas_s': float(self.t[-1] - self.t[0]),
             'duration_sim_s': self.sim_duration_s,
             'excluded_rows': self.excluded_rows,
-            'offset': {
-                'found_s': self.offset.offset_s,
-                'used_s': self.offset_used_s,
-                'correlation': self.offset.peak_correlation,
-                'status': self.offset.status,
-                'message': self.offset.message,
-            },
+            'stamp': self.stamp,
+            'offset': offset_dict(self.offset, used_s=self.offset_used_s),
             'metrics': metrics,
         })
 
@@ -348,9 +365,7 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
             raise DataError(msg, file=run.file, column=err.column) from err
         used = 0.0 if found.status == 'weak' else found.offset_s
         if found.status == 'weak':
-            found = OffsetResult(found.offset_s, found.peak_correlation, found.status,
-                                 f'{found.message}; compared at offset 0',
-                                 found.lags_s, found.correlation)
+            found = replace(found, message=f'{found.message}; compared at offset 0')
     else:
         used = float(offset_s)
         found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')

@@ -247,7 +247,8 @@ def test_to_dict_is_strict_json_with_units_in_keys(campaign):
     back = json.loads(text)
     run = back['runs'][0]
     assert run['name'] == 'late' and run['role'] == 'validate'
-    assert set(run['offset']) == {'found_s', 'used_s', 'correlation', 'status', 'message'}
+    assert set(run['offset']) == {'found_s', 'used_s', 'correlation', 'rms_w', 'status',
+                                  'message', 'runner_up', 'drift_ppm', 'drift_message'}
     assert set(run['metrics']) == {'total', 'X', 'Y'}
     assert {'avg_diff_error_w', 'avg_pct_error_pct', 'max_diff_error_w', 'max_pct_error_pct',
             'energy_error_j', 'energy_error_pct', 'rmse_w'} <= set(run['metrics']['total'])
