@@ -89,10 +89,10 @@ def _print_tables(cmp: CampaignComparison) -> None:
     rows = [[f'{g.load_kg:g}', str(len(g.runs))] + metric_cells(g.metrics) for g in cmp.groups]
     print('per load (runs pooled):')
     print(format_table(['load [kg]', 'runs'] + METRIC_HEADER, rows))
-    if cmp.offset_warnings:
+    if cmp.warnings:
         print()
-        print('offset warnings (compared anyway):')
-        for w in cmp.offset_warnings:
+        print('offset and instrument warnings (compared anyway):')
+        for w in cmp.warnings:
             print(f'  {w}')
 
 

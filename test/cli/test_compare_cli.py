@@ -49,7 +49,7 @@ def test_json_keys_and_values(manifest, capsys):
     run_b = out['runs'][1]
     assert set(run_b) == {'name', 'role', 'load_kg', 'data_file', 'motion_source', 'axes',
                           'window_s', 'duration_meas_s', 'duration_sim_s', 'excluded_rows',
-                          'stamp', 'offset', 'metrics'}
+                          'stamp', 'instrument', 'instrument_check', 'offset', 'metrics'}
     assert run_b['offset']['used_s'] == pytest.approx(0.150, abs=0.002)
     assert run_b['metrics']['total']['avg_pct_error_pct'] == pytest.approx(
         100.0 * (1.0 - 1.0 / 1.1), abs=0.25)

@@ -37,7 +37,7 @@ from scipy.optimize import minimize_scalar
 from ..effects import EFFECTS, EffectState, get_effect, state_from_simulation
 from ..errors import ConfigError
 from ..machine import load_machine, Machine
-from ..measured.align import align_simulated
+from ..measured.align import align_simulated, stamp_shift
 from ..measured.compare import (_MotionCache, _simulate, compare_campaign, offset_dict,
                                 RunComparison)
 from ..measured.csvload import load_run
@@ -65,7 +65,8 @@ class _Run:
     def aligned(self, cols: np.ndarray) -> np.ndarray:
         """Align 1 kHz columns ``(n, c)`` onto the measured stamps: ``(m, c)``."""
         return align_simulated(self.state.t, cols, self.cmp.t,
-                               offset_s=self.cmp.offset_used_s, window_s=self.cmp.window_s)
+                               offset_s=self.cmp.offset_used_s, window_s=self.cmp.window_s,
+                               stamp=self.cmp.stamp)
 
 
 def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
@@ -87,7 +88,8 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
                    residual=r.power_meas_w - r.power_sim_w, states={})
         on = run.aligned(np.column_stack(cols))
         k = len(idx)
-        mid = r.t - r.offset_used_s - 0.5 * r.window_s
+        # simulated time at the centre of each sample's window
+        mid = r.t - r.offset_used_s + stamp_shift(r.window_s, r.stamp) - 0.5 * r.window_s
         run.states = {'velocity': on[:, 0::3], 'position': on[:, 1::3],
                       'acceleration': on[:, 2::3],
                       'time': np.repeat(mid[:, None], k, axis=1)}
@@ -286,7 +288,8 @@ def _diagnose(runs: Sequence[_Run], residuals: Sequence[np.ndarray],
         for name in STATE_NAMES:
             x = np.concatenate([r.states[name][:, j] for r in runs])
             out.append(binned_structure(y, x, sigma=sigmas[axis], name=name, axis=axis))
-        period = float(np.median([r.cmp.window_s for r in runs]))
+        # the sampling period (the window may be 0: point samples)
+        period = float(np.median([np.median(np.diff(r.cmp.t)) for r in runs]))
         out.append(spectrum_structure([res[:, j] for res in residuals], period_s=period,
                                       sigma=sigmas[axis], axis=axis))
         spectra[axis] = _avg_spectrum([res[:, j] for res in residuals], period)
@@ -522,7 +525,8 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         noise_sigma_w=sigmas, runs=tuple(outcomes), effects=tuple(fitted),
         unexplained=tuple(unexplained), diagnostics_before=tuple(diag_before),
         diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra,
-        augmented=tuple(augmented_outcome(c) for c in augmented))
+        augmented=tuple(augmented_outcome(c) for c in augmented),
+        warnings=tuple(cmp.warnings))
 
 
 def _verdict(fitted, unexplained, steps, data, folds, explained) -> tuple[str, str]:

@@ -128,6 +128,8 @@ def write_campaign(root: Path, runs: list[dict], *, seed: int = 7,
                  'motion': motion}
         if spec.get('role'):
             entry['role'] = spec['role']
+        if spec.get('instrument'):
+            entry['instrument'] = spec['instrument']
         manifest_runs.append(entry)
     axes = {a: {'power': {'column': f'{a}_Power_kW', 'unit': 'kW'},
                 'position': {'column': f'{a}_Pos_mm', 'unit': 'mm'},
@@ -149,8 +151,10 @@ def campaign(tmp_path_factory):
         {'name': 'early', 'load_kg': 0.0, 'offset_ms': -213, 'noise_w': 0.2},
         {'name': 'gain110', 'load_kg': 17.336, 'offset_ms': 120, 'factor': 1.1, 'noise_w': 0.2},
         {'name': 'gain080', 'load_kg': 17.336, 'offset_ms': 0, 'factor': 0.8, 'noise_w': 0.2},
+        # this meter averages 50 ms ending at the stamp while positions are read at it:
+        # declared, since motion from data defaults to point samples
         {'name': 'fromdata', 'load_kg': 5.0, 'offset_ms': 300, 'noise_w': 0.2,
-         'motion': 'actual'},
+         'motion': 'actual', 'instrument': {'window_s': 'period', 'stamp': 'end'}},
         {'name': 'noise', 'load_kg': 5.0, 'factor': 0.0, 'noise_w': 5.0},
     ]
     manifest = write_campaign(root, runs)
@@ -217,6 +221,35 @@ def test_motion_from_data_runs_and_agrees(campaign):
     assert abs(run.offset_used_s) < 0.02
     # power from positions differentiated at 50 ms: close in energy, not sample by sample
     assert abs(run.metrics.energy_error_pct) < 5.0
+
+
+def test_motion_from_data_defaults_to_point_samples(tmp_path):
+    runs = [{'name': f'r{k}', 'load_kg': 5.0, 'noise_w': 0.2, 'motion': 'actual'}
+            for k in range(2)]
+    res = compare_campaign(load_campaign(write_campaign(tmp_path, runs)), max_lag_s=0.5)
+    assert [(r.window_s, r.stamp, r.instrument) for r in res.runs] == [
+        (0.0, 'end', 'point samples (default)')] * 2
+    assert res.to_dict()['runs'][0]['instrument'] == 'point samples (default)'
+
+
+def test_a_declared_instrument_that_does_not_fit_is_reported(tmp_path):
+    # the data come through a 50 ms trailing window; declared as point samples, compare
+    # finds that one period fits better and says so
+    runs = [{'name': f'r{k}', 'load_kg': 5.0, 'offset_ms': 100 * k, 'noise_w': 0.2,
+             'instrument': 'point'} for k in range(2)]
+    res = compare_campaign(load_campaign(write_campaign(tmp_path, runs)), max_lag_s=0.5)
+    assert all(r.window_s == 0.0 and r.instrument == 'point samples' for r in res.runs)
+    assert [[f.label for f in r.meter_fits] for r in res.runs] == [['declared', 'period']] * 2
+    for r in res.runs:
+        declared, period = r.meter_fits
+        assert period.rms_w < 0.8 * declared.rms_w
+    warning = ' '.join(res.instrument_warnings)
+    assert 'a 50 ms window fit better than point samples' in warning, warning
+    assert res.to_dict()['warnings'] == res.offset_warnings + res.instrument_warnings
+    # declared right (here the default for a program), nothing to report
+    right = [{k: v for k, v in r.items() if k != 'instrument'} for r in runs]
+    c = load_campaign(write_campaign(tmp_path / 'right', right))
+    assert compare_campaign(c, max_lag_s=0.5).instrument_warnings == []
 
 
 def test_a_weak_alignment_is_a_result_compared_at_offset_zero(campaign):
