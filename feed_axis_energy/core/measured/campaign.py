@@ -9,7 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ['AXIS_QUANTITIES', 'KINEMATIC_QUANTITIES', 'FILTER_OPS', 'ROLES', 'STAMPS',
+__all__ = ['AXIS_QUANTITIES', 'KINEMATIC_QUANTITIES', 'FILTER_OPS', 'RECONSTRUCT', 'ROLES',
+           'STAMPS',
            'Campaign', 'ColumnSpec', 'InstrumentSpec', 'RowFilter', 'RunSpec',
            'default_instrument']
 
@@ -32,6 +33,7 @@ KINEMATIC_QUANTITIES = (
 FILTER_OPS = ('equal', 'not_equal', 'greater', 'less')
 ROLES = ('calibrate', 'validate')
 STAMPS = ('end', 'centre', 'start')
+RECONSTRUCT = ('pulses', 'samples')
 
 
 @dataclass(frozen=True)
@@ -156,6 +158,10 @@ class RunSpec:
         The run's place in the manifest, e.g. ``'runs[2]'``.
     instrument
         The power meter (declared or :func:`default_instrument`).
+    motion_reconstruct
+        Motion from data sampled coarser than the simulation rate: ``'pulses'`` rebuilds
+        it at that rate from positions, velocities and accelerations (:mod:`.motiondata`);
+        ``'samples'`` takes the samples as they are.
     """
 
     name: str
@@ -174,6 +180,7 @@ class RunSpec:
     manifest: str = '<manifest>'
     key: str = ''
     instrument: InstrumentSpec = InstrumentSpec(declared=False)
+    motion_reconstruct: str = 'pulses'
 
     @property
     def axis_names(self) -> tuple[str, ...]:

@@ -37,6 +37,7 @@ from .campaign import Campaign, default_instrument, RunSpec
 from .comparison import (CampaignComparison, GroupComparison, json_clean,  # noqa: F401
                          offset_dict, RunComparison, TOTAL)                # (re-exported)
 from .instrument import check_instrument
+from .motiondata import reconstruct_motion
 from .metrics import group_metrics, table1_metrics
 
 __all__ = [
@@ -72,8 +73,15 @@ def _simulate(spec: RunSpec, run: MeasuredRun, machine: Machine,
         kind = spec.motion_from_data or 'commanded'
         # Measured velocity/acceleration columns, where mapped, beat differentiated positions.
         vel, acc = run.derivatives(kind)
-        motion = motion_from_samples(run.t, run.positions(kind), axes=run.axes,
-                                     source=f'{run.file} ({kind} positions)', vel=vel, acc=acc)
+        where = f'{run.file} ({kind} positions)'
+        rate = machine.planner.rate_hz
+        if spec.motion_reconstruct == 'pulses' and float(np.median(np.diff(run.t))) > 1.5 / rate:
+            # coarse samples: accelerations between the stamps from positions and velocities
+            motion = reconstruct_motion(run.t, run.positions(kind), axes=run.axes,
+                                        rate_hz=rate, vel=vel, acc=acc, source=where)
+        else:
+            motion = motion_from_samples(run.t, run.positions(kind), axes=run.axes,
+                                         source=where, vel=vel, acc=acc)
         source = f'data:{kind}'
     return simulate_motion(motion, machine, load_kg=spec.load_kg), source
 

@@ -319,6 +319,8 @@ def bag_manifest(campaign: Campaign, runs: Sequence[tuple[RunSpec, MeasuredRun, 
             motion: dict[str, str] = {'program': rel(spec.motion_program)}
         else:
             motion = {'from_data': str(spec.motion_from_data)}
+            if spec.motion_reconstruct != 'pulses':
+                motion['reconstruct'] = spec.motion_reconstruct
         duration = float(run.t[-1] - run.t[0])
         entry: dict[str, Any] = {
             'name': spec.name, 'load_kg': spec.load_kg, 'motion': motion, 'data': rel(bag),

@@ -13,7 +13,7 @@ A manifest is YAML::
     runs:
       - name: exp01
         load_kg: 0.0
-        motion: {from_data: actual}    # or {program: parts/s.nc}
+        motion: {from_data: actual}    # or {program: parts/s.nc}; reconstruct: samples
         data: data/exp01.csv           # CSV file (or a rosbag2 directory)
         role: calibrate                # or validate; optional
         instrument: {window_s: period, stamp: end}   # optional; or: instrument: point
@@ -29,7 +29,9 @@ run or for none; at least one axis must have ``power``. A run has either a ``tim
 with ``window_s`` a number of seconds (``0``: point samples) or ``period`` (one median
 sampling period, the default) and ``stamp`` one of ``end`` (default), ``centre``, ``start``.
 Without it: a period window stamped at its end for runs with an NC program, point samples
-for motion from the data (:func:`.campaign.default_instrument`).
+for motion from the data (:func:`.campaign.default_instrument`). ``motion.reconstruct``
+(motion from data only): ``pulses`` (default) rebuilds data coarser than the simulation rate
+at that rate (:mod:`.motiondata`), ``samples`` takes the samples as they are.
 
 Merging: mappings merge key by key (the run wins); ``rows.exclude_where`` lists are
 concatenated (defaults first). Errors name the manifest file and the dotted key
@@ -48,8 +50,8 @@ from ..errors import ConfigError, describe, shorten
 from ..safeyaml import load_yaml_file
 from ..units import si_unit_of
 from .campaign import (AXIS_QUANTITIES, Campaign, ColumnSpec, FILTER_OPS,  # noqa: F401
-                       InstrumentSpec, KINEMATIC_QUANTITIES, ROLES,       # (re-exported)
-                       RowFilter, RunSpec, STAMPS)
+                       InstrumentSpec, KINEMATIC_QUANTITIES, RECONSTRUCT,  # (re-exported)
+                       ROLES, RowFilter, RunSpec, STAMPS)
 
 __all__ = [
     'AXIS_QUANTITIES', 'KINEMATIC_QUANTITIES', 'Campaign', 'ColumnSpec', 'RowFilter', 'RunSpec',
@@ -276,16 +278,23 @@ class _Ctx:
                          for q, c in cols.items()}
         return out
 
-    def motion(self, value: Any, key: str) -> tuple[Path | None, str | None]:
-        m = self.mapping(value, key, ('program', 'from_data'))
+    def motion(self, value: Any, key: str) -> tuple[Path | None, str | None, str]:
+        m = dict(self.mapping(value, key, ('program', 'from_data', 'reconstruct')))
+        given = 'reconstruct' in m
+        rebuild = m.pop('reconstruct', 'pulses')
         if len(m) != 1:
             self.fail(key, 'expected exactly one of program, from_data')
+        if rebuild not in RECONSTRUCT:
+            self.fail(f'{key}.reconstruct',
+                      f'expected one of {", ".join(RECONSTRUCT)}, got {_kind(rebuild)}')
         if 'program' in m:
-            return self.path(m['program'], f'{key}.program'), None
+            if given:
+                self.fail(f'{key}.reconstruct', 'only for motion from_data')
+            return self.path(m['program'], f'{key}.program'), None, rebuild
         source = m['from_data']
         if source not in ('commanded', 'actual'):
             self.fail(f'{key}.from_data', f'expected commanded or actual, got {_kind(source)}')
-        return None, source
+        return None, source, rebuild
 
     def instrument(self, value: Any, key: str) -> InstrumentSpec:
         if value == 'point':
@@ -352,7 +361,7 @@ class _Ctx:
                 self.fail(f'{key}.axes.{missing.split(",")[0]}.{q}',
                           f'{q} is given for {", ".join(having)} but not for {missing}; '
                           'give it for every axis or none')
-        program, from_data = f['motion']
+        program, from_data, rebuild = f['motion']
         if from_data is not None:
             need = 'command_position' if from_data == 'commanded' else 'position'
             lacking = [a for a, cols in axes.items() if need not in cols]
@@ -369,6 +378,7 @@ class _Ctx:
             role=f.get('role'), min_duration_s=f.get('min_duration_s', 0.0),
             allow_gaps=f.get('allow_gaps', False), manifest=str(self.file), key=key,
             instrument=f.get('instrument', InstrumentSpec(declared=False)),
+            motion_reconstruct=rebuild,
         )
 
     def apply_split(self, value: Any, runs: list[RunSpec]) -> list[RunSpec]:

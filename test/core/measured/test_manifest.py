@@ -96,6 +96,10 @@ def _edit(path, value):
     (('split',), {'validate': ['nope']}, 'split.validate[0]', "no run named 'nope'"),
     (('split',), {'test': ['r0']}, 'split.test', 'unknown key'),
     (('runs', 0, 'instrument'), 'average', 'runs[0].instrument', 'expected point or'),
+    (('runs', 0, 'motion'), {'from_data': 'actual', 'reconstruct': 'hermite'},
+     'runs[0].motion.reconstruct', 'expected one of pulses, samples'),
+    (('runs', 0, 'motion'), {'program': 'p.nc', 'reconstruct': 'samples'},
+     'runs[0].motion.reconstruct', 'only for motion from_data'),
     (('runs', 0, 'instrument'), {'window_s': -0.1}, 'runs[0].instrument.window_s', '>= 0'),
     (('runs', 0, 'instrument'), {'window_s': 'x' * 500}, 'runs[0].instrument.window_s',
      'expected a number'),
@@ -125,6 +129,14 @@ def test_instrument_declaration(tmp_path, value, window, stamp):
     meter = campaign_from_dict(d, file=tmp_path / 'c.yaml', check_files=False).runs[0].instrument
     assert (meter.window_s, meter.stamp, meter.declared) == (window, stamp, True)
     assert meter.window_for(0.1) == (0.1 if window is None else window)
+
+
+def test_motion_reconstruction_choice(tmp_path):
+    runs = campaign_from_dict(BASE, file=tmp_path / 'c.yaml', check_files=False).runs
+    assert runs[0].motion_reconstruct == 'pulses'
+    d = _edit(('runs', 0, 'motion'), {'from_data': 'actual', 'reconstruct': 'samples'})
+    run = campaign_from_dict(d, file=tmp_path / 'c.yaml', check_files=False).runs[0]
+    assert (run.motion_from_data, run.motion_reconstruct) == ('actual', 'samples')
 
 
 def test_instrument_default_depends_on_the_motion_source(tmp_path):
