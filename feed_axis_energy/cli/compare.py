@@ -89,11 +89,27 @@ def _print_tables(cmp: CampaignComparison) -> None:
     rows = [[f'{g.load_kg:g}', str(len(g.runs))] + metric_cells(g.metrics) for g in cmp.groups]
     print('per load (runs pooled):')
     print(format_table(['load [kg]', 'runs'] + METRIC_HEADER, rows))
+    print()
+    _print_states(cmp)
     if cmp.warnings:
         print()
         print('offset and instrument warnings (compared anyway):')
         for w in cmp.warnings:
             print(f'  {w}')
+
+
+def _print_states(cmp: CampaignComparison) -> None:
+    rows = []
+    for st in cmp.residual_by_state:
+        d = st.to_dict()
+        rows.append([d['state'], str(d['n_samples'])]
+                    + [f'{d[k]:{f}}' if math.isfinite(d[k]) else '-'
+                       for k, f in (('samples_pct', '.1f'), ('mean_w', '+.3f'), ('rms_w', '.3f'),
+                                    ('squared_error_pct', '.1f'))])
+    print('residual dP by motion state, runs pooled (standstill; steady motion; transient: '
+          '|a| > 0.05 m/s^2 within one sample):')
+    print(format_table(['state', 'samples', 'samples [%]', 'mean dP [W]', 'RMS dP [W]',
+                        'share of dP^2 [%]'], rows))
 
 
 def run(args: argparse.Namespace) -> int:

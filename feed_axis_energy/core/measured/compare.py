@@ -38,6 +38,7 @@ from .comparison import (CampaignComparison, GroupComparison, json_clean,  # noq
                          offset_dict, RunComparison, TOTAL)                # (re-exported)
 from .instrument import check_instrument
 from .motiondata import reconstruct_motion
+from .states import residual_by_state, state_labels
 from .metrics import group_metrics, table1_metrics
 
 __all__ = [
@@ -197,6 +198,9 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
                                   columns=('time', f'measured {a} power',
                                            f'simulated {a} power'), **where)
                 for j, a in enumerate(spec.power_axes)}
+    labels = state_labels(sim.motion.t, sim.motion.vel, sim.motion.acc, run.t - used,
+                          period_s=period)
+    states = residual_by_state(labels, meas.sum(axis=1) - aligned.sum(axis=1))
     return RunComparison(
         name=spec.name, role=spec.role, load_kg=spec.load_kg, data_file=run.file,
         motion_source=source, axes=spec.power_axes, window_s=window, offset=found,
@@ -204,7 +208,7 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
         power_meas_w=meas, power_sim_w=aligned,
         sim_duration_s=float(sim.power.t[-1] - sim.power.t[0]),
         excluded_rows=int(run.extra.get('excluded_rows', 0)), stamp=stamp,
-        instrument=meter.describe(period), meter_fits=fits,
+        instrument=meter.describe(period), meter_fits=fits, states=states,
     )
 
 

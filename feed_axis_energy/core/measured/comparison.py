@@ -10,6 +10,7 @@ import numpy as np
 from .align import OffsetResult
 from .instrument import instrument_verdict, MeterFit
 from .metrics import Metrics
+from .states import pool_states, StateResidual
 
 __all__ = ['CampaignComparison', 'GroupComparison', 'RunComparison', 'TOTAL', 'json_clean',
            'offset_dict']
@@ -94,6 +95,8 @@ class RunComparison:
     meter_fits
         The declared meter and the alternatives, offsets refitted
         (:func:`.instrument.check_instrument`).
+    states
+        Residual of the total by motion state (:mod:`.states`).
     """
 
     name: str
@@ -115,6 +118,7 @@ class RunComparison:
     stamp: str = 'end'
     instrument: str = ''
     meter_fits: tuple[MeterFit, ...] = ()
+    states: tuple[StateResidual, ...] = ()
 
     @property
     def total_meas_w(self) -> np.ndarray:
@@ -152,6 +156,7 @@ class RunComparison:
             'stamp': self.stamp,
             'instrument': self.instrument,
             'instrument_check': [f.to_dict() for f in self.meter_fits],
+            'residual_by_state': [st.to_dict() for st in self.states],
             'offset': offset_dict(self.offset, used_s=self.offset_used_s),
             'metrics': metrics,
         })
@@ -237,6 +242,11 @@ class CampaignComparison:
         return out
 
     @property
+    def residual_by_state(self) -> tuple[StateResidual, ...]:
+        """Residual of the total by motion state, every run pooled."""
+        return pool_states([r.states for r in self.runs])
+
+    @property
     def warnings(self) -> list[str]:
         """Offset and instrument warnings."""
         return self.offset_warnings + self.instrument_warnings
@@ -251,5 +261,6 @@ class CampaignComparison:
             'max_lag_s': self.max_lag_s,
             'runs': [r.to_dict() for r in self.runs],
             'groups': [g.to_dict() for g in self.groups],
+            'residual_by_state': json_clean([st.to_dict() for st in self.residual_by_state]),
             'warnings': self.warnings,
         }
