@@ -242,6 +242,52 @@ class _Signals:
             out[start:start + per_chunk] = _correlation(self.y_meas[sel], self.model(part, sel))
         return out
 
+    def uniform_correlation(self, step: float, steps: int) -> np.ndarray | None:
+        """Correlation at the lags ``k * step``, ``|k| <= steps``, for uniform stamps.
+
+        When the stamps are uniform (period ``P``, within 1e-6 of it) and ``step = P / q``
+        with ``q`` whole, every lag's model samples the same instrument-averaged signal on
+        the grid ``t_0 + (j - steps) step``: it is computed once and the sums of the
+        correlation become sliding dot products. Returns ``None`` when not applicable.
+        """
+        t = self.t_meas
+        d = np.diff(t)
+        period = float(d.mean())
+        q = int(round(period / step))
+        if (q < 1 or abs(q * step - period) > 1e-9 * period
+                or np.max(np.abs(d - period)) > 1e-6 * period):
+            return None
+        n = t.size
+        u = t[0] + (np.arange((n - 1) * q + 2 * steps + 1) - steps) * step
+        big_m = interval_average(self.t_sim, self.y_sim, u + self.shift_s,
+                                 window_s=self.window_s)
+        y = self.y_meas
+        yc = y - y.mean()
+        syy = float(yc @ yc)
+        width = 2 * steps + 1
+        s1 = np.empty(width)
+        s2 = np.empty(width)
+        sy = np.empty(width)
+        for r in range(q):
+            # offsets c = r + q * dd of the model's first sample in big_m
+            sub = big_m[r::q]
+            cnt = (width - 1 - r) // q + 1 if r < width else 0
+            if cnt <= 0:
+                continue
+            cs1 = np.concatenate([[0.0], np.cumsum(sub)])
+            cs2 = np.concatenate([[0.0], np.cumsum(sub * sub)])
+            dd = np.arange(cnt)
+            c = r + q * dd
+            s1[c] = cs1[dd + n] - cs1[dd]
+            s2[c] = cs2[dd + n] - cs2[dd]
+            sy[c] = np.correlate(sub[:n + cnt - 1], yc, mode='valid')
+        var_m = np.maximum(s2 - s1 * s1 / n, 0.0)
+        den = np.sqrt(syy * var_m)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            corr = np.where(den > 1e-300, sy / np.where(den > 1e-300, den, 1.0), 0.0)
+        # offset c belongs to lag index k = 2 steps - c, i.e. lag (steps - c) * step
+        return corr[::-1]
+
     def rms(self, lag: float) -> float:
         """RMS of measured minus model at ``lag``, its mean removed [W]."""
         r = self.y_meas - self.model(np.array([lag]))[0]
@@ -353,13 +399,21 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
     width = min(period, window_s) if window_s > 0.0 else period
     step = 0.25 * width if grid_step_s is None else float(grid_step_s)
     step = max(step, max_lag_s / _MAX_LAG_STEPS)
+    if grid_step_s is None and step < period:
+        # a whole fraction of the period, so that uniform stamps take the fast path
+        step = period / math.ceil(period / step - 1e-9)
     steps = int(math.ceil(max_lag_s / step - 1e-9))
     lags = np.clip(np.arange(-steps, steps + 1) * step, -max_lag_s, max_lag_s)
     if np.ptp(y_meas) == 0.0 or np.ptp(y_sim) == 0.0:
         which = 'measured' if np.ptp(y_meas) == 0.0 else 'simulated'
         return OffsetResult(0.0, math.nan, 'weak', f'the {which} signal is constant',
                             lags, np.zeros_like(lags))
-    corr = sig.correlation(lags)
+    corr = sig.uniform_correlation(step, steps) if t_meas.size > 2 else None
+    if corr is None:
+        corr = sig.correlation(lags)
+    elif steps * step > max_lag_s:
+        # the clipped end lags are not on the uniform grid
+        corr[[0, -1]] = sig.correlation(lags[[0, -1]])
     found = []
     for k in _local_maxima(corr)[:max(2, int(candidates))]:
         lo, hi = max(-max_lag_s, lags[k] - step), min(max_lag_s, lags[k] + step)

@@ -148,7 +148,8 @@ def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_M
 
 def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s: float,
              window_s: float | None, offset_s: float | None, min_correlation: float,
-             floor_fraction: float, stamp: str | None = None) -> RunComparison:
+             floor_fraction: float, stamp: str | None = None,
+             check_meter: bool = True) -> RunComparison:
     run = load_run(spec)
     sim, source = _simulate(spec, run, machine, cache)
     sim_w = _sim_columns(spec, sim, machine)
@@ -182,7 +183,7 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
         aligned = align_simulated(sim.power.t, sim_w, run.t, offset_s=used, window_s=window,
                                   stamp=stamp)
         fits = ()
-        if offset_s is None and found.status != 'weak':
+        if check_meter and offset_s is None and found.status != 'weak':
             fits = check_instrument(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
                                     offset_s=used, window_s=window, stamp=stamp)
     except DataError as err:

@@ -210,3 +210,23 @@ def test_rig_runs_with_random_offsets_over_stroke_cycles_are_aligned():
                                   declared.power.power_w.sum(axis=1), max_lag_s=5.0,
                                   window_s=0.05)
             assert abs(res.offset_s - true) < 0.25 * meter.period_s, res.message
+
+
+@pytest.mark.parametrize('period, q, window, stamp', [
+    (0.05, 4, 0.05, 'end'), (0.1, 3, 0.0, 'end'), (0.1, 5, 0.03, 'centre')])
+def test_uniform_fast_grid_equals_the_direct_correlation(period, q, window, stamp):
+    from feed_axis_energy.core.measured.align import _Signals, stamp_shift
+    rng = np.random.default_rng(1)
+    t_sim = np.arange(0.0, 20.0, 0.001)
+    y_sim = _profile(t_sim) + rng.normal(scale=0.1, size=t_sim.size)
+    t = 0.37 + np.arange(150) * period
+    y = np.interp(t, t_sim, y_sim) + rng.normal(size=t.size)
+    sig = _Signals(t, y, t_sim, y_sim, window, stamp_shift(window, stamp))
+    steps = 37
+    fast = sig.uniform_correlation(period / q, steps)
+    direct = sig.correlation(np.arange(-steps, steps + 1) * period / q)
+    assert_allclose(fast, direct, atol=1e-12)
+    # irregular stamps take the direct path
+    jitter = t + rng.uniform(0.0, 0.2 * period, size=t.size)
+    assert _Signals(jitter, y, t_sim, y_sim, window, 0.0).uniform_correlation(
+        period / q, steps) is None
