@@ -119,7 +119,7 @@ def _print_alignment(res: AnalysisResult) -> None:
     notes = [f'  {r.name} ({which}): {o["message"]}' for r in res.runs
              for which, o in (('before', r.offset_before), ('after', r.offset_after))
              if o is not None and o['status'] not in ('ok', 'fixed')]
-    notes += [f'  {w}' for w in res.warnings if 'instrument model' in w]
+    notes += [f'  {w}' for w in res.alignment_warnings if 'instrument model' in w]
     if notes:
         print('alignment and instrument warnings:')
         print('\n'.join(notes))

@@ -526,7 +526,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         unexplained=tuple(unexplained), diagnostics_before=tuple(diag_before),
         diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra,
         augmented=tuple(augmented_outcome(c) for c in augmented),
-        warnings=tuple(cmp.warnings))
+        alignment_warnings=tuple(cmp.warnings))
 
 
 def _verdict(fitted, unexplained, steps, data, folds, explained) -> tuple[str, str]:

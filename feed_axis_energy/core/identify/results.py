@@ -171,7 +171,7 @@ class AnalysisResult:
         ``'clean'`` (no effect, no structure), ``'too_few_runs'``.
     message
         One sentence.
-    warnings
+    alignment_warnings
         The baseline comparison's offset and instrument warnings (``compare``'s).
     """
 
@@ -193,7 +193,7 @@ class AnalysisResult:
     spectra: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
         repr=False, default_factory=dict)
     augmented: tuple[dict[str, Any], ...] = ()
-    warnings: tuple[str, ...] = ()
+    alignment_warnings: tuple[str, ...] = ()
 
     @property
     def heldout_runs(self) -> tuple[RunOutcome, ...]:
@@ -254,7 +254,7 @@ class AnalysisResult:
             'after': metrics('after'),
             'effects': [e.to_dict() for e in self.effects],
             'augmented': list(self.augmented),
-            'warnings': list(self.warnings),
+            'alignment_warnings': list(self.alignment_warnings),
             'unexplained': [dict(u) for u in self.unexplained],
             'diagnostics': {'before': [d.to_dict() for d in self.diagnostics_before],
                             'after': [d.to_dict() for d in self.diagnostics_after]},
