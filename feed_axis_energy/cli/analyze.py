@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 from pathlib import Path
 
@@ -92,6 +93,36 @@ def _print(res: AnalysisResult) -> None:
     rows.append(['', '', 'after'] + metric_cells(res.after))
     print('held-out runs, before and after (after: effects fitted without the run):')
     print(format_table(['run', 'load [kg]', ''] + METRIC_HEADER, rows))
+    _print_alignment(res)
+
+
+def _offset_cells(offset: dict | None) -> list[str]:
+    if offset is None:
+        return ['-', '-', '-']
+    runner = offset.get('runner_up')
+    rival = (f'{runner["offset_s"]:+.3f} ({runner["rms_w"]:.3g} W)' if runner else '-')
+    rms = offset.get('rms_w')
+    used = f'{offset["used_s"]:+.3f}'
+    if rms is not None and math.isfinite(rms):
+        used += f' ({rms:.3g} W)'
+    return [used, offset['status'], rival]
+
+
+def _print_alignment(res: AnalysisResult) -> None:
+    print()
+    print('alignment (offset used and residual RMS; after: offset estimated anew with the '
+          'effects; runner-up: best distant lag):')
+    rows = [[r.name] + _offset_cells(r.offset_before) + _offset_cells(r.offset_after)
+            for r in res.runs]
+    print(format_table(['run', 'before [s]', 'status', 'runner-up [s]', 'after [s]', 'status',
+                        'runner-up [s]'], rows))
+    notes = [f'  {r.name} ({which}): {o["message"]}' for r in res.runs
+             for which, o in (('before', r.offset_before), ('after', r.offset_after))
+             if o is not None and o['status'] not in ('ok', 'fixed')]
+    notes += [f'  {w}' for w in res.alignment_warnings if 'instrument model' in w]
+    if notes:
+        print('alignment and instrument warnings:')
+        print('\n'.join(notes))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -77,21 +77,39 @@ def _print_tables(cmp: CampaignComparison) -> None:
     rows = []
     for r in cmp.runs:
         found = f'{r.offset.offset_s:+.3f}' if math.isfinite(r.offset.offset_s) else '-'
+        runner = (f'{r.offset.runner_up_s:+.3f} ({r.offset.runner_up_rms_w:.3g} W)'
+                  if math.isfinite(r.offset.runner_up_s) else '-')
         rows.append([r.name, f'{r.load_kg:g}', found, r.offset.status,
-                     f'{r.offset_used_s:+.3f}'] + metric_cells(r.metrics))
+                     f'{r.offset_used_s:+.3f}', runner] + metric_cells(r.metrics))
     print('per run (sum of the measured axes; dP = measured - simulated power, '
           'dE = simulated - measured energy):')
-    print(format_table(['run', 'load [kg]', 'offset [s]', 'status', 'used [s]']
-                       + METRIC_HEADER, rows))
+    print(format_table(['run', 'load [kg]', 'offset [s]', 'status', 'used [s]',
+                        'runner-up [s] (resid. RMS)'] + METRIC_HEADER, rows))
     print()
     rows = [[f'{g.load_kg:g}', str(len(g.runs))] + metric_cells(g.metrics) for g in cmp.groups]
     print('per load (runs pooled):')
     print(format_table(['load [kg]', 'runs'] + METRIC_HEADER, rows))
-    if cmp.offset_warnings:
+    print()
+    _print_states(cmp)
+    if cmp.warnings:
         print()
-        print('offset warnings (compared anyway):')
-        for w in cmp.offset_warnings:
+        print('offset and instrument warnings (compared anyway):')
+        for w in cmp.warnings:
             print(f'  {w}')
+
+
+def _print_states(cmp: CampaignComparison) -> None:
+    rows = []
+    for st in cmp.residual_by_state:
+        d = st.to_dict()
+        rows.append([d['state'], str(d['n_samples'])]
+                    + [f'{d[k]:{f}}' if math.isfinite(d[k]) else '-'
+                       for k, f in (('samples_pct', '.1f'), ('mean_w', '+.3f'), ('rms_w', '.3f'),
+                                    ('squared_error_pct', '.1f'))])
+    print('residual dP by motion state, runs pooled (standstill; steady motion; transient: '
+          '|a| > 0.05 m/s^2 within one sample):')
+    print(format_table(['state', 'samples', 'samples [%]', 'mean dP [W]', 'RMS dP [W]',
+                        'share of dP^2 [%]'], rows))
 
 
 def run(args: argparse.Namespace) -> int:

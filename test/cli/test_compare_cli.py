@@ -44,11 +44,12 @@ def test_json_keys_and_values(manifest, capsys):
     assert main(['compare', str(manifest), '--json', '--quiet', '--max-lag-s', '1']) == 0
     out = json.loads(capsys.readouterr().out)
     assert set(out) == {'campaign', 'manifest', 'machine', 'machine_file', 'max_lag_s', 'runs',
-                        'groups', 'warnings'}
+                        'groups', 'warnings', 'residual_by_state'}
     assert out['max_lag_s'] == 1.0 and out['warnings'] == []
     run_b = out['runs'][1]
     assert set(run_b) == {'name', 'role', 'load_kg', 'data_file', 'motion_source', 'axes',
                           'window_s', 'duration_meas_s', 'duration_sim_s', 'excluded_rows',
+                          'stamp', 'instrument', 'instrument_check', 'residual_by_state',
                           'offset', 'metrics'}
     assert run_b['offset']['used_s'] == pytest.approx(0.150, abs=0.002)
     assert run_b['metrics']['total']['avg_pct_error_pct'] == pytest.approx(

@@ -37,14 +37,15 @@ from scipy.optimize import minimize_scalar
 from ..effects import EFFECTS, EffectState, get_effect, state_from_simulation
 from ..errors import ConfigError
 from ..machine import load_machine, Machine
-from ..measured.align import align_simulated
-from ..measured.compare import _MotionCache, _simulate, compare_campaign, RunComparison
+from ..measured.align import align_simulated, stamp_shift
+from ..measured.compare import (_MotionCache, _simulate, compare_campaign, offset_dict,
+                                RunComparison)
 from ..measured.csvload import load_run
 from ..measured.campaign import Campaign
-from ..measured.metrics import table1_metrics
 from .diagnostics import binned_structure, Diagnostic, noise_sigma, spectrum_structure
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
+from .realign import augmented_outcome, machine_with, realigned_runs
 from .selection import Block, Design, forward_select, loro_folds, Step
 
 __all__ = ['AnalyzeOptions', 'AnalysisResult', 'FittedEffect', 'ParamEstimate', 'RunOutcome',
@@ -64,7 +65,8 @@ class _Run:
     def aligned(self, cols: np.ndarray) -> np.ndarray:
         """Align 1 kHz columns ``(n, c)`` onto the measured stamps: ``(m, c)``."""
         return align_simulated(self.state.t, cols, self.cmp.t,
-                               offset_s=self.cmp.offset_used_s, window_s=self.cmp.window_s)
+                               offset_s=self.cmp.offset_used_s, window_s=self.cmp.window_s,
+                               stamp=self.cmp.stamp)
 
 
 def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
@@ -86,7 +88,8 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
                    residual=r.power_meas_w - r.power_sim_w, states={})
         on = run.aligned(np.column_stack(cols))
         k = len(idx)
-        mid = r.t - r.offset_used_s - 0.5 * r.window_s
+        # simulated time at the centre of each sample's window
+        mid = r.t - r.offset_used_s + stamp_shift(r.window_s, r.stamp) - 0.5 * r.window_s
         run.states = {'velocity': on[:, 0::3], 'position': on[:, 1::3],
                       'acceleration': on[:, 2::3],
                       'time': np.repeat(mid[:, None], k, axis=1)}
@@ -285,7 +288,8 @@ def _diagnose(runs: Sequence[_Run], residuals: Sequence[np.ndarray],
         for name in STATE_NAMES:
             x = np.concatenate([r.states[name][:, j] for r in runs])
             out.append(binned_structure(y, x, sigma=sigmas[axis], name=name, axis=axis))
-        period = float(np.median([r.cmp.window_s for r in runs]))
+        # the sampling period (the window may be 0: point samples)
+        period = float(np.median([np.median(np.diff(r.cmp.t)) for r in runs]))
         out.append(spectrum_structure([res[:, j] for res in residuals], period_s=period,
                                       sigma=sigmas[axis], axis=axis))
         spectra[axis] = _avg_spectrum([res[:, j] for res in residuals], period)
@@ -472,32 +476,34 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
             heterogeneity=_heterogeneity(design, blocks, i, sigma2)[0],
             aliases=tuple(aliases)))
 
-    # held-out predictions per run, in-sample residual after
-    pred = {}
+    # in-sample residual after (diagnostics, at the baseline offset); the before/after
+    # figures are fresh comparisons with the effects declared, offsets estimated anew
+    # (:mod:`.realign`)
+    names = [r.cmp.name for r in data]
+    full_machine = machine_with(machine, blocks, theta)
+    augmented = realigned_runs(campaign, full_machine, names,
+                               baseline=cmp.runs if full_machine is machine else ())
+    after_cmp = dict(enumerate(augmented))
     for train, test in folds:
-        th = design.fit(cols, train)
-        for r in test:
-            pred[r] = design.predict(cols, th, r)
+        fold_machine = machine_with(machine, blocks, design.fit(cols, train))
+        base = cmp.runs if fold_machine is machine else ()
+        after_cmp.update(zip(test, realigned_runs(campaign, fold_machine,
+                                                  [names[r] for r in test], baseline=base)))
+    held = {r for _, test in folds for r in test}
     outcomes = []
     residual_after = []
     for r, run in enumerate(data):
         m, k = run.residual.shape
         insample = design.predict(cols, theta, r).reshape(m, k)
         residual_after.append(run.residual - insample)
-        held = r in pred
-        add = (pred[r] if held else design.predict(cols, theta, r)).reshape(m, k)
-        c = run.cmp
-        meas = c.total_meas_w
-        sim = c.total_sim_w
-        after = sim + add.sum(axis=1)
-        metrics_after = table1_metrics(c.t, meas, after, file=c.data_file,
-                                       columns=('time', 'measured total power',
-                                                'total power with the effects'))
+        c, a = run.cmp, after_cmp[r]
         outcomes.append(RunOutcome(
-            name=c.name, load_kg=c.load_kg, role=c.role, heldout=held, before=c.metrics,
-            after=metrics_after, t=c.t, meas_w=meas, sim_w=sim,
-            after_w=after, residual_before_w=run.residual, residual_after_w=residual_after[-1],
-            states=run.states))
+            name=c.name, load_kg=c.load_kg, role=c.role, heldout=r in held, before=c.metrics,
+            after=a.metrics, t=c.t, meas_w=c.total_meas_w, sim_w=c.total_sim_w,
+            after_w=a.total_sim_w, residual_before_w=run.residual,
+            residual_after_w=residual_after[-1], states=run.states,
+            offset_before=offset_dict(c.offset, used_s=c.offset_used_s),
+            offset_after=offset_dict(a.offset, used_s=a.offset_used_s)))
 
     diag_before, _ = _diagnose(data, [r.residual for r in data], sigmas)
     diag_after, spectra_after = _diagnose(data, residual_after, sigmas)
@@ -518,7 +524,9 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         machine=machine, machine_file=machine_file, holdout=options.holdout, axes=axes,
         noise_sigma_w=sigmas, runs=tuple(outcomes), effects=tuple(fitted),
         unexplained=tuple(unexplained), diagnostics_before=tuple(diag_before),
-        diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra)
+        diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra,
+        augmented=tuple(augmented_outcome(c) for c in augmented),
+        alignment_warnings=tuple(cmp.warnings))
 
 
 def _verdict(fitted, unexplained, steps, data, folds, explained) -> tuple[str, str]:

@@ -138,6 +138,8 @@ class RunOutcome:
 
     ``heldout`` is ``False`` for ``calibrate`` runs with ``holdout='roles'``: their
     ``after`` is in-sample and they are left out of the overall before/after.
+    ``offset_before`` / ``offset_after``: the offset estimates (``compare --json``'s
+    ``offset`` objects) of the baseline and of the re-aligned *after* comparison.
     """
 
     name: str
@@ -153,6 +155,8 @@ class RunOutcome:
     residual_before_w: np.ndarray = field(repr=False)
     residual_after_w: np.ndarray = field(repr=False)
     states: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+    offset_before: dict[str, Any] | None = None
+    offset_after: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -167,6 +171,8 @@ class AnalysisResult:
         ``'clean'`` (no effect, no structure), ``'too_few_runs'``.
     message
         One sentence.
+    alignment_warnings
+        The baseline comparison's offset and instrument warnings (``compare``'s).
     """
 
     status: str
@@ -186,6 +192,8 @@ class AnalysisResult:
     steps: tuple[Step, ...]
     spectra: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
         repr=False, default_factory=dict)
+    augmented: tuple[dict[str, Any], ...] = ()
+    alignment_warnings: tuple[str, ...] = ()
 
     @property
     def heldout_runs(self) -> tuple[RunOutcome, ...]:
@@ -230,7 +238,8 @@ class AnalysisResult:
                 'loads': [{'load_kg': load, 'metrics': (b if which == 'before' else a).to_dict()}
                           for load, b, a in self.by_load()],
                 'runs': [{'name': r.name, 'load_kg': r.load_kg, 'role': r.role,
-                          'metrics': getattr(r, which).to_dict()} for r in held],
+                          'metrics': getattr(r, which).to_dict(),
+                          'offset': getattr(r, f'offset_{which}')} for r in held],
             }
         return json_clean({
             'campaign': self.campaign,
@@ -244,6 +253,8 @@ class AnalysisResult:
             'before': metrics('before'),
             'after': metrics('after'),
             'effects': [e.to_dict() for e in self.effects],
+            'augmented': list(self.augmented),
+            'alignment_warnings': list(self.alignment_warnings),
             'unexplained': [dict(u) for u in self.unexplained],
             'diagnostics': {'before': [d.to_dict() for d in self.diagnostics_before],
                             'after': [d.to_dict() for d in self.diagnostics_after]},

@@ -1,13 +1,19 @@
 """Time alignment of simulated and measured power.
 
-Instrument model: a measured sample stamped ``t`` is the mean of the true signal over the
-window ``[t - window_s, t]`` (a power analyser that averages over its sampling period). The
-simulated signal is treated as piecewise linear between its samples and held at its first
-and last value outside its time range (the machine is at rest before and after a program).
+Instrument model: a measured sample stamped ``t`` is the mean of the true signal over a
+window of ``window_s`` (a power analyser that averages over its sampling period), stamped
+at the window's end (``stamp='end'``: ``[t - window_s, t]``, the default), centre
+(``[t - window_s/2, t + window_s/2]``) or start (``[t, t + window_s]``); ``window_s = 0`` is a
+point sample at ``t``. The simulated signal is treated as piecewise linear between its
+samples and held at its first and last value outside its time range (the machine is at rest
+before and after a program).
 
 Sign convention: ``offset_s`` is how much *later* the measured record is than the simulated
-one, i.e. ``y_meas(t) ~= mean of y_sim over [t - offset_s - window_s, t - offset_s]``. An
-event at simulated time 2.0 s that the instrument stamps 2.5 s gives ``offset_s = +0.5``.
+one, i.e. ``y_meas(t) ~= mean of y_sim over [t - offset_s - window_s, t - offset_s]`` (stamp at
+the end). An event at simulated time 2.0 s that the instrument stamps 2.5 s gives
+``offset_s = +0.5``.
+
+The offset search (:func:`estimate_offset`) is described in docs/compare.md, "Alignment".
 """
 from __future__ import annotations
 
@@ -20,10 +26,16 @@ from scipy.optimize import minimize_scalar
 
 from ..errors import DataError
 
-__all__ = ['OffsetResult', 'align_simulated', 'estimate_offset', 'interval_average']
+__all__ = ['DRIFT_MIN_DURATION_S', 'STAMPS', 'OffsetResult', 'align_simulated',
+           'estimate_offset', 'interval_average', 'stamp_shift']
 
 _MAX_LAG_STEPS = 100_000
 _CHUNK_ELEMENTS = 2_000_000
+STAMPS = ('end', 'centre', 'start')
+"""Where in its averaging window the instrument stamps a sample."""
+DRIFT_MIN_DURATION_S = 60.0
+"""Shortest record [s] on which a clock-rate difference is estimated (see ``_drift``)."""
+_MAX_DRIFT = 2e-3   # largest clock-rate difference searched (2000 ppm: a poor quartz is 100)
 
 
 @dataclass(frozen=True)
@@ -38,14 +50,25 @@ class OffsetResult:
         Pearson correlation of measured and shifted, interval-averaged simulated power at
         ``offset_s`` (NaN when a signal is constant).
     status
-        ``'ok'``; ``'weak'`` (peak below ``min_correlation`` or a constant signal);
-        ``'edge'`` (best lag at the end of the searched range: the true offset may lie
-        outside); ``'ambiguous'`` (another, distant lag correlates almost as well, as with
-        repeated identical movements).
+        ``'ok'``; ``'weak'`` (correlation below ``min_correlation`` or a constant signal);
+        ``'edge'`` (chosen lag at the end of the searched range: the true offset may lie
+        outside); ``'ambiguous'`` (a distant lag, ``runner_up_s``, fits almost as well, as
+        with repeated identical movements).
     message
         A sentence saying why.
     lags_s, correlation
         The searched lag grid [s] and the correlation at each lag (for plots).
+    rms_w
+        RMS of the measured minus the aligned simulated signal, its mean removed, at
+        ``offset_s`` [W] (the score candidates are ranked by; NaN if not computed).
+    runner_up_s, runner_up_correlation, runner_up_rms_w
+        The best candidate lag farther than one feature width from ``offset_s``, its
+        correlation and residual RMS [W]; NaN when there is none.
+    drift_ppm
+        Clock-rate difference: the measured clock runs this many parts per million faster
+        than the simulation's (NaN when not estimable).
+    drift_message
+        How the drift was estimated, or why it was not.
     """
 
     offset_s: float
@@ -54,6 +77,12 @@ class OffsetResult:
     message: str
     lags_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     correlation: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    rms_w: float = math.nan
+    runner_up_s: float = math.nan
+    runner_up_correlation: float = math.nan
+    runner_up_rms_w: float = math.nan
+    drift_ppm: float = math.nan
+    drift_message: str = 'not estimated'
 
 
 def _series(t: ArrayLike, y: ArrayLike, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -135,8 +164,22 @@ def interval_average(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
     return out.reshape(tau.shape + y_sim.shape[1:])
 
 
+def stamp_shift(window_s: float, stamp: str) -> float:
+    """How far after its stamp a sample's window ends [s] (0 for ``'end'``).
+
+    Raises
+    ------
+    DataError
+        If ``stamp`` is not one of :data:`STAMPS`.
+    """
+    if stamp not in STAMPS:
+        msg = f'stamp must be one of {", ".join(STAMPS)}, got {str(stamp)[:60]!r}'
+        raise DataError(msg, file='<arrays>', column='stamp')
+    return {'end': 0.0, 'centre': 0.5, 'start': 1.0}[stamp] * window_s
+
+
 def align_simulated(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
-                    offset_s: float, window_s: float) -> np.ndarray:
+                    offset_s: float, window_s: float, stamp: str = 'end') -> np.ndarray:
     """Simulated signal as the instrument would have recorded it, on the measured stamps.
 
     Parameters
@@ -148,14 +191,18 @@ def align_simulated(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
     offset_s
         How much later the measured record is than the simulated one [s].
     window_s
-        Instrument averaging window [s].
+        Instrument averaging window [s] (0: point samples).
+    stamp
+        Where the instrument stamps its window: ``'end'``, ``'centre'`` or ``'start'``.
 
     Returns
     -------
     numpy.ndarray
-        ``interval_average(t_sim, y_sim, t_meas - offset_s, window_s=window_s)``.
+        ``interval_average(t_sim, y_sim, t_meas - offset_s + shift, window_s=window_s)``
+        with ``shift`` from :func:`stamp_shift`.
     """
-    shifted = np.asarray(t_meas, dtype=np.float64) - offset_s
+    shift = stamp_shift(window_s, stamp)
+    shifted = np.asarray(t_meas, dtype=np.float64) - offset_s + shift
     return interval_average(t_sim, y_sim, shifted, window_s=window_s)
 
 
@@ -169,18 +216,137 @@ def _correlation(y: np.ndarray, model: np.ndarray) -> np.ndarray:
         return np.where(den > 0.0, num / np.where(den > 0.0, den, 1.0), 0.0)
 
 
-def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_sim: ArrayLike,
-                    *, max_lag_s: float, window_s: float, min_correlation: float = 0.5,
-                    ambiguity_margin: float = 0.1) -> OffsetResult:
-    """Find the time offset of the measured record by cross-correlation.
+@dataclass(frozen=True)
+class _Signals:
+    """The two series and the instrument, for scoring lags."""
 
-    The measured power is correlated with the interval-averaged simulated power shifted by
-    every lag on a grid of the median measured period within ``±max_lag_s`` (a coarser grid
-    if that needs more than 100 000 lags per side); the best grid
-    lag is then refined to a fraction of a period by a bounded scalar maximisation of the
-    correlation over the continuous offset (interval averaging makes it smooth in the lag).
-    Correlation, not squared error, is used so that a gain error of the model does not bias
-    the offset.
+    t_meas: np.ndarray
+    y_meas: np.ndarray
+    t_sim: np.ndarray
+    y_sim: np.ndarray
+    window_s: float
+    shift_s: float
+
+    def model(self, lags: np.ndarray, sel: slice = slice(None)) -> np.ndarray:
+        """Instrument-averaged simulation at every lag, ``(len(lags), n)``."""
+        tau = self.t_meas[sel][None, :] - lags[:, None] + self.shift_s
+        return interval_average(self.t_sim, self.y_sim, tau, window_s=self.window_s)
+
+    def correlation(self, lags: np.ndarray, sel: slice = slice(None)) -> np.ndarray:
+        """Correlation at every lag, computed in chunks of bounded size."""
+        n = self.t_meas[sel].size
+        out = np.empty(lags.size)
+        per_chunk = max(1, _CHUNK_ELEMENTS // max(n, 1))
+        for start in range(0, lags.size, per_chunk):
+            part = lags[start:start + per_chunk]
+            out[start:start + per_chunk] = _correlation(self.y_meas[sel], self.model(part, sel))
+        return out
+
+    def uniform_correlation(self, step: float, steps: int) -> np.ndarray | None:
+        """Correlation at the lags ``k * step``, ``|k| <= steps``, for uniform stamps.
+
+        When the stamps are uniform (period ``P``, within 1e-6 of it) and ``step = P / q``
+        with ``q`` whole, every lag's model samples the same instrument-averaged signal on
+        the grid ``t_0 + (j - steps) step``: it is computed once and the sums of the
+        correlation become sliding dot products. Returns ``None`` when not applicable.
+        """
+        t = self.t_meas
+        d = np.diff(t)
+        period = float(d.mean())
+        q = int(round(period / step))
+        if (q < 1 or abs(q * step - period) > 1e-9 * period
+                or np.max(np.abs(d - period)) > 1e-6 * period):
+            return None
+        n = t.size
+        u = t[0] + (np.arange((n - 1) * q + 2 * steps + 1) - steps) * step
+        big_m = interval_average(self.t_sim, self.y_sim, u + self.shift_s,
+                                 window_s=self.window_s)
+        y = self.y_meas
+        yc = y - y.mean()
+        syy = float(yc @ yc)
+        width = 2 * steps + 1
+        s1 = np.empty(width)
+        s2 = np.empty(width)
+        sy = np.empty(width)
+        for r in range(q):
+            # offsets c = r + q * dd of the model's first sample in big_m
+            sub = big_m[r::q]
+            cnt = (width - 1 - r) // q + 1 if r < width else 0
+            if cnt <= 0:
+                continue
+            cs1 = np.concatenate([[0.0], np.cumsum(sub)])
+            cs2 = np.concatenate([[0.0], np.cumsum(sub * sub)])
+            dd = np.arange(cnt)
+            c = r + q * dd
+            s1[c] = cs1[dd + n] - cs1[dd]
+            s2[c] = cs2[dd + n] - cs2[dd]
+            sy[c] = np.correlate(sub[:n + cnt - 1], yc, mode='valid')
+        var_m = np.maximum(s2 - s1 * s1 / n, 0.0)
+        den = np.sqrt(syy * var_m)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            corr = np.where(den > 1e-300, sy / np.where(den > 1e-300, den, 1.0), 0.0)
+        # offset c belongs to lag index k = 2 steps - c, i.e. lag (steps - c) * step
+        return corr[::-1]
+
+    def rms(self, lag: float) -> float:
+        """RMS of measured minus model at ``lag``, its mean removed [W]."""
+        r = self.y_meas - self.model(np.array([lag]))[0]
+        return float(np.sqrt(np.mean((r - r.mean()) ** 2)))
+
+    def refine(self, lag: float, lo: float, hi: float, *, tol: float,
+               sel: slice = slice(None)) -> tuple[float, float]:
+        """Lag of largest correlation in ``[lo, hi]`` near ``lag``: ``(lag, correlation)``."""
+        best = float(self.correlation(np.array([lag]), sel)[0])
+        if not hi > lo:
+            return lag, best
+
+        def negative(x: float) -> float:
+            return -float(self.correlation(np.array([x]), sel)[0])
+
+        res = minimize_scalar(negative, bounds=(lo, hi), method='bounded',
+                              options={'xatol': tol})
+        if -float(res.fun) > best:
+            return float(res.x), -float(res.fun)
+        return lag, best
+
+
+def _local_maxima(corr: np.ndarray) -> np.ndarray:
+    """Indices of the local maxima of ``corr`` (ends included), best first."""
+    if corr.size < 3:
+        return np.argsort(-corr)
+    left = np.concatenate([[True], corr[1:] >= corr[:-1]])
+    right = np.concatenate([corr[:-1] >= corr[1:], [True]])
+    idx = np.flatnonzero(left & right)
+    return idx[np.argsort(-corr[idx], kind='stable')]
+
+
+def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_sim: ArrayLike,
+                    *, max_lag_s: float, window_s: float, stamp: str = 'end',
+                    min_correlation: float = 0.5, ambiguity_margin: float = 0.1,
+                    grid_step_s: float | None = None, candidates: int = 8,
+                    drift_min_duration_s: float = DRIFT_MIN_DURATION_S) -> OffsetResult:
+    """Find the time offset of the measured record: global search, candidates, residual.
+
+    1. *Grid*: the measured signal is correlated with the instrument-averaged simulation
+       (at its full rate) at every lag on a grid of ``grid_step_s`` within ``±max_lag_s``;
+       the default step is a quarter of the shorter of the measured period and the window,
+       finer than the narrowest feature the instrument can record (coarsened only if that
+       needs more than 100 000 lags per side).
+    2. *Candidates*: the ``candidates`` best local maxima of that correlation are each
+       refined by a bounded scalar search within one grid step (to ~1e-4 of a period).
+    3. *Choice*: the candidate with the smallest residual after the instrument model (RMS
+       of measured minus aligned simulated power, its mean removed so that a constant
+       standby power the model lacks favours no lag) wins among those correlating at least
+       ``min_correlation`` (all, if none does). Correlation alone is blind to amplitude:
+       a lag half a stroke cycle away can correlate well while its residual is large.
+    4. *Runner-up*: the best other candidate farther than one feature width (the window or
+       period, at least two grid steps) away; the result is ``'ambiguous'`` when its
+       correlation is within ``ambiguity_margin`` of the winner's or its mean squared
+       residual within that fraction of the winner's.
+    5. *Drift*: on records of at least ``drift_min_duration_s``, the offset is re-estimated
+       on each half of the record near the global one; their difference over the time
+       between the halves' centres is the clock-rate difference (``drift_ppm``). Shorter
+       records, or a half without structure, report it as not estimable.
 
     Parameters
     ----------
@@ -191,85 +357,125 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
     max_lag_s
         Largest offset searched, in either direction [s].
     window_s
-        Instrument averaging window [s] (usually the measured period).
+        Instrument averaging window [s] (usually the measured period; 0: point samples).
+    stamp
+        Where the instrument stamps its window (:data:`STAMPS`).
     min_correlation
-        Peak correlation below which the result is ``'weak'``.
+        Correlation below which the result is ``'weak'``.
     ambiguity_margin
-        A distant local maximum within this much of the peak makes the result
-        ``'ambiguous'``.
+        See step 4.
+    grid_step_s
+        Lag grid step [s]; default as in step 1.
+    candidates
+        Local maxima refined and compared (at least 2).
+    drift_min_duration_s
+        Shortest record on which the drift is estimated [s].
 
     Returns
     -------
     OffsetResult
-        Offset, peak correlation, status and message (see the module's sign convention).
+        Offset, correlation, residual, runner-up, drift, status and message (see the
+        module's sign convention).
 
     Raises
     ------
     DataError
-        On malformed arrays (never for a poor match).
+        On malformed arrays or options (never for a poor match).
     """
     t_meas, y_meas = _series(t_meas, y_meas, 'meas')
     t_sim, y_sim = _series(t_sim, y_sim, 'sim')
     if y_meas.ndim != 1 or y_sim.ndim != 1:
         msg = 'estimate_offset takes 1-D signals (e.g. total power); sum the axes first'
         raise DataError(msg, file='<arrays>', column='y')
-    if not (math.isfinite(max_lag_s) and max_lag_s >= 0.0):
-        msg = f'max_lag_s must be a finite number >= 0, got {max_lag_s!r}'
-        raise DataError(msg, file='<arrays>', column='max_lag_s')
-    # the grid step is the measured period, coarsened when that would need more than
-    # _MAX_LAG_STEPS lags per side (a sub-microsecond period against a lag range of
-    # seconds asked for 10^10 lags); the refinement below then searches +-one step
-    period = max(float(np.median(np.diff(t_meas))), max_lag_s / _MAX_LAG_STEPS)
-    steps = int(math.ceil(max_lag_s / period - 1e-9))
-    lags = np.clip(np.arange(-steps, steps + 1) * period, -max_lag_s, max_lag_s)
+    for name, value in (('max_lag_s', max_lag_s), ('window_s', window_s)):
+        if not (math.isfinite(value) and value >= 0.0):
+            msg = f'{name} must be a finite number >= 0, got {value!r}'
+            raise DataError(msg, file='<arrays>', column=name)
+    if grid_step_s is not None and not (math.isfinite(grid_step_s) and grid_step_s > 0.0):
+        msg = f'grid_step_s must be a finite number > 0, got {grid_step_s!r}'
+        raise DataError(msg, file='<arrays>', column='grid_step_s')
+    sig = _Signals(t_meas, y_meas, t_sim, y_sim, float(window_s), stamp_shift(window_s, stamp))
+    period = float(np.median(np.diff(t_meas)))
+    width = min(period, window_s) if window_s > 0.0 else period
+    step = 0.25 * width if grid_step_s is None else float(grid_step_s)
+    step = max(step, max_lag_s / _MAX_LAG_STEPS)
+    if grid_step_s is None and step < period:
+        # a whole fraction of the period, so that uniform stamps take the fast path
+        step = period / math.ceil(period / step - 1e-9)
+    steps = int(math.ceil(max_lag_s / step - 1e-9))
+    lags = np.clip(np.arange(-steps, steps + 1) * step, -max_lag_s, max_lag_s)
     if np.ptp(y_meas) == 0.0 or np.ptp(y_sim) == 0.0:
         which = 'measured' if np.ptp(y_meas) == 0.0 else 'simulated'
         return OffsetResult(0.0, math.nan, 'weak', f'the {which} signal is constant',
                             lags, np.zeros_like(lags))
-    corr = np.empty(lags.size)
-    per_chunk = max(1, _CHUNK_ELEMENTS // t_meas.size)
-    for start in range(0, lags.size, per_chunk):
-        part = lags[start:start + per_chunk]
-        model = interval_average(t_sim, y_sim, t_meas[None, :] - part[:, None],
-                                 window_s=window_s)
-        corr[start:start + per_chunk] = _correlation(y_meas, model)
-    k = int(np.argmax(corr))
-
-    def negative(lag: float) -> float:
-        model = interval_average(t_sim, y_sim, t_meas - lag, window_s=window_s)
-        return -float(_correlation(y_meas, model[None, :])[0])
-
-    lo = max(-max_lag_s, lags[k] - period)
-    hi = min(max_lag_s, lags[k] + period)
-    offset, peak = float(lags[k]), float(corr[k])
-    if hi > lo:
-        res = minimize_scalar(negative, bounds=(lo, hi), method='bounded',
-                              options={'xatol': period * 1e-4})
-        if -res.fun >= peak:
-            offset, peak = float(res.x), float(-res.fun)
-    status, message = 'ok', f'correlation {peak:.3f} at offset {offset:+.4f} s'
-    rival = _rival_peak(corr, k, lags, distance_s=max(2.0 * period, window_s))
+    corr = sig.uniform_correlation(step, steps) if t_meas.size > 2 else None
+    if corr is None:
+        corr = sig.correlation(lags)
+    elif steps * step > max_lag_s:
+        # the clipped end lags are not on the uniform grid
+        corr[[0, -1]] = sig.correlation(lags[[0, -1]])
+    found = []
+    for k in _local_maxima(corr)[:max(2, int(candidates))]:
+        lo, hi = max(-max_lag_s, lags[k] - step), min(max_lag_s, lags[k] + step)
+        lag, c = sig.refine(float(lags[k]), lo, hi, tol=period * 1e-4)
+        found.append((lag, c, sig.rms(lag)))
+    eligible = [f for f in found if f[1] >= min_correlation] or found
+    offset, peak, rms = min(eligible, key=lambda f: (f[2], -f[1]))
+    far = max(2.0 * step, window_s, period)
+    rivals = [f for f in found if abs(f[0] - offset) > far]
+    rival = min(rivals, key=lambda f: (f[2], -f[1])) if rivals else None
+    status, message = 'ok', (f'correlation {peak:.3f}, residual {rms:.3g} W RMS at offset '
+                             f'{offset:+.4f} s')
+    if rival is not None:
+        message += (f'; runner-up {rival[0]:+.4f} s (correlation {rival[1]:.3f}, residual '
+                    f'{rival[2]:.3g} W RMS)')
     if peak < min_correlation:
         status = 'weak'
-        message = f'peak correlation {peak:.3f} is below {min_correlation:g}; {message}'
-    elif lags.size > 1 and k in (0, lags.size - 1):
+        message = f'correlation {peak:.3f} is below {min_correlation:g}; {message}'
+    elif lags.size > 1 and abs(abs(offset) - max_lag_s) < 0.5 * step:
         status = 'edge'
         message = (f'best lag is at the end of the searched range ±{max_lag_s:g} s; '
                    f'widen max_lag_s; {message}')
-    elif rival is not None and corr[rival] >= peak - ambiguity_margin:
+    elif rival is not None and (rival[1] >= peak - ambiguity_margin
+                                or rival[2] ** 2 <= (1.0 + ambiguity_margin) * rms ** 2):
         status = 'ambiguous'
-        message = (f'lag {lags[rival]:+.4f} s correlates almost as well '
-                   f'({corr[rival]:.3f}); {message}')
-    return OffsetResult(offset, peak, status, message, lags, corr)
+        message = f'the runner-up fits almost as well; {message}'
+    drift, drift_message = _drift(sig, offset, step=step, period=period,
+                                  min_duration_s=drift_min_duration_s,
+                                  min_correlation=min_correlation)
+    nan = math.nan
+    return OffsetResult(offset, peak, status, message, lags, corr, rms_w=rms,
+                        runner_up_s=rival[0] if rival else nan,
+                        runner_up_correlation=rival[1] if rival else nan,
+                        runner_up_rms_w=rival[2] if rival else nan,
+                        drift_ppm=drift, drift_message=drift_message)
 
 
-def _rival_peak(corr: np.ndarray, k: int, lags: np.ndarray, *,
-                distance_s: float) -> int | None:
-    """Index of the best local maximum farther than ``distance_s`` from the peak."""
-    if corr.size < 3:
-        return None
-    inner = np.flatnonzero((corr[1:-1] >= corr[:-2]) & (corr[1:-1] >= corr[2:])) + 1
-    far = inner[np.abs(lags[inner] - lags[k]) > distance_s]
-    if far.size == 0:
-        return None
-    return int(far[np.argmax(corr[far])])
+def _drift(sig: _Signals, offset: float, *, step: float, period: float,
+           min_duration_s: float, min_correlation: float) -> tuple[float, str]:
+    """Clock-rate difference from the offsets of the two halves of the record (ppm)."""
+    t = sig.t_meas
+    span = float(t[-1] - t[0])
+    if span < min_duration_s:
+        return math.nan, (f'not estimable: the record spans {span:.1f} s, drift needs at '
+                          f'least {min_duration_s:g} s')
+    half = int(np.searchsorted(t, t[0] + 0.5 * span))
+    reach = max(2.0 * step, _MAX_DRIFT * span)
+    offsets, centres = [], []
+    for name, sel in (('first', slice(0, half)), ('second', slice(half, t.size))):
+        if np.ptp(sig.y_meas[sel]) == 0.0:
+            return math.nan, f'not estimable: the {name} half of the record is constant'
+        grid = offset + np.arange(-reach, reach + 0.5 * step, step)
+        corr = sig.correlation(grid, sel)
+        k = int(np.argmax(corr))
+        lag, c = sig.refine(float(grid[k]), float(grid[k]) - step, float(grid[k]) + step,
+                            tol=period * 1e-4, sel=sel)
+        if c < min_correlation:
+            return math.nan, (f'not estimable: the {name} half correlates only {c:.3f} '
+                              f'(below {min_correlation:g})')
+        offsets.append(lag)
+        centres.append(float(np.mean(t[sel])))
+    rate = (offsets[1] - offsets[0]) / (centres[1] - centres[0])
+    return 1e6 * rate, (f'{1e6 * rate:+.0f} ppm from the offsets of the two halves '
+                        f'({offsets[0]:+.4f} s, {offsets[1]:+.4f} s over '
+                        f'{centres[1] - centres[0]:.1f} s)')

@@ -19,10 +19,9 @@ without a measured counterpart (e.g. a Z axis without a power column) are left o
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import replace
 import math
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -34,211 +33,21 @@ from ..simulate import simulate_motion, SimulationResult
 from ..trajectory import motion_from_samples, plan
 from .align import align_simulated, estimate_offset, OffsetResult
 from .csvload import load_run, MeasuredRun
-from .campaign import Campaign, RunSpec
-from .metrics import group_metrics, Metrics, table1_metrics
+from .campaign import Campaign, default_instrument, RunSpec
+from .comparison import (CampaignComparison, GroupComparison, json_clean,  # noqa: F401
+                         offset_dict, RunComparison, TOTAL)                # (re-exported)
+from .instrument import check_instrument
+from .motiondata import reconstruct_motion
+from .states import residual_by_state, state_labels
+from .metrics import group_metrics, table1_metrics
 
 __all__ = [
     'DEFAULT_MAX_LAG_S', 'CampaignComparison', 'GroupComparison', 'RunComparison',
-    'compare_campaign', 'compare_run', 'json_clean',
+    'compare_campaign', 'compare_run', 'json_clean', 'offset_dict',
 ]
 
 DEFAULT_MAX_LAG_S = 5.0
 """Largest time offset searched by default, in either direction [s]."""
-
-TOTAL = 'total'
-
-
-def json_clean(value: Any) -> Any:
-    """Return ``value`` with NaN/inf floats replaced by ``None`` (strict JSON has no NaN)."""
-    if isinstance(value, dict):
-        return {k: json_clean(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_clean(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
-def _cumulative_energy(t: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Trapezoidal cumulative energy [J] of ``p`` (n,) or (n, k) over ``t``, 0 at t[0]."""
-    dt = np.diff(t) if p.ndim == 1 else np.diff(t)[:, None]
-    steps = 0.5 * (p[1:] + p[:-1]) * dt
-    return np.concatenate([np.zeros((1,) + p.shape[1:]), np.cumsum(steps, axis=0)])
-
-
-@dataclass(frozen=True)
-class RunComparison:
-    """One measured run against its simulation, on the measured stamps.
-
-    Attributes
-    ----------
-    name, role, load_kg
-        From the manifest.
-    data_file
-        The measured data file.
-    motion_source
-        The NC program file, or ``'data:commanded'`` / ``'data:actual'``.
-    axes
-        Axes with measured power, the columns of the power arrays.
-    window_s
-        Measuring interval the simulated power was averaged over [s].
-    offset
-        The offset estimate (status ``'ok'``, ``'weak'``, ``'edge'``, ``'ambiguous'`` or
-        ``'fixed'`` when the caller gave the offset).
-    offset_used_s
-        The offset the comparison was made at [s].
-    metrics
-        Table-1 metrics of the summed power of ``axes``.
-    axis_metrics
-        Table-1 metrics per axis of ``axes``.
-    t
-        Measured stamps [s], shape ``(n,)``.
-    power_meas_w, power_sim_w
-        Measured and aligned, interval-averaged simulated power [W], shape ``(n, len(axes))``.
-    sim_duration_s
-        Length of the simulation [s].
-    excluded_rows
-        Data rows dropped by the manifest's row filter.
-    """
-
-    name: str
-    role: str | None
-    load_kg: float
-    data_file: str
-    motion_source: str
-    axes: tuple[str, ...]
-    window_s: float
-    offset: OffsetResult
-    offset_used_s: float
-    metrics: Metrics
-    axis_metrics: dict[str, Metrics]
-    t: np.ndarray = field(repr=False)
-    power_meas_w: np.ndarray = field(repr=False)
-    power_sim_w: np.ndarray = field(repr=False)
-    sim_duration_s: float = 0.0
-    excluded_rows: int = 0
-
-    @property
-    def total_meas_w(self) -> np.ndarray:
-        """Measured power summed over ``axes`` [W], ``(n,)``."""
-        return self.power_meas_w.sum(axis=1)
-
-    @property
-    def total_sim_w(self) -> np.ndarray:
-        """Aligned simulated power summed over ``axes`` [W], ``(n,)``."""
-        return self.power_sim_w.sum(axis=1)
-
-    def energy_meas_j(self) -> np.ndarray:
-        """Cumulative measured energy of the total [J], ``(n,)``, 0 at the first stamp."""
-        return _cumulative_energy(self.t, self.total_meas_w)
-
-    def energy_sim_j(self) -> np.ndarray:
-        """Cumulative simulated energy of the total on the measured stamps [J], ``(n,)``."""
-        return _cumulative_energy(self.t, self.total_sim_w)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able summary (no time series); keys carry units, NaN becomes ``None``."""
-        metrics = {TOTAL: self.metrics.to_dict()}
-        metrics.update({a: m.to_dict() for a, m in self.axis_metrics.items()})
-        return json_clean({
-            'name': self.name,
-            'role': self.role,
-            'load_kg': self.load_kg,
-            'data_file': self.data_file,
-            'motion_source': self.motion_source,
-            'axes': list(self.axes),
-            'window_s': self.window_s,
-            'duration_meas_s': float(self.t[-1] - self.t[0]),
-            'duration_sim_s': self.sim_duration_s,
-            'excluded_rows': self.excluded_rows,
-            'offset': {
-                'found_s': self.offset.offset_s,
-                'used_s': self.offset_used_s,
-                'correlation': self.offset.peak_correlation,
-                'status': self.offset.status,
-                'message': self.offset.message,
-            },
-            'metrics': metrics,
-        })
-
-
-@dataclass(frozen=True)
-class GroupComparison:
-    """Runs at one load pooled (the columns of the paper's Table 1).
-
-    Attributes
-    ----------
-    load_kg
-        The load shared by the runs [kg].
-    runs
-        Names of the pooled runs.
-    metrics
-        Pooled metrics of the total.
-    axis_metrics
-        Pooled metrics per axis (axes measured in every run of the group).
-    """
-
-    load_kg: float
-    runs: tuple[str, ...]
-    metrics: Metrics
-    axis_metrics: dict[str, Metrics]
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able summary; keys carry units, NaN becomes ``None``."""
-        metrics = {TOTAL: self.metrics.to_dict()}
-        metrics.update({a: m.to_dict() for a, m in self.axis_metrics.items()})
-        return json_clean({'load_kg': self.load_kg, 'runs': list(self.runs),
-                           'metrics': metrics})
-
-
-@dataclass(frozen=True)
-class CampaignComparison:
-    """Every compared run of a campaign and the per-load groups.
-
-    Attributes
-    ----------
-    campaign
-        Campaign name.
-    manifest
-        The manifest file.
-    machine
-        Machine name.
-    machine_file
-        The machine config used (``''`` when the caller passed a machine object).
-    max_lag_s
-        Offset search range [s].
-    runs
-        Per-run results, in manifest order.
-    groups
-        Per-load groups, by increasing load.
-    """
-
-    campaign: str
-    manifest: str
-    machine: str
-    machine_file: str
-    max_lag_s: float
-    runs: tuple[RunComparison, ...]
-    groups: tuple[GroupComparison, ...]
-
-    @property
-    def offset_warnings(self) -> list[str]:
-        """One line per run whose offset estimate is not ``'ok'`` (or given)."""
-        return [f'{r.name}: offset {r.offset.status}: {r.offset.message}'
-                for r in self.runs if r.offset.status not in ('ok', 'fixed')]
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able summary (see docs/compare.md); keys carry units, NaN becomes ``None``."""
-        return {
-            'campaign': self.campaign,
-            'manifest': self.manifest,
-            'machine': self.machine,
-            'machine_file': self.machine_file,
-            'max_lag_s': self.max_lag_s,
-            'runs': [r.to_dict() for r in self.runs],
-            'groups': [g.to_dict() for g in self.groups],
-            'warnings': self.offset_warnings,
-        }
 
 
 class _MotionCache:
@@ -265,8 +74,15 @@ def _simulate(spec: RunSpec, run: MeasuredRun, machine: Machine,
         kind = spec.motion_from_data or 'commanded'
         # Measured velocity/acceleration columns, where mapped, beat differentiated positions.
         vel, acc = run.derivatives(kind)
-        motion = motion_from_samples(run.t, run.positions(kind), axes=run.axes,
-                                     source=f'{run.file} ({kind} positions)', vel=vel, acc=acc)
+        where = f'{run.file} ({kind} positions)'
+        rate = machine.planner.rate_hz
+        if spec.motion_reconstruct == 'pulses' and float(np.median(np.diff(run.t))) > 1.5 / rate:
+            # coarse samples: accelerations between the stamps from positions and velocities
+            motion = reconstruct_motion(run.t, run.positions(kind), axes=run.axes,
+                                        rate_hz=rate, vel=vel, acc=acc, source=where)
+        else:
+            motion = motion_from_samples(run.t, run.positions(kind), axes=run.axes,
+                                         source=where, vel=vel, acc=acc)
         source = f'data:{kind}'
     return simulate_motion(motion, machine, load_kg=spec.load_kg), source
 
@@ -290,7 +106,8 @@ def _sim_columns(spec: RunSpec, sim: SimulationResult, machine: Machine) -> np.n
 
 def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_MAX_LAG_S,
                 window_s: float | None = None, offset_s: float | None = None,
-                min_correlation: float = 0.5, floor_fraction: float = 0.05) -> RunComparison:
+                min_correlation: float = 0.5, floor_fraction: float = 0.05,
+                stamp: str | None = None) -> RunComparison:
     """Compare one measured run with its simulation.
 
     Parameters
@@ -302,9 +119,12 @@ def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_M
     max_lag_s
         Largest offset searched, in either direction [s].
     window_s
-        Measuring interval [s]; default: the median period of the measured stamps.
+        Measuring interval [s] (0: point samples); default: the run's instrument
+        (declared in the manifest, else :func:`.campaign.default_instrument`).
     offset_s
         Compare at this offset instead of estimating one (status ``'fixed'``).
+    stamp
+        Where the meter stamps its window; default: the run's instrument.
     min_correlation
         Below this peak correlation the estimate is ``'weak'`` and offset 0 is used.
     floor_fraction
@@ -323,16 +143,23 @@ def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_M
     """
     return _compare(spec, machine, _MotionCache(machine), max_lag_s=max_lag_s,
                     window_s=window_s, offset_s=offset_s, min_correlation=min_correlation,
-                    floor_fraction=floor_fraction)
+                    floor_fraction=floor_fraction, stamp=stamp)
 
 
 def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s: float,
              window_s: float | None, offset_s: float | None, min_correlation: float,
-             floor_fraction: float) -> RunComparison:
+             floor_fraction: float, stamp: str | None = None,
+             check_meter: bool = True) -> RunComparison:
     run = load_run(spec)
     sim, source = _simulate(spec, run, machine, cache)
     sim_w = _sim_columns(spec, sim, machine)
-    window = float(np.median(np.diff(run.t))) if window_s is None else float(window_s)
+    meter = (spec.instrument if spec.instrument.declared
+             else default_instrument(spec.motion_from_data))
+    period = float(np.median(np.diff(run.t)))
+    window = meter.window_for(period) if window_s is None else float(window_s)
+    stamp = meter.stamp if stamp is None else stamp
+    if window_s is not None or stamp != meter.stamp:
+        meter = replace(meter, window_s=window, stamp=stamp, declared=True)
     if not np.isfinite(sim_w).all():
         sample = int(np.flatnonzero(~np.isfinite(sim_w).all(axis=1))[0]) + 1
         msg = (f'the simulation of this run overflowed (simulated power sample {sample} is '
@@ -341,21 +168,24 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
     if offset_s is None:
         try:
             found = estimate_offset(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
-                                    max_lag_s=max_lag_s, window_s=window,
+                                    max_lag_s=max_lag_s, window_s=window, stamp=stamp,
                                     min_correlation=min_correlation)
         except DataError as err:
             msg = f'the time offset cannot be estimated: {err.reason}'
             raise DataError(msg, file=run.file, column=err.column) from err
         used = 0.0 if found.status == 'weak' else found.offset_s
         if found.status == 'weak':
-            found = OffsetResult(found.offset_s, found.peak_correlation, found.status,
-                                 f'{found.message}; compared at offset 0',
-                                 found.lags_s, found.correlation)
+            found = replace(found, message=f'{found.message}; compared at offset 0')
     else:
         used = float(offset_s)
         found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')
     try:
-        aligned = align_simulated(sim.power.t, sim_w, run.t, offset_s=used, window_s=window)
+        aligned = align_simulated(sim.power.t, sim_w, run.t, offset_s=used, window_s=window,
+                                  stamp=stamp)
+        fits = ()
+        if check_meter and offset_s is None and found.status != 'weak':
+            fits = check_instrument(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
+                                    offset_s=used, window_s=window, stamp=stamp)
     except DataError as err:
         # align names its arrays only; the run's file is the place the user can act on
         msg = f'simulated power cannot be aligned: {err.reason}'
@@ -369,13 +199,17 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
                                   columns=('time', f'measured {a} power',
                                            f'simulated {a} power'), **where)
                 for j, a in enumerate(spec.power_axes)}
+    labels = state_labels(sim.motion.t, sim.motion.vel, sim.motion.acc, run.t - used,
+                          period_s=period)
+    states = residual_by_state(labels, meas.sum(axis=1) - aligned.sum(axis=1))
     return RunComparison(
         name=spec.name, role=spec.role, load_kg=spec.load_kg, data_file=run.file,
         motion_source=source, axes=spec.power_axes, window_s=window, offset=found,
         offset_used_s=used, metrics=total, axis_metrics=per_axis, t=run.t,
         power_meas_w=meas, power_sim_w=aligned,
         sim_duration_s=float(sim.power.t[-1] - sim.power.t[0]),
-        excluded_rows=int(run.extra.get('excluded_rows', 0)),
+        excluded_rows=int(run.extra.get('excluded_rows', 0)), stamp=stamp,
+        instrument=meter.describe(period), meter_fits=fits, states=states,
     )
 
 
@@ -398,7 +232,7 @@ def _groups(runs: Sequence[RunComparison]) -> tuple[GroupComparison, ...]:
 def compare_campaign(campaign: Campaign, *, machine: Machine | None = None,
                      runs: Sequence[str] | None = None, max_lag_s: float = DEFAULT_MAX_LAG_S,
                      window_s: float | None = None, min_correlation: float = 0.5,
-                     floor_fraction: float = 0.05,
+                     floor_fraction: float = 0.05, stamp: str | None = None,
                      progress: Callable[[float], None] | None = None) -> CampaignComparison:
     """Compare every (or the named) run of a campaign with the simulation.
 
@@ -413,7 +247,9 @@ def compare_campaign(campaign: Campaign, *, machine: Machine | None = None,
     max_lag_s
         Largest time offset searched, in either direction [s].
     window_s
-        Measuring interval [s]; default: each run's median sampling period.
+        Measuring interval [s] (0: point samples); default: each run's instrument.
+    stamp
+        Where the meter stamps its window; default: each run's instrument.
     min_correlation
         Peak correlation below which an offset estimate is ``'weak'`` (then offset 0).
     floor_fraction
@@ -457,7 +293,7 @@ def compare_campaign(campaign: Campaign, *, machine: Machine | None = None,
     for i, spec in enumerate(specs):
         results.append(_compare(spec, machine, cache, max_lag_s=max_lag_s, window_s=window_s,
                                 offset_s=None, min_correlation=min_correlation,
-                                floor_fraction=floor_fraction))
+                                floor_fraction=floor_fraction, stamp=stamp))
         if progress is not None:
             progress((i + 1) / len(specs))
     return CampaignComparison(

@@ -319,6 +319,8 @@ def bag_manifest(campaign: Campaign, runs: Sequence[tuple[RunSpec, MeasuredRun, 
             motion: dict[str, str] = {'program': rel(spec.motion_program)}
         else:
             motion = {'from_data': str(spec.motion_from_data)}
+            if spec.motion_reconstruct != 'pulses':
+                motion['reconstruct'] = spec.motion_reconstruct
         duration = float(run.t[-1] - run.t[0])
         entry: dict[str, Any] = {
             'name': spec.name, 'load_kg': spec.load_kg, 'motion': motion, 'data': rel(bag),
@@ -330,6 +332,10 @@ def bag_manifest(campaign: Campaign, runs: Sequence[tuple[RunSpec, MeasuredRun, 
             entry['allow_gaps'] = True
         if spec.role is not None:
             entry['role'] = spec.role
+        if spec.instrument.declared:
+            meter = spec.instrument
+            entry['instrument'] = {'window_s': 'period' if meter.window_s is None
+                                   else meter.window_s, 'stamp': meter.stamp}
         entries.append(entry)
     return {
         'name': campaign.name,

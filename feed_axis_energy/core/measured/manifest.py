@@ -13,9 +13,10 @@ A manifest is YAML::
     runs:
       - name: exp01
         load_kg: 0.0
-        motion: {from_data: actual}    # or {program: parts/s.nc}
+        motion: {from_data: actual}    # or {program: parts/s.nc}; reconstruct: samples
         data: data/exp01.csv           # CSV file (or a rosbag2 directory)
         role: calibrate                # or validate; optional
+        instrument: {window_s: period, stamp: end}   # optional; or: instrument: point
     split: {calibrate: [exp01], validate: [exp03]}   # optional, instead of per-run roles
 
 Per axis the quantities ``power``, ``position``, ``velocity``, ``acceleration``,
@@ -23,6 +24,14 @@ Per axis the quantities ``power``, ``position``, ``velocity``, ``acceleration``,
 ``voltage`` map to ``{column, unit}``. Kinematic quantities are given for every axis of a
 run or for none; at least one axis must have ``power``. A run has either a ``time:
 {column, unit}`` or a ``period_s`` (the run's own setting wins over ``defaults``).
+
+``instrument`` declares the power meter: ``point`` (point samples) or ``{window_s, stamp}``
+with ``window_s`` a number of seconds (``0``: point samples) or ``period`` (one median
+sampling period, the default) and ``stamp`` one of ``end`` (default), ``centre``, ``start``.
+Without it: a period window stamped at its end for runs with an NC program, point samples
+for motion from the data (:func:`.campaign.default_instrument`). ``motion.reconstruct``
+(motion from data only): ``pulses`` (default) rebuilds data coarser than the simulation rate
+at that rate (:mod:`.motiondata`), ``samples`` takes the samples as they are.
 
 Merging: mappings merge key by key (the run wins); ``rows.exclude_where`` lists are
 concatenated (defaults first). Errors name the manifest file and the dotted key
@@ -41,7 +50,8 @@ from ..errors import ConfigError, describe, shorten
 from ..safeyaml import load_yaml_file
 from ..units import si_unit_of
 from .campaign import (AXIS_QUANTITIES, Campaign, ColumnSpec, FILTER_OPS,  # noqa: F401
-                       KINEMATIC_QUANTITIES, ROLES, RowFilter, RunSpec)   # (re-exported)
+                       InstrumentSpec, KINEMATIC_QUANTITIES, RECONSTRUCT,  # (re-exported)
+                       ROLES, RowFilter, RunSpec, STAMPS)
 
 __all__ = [
     'AXIS_QUANTITIES', 'KINEMATIC_QUANTITIES', 'Campaign', 'ColumnSpec', 'RowFilter', 'RunSpec',
@@ -51,7 +61,7 @@ __all__ = [
 _TOP_KEYS = ('name', 'description', 'machine', 'defaults', 'runs', 'split')
 _RUN_KEYS = (
     'name', 'notes', 'load_kg', 'motion', 'data', 'period_s', 'time', 'axes', 'rows', 'role',
-    'min_duration_s', 'allow_gaps',
+    'min_duration_s', 'allow_gaps', 'instrument',
 )
 _DEFAULT_KEYS = tuple(k for k in _RUN_KEYS if k not in ('name', 'data', 'notes'))
 
@@ -268,16 +278,37 @@ class _Ctx:
                          for q, c in cols.items()}
         return out
 
-    def motion(self, value: Any, key: str) -> tuple[Path | None, str | None]:
-        m = self.mapping(value, key, ('program', 'from_data'))
+    def motion(self, value: Any, key: str) -> tuple[Path | None, str | None, str]:
+        m = dict(self.mapping(value, key, ('program', 'from_data', 'reconstruct')))
+        given = 'reconstruct' in m
+        rebuild = m.pop('reconstruct', 'pulses')
         if len(m) != 1:
             self.fail(key, 'expected exactly one of program, from_data')
+        if rebuild not in RECONSTRUCT:
+            self.fail(f'{key}.reconstruct',
+                      f'expected one of {", ".join(RECONSTRUCT)}, got {_kind(rebuild)}')
         if 'program' in m:
-            return self.path(m['program'], f'{key}.program'), None
+            if given:
+                self.fail(f'{key}.reconstruct', 'only for motion from_data')
+            return self.path(m['program'], f'{key}.program'), None, rebuild
         source = m['from_data']
         if source not in ('commanded', 'actual'):
             self.fail(f'{key}.from_data', f'expected commanded or actual, got {_kind(source)}')
-        return None, source
+        return None, source, rebuild
+
+    def instrument(self, value: Any, key: str) -> InstrumentSpec:
+        if value == 'point':
+            return InstrumentSpec(window_s=0.0, stamp='end')
+        if not isinstance(value, dict):
+            self.fail(key, f'expected point or a mapping {{window_s, stamp}}, got {_kind(value)}')
+        m = self.mapping(value, key, ('window_s', 'stamp'))
+        window = m.get('window_s', 'period')
+        if window != 'period':
+            window = self.number(window, f'{key}.window_s', minimum=0.0)
+        stamp = m.get('stamp', 'end')
+        if stamp not in STAMPS:
+            self.fail(f'{key}.stamp', f'expected one of {", ".join(STAMPS)}, got {_kind(stamp)}')
+        return InstrumentSpec(window_s=None if window == 'period' else window, stamp=stamp)
 
     def check_run_fields(self, d: dict, key: str, *, partial: bool) -> dict[str, Any]:
         """Check the typed fields present in ``d``; return their converted values."""
@@ -306,6 +337,8 @@ class _Ctx:
                 got = _kind(d['allow_gaps'])
                 self.fail(f'{key}.allow_gaps', f'expected true or false, got {got}')
             out['allow_gaps'] = d['allow_gaps']
+        if d.get('instrument') is not None:
+            out['instrument'] = self.instrument(d['instrument'], f'{key}.instrument')
         if not partial and 'time' in out and 'period_s' in out:
             self.fail(f'{key}.time', 'give either time or period_s, not both')
         return out
@@ -328,7 +361,7 @@ class _Ctx:
                 self.fail(f'{key}.axes.{missing.split(",")[0]}.{q}',
                           f'{q} is given for {", ".join(having)} but not for {missing}; '
                           'give it for every axis or none')
-        program, from_data = f['motion']
+        program, from_data, rebuild = f['motion']
         if from_data is not None:
             need = 'command_position' if from_data == 'commanded' else 'position'
             lacking = [a for a, cols in axes.items() if need not in cols]
@@ -344,6 +377,8 @@ class _Ctx:
             period_s=f.get('period_s'), time=f.get('time'), exclude=f.get('exclude', ()),
             role=f.get('role'), min_duration_s=f.get('min_duration_s', 0.0),
             allow_gaps=f.get('allow_gaps', False), manifest=str(self.file), key=key,
+            instrument=f.get('instrument', InstrumentSpec(declared=False)),
+            motion_reconstruct=rebuild,
         )
 
     def apply_split(self, value: Any, runs: list[RunSpec]) -> list[RunSpec]:

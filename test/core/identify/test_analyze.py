@@ -168,16 +168,24 @@ def test_augmented_machine_round_trips_and_compare_agrees(tmp_path) -> None:
     loaded = load_machine(path)
     cmp = compare_campaign(campaign, machine=loaded)
     after = group_metrics([r.metrics for r in cmp.runs])
-    # compare re-estimates offsets and uses the all-run fit: close to the held-out figure
+    # analyze's figures with the augmented machine are compare's, offsets and all, to the bit
+    assert [r.to_dict()['metrics'] for r in cmp.runs] == [a['metrics'] for a in res.augmented]
+    assert [r.to_dict()['offset'] for r in cmp.runs] == [a['offset'] for a in res.augmented]
+    # the held-out after (fold fits, re-aligned) is close to the all-run fit
     assert after.avg_pct_error_pct == pytest.approx(res.after.avg_pct_error_pct, rel=0.2)
     assert after.avg_pct_error_pct < 0.5 * res.before.avg_pct_error_pct
+    for run in res.runs:
+        # every after is a fresh comparison: its offset was estimated with the effects
+        assert run.offset_after['status'] != 'fixed'
+        assert run.offset_after['found_s'] == pytest.approx(run.offset_before['found_s'],
+                                                            abs=0.05)
 
 
 def test_to_dict_is_strict_json_with_documented_keys(tmp_path) -> None:
     res = analyze_campaign(_campaign(tmp_path, 'standby=p0_w:20'))
     d = json.loads(json.dumps(res.to_dict(), allow_nan=False))
     for key in ('before', 'after', 'effects', 'unexplained', 'diagnostics', 'status',
-                'message', 'holdout', 'noise_sigma_w', 'selection'):
+                'message', 'holdout', 'noise_sigma_w', 'selection', 'augmented'):
         assert key in d
     eff = d['effects'][0]
     assert eff['id'] == 'standby'

@@ -128,6 +128,8 @@ def write_campaign(root: Path, runs: list[dict], *, seed: int = 7,
                  'motion': motion}
         if spec.get('role'):
             entry['role'] = spec['role']
+        if spec.get('instrument'):
+            entry['instrument'] = spec['instrument']
         manifest_runs.append(entry)
     axes = {a: {'power': {'column': f'{a}_Power_kW', 'unit': 'kW'},
                 'position': {'column': f'{a}_Pos_mm', 'unit': 'mm'},
@@ -149,8 +151,10 @@ def campaign(tmp_path_factory):
         {'name': 'early', 'load_kg': 0.0, 'offset_ms': -213, 'noise_w': 0.2},
         {'name': 'gain110', 'load_kg': 17.336, 'offset_ms': 120, 'factor': 1.1, 'noise_w': 0.2},
         {'name': 'gain080', 'load_kg': 17.336, 'offset_ms': 0, 'factor': 0.8, 'noise_w': 0.2},
+        # this meter averages 50 ms ending at the stamp while positions are read at it:
+        # declared, since motion from data defaults to point samples
         {'name': 'fromdata', 'load_kg': 5.0, 'offset_ms': 300, 'noise_w': 0.2,
-         'motion': 'actual'},
+         'motion': 'actual', 'instrument': {'window_s': 'period', 'stamp': 'end'}},
         {'name': 'noise', 'load_kg': 5.0, 'factor': 0.0, 'noise_w': 5.0},
     ]
     manifest = write_campaign(root, runs)
@@ -219,6 +223,35 @@ def test_motion_from_data_runs_and_agrees(campaign):
     assert abs(run.metrics.energy_error_pct) < 5.0
 
 
+def test_motion_from_data_defaults_to_point_samples(tmp_path):
+    runs = [{'name': f'r{k}', 'load_kg': 5.0, 'noise_w': 0.2, 'motion': 'actual'}
+            for k in range(2)]
+    res = compare_campaign(load_campaign(write_campaign(tmp_path, runs)), max_lag_s=0.5)
+    assert [(r.window_s, r.stamp, r.instrument) for r in res.runs] == [
+        (0.0, 'end', 'point samples (default)')] * 2
+    assert res.to_dict()['runs'][0]['instrument'] == 'point samples (default)'
+
+
+def test_a_declared_instrument_that_does_not_fit_is_reported(tmp_path):
+    # the data come through a 50 ms trailing window; declared as point samples, compare
+    # finds that one period fits better and says so
+    runs = [{'name': f'r{k}', 'load_kg': 5.0, 'offset_ms': 100 * k, 'noise_w': 0.2,
+             'instrument': 'point'} for k in range(2)]
+    res = compare_campaign(load_campaign(write_campaign(tmp_path, runs)), max_lag_s=0.5)
+    assert all(r.window_s == 0.0 and r.instrument == 'point samples' for r in res.runs)
+    assert [[f.label for f in r.meter_fits] for r in res.runs] == [['declared', 'period']] * 2
+    for r in res.runs:
+        declared, period = r.meter_fits
+        assert period.rms_w < 0.8 * declared.rms_w
+    warning = ' '.join(res.instrument_warnings)
+    assert 'a 50 ms window fit better than point samples' in warning, warning
+    assert res.to_dict()['warnings'] == res.offset_warnings + res.instrument_warnings
+    # declared right (here the default for a program), nothing to report
+    right = [{k: v for k, v in r.items() if k != 'instrument'} for r in runs]
+    c = load_campaign(write_campaign(tmp_path / 'right', right))
+    assert compare_campaign(c, max_lag_s=0.5).instrument_warnings == []
+
+
 def test_a_weak_alignment_is_a_result_compared_at_offset_zero(campaign):
     run = {r.name: r for r in campaign[1].runs}['noise']
     assert run.offset.status == 'weak'
@@ -247,7 +280,8 @@ def test_to_dict_is_strict_json_with_units_in_keys(campaign):
     back = json.loads(text)
     run = back['runs'][0]
     assert run['name'] == 'late' and run['role'] == 'validate'
-    assert set(run['offset']) == {'found_s', 'used_s', 'correlation', 'status', 'message'}
+    assert set(run['offset']) == {'found_s', 'used_s', 'correlation', 'rms_w', 'status',
+                                  'message', 'runner_up', 'drift_ppm', 'drift_message'}
     assert set(run['metrics']) == {'total', 'X', 'Y'}
     assert {'avg_diff_error_w', 'avg_pct_error_pct', 'max_diff_error_w', 'max_pct_error_pct',
             'energy_error_j', 'energy_error_pct', 'rmse_w'} <= set(run['metrics']['total'])
@@ -292,7 +326,8 @@ def test_umich_validate_runs_compare():
     for run in result.runs:
         assert run.axes == ('X', 'Y')              # Z has no power column
         assert run.motion_source == 'data:commanded'
-        assert run.window_s == pytest.approx(0.1)
+        # motion from the data: point samples unless the manifest declares a meter
+        assert run.window_s == 0.0 and run.instrument == 'point samples (default)'
         # The motion uses the measured commanded velocities (not positions rounded to ~1 mm
         # and glitching to the home position), so the records align clearly and the
         # simulated power follows the measured one to about a watt.
@@ -301,4 +336,7 @@ def test_umich_validate_runs_compare():
         assert run.metrics.n_samples == run.t.size
         assert math.isfinite(run.metrics.rmse_w) and run.metrics.energy_meas_j > 0.0
     assert [g.load_kg for g in result.groups] == [0.0]
+    # the default meter fits these data better than a trailing window of one period: no
+    # instrument warning
+    assert result.instrument_warnings == []
     json.dumps(result.to_dict(), allow_nan=False)

@@ -53,6 +53,18 @@ def test_round_trip_csv_bag_run(tmp_path):
         assert_same_run(load_run(bags.run(name)), load_run(campaign.run(name)))
 
 
+def test_declared_instrument_is_carried_into_the_bag_manifest(tmp_path):
+    from dataclasses import replace
+    from feed_axis_energy.core.measured.campaign import InstrumentSpec
+    campaign = load_campaign(FIXTURES / 'campaign.yaml')
+    meter = InstrumentSpec(window_s=0.02, stamp='centre')
+    campaign = replace(campaign, runs=(replace(campaign.runs[0], instrument=meter),
+                                       campaign.runs[1]))
+    bags = load_campaign(import_campaign(campaign, tmp_path / 'out').manifest)
+    assert bags.run('a').instrument == meter
+    assert not bags.run('b').instrument.declared
+
+
 def test_bag_topics_energy_and_metadata(tmp_path):
     campaign = load_campaign(FIXTURES / 'campaign.yaml')
     bag = import_campaign(campaign, tmp_path / 'out', runs=['a']).runs[0].bag

@@ -95,6 +95,18 @@ def _edit(path, value):
     (('machine',), KeyError, 'machine', 'required'),
     (('split',), {'validate': ['nope']}, 'split.validate[0]', "no run named 'nope'"),
     (('split',), {'test': ['r0']}, 'split.test', 'unknown key'),
+    (('runs', 0, 'instrument'), 'average', 'runs[0].instrument', 'expected point or'),
+    (('runs', 0, 'motion'), {'from_data': 'actual', 'reconstruct': 'hermite'},
+     'runs[0].motion.reconstruct', 'expected one of pulses, samples'),
+    (('runs', 0, 'motion'), {'program': 'p.nc', 'reconstruct': 'samples'},
+     'runs[0].motion.reconstruct', 'only for motion from_data'),
+    (('runs', 0, 'instrument'), {'window_s': -0.1}, 'runs[0].instrument.window_s', '>= 0'),
+    (('runs', 0, 'instrument'), {'window_s': 'x' * 500}, 'runs[0].instrument.window_s',
+     'expected a number'),
+    (('runs', 0, 'instrument'), {'stamp': 'middle'}, 'runs[0].instrument.stamp',
+     'end, centre, start'),
+    (('runs', 0, 'instrument'), {'windows': 0.1}, 'runs[0].instrument.windows',
+     'unknown key'),
 ])
 def test_bad_values_name_file_and_dotted_key(tmp_path, path, value, key, text):
     d = _edit(path, value)
@@ -104,6 +116,37 @@ def test_bad_values_name_file_and_dotted_key(tmp_path, path, value, key, text):
     err = info.value
     assert err.file == str(file) and err.key == key
     assert text in str(err) and str(file) in str(err)
+
+
+@pytest.mark.parametrize('value, window, stamp', [
+    ('point', 0.0, 'end'),
+    ({'window_s': 0.05, 'stamp': 'centre'}, 0.05, 'centre'),
+    ({'stamp': 'start'}, None, 'start'),
+    ({}, None, 'end'),
+])
+def test_instrument_declaration(tmp_path, value, window, stamp):
+    d = _edit(('runs', 0, 'instrument'), value)
+    meter = campaign_from_dict(d, file=tmp_path / 'c.yaml', check_files=False).runs[0].instrument
+    assert (meter.window_s, meter.stamp, meter.declared) == (window, stamp, True)
+    assert meter.window_for(0.1) == (0.1 if window is None else window)
+
+
+def test_motion_reconstruction_choice(tmp_path):
+    runs = campaign_from_dict(BASE, file=tmp_path / 'c.yaml', check_files=False).runs
+    assert runs[0].motion_reconstruct == 'pulses'
+    d = _edit(('runs', 0, 'motion'), {'from_data': 'actual', 'reconstruct': 'samples'})
+    run = campaign_from_dict(d, file=tmp_path / 'c.yaml', check_files=False).runs[0]
+    assert (run.motion_from_data, run.motion_reconstruct) == ('actual', 'samples')
+
+
+def test_instrument_default_depends_on_the_motion_source(tmp_path):
+    from feed_axis_energy.core.measured.campaign import default_instrument
+    run = campaign_from_dict(copy.deepcopy(BASE), file=tmp_path / 'c.yaml',
+                             check_files=False).runs[0]
+    assert not run.instrument.declared
+    assert default_instrument('actual').window_for(0.1) == 0.0
+    assert default_instrument(None).window_for(0.1) == 0.1
+    assert default_instrument(None).describe(0.05) == '50 ms window stamped at its end (default)'
 
 
 def test_kinematics_must_cover_every_axis_or_none(tmp_path):

@@ -1,0 +1,126 @@
+"""Residual by motion state: where in the motion is the model's error?
+
+Every measured sample is labelled by the simulated motion around its stamp (at the offset
+used, on the machine's full-rate motion):
+
+* ``standstill``: path speed below ``still_m_s`` (0.1 mm/s) at the stamp and no
+  acceleration above ``accel_m_s2`` within one sampling period either side;
+* ``transient``: some axis accelerates by more than ``accel_m_s2`` (0.05 m/s², the steady
+  limit of ``fit-loss``) within one sampling period either side of the stamp (starts, stops,
+  direction and speed changes);
+* ``steady``: moving, without such acceleration (feed moves, steady rapids).
+
+Per state: share of samples, mean and RMS of ``dP = P_meas - P_sim`` [W], and share of the
+summed ``dP^2``.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+__all__ = ['STATES', 'StateResidual', 'pool_states', 'residual_by_state', 'state_labels']
+
+STATES = ('standstill', 'steady', 'transient')
+
+
+@dataclass(frozen=True)
+class StateResidual:
+    """Residual of the samples in one motion state.
+
+    Attributes
+    ----------
+    state
+        One of :data:`STATES`.
+    n_samples
+        Samples in that state.
+    sum_w, sum_sq_w2
+        Sums of ``dP`` [W] and ``dP^2`` [W²] (pooled by adding).
+    total_samples, total_sq_w2
+        The same over every state (for shares).
+    """
+
+    state: str
+    n_samples: int
+    sum_w: float
+    sum_sq_w2: float
+    total_samples: int
+    total_sq_w2: float
+
+    def to_dict(self) -> dict[str, float | int | str]:
+        """Plain dict; keys carry units; NaN where the state has no sample."""
+        n = self.n_samples
+        return {
+            'state': self.state,
+            'n_samples': n,
+            'samples_pct': 100.0 * n / self.total_samples if self.total_samples else math.nan,
+            'mean_w': self.sum_w / n if n else math.nan,
+            'rms_w': math.sqrt(self.sum_sq_w2 / n) if n else math.nan,
+            'squared_error_pct': (100.0 * self.sum_sq_w2 / self.total_sq_w2
+                                  if self.total_sq_w2 > 0.0 else math.nan),
+        }
+
+
+def state_labels(t_sim: np.ndarray, vel: np.ndarray, acc: np.ndarray, tau: np.ndarray, *,
+                 period_s: float, still_m_s: float = 1e-4,
+                 accel_m_s2: float = 0.05) -> np.ndarray:
+    """Index into :data:`STATES` of every sample (see the module docstring).
+
+    Parameters
+    ----------
+    t_sim
+        Simulated times [s], ``(m,)``, increasing.
+    vel, acc
+        Simulated velocity [m/s] and acceleration [m/s²] per axis, ``(m, k)``.
+    tau
+        Simulated time of each measured stamp [s], ``(n,)``, increasing.
+    period_s
+        Measured sampling period [s].
+    still_m_s, accel_m_s2
+        Thresholds.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n,)`` integers.
+    """
+    speed = np.sqrt(np.sum(np.asarray(vel, dtype=float) ** 2, axis=1))
+    amax = np.max(np.abs(np.asarray(acc, dtype=float)), axis=1)
+    at = np.interp(tau, t_sim, speed)
+    # largest |a| of any axis within one period either side of each stamp: maxima between
+    # consecutive window edges, then the two halves around the stamp
+    lo = np.clip(np.searchsorted(t_sim, tau - period_s), 0, t_sim.size - 1)
+    hi = np.clip(np.searchsorted(t_sim, tau + period_s, side='right'), 1, t_sim.size)
+    hi = np.maximum(hi, lo + 1)
+    near = np.array([amax[a:b].max() for a, b in zip(lo, hi)]) if tau.size else np.zeros(0)
+    labels = np.full(tau.shape, STATES.index('steady'))
+    labels[near > accel_m_s2] = STATES.index('transient')
+    labels[(at < still_m_s) & (near <= accel_m_s2)] = STATES.index('standstill')
+    return labels
+
+
+def residual_by_state(labels: np.ndarray, residual: np.ndarray) -> tuple[StateResidual, ...]:
+    """Per-state sums of the residual ``(n,)`` [W] for the labels from :func:`state_labels`."""
+    r = np.asarray(residual, dtype=float)
+    total_sq = float(r @ r)
+    out = []
+    for i, name in enumerate(STATES):
+        sel = r[labels == i]
+        out.append(StateResidual(name, int(sel.size), float(sel.sum()), float(sel @ sel),
+                                 int(r.size), total_sq))
+    return tuple(out)
+
+
+def pool_states(runs: Sequence[Sequence[StateResidual]]) -> tuple[StateResidual, ...]:
+    """Pool per-run state residuals (as if the runs' samples were concatenated)."""
+    total_n = sum(s[0].total_samples for s in runs if s)
+    total_sq = sum(s[0].total_sq_w2 for s in runs if s)
+    out = []
+    for i, name in enumerate(STATES):
+        parts = [s[i] for s in runs if s]
+        out.append(StateResidual(name, sum(p.n_samples for p in parts),
+                                 sum(p.sum_w for p in parts), sum(p.sum_sq_w2 for p in parts),
+                                 total_n, total_sq))
+    return tuple(out)
