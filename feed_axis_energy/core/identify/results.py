@@ -13,6 +13,7 @@ from ..effects import get_effect
 from ..machine import DeclaredEffect, Machine
 from ..measured.compare import json_clean
 from ..measured.metrics import group_metrics, Metrics
+from .consistency import Fate
 from .diagnostics import Diagnostic
 from .selection import Step
 
@@ -51,6 +52,9 @@ class AnalyzeOptions:
         baseline residual; otherwise none is claimed (the structure is reported instead).
     shape_grid_points
         Grid size of each shape parameter before the refinement.
+    max_rounds
+        Cap of the consistency loop (selection redone without inconsistent effects); when
+        reached, the effects consistent in the last round are kept and the result says so.
     """
 
     holdout: str = 'loro'
@@ -63,22 +67,29 @@ class AnalyzeOptions:
     min_share: float = 0.01
     min_explained: float = 0.5
     shape_grid_points: int = 8
+    max_rounds: int = 6
 
 
 @dataclass(frozen=True)
 class ParamEstimate:
-    """A fitted effect parameter: value, unit and standard uncertainty (``None``: none)."""
+    """A fitted effect parameter: value, unit and standard uncertainty (``None``: none).
+
+    ``at_bound`` is ``'lower'`` or ``'upper'`` when the bounded fit put the value on that
+    physical bound (the data would push it further: an impossible value, not a finding).
+    """
 
     name: str
     value: float
     unit: str
     uncertainty: float | None
     method: str
+    at_bound: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict."""
         return {'name': self.name, 'value': self.value, 'unit': self.unit,
-                'uncertainty': self.uncertainty, 'method': self.method}
+                'uncertainty': self.uncertainty, 'method': self.method,
+                'at_bound': self.at_bound}
 
 
 @dataclass(frozen=True)
@@ -167,6 +178,10 @@ class AnalysisResult:
         ``'clean'`` (no effect, no structure), ``'too_few_runs'``.
     message
         One sentence.
+    candidates
+        The fate of every candidate ``(effect, axis)`` (:class:`.consistency.Fate`).
+    rounds, cap_reached
+        Rounds of the consistency loop and whether its cap was reached.
     """
 
     status: str
@@ -186,6 +201,9 @@ class AnalysisResult:
     steps: tuple[Step, ...]
     spectra: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
         repr=False, default_factory=dict)
+    candidates: tuple[Fate, ...] = ()
+    rounds: int = 0
+    cap_reached: bool = False
 
     @property
     def heldout_runs(self) -> tuple[RunOutcome, ...]:
@@ -253,4 +271,6 @@ class AnalysisResult:
                            'bic_before': s.bic_before, 'bic_after': s.bic_after,
                            'accepted': s.accepted, 'reason': s.reason}
                           for s in self.steps],
+            'candidates': [f.to_dict() for f in self.candidates],
+            'consistency': {'rounds': self.rounds, 'cap_reached': self.cap_reached},
         })
