@@ -95,6 +95,10 @@ def _num(v, fmt: str) -> str:
     return '&ndash;' if v is None or not np.isfinite(v) else format(v, fmt)
 
 
+def _bound(at_bound: str | None) -> str:
+    return '' if at_bound is None else f' (on its {escape(at_bound)} bound)'
+
+
 def _html(res: AnalysisResult, run_images: dict[str, str]) -> str:
     cols = [('all held-out', res.before, res.after)] + [
         (f'{load:g} kg', b, a) for load, b, a in res.by_load()]
@@ -123,6 +127,10 @@ def _html(res: AnalysisResult, run_images: dict[str, str]) -> str:
                else '<p>No effect added.</p>')
     unexpl = ''.join(f'<li><b>{escape(u["diagnostic"])}</b>: {escape(u["message"])}</li>'
                      for u in res.unexplained) or '<li>none</li>'
+    fates = ''.join(f'<tr><td>{escape(f.effect)}</td><td>{escape(f.axis)}</td>'
+                    f'<td>{escape(f.fate)}</td>'
+                    f'<td class="num">{_num(100 * f.heldout_gain_rel, ".2f")}</td>'
+                    f'<td>{escape(f.reason)}</td></tr>' for f in res.candidates)
     diag = ''.join(f'<tr><td>{escape(d.axis)}</td><td>{escape(d.name)}</td>'
                    f'<td>{"yes" if d.structured else "no"}</td><td>{escape(d.message)}</td></tr>'
                    for d in res.diagnostics_after)
@@ -139,6 +147,10 @@ td.num {{ text-align: right; }} img {{ max-width: 100%; }}</style></head><body>
 {escape(res.holdout)}. <b>{escape(res.status)}</b>: {escape(res.message)}</p>
 <h2>Effects</h2>{effects}
 <h2>Unexplained structure</h2><ul>{unexpl}</ul>
+<h2>Every candidate</h2>
+<p>Consistency loop: {res.rounds} round(s){', cap reached' if res.cap_reached else ''}.</p>
+<table><tr><th>effect</th><th>axis</th><th>fate</th><th>held-out gain [%]</th><th>reason</th>
+</tr>{fates}</table>
 <h2>Before / after on held-out runs</h2>{table}
 <h2>Residual diagnostics (after)</h2>
 <table><tr><th>axis</th><th>test</th><th>structure</th><th>detail</th></tr>{diag}</table>

@@ -322,7 +322,7 @@ def _fates(keys, design: Design, blocks, steps: Sequence[Step], stop: str,
         elif last is not None:
             out.append(Fate(key[0], key[1], 'rejected',
                             f'round {n}: held-out gain {100 * gain:.2f} % +- {100 * se:.2f} %, '
-                            f'not the best candidate; the best, {label(last.key)}, was '
+                            f'not the best by held-out error; the best, {label(last.key)}, was '
                             f'rejected ({last.reason})', gain, se))
         else:
             out.append(Fate(key[0], key[1], 'rejected', 'no selection round ran'))
