@@ -5,6 +5,7 @@ import argparse
 import json
 import os
 from pathlib import Path
+import sys
 
 import yaml
 
@@ -121,6 +122,8 @@ def run(args: argparse.Namespace) -> int:
     result = analyze_campaign(campaign, machine=machine, runs=names,
                               options=AnalyzeOptions(holdout=args.holdout), progress=progress)
     progress.done()
+    for w in result.warnings:
+        print(f'warning: {w}', file=sys.stderr)
     extra = {}
     # both outputs or neither: the first is removed if the second fails (unless it
     # replaced an earlier one with --force, which cannot be brought back)

@@ -21,7 +21,9 @@ A machine file looks like (see ``config/demonstrator.yaml``)::
       dialect: linuxcnc
       tools: {1: {radius_m: 0.003, length_m: 0.045}}
 
-Each axis may also give ``travel_m: [min, max]``, its travel in machine coordinates [m].
+Each axis may also give ``travel_m: [min, max]``, its travel in machine coordinates [m],
+and ``loss_calibrated: {feed_mm_s: [low, high], load_kg: [low, high]}``, the speeds and loads
+its loss function was fitted on (written by ``fit-loss``; :mod:`.calibrated`).
 
 ``effects`` lists effects of the catalog (:mod:`.effects`, ``docs/effects.md``) that the
 model declares in addition to the loss function, usually written by ``feed-axis-energy
@@ -38,6 +40,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from .calibrated import calibrated_from_value, CalibratedRange
 from .configcheck import check_choice as _choice, check_float as _float
 from .configcheck import check_mapping as _mapping, join_key as _join
 from .effects import EFFECTS
@@ -156,6 +159,8 @@ class AxisSpec:
         Angle of the positive direction above the horizontal [deg]; 90 is vertical upward.
     travel_m
         ``(min, max)`` travel limits in machine coordinates [m], or ``None`` (unknown).
+    loss_calibrated
+        Speeds and loads the loss function was fitted on, or ``None`` (not recorded).
     """
 
     name: str
@@ -167,6 +172,7 @@ class AxisSpec:
     rides_on: str | None = None
     inclination_deg: float = 0.0
     travel_m: tuple[float, float] | None = None
+    loss_calibrated: CalibratedRange | None = None
 
     @property
     def screw_inertia_kg_m2(self) -> float:
@@ -331,7 +337,7 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         msg = f'unknown axis name {shorten(str(name))!r}; expected one of {", ".join(AXIS_NAMES)}'
         raise ConfigError(msg, file=file, key=key)
     allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
-               'loss', 'travel_m')
+               'loss', 'travel_m', 'loss_calibrated')
     d = _mapping(d, file=file, key=key, allowed=allowed)
     for part in ('screw', 'inertias', 'limits', 'loss'):
         if part not in d:
@@ -349,7 +355,9 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         rides_on=rides_on,
         inclination_deg=_float(d, 'inclination_deg', file=file, key=key, default=0.0,
                                minimum=-90.0, strict=False, maximum=90.0),
-        travel_m=travel_from_value(d.get('travel_m'), file=file, key=f'{key}.travel_m'))
+        travel_m=travel_from_value(d.get('travel_m'), file=file, key=f'{key}.travel_m'),
+        loss_calibrated=calibrated_from_value(d.get('loss_calibrated'), file=file,
+                                              key=f'{key}.loss_calibrated'))
 
 
 def _check_stacking(axes: tuple[AxisSpec, ...], *, file: str) -> None:
@@ -525,6 +533,8 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
         }
         if a.travel_m is not None:
             axes[a.name]['travel_m'] = [float(v) for v in a.travel_m]
+        if a.loss_calibrated is not None:
+            axes[a.name]['loss_calibrated'] = a.loss_calibrated.to_dict()
     out = {
         'name': machine.name,
         'braking': machine.braking,

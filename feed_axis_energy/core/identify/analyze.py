@@ -33,6 +33,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from ..effects import EFFECTS, EffectState, get_effect, state_from_simulation
+from ..calibrated import range_warnings, RangeUse
 from ..errors import ConfigError
 from ..machine import load_machine, Machine
 from ..measured.align import align_simulated
@@ -419,6 +420,12 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
                                 'statistic': d.statistic, 'message': d.message})
     explained = (min(max(1.0 - (sse_full - noise_ss) / structured0, 0.0), 1.0)
                  if structured0 > 0 else math.nan)
+    uses = {axis: [RangeUse(run=r.cmp.name, load_kg=r.cmp.load_kg,
+                            speed_m_s=np.abs(r.states['velocity'][:, j]),
+                            accel_m_s2=r.states['acceleration'][:, j]) for r in data]
+            for j, axis in enumerate(axes)}
+    ranges = {a: machine.axis(a).loss_calibrated for a in axes if a in machine.axis_names}
+    warnings = range_warnings(ranges, uses)
     status, message = _verdict(fitted, unexplained, steps, data, folds, explained)
     if chosen.cap_reached:
         message += (f'; the consistency loop reached its cap of {options.max_rounds} rounds '
@@ -430,7 +437,8 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         noise_sigma_w=sigmas, runs=tuple(outcomes), effects=tuple(fitted),
         unexplained=tuple(unexplained), diagnostics_before=tuple(diag_before),
         diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra,
-        candidates=chosen.fates, rounds=chosen.rounds, cap_reached=chosen.cap_reached)
+        candidates=chosen.fates, warnings=tuple(warnings), rounds=chosen.rounds,
+        cap_reached=chosen.cap_reached)
 
 
 def _verdict(fitted, unexplained, steps, data, folds, explained) -> tuple[str, str]:

@@ -180,6 +180,9 @@ class AnalysisResult:
         One sentence.
     candidates
         The fate of every candidate ``(effect, axis)`` (:class:`.consistency.Fate`).
+    warnings
+        Loss functions applied outside the speeds/loads they were calibrated on
+        (:func:`..calibrated.range_warnings`).
     rounds, cap_reached
         Rounds of the consistency loop and whether its cap was reached.
     """
@@ -202,6 +205,7 @@ class AnalysisResult:
     spectra: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
         repr=False, default_factory=dict)
     candidates: tuple[Fate, ...] = ()
+    warnings: tuple[str, ...] = ()
     rounds: int = 0
     cap_reached: bool = False
 
@@ -273,4 +277,5 @@ class AnalysisResult:
                           for s in self.steps],
             'candidates': [f.to_dict() for f in self.candidates],
             'consistency': {'rounds': self.rounds, 'cap_reached': self.cap_reached},
+            'warnings': list(self.warnings),
         })
