@@ -9,7 +9,7 @@ import sys
 
 from feed_axis_energy.cli.common import format_table, metric_cells, METRIC_HEADER
 from feed_axis_energy.cli.progress import Progress
-from feed_axis_energy.core.calibrated import range_warnings
+from feed_axis_energy.core.calibrated import machine_warnings
 from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.identify.steady import range_uses
 from feed_axis_energy.core.machine import load_machine
@@ -99,12 +99,12 @@ def _print_tables(cmp: CampaignComparison) -> None:
 
 
 def _range_warnings(campaign, machine, names: list[str]) -> list[str]:
-    """Loss functions used outside the speeds/loads they were calibrated on (stderr)."""
+    """Losses and effects used outside the speeds/loads/positions they were fitted on."""
     machine = load_machine(campaign.machine) if machine is None else machine
-    ranges = {a.name: a.loss_calibrated for a in machine.axes}
-    if not any(ranges.values()):
+    if not (any(a.loss_calibrated for a in machine.axes)
+            or any(e.calibrated for e in machine.effects)):
         return []
-    return range_warnings(ranges, range_uses([load_run(campaign.run(n)) for n in names]))
+    return machine_warnings(machine, range_uses([load_run(campaign.run(n)) for n in names]))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -198,11 +198,15 @@ class DeclaredEffect:
         The axis it acts on, or ``None`` for every axis.
     params
         ``(name, value)`` pairs in SI units; parameters not given take the catalog default.
+    calibrated
+        Speeds, loads and positions it was identified on (``analyze --out-machine``), or
+        ``None``.
     """
 
     id: str
     axis: str | None = None
     params: tuple[tuple[str, float], ...] = ()
+    calibrated: CalibratedRange | None = None
 
     @property
     def values(self) -> dict[str, float]:
@@ -389,7 +393,8 @@ def _effects(value: Any, axis_names: tuple[str, ...], *,
     out = []
     for i, item in enumerate(value):
         key = f'effects[{i}]'
-        item = _mapping(item, file=file, key=key, allowed=('id', 'axis', 'params'))
+        item = _mapping(item, file=file, key=key,
+                        allowed=('id', 'axis', 'params', 'calibrated'))
         effect_id = item.get('id')
         if not isinstance(effect_id, str) or effect_id not in EFFECTS:
             msg = f'unknown effect {describe(effect_id)}; expected one of {", ".join(EFFECTS)}'
@@ -405,7 +410,14 @@ def _effects(value: Any, axis_names: tuple[str, ...], *,
         params = tuple((name, _float(params_d, name, file=file, key=f'{key}.params',
                                      minimum=-1.0e12, strict=False, maximum=1.0e12))
                        for name in cls.param_names() if name in params_d)
-        out.append(DeclaredEffect(id=effect_id, axis=axis, params=params))
+        try:
+            cls.resolve(dict(params))      # the physical bounds (a negative loss, ...)
+        except ConfigError as err:
+            raise ConfigError(err.reason, file=file, key=f'{key}.params') from None
+        calibrated = calibrated_from_value(item.get('calibrated'), file=file,
+                                           key=f'{key}.calibrated')
+        out.append(DeclaredEffect(id=effect_id, axis=axis, params=params,
+                                  calibrated=calibrated))
     return tuple(out)
 
 
@@ -554,5 +566,7 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
         # only when present, so that the paper's model keeps its plain form
         out['effects'] = [{'id': e.id, 'axis': e.axis,
                            'params': {n: float(v) for n, v in e.params}}
+                          | ({} if e.calibrated is None
+                             else {'calibrated': e.calibrated.to_dict()})
                           for e in machine.effects]
     return out

@@ -33,7 +33,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from ..effects import EFFECTS, EffectState, get_effect, state_from_simulation
-from ..calibrated import range_warnings, RangeUse
+from ..calibrated import machine_warnings, observed_range, RangeUse
 from ..errors import ConfigError
 from ..machine import load_machine, Machine
 from ..measured.align import align_simulated
@@ -422,10 +422,10 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
                  if structured0 > 0 else math.nan)
     uses = {axis: [RangeUse(run=r.cmp.name, load_kg=r.cmp.load_kg,
                             speed_m_s=np.abs(r.states['velocity'][:, j]),
-                            accel_m_s2=r.states['acceleration'][:, j]) for r in data]
+                            accel_m_s2=r.states['acceleration'][:, j],
+                            position_m=r.states['position'][:, j]) for r in data]
             for j, axis in enumerate(axes)}
-    ranges = {a: machine.axis(a).loss_calibrated for a in axes if a in machine.axis_names}
-    warnings = range_warnings(ranges, uses)
+    warnings = machine_warnings(machine, uses)
     status, message = _verdict(fitted, unexplained, steps, data, folds, explained)
     if chosen.cap_reached:
         message += (f'; the consistency loop reached its cap of {options.max_rounds} rounds '
@@ -437,7 +437,8 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         noise_sigma_w=sigmas, runs=tuple(outcomes), effects=tuple(fitted),
         unexplained=tuple(unexplained), diagnostics_before=tuple(diag_before),
         diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra,
-        candidates=chosen.fates, warnings=tuple(warnings), rounds=chosen.rounds,
+        candidates=chosen.fates, warnings=tuple(warnings),
+        calibrated={a: observed_range(u) for a, u in uses.items()}, rounds=chosen.rounds,
         cap_reached=chosen.cap_reached)
 
 

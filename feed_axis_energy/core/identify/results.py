@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from ..calibrated import CalibratedRange
 from ..effects import get_effect
 from ..machine import DeclaredEffect, Machine
 from ..measured.compare import json_clean
@@ -183,6 +184,9 @@ class AnalysisResult:
     warnings
         Loss functions applied outside the speeds/loads they were calibrated on
         (:func:`..calibrated.range_warnings`).
+    calibrated
+        Axis -> the steady speeds, loads and positions of the campaign: written with each
+        added effect into the augmented machine (``calibrated``).
     rounds, cap_reached
         Rounds of the consistency loop and whether its cap was reached.
     """
@@ -206,6 +210,7 @@ class AnalysisResult:
         repr=False, default_factory=dict)
     candidates: tuple[Fate, ...] = ()
     warnings: tuple[str, ...] = ()
+    calibrated: dict[str, CalibratedRange | None] = field(default_factory=dict)
     rounds: int = 0
     cap_reached: bool = False
 
@@ -239,7 +244,8 @@ class AnalysisResult:
         the two records line up, which ``compare`` estimates anew for every run) are left out.
         """
         added = tuple(DeclaredEffect(id=e.id, axis=e.axis,
-                                     params=tuple((p.name, float(p.value)) for p in e.params))
+                                     params=tuple((p.name, float(p.value)) for p in e.params),
+                                     calibrated=self.calibrated.get(e.axis))
                       for e in self.effects if get_effect(e.id).machine_property)
         return replace(self.machine, effects=self.machine.effects + added)
 

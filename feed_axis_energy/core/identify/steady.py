@@ -290,8 +290,9 @@ def range_uses(runs: Sequence[MeasuredRun], *,
             vel, acc, _ = _kinematics(run, velocity)
         except DataError:
             continue
+        pos = run.position_m if run.position_m is not None else run.command_position_m
         for j, axis in enumerate(run.axes):
-            out.setdefault(axis, []).append(RangeUse(run=run.name, load_kg=run.load_kg,
-                                                     speed_m_s=np.abs(vel[:, j]),
-                                                     accel_m_s2=acc[:, j]))
+            out.setdefault(axis, []).append(RangeUse(
+                run=run.name, load_kg=run.load_kg, speed_m_s=np.abs(vel[:, j]),
+                accel_m_s2=acc[:, j], position_m=None if pos is None else pos[:, j]))
     return out

@@ -88,3 +88,34 @@ def test_only_steady_samples_count_and_loads_are_checked():
 def test_bad_calibrated_ranges_are_refused_naming_the_key(value, key):
     with pytest.raises(ConfigError, match=key):
         calibrated_from_value(value, file='m.yaml', key='axes.X.loss_calibrated')
+
+
+def test_effect_used_beyond_the_positions_it_was_identified_on():
+    rng = CalibratedRange(feed_mm_s=(100.0, 300.0), position_m=(0.0, 0.2))
+    x = np.linspace(0.0, 0.4, 401)           # a quarter of the moving samples beyond 0.3 m
+    use = RangeUse(run='a', load_kg=0.0, speed_m_s=np.full(401, 0.2), position_m=x)
+    text = range_warnings({'X': rng}, {'X': [use]}, what='effect position_friction')
+    assert text == ['axis X: effect position_friction calibrated at positions 0.0-200.0 mm '
+                    'is used at 0.0-400.0 mm (49.9 % of the moving samples outside): '
+                    'extrapolated']
+
+
+def test_machine_effects_outside_their_physical_bounds_or_with_bad_ranges_are_refused(tmp_path):
+    machine = load_machine(ROOT / 'config' / 'demonstrator.yaml')
+    d = machine_to_dict(machine)
+    d['effects'] = [{'id': 'copper', 'axis': 'X', 'params': {'k_w_nm2': -3.1}}]
+    path = tmp_path / 'm.yaml'
+    path.write_text(yaml.safe_dump(d))
+    with pytest.raises(ConfigError, match=r'effects\[0\]\.params.*must lie in \[0, inf\]'):
+        load_machine(path)
+    d['effects'] = [{'id': 'copper', 'axis': 'X', 'params': {'k_w_nm2': 3.1},
+                     'calibrated': {'feed_mm_s': [100, 500], 'position_m': [0.3, 0.1]}}]
+    path.write_text(yaml.safe_dump(d))
+    with pytest.raises(ConfigError, match=r'effects\[0\]\.calibrated\.position_m'):
+        load_machine(path)
+    d['effects'][0]['calibrated']['position_m'] = [-0.1, 0.3]
+    path.write_text(yaml.safe_dump(d))
+    loaded = load_machine(path)
+    assert loaded.effects[0].calibrated.position_m == (-0.1, 0.3)
+    assert machine_to_dict(loaded)['effects'][0]['calibrated'] == {
+        'feed_mm_s': [100.0, 500.0], 'position_m': [-0.1, 0.3]}
