@@ -139,7 +139,8 @@ def main() -> int:
             for size in sizes:
                 params = scaled_params(effect_id, size, args.noise_w, rms)
                 if params is None:
-                    rows.append([effect_id, f'{size:g}', 'beyond bounds', '-', '-'])
+                    why = 'beyond bounds' if rms > 0.0 else 'no power in this campaign'
+                    rows.append([effect_id, f'{size:g}', why, '-', '-'])
                     continue
                 named = false = 0
                 wrong: set[str] = set()
