@@ -8,15 +8,19 @@
 2. *Candidates*: for every catalog effect and measured axis, the effect's basis is computed
    on the 1 kHz simulated state of each run and aligned onto the measured stamps with the
    run's offset and window (:func:`.measured.align.align_simulated`, the same instrument
-   model). Shape parameters (Stribeck speed, stroke of position friction) get a grid of
-   variants; the selected variant is refined by a bounded 1-D search.
+   model). Shape parameters (Stribeck speed, warm-up time constant, spacing of the
+   position-friction bumps) get a grid of variants; a single shape parameter is refined by
+   a bounded 1-D search. Every linear parameter is fitted within its physical bounds.
 3. *Selection* (:mod:`.selection`): forward selection scored by held-out error
    (leave-one-run-out, or the manifest's calibrate/validate roles) together with BIC.
-4. *Honesty*: a selected effect must be consistent across runs (its per-run refit may not
-   explain much more than the pooled one: ``heterogeneity`` below ``max_heterogeneity``);
-   an inconsistent one is removed, selection is redone without it and the structure is
-   reported in ``unexplained``. The final residual is tested for structure against velocity,
-   position, acceleration and time and in its spectrum (:mod:`.diagnostics`).
+4. *Honesty* (:mod:`.consistency`): a selected effect must be consistent across runs (its
+   per-run refit may not explain much more than the pooled one: ``heterogeneity`` below
+   ``max_heterogeneity``); an inconsistent one is removed, selection is redone without it
+   (at most ``max_rounds`` times; reaching the cap is a stated verdict) and the structure is
+   reported in ``unexplained``; every candidate ends with a fate and a reason. The final
+   residual is tested for structure against velocity, position, acceleration and time and
+   in its spectrum (:mod:`.diagnostics`). Loss functions and declared effects used outside
+   their calibrated range are listed in ``warnings``.
 5. *Before/after*: Table-1 metrics on held-out runs; each run's *after* adds the effects
    fitted without it (its fold), at the baseline offset.
 

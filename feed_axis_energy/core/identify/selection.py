@@ -56,7 +56,7 @@ def solve_normal(g: np.ndarray, b: np.ndarray, lower: np.ndarray | None = None,
     root = np.sqrt(w[keep])
     a = root[:, None] * v[:, keep].T
     t = (v[:, keep].T @ bs) / root
-    res = lsq_linear(a, t, bounds=(lo * d, hi * d), method='bvls', lsmr_tol='auto')
+    res = lsq_linear(a, t, bounds=(lo * d, hi * d), method='bvls')
     return np.clip(res.x / d, lo, hi)
 
 
