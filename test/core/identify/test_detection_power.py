@@ -33,8 +33,9 @@ def test_a_clearly_detectable_effect_is_named_and_a_clean_campaign_gets_nothing(
         study, tmp_path):
     rms = study.unit_rms_w('load_friction')
     params = study.scaled_params('load_friction', 4.0, 1.5, rms)
-    named, others = study.trial('load_friction', params, seed=1, noise_w=1.5, work=tmp_path)
-    assert named and others == []
-    named, others = study.trial(None, None, seed=1, noise_w=1.5, work=tmp_path)
-    assert not named and others == []
+    named, others, aliasing = study.trial('load_friction', params, seed=1, noise_w=1.5,
+                                          work=tmp_path)
+    assert named and others == [] and aliasing == []
+    named, others, aliasing = study.trial(None, None, seed=1, noise_w=1.5, work=tmp_path)
+    assert not named and others == [] and aliasing == []
     assert math.isfinite(rms)
