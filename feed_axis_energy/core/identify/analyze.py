@@ -138,10 +138,19 @@ def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
 
 
 def _block(runs: Sequence[_Run], effect_id: str, axis_j: int, shape: Mapping[str, float]):
-    """Names, per-run columns and physical bounds of one candidate (zero columns left out)."""
+    """Names, per-run columns and physical bounds of one candidate.
+
+    Columns that are zero, or whose largest value is below 1 % of the block's strongest
+    column (the far tail of a position bump), are left out: they carry no information, and
+    a fit on them would give huge, meaningless coefficients.
+    """
     effect = get_effect(effect_id)
     cols = [_columns(r, effect_id, axis_j, shape) for r in runs]
-    used = [i for i in range(len(effect.linear_params())) if any(np.any(c[:, i]) for c in cols)]
+    p = len(effect.linear_params())
+    peak = np.array([max((float(np.max(np.abs(c[:, i]))) if c.shape[0] else 0.0)
+                         for c in cols) for i in range(p)]) if cols else np.zeros(p)
+    top = float(peak.max()) if p else 0.0
+    used = [i for i in range(p) if peak[i] > 0.0 and peak[i] >= 0.01 * top]
     lo, hi = effect.linear_bounds()
     names = tuple(effect.linear_params()[i] for i in used)
     return names, [c[:, used] for c in cols], (lo[used], hi[used])

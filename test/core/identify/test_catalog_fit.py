@@ -127,3 +127,17 @@ def test_round_cap_is_a_stated_verdict_not_an_emptied_selection(tmp_path) -> Non
     fates = {f.fate for f in res.candidates}
     assert 'excluded_inconsistent' in fates
     assert all(f.reason for f in res.candidates)
+
+
+def test_a_column_the_training_runs_barely_touch_is_not_fitted() -> None:
+    # run 0 holds the column, run 1 only its far tail (1e-140): fitted on run 1 alone the
+    # coefficient stays 0 instead of y/1e-140
+    rng = np.random.default_rng(2)
+    c0 = rng.normal(size=(40, 1))
+    c1 = np.full((40, 1), 1e-140)
+    design = Design([2.0 * c0[:, 0], rng.normal(size=40)])
+    block = design.add_block(('position_friction', 'X'), {}, ('c1_n',), [c0, c1])
+    assert design.fit(block.cols, [1])[0] == 0.0
+    assert design.fit(block.cols, [0])[0] == pytest.approx(2.0)
+    assert all(math.isfinite(v) for v in design.heldout_mse(block.cols,
+                                                            [([0], [1]), ([1], [0])]).values())
