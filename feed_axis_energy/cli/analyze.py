@@ -6,6 +6,7 @@ import json
 import math
 import os
 from pathlib import Path
+import sys
 
 import yaml
 
@@ -68,7 +69,8 @@ def _print(res: AnalysisResult) -> None:
         for e in res.effects:
             for p in e.params:
                 unc = f'{p.uncertainty:.3g}' if p.uncertainty is not None else '-'
-                rows.append([f'{e.id}@{e.axis}', p.name, f'{p.value:.5g}', unc, p.unit,
+                value = f'{p.value:.5g}' + ('' if p.at_bound is None else f' ({p.at_bound} bound)')
+                rows.append([f'{e.id}@{e.axis}', p.name, value, unc, p.unit,
                              f'{100 * e.share_of_structured:.1f}',
                              f'{100 * e.heldout_gain_rel:.1f}', ', '.join(e.aliases)])
         print('effects added (uncertainty: jackknife over runs):')
@@ -81,6 +83,12 @@ def _print(res: AnalysisResult) -> None:
         print('unexplained structure:')
         for u in res.unexplained:
             print(f'  [{u["diagnostic"]}] {u["message"]}')
+    if res.candidates:
+        print()
+        cap = ', cap reached' if res.cap_reached else ''
+        print(f'every candidate (consistency loop: {res.rounds} round(s){cap}):')
+        for f in res.candidates:
+            print(f'  {f.effect}@{f.axis}: {f.fate}: {f.reason}')
     print()
     rows = []
     for r in res.heldout_runs:
@@ -145,6 +153,8 @@ def run(args: argparse.Namespace) -> int:
     result = analyze_campaign(campaign, machine=machine, runs=names,
                               options=AnalyzeOptions(holdout=args.holdout), progress=progress)
     progress.done()
+    for w in result.warnings:
+        print(f'warning: {w}', file=sys.stderr)
     extra = {}
     # both outputs or neither: the first is removed if the second fails (unless it
     # replaced an earlier one with --force, which cannot be brought back)

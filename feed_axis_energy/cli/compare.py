@@ -5,11 +5,15 @@ import argparse
 import json
 import math
 from pathlib import Path
+import sys
 
 from feed_axis_energy.cli.common import format_table, metric_cells, METRIC_HEADER
 from feed_axis_energy.cli.progress import Progress
+from feed_axis_energy.core.calibrated import machine_warnings
 from feed_axis_energy.core.errors import ConfigError
+from feed_axis_energy.core.identify.steady import range_uses
 from feed_axis_energy.core.machine import load_machine
+from feed_axis_energy.core.measured.csvload import load_run
 from feed_axis_energy.core.measured.compare import (CampaignComparison, compare_campaign,
                                                     DEFAULT_MAX_LAG_S)
 from feed_axis_energy.core.measured.manifest import load_campaign
@@ -112,6 +116,15 @@ def _print_states(cmp: CampaignComparison) -> None:
                         'share of dP^2 [%]'], rows))
 
 
+def _range_warnings(campaign, machine, names: list[str]) -> list[str]:
+    """Losses and effects used outside the speeds/loads/positions they were fitted on."""
+    machine = load_machine(campaign.machine) if machine is None else machine
+    if not (any(a.loss_calibrated for a in machine.axes)
+            or any(e.calibrated for e in machine.effects)):
+        return []
+    return machine_warnings(machine, range_uses([load_run(campaign.run(n)) for n in names]))
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     if not (math.isfinite(args.max_lag_s) and args.max_lag_s >= 0.0):
@@ -131,6 +144,9 @@ def run(args: argparse.Namespace) -> int:
     result = compare_campaign(campaign, machine=machine, runs=names, max_lag_s=args.max_lag_s,
                               floor_fraction=args.pct_floor, progress=progress)
     progress.done()
+    warnings = _range_warnings(campaign, machine, [r.name for r in result.runs])
+    for w in warnings:
+        print(f'warning: {w}', file=sys.stderr)
     index = None
     if args.report is not None:
         # imported here: matplotlib is only needed for reports
@@ -138,6 +154,7 @@ def run(args: argparse.Namespace) -> int:
         index = write_report(result, args.report, force=args.force)
     if args.json:
         out = result.to_dict()
+        out['loss_range_warnings'] = warnings
         if index is not None:
             out['report'] = str(index)
         print(json.dumps(out, indent=2, allow_nan=False))

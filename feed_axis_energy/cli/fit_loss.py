@@ -11,7 +11,9 @@ import yaml
 from feed_axis_energy.cli.common import format_table
 from feed_axis_energy.cli.import_run import split_names
 from feed_axis_energy.core.identify import fit_loss, machine_with_losses, SteadyOptions
+from feed_axis_energy.core.calibrated import range_warnings
 from feed_axis_energy.core.identify.lossfit import VELOCITY_SOURCES
+from feed_axis_energy.core.identify.steady import range_uses
 from feed_axis_energy.core.machine import load_machine, machine_to_dict
 from feed_axis_energy.core.measured import load_campaign, load_run
 from feed_axis_energy.core.outputs import check_target, write_text_atomic
@@ -102,6 +104,13 @@ def run(args: argparse.Namespace) -> int:
         print('error: no run has power for an axis of the machine', file=sys.stderr)
         return 1
     all_ok = all(f.ok for f in fits.values())
+    # the fitted runs also move outside the steady feeds the fit saw (rapids, slow moves)
+    warnings = range_warnings({a: f.calibrated for a, f in fits.items() if f.ok},
+                              range_uses(runs, velocity=args.velocity),
+                              max_accel_m_s2=options.max_accel_m_s2,
+                              min_speed_m_s=options.min_speed_m_s)
+    for w in warnings:
+        print(f'warning: {w}', file=sys.stderr)
     if all_ok and args.out_machine is not None:
         _write_machine(args.out_machine, machine_with_losses(machine, fits), runs=specs,
                        manifest=args.manifest, force=args.force)
@@ -109,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps({'manifest': str(args.manifest), 'machine': str(machine_path),
                           'runs': [s.name for s in specs],
                           'fits': {a: f.to_dict() for a, f in fits.items()},
+                          'warnings': warnings,
                           'out_machine': str(args.out_machine) if all_ok and
                           args.out_machine is not None else None}, indent=2))
     else:
@@ -134,12 +144,21 @@ def _print(fits: dict, specs: list, loaded: list[str]) -> None:
     for axis, f in fits.items():
         num = (lambda v, fmt: '-' if v is None else format(v, fmt))
         excluded = ', '.join(f'{n} {r}' for r, n in f.excluded.items()) or '0'
-        rows.append([axis, f.status, num(f.a, '.4g'), num(f.b, '.4g'), num(f.r2_log, '.4f'),
+        rows.append([axis, f.status, num(f.a, '.4g'), num(f.a_se, '.2g'), num(f.b, '.4g'),
+                     num(f.b_se, '.2g'), num(f.r2_log, '.4f'),
                      num(f.r2_linear, '.4f'), str(len(f.used)), excluded,
                      ' '.join(f'{x:.3g}' for x in f.feeds_mm_s) or '-'])
-    print(format_table(['axis', 'status', 'a', 'b', 'R2 log-log', 'R2 linear', 'segments',
-                        'excluded', 'feeds [mm/s]'], rows))
-    print('y = a*x^b: x = feed [mm/s], y = steady loss power / feed [W/(mm/s)]')
+    print(format_table(['axis', 'status', 'a', '+-', 'b', '+-', 'R2 log-log', 'R2 linear',
+                        'segments', 'excluded', 'feeds [mm/s]'], rows))
+    print('y = a*x^b: x = feed [mm/s], y = steady loss power / feed [W/(mm/s)]; +-: standard '
+          'errors from the covariance of the log-log fit')
+    for axis, f in fits.items():
+        if f.calibrated is not None and f.ok:
+            lo, hi = f.calibrated.feed_mm_s
+            loads = ('' if f.calibrated.load_kg is None else
+                     f', loads {f.calibrated.load_kg[0]:g}-{f.calibrated.load_kg[1]:g} kg')
+            print(f'axis {axis}: calibrated at {lo:.3g}-{hi:.3g} mm/s{loads} '
+                  '(written as loss_calibrated with --out-machine)')
 
 
 def _write_machine(path: Path, machine, *, runs: list, manifest: Path, force: bool) -> None:

@@ -21,7 +21,9 @@ A machine file looks like (see ``config/demonstrator.yaml``)::
       dialect: linuxcnc
       tools: {1: {radius_m: 0.003, length_m: 0.045}}
 
-Each axis may also give ``travel_m: [min, max]``, its travel in machine coordinates [m].
+Each axis may also give ``travel_m: [min, max]``, its travel in machine coordinates [m],
+and ``loss_calibrated: {feed_mm_s: [low, high], load_kg: [low, high]}``, the speeds and loads
+its loss function was fitted on (written by ``fit-loss``; :mod:`.calibrated`).
 
 ``effects`` lists effects of the catalog (:mod:`.effects`, ``docs/effects.md``) that the
 model declares in addition to the loss function, usually written by ``feed-axis-energy
@@ -38,6 +40,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from .calibrated import calibrated_from_value, CalibratedRange
 from .configcheck import check_choice as _choice, check_float as _float
 from .configcheck import check_mapping as _mapping, join_key as _join
 from .effects import EFFECTS
@@ -156,6 +159,8 @@ class AxisSpec:
         Angle of the positive direction above the horizontal [deg]; 90 is vertical upward.
     travel_m
         ``(min, max)`` travel limits in machine coordinates [m], or ``None`` (unknown).
+    loss_calibrated
+        Speeds and loads the loss function was fitted on, or ``None`` (not recorded).
     """
 
     name: str
@@ -167,6 +172,7 @@ class AxisSpec:
     rides_on: str | None = None
     inclination_deg: float = 0.0
     travel_m: tuple[float, float] | None = None
+    loss_calibrated: CalibratedRange | None = None
 
     @property
     def screw_inertia_kg_m2(self) -> float:
@@ -192,11 +198,15 @@ class DeclaredEffect:
         The axis it acts on, or ``None`` for every axis.
     params
         ``(name, value)`` pairs in SI units; parameters not given take the catalog default.
+    calibrated
+        Speeds, loads and positions it was identified on (``analyze --out-machine``), or
+        ``None``.
     """
 
     id: str
     axis: str | None = None
     params: tuple[tuple[str, float], ...] = ()
+    calibrated: CalibratedRange | None = None
 
     @property
     def values(self) -> dict[str, float]:
@@ -331,7 +341,7 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         msg = f'unknown axis name {shorten(str(name))!r}; expected one of {", ".join(AXIS_NAMES)}'
         raise ConfigError(msg, file=file, key=key)
     allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
-               'loss', 'travel_m')
+               'loss', 'travel_m', 'loss_calibrated')
     d = _mapping(d, file=file, key=key, allowed=allowed)
     for part in ('screw', 'inertias', 'limits', 'loss'):
         if part not in d:
@@ -349,7 +359,9 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         rides_on=rides_on,
         inclination_deg=_float(d, 'inclination_deg', file=file, key=key, default=0.0,
                                minimum=-90.0, strict=False, maximum=90.0),
-        travel_m=travel_from_value(d.get('travel_m'), file=file, key=f'{key}.travel_m'))
+        travel_m=travel_from_value(d.get('travel_m'), file=file, key=f'{key}.travel_m'),
+        loss_calibrated=calibrated_from_value(d.get('loss_calibrated'), file=file,
+                                              key=f'{key}.loss_calibrated'))
 
 
 def _check_stacking(axes: tuple[AxisSpec, ...], *, file: str) -> None:
@@ -381,7 +393,8 @@ def _effects(value: Any, axis_names: tuple[str, ...], *,
     out = []
     for i, item in enumerate(value):
         key = f'effects[{i}]'
-        item = _mapping(item, file=file, key=key, allowed=('id', 'axis', 'params'))
+        item = _mapping(item, file=file, key=key,
+                        allowed=('id', 'axis', 'params', 'calibrated'))
         effect_id = item.get('id')
         if not isinstance(effect_id, str) or effect_id not in EFFECTS:
             msg = f'unknown effect {describe(effect_id)}; expected one of {", ".join(EFFECTS)}'
@@ -397,7 +410,14 @@ def _effects(value: Any, axis_names: tuple[str, ...], *,
         params = tuple((name, _float(params_d, name, file=file, key=f'{key}.params',
                                      minimum=-1.0e12, strict=False, maximum=1.0e12))
                        for name in cls.param_names() if name in params_d)
-        out.append(DeclaredEffect(id=effect_id, axis=axis, params=params))
+        try:
+            cls.resolve(dict(params))      # the physical bounds (a negative loss, ...)
+        except ConfigError as err:
+            raise ConfigError(err.reason, file=file, key=f'{key}.params') from None
+        calibrated = calibrated_from_value(item.get('calibrated'), file=file,
+                                           key=f'{key}.calibrated')
+        out.append(DeclaredEffect(id=effect_id, axis=axis, params=params,
+                                  calibrated=calibrated))
     return tuple(out)
 
 
@@ -525,6 +545,8 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
         }
         if a.travel_m is not None:
             axes[a.name]['travel_m'] = [float(v) for v in a.travel_m]
+        if a.loss_calibrated is not None:
+            axes[a.name]['loss_calibrated'] = a.loss_calibrated.to_dict()
     out = {
         'name': machine.name,
         'braking': machine.braking,
@@ -544,5 +566,7 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
         # only when present, so that the paper's model keeps its plain form
         out['effects'] = [{'id': e.id, 'axis': e.axis,
                            'params': {n: float(v) for n, v in e.params}}
+                          | ({} if e.calibrated is None
+                             else {'calibrated': e.calibrated.to_dict()})
                           for e in machine.effects]
     return out

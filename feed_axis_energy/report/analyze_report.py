@@ -118,6 +118,10 @@ def analyze_answer(res: AnalysisResult) -> str:
     return text + '.'
 
 
+def _bound(at_bound: str | None) -> str:
+    return '' if at_bound is None else f' (on its {escape(at_bound)} bound)'
+
+
 def _html(res: AnalysisResult, images: dict[str, bytes], run_images: dict[str, str]) -> str:
     cols = [('all held-out', res.before, res.after)] + [
         (f'{load:g} kg', b, a) for load, b, a in res.by_load()]
@@ -134,7 +138,7 @@ def _html(res: AnalysisResult, images: dict[str, bytes], run_images: dict[str, s
     for e in res.effects:
         for p in e.params:
             eff.append([escape(e.id), escape(e.axis), escape(p.name),
-                        f'<td class="num">{p.value:.5g}</td>',
+                        f'<td class="num">{p.value:.5g}{_bound(p.at_bound)}</td>',
                         f'<td class="num">{_num(p.uncertainty, ".3g")}</td>', escape(p.unit),
                         f'<td class="num">{fmt_pct(100 * e.share_of_structured)}</td>',
                         f'<td class="num">{fmt_pct(100 * e.heldout_gain_rel)}</td>',
@@ -144,6 +148,13 @@ def _html(res: AnalysisResult, images: dict[str, bytes], run_images: dict[str, s
                       'could also be'], eff) if res.effects else '<p>No effect added.</p>')
     unexpl = ''.join(f'<li><b>{escape(u["diagnostic"])}</b>: {escape(short(u["message"], 300))}'
                      f'</li>' for u in res.unexplained) or '<li>none</li>'
+    fates = table(['effect', 'axis', 'fate', 'gain on unseen runs', 'why'],
+                  [[escape(f.effect), escape(f.axis), escape(f.fate),
+                    f'<td class="num">{fmt_pct(100 * f.heldout_gain_rel)}</td>',
+                    escape(short(f.reason, 300))] for f in res.candidates])
+    cap = ', its cap reached' if res.cap_reached else ''
+    ranges = ''.join(f'<li>{escape(short(w, 300))}</li>' for w in res.warnings)
+    ranges = (f'<h2>Used outside the calibrated range</h2><ul>{ranges}</ul>' if ranges else '')
     diag = table(['axis', 'test', 'pattern left', 'detail'],
                  [[escape(d.axis), escape(d.name), 'yes' if d.structured else 'no',
                    escape(short(d.message, 300))] for d in res.diagnostics_after])
@@ -156,6 +167,9 @@ is added only if it makes the prediction better on runs it was not fitted on: he
 {escape(res.machine.name)}; <b>{escape(res.status)}</b>: {escape(short(res.message, 300))}</p>
 <h2>Effects added</h2>{effects}
 <h2>What is left unexplained</h2><ul>{unexpl}</ul>
+<h2>Every candidate effect and its fate</h2>
+<p>Selection rounds (each redone without effects that were inconsistent across runs):
+{res.rounds}{cap}.</p>{fates}{ranges}
 <h2>Before and after, on runs the fit did not see</h2>{metrics}
 <h2>Residual against the state of the axis</h2>
 {img(images['residual_states.png'], 'residual vs states', link='residual_states.png')}

@@ -51,6 +51,11 @@ def test_json_out_machine_and_report(manifest, tmp_path, capsys) -> None:
     index = Path(d['report'])
     html = index.read_text()
     assert 'load_friction' in html
+    # every candidate's fate is in the JSON and the report
+    fates = {(c['effect'], c['fate']) for c in d['candidates']}
+    assert ('load_friction', 'accepted') in fates
+    assert len(d['candidates']) == len({(c['effect'], c['axis']) for c in d['candidates']})
+    assert 'Every candidate' in html and 'copper' in html and 'rejected' in html
     for name in ('residual_states.png', 'spectrum.png'):
         assert (report / name).stat().st_size > 1000
     assert len(list(report.glob('*_after.png'))) == 4
@@ -69,6 +74,9 @@ def test_tables_and_bad_run_name(manifest, capsys) -> None:
     text = capsys.readouterr().out
     assert 'load_friction@X' in text
     assert 'all held-out runs' in text and 'after' in text
+    assert 'every candidate (consistency loop: 1 round(s)):' in text
+    assert 'load_friction@X: accepted: round 1: held-out gain' in text
+    assert 'copper@X: rejected: ' in text
     assert main(['analyze', str(manifest), '--quiet', '--runs', 'nope']) == 1
     assert 'nope' in capsys.readouterr().err
 

@@ -44,8 +44,9 @@ def test_json_keys_and_values(manifest, capsys):
     assert main(['compare', str(manifest), '--json', '--quiet', '--max-lag-s', '1']) == 0
     out = json.loads(capsys.readouterr().out)
     assert set(out) == {'campaign', 'manifest', 'machine', 'machine_file', 'max_lag_s', 'runs',
-                        'groups', 'warnings', 'residual_by_state'}
+                        'groups', 'warnings', 'residual_by_state', 'loss_range_warnings'}
     assert out['max_lag_s'] == 1.0 and out['warnings'] == []
+    assert out['loss_range_warnings'] == []     # the machine records no calibrated range
     run_b = out['runs'][1]
     assert set(run_b) == {'name', 'role', 'load_kg', 'data_file', 'motion_source', 'axes',
                           'window_s', 'duration_meas_s', 'duration_sim_s', 'excluded_rows',

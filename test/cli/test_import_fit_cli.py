@@ -81,9 +81,15 @@ def test_fit_loss_writes_a_machine_that_loads(tmp_path, capsys):
     assert sorted(round(f) for f in fit['feeds_mm_s']) == [50, 150, 300]
     loss = load_machine(out).axis('X').loss
     assert_allclose([loss.a, loss.b], [fit['a'], fit['b']])
-    # the table form names the units
+    # exact synthetic power: no scatter, so no uncertainty; the range is the steady feeds
+    assert fit['b_se'] == pytest.approx(0.0, abs=1e-6)
+    calibrated = load_machine(out).axis('X').loss_calibrated
+    assert_allclose(calibrated.feed_mm_s, [50.0, 300.0], rtol=0.01)
+    assert fit['calibrated']['feed_mm_s'] == list(calibrated.feed_mm_s)
+    # the table form names the units, the uncertainties and the calibrated range
     assert main(['fit-loss', str(manifest)]) == 0
-    assert 'W/(mm/s)' in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert 'W/(mm/s)' in text and '+-' in text and 'axis X: calibrated at 50-300 mm/s' in text
 
 
 def test_fit_loss_with_too_few_feeds_exits_1_and_writes_nothing(tmp_path, capsys):

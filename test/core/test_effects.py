@@ -65,18 +65,22 @@ HAND = {
     'iron': ({'k_h_w_s_rad': 0.05, 'k_e_w_s2_rad2': 1e-4},
              lambda i, j: 0.05 * abs(_w(V[i][j])) + 1e-4 * _w(V[i][j]) ** 2),
     'mass_error': ({'dm_kg': 3.0}, lambda i, j: 3.0 * A[i][j] * V[i][j]),
-    'gravity': ({'f_g_n': 50.0}, lambda i, j: 50.0 * V[i][j]),
+    # sin(theta) = 0.1: the weight of each axis's own moved mass (20 kg, 8 kg)
+    'gravity': ({'sin_theta': 0.1}, lambda i, j: 0.1 * MASS[j] * GRAVITY_M_S2 * V[i][j]),
+    # bumps 1 and 3 at x = 0.1 and 0.3 m, standard deviation 0.6 * 0.1 m
     'position_friction': (
-        {'c1_n': 10.0, 'c2_n': -4.0, 'c3_n': 2.0, 'stroke_m': 0.4},
-        lambda i, j: abs(V[i][j]) * sum(c * math.cos(h * math.pi * X[i][j] / 0.4)
-                                        for h, c in ((1, 10.0), (2, -4.0), (3, 2.0)))),
+        {'c1_n': 10.0, 'c3_n': -4.0, 'x0_m': 0.1, 'spacing_m': 0.1},
+        lambda i, j: abs(V[i][j]) * (10.0 * math.exp(-0.5 * ((X[i][j] - 0.1) / 0.06) ** 2)
+                                     - 4.0 * math.exp(-0.5 * ((X[i][j] - 0.3) / 0.06) ** 2))),
     'torque_ripple': (
         {'a1_nm': 0.1, 'b1_nm': -0.05, 'a2_nm': 0.02, 'b2_nm': 0.03},
         lambda i, j: _w(V[i][j]) * (0.1 * math.sin(_phi(X[i][j]))
                                     - 0.05 * math.cos(_phi(X[i][j]))
                                     + 0.02 * math.sin(2 * _phi(X[i][j]))
                                     + 0.03 * math.cos(2 * _phi(X[i][j])))),
-    'thermal_drift': ({'rate_n_s': 0.5}, lambda i, j: 0.5 * T[i] * abs(V[i][j])),
+    # tau = 2 s: the force after t seconds is 0.5 * 2 * (1 - exp(-t/2))
+    'thermal_drift': ({'rate_n_s': 0.5, 'tau_s': 2.0},
+                      lambda i, j: 1.0 * (1.0 - math.exp(-T[i] / 2.0)) * abs(V[i][j])),
     # one-sample shift: the value of the previous sample, held at the start
     'time_offset': ({'delta_s': 1.0}, lambda i, j: P[max(i - 1, 0)][j] - P[i][j]),
     'braking_loss': ({'fraction': 0.25}, lambda i, j: 0.25 * max(-P[i][j], 0.0)),
@@ -115,9 +119,9 @@ def test_basis_reproduces_power(effect_id: str) -> None:
     rng = np.random.default_rng(7)
     state = _state()
     params = dict(HAND[effect_id][0])
-    # one value per axis for every linear parameter
-    for name in effect.linear_params():
-        params[name] = rng.uniform(-2.0, 2.0, size=2)
+    # one value per axis for every linear parameter, within its physical bounds
+    for name, lo, hi in zip(effect.linear_params(), *effect.linear_bounds()):
+        params[name] = rng.uniform(max(lo, -2.0), min(hi, 2.0), size=2)
     basis = effect.basis(state, params)
     assert basis.shape == (4, 2, len(effect.linear_params()))
     combined = sum(basis[..., i] * params[name]
@@ -160,6 +164,72 @@ def test_unknown_parameter_and_effect_are_named() -> None:
         get_effect('sticktion')
     with pytest.raises(ConfigError, match='finite'):
         get_effect('viscous').resolve({'c_n_s_m': float('nan')})
+
+
+@pytest.mark.parametrize('effect_id, name, value', [
+    ('copper', 'k_w_nm2', -3.1), ('iron', 'k_e_w_s2_rad2', -1e-5), ('standby', 'p0_w', -1.0),
+    ('stribeck', 'f_s_n', -5.0), ('load_friction', 'mu', -0.01), ('gravity', 'sin_theta', 1.5),
+    ('braking_loss', 'fraction', 1.2), ('thermal_drift', 'tau_s', 0.0)])
+def test_values_outside_the_physical_bounds_are_refused(effect_id, name, value) -> None:
+    with pytest.raises(ConfigError, match=f"'{name}' of effect '{effect_id}' must lie in"):
+        get_effect(effect_id).resolve({name: value})
+
+
+def test_every_loss_coefficient_is_bounded_below_by_zero() -> None:
+    # what the catalog documents as never negative: losses, friction coefficients, shares
+    for effect_id, name in [('copper', 'k_w_nm2'), ('iron', 'k_h_w_s_rad'),
+                            ('iron', 'k_e_w_s2_rad2'), ('standby', 'p0_w'),
+                            ('stribeck', 'f_s_n'), ('load_friction', 'mu'),
+                            ('clamped_load_friction', 'mu_l'), ('braking_loss', 'fraction')]:
+        param = next(p for p in EFFECTS[effect_id].params if p.name == name)
+        assert param.bounds[0] == 0.0, (effect_id, name)
+
+
+def test_gravity_force_follows_the_moved_mass_of_each_run() -> None:
+    # one angle, m·g·sin(theta) per load: the force at 25 kg is 25/20 of that at 20 kg
+    state = _state()
+    heavier = EffectState(**{**state.__dict__, 'mass_kg': np.array([25.0, 8.0])})
+    effect = get_effect('gravity')
+    theta = math.radians(3.0)
+    a = effect.power_w(state, {'sin_theta': math.sin(theta)})
+    b = effect.power_w(heavier, {'sin_theta': math.sin(theta)})
+    assert_allclose(b[:, 0], 25.0 / 20.0 * a[:, 0])
+    assert_allclose(a[2, 0], 20.0 * GRAVITY_M_S2 * math.sin(theta) * 0.5)
+
+
+def test_thermal_drift_is_linear_in_the_limit_and_saturates() -> None:
+    effect = get_effect('thermal_drift')
+    state = _state()
+    linear = effect.power_w(state, {'rate_n_s': 0.5})     # default tau: the linear limit
+    want = 0.5 * np.array(T)[:, None] * np.abs(np.array(V))
+    assert_allclose(linear, want, rtol=1e-8)
+    # after many time constants the force change is rate * tau
+    t = np.array([1000.0])
+    far = EffectState(**{**state.__dict__, 't': np.repeat(t, 4)})
+    sat = effect.power_w(far, {'rate_n_s': 0.5, 'tau_s': 10.0})
+    assert_allclose(sat, 0.5 * 10.0 * np.abs(np.array(V)), rtol=1e-12)
+
+
+def test_position_friction_localises_a_rough_spot() -> None:
+    # one bump of 30 N at x = 0.15 m with a 30 mm spacing: sigma 18 mm, half height at
+    # 1.1774 sigma either side
+    x = np.linspace(0.0, 0.4, 4001)[:, None]
+    ones = np.ones_like(x)
+    state = EffectState(t=x[:, 0], axes=('X',), position_m=x, velocity_m_s=ones,
+                        acceleration_m_s2=0 * x, angle_rad=0 * x, omega_rad_s=0 * x,
+                        force_n=0 * x, torque_nm=0 * x, mass_kg=np.ones(1), load_kg=0.0,
+                        normal_force_n=np.ones(1), lead_m=np.ones(1), mechanical_w=0 * x,
+                        power_w=0 * x)
+    p = get_effect('position_friction').power_w(state, {'c6_n': 30.0, 'spacing_m': 0.03})
+    above = x[p[:, 0] > 15.0, 0]
+    assert above.min() == pytest.approx(0.15 - 1.1774 * 0.018, abs=2e-4)
+    assert above.max() == pytest.approx(0.15 + 1.1774 * 0.018, abs=2e-4)
+    assert np.max(p[np.abs(x[:, 0] - 0.15) > 0.06]) < 0.01 * 30.0
+    # the bumps together are flat within 0.5 % inside the covered range
+    flat = get_effect('position_friction').power_w(
+        state, {f'c{i}_n': 1.0 for i in range(1, 17)} | {'spacing_m': 0.025})
+    inner = (x[:, 0] > 0.05) & (x[:, 0] < 0.32)
+    assert np.ptp(flat[inner, 0]) < 0.005 * np.mean(flat[inner, 0])
 
 
 def test_effects_power_sums_effects() -> None:

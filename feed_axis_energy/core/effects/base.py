@@ -10,11 +10,15 @@ declaration order); *shape* parameters (e.g. a Stribeck speed) are held fixed by
 and searched for outside the regression.
 
 Parameter values are floats, or arrays broadcastable to ``(k,)`` for one value per axis.
+Every parameter has *physical bounds* (:attr:`Param.bounds`: a loss is never negative, a
+share lies in [0, 1], ``|sin θ|`` at most 1): :meth:`Effect.resolve` refuses a value outside
+them and an identification fits within them (:meth:`Effect.linear_bounds`).
 """
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+import math
 from typing import ClassVar, TYPE_CHECKING
 
 import numpy as np
@@ -25,8 +29,8 @@ from ..mass import GRAVITY_M_S2, moved_mass_kg
 if TYPE_CHECKING:  # annotations only: the machine loader imports this catalog
     from ..machine import Machine
 
-__all__ = ['Param', 'EffectState', 'Effect', 'EFFECTS', 'register_effect', 'get_effect',
-           'effect_state', 'state_from_simulation', 'effects_power_w', 'ParamValue']
+__all__ = ['Param', 'NON_NEGATIVE', 'EffectState', 'Effect', 'EFFECTS', 'register_effect',
+           'get_effect', 'effect_state', 'state_from_simulation', 'effects_power_w', 'ParamValue']
 
 ParamValue = float | np.ndarray
 
@@ -44,13 +48,16 @@ class Param:
     default
         Value meaning "effect absent" (or, for shape parameters, a typical value).
     low, high
-        Plausible bounds (for searches and sanity checks; not enforced).
+        Plausible range (the grid of shape searches, the catalog table; not enforced).
     example
         A typical non-zero value, used when an effect is requested without values.
     description
         One line.
     linear
         ``True`` when the power is linear in this parameter (it gets a basis column).
+    bounds
+        Physical bounds ``(lower, upper)``, inclusive (``±inf``: none). A value outside them
+        is impossible: refused in a config, never reported as found by a fit.
     """
 
     name: str
@@ -61,6 +68,10 @@ class Param:
     example: float
     description: str
     linear: bool = True
+    bounds: tuple[float, float] = (-math.inf, math.inf)
+
+
+NON_NEGATIVE = (0.0, math.inf)
 
 
 @dataclass(frozen=True)
@@ -212,13 +223,21 @@ class Effect:
         return tuple(p.name for p in cls.params if not p.linear)
 
     @classmethod
+    def linear_bounds(cls) -> tuple[np.ndarray, np.ndarray]:
+        """Physical ``(lower, upper)`` bounds of the linear parameters, in basis order."""
+        lin = [p for p in cls.params if p.linear]
+        return (np.array([p.bounds[0] for p in lin], dtype=float),
+                np.array([p.bounds[1] for p in lin], dtype=float))
+
+    @classmethod
     def resolve(cls, params: Mapping[str, ParamValue] | None = None) -> dict[str, ParamValue]:
         """Return every parameter's value: given ones, defaults for the rest.
 
         Raises
         ------
         ConfigError
-            An unknown parameter name or a non-finite value, naming the effect.
+            An unknown parameter name, a non-finite value or one outside the parameter's
+            physical bounds, naming the effect.
         """
         out: dict[str, ParamValue] = {p.name: p.default for p in cls.params}
         for name, value in (params or {}).items():
@@ -228,7 +247,13 @@ class Effect:
                 raise ConfigError(msg, key=f'effects.{cls.id}.{name}')
             arr = np.asarray(value, dtype=float)
             if not np.all(np.isfinite(arr)):
-                msg = f'parameter {name!r} of effect {cls.id!r} must be finite, got {value!r}'
+                msg = (f'parameter {name!r} of effect {cls.id!r} must be finite, '
+                       f'got {_short(value)}')
+                raise ConfigError(msg, key=f'effects.{cls.id}.{name}')
+            lo, hi = next(p.bounds for p in cls.params if p.name == name)
+            if np.any(arr < lo) or np.any(arr > hi):
+                msg = (f'parameter {name!r} of effect {cls.id!r} must lie in [{lo:g}, {hi:g}] '
+                       f'(physical bounds), got {_short(value)}')
                 raise ConfigError(msg, key=f'effects.{cls.id}.{name}')
             out[name] = float(arr) if arr.ndim == 0 else arr
         return out
@@ -253,6 +278,12 @@ class Effect:
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
         raise NotImplementedError
+
+
+def _short(value: object) -> str:
+    """``repr`` of a value, cut to 60 characters."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + '...'
 
 
 EFFECTS: dict[str, type] = {}

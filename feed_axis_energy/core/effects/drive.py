@@ -5,7 +5,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .base import Effect, EffectState, Param, ParamValue, register_effect
+from ..mass import GRAVITY_M_S2
+from .base import Effect, EffectState, NON_NEGATIVE, Param, ParamValue, register_effect
 
 __all__ = ['Standby', 'CopperLoss', 'IronLoss', 'MassError', 'Gravity', 'TorqueRipple',
            'TimeOffset', 'BrakingLoss']
@@ -18,7 +19,7 @@ class Standby(Effect):
     id = 'standby'
     description = 'constant standby / offset power of the drive, also at standstill'
     formula = 'P = P0'
-    params = (Param('p0_w', 'W', 0.0, -100.0, 500.0, 15.0, 'constant power'),)
+    params = (Param('p0_w', 'W', 0.0, 0.0, 500.0, 15.0, 'constant power', bounds=NON_NEGATIVE),)
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
         return [np.ones(state.shape)]
@@ -26,12 +27,13 @@ class Standby(Effect):
 
 @register_effect
 class CopperLoss(Effect):
-    """Resistive losses of the motor windings, proportional to the torque squared."""
+    """Resistive losses of the motor windings: ``R·I²`` with ``I = M/kt``, never negative."""
 
     id = 'copper'
-    description = 'motor copper losses, proportional to the square of the screw torque'
-    formula = 'P = k · M²,  k = 3·R/kt² (R phase resistance, kt per RMS phase current)'
-    params = (Param('k_w_nm2', 'W/(N*m)^2', 0.0, 0.0, 100.0, 2.0, 'R/kt² factor'),)
+    description = 'motor copper losses R·(M/kt)², proportional to the square of the screw torque'
+    formula = 'P = k · M²,  k = R/kt² (R winding resistance, kt torque constant, per axis)'
+    params = (Param('k_w_nm2', 'W/(N*m)^2', 0.0, 0.0, 100.0, 2.0, 'R/kt² factor',
+                    bounds=NON_NEGATIVE),)
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
         m = state.torque_nm
@@ -46,8 +48,10 @@ class IronLoss(Effect):
     description = 'motor iron losses: hysteresis proportional to |omega|, eddy to omega²'
     formula = 'P = kh · |omega| + ke · omega²'
     params = (
-        Param('k_h_w_s_rad', 'W*s/rad', 0.0, 0.0, 1.0, 0.05, 'hysteresis coefficient'),
-        Param('k_e_w_s2_rad2', 'W*s^2/rad^2', 0.0, 0.0, 0.01, 1e-4, 'eddy-current coefficient'),
+        Param('k_h_w_s_rad', 'W*s/rad', 0.0, 0.0, 1.0, 0.05, 'hysteresis coefficient',
+              bounds=NON_NEGATIVE),
+        Param('k_e_w_s2_rad2', 'W*s^2/rad^2', 0.0, 0.0, 0.01, 1e-4, 'eddy-current coefficient',
+              bounds=NON_NEGATIVE),
     )
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
@@ -70,15 +74,22 @@ class MassError(Effect):
 
 @register_effect
 class Gravity(Effect):
-    """Weight component along an axis that is inclined but declared horizontal (or vice versa)."""
+    """Weight along an axis that is inclined but declared horizontal: ``m·g·sin θ``.
+
+    ``m`` is the moved mass of the run (tables + load on axes that carry it), so one angle
+    gives a different force for every load. For an axis declared inclined, ``sin_theta`` is
+    the change of ``sin θ`` against the declared inclination.
+    """
 
     id = 'gravity'
-    description = 'undeclared inclination: constant force m·g·sin(theta) along the axis'
-    formula = 'P = Fg · v,  Fg = m · g · sin(theta)'
-    params = (Param('f_g_n', 'N', 0.0, -5000.0, 5000.0, 20.0, 'force along + (lifting)'),)
+    description = 'undeclared inclination θ: weight m·g·sin θ of the moved mass (tables + load)'
+    formula = 'P = m · g · sin(theta) · v'
+    params = (Param('sin_theta', '-', 0.0, -1.0, 1.0, 0.05,
+                    'sine of the inclination (positive: moving in + lifts)',
+                    bounds=(-1.0, 1.0)),)
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
-        return [state.velocity_m_s]
+        return [state.velocity_m_s * (state.mass_kg * GRAVITY_M_S2)]
 
 
 @register_effect
@@ -138,7 +149,8 @@ class BrakingLoss(Effect):
     id = 'braking_loss'
     description = 'fraction of the negative (braking) power that is not regenerated'
     formula = 'P = f · max(-P_decl, 0)'
-    params = (Param('fraction', '-', 0.0, 0.0, 1.0, 0.3, 'share not returned'),)
+    params = (Param('fraction', '-', 0.0, 0.0, 1.0, 0.3, 'share not returned',
+                    bounds=(0.0, 1.0)),)
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
         return [np.maximum(-state.power_w, 0.0)]

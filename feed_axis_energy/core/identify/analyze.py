@@ -8,15 +8,19 @@
 2. *Candidates*: for every catalog effect and measured axis, the effect's basis is computed
    on the 1 kHz simulated state of each run and aligned onto the measured stamps with the
    run's offset and window (:func:`.measured.align.align_simulated`, the same instrument
-   model). Shape parameters (Stribeck speed, stroke of position friction) get a grid of
-   variants; the selected variant is refined by a bounded 1-D search.
+   model). Shape parameters (Stribeck speed, warm-up time constant, spacing of the
+   position-friction bumps) get a grid of variants; a single shape parameter is refined by
+   a bounded 1-D search. Every linear parameter is fitted within its physical bounds.
 3. *Selection* (:mod:`.selection`): forward selection scored by held-out error
    (leave-one-run-out, or the manifest's calibrate/validate roles) together with BIC.
-4. *Honesty*: a selected effect must be consistent across runs (its per-run refit may not
-   explain much more than the pooled one: ``heterogeneity`` below ``max_heterogeneity``);
-   an inconsistent one is removed, selection is redone without it and the structure is
-   reported in ``unexplained``. The final residual is tested for structure against velocity,
-   position, acceleration and time and in its spectrum (:mod:`.diagnostics`).
+4. *Honesty* (:mod:`.consistency`): a selected effect must be consistent across runs (its
+   per-run refit may not explain much more than the pooled one: ``heterogeneity`` below
+   ``max_heterogeneity``); an inconsistent one is removed, selection is redone without it
+   (at most ``max_rounds`` times; reaching the cap is a stated verdict) and the structure is
+   reported in ``unexplained``; every candidate ends with a fate and a reason. The final
+   residual is tested for structure against velocity, position, acceleration and time and
+   in its spectrum (:mod:`.diagnostics`). Loss functions and declared effects used outside
+   their calibrated range are listed in ``warnings``.
 5. *Before/after*: Table-1 metrics on held-out runs; each run's *after* adds the effects
    fitted without it (its fold), at the baseline offset.
 
@@ -28,13 +32,12 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 import math
-from typing import Any
 
 import numpy as np
-from scipy import stats
 from scipy.optimize import minimize_scalar
 
 from ..effects import EFFECTS, EffectState, get_effect, state_from_simulation
+from ..calibrated import machine_warnings, observed_range, RangeUse
 from ..errors import ConfigError
 from ..machine import load_machine, Machine
 from ..measured.align import align_simulated, stamp_shift
@@ -42,11 +45,15 @@ from ..measured.compare import (_MotionCache, _simulate, compare_campaign, offse
                                 RunComparison)
 from ..measured.csvload import load_run
 from ..measured.campaign import Campaign
+from .consistency import heterogeneity, label, select_consistent
 from .diagnostics import binned_structure, Diagnostic, noise_sigma, spectrum_structure
+from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
-from .realign import augmented_outcome, machine_with, realigned_runs
-from .selection import Block, Design, forward_select, loro_folds, Step
+from .selection import at_bounds, Block, Design, loro_folds, solve_normal
+
+POSITION_DIVISIONS = (15, 10, 6, 3)
+"""Candidate resolutions of ``position_friction``: bump spacing = travelled span / n."""
 
 __all__ = ['AnalyzeOptions', 'AnalysisResult', 'FittedEffect', 'ParamEstimate', 'RunOutcome',
            'analyze_campaign', 'HOLDOUTS', 'STATE_NAMES']
@@ -116,17 +123,40 @@ def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
     shapes = [p for p in effect.params if not p.linear]
     if not shapes:
         return [{}]
+    if effect_id == 'position_friction':
+        # bumps from the lowest travelled position; the spacing (the resolution) is one of
+        # a few candidates, chosen by the held-out error like any other variant
+        pos = [r.states['position'][:, axis_j] for r in runs]
+        lo = min(float(np.min(x)) for x in pos if x.size) if any(x.size for x in pos) else 0.0
+        hi = max(float(np.max(x)) for x in pos if x.size) if any(x.size for x in pos) else 0.0
+        span = hi - lo if hi > lo else 0.4
+        return [{'x0_m': lo, 'spacing_m': span / n} for n in POSITION_DIVISIONS]
     if len(shapes) > 1:
         return [{p.name: p.default for p in shapes}]
     par = shapes[0]
-    if par.name == 'stroke_m':
-        # the cosine terms span the travelled range: a few multiples of it
-        span = max(float(np.ptp(r.states['position'][:, axis_j])) for r in runs)
-        span = span if span > 0.0 else par.default
-        grid = np.clip(span * np.array([1.0, 1.25, 1.5, 2.0]), par.low, par.high)
-    else:
-        grid = np.geomspace(max(par.low, 1e-12), par.high, points)
+    grid = list(np.geomspace(max(par.low, 1e-12), par.high, points))
+    if par.default > par.high:
+        grid.append(par.default)    # thermal_drift: the linear limit (tau = 1e9 s)
     return [{par.name: float(v)} for v in np.unique(grid)]
+
+
+def _block(runs: Sequence[_Run], effect_id: str, axis_j: int, shape: Mapping[str, float]):
+    """Names, per-run columns and physical bounds of one candidate.
+
+    Columns that are zero, or whose largest value is below 1 % of the block's strongest
+    column (the far tail of a position bump), are left out: they carry no information, and
+    a fit on them would give huge, meaningless coefficients.
+    """
+    effect = get_effect(effect_id)
+    cols = [_columns(r, effect_id, axis_j, shape) for r in runs]
+    p = len(effect.linear_params())
+    peak = np.array([max((float(np.max(np.abs(c[:, i]))) if c.shape[0] else 0.0)
+                         for c in cols) for i in range(p)]) if cols else np.zeros(p)
+    top = float(peak.max()) if p else 0.0
+    used = [i for i in range(p) if peak[i] > 0.0 and peak[i] >= 0.01 * top]
+    lo, hi = effect.linear_bounds()
+    names = tuple(effect.linear_params()[i] for i in used)
+    return names, [c[:, used] for c in cols], (lo[used], hi[used])
 
 
 def _folds(runs: Sequence[_Run], holdout: str, file: str) -> list[tuple[list[int], list[int]]]:
@@ -150,18 +180,17 @@ def _folds(runs: Sequence[_Run], holdout: str, file: str) -> list[tuple[list[int
 
 # ----------------------------------------------------------------------------- fitting
 
-def _sse_with(design: Design, cols: list[int], extra: Sequence[np.ndarray]) -> float:
-    """In-sample SSE of ``cols`` plus extra per-run columns, pooled over every run."""
+def _sse_with(design: Design, cols: list[int], extra: Sequence[np.ndarray],
+              bounds: tuple[np.ndarray, np.ndarray]) -> float:
+    """In-sample SSE of ``cols`` plus extra per-run columns (bounded), pooled over runs."""
     g_parts, b_parts = [], []
     for r, c in enumerate(extra):
         x = np.hstack([design.x[r][:, cols], c])
         g_parts.append(x.T @ x)
         b_parts.append(x.T @ design.y[r])
     g, b = sum(g_parts), sum(b_parts)
-    d = np.sqrt(np.clip(np.diag(g), 0.0, None))
-    d[d == 0.0] = 1.0
-    sol, *_ = np.linalg.lstsq(g / np.outer(d, d), b / d, rcond=1e-10)
-    theta = sol / d
+    theta = solve_normal(g, b, np.concatenate([design.lower[cols], bounds[0]]),
+                         np.concatenate([design.upper[cols], bounds[1]]))
     return float(design.yy.sum() - 2.0 * theta @ b + theta @ g @ theta)
 
 
@@ -182,98 +211,27 @@ def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
     if not hi > lo:
         return block
 
+    used = [effect.linear_params().index(n) for n in block.names]
+    bounds = (design.lower[list(block.cols)], design.upper[list(block.cols)])
+
+    def columns(value: float) -> list[np.ndarray]:
+        return [_columns(r, block.key[0], axis_j, {par.name: value})[:, used] for r in runs]
+
     def cost(log_v: float) -> float:
-        cols = [_columns(r, block.key[0], axis_j, {par.name: math.exp(log_v)}) for r in runs]
-        return _sse_with(design, others, cols)
+        return _sse_with(design, others, columns(math.exp(log_v)), bounds)
 
     res = minimize_scalar(cost, bounds=(math.log(lo), math.log(hi)), method='bounded',
                           options={'xatol': 1e-3, 'maxiter': 30})
     best = math.exp(float(res.x))
     if not float(res.fun) < _sse_with(design, others, [design.x[r][:, list(block.cols)]
-                                                       for r in range(design.runs)]):
+                                                       for r in range(design.runs)], bounds):
         return block
-    cols = [_columns(r, block.key[0], axis_j, {par.name: best}) for r in runs]
-    return design.add_block(block.key, {par.name: best}, block.names, cols)
+    return design.add_block(block.key, {par.name: best}, block.names, columns(best),
+                            bounds=bounds)
 
 
 def _axis_index(runs: Sequence[_Run], axis: str) -> int:
     return list(runs[0].cmp.axes).index(axis)
-
-
-def _prune(design: Design, blocks: list[Block], folds, options: AnalyzeOptions,
-           structured: float) -> list[Block]:
-    """Backward pass: drop, one at a time, the weakest effect that no longer earns its place.
-
-    An effect stays when, added last, its mean relative held-out gain still exceeds
-    ``se_factor`` standard errors and ``min_gain``, and it explains at least ``min_share`` of
-    the structured baseline residual (an effect picked early can be made redundant by a
-    later one; a tiny timing correction is not a missing physical effect).
-    """
-    blocks = list(blocks)
-    while blocks:
-        cols = [c for b in blocks for c in b.cols]
-        full = design.heldout_mse(cols, folds)
-        sse_full = design.total_sse(cols)
-        worst, worst_score = None, math.inf
-        for i in range(len(blocks)):
-            without = [c for k, b in enumerate(blocks) if k != i for c in b.cols]
-            wo = design.heldout_mse(without, folds)
-            gains = np.array([1.0 - full[r] / wo[r] if wo[r] > 0.0 else 0.0 for r in full])
-            se = (float(np.std(gains, ddof=1) / math.sqrt(gains.size)) if gains.size > 1
-                  else math.inf)
-            share = ((design.total_sse(without) - sse_full) / structured if structured > 0.0
-                     else 0.0)
-            mean = float(np.mean(gains))
-            # time_offset corrects the baseline alignment (biased by whatever the declared
-            # model misses); its worth is the held-out gain, not a share of the structure
-            if blocks[i].key[0] == 'time_offset':
-                share = max(share, options.min_share)
-            keep = (mean > options.se_factor * se and mean > options.min_gain
-                    and share >= options.min_share)
-            score = min(mean - options.se_factor * se, share - options.min_share)
-            if not keep and score < worst_score:
-                worst, worst_score = i, score
-        if worst is None:
-            break
-        del blocks[worst]
-    return blocks
-
-
-def _heterogeneity(design: Design, blocks: Sequence[Block], which: int,
-                   sigma2: float) -> tuple[float, float]:
-    """How much better per-run refits of one block fit than its pooled parameters.
-
-    Returns ``(share, p_value)``: the share of the block's explained variance that per-run
-    refits add, and the chi-square probability of that improvement if the parameters were
-    the same on every run (improvement / ``sigma2`` with ``(R - 1) p`` degrees of freedom).
-    """
-    cols = [c for b in blocks for c in b.cols]
-    theta = design.fit(cols, range(design.runs))
-    own = list(blocks[which].cols)
-    pos = [cols.index(c) for c in own]
-    rest = [i for i in range(len(cols)) if i not in pos]
-    pooled = free = none = 0.0
-    for r in range(design.runs):
-        base = design.y[r] - design.x[r][:, [cols[i] for i in rest]] @ theta[rest]
-        xe = design.x[r][:, own]
-        none += float(base @ base)
-        pooled_res = base - xe @ theta[pos]
-        pooled += float(pooled_res @ pooled_res)
-        if np.any(xe):
-            sol, *_ = np.linalg.lstsq(xe, base, rcond=1e-10)
-            free_res = base - xe @ sol
-            free += float(free_res @ free_res)
-        else:
-            free += float(base @ base)
-    explained = none - free
-    share = float((pooled - free) / explained) if explained > 0.0 else 0.0
-    dof = max((design.runs - 1) * len(own), 1)
-    p = float(stats.chi2.sf((pooled - free) / sigma2, dof)) if sigma2 > 0.0 else math.nan
-    return share, p
-
-
-def _label(key: tuple[str, str]) -> str:
-    return f'{key[0]}@{key[1]}'
 
 
 # ----------------------------------------------------------------------------- diagnostics
@@ -362,13 +320,11 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
 
     design = Design([r.residual.reshape(-1) for r in data])
     for effect_id in ids:
-        effect = get_effect(effect_id)
         for j, axis in enumerate(axes):
             for shape in _shape_grid(effect_id, data, j, options.shape_grid_points):
-                cols = [_columns(r, effect_id, j, shape) for r in data]
-                if not any(np.any(c) for c in cols):
-                    continue
-                design.add_block((effect_id, axis), shape, effect.linear_params(), cols)
+                names, cols, bounds = _block(data, effect_id, j, shape)
+                if names:
+                    design.add_block((effect_id, axis), shape, names, cols, bounds=bounds)
     report(0.7)
 
     sigmas = {a: noise_sigma([r.residual[:, j] for r in data]) for j, a in enumerate(axes)}
@@ -379,47 +335,11 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     # one noise variance for the whole design (axes pooled by their sample counts)
     sigma2 = noise_ss / n_total if n_total > 0 else math.nan
 
-    excluded: list[tuple[str, str]] = []
-    rejected: list[dict[str, Any]] = []
-    steps: tuple[Step, ...] = ()
-    blocks: list[Block] = []
-    for _ in range(6):
-        sel = forward_select(design, folds, exclude=excluded, se_factor=options.se_factor,
-                             min_gain=options.min_gain, max_effects=options.max_effects)
-        steps = sel.steps
-        blocks = list(sel.blocks)
-        for i in range(len(blocks)):
-            others = [c for k, b in enumerate(blocks) if k != i for c in b.cols]
-            blocks[i] = _refine_shape(design, data, blocks[i], others)
-        blocks = _prune(design, blocks, folds, options, structured0)
-        het = [_heterogeneity(design, blocks, i, sigma2) for i in range(len(blocks))]
-        bad = [i for i, (h, p) in enumerate(het)
-               if h > options.max_heterogeneity and p < options.heterogeneity_alpha]
-        if not bad:
-            break
-        for i in bad:
-            excluded.append(blocks[i].key)
-            rejected.append({
-                'diagnostic': 'inconsistent_across_runs', 'axis': blocks[i].key[1],
-                'effect': blocks[i].key[0], 'statistic': het[i][0],
-                'message': (f'{_label(blocks[i].key)} would fit, but not with one set of '
-                            f'parameters: per-run refits add {100 * het[i][0]:.0f} % to what it '
-                            f'explains (limit {100 * options.max_heterogeneity:.0f} %); '
-                            'the structure is not this effect')})
-    else:
-        blocks = []
-    if blocks and structured0 > 0.0:
-        cols = [c for b in blocks for c in b.cols]
-        share = 1.0 - (design.total_sse(cols) - noise_ss) / structured0
-        if share < options.min_explained:
-            rejected.append({
-                'diagnostic': 'weak_attribution',
-                'axis': ','.join(sorted({b.key[1] for b in blocks})),
-                'effect': ','.join(b.key[0] for b in blocks), 'statistic': share,
-                'message': (f'{", ".join(_label(b.key) for b in blocks)} would explain only '
-                            f'{100 * share:.0f} % of the structured residual (at least '
-                            f'{100 * options.min_explained:.0f} % needed): not claimed')})
-            blocks = []
+    chosen = select_consistent(
+        design, folds, options, keys=[(e, a) for e in ids for a in axes],
+        structured0=structured0, noise_ss=noise_ss, sigma2=sigma2,
+        refine=lambda block, others: _refine_shape(design, data, block, others))
+    blocks, steps, rejected = list(chosen.blocks), chosen.steps, list(chosen.rejected)
     report(0.85)
 
     cols = [c for b in blocks for c in b.cols]
@@ -440,11 +360,13 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     for i, block in enumerate(blocks):
         effect = get_effect(block.key[0])
         params = []
-        for name in block.names:
+        bound = at_bounds(theta[pos:pos + len(block.cols)], design.lower[list(block.cols)],
+                          design.upper[list(block.cols)])
+        for name, on in zip(block.names, bound):
             unit = next(p.unit for p in effect.params if p.name == name)
             params.append(ParamEstimate(name, float(theta[pos]), unit,
                                         float(se[pos]) if math.isfinite(se[pos]) else None,
-                                        'jackknife over runs'))
+                                        'jackknife over runs', at_bound=on))
             pos += 1
         for name, value in block.shape.items():
             unit = next(p.unit for p in effect.params if p.name == name)
@@ -465,7 +387,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
             full_mean = float(np.mean(list(mse_full.values())))
             wo_mean = float(np.mean(list(mse_wo.values())))
             if alt_mean <= full_mean + 0.1 * (wo_mean - full_mean):
-                aliases.append(_label(other.key))
+                aliases.append(label(other.key))
                 seen.add(other.key)
         fitted.append(FittedEffect(
             id=block.key[0], axis=block.key[1], params=tuple(params),
@@ -473,7 +395,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
             share_of_structured=min(max(drop / structured0, 0.0), 1.0) if structured0 > 0
             else 0.0,
             heldout_gain_w2=gain, heldout_gain_rel=rel,
-            heterogeneity=_heterogeneity(design, blocks, i, sigma2)[0],
+            heterogeneity=heterogeneity(design, blocks, i, sigma2)[0],
             aliases=tuple(aliases)))
 
     # in-sample residual after (diagnostics, at the baseline offset); the before/after
@@ -517,7 +439,16 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
                                 'statistic': d.statistic, 'message': d.message})
     explained = (min(max(1.0 - (sse_full - noise_ss) / structured0, 0.0), 1.0)
                  if structured0 > 0 else math.nan)
+    uses = {axis: [RangeUse(run=r.cmp.name, load_kg=r.cmp.load_kg,
+                            speed_m_s=np.abs(r.states['velocity'][:, j]),
+                            accel_m_s2=r.states['acceleration'][:, j],
+                            position_m=r.states['position'][:, j]) for r in data]
+            for j, axis in enumerate(axes)}
+    warnings = machine_warnings(machine, uses)
     status, message = _verdict(fitted, unexplained, steps, data, folds, explained)
+    if chosen.cap_reached:
+        message += (f'; the consistency loop reached its cap of {options.max_rounds} rounds '
+                    '(kept the effects consistent in its last round; see candidates)')
     report(1.0)
     return AnalysisResult(
         status=status, message=message, campaign=cmp.campaign, manifest=cmp.manifest,
@@ -526,7 +457,10 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         unexplained=tuple(unexplained), diagnostics_before=tuple(diag_before),
         diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra,
         augmented=tuple(augmented_outcome(c) for c in augmented),
-        alignment_warnings=tuple(cmp.warnings))
+        alignment_warnings=tuple(cmp.warnings),
+        candidates=chosen.fates, warnings=tuple(warnings),
+        calibrated={a: observed_range(u) for a, u in uses.items()}, rounds=chosen.rounds,
+        cap_reached=chosen.cap_reached)
 
 
 def _verdict(fitted, unexplained, steps, data, folds, explained) -> tuple[str, str]:

@@ -9,10 +9,12 @@ from typing import Any
 
 import numpy as np
 
+from ..calibrated import CalibratedRange
 from ..effects import get_effect
 from ..machine import DeclaredEffect, Machine
 from ..measured.compare import json_clean
 from ..measured.metrics import group_metrics, Metrics
+from .consistency import Fate
 from .diagnostics import Diagnostic
 from .selection import Step
 
@@ -51,6 +53,9 @@ class AnalyzeOptions:
         baseline residual; otherwise none is claimed (the structure is reported instead).
     shape_grid_points
         Grid size of each shape parameter before the refinement.
+    max_rounds
+        Cap of the consistency loop (selection redone without inconsistent effects); when
+        reached, the effects consistent in the last round are kept and the result says so.
     """
 
     holdout: str = 'loro'
@@ -63,22 +68,29 @@ class AnalyzeOptions:
     min_share: float = 0.01
     min_explained: float = 0.5
     shape_grid_points: int = 8
+    max_rounds: int = 6
 
 
 @dataclass(frozen=True)
 class ParamEstimate:
-    """A fitted effect parameter: value, unit and standard uncertainty (``None``: none)."""
+    """A fitted effect parameter: value, unit and standard uncertainty (``None``: none).
+
+    ``at_bound`` is ``'lower'`` or ``'upper'`` when the bounded fit put the value on that
+    physical bound (the data would push it further: an impossible value, not a finding).
+    """
 
     name: str
     value: float
     unit: str
     uncertainty: float | None
     method: str
+    at_bound: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict."""
         return {'name': self.name, 'value': self.value, 'unit': self.unit,
-                'uncertainty': self.uncertainty, 'method': self.method}
+                'uncertainty': self.uncertainty, 'method': self.method,
+                'at_bound': self.at_bound}
 
 
 @dataclass(frozen=True)
@@ -173,6 +185,16 @@ class AnalysisResult:
         One sentence.
     alignment_warnings
         The baseline comparison's offset and instrument warnings (``compare``'s).
+    candidates
+        The fate of every candidate ``(effect, axis)`` (:class:`.consistency.Fate`).
+    warnings
+        Loss functions applied outside the speeds/loads they were calibrated on
+        (:func:`..calibrated.range_warnings`).
+    calibrated
+        Axis -> the steady speeds, loads and positions of the campaign: written with each
+        added effect into the augmented machine (``calibrated``).
+    rounds, cap_reached
+        Rounds of the consistency loop and whether its cap was reached.
     """
 
     status: str
@@ -194,6 +216,11 @@ class AnalysisResult:
         repr=False, default_factory=dict)
     augmented: tuple[dict[str, Any], ...] = ()
     alignment_warnings: tuple[str, ...] = ()
+    candidates: tuple[Fate, ...] = ()
+    warnings: tuple[str, ...] = ()
+    calibrated: dict[str, CalibratedRange | None] = field(default_factory=dict)
+    rounds: int = 0
+    cap_reached: bool = False
 
     @property
     def heldout_runs(self) -> tuple[RunOutcome, ...]:
@@ -225,7 +252,8 @@ class AnalysisResult:
         the two records line up, which ``compare`` estimates anew for every run) are left out.
         """
         added = tuple(DeclaredEffect(id=e.id, axis=e.axis,
-                                     params=tuple((p.name, float(p.value)) for p in e.params))
+                                     params=tuple((p.name, float(p.value)) for p in e.params),
+                                     calibrated=self.calibrated.get(e.axis))
                       for e in self.effects if get_effect(e.id).machine_property)
         return replace(self.machine, effects=self.machine.effects + added)
 
@@ -264,4 +292,7 @@ class AnalysisResult:
                            'bic_before': s.bic_before, 'bic_after': s.bic_after,
                            'accepted': s.accepted, 'reason': s.reason}
                           for s in self.steps],
+            'candidates': [f.to_dict() for f in self.candidates],
+            'consistency': {'rounds': self.rounds, 'cap_reached': self.cap_reached},
+            'warnings': list(self.warnings),
         })

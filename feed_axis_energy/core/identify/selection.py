@@ -6,6 +6,11 @@ values). Per run the cross products ``X'X``, ``X'y`` and ``y'y`` of every column
 so a fit on any set of runs and columns is a small solve; held-out errors per run come from
 fits on the other runs (*folds*).
 
+Every column has physical bounds (:meth:`.effects.base.Effect.linear_bounds`): a fit
+is the bounded least-squares solution (:func:`solve_normal`), so an impossible value (a
+negative copper coefficient) is never a result; a value on its bound is flagged
+(:func:`at_bounds`).
+
 Acceptance of a candidate (:func:`forward_select`): the mean relative held-out gain
 ``g_r = 1 - mse_r(S + c) / mse_r(S)`` over held-out runs must exceed ``se_factor`` standard
 errors of the mean and ``min_gain``, and the BIC of the in-sample fit must drop.
@@ -17,8 +22,52 @@ from dataclasses import dataclass, field
 import math
 
 import numpy as np
+from scipy.optimize import lsq_linear
 
-__all__ = ['Block', 'Design', 'Step', 'SelectionResult', 'forward_select', 'loro_folds']
+__all__ = ['Block', 'Design', 'Step', 'SelectionResult', 'forward_select', 'loro_folds',
+           'solve_normal', 'at_bounds']
+
+
+def solve_normal(g: np.ndarray, b: np.ndarray, lower: np.ndarray | None = None,
+                 upper: np.ndarray | None = None) -> np.ndarray:
+    """Minimise ``theta' g theta - 2 b' theta`` within ``lower <= theta <= upper``.
+
+    ``g`` is a Gram matrix ``X'X`` and ``b = X'y``: the least-squares fit of ``y`` on ``X``
+    from its cross products. Columns are scaled to unit norm; collinear columns share the fit
+    (minimum-norm solution). When the unconstrained solution breaks a bound, the bounded
+    problem is solved by :func:`scipy.optimize.lsq_linear` on a square root of ``g``.
+    """
+    p = b.shape[0]
+    if p == 0:
+        return np.zeros(0)
+    d = np.sqrt(np.clip(np.diag(g), 0.0, None))
+    d[d == 0.0] = 1.0
+    gs = g / np.outer(d, d)
+    bs = b / d
+    sol, *_ = np.linalg.lstsq(gs, bs, rcond=1e-10)
+    theta = sol / d
+    lo = np.full(p, -math.inf) if lower is None else np.asarray(lower, dtype=float)
+    hi = np.full(p, math.inf) if upper is None else np.asarray(upper, dtype=float)
+    if np.all(theta >= lo) and np.all(theta <= hi):
+        return theta
+    # g = V S V': A = S^(1/2) V' and t = S^(-1/2) V' b give |A u - t|^2 = u'g u - 2 b'u + c
+    w, v = np.linalg.eigh(0.5 * (gs + gs.T))
+    keep = w > 1e-10 * max(float(w.max()), 1e-300)
+    root = np.sqrt(w[keep])
+    a = root[:, None] * v[:, keep].T
+    t = (v[:, keep].T @ bs) / root
+    res = lsq_linear(a, t, bounds=(lo * d, hi * d), method='bvls')
+    return np.clip(res.x / d, lo, hi)
+
+
+def at_bounds(theta: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> list[str | None]:
+    """``'lower'``, ``'upper'`` or ``None`` per value: which physical bound it sits on."""
+    out: list[str | None] = []
+    for x, lo, hi in zip(theta, lower, upper):
+        tol = 1e-9 * max(1.0, abs(float(x)))
+        out.append('lower' if math.isfinite(lo) and x <= lo + tol else
+                   'upper' if math.isfinite(hi) and x >= hi - tol else None)
+    return out
 
 
 @dataclass(frozen=True)
@@ -60,6 +109,8 @@ class Design:
         self.gram: list[np.ndarray] = [np.zeros((0, 0)) for _ in self.y]
         self.xy: list[np.ndarray] = [np.zeros(0) for _ in self.y]
         self.blocks: list[Block] = []
+        self.lower = np.zeros(0)
+        self.upper = np.zeros(0)
 
     @property
     def runs(self) -> int:
@@ -67,9 +118,18 @@ class Design:
         return len(self.y)
 
     def add_block(self, key: tuple[str, str], shape: Mapping[str, float],
-                  names: Sequence[str], columns: Sequence[np.ndarray]) -> Block:
-        """Add one candidate's columns (``columns[r]`` of shape ``(n_r, p)``) to every run."""
+                  names: Sequence[str], columns: Sequence[np.ndarray], *,
+                  bounds: tuple[Sequence[float], Sequence[float]] | None = None) -> Block:
+        """Add one candidate's columns (``columns[r]`` of shape ``(n_r, p)``) to every run.
+
+        ``bounds`` are the physical ``(lower, upper)`` bounds of its ``p`` parameters
+        (default: none).
+        """
         p = len(names)
+        lo, hi = ((np.full(p, -math.inf), np.full(p, math.inf)) if bounds is None
+                  else (np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)))
+        self.lower = np.concatenate([self.lower, lo])
+        self.upper = np.concatenate([self.upper, hi])
         start = self.x[0].shape[1]
         for r, c in enumerate(columns):
             c = np.asarray(c, dtype=float).reshape(self.n[r], p)
@@ -89,10 +149,10 @@ class Design:
         return block
 
     def fit(self, cols: Sequence[int], runs: Sequence[int]) -> np.ndarray:
-        """Least-squares coefficients of ``cols`` on the pooled ``runs``.
+        """Bounded least-squares coefficients of ``cols`` on the pooled ``runs``.
 
-        Columns are scaled to unit norm before the solve; collinear columns share the fit
-        (minimum-norm solution) instead of failing.
+        See :func:`solve_normal` (unit-norm scaling, minimum norm for collinear columns,
+        the physical bounds of every column).
         """
         cols = list(cols)
         if not cols:
@@ -100,10 +160,18 @@ class Design:
         idx = np.ix_(cols, cols)
         g = sum(self.gram[r][idx] for r in runs)
         b = sum(self.xy[r][cols] for r in runs)
-        d = np.sqrt(np.clip(np.diag(g), 0.0, None))
-        d[d == 0.0] = 1.0
-        sol, *_ = np.linalg.lstsq(g / np.outer(d, d), b / d, rcond=1e-10)
-        return sol / d
+        # A column (almost) absent from these runs, though present in others (a position
+        # bump the training runs barely touch), is not fitted here: unit-norm scaling would
+        # blow its coefficient up to meaningless sizes. Its value stays 0 (inside every
+        # physical bound).
+        every = sum(self.gram[r].diagonal()[cols] for r in range(self.runs))
+        strong = np.diag(g) > 1e-12 * every
+        theta = np.zeros(len(cols))
+        if np.any(strong):
+            keep = np.flatnonzero(strong)
+            theta[keep] = solve_normal(g[np.ix_(keep, keep)], b[keep],
+                                       self.lower[cols][keep], self.upper[cols][keep])
+        return theta
 
     def sse(self, cols: Sequence[int], theta: np.ndarray, run: int) -> float:
         """Residual sum of squares of ``run`` after subtracting ``X theta``."""
@@ -170,6 +238,9 @@ class Step:
         Why (not).
     ranking
         ``[(key, mean held-out mse), ...]`` of every candidate of the round, best first.
+    candidates
+        ``[(key, mean relative held-out gain, its standard error), ...]`` of every candidate
+        of the round (best variant of each), best first.
     """
 
     key: tuple[str, str]
@@ -181,14 +252,20 @@ class Step:
     accepted: bool
     reason: str
     ranking: list[tuple[tuple[str, str], float]] = field(default_factory=list)
+    candidates: list[tuple[tuple[str, str], float, float]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
 class SelectionResult:
-    """Outcome of :func:`forward_select`: the chosen blocks, in order, and every round."""
+    """Outcome of :func:`forward_select`: the chosen blocks, in order, and every round.
+
+    ``stop`` says why it stopped: ``'rejected'`` (the best candidate of the last round did
+    not pass), ``'max_effects'`` (the cap was reached) or ``'no_candidates'``.
+    """
 
     blocks: tuple[Block, ...]
     steps: tuple[Step, ...]
+    stop: str = 'rejected'
 
     @property
     def cols(self) -> list[int]:
@@ -233,6 +310,7 @@ def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence
     chosen: list[Block] = []
     steps: list[Step] = []
     n_test = len({r for _, test in folds for r in test})
+    stop = 'max_effects'
     while len(chosen) < max_effects:
         cols = [c for b in chosen for c in b.cols]
         base = design.heldout_mse(cols, folds)
@@ -245,6 +323,7 @@ def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence
             if block.key not in best or mean_mse < best[block.key][0]:
                 best[block.key] = (mean_mse, block, gains)
         if not best:
+            stop = 'no_candidates'
             break
         ranking = sorted(((k, v[0]) for k, v in best.items()), key=lambda kv: kv[1])
         top = ranking[0][1]
@@ -274,8 +353,16 @@ def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence
                                 f'BIC {bic_before:.1f} -> {bic_after:.1f}')
         steps.append(Step(key=key, shape=block.shape, mean_gain=mean_gain, se_gain=se,
                           bic_before=bic_before, bic_after=bic_after, accepted=ok,
-                          reason=reason, ranking=ranking))
+                          reason=reason, ranking=ranking,
+                          candidates=[(k, *_mean_se(best[k][2])) for k, _ in ranking]))
         if not ok:
+            stop = 'rejected'
             break
         chosen.append(block)
-    return SelectionResult(blocks=tuple(chosen), steps=tuple(steps))
+    return SelectionResult(blocks=tuple(chosen), steps=tuple(steps), stop=stop)
+
+
+def _mean_se(gains: np.ndarray) -> tuple[float, float]:
+    mean = float(np.mean(gains)) if gains.size else math.nan
+    se = float(np.std(gains, ddof=1) / math.sqrt(gains.size)) if gains.size > 1 else math.inf
+    return mean, se

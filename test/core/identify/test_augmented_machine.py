@@ -1,6 +1,7 @@
 """What ``analyze`` writes into the augmented machine config."""
 from types import SimpleNamespace
 
+from feed_axis_energy.core.calibrated import CalibratedRange
 from feed_axis_energy.core.effects import EFFECTS, get_effect
 from feed_axis_energy.core.identify.analyze import (AnalysisResult, FittedEffect,
                                                     ParamEstimate)
@@ -17,12 +18,17 @@ def _fitted(effect_id: str, name: str, value: float, unit: str) -> FittedEffect:
 
 def test_time_offset_is_reported_but_not_written_into_the_machine():
     machine = load_machine(default_machine())
+    seen = CalibratedRange(feed_mm_s=(100.0, 500.0), load_kg=(0.0, 22.7),
+                           position_m=(0.0, 0.4))
     fake = SimpleNamespace(machine=machine,
                            effects=(_fitted('load_friction', 'mu', 0.1, '-'),
-                                    _fitted('time_offset', 'delta_s', 0.002, 's')))
+                                    _fitted('time_offset', 'delta_s', 0.002, 's')),
+                           calibrated={'X': seen})
     augmented = AnalysisResult.augmented_machine(fake)
     assert [(e.id, e.axis, dict(e.params)) for e in augmented.effects] == [
         ('load_friction', 'X', {'mu': 0.1})]
+    # the range the effect was identified on travels with it
+    assert augmented.effects[0].calibrated == seen
 
 
 def test_only_the_alignment_effect_is_not_a_machine_property_nor_sample_local():

@@ -1,0 +1,329 @@
+"""The consistency loop of ``analyze`` and the fate of every candidate.
+
+:func:`select_consistent` repeats forward selection (:func:`.selection.forward_select`),
+pruning (:func:`prune`) and the consistency check across runs (:func:`heterogeneity`)
+until no selected effect is inconsistent, at most ``max_rounds`` times. Nothing is dropped
+in silence: every candidate ``(effect, axis)`` ends with one *fate* (:data:`FATES`) and a
+reason, and a loop that reaches its round cap keeps the effects that were consistent in its
+last round and says so.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+import math
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from .selection import Block, Design, forward_select, solve_normal, Step
+
+__all__ = ['FATES', 'Fate', 'ConsistentSelection', 'select_consistent', 'prune',
+           'heterogeneity', 'label']
+
+FATES = ('accepted', 'rejected', 'dropped_in_pruning', 'excluded_inconsistent',
+         'not_claimed', 'not_tried', 'round_cap', 'no_basis')
+"""Possible fates: ``accepted``; ``rejected`` (its held-out gain did not pass);
+``dropped_in_pruning`` (selected, then made redundant by a later effect); ``excluded_inconsistent``
+(fits, but not with one set of parameters for every run); ``not_claimed`` (selected, but the
+selection explained too little of the structured residual); ``not_tried`` (``max_effects``
+reached first); ``round_cap`` (left out when the consistency loop reached its cap);
+``no_basis`` (the effect adds nothing on these runs, e.g. braking loss without braking)."""
+
+
+@dataclass(frozen=True)
+class Fate:
+    """What happened to one candidate ``(effect, axis)``.
+
+    Attributes
+    ----------
+    effect, axis
+        The candidate.
+    fate
+        One of :data:`FATES`.
+    reason
+        One sentence with the figures behind it.
+    heldout_gain_rel, heldout_gain_se
+        Its mean relative held-out gain and standard error when it was last scored
+        (``nan``: never scored).
+    """
+
+    effect: str
+    axis: str
+    fate: str
+    reason: str
+    heldout_gain_rel: float = math.nan
+    heldout_gain_se: float = math.nan
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict (keys in docs/analyze.md)."""
+        return {'effect': self.effect, 'axis': self.axis, 'fate': self.fate,
+                'reason': self.reason, 'heldout_gain_rel': self.heldout_gain_rel,
+                'heldout_gain_se': self.heldout_gain_se}
+
+
+@dataclass(frozen=True)
+class ConsistentSelection:
+    """Outcome of :func:`select_consistent`.
+
+    Attributes
+    ----------
+    blocks
+        The effects kept.
+    steps
+        The rounds of the last forward selection.
+    rejected
+        ``unexplained`` entries: inconsistent effects and a weak attribution.
+    fates
+        One :class:`Fate` per candidate key, in catalog order.
+    rounds
+        Consistency rounds run; ``cap_reached`` whether the last one still found an
+        inconsistent effect.
+    """
+
+    blocks: tuple[Block, ...]
+    steps: tuple[Step, ...]
+    rejected: tuple[dict[str, Any], ...]
+    fates: tuple[Fate, ...]
+    rounds: int
+    cap_reached: bool
+
+
+def label(key: tuple[str, str]) -> str:
+    """``effect@axis``."""
+    return f'{key[0]}@{key[1]}'
+
+
+def prune(design: Design, blocks: list[Block], folds, options,
+          structured: float) -> tuple[list[Block], list[tuple[Block, str]]]:
+    """Backward pass: drop, one at a time, the weakest effect that no longer earns its place.
+
+    An effect stays when, added last, its mean relative held-out gain still exceeds
+    ``se_factor`` standard errors and ``min_gain``, and it explains at least ``min_share`` of
+    the structured baseline residual (an effect picked early can be made redundant by a
+    later one; a tiny timing correction is not a missing physical effect).
+
+    Returns
+    -------
+    tuple
+        The kept blocks and ``[(dropped block, reason), ...]``.
+    """
+    blocks = list(blocks)
+    dropped: list[tuple[Block, str]] = []
+    while blocks:
+        cols = [c for b in blocks for c in b.cols]
+        full = design.heldout_mse(cols, folds)
+        sse_full = design.total_sse(cols)
+        worst, worst_score, why = None, math.inf, ''
+        for i in range(len(blocks)):
+            without = [c for k, b in enumerate(blocks) if k != i for c in b.cols]
+            wo = design.heldout_mse(without, folds)
+            gains = np.array([1.0 - full[r] / wo[r] if wo[r] > 0.0 else 0.0 for r in full])
+            se = (float(np.std(gains, ddof=1) / math.sqrt(gains.size)) if gains.size > 1
+                  else math.inf)
+            share = ((design.total_sse(without) - sse_full) / structured if structured > 0.0
+                     else 0.0)
+            mean = float(np.mean(gains))
+            # time_offset corrects the baseline alignment (biased by whatever the declared
+            # model misses); its worth is the held-out gain, not a share of the structure
+            if blocks[i].key[0] == 'time_offset':
+                share = max(share, options.min_share)
+            keep = (mean > options.se_factor * se and mean > options.min_gain
+                    and share >= options.min_share)
+            score = min(mean - options.se_factor * se, share - options.min_share)
+            if not keep and score < worst_score:
+                others = ', '.join(label(b.key) for k, b in enumerate(blocks) if k != i)
+                worst, worst_score = i, score
+                why = (f'added last beside {others or "nothing"}, its held-out gain is '
+                       f'{100 * mean:.2f} % +- {100 * se:.2f} % and it explains '
+                       f'{100 * share:.1f} % of the structured residual (needs more than '
+                       f'{options.se_factor:g} standard errors, {100 * options.min_gain:g} % '
+                       f'and {100 * options.min_share:g} %)')
+        if worst is None:
+            break
+        dropped.append((blocks[worst], why))
+        del blocks[worst]
+    return blocks, dropped
+
+
+def heterogeneity(design: Design, blocks: Sequence[Block], which: int,
+                  sigma2: float) -> tuple[float, float]:
+    """How much better per-run refits of one block fit than its pooled parameters.
+
+    Returns ``(share, p_value)``: the share of the block's explained variance that per-run
+    refits (within the physical bounds) add, and the chi-square probability of that
+    improvement if the parameters were the same on every run (improvement / ``sigma2``
+    with ``(R - 1) p`` degrees of freedom).
+    """
+    cols = [c for b in blocks for c in b.cols]
+    theta = design.fit(cols, range(design.runs))
+    own = list(blocks[which].cols)
+    pos = [cols.index(c) for c in own]
+    rest = [i for i in range(len(cols)) if i not in pos]
+    pooled = free = none = 0.0
+    for r in range(design.runs):
+        base = design.y[r] - design.x[r][:, [cols[i] for i in rest]] @ theta[rest]
+        xe = design.x[r][:, own]
+        none += float(base @ base)
+        pooled_res = base - xe @ theta[pos]
+        pooled += float(pooled_res @ pooled_res)
+        if np.any(xe):
+            sol = solve_normal(xe.T @ xe, xe.T @ base, design.lower[own], design.upper[own])
+            free_res = base - xe @ sol
+            free += float(free_res @ free_res)
+        else:
+            free += float(base @ base)
+    explained = none - free
+    share = float((pooled - free) / explained) if explained > 0.0 else 0.0
+    dof = max((design.runs - 1) * len(own), 1)
+    p = float(stats.chi2.sf((pooled - free) / sigma2, dof)) if sigma2 > 0.0 else math.nan
+    return share, p
+
+
+def _inconsistent(block: Block, share: float, options) -> dict[str, Any]:
+    return {'diagnostic': 'inconsistent_across_runs', 'axis': block.key[1],
+            'effect': block.key[0], 'statistic': share,
+            'message': (f'{label(block.key)} would fit, but not with one set of parameters: '
+                        f'per-run refits add {100 * share:.0f} % to what it explains (limit '
+                        f'{100 * options.max_heterogeneity:.0f} %); the structure is not this '
+                        'effect')}
+
+
+def select_consistent(design: Design, folds, options, *, keys: Sequence[tuple[str, str]],
+                      structured0: float, noise_ss: float, sigma2: float,
+                      refine: Callable[[Block, list[int]], Block]) -> ConsistentSelection:
+    """Forward selection, pruning and the consistency check until consistent or capped.
+
+    Parameters
+    ----------
+    design
+        Residuals and candidate blocks.
+    folds
+        Held-out folds.
+    options
+        :class:`.results.AnalyzeOptions` (``se_factor``, ``min_gain``, ``max_effects``,
+        ``min_share``, ``max_heterogeneity``, ``heterogeneity_alpha``, ``min_explained``,
+        ``max_rounds``).
+    keys
+        Every candidate ``(effect, axis)`` considered, in catalog order (also those without
+        a block: their fate is ``no_basis``).
+    structured0, noise_ss, sigma2
+        Structured part of the baseline residual sum of squares, the noise's share of it and
+        the noise variance per sample.
+    refine
+        ``refine(block, other_cols)``: the block with its shape parameter refined.
+
+    Returns
+    -------
+    ConsistentSelection
+        Kept blocks, the record of the last selection and every candidate's fate.
+    """
+    excluded: list[tuple[str, str]] = []
+    rejected: list[dict[str, Any]] = []
+    fate: dict[tuple[str, str], Fate] = {}
+    steps: tuple[Step, ...] = ()
+    blocks: list[Block] = []
+    stop = ''
+    cap_reached = False
+    rounds = 0
+    for rounds in range(1, options.max_rounds + 1):
+        sel = forward_select(design, folds, exclude=excluded, se_factor=options.se_factor,
+                             min_gain=options.min_gain, max_effects=options.max_effects)
+        steps, stop = sel.steps, sel.stop
+        blocks = list(sel.blocks)
+        for i in range(len(blocks)):
+            others = [c for k, b in enumerate(blocks) if k != i for c in b.cols]
+            blocks[i] = refine(blocks[i], others)
+        blocks, dropped = prune(design, blocks, folds, options, structured0)
+        het = [heterogeneity(design, blocks, i, sigma2) for i in range(len(blocks))]
+        bad = [i for i, (h, p) in enumerate(het)
+               if h > options.max_heterogeneity and p < options.heterogeneity_alpha]
+        for i in bad:
+            excluded.append(blocks[i].key)
+            entry = _inconsistent(blocks[i], het[i][0], options)
+            rejected.append(entry)
+            fate[blocks[i].key] = Fate(blocks[i].key[0], blocks[i].key[1],
+                                       'excluded_inconsistent', entry['message'])
+        if not bad:
+            break
+        if rounds == options.max_rounds:
+            # The cap is a verdict: keep what was consistent in this last round (pruned
+            # and checked again without the excluded ones), and say so.
+            cap_reached = True
+            blocks = [b for i, b in enumerate(blocks) if i not in bad]
+            blocks, more = prune(design, blocks, folds, options, structured0)
+            dropped += more
+            het = [heterogeneity(design, blocks, i, sigma2) for i in range(len(blocks))]
+            for i, (h, p) in enumerate(het):
+                if h > options.max_heterogeneity and p < options.heterogeneity_alpha:
+                    fate[blocks[i].key] = Fate(
+                        blocks[i].key[0], blocks[i].key[1], 'round_cap',
+                        f'still inconsistent across runs ({100 * h:.0f} % from per-run '
+                        f'refits) when the consistency loop reached its cap of '
+                        f'{options.max_rounds} rounds')
+            blocks = [b for i, b in enumerate(blocks) if fate.get(b.key) is None
+                      or fate[b.key].fate != 'round_cap']
+    for block, why in dropped:
+        if block.key not in fate and block.key not in {b.key for b in blocks}:
+            fate[block.key] = Fate(block.key[0], block.key[1], 'dropped_in_pruning', why)
+    if blocks and structured0 > 0.0:
+        cols = [c for b in blocks for c in b.cols]
+        share = 1.0 - (design.total_sse(cols) - noise_ss) / structured0
+        if share < options.min_explained:
+            msg = (f'{", ".join(label(b.key) for b in blocks)} would explain only '
+                   f'{100 * share:.0f} % of the structured residual (at least '
+                   f'{100 * options.min_explained:.0f} % needed): not claimed')
+            rejected.append({'diagnostic': 'weak_attribution',
+                             'axis': ','.join(sorted({b.key[1] for b in blocks})),
+                             'effect': ','.join(b.key[0] for b in blocks), 'statistic': share,
+                             'message': msg})
+            for b in blocks:
+                fate[b.key] = Fate(b.key[0], b.key[1], 'not_claimed', msg)
+            blocks = []
+    fates = _fates(keys, design, blocks, steps, stop, fate, cap_reached, options)
+    return ConsistentSelection(blocks=tuple(blocks), steps=steps, rejected=tuple(rejected),
+                               fates=fates, rounds=rounds, cap_reached=cap_reached)
+
+
+def _fates(keys, design: Design, blocks, steps: Sequence[Step], stop: str,
+           fate: dict[tuple[str, str], Fate], cap_reached: bool, options) -> tuple[Fate, ...]:
+    """One fate per candidate key: the decided ones, then what the last selection says."""
+    kept = {b.key for b in blocks}
+    with_block = {b.key for b in design.blocks}
+    scored = {}
+    for n, step in enumerate(steps, start=1):
+        for key, gain, se in step.candidates:
+            scored[key] = (n, gain, se)
+    last = steps[-1] if steps else None
+    out = []
+    for key in keys:
+        n, gain, se = scored.get(key, (0, math.nan, math.nan))
+        if key in kept:
+            step = next((s for s in steps if s.key == key), None)
+            why = step.reason if step is not None else 'kept'
+            out.append(Fate(key[0], key[1], 'accepted', f'round {n}: {why}', gain, se))
+        elif key in fate:
+            f = fate[key]
+            out.append(Fate(f.effect, f.axis, f.fate, f.reason, gain, se))
+        elif key not in with_block:
+            out.append(Fate(key[0], key[1], 'no_basis',
+                            'the effect adds no power on these runs (its basis is zero)'))
+        elif cap_reached:
+            out.append(Fate(key[0], key[1], 'round_cap',
+                            f'not re-examined: the consistency loop reached its cap of '
+                            f'{options.max_rounds} rounds', gain, se))
+        elif stop == 'max_effects':
+            out.append(Fate(key[0], key[1], 'not_tried',
+                            f'not added: max_effects ({options.max_effects}) was reached',
+                            gain, se))
+        elif last is not None and key == last.key:
+            out.append(Fate(key[0], key[1], 'rejected', f'round {n}: {last.reason}', gain, se))
+        elif last is not None:
+            out.append(Fate(key[0], key[1], 'rejected',
+                            f'round {n}: held-out gain {100 * gain:.2f} % +- {100 * se:.2f} %, '
+                            f'not the best by held-out error; the best, {label(last.key)}, was '
+                            f'rejected ({last.reason})', gain, se))
+        else:
+            out.append(Fate(key[0], key[1], 'rejected', 'no selection round ran'))
+    return tuple(out)
