@@ -13,7 +13,7 @@ from feed_axis_energy.core.machine_gcode import DIALECTS, parse_tool_option, wit
 from feed_axis_energy.core.trajectory import PlannerOptions
 from feed_axis_energy.paths import default_machine
 
-__all__ = ['add_machine_options', 'load_machine_and_options', 'print_summary',
+__all__ = ['add_machine_options', 'load_machine_and_options', 'print_summary', 'cause_table',
            'program_text_lines', 'format_table', 'METRIC_HEADER', 'metric_cells',
            'program_keywords']
 
@@ -154,15 +154,59 @@ def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
             for axis in axes + ['total']]
     print(format_table(['axis', 'energy [J]', 'peak power [W]'], rows))
     fate = ('returned to the supply' if summary['braking'] == 'regenerative'
-            else 'burned in the brake resistor, not counted above')
+            else 'burned in the brake resistor: drawn before to accelerate or lift, '
+            'braking_burned below')
     print(f'passive-resistance (loss) energy {summary["loss_energy_j"]:.2f} J; '
           f'braking energy {summary["regenerated_energy_j"]:.2f} J ({fate})')
+    by_cause = summary.get('energy_by_cause_j') or {}
+    if by_cause:
+        print()
+        print(cause_table(summary, axes))
     if summary.get('top_blocks'):
         print()
         print('blocks with the most energy:')
         rows = []
         for b in summary['top_blocks']:
-            text = source_lines.get(b['line'], '').strip()
+            text = b.get('text', source_lines.get(b['line'], '')).strip()
             rows.append([str(b['line']), f'{b["energy_j"]:.2f}', f'{b["duration_s"]:.3f}',
-                         text[:48]])
-        print(format_table(['line', 'energy [J]', 'duration [s]', 'block'], rows))
+                         _main_cause(b), text[:48]])
+        print(format_table(['line', 'energy [J]', 'duration [s]', 'main cause', 'block'],
+                           rows))
+
+
+def _main_cause(block: dict) -> str:
+    """The cause with the most energy in a top block, with its share ('-' if not known)."""
+    causes = block.get('energy_by_cause_j')
+    if not causes:
+        return '-'
+    name, value = max(causes.items(), key=lambda item: item[1])
+    energy = block['energy_j']
+    share = f' {100.0 * value / energy:.0f} %' if energy > 0.0 else ''
+    return f'{name}{share}'
+
+
+def cause_table(summary: dict, axes: list[str]) -> str:
+    """The breakdown by cause (``docs/breakdown.md``) as a text table with a sum row."""
+    by_cause = summary['energy_by_cause_j']
+    gross = summary.get('gross_by_cause_j') or {}
+    total = summary['energy_j']['total']
+    rows = []
+    for cause, values in by_cause.items():
+        put_in = gross.get(cause, {}).get('total', math.nan)
+        share = 100.0 * values['total'] / total if total > 0.0 else math.nan
+        rows.append([cause] + [_joules(values[a]) for a in axes]
+                    + [_joules(values['total']), _finite(share + 0.0, '.1f'),
+                       _finite(put_in, '.2f')])
+    rows.append(['sum'] + [_joules(math.fsum(v[a] for v in by_cause.values())) for a in axes]
+                + [_joules(math.fsum(v['total'] for v in by_cause.values())), '', ''])
+    header = (['cause'] + [f'{a} [J]' for a in axes]
+              + ['total [J]', 'share [%]', 'put in [J]'])
+    table = '\n'.join(line.rstrip() for line in format_table(header, rows).splitlines())
+    return ('energy by cause (net; "put in": the positive power only; docs/breakdown.md):\n'
+            + table)
+
+
+def _joules(value: float) -> str:
+    """``value`` with 2 decimals, without the sign of a value that rounds to zero."""
+    text = _finite(value, '.2f')
+    return '0.00' if text == '-0.00' else text

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from feed_axis_energy.cli.common import add_machine_options
-from feed_axis_energy.core.errors import ConfigError
+from feed_axis_energy.core.errors import ConfigError, shorten
 
 __all__ = ['add_parser', 'run', 'bag_bytes_per_sample']
 
@@ -19,6 +19,10 @@ __all__ = ['add_parser', 'run', 'bag_bytes_per_sample']
 _BAG_BYTES_AXIS = 105
 _BAG_BYTES_BASE = 125
 _DISK_RESERVE = 1.1      # refuse when the estimate exceeds 1 / 1.1 of the free space
+BLOCK_TEXT_CHARS = 60    # block text shown in top_blocks (cut with '...')
+# the per-block breakdown costs 8 (axes + causes) bytes per program line; kept when the
+# program's lines need at most this much, or when an export needs the per-block table
+BLOCK_BREAKDOWN_BYTES = 16 << 20
 
 
 def bag_bytes_per_sample(n_axes: int) -> int:
@@ -88,11 +92,14 @@ def run(args: argparse.Namespace) -> int:
     summary['warnings'] = warnings
     if args.out is not None:
         summary['bag'] = str(args.out)
+    lines = [b['line'] for b in summary['top_blocks']]
+    texts = {} if trajectory else program_text_lines(args.program, lines)
+    for block in summary['top_blocks']:
+        block['text'] = shorten(texts.get(block['line'], '').strip(), limit=BLOCK_TEXT_CHARS)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
-        lines = [b['line'] for b in summary['top_blocks']]
-        print_summary(summary, source_lines=program_text_lines(args.program, lines))
+        print_summary(summary, source_lines=texts)
         if args.out is not None:
             print(f'recording: {args.out} (topics /setpoints, /axis_state, /power, '
                   '/block_energy; units in README)')
@@ -208,8 +215,11 @@ def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
         moves = _Moves(args, machine, check=True, progress=progress,
                        n_lines=_count_lines(args.program))
     top = args.top
+    n_lines = moves.n_lines or _count_lines(args.program)
+    columns = len(limits) + 8 + len(machine.effects)
     kw = dict(file=moves.file, load_kg=args.load_kg, options=options, top_blocks=top,
-              duration_s=duration, progress=progress if duration else None, limits=limits)
+              duration_s=duration, progress=progress if duration else None, limits=limits,
+              block_breakdown=8 * columns * n_lines <= BLOCK_BREAKDOWN_BYTES)
     if args.out is None:
         summary, _ = simulate_stream(moves, machine, **kw)
     else:
