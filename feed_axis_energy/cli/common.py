@@ -195,7 +195,7 @@ def cause_table(summary: dict, axes: list[str]) -> str:
         put_in = gross.get(cause, {}).get('total', math.nan)
         share = 100.0 * values['total'] / total if total > 0.0 else math.nan
         rows.append([cause] + [_joules(values[a]) for a in axes]
-                    + [_joules(values['total']), _finite(share + 0.0, '.1f'),
+                    + [_joules(values['total']), _unsigned_zero(_finite(share, '.1f')),
                        _finite(put_in, '.2f')])
     rows.append(['sum'] + [_joules(math.fsum(v[a] for v in by_cause.values())) for a in axes]
                 + [_joules(math.fsum(v['total'] for v in by_cause.values())), '', ''])
@@ -208,5 +208,9 @@ def cause_table(summary: dict, axes: list[str]) -> str:
 
 def _joules(value: float) -> str:
     """``value`` with 2 decimals, without the sign of a value that rounds to zero."""
-    text = _finite(value, '.2f')
-    return '0.00' if text == '-0.00' else text
+    return _unsigned_zero(_finite(value, '.2f'))
+
+
+def _unsigned_zero(text: str) -> str:
+    """``'-0.00'`` -> ``'0.00'`` (a tiny negative value rounded to zero)."""
+    return text[1:] if text.startswith('-') and not text.strip('-0.') else text

@@ -48,10 +48,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'directory and renamed into place when complete')
     p.add_argument('--force', action='store_true',
                    help='replace an existing --out bag directory (only a rosbag2 directory, '
-                        'never a symbolic link) once the new one is complete')
+                        'never a symbolic link) or --csv/--parquet directory (one this '
+                        'command wrote, or empty) once the new one is complete')
     p.add_argument('--compression', choices=('none', 'zstd'), default='zstd',
                    help='MCAP chunk compression of the --out recording (default zstd at the '
                         'fast level -1: about 5x smaller for 1.2-1.5x the writer\'s CPU time)')
+    p.add_argument('--csv', type=Path, metavar='DIR',
+                   help='write timeseries.csv (time series) and blocks.csv (per block: line, '
+                        'text, duration, energy per axis and per cause) into DIR; must not '
+                        'exist unless --force; built in a hidden temporary and renamed into '
+                        'place when complete')
+    p.add_argument('--parquet', type=Path, metavar='DIR',
+                   help='the same tables as --csv as Parquet files (needs pyarrow)')
+    rate = p.add_mutually_exclusive_group()
+    rate.add_argument('--decimate', type=_positive_int, default=None, metavar='N',
+                      help='exported time series: every N-th sample (default 1: all)')
+    rate.add_argument('--export-rate-hz', type=_positive_float, default=None, metavar='HZ',
+                      help='exported time series: about HZ samples per second (every '
+                           'round(rate/HZ)-th sample)')
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the table (keys in README)')
     p.add_argument('--top', type=int, default=5, metavar='N',
@@ -61,6 +75,34 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'the count is known from the plan before any sample is computed')
     p.add_argument('--quiet', action='store_true', help='no progress indication')
     p.set_defaults(run=run)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {shorten(text)!r}')
+    return value
+
+
+def _positive_float(text: str) -> float:
+    import math
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f'expected a number > 0, got {shorten(text)!r}')
+    return value
+
+
+def _usage_error(text: str) -> SystemExit:
+    """Print a usage error as argparse does; the caller raises the result (exit 2)."""
+    print(f'usage: feed-axis-energy simulate ... (see --help)\n'
+          f'feed-axis-energy simulate: error: {text}', file=sys.stderr)
+    return SystemExit(2)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -78,20 +120,24 @@ def run(args: argparse.Namespace) -> int:
         # refused before any sample is computed, not after
         check_target(args.out, option='--out', force=args.force, kind='directory',
                      replaceable=is_bag_directory)
+    exports = _export_targets(args, options.rate_hz)
     if args.max_samples < 0:
         msg = f'--max-samples must be >= 0, got {args.max_samples}'
         raise ConfigError(msg, file='command line', key='max-samples')
     progress = Progress('simulate', enabled=not args.quiet)
     trajectory = args.program.suffix.lower() == '.csv'
     warnings: list[str] = []
-    if trajectory or not streamable(machine):
-        summary = _run_whole(args, machine, options, progress, trajectory=trajectory,
-                             warnings=warnings)
-    else:
-        summary, warnings = _run_stream(args, machine, options, progress)
+    with _Exports(args, exports) as export:
+        if trajectory or not streamable(machine):
+            summary = _run_whole(args, machine, options, progress, trajectory=trajectory,
+                                 warnings=warnings, export=export)
+        else:
+            summary, warnings = _run_stream(args, machine, options, progress, export=export)
     summary['warnings'] = warnings
     if args.out is not None:
         summary['bag'] = str(args.out)
+    for fmt, path in exports.items():
+        summary[fmt] = str(path)
     lines = [b['line'] for b in summary['top_blocks']]
     texts = {} if trajectory else program_text_lines(args.program, lines)
     for block in summary['top_blocks']:
@@ -103,7 +149,84 @@ def run(args: argparse.Namespace) -> int:
         if args.out is not None:
             print(f'recording: {args.out} (topics /setpoints, /axis_state, /power, '
                   '/block_energy; units in README)')
+        for fmt, path in exports.items():
+            print(f'{fmt}: {path} (timeseries.{fmt}, blocks.{fmt}; columns in README)')
     return 0
+
+
+def _export_targets(args: argparse.Namespace, rate_hz: float) -> dict:
+    """``{'csv': DIR, 'parquet': DIR}`` of the requested exports, checked before any work
+    (and the decimation from ``--decimate`` / ``--export-rate-hz`` in ``args.decimate``)."""
+    from feed_axis_energy.core.exports import EXPORT_MARKER
+    from feed_axis_energy.core.outputs import check_target, marked_or_empty
+    exports = {fmt: getattr(args, fmt) for fmt in ('csv', 'parquet')
+               if getattr(args, fmt) is not None}
+    if (args.decimate or args.export_rate_hz) and not exports:
+        raise _usage_error('--decimate and --export-rate-hz apply to --csv or --parquet, '
+                           'neither given')
+    if len({Path(p).resolve() for p in exports.values()}) < len(exports):
+        raise _usage_error('--csv and --parquet name the same directory')
+    if args.export_rate_hz is not None:
+        hz = args.export_rate_hz
+        if hz > rate_hz:
+            msg = (f'--export-rate-hz {hz:g} Hz is above the sample rate {rate_hz:g} Hz; '
+                   'give at most the sample rate')
+            raise ConfigError(msg, file='command line', key='export-rate-hz')
+        args.decimate = max(1, round(rate_hz / hz))
+    if 'parquet' in exports:
+        from feed_axis_energy.core.exports import require_pyarrow
+        require_pyarrow('--parquet')        # before any work: a clear error if missing
+    for fmt, path in exports.items():
+        check_target(path, option=f'--{fmt}', force=args.force, kind='directory',
+                     replaceable=marked_or_empty(EXPORT_MARKER))
+    return exports
+
+
+class _Exports:
+    """The ``--csv``/``--parquet`` directories, staged (hidden temporaries renamed into
+    place when the command succeeds, removed when it fails), and their time series."""
+
+    def __init__(self, args: argparse.Namespace, targets: dict) -> None:
+        self.args = args
+        self.targets = targets
+        self.series = None
+        self.dirs: dict = {}
+        self._stack = None
+
+    def __bool__(self) -> bool:
+        return bool(self.targets)
+
+    def __enter__(self) -> '_Exports':
+        import contextlib
+        from feed_axis_energy.core.exports import EXPORT_MARKER, SeriesExporter
+        from feed_axis_energy.core.outputs import marked_or_empty, staged_directory
+        self._stack = contextlib.ExitStack()
+        try:
+            for fmt, path in self.targets.items():
+                inner = self._stack.enter_context(staged_directory(
+                    path, option=f'--{fmt}', force=self.args.force,
+                    replaceable=marked_or_empty(EXPORT_MARKER)))
+                inner.mkdir()
+                (inner / EXPORT_MARKER).write_text('feed-axis-energy simulate export\n',
+                                                   encoding='utf-8')
+                self.dirs[fmt] = inner
+            if self.dirs:
+                self.series = SeriesExporter(self.dirs, decimate=self.args.decimate or 1)
+        except BaseException:
+            self._stack.__exit__(*sys.exc_info())
+            raise
+        return self
+
+    def write_blocks(self, blocks) -> None:
+        """The per-block tables (needs the per-block breakdown)."""
+        from feed_axis_energy.core.exports import write_blocks
+        if self.dirs:
+            write_blocks(self.dirs, blocks, program=self.args.program)
+
+    def __exit__(self, exc_type, exc, tb):
+        if self.series is not None:
+            self.series.close()
+        return self._stack.__exit__(exc_type, exc, tb)
 
 
 def _check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: float,
@@ -192,7 +315,7 @@ def _count_lines(path: Path) -> int:
     return n + 1
 
 
-def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
+def _run_stream(args, machine, options, progress, *, export) -> tuple[dict, list[str]]:
     """Parse, plan, simulate and record chunk by chunk: memory holds one batch of moves and
     one chunk of samples, never the program. With ``--out`` or ``--max-samples`` a first
     pass over the moves (parsing and planning without samples) gives the cost and the
@@ -219,22 +342,39 @@ def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
     columns = len(limits) + 8 + len(machine.effects)
     kw = dict(file=moves.file, load_kg=args.load_kg, options=options, top_blocks=top,
               duration_s=duration, progress=progress if duration else None, limits=limits,
-              block_breakdown=8 * columns * n_lines <= BLOCK_BREAKDOWN_BYTES)
+              block_breakdown=bool(export) or 8 * columns * n_lines <= BLOCK_BREAKDOWN_BYTES)
     if args.out is None:
-        summary, _ = simulate_stream(moves, machine, **kw)
+        on_chunk = export.series.write if export else None
+        summary, blocks = simulate_stream(moves, machine, on_chunk=on_chunk, **kw)
     else:
         from feed_axis_energy.core.recording import SimulationBagWriter
         with _staged_out(args) as staged, \
                 SimulationBagWriter(staged, compression=args.compression,
                                     rate_hz=options.rate_hz) as writer:
             # chunk_gaps: the writer takes the left-out dwell samples as they are (recthin)
-            summary, blocks = simulate_stream(moves, machine, on_chunk=writer.write,
+            summary, blocks = simulate_stream(moves, machine,
+                                              on_chunk=_both(writer, export, options.rate_hz),
                                               chunk_gaps=True, **kw)
             writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
+    if export:
+        export.write_blocks(blocks)
     progress.done()
     if warnings is None:
         warnings = moves.warnings(args)
     return summary, warnings
+
+
+def _both(writer, export, rate: float):
+    """``on_chunk`` for the bag writer (compact dwells) and the exports (full rate)."""
+    if not export:
+        return writer.write
+    from feed_axis_energy.core.simstream import expand_gaps
+
+    def take(chunk) -> None:
+        writer.write(chunk)
+        for piece in expand_gaps(chunk, rate_hz=rate):
+            export.series.write(piece)
+    return take
 
 
 def _warn(args, program, machine) -> list[str]:
@@ -247,7 +387,7 @@ def _warn(args, program, machine) -> list[str]:
 
 
 def _run_whole(args, machine, options, progress, *, trajectory: bool,
-               warnings: list[str]) -> dict:
+               warnings: list[str], export) -> dict:
     """Whole-record path: trajectory CSVs and declared effects that need the whole record."""
     from feed_axis_energy.cli.common import program_keywords
     from feed_axis_energy.cli.progress import Progress
@@ -266,6 +406,10 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool,
     progress.done()
     # A trajectory has no source lines to attribute energy to.
     summary = summarize(result, top_blocks=0 if trajectory else args.top)
+    if export:
+        from feed_axis_energy.core.simulate import line_table
+        export.series.write(result)
+        export.write_blocks(line_table(result))
     if args.out is not None:
         with _staged_out(args) as staged:
             write_simulation_bag(staged, result, summary=summary,

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from .breakdown import LineEnergy
 from .dynamics import AxisDynamics, compute_dynamics
 from .energy import EnergyIntegrator, PowerResult, compute_power, energy_by_line
 from .machine import Machine
@@ -21,7 +22,7 @@ from .program import Program
 from .trajectory import plan, PlannerOptions
 
 __all__ = ['SimulationResult', 'apply_declared_effects', 'declared_effects_power_w',
-           'declared_effects_parts', 'sum_effect_parts',
+           'declared_effects_parts', 'sum_effect_parts', 'line_table',
            'simulate_program', 'simulate_motion', 'summarize']
 
 
@@ -259,3 +260,29 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         'loss_energy_j': loss_energy,
         'top_blocks': [{'line': ln, 'energy_j': e, 'duration_s': d} for ln, e, d in blocks],
     }, causes)
+
+
+def line_table(result: SimulationResult) -> LineEnergy:
+    """Energy and time per source line of a whole result, with the per-block breakdown.
+
+    Parameters
+    ----------
+    result
+        A simulation result.
+
+    Returns
+    -------
+    LineEnergy
+        As :meth:`.simstream.SummaryAccumulator.block_energy` with ``block_breakdown``.
+    """
+    from .breakdown import BreakdownAccumulator
+    p = result.power
+    causes = BreakdownAccumulator(per_line=True)
+    causes.add(result.dynamics, p.mechanical_w, braking=p.braking, effects=p.effect_power_w)
+    rows = energy_by_line(p)
+    lines = np.array([r[0] for r in rows], dtype=np.int64)
+    table = causes.lines_table(lines)
+    by_axis, by_cause = (None, None) if table is None else table
+    return LineEnergy(lines, np.array([r[1] for r in rows]), np.array([r[2] for r in rows]),
+                      axes=tuple(p.axes), causes=causes.causes, by_axis_j=by_axis,
+                      by_cause_j=by_cause)
