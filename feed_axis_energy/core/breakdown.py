@@ -37,7 +37,7 @@ from .dynamics import AxisDynamics
 from .errors import ConfigError
 from .machine import BRAKING_MODES
 
-__all__ = ['FIXED_CAUSES', 'BRAKING_CAUSE', 'cause_names', 'cause_powers',
+__all__ = ['FIXED_CAUSES', 'BRAKING_CAUSE', 'cause_names', 'cause_powers', 'cause_rows',
            'BreakdownAccumulator', 'LineEnergy']
 
 FIXED_CAUSES = ('friction', 'screw', 'gravity_lift', 'gravity_lower', 'linear_inertia',
@@ -50,9 +50,76 @@ def cause_names(effect_labels: Sequence[str] = ()) -> tuple[str, ...]:
     return FIXED_CAUSES + tuple(effect_labels) + (BRAKING_CAUSE,)
 
 
+def cause_rows(dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
+               effects: Sequence[tuple[str, np.ndarray]] = (),
+               buffers: dict | None = None) -> list[tuple[int, int, np.ndarray]]:
+    """The power of every cause on every axis that can be non-zero, as
+    ``(cause index, axis index, power (n,))`` [W] (see :func:`cause_powers`).
+
+    ``buffers``: a dict kept by the caller from chunk to chunk; the rows are written into
+    its arrays (valid until the next call with the same dict).
+
+    Left out (zero by construction): ``screw`` on axes with ``eta = 1``, the gravity terms
+    on horizontal axes, ``braking_burned`` with regenerative braking, an effect on the axes
+    it is not declared for. The per-axis arrays of the planner are column-major, so a
+    column is read without a copy.
+    """
+    if braking not in BRAKING_MODES:
+        msg = f'braking must be one of {", ".join(BRAKING_MODES)}, got {braking!r}'
+        raise ConfigError(msg, key='braking')
+    v = dyn.velocity_m_s
+    n, k = v.shape
+    mech = np.asarray(mechanical_w)
+    rows: list[tuple[int, int, np.ndarray]] = []
+    pool = {} if buffers is None else buffers
+
+    def buf(key: tuple) -> np.ndarray:
+        # reused from chunk to chunk: a fresh large array costs page faults every time
+        b = pool.get(key)
+        if b is None or b.shape[0] < n:
+            b = pool[key] = np.empty(n)
+        return b[:n]
+
+    for j in range(k):
+        vj = v[:, j]
+        friction = np.multiply(dyn.loss_force_n[:, j], vj, out=buf((0, j)))
+        linear = np.multiply(vj, dyn.mass_kg[j], out=buf((4, j)))
+        linear *= dyn.acceleration_m_s2[:, j]
+        rotary = np.multiply(dyn.omega_rad_s[:, j], dyn.inertia_kg_m2[j], out=buf((5, j)))
+        rotary *= dyn.alpha_rad_s2[:, j]
+        rows += [(0, j, friction), (4, j, linear), (5, j, rotary)]
+        g = dyn.gravity_force_n[:, j]
+        gravity = None
+        if g.size and not (g[0] == 0.0 and not np.any(g)):
+            gravity = np.multiply(g, vj, out=buf(('g', j)))
+            rows += [(2, j, np.maximum(gravity, 0.0, out=buf((2, j)))),
+                     (3, j, np.minimum(gravity, 0.0, out=buf((3, j))))]
+        if dyn.efficiency[j] != 1.0:
+            # what M·omega holds beyond the force terms and the rotor: exact by construction
+            screw = np.subtract(mech[:, j], rotary, out=buf((1, j)))
+            screw -= friction
+            screw -= linear
+            if gravity is not None:
+                screw -= gravity
+            rows.append((1, j, screw))
+    for i, (_label, power) in enumerate(effects):
+        power = np.asarray(power)
+        for j in range(k):
+            column = power[:, j]
+            if np.any(column):
+                rows.append((len(FIXED_CAUSES) + i, j, column))
+    if braking == 'dissipated':
+        c = len(FIXED_CAUSES) + len(effects)
+        for j in range(k):
+            burned = np.negative(mech[:, j], out=buf((c, j)))
+            np.maximum(burned, 0.0, out=burned)
+            rows.append((c, j, burned))
+    return rows
+
+
 def cause_powers(dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
                  effects: Sequence[tuple[str, np.ndarray]] = ()) -> np.ndarray:
-    """Power of every cause per axis, ``(c, n, k)`` in :func:`cause_names` order [W].
+    """Power of every cause per axis, ``(c, k, n)`` in :func:`cause_names` order [W].
 
     Parameters
     ----------
@@ -68,39 +135,18 @@ def cause_powers(dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
     Returns
     -------
     numpy.ndarray
-        ``out[c].sum(axis=0)`` over the causes is the drawn power per axis (to rounding).
+        ``out.sum(axis=0)`` over the causes is the drawn power per axis, ``(k, n)`` (to
+        rounding).
 
     Raises
     ------
     ConfigError
         An unknown braking rule.
     """
-    if braking not in BRAKING_MODES:
-        msg = f'braking must be one of {", ".join(BRAKING_MODES)}, got {braking!r}'
-        raise ConfigError(msg, key='braking')
-    v = dyn.velocity_m_s
-    n, k = v.shape
-    out = np.empty((len(FIXED_CAUSES) + len(effects) + 1, n, k))
-    np.multiply(dyn.loss_force_n, v, out=out[0])
-    gravity = dyn.gravity_force_n * v
-    np.maximum(gravity, 0.0, out=out[2])
-    np.minimum(gravity, 0.0, out=out[3])
-    np.multiply(dyn.mass_kg * dyn.acceleration_m_s2, v, out=out[4])
-    np.multiply(dyn.inertia_kg_m2 * dyn.alpha_rad_s2, dyn.omega_rad_s, out=out[5])
-    # the screw's loss is what M·omega holds beyond the force and the rotor: exact by
-    # construction, and 0 (not rounding noise) on axes with eta = 1
-    screw = out[1]
-    screw[...] = 0.0
-    lossy = np.nonzero(dyn.efficiency != 1.0)[0]
-    for j in lossy.tolist():
-        force_v = out[0, :, j] + gravity[:, j] + out[4, :, j]
-        screw[:, j] = mechanical_w[:, j] - out[5, :, j] - force_v
-    for i, (_label, power) in enumerate(effects):
-        out[len(FIXED_CAUSES) + i] = power
-    if braking == 'dissipated':
-        np.maximum(np.negative(mechanical_w), 0.0, out=out[-1])
-    else:
-        out[-1] = 0.0
+    n, k = dyn.velocity_m_s.shape
+    out = np.zeros((len(FIXED_CAUSES) + len(effects) + 1, k, n))
+    for c, j, row in cause_rows(dyn, mechanical_w, braking=braking, effects=effects):
+        out[c, j] = row
     return out
 
 
@@ -160,9 +206,11 @@ class BreakdownAccumulator:
         self.causes: tuple[str, ...] = ()
         self.energy: np.ndarray | None = None       # (c, k)
         self.gross: np.ndarray | None = None        # (c, k): integral of max(power, 0)
+        self._signed = slice(4, 4)                   # causes of both signs (inertia, effects)
         self._t_last = 0.0
         self._last: np.ndarray | None = None         # (c, k): the previous chunk's last row
         self._lines = np.zeros((0, 0))               # (lines, k + c)
+        self._buffers: dict = {}                     # work arrays reused from chunk to chunk
 
     def add(self, dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
             effects: Sequence[tuple[str, np.ndarray]] = ()) -> None:
@@ -171,15 +219,19 @@ class BreakdownAccumulator:
         m = int(t.shape[0])
         if m == 0:
             return
-        power = cause_powers(dyn, mechanical_w, braking=braking, effects=effects)
-        c, _, k = power.shape
+        rows = cause_rows(dyn, mechanical_w, braking=braking, effects=effects,
+                          buffers=self._buffers)
+        k = len(dyn.axes)
+        c = len(FIXED_CAUSES) + len(effects) + 1
         if self.energy is None:
             self.axes = tuple(dyn.axes)
             self.causes = cause_names([label for label, _ in effects])
             self.energy = np.zeros((c, k))
             self.gross = np.zeros((c, k))
+            self._signed = slice(4, c - 1)      # inertia (4, 5), then the effects
+            self._last = None
             self._lines = np.zeros((1024 if self.per_line else 0, k + c))
-        elif power.shape[0] != self.energy.shape[0] or tuple(dyn.axes) != self.axes:
+        elif c != self.energy.shape[0] or tuple(dyn.axes) != self.axes:
             msg = 'BreakdownAccumulator: a chunk with other axes or effects than the first'
             raise ValueError(msg)
         dt = np.diff(t)
@@ -192,39 +244,71 @@ class BreakdownAccumulator:
         if not first:
             w[0] += 0.5 * d0
             self.energy += 0.5 * d0 * self._last
-            self.gross += 0.5 * d0 * np.maximum(self._last, 0.0)
-        self.energy += np.einsum('cnk,n->ck', power, w)
-        self.gross += np.einsum('cnk,n->ck', np.maximum(power, 0.0), w)
+            self.gross[self._signed] += 0.5 * d0 * np.maximum(self._last[self._signed], 0.0)
+        last = np.zeros((c, k))
+        signed = range(4, c - 1)
+        # einsum's own loop, not BLAS: a threaded BLAS burns CPU on a loaded machine
+        for ci, j, row in rows:
+            self.energy[ci, j] += np.einsum('i,i', row, w)
+            if ci in signed:
+                positive = np.maximum(row, 0.0, out=self._work('positive', (1, m))[0])
+                self.gross[ci, j] += np.einsum('i,i', positive, w)
+            last[ci, j] = row[-1]
         if self.per_line:
-            self._add_lines(power, dyn.line, dt, d0, first)
-        self._last = power[:, -1, :].copy()
+            self._add_lines(rows, k, c, dyn.line, dt, d0, first, m)
+        self._last = last
         self._t_last = float(t[-1])
 
-    def _add_lines(self, power: np.ndarray, line: np.ndarray, dt: np.ndarray, d0: float,
-                   first: bool) -> None:
-        c, m, k = power.shape
-        cols = np.empty((m + 1, k + c))               # row 0: the previous chunk's last
-        cols[1:, :k] = power.sum(axis=0)
-        cols[1:, k:] = power.sum(axis=2).T
+    def _add_lines(self, rows: list, k: int, c: int, line: np.ndarray, dt: np.ndarray,
+                   d0: float, first: bool, m: int) -> None:
+        """Add the chunk's energy per line, per axis and per cause (interval -> end line)."""
+        # one column per axis and per cause that has a row in this chunk (column 0 of the
+        # samples: the previous chunk's last)
+        live = sorted({ci for ci, _, _ in rows})
+        where = {ci: k + i for i, ci in enumerate(live)}
+        width = k + len(live)
+        cols = self._work('cols', (width, m + 1))
+        cols[...] = 0.0
+        for ci, j, row in rows:
+            cols[j, 1:] += row
+            cols[where[ci], 1:] += row
         if first:
-            cols, steps, ends = cols[1:], dt, np.asarray(line[1:], dtype=np.int64)
+            cols, steps, ends = cols[:, 1:], dt, np.asarray(line[1:], dtype=np.int64)
         else:
-            cols[0, :k] = self._last.sum(axis=0)
-            cols[0, k:] = self._last.sum(axis=1)
-            steps = np.concatenate(([d0], dt))
+            cols[:k, 0] = self._last.sum(axis=0)
+            cols[k:, 0] = self._last[live].sum(axis=1)
+            steps = np.empty(m)
+            steps[0] = d0
+            steps[1:] = dt
             ends = np.asarray(line, dtype=np.int64)
         if steps.size == 0:
             return
-        de = 0.5 * (cols[1:] + cols[:-1]) * steps[:, None]
+        de = self._work('de', (width, steps.size))
+        np.add(cols[:, 1:], cols[:, :-1], out=de)
+        de *= steps
+        de *= 0.5
         starts = np.concatenate(([0], np.nonzero(ends[1:] != ends[:-1])[0] + 1))
         keys = ends[starts]
-        sums = np.add.reduceat(de, starts, axis=0)
+        sums = np.add.reduceat(de, starts, axis=1)
         top = int(keys.max())
         if top >= self._lines.shape[0]:
             grown = np.zeros((max(2 * self._lines.shape[0], top + 1), k + c))
             grown[:self._lines.shape[0]] = self._lines
             self._lines = grown
-        np.add.at(self._lines, keys, sums)
+        target = list(range(k)) + [k + ci for ci in live]
+        if keys.shape[0] == 1:
+            self._lines[keys[0], target] += sums[:, 0]
+        else:
+            for i, col in enumerate(target):          # a line may have several runs
+                np.add.at(self._lines[:, col], keys, sums[i])
+
+    def _work(self, name: str, shape: tuple[int, int]) -> np.ndarray:
+        """A work array of ``shape`` reused from chunk to chunk (no page faults)."""
+        size = shape[0] * shape[1]
+        b = self._buffers.get(name)
+        if b is None or b.size < size:
+            b = self._buffers[name] = np.empty(size)
+        return b[:size].reshape(shape)
 
     def by_cause(self, *, gross: bool = False) -> dict[str, dict[str, float]]:
         """``{cause: {axis: J, ..., 'total': J}}``; empty before the first chunk.
@@ -232,9 +316,14 @@ class BreakdownAccumulator:
         ``gross``: the energy put in, ``integral max(P, 0) dt`` per axis, instead of the net
         ``integral P dt``; the total is the sum over the axes.
         """
-        values = self.gross if gross else self.energy
+        values = self.energy
         if values is None:
             return {}
+        if gross:
+            # one-signed causes: gross = net (>= 0) or 0 (<= 0, gravity_lower)
+            values = np.maximum(self.energy, 0.0)
+            values[3] = 0.0
+            values[self._signed] = self.gross[self._signed]
         out: dict[str, dict[str, float]] = {}
         for i, cause in enumerate(self.causes):
             row = {a: float(values[i, j]) for j, a in enumerate(self.axes)}

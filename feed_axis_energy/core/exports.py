@@ -191,7 +191,7 @@ class SeriesExporter:
             data[f'{a} energy [J]'] = p.energy_j[keep, j]
         data['total power [W]'] = p.total_w[keep]
         data['total energy [J]'] = p.total_energy_j[keep]
-        summed = causes[:, keep, :].sum(axis=2)
+        summed = causes[:, :, keep].sum(axis=1)
         for i, c in enumerate(names):
             data[f'{c} power [W]'] = summed[i]
         for name, values in data.items():
