@@ -14,6 +14,7 @@ from feed_axis_energy.core.trajectory import PlannerOptions
 from feed_axis_energy.paths import default_machine
 
 __all__ = ['add_machine_options', 'load_machine_and_options', 'print_summary', 'cause_table',
+           'rollup_table',
            'program_text_lines', 'format_table', 'METRIC_HEADER', 'metric_cells',
            'program_keywords']
 
@@ -162,6 +163,12 @@ def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
     if by_cause:
         print()
         print(cause_table(summary, axes))
+    for group, title in (('operation', 'operation'), ('tool', 'tool'),
+                         ('subroutine', 'subroutine')):
+        items = (summary.get('rollups') or {}).get(group) or []
+        if len(items) > 1 or (items and group == 'tool' and items[0]['name'] != 'no tool'):
+            print()
+            print(rollup_table(items, title=title, total=summary['energy_j']['total']))
     if summary.get('top_blocks'):
         print()
         print('blocks with the most energy:')
@@ -172,6 +179,23 @@ def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
                          _main_cause(b), text[:48]])
         print(format_table(['line', 'energy [J]', 'duration [s]', 'main cause', 'block'],
                            rows))
+
+
+def rollup_table(items: list[dict], *, title: str, total: float, rows: int = 10) -> str:
+    """Energy and time per operation/tool/... (``summary['rollups'][group]``), the
+    ``rows`` largest and the rest as one row."""
+    shown = items[:rows]
+    body = [[str(it['name'])[:48], _joules(it['energy_j']),
+             _finite(100.0 * it['energy_j'] / total, '.1f') if total > 0.0 else '-',
+             f'{it["duration_s"]:.2f}'] for it in shown]
+    rest = items[rows:]
+    if rest:
+        e = math.fsum(it['energy_j'] for it in rest)
+        body.append([f'({len(rest)} more)', _joules(e),
+                     _finite(100.0 * e / total, '.1f') if total > 0.0 else '-',
+                     f'{math.fsum(it["duration_s"] for it in rest):.2f}'])
+    return (f'energy per {title}:\n'
+            + format_table([title, 'energy [J]', 'share [%]', 'time [s]'], body))
 
 
 def _main_cause(block: dict) -> str:

@@ -342,7 +342,8 @@ def _run_stream(args, machine, options, progress, *, export) -> tuple[dict, list
     columns = len(limits) + 8 + len(machine.effects)
     kw = dict(file=moves.file, load_kg=args.load_kg, options=options, top_blocks=top,
               duration_s=duration, progress=progress if duration else None, limits=limits,
-              block_breakdown=bool(export) or 8 * columns * n_lines <= BLOCK_BREAKDOWN_BYTES)
+              block_breakdown=bool(export) or 8 * columns * n_lines <= BLOCK_BREAKDOWN_BYTES,
+              rollup=True, context=moves.stream.context)
     if args.out is None:
         on_chunk = export.series.write if export else None
         summary, blocks = simulate_stream(moves, machine, on_chunk=on_chunk, **kw)

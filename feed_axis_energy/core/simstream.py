@@ -412,8 +412,9 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
                     on_chunk: Callable[[SimulationResult], None] | None = None,
                     progress: Callable[[float], None] | None = None,
                     limits: Mapping | None = None, compact: bool = True,
-                    chunk_gaps: bool = False,
-                    block_breakdown: bool = False) -> tuple[dict[str, Any], LineEnergy]:
+                    chunk_gaps: bool = False, block_breakdown: bool = False,
+                    rollup: bool = False,
+                    context: Any = None) -> tuple[dict[str, Any], LineEnergy]:
     """Simulate a program chunk by chunk; return its summary and energy per block.
 
     Equal (``1e-12`` relative) to ``summarize(simulate_program(...))`` and
@@ -458,6 +459,12 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
         Keep the energy of every source line per axis and per cause (``LineEnergy.by_axis_j``,
         ``by_cause_j``, and in the summary's ``top_blocks``): ``8 (k + c)`` bytes per line
         of the program. The totals by cause (``energy_by_cause_j``) are always there.
+    rollup
+        Add the summary's ``rollups`` (energy and time per operation, subroutine, tool and
+        axis; :mod:`.rollup`).
+    context
+        The operation context of ``moves`` (``MoveStream.context`` of
+        :func:`.gcode.iter_moves`); ``None``: no operations or tools.
 
     Returns
     -------
@@ -468,14 +475,21 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
     if options is None:
         options = machine.planner.options()
     compact_min = COMPACT_MIN_SAMPLES if compact and compactable(machine) else 0
+    rate = options.rate_hz
+    acc = SummaryAccumulator(rate_hz=rate, block_breakdown=block_breakdown)
+    rolls = None
+    if rollup:
+        from .rollup import RollupAccumulator
+        rolls = RollupAccumulator(context)
+        moves = rolls.wrap(moves)
     motions = iter_motion(moves, machine.limits() if limits is None else limits,
                           options=options, file=file, chunk_samples=chunk_samples,
                           total_moves=total_moves, duration_s=duration_s,
                           progress=progress, compact_min_samples=compact_min)
-    rate = options.rate_hz
-    acc = SummaryAccumulator(rate_hz=rate, block_breakdown=block_breakdown)
     for chunk in iter_simulation(motions, machine, load_kg=load_kg, program=file):
         acc.add(chunk)
+        if rolls is not None:
+            rolls.add(chunk)
         if on_chunk is None:
             continue
         if chunk_gaps:
@@ -485,4 +499,6 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
                 on_chunk(piece)
     summary = acc.summary(program=file, machine=machine, load_kg=load_kg,
                           top_blocks=top_blocks)
+    if rolls is not None:
+        summary['rollups'] = rolls.rollups(summary['energy_j'])
     return summary, acc.block_energy()
