@@ -102,3 +102,32 @@ def test_chunking_does_not_change_the_rollups(tmp_path):
         for r in items:
             assert got[r['name']]['energy_j'] == pytest.approx(r['energy_j'], rel=1e-9)
             assert got[r['name']]['duration_s'] == pytest.approx(r['duration_s'], rel=1e-9)
+
+
+def _shared():
+    import os
+    for cand in (os.environ.get('FAE_SHARED'), REPO.parent / 'shared', '/work/shared'):
+        if cand and (Path(cand) / 'corpus' / 'gcode').is_dir():
+            return Path(cand) / 'corpus' / 'gcode'
+    return None
+
+
+@pytest.mark.parametrize('name,operations,tools', [
+    # CamBam: section comments after a tool list in the header
+    ('jbeuckm__thrust_bucket/cambam__load_cell_spacer.nc', {'holes', 'cutout'}, {3}),
+    # a CAMotics script: section comments and three tool changes
+    ('CauldronDevelopmentLLC__CAMotics/examples__botomata_bottom__botomata_bottom.nc',
+     {'Pockets', 'Profiles', 'Cutout', 'Cleanup'}, {1, 2, 3}),
+    # jscut: "; Operation: 0", then step notes ("; plunge") that name nothing
+    ('cncjs__cncjs/examples__gcode__jsdc.gcode', {'operation 0'}, set()),
+])
+def test_corpus_operations(name, operations, tools):
+    corpus = _shared()
+    if corpus is None:
+        pytest.skip('shared corpus not found (set FAE_SHARED)')
+    stream = iter_moves(corpus / name, ignore_axes=('A', 'B', 'C'))
+    n = sum(1 for _ in stream)
+    used = {stream.context.table[i] for _, i in stream.context.marks} | {
+        stream.context.table[stream.context.index_at(n - 1)]}
+    assert {op for op, _, _ in used} - {''} == operations
+    assert {tool for _, _, tool in used} - {0} == tools

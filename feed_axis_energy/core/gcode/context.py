@@ -16,7 +16,8 @@ What is recognised (``docs/breakdown.md``, "Roll-ups"):
 
   - ``(begin operation: NAME)`` (FreeCAD's posts), ``(Toolpath: NAME)``, ``; Operation: N``
     (jscut: "operation N") name NAME;
-  - any other short comment line (at most 60 characters) without a ``key: value`` colon
+  - until the program uses one of those forms, any other short comment line (at most
+    60 characters) without a ``key: value`` colon
     or ``=``, as Fusion 360 (``(2D ADAPTIVE1)``), CamBam (``( holes )``) and CAMotics
     scripts write their operation names, is an operation name;
   - not names: LinuxCNC's active comments (``MSG``, ``DEBUG``, ``PRINT``, ``LOG*``,
@@ -41,13 +42,16 @@ _NOT_NAMES = re.compile(
 _COMMENTS = re.compile(r'\(([^()]*)\)|;(.*)$')
 
 
-def operation_name(line: str) -> str | None:
+def operation_name(line: str, *, explicit_only: bool = False) -> str | None:
     """The operation a comment-only source line names, or ``None`` (see the module doc).
 
     Parameters
     ----------
     line
         A raw source line whose code part is empty (only comments and blanks).
+    explicit_only
+        Only the explicit forms (``begin operation:``, ``Toolpath:``, ``Operation: N``),
+        not a plain section comment.
 
     Returns
     -------
@@ -65,7 +69,9 @@ def operation_name(line: str) -> str | None:
     m = _JSCUT.match(text)
     if m:
         return f'operation {m.group("n")}'
-    if len(text) > _MAX_NAME or ':' in text or '=' in text or _NOT_NAMES.match(text):
+    if explicit_only or len(text) > _MAX_NAME or ':' in text or '=' in text:
+        return None
+    if _NOT_NAMES.match(text):
         return None
     return text
 
@@ -99,6 +105,7 @@ class OperationContext:
         self.operation = NO_OPERATION
         self.subroutine = ''
         self.tool = 0
+        self.explicit = False                 # an explicit operation form was seen
 
     def _change(self, ordinal: int) -> None:
         key = (self.operation, self.subroutine, self.tool)
@@ -114,9 +121,17 @@ class OperationContext:
             self.marks.append((ordinal, index))
 
     def comment(self, line: str, ordinal: int) -> None:
-        """A comment-only source line before move ``ordinal``."""
-        name = operation_name(line)
-        if name is not None and name != self.operation:
+        """A comment-only source line before move ``ordinal``.
+
+        Once a program has named an operation in an explicit form, its plain comment lines
+        are notes within operations (jscut's ``; plunge``), not names.
+        """
+        name = operation_name(line, explicit_only=self.explicit)
+        if name is None:
+            return
+        if not self.explicit and operation_name(line, explicit_only=True) is not None:
+            self.explicit = True
+        if name != self.operation:
             self.operation = name
             self._change(ordinal)
 
