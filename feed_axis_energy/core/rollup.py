@@ -116,7 +116,8 @@ class RollupAccumulator:
         if dt.size == 0:
             return
         for j in range(len(self.axes)):
-            self.axis_time[j] += float(np.dot(moving[:, j], dt)) if moving.shape[0] else 0.0
+            # einsum on a float copy: numpy's dot of bool with float takes a slow path
+            self.axis_time[j] += float(np.einsum('i,i', moving[:, j].astype(float), dt))
         starts = np.concatenate(([0], np.nonzero(ends[1:] != ends[:-1])[0] + 1))
         keys = ends[starts]
         if self._last_change <= self._popped:
