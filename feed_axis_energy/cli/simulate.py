@@ -357,7 +357,10 @@ def _run_stream(args, machine, options, progress, *, export) -> tuple[dict, list
                                               on_chunk=_both(writer, export, options.rate_hz),
                                               chunk_gaps=True, **kw)
             writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
-    if export:
+            if export:
+                # inside the staged bag: a failure here leaves no bag either
+                export.write_blocks(blocks)
+    if export and args.out is None:
         export.write_blocks(blocks)
     progress.done()
     if warnings is None:

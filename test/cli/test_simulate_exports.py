@@ -144,3 +144,12 @@ def test_json_top_blocks_have_their_text(tmp_path, capsys):
     assert main(['simulate', str(prog), '--machine', str(MILL), '--json', '--quiet']) == 0
     top = json.loads(capsys.readouterr().out)['top_blocks']
     assert top[0]['line'] == 2 and top[0]['text'] == long[:60] + '...'
+
+
+def test_with_a_recording_the_export_still_has_every_sample(tmp_path, capsys):
+    # the bag writer takes compact dwells; the export gets them at the full rate
+    code, summary, _ = _simulate(tmp_path, capsys, '--csv', str(tmp_path / 'c'),
+                                 '--out', str(tmp_path / 'bag'))
+    assert code == 0 and (tmp_path / 'bag' / 'metadata.yaml').is_file()
+    _, rows = _read_csv(tmp_path / 'c' / 'timeseries.csv')
+    assert len(rows) == summary['samples']
