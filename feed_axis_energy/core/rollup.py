@@ -90,45 +90,43 @@ class RollupAccumulator:
     def add(self, chunk: Any) -> None:
         """Take one :class:`.simulate.SimulationResult` chunk (in time order)."""
         p = chunk.power
-        t, total, line = p.t, p.total_w, p.line
+        t, line = p.t, p.line
         m = int(t.shape[0])
         if m == 0:
             return
         vel = chunk.dynamics.velocity_m_s
-        if self._prev is None:
+        first = self._prev is None
+        if first:
             self.axes = tuple(p.axes)
             self.axis_time = np.zeros(len(self.axes))
-            dt = np.diff(t)
-            de = 0.5 * (total[1:] + total[:-1]) * dt
-            ends = np.asarray(line[1:], dtype=np.int64)
-            moving = (vel[1:] != 0.0) | (vel[:-1] != 0.0)
+            t0, e0, v0 = float(t[0]), float(p.total_energy_j[0]), vel[0]
         else:
-            t0, p0, v0 = self._prev
-            dt = np.diff(t, prepend=t0)
-            de = np.empty(m)
-            de[0] = 0.5 * (total[0] + p0) * dt[0]
-            de[1:] = 0.5 * (total[1:] + total[:-1]) * dt[1:]
-            ends = np.asarray(line, dtype=np.int64)
-            moving = np.empty(vel.shape, dtype=bool)
-            moving[0] = (vel[0] != 0.0) | (v0 != 0.0)
-            moving[1:] = (vel[1:] != 0.0) | (vel[:-1] != 0.0)
-        self._prev = (float(t[-1]), float(total[-1]), vel[-1].copy())
-        if dt.size == 0:
+            t0, e0, v0 = self._prev
+        self._prev = (float(t[-1]), float(p.total_energy_j[-1]), vel[-1].copy())
+        if m == 1 and first:
             return
-        for j in range(len(self.axes)):
-            # einsum on a float copy: numpy's dot of bool with float takes a slow path
-            self.axis_time[j] += float(np.einsum('i,i', moving[:, j].astype(float), dt))
+        self._axis_time(t, vel, t0, v0, first)
+        ends = np.asarray(line[1:] if first else line, dtype=np.int64)
         starts = np.concatenate(([0], np.nonzero(ends[1:] != ends[:-1])[0] + 1))
         keys = ends[starts]
         if self._last_change <= self._popped:
-            # every note ahead has the current context: the whole chunk is one context
+            # every note ahead has the current context: the whole chunk is one context,
+            # and its energy and time are the increments of the cumulative series
             if self._pending:
                 self._ctx = self._pending[0][1]
             self._advance_to(int(keys[-1]))
             self._grow(self._ctx + 1)
-            self.energy[self._ctx] += float(de.sum())
-            self.duration[self._ctx] += float(dt.sum())
+            self.energy[self._ctx] += float(p.total_energy_j[-1]) - e0
+            self.duration[self._ctx] += float(t[-1]) - t0
             return
+        total = p.total_w
+        dt = np.diff(t) if first else np.diff(t, prepend=t0)
+        if first:
+            de = 0.5 * (total[1:] + total[:-1]) * dt
+        else:
+            de = np.empty(m)
+            de[0] = float(p.total_energy_j[0]) - e0      # the interval between the chunks
+            de[1:] = 0.5 * (total[1:] + total[:-1]) * dt[1:]
         ctxs = np.empty(keys.shape[0], dtype=np.int64)
         for i, key in enumerate(keys.tolist()):
             self._advance_to(key)
@@ -138,6 +136,21 @@ class RollupAccumulator:
         self._grow(int(ctxs.max()) + 1)
         np.add.at(self.energy, ctxs, e)
         np.add.at(self.duration, ctxs, d)
+
+    def _axis_time(self, t: np.ndarray, vel: np.ndarray, t0: float, v0: np.ndarray,
+                   first: bool) -> None:
+        """Add the time each axis moves: the intervals with a non-zero speed at either end
+        (the chunk's span minus its few standing intervals)."""
+        span = float(t[-1]) - t0
+        moving = vel != 0.0
+        for j in range(len(self.axes)):
+            mj = moving[:, j]
+            stand = ~(mj[1:] | mj[:-1])
+            idx = np.flatnonzero(stand)
+            still = float(np.sum(t[idx + 1] - t[idx])) if idx.size else 0.0
+            if not first and not (mj[0] or v0[j] != 0.0):
+                still += float(t[0]) - t0
+            self.axis_time[j] += span - still
 
     # -- results ----------------------------------------------------------------------------
     def rollups(self, energy_j: dict[str, float]) -> dict[str, list[dict[str, Any]]]:
