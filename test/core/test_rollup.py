@@ -131,3 +131,16 @@ def test_corpus_operations(name, operations, tools):
         stream.context.table[stream.context.index_at(n - 1)]}
     assert {op for op, _, _ in used} - {''} == operations
     assert {tool for _, _, tool in used} - {0} == tools
+
+
+def test_axis_time_is_the_time_the_axis_moves(tmp_path):
+    machine = load_machine(REPO / 'config' / 'three_axis_mill.yaml')
+    path = tmp_path / 'x.ngc'
+    path.write_text('G21 G90 G94 G61\nG1 X100 F3000\nG4 P0.5\nG1 X0\nM30\n')
+    stream = iter_moves(path, home=machine.home_point())
+    s, _ = simulate_stream(stream, machine, file=stream.file, rollup=True,
+                           context=stream.context, chunk_samples=300)
+    axis = {r['name']: r['duration_s'] for r in s['rollups']['axis']}
+    # everything but the 0.5 s dwell (one sample interval at each end of it)
+    assert axis['X'] == pytest.approx(s['duration_s'] - 0.5, abs=2.5e-3)
+    assert axis['Y'] == 0.0 and axis['Z'] == 0.0
