@@ -13,7 +13,8 @@ from feed_axis_energy.core.machine_gcode import DIALECTS, parse_tool_option, wit
 from feed_axis_energy.core.trajectory import PlannerOptions
 from feed_axis_energy.paths import default_machine
 
-__all__ = ['add_machine_options', 'load_machine_and_options', 'print_summary',
+__all__ = ['add_machine_options', 'load_machine_and_options', 'print_summary', 'cause_table',
+           'rollup_table',
            'program_text_lines', 'format_table', 'METRIC_HEADER', 'metric_cells',
            'program_keywords']
 
@@ -154,15 +155,86 @@ def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
             for axis in axes + ['total']]
     print(format_table(['axis', 'energy [J]', 'peak power [W]'], rows))
     fate = ('returned to the supply' if summary['braking'] == 'regenerative'
-            else 'burned in the brake resistor, not counted above')
+            else 'burned in the brake resistor: drawn before to accelerate or lift, '
+            'braking_burned below')
     print(f'passive-resistance (loss) energy {summary["loss_energy_j"]:.2f} J; '
           f'braking energy {summary["regenerated_energy_j"]:.2f} J ({fate})')
+    by_cause = summary.get('energy_by_cause_j') or {}
+    if by_cause:
+        print()
+        print(cause_table(summary, axes))
+    for group, title in (('operation', 'operation'), ('tool', 'tool'),
+                         ('subroutine', 'subroutine')):
+        items = (summary.get('rollups') or {}).get(group) or []
+        if len(items) > 1 or (items and group == 'tool' and items[0]['name'] != 'no tool'):
+            print()
+            print(rollup_table(items, title=title, total=summary['energy_j']['total']))
     if summary.get('top_blocks'):
         print()
         print('blocks with the most energy:')
         rows = []
         for b in summary['top_blocks']:
-            text = source_lines.get(b['line'], '').strip()
+            text = b.get('text', source_lines.get(b['line'], '')).strip()
             rows.append([str(b['line']), f'{b["energy_j"]:.2f}', f'{b["duration_s"]:.3f}',
-                         text[:48]])
-        print(format_table(['line', 'energy [J]', 'duration [s]', 'block'], rows))
+                         _main_cause(b), text[:48]])
+        print(format_table(['line', 'energy [J]', 'duration [s]', 'main cause', 'block'],
+                           rows))
+
+
+def rollup_table(items: list[dict], *, title: str, total: float, rows: int = 10) -> str:
+    """Energy and time per operation/tool/... (``summary['rollups'][group]``), the
+    ``rows`` largest and the rest as one row."""
+    shown = items[:rows]
+    body = [[str(it['name'])[:48], _joules(it['energy_j']),
+             _finite(100.0 * it['energy_j'] / total, '.1f') if total > 0.0 else '-',
+             f'{it["duration_s"]:.2f}'] for it in shown]
+    rest = items[rows:]
+    if rest:
+        e = math.fsum(it['energy_j'] for it in rest)
+        body.append([f'({len(rest)} more)', _joules(e),
+                     _finite(100.0 * e / total, '.1f') if total > 0.0 else '-',
+                     f'{math.fsum(it["duration_s"] for it in rest):.2f}'])
+    return (f'energy per {title}:\n'
+            + format_table([title, 'energy [J]', 'share [%]', 'time [s]'], body))
+
+
+def _main_cause(block: dict) -> str:
+    """The cause with the most energy in a top block, with its share ('-' if not known)."""
+    causes = block.get('energy_by_cause_j')
+    if not causes:
+        return '-'
+    name, value = max(causes.items(), key=lambda item: item[1])
+    energy = block['energy_j']
+    share = f' {100.0 * value / energy:.0f} %' if energy > 0.0 else ''
+    return f'{name}{share}'
+
+
+def cause_table(summary: dict, axes: list[str]) -> str:
+    """The breakdown by cause (``docs/breakdown.md``) as a text table with a sum row."""
+    by_cause = summary['energy_by_cause_j']
+    gross = summary.get('gross_by_cause_j') or {}
+    total = summary['energy_j']['total']
+    rows = []
+    for cause, values in by_cause.items():
+        put_in = gross.get(cause, {}).get('total', math.nan)
+        share = 100.0 * values['total'] / total if total > 0.0 else math.nan
+        rows.append([cause] + [_joules(values[a]) for a in axes]
+                    + [_joules(values['total']), _unsigned_zero(_finite(share, '.1f')),
+                       _finite(put_in, '.2f')])
+    rows.append(['sum'] + [_joules(math.fsum(v[a] for v in by_cause.values())) for a in axes]
+                + [_joules(math.fsum(v['total'] for v in by_cause.values())), '', ''])
+    header = (['cause'] + [f'{a} [J]' for a in axes]
+              + ['total [J]', 'share [%]', 'put in [J]'])
+    table = '\n'.join(line.rstrip() for line in format_table(header, rows).splitlines())
+    return ('energy by cause (net; "put in": the positive power only; docs/breakdown.md):\n'
+            + table)
+
+
+def _joules(value: float) -> str:
+    """``value`` with 2 decimals, without the sign of a value that rounds to zero."""
+    return _unsigned_zero(_finite(value, '.2f'))
+
+
+def _unsigned_zero(text: str) -> str:
+    """``'-0.00'`` -> ``'0.00'`` (a tiny negative value rounded to zero)."""
+    return text[1:] if text.startswith('-') and not text.strip('-0.') else text

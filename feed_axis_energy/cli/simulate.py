@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from feed_axis_energy.cli.common import add_machine_options
-from feed_axis_energy.core.errors import ConfigError
+from feed_axis_energy.core.errors import ConfigError, shorten
 
 __all__ = ['add_parser', 'run', 'bag_bytes_per_sample']
 
@@ -20,6 +20,10 @@ __all__ = ['add_parser', 'run', 'bag_bytes_per_sample']
 _BAG_BYTES_AXIS = 105
 _BAG_BYTES_BASE = 125
 _DISK_RESERVE = 1.1      # refuse when the estimate exceeds 1 / 1.1 of the free space
+BLOCK_TEXT_CHARS = 60    # block text shown in top_blocks (cut with '...')
+# the per-block breakdown costs 8 (axes + causes) bytes per program line; kept when the
+# program's lines need at most this much, or when an export needs the per-block table
+BLOCK_BREAKDOWN_BYTES = 16 << 20
 
 
 def bag_bytes_per_sample(n_axes: int) -> int:
@@ -50,11 +54,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'and bounding box; must not exist unless --force')
     p.add_argument('--force', action='store_true',
                    help='replace an existing --out bag directory (only a rosbag2 directory, '
-                        'never a symbolic link) or --report directory (only an earlier '
-                        'report or an empty directory) once the new one is complete')
+                        'never a symbolic link), --report directory (only an earlier '
+                        'report or an empty directory) or --csv/--parquet directory (one this '
+                        'command wrote, or empty) once the new one is complete')
     p.add_argument('--compression', choices=('none', 'zstd'), default='zstd',
                    help='MCAP chunk compression of the --out recording (default zstd at the '
                         'fast level -1: about 5x smaller for 1.2-1.5x the writer\'s CPU time)')
+    p.add_argument('--csv', type=Path, metavar='DIR',
+                   help='write timeseries.csv (time series) and blocks.csv (per block: line, '
+                        'text, duration, energy per axis and per cause) into DIR; must not '
+                        'exist unless --force; built in a hidden temporary and renamed into '
+                        'place when complete')
+    p.add_argument('--parquet', type=Path, metavar='DIR',
+                   help='the same tables as --csv as Parquet files (needs pyarrow)')
+    rate = p.add_mutually_exclusive_group()
+    rate.add_argument('--decimate', type=_positive_int, default=None, metavar='N',
+                      help='exported time series: every N-th sample (default 1: all)')
+    rate.add_argument('--export-rate-hz', type=_positive_float, default=None, metavar='HZ',
+                      help='exported time series: about HZ samples per second (every '
+                           'round(rate/HZ)-th sample)')
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the table (keys in README)')
     p.add_argument('--top', type=int, default=5, metavar='N',
@@ -64,6 +82,34 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'the count is known from the plan before any sample is computed')
     p.add_argument('--quiet', action='store_true', help='no progress indication')
     p.set_defaults(run=run)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {shorten(text)!r}')
+    return value
+
+
+def _positive_float(text: str) -> float:
+    import math
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f'expected a number > 0, got {shorten(text)!r}')
+    return value
+
+
+def _usage_error(text: str) -> SystemExit:
+    """Print a usage error as argparse does; the caller raises the result (exit 2)."""
+    print(f'usage: feed-axis-energy simulate ... (see --help)\n'
+          f'feed-axis-energy simulate: error: {text}', file=sys.stderr)
+    return SystemExit(2)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -86,6 +132,7 @@ def run(args: argparse.Namespace) -> int:
         from feed_axis_energy.report import MARKER
         check_target(args.report, option='--report', force=args.force, kind='directory',
                      replaceable=marked_or_empty(MARKER))
+    exports = _export_targets(args, options.rate_hz)
     if args.max_samples < 0:
         msg = f'--max-samples must be >= 0, got {args.max_samples}'
         raise ConfigError(msg, file='command line', key='max-samples')
@@ -94,31 +141,41 @@ def run(args: argparse.Namespace) -> int:
     warnings: list[str] = []
     trace = _trace(args)
     new_bag = args.out is not None and not os.path.lexists(args.out)
-    # the bag and the report or neither: a new bag is removed if the report fails (one that
-    # replaced an earlier bag with --force cannot be brought back)
-    with Rollback() as written:
+    # the bag, the exports and the report or none of them: a new bag is removed if an export
+    # or the report fails (one that replaced an earlier bag with --force cannot be brought
+    # back); the exports are staged and only renamed into place at the end
+    with Rollback() as written, _Exports(args, exports) as export:
         if trajectory or not streamable(machine):
             summary, blocks = _run_whole(args, machine, options, progress,
-                                         trajectory=trajectory, warnings=warnings, trace=trace)
+                                         trajectory=trajectory, warnings=warnings, trace=trace,
+                                         export=export)
         else:
             summary, warnings, blocks = _run_stream(args, machine, options, progress,
-                                                    trace=trace)
+                                                    trace=trace, export=export)
         if new_bag:
             written.add(args.out)
         summary['warnings'] = warnings
         if args.out is not None:
             summary['bag'] = str(args.out)
+        for fmt, path in exports.items():
+            summary[fmt] = str(path)
+        lines = [b['line'] for b in summary['top_blocks']]
+        texts = {} if trajectory else program_text_lines(args.program, lines)
+        for block in summary['top_blocks']:
+            block['text'] = shorten(texts.get(block['line'], '').strip(),
+                                    limit=BLOCK_TEXT_CHARS)
         if args.report is not None:
             summary['report'] = str(args.report / 'index.html')
             _write_report(args, summary, trace, blocks, trajectory=trajectory)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
-        lines = [b['line'] for b in summary['top_blocks']]
-        print_summary(summary, source_lines=program_text_lines(args.program, lines))
+        print_summary(summary, source_lines=texts)
         if args.out is not None:
             print(f'recording: {args.out} (topics /setpoints, /axis_state, /power, '
                   '/block_energy; units in README)')
+        for fmt, path in exports.items():
+            print(f'{fmt}: {path} (timeseries.{fmt}, blocks.{fmt}; columns in README)')
     return 0
 
 
@@ -142,6 +199,81 @@ def _write_report(args: argparse.Namespace, summary: dict, trace, blocks, *,
     if not args.quiet:
         print('simulate: writing the report', file=sys.stderr)
     write_sim_report(summary, trace, blocks, args.report, block_text=text, force=args.force)
+
+
+def _export_targets(args: argparse.Namespace, rate_hz: float) -> dict:
+    """``{'csv': DIR, 'parquet': DIR}`` of the requested exports, checked before any work
+    (and the decimation from ``--decimate`` / ``--export-rate-hz`` in ``args.decimate``)."""
+    from feed_axis_energy.core.exports import EXPORT_MARKER
+    from feed_axis_energy.core.outputs import check_target, marked_or_empty
+    exports = {fmt: getattr(args, fmt) for fmt in ('csv', 'parquet')
+               if getattr(args, fmt) is not None}
+    if (args.decimate or args.export_rate_hz) and not exports:
+        raise _usage_error('--decimate and --export-rate-hz apply to --csv or --parquet, '
+                           'neither given')
+    if len({Path(p).resolve() for p in exports.values()}) < len(exports):
+        raise _usage_error('--csv and --parquet name the same directory')
+    if args.export_rate_hz is not None:
+        hz = args.export_rate_hz
+        if hz > rate_hz:
+            msg = (f'--export-rate-hz {hz:g} Hz is above the sample rate {rate_hz:g} Hz; '
+                   'give at most the sample rate')
+            raise ConfigError(msg, file='command line', key='export-rate-hz')
+        args.decimate = max(1, round(rate_hz / hz))
+    if 'parquet' in exports:
+        from feed_axis_energy.core.exports import require_pyarrow
+        require_pyarrow('--parquet')        # before any work: a clear error if missing
+    for fmt, path in exports.items():
+        check_target(path, option=f'--{fmt}', force=args.force, kind='directory',
+                     replaceable=marked_or_empty(EXPORT_MARKER))
+    return exports
+
+
+class _Exports:
+    """The ``--csv``/``--parquet`` directories, staged (hidden temporaries renamed into
+    place when the command succeeds, removed when it fails), and their time series."""
+
+    def __init__(self, args: argparse.Namespace, targets: dict) -> None:
+        self.args = args
+        self.targets = targets
+        self.series = None
+        self.dirs: dict = {}
+        self._stack = None
+
+    def __bool__(self) -> bool:
+        return bool(self.targets)
+
+    def __enter__(self) -> '_Exports':
+        import contextlib
+        from feed_axis_energy.core.exports import EXPORT_MARKER, SeriesExporter
+        from feed_axis_energy.core.outputs import marked_or_empty, staged_directory
+        self._stack = contextlib.ExitStack()
+        try:
+            for fmt, path in self.targets.items():
+                inner = self._stack.enter_context(staged_directory(
+                    path, option=f'--{fmt}', force=self.args.force,
+                    replaceable=marked_or_empty(EXPORT_MARKER)))
+                inner.mkdir()
+                (inner / EXPORT_MARKER).write_text('feed-axis-energy simulate export\n',
+                                                   encoding='utf-8')
+                self.dirs[fmt] = inner
+            if self.dirs:
+                self.series = SeriesExporter(self.dirs, decimate=self.args.decimate or 1)
+        except BaseException:
+            self._stack.__exit__(*sys.exc_info())
+            raise
+        return self
+
+    def write_blocks(self, blocks) -> None:
+        """The per-block tables (needs the per-block breakdown)."""
+        from feed_axis_energy.core.exports import write_blocks
+        if self.dirs:
+            write_blocks(self.dirs, blocks, program=self.args.program)
+
+    def __exit__(self, exc_type, exc, tb):
+        if self.series is not None:
+            self.series.close()
+        return self._stack.__exit__(exc_type, exc, tb)
 
 
 def _check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: float,
@@ -230,7 +362,8 @@ def _count_lines(path: Path) -> int:
     return n + 1
 
 
-def _run_stream(args, machine, options, progress, *, trace=None):
+def _run_stream(args, machine, options, progress, *, trace=None,
+                export=None) -> tuple[dict, list[str], object]:
     """Parse, plan, simulate and record chunk by chunk: memory holds one batch of moves and
     one chunk of samples, never the program. With ``--out`` or ``--max-samples`` a first
     pass over the moves (parsing and planning without samples) gives the cost and the
@@ -253,31 +386,64 @@ def _run_stream(args, machine, options, progress, *, trace=None):
         moves = _Moves(args, machine, check=True, progress=progress,
                        n_lines=_count_lines(args.program))
     top = args.top
+    n_lines = moves.n_lines or _count_lines(args.program)
+    columns = len(limits) + 8 + len(machine.effects)
     kw = dict(file=moves.file, load_kg=args.load_kg, options=options, top_blocks=top,
-              duration_s=duration, progress=progress if duration else None, limits=limits)
+              duration_s=duration, progress=progress if duration else None, limits=limits,
+              block_breakdown=bool(export) or 8 * columns * n_lines <= BLOCK_BREAKDOWN_BYTES,
+              rollup=True, context=moves.stream.context)
     if args.out is None:
-        # the report's trace takes the chunks as computed, dwells left out (their power is
-        # constant, so a plot is the same)
-        summary, blocks = simulate_stream(moves, machine, chunk_gaps=True,
-                                          on_chunk=None if trace is None else trace.add, **kw)
+        # chunk_gaps: the report's trace takes the chunks as computed (dwells left out: their
+        # power is constant, so a plot is the same); the exports get them at full rate
+        summary, blocks = simulate_stream(
+            moves, machine, chunk_gaps=True,
+            on_chunk=_consumers(None, trace, export, options.rate_hz), **kw)
     else:
         from feed_axis_energy.core.recording import SimulationBagWriter
         with _staged_out(args) as staged, \
                 SimulationBagWriter(staged, compression=args.compression,
                                     rate_hz=options.rate_hz) as writer:
             # chunk_gaps: the writer takes the left-out dwell samples as they are (recthin)
-            def on_chunk(chunk) -> None:
-                writer.write(chunk)
-                if trace is not None:
-                    trace.add(chunk)
-
-            summary, blocks = simulate_stream(moves, machine, on_chunk=on_chunk,
+            summary, blocks = simulate_stream(moves, machine,
+                                              on_chunk=_consumers(writer, trace, export,
+                                                                  options.rate_hz),
                                               chunk_gaps=True, **kw)
             writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
+            if export:
+                # inside the staged bag: a failure here leaves no bag either
+                export.write_blocks(blocks)
+    if export and args.out is None:
+        export.write_blocks(blocks)
     progress.done()
     if warnings is None:
         warnings = moves.warnings(args)
     return summary, warnings, blocks
+
+
+def _consumers(writer, trace, export, rate: float):
+    """``on_chunk`` for the bag writer and the report's trace (compact dwells, as computed)
+    and the exports (full rate); ``None`` when nothing takes the chunks."""
+    takers = []
+    if writer is not None:
+        takers.append(writer.write)
+    if trace is not None:
+        takers.append(trace.add)
+    if export:
+        from feed_axis_energy.core.simstream import expand_gaps
+
+        def to_export(chunk) -> None:
+            for piece in expand_gaps(chunk, rate_hz=rate):
+                export.series.write(piece)
+        takers.append(to_export)
+    if not takers:
+        return None
+    if len(takers) == 1:
+        return takers[0]
+
+    def take(chunk) -> None:
+        for taker in takers:
+            taker(chunk)
+    return take
 
 
 def _warn(args, program, machine) -> list[str]:
@@ -290,7 +456,7 @@ def _warn(args, program, machine) -> list[str]:
 
 
 def _run_whole(args, machine, options, progress, *, trajectory: bool,
-               warnings: list[str], trace=None) -> tuple[dict, list]:
+               warnings: list[str], trace=None, export=None) -> tuple[dict, list]:
     """Whole-record path: trajectory CSVs and declared effects that need the whole record."""
     from feed_axis_energy.cli.common import program_keywords
     from feed_axis_energy.cli.progress import Progress
@@ -310,6 +476,10 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool,
     progress.done()
     # A trajectory has no source lines to attribute energy to.
     summary = summarize(result, top_blocks=0 if trajectory else args.top)
+    if export:
+        from feed_axis_energy.core.simulate import line_table
+        export.series.write(result)
+        export.write_blocks(line_table(result))
     if args.out is not None:
         with _staged_out(args) as staged:
             write_simulation_bag(staged, result, summary=summary,

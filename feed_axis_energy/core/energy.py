@@ -50,6 +50,9 @@ class PowerResult:
         Source line of every sample, ``(n,)``.
     braking
         The braking rule applied.
+    effect_power_w
+        ``(label, power (n, k))`` of every declared effect (included in ``power_w``), in
+        declaration order; labels as :func:`.simulate.declared_effects_parts`.
     """
 
     t: np.ndarray
@@ -62,6 +65,7 @@ class PowerResult:
     loss_power_w: np.ndarray
     line: np.ndarray
     braking: str = 'regenerative'
+    effect_power_w: tuple[tuple[str, np.ndarray], ...] = ()
 
     @property
     def regenerated_energy_j(self) -> float:

@@ -10,13 +10,14 @@ trapezoid rule with the same power at both ends, which is the sum over its sampl
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import replace
 import math
 from typing import Any
 
 import numpy as np
 
+from .breakdown import add_breakdown, BreakdownAccumulator, LineEnergy
 from .dynamics import compute_dynamics
 from .energy import apply_braking, EnergyIntegrator, power_with_total, PowerResult
 from .errors import ConfigError
@@ -24,7 +25,7 @@ from .machine import Machine
 from .motion import Motion
 from .planstream import DEFAULT_CHUNK_SAMPLES, iter_motion
 from .program import Move
-from .simulate import declared_effects_power_w, SimulationResult
+from .simulate import declared_effects_parts, SimulationResult, sum_effect_parts
 from .standstill import grid_interval_counts
 from .trajectory import PlannerOptions
 
@@ -102,7 +103,8 @@ def iter_simulation(motions: Iterable[Motion], machine: Machine, *, load_kg: flo
                            energy_j=drawn, total_energy_j=drawn[:, 0],
                            mechanical_w=mechanical, loss_power_w=loss_power,
                            line=dyn.line, braking=machine.braking)
-        extra = declared_effects_power_w(dyn, base, machine)
+        parts = declared_effects_parts(dyn, base, machine)
+        extra = sum_effect_parts(parts)
         if extra is not None:
             drawn = drawn + extra
         total = _row_sum(drawn)
@@ -110,38 +112,11 @@ def iter_simulation(motions: Iterable[Motion], machine: Machine, *, load_kg: flo
         power = PowerResult(t=dyn.t, axes=dyn.axes, power_w=drawn, total_w=total,
                             energy_j=energy[:, :k], total_energy_j=energy[:, k],
                             mechanical_w=mechanical, loss_power_w=loss_power,
-                            line=dyn.line, braking=machine.braking)
+                            line=dyn.line, braking=machine.braking,
+                            effect_power_w=tuple(parts))
         yield SimulationResult(program=program or motion.source, machine=machine,
                                load_kg=float(load_kg), motion=motion, dynamics=dyn,
                                power=power)
-
-
-class LineEnergy(Sequence):
-    """Energy and time per source line as arrays, read as ``(line, energy_j, duration_s)``.
-
-    A sequence of tuples like :func:`.energy.energy_by_line` returns, without a Python
-    tuple per line (a 24-hour contour has millions of lines).
-    """
-
-    def __init__(self, lines: np.ndarray, energy_j: np.ndarray, duration_s: np.ndarray) -> None:
-        self.lines = lines
-        self.energy_j = energy_j
-        self.duration_s = duration_s
-
-    def __len__(self) -> int:
-        return int(self.lines.shape[0])
-
-    def __getitem__(self, i):
-        if isinstance(i, slice):
-            return [self[j] for j in range(*i.indices(len(self)))]
-        return (int(self.lines[i]), float(self.energy_j[i]), float(self.duration_s[i]))
-
-    def __iter__(self) -> Iterator[tuple[int, float, float]]:
-        step = 65536
-        for lo in range(0, len(self), step):
-            yield from zip(self.lines[lo:lo + step].tolist(),
-                           self.energy_j[lo:lo + step].tolist(),
-                           self.duration_s[lo:lo + step].tolist())
 
 
 class SummaryAccumulator:
@@ -157,10 +132,14 @@ class SummaryAccumulator:
     ----------
     rate_hz
         Sample rate of the grid [Hz]; needed only for chunks with ``gaps``.
+    block_breakdown
+        Also keep the energy of every source line per axis and per cause
+        (:class:`.breakdown.BreakdownAccumulator`; ``k + c`` numbers per line).
     """
 
-    def __init__(self, *, rate_hz: float | None = None) -> None:
+    def __init__(self, *, rate_hz: float | None = None, block_breakdown: bool = False) -> None:
         self.rate_hz = rate_hz
+        self.causes = BreakdownAccumulator(per_line=block_breakdown)
         self.n = 0
         self.t_first = 0.0
         self.t_last = 0.0
@@ -188,6 +167,8 @@ class SummaryAccumulator:
         m = int(p.t.shape[0])
         if m == 0:
             return
+        self.causes.add(chunk.dynamics, p.mechanical_w, braking=p.braking,
+                        effects=p.effect_power_w)
         if self.first is None:
             self.first = chunk
             self.axes = tuple(p.axes)
@@ -283,7 +264,10 @@ class SummaryAccumulator:
     def block_energy(self) -> 'LineEnergy':
         """``(line, energy [J], duration [s])`` by line, as :func:`.energy.energy_by_line`."""
         idx = np.nonzero(self._line_seen)[0]
-        return LineEnergy(idx, self._line_e[idx], self._line_d[idx])
+        table = self.causes.lines_table(idx)
+        by_axis, by_cause = (None, None) if table is None else table
+        return LineEnergy(idx, self._line_e[idx], self._line_d[idx], axes=self.causes.axes,
+                          causes=self.causes.causes, by_axis_j=by_axis, by_cause_j=by_cause)
 
     def top_blocks(self, count: int) -> list[tuple[int, float, float]]:
         """The ``count`` lines with the largest ``|energy|`` (ties: lower line first)."""
@@ -319,7 +303,7 @@ class SummaryAccumulator:
         peak = {a: float(self.peak[j]) if n else 0.0 for j, a in enumerate(axes)}
         peak['total'] = float(self.peak[-1]) if n else 0.0
         blocks = self.top_blocks(top_blocks)
-        return {
+        return add_breakdown({
             'program': program,
             'machine': machine.name,
             'load_kg': float(load_kg),
@@ -332,7 +316,7 @@ class SummaryAccumulator:
             'regenerated_energy_j': max(0.0, -self.regenerated) if n >= 2 else 0.0,
             'loss_energy_j': self.loss_energy,
             'top_blocks': [{'line': ln, 'energy_j': e, 'duration_s': d} for ln, e, d in blocks],
-        }
+        }, self.causes)
 
 
 _MOTION_ROWS = ('t', 'pos', 'vel', 'acc', 'line')
@@ -416,7 +400,8 @@ def expand_gaps(chunk: SimulationResult, *, rate_hz: float,
         dynamics = replace(dyn, **{f: (t if f == 't' else getattr(dyn, f)[src])
                                    for f in _DYNAMICS_ROWS})
         rows = {f: getattr(pw, f)[src] for f in _POWER_ROWS[1:]}
-        rows.update(t=t, energy_j=energy, total_energy_j=total_energy)
+        rows.update(t=t, energy_j=energy, total_energy_j=total_energy,
+                    effect_power_w=tuple((label, a[src]) for label, a in pw.effect_power_w))
         yield replace(chunk, motion=motion, dynamics=dynamics, power=replace(pw, **rows))
 
 
@@ -427,7 +412,9 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
                     on_chunk: Callable[[SimulationResult], None] | None = None,
                     progress: Callable[[float], None] | None = None,
                     limits: Mapping | None = None, compact: bool = True,
-                    chunk_gaps: bool = False) -> tuple[dict[str, Any], LineEnergy]:
+                    chunk_gaps: bool = False, block_breakdown: bool = False,
+                    rollup: bool = False,
+                    context: Any = None) -> tuple[dict[str, Any], LineEnergy]:
     """Simulate a program chunk by chunk; return its summary and energy per block.
 
     Equal (``1e-12`` relative) to ``summarize(simulate_program(...))`` and
@@ -468,6 +455,16 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
     chunk_gaps
         ``on_chunk`` receives the chunks as computed, with ``Motion.gaps``, instead of
         expanded to the full rate.
+    block_breakdown
+        Keep the energy of every source line per axis and per cause (``LineEnergy.by_axis_j``,
+        ``by_cause_j``, and in the summary's ``top_blocks``): ``8 (k + c)`` bytes per line
+        of the program. The totals by cause (``energy_by_cause_j``) are always there.
+    rollup
+        Add the summary's ``rollups`` (energy and time per operation, subroutine, tool and
+        axis; :mod:`.rollup`).
+    context
+        The operation context of ``moves`` (``MoveStream.context`` of
+        :func:`.gcode.iter_moves`); ``None``: no operations or tools.
 
     Returns
     -------
@@ -478,14 +475,21 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
     if options is None:
         options = machine.planner.options()
     compact_min = COMPACT_MIN_SAMPLES if compact and compactable(machine) else 0
+    rate = options.rate_hz
+    acc = SummaryAccumulator(rate_hz=rate, block_breakdown=block_breakdown)
+    rolls = None
+    if rollup:
+        from .rollup import RollupAccumulator
+        rolls = RollupAccumulator(context)
+        moves = rolls.wrap(moves)
     motions = iter_motion(moves, machine.limits() if limits is None else limits,
                           options=options, file=file, chunk_samples=chunk_samples,
                           total_moves=total_moves, duration_s=duration_s,
                           progress=progress, compact_min_samples=compact_min)
-    rate = options.rate_hz
-    acc = SummaryAccumulator(rate_hz=rate)
     for chunk in iter_simulation(motions, machine, load_kg=load_kg, program=file):
         acc.add(chunk)
+        if rolls is not None:
+            rolls.add(chunk)
         if on_chunk is None:
             continue
         if chunk_gaps:
@@ -495,4 +499,6 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
                 on_chunk(piece)
     summary = acc.summary(program=file, machine=machine, load_kg=load_kg,
                           top_blocks=top_blocks)
+    if rolls is not None:
+        summary['rollups'] = rolls.rollups(summary['energy_j'])
     return summary, acc.block_energy()

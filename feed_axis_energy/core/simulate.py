@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from .breakdown import LineEnergy
 from .dynamics import AxisDynamics, compute_dynamics
 from .energy import EnergyIntegrator, PowerResult, compute_power, energy_by_line
 from .machine import Machine
@@ -21,6 +22,7 @@ from .program import Program
 from .trajectory import plan, PlannerOptions
 
 __all__ = ['SimulationResult', 'apply_declared_effects', 'declared_effects_power_w',
+           'declared_effects_parts', 'sum_effect_parts', 'line_table',
            'simulate_program', 'simulate_motion', 'summarize']
 
 
@@ -48,6 +50,58 @@ class SimulationResult:
     power: PowerResult
 
 
+def declared_effects_parts(dyn: AxisDynamics, power: PowerResult,
+                           machine: Machine) -> list[tuple[str, np.ndarray]]:
+    """Extra power [W] per axis, ``(n, k)``, of each declared effect acting on the axes.
+
+    Parameters
+    ----------
+    dyn, power
+        Dynamics and power of the model without the effects (``power`` after braking).
+    machine
+        The machine; its ``effects`` act on their axis (every axis when ``axis`` is None).
+
+    Returns
+    -------
+    list of (str, numpy.ndarray)
+        ``('effect:<id>', power)`` or ``('effect:<id>:<axis>', power)`` (zero on the other
+        axes) in declaration order; a repeated label gets ``#2``, ``#3``...; empty when no
+        declared effect acts on the axes of ``power``.
+    """
+    active = [e for e in machine.effects if e.axis is None or e.axis in power.axes]
+    if not active:
+        return []
+    # imported here: the effect catalog imports the machine module, not the other way round
+    from .effects import effect_state, get_effect
+    state = effect_state(dyn, power, machine=machine)
+    parts: list[tuple[str, np.ndarray]] = []
+    seen: dict[str, int] = {}
+    for decl in active:
+        contribution = get_effect(decl.id).power_w(state, decl.values)
+        label = f'effect:{decl.id}' if decl.axis is None else f'effect:{decl.id}:{decl.axis}'
+        seen[label] = seen.get(label, 0) + 1
+        if seen[label] > 1:
+            label = f'{label}#{seen[label]}'
+        part = np.zeros(state.shape)
+        if decl.axis is None:
+            part += contribution
+        else:
+            j = power.axes.index(decl.axis)
+            part[:, j] += contribution[:, j]
+        parts.append((label, part))
+    return parts
+
+
+def sum_effect_parts(parts: list[tuple[str, np.ndarray]]) -> np.ndarray | None:
+    """The sum of :func:`declared_effects_parts` (``None`` for none), in declaration order."""
+    if not parts:
+        return None
+    extra = np.zeros(parts[0][1].shape)
+    for _label, part in parts:
+        extra += part
+    return extra
+
+
 def declared_effects_power_w(dyn: AxisDynamics, power: PowerResult,
                              machine: Machine) -> np.ndarray | None:
     """Extra power [W] per axis, ``(n, k)``, of the machine's declared effects.
@@ -64,21 +118,7 @@ def declared_effects_power_w(dyn: AxisDynamics, power: PowerResult,
     numpy.ndarray or None
         ``None`` when no declared effect acts on the axes of ``power``.
     """
-    active = [e for e in machine.effects if e.axis is None or e.axis in power.axes]
-    if not active:
-        return None
-    # imported here: the effect catalog imports the machine module, not the other way round
-    from .effects import effect_state, get_effect
-    state = effect_state(dyn, power, machine=machine)
-    extra = np.zeros(state.shape)
-    for decl in active:
-        contribution = get_effect(decl.id).power_w(state, decl.values)
-        if decl.axis is None:
-            extra += contribution
-        else:
-            j = power.axes.index(decl.axis)
-            extra[:, j] += contribution[:, j]
-    return extra
+    return sum_effect_parts(declared_effects_parts(dyn, power, machine))
 
 
 def apply_declared_effects(dyn: AxisDynamics, power: PowerResult,
@@ -98,7 +138,8 @@ def apply_declared_effects(dyn: AxisDynamics, power: PowerResult,
         ``power`` itself when no declared effect acts on its axes; otherwise power, total
         and energies include the effects (``mechanical_w`` and ``loss_power_w`` do not).
     """
-    extra = declared_effects_power_w(dyn, power, machine)
+    parts = declared_effects_parts(dyn, power, machine)
+    extra = sum_effect_parts(parts)
     if extra is None:
         return power
     drawn = power.power_w + extra
@@ -108,7 +149,7 @@ def apply_declared_effects(dyn: AxisDynamics, power: PowerResult,
     return PowerResult(t=power.t, axes=power.axes, power_w=drawn, total_w=total,
                        energy_j=energy[:, :k], total_energy_j=energy[:, k],
                        mechanical_w=power.mechanical_w, loss_power_w=power.loss_power_w,
-                       line=power.line, braking=power.braking)
+                       line=power.line, braking=power.braking, effect_power_w=tuple(parts))
 
 
 def simulate_motion(motion: Motion, machine: Machine, *, load_kg: float = 0.0) -> SimulationResult:
@@ -185,8 +226,12 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         end), ``peak_power_w`` ({axis: W, ..., 'total': W}, the maximum drawn power),
         ``regenerated_energy_j`` (J returned by braking axes, see
         :attr:`.energy.PowerResult.regenerated_energy_j`), ``loss_energy_j`` (J spent on passive
-        resistances), ``top_blocks`` (list of ``{'line', 'energy_j', 'duration_s'}``).
+        resistances), ``top_blocks`` (list of ``{'line', 'energy_j', 'duration_s'}``), and
+        the breakdown by cause (:func:`.breakdown.add_breakdown`: ``causes``,
+        ``energy_by_cause_j``, ``braking_returned_j``; per top block ``energy_by_axis_j``,
+        ``energy_by_cause_j``).
     """
+    from .breakdown import add_breakdown, BreakdownAccumulator
     p = result.power
     n = int(p.t.shape[0])
     dt = np.diff(p.t)
@@ -199,7 +244,9 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
     loss_energy = float(np.sum(0.5 * (loss_total[1:] + loss_total[:-1]) * dt)) if n else 0.0
     blocks = sorted(energy_by_line(p), key=lambda b: -abs(b[1]))[:max(0, int(top_blocks))]
     duration = float(p.t[-1] - p.t[0]) if n else 0.0
-    return {
+    causes = BreakdownAccumulator(per_line=True)
+    causes.add(result.dynamics, p.mechanical_w, braking=p.braking, effects=p.effect_power_w)
+    return add_breakdown({
         'program': result.program,
         'machine': result.machine.name,
         'load_kg': float(result.load_kg),
@@ -212,4 +259,30 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         'regenerated_energy_j': p.regenerated_energy_j,
         'loss_energy_j': loss_energy,
         'top_blocks': [{'line': ln, 'energy_j': e, 'duration_s': d} for ln, e, d in blocks],
-    }
+    }, causes)
+
+
+def line_table(result: SimulationResult) -> LineEnergy:
+    """Energy and time per source line of a whole result, with the per-block breakdown.
+
+    Parameters
+    ----------
+    result
+        A simulation result.
+
+    Returns
+    -------
+    LineEnergy
+        As :meth:`.simstream.SummaryAccumulator.block_energy` with ``block_breakdown``.
+    """
+    from .breakdown import BreakdownAccumulator
+    p = result.power
+    causes = BreakdownAccumulator(per_line=True)
+    causes.add(result.dynamics, p.mechanical_w, braking=p.braking, effects=p.effect_power_w)
+    rows = energy_by_line(p)
+    lines = np.array([r[0] for r in rows], dtype=np.int64)
+    table = causes.lines_table(lines)
+    by_axis, by_cause = (None, None) if table is None else table
+    return LineEnergy(lines, np.array([r[1] for r in rows]), np.array([r[2] for r in rows]),
+                      axes=tuple(p.axes), causes=causes.causes, by_axis_j=by_axis,
+                      by_cause_j=by_cause)

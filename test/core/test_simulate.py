@@ -13,7 +13,8 @@ from feed_axis_energy.core.simulate import simulate_motion, simulate_program, su
 CONFIG = Path(__file__).resolve().parents[2] / 'config'
 SUMMARY_KEYS = {'program', 'machine', 'load_kg', 'duration_s', 'samples', 'rate_hz', 'braking',
                 'energy_j', 'peak_power_w', 'regenerated_energy_j', 'loss_energy_j',
-                'top_blocks'}
+                'top_blocks', 'causes', 'energy_by_cause_j', 'gross_by_cause_j',
+                'braking_returned_j'}
 
 
 @pytest.fixture(scope='module')
@@ -46,8 +47,14 @@ def test_simulate_motion_and_summary(demo):
     assert s['peak_power_w']['X'] == pytest.approx(p)
     assert s['regenerated_energy_j'] == 0.0
     # line 5 owns every interval ending at t >= 1 s: [0.999, 1] .. [2.999, 3], 2.001 s
-    assert s['top_blocks'] == [{'line': 5, 'energy_j': pytest.approx(p * 2.0005),
-                                'duration_s': pytest.approx(2.001)}]
+    top = s['top_blocks']
+    assert [{k: b[k] for k in ('line', 'energy_j', 'duration_s')} for b in top] == [
+        {'line': 5, 'energy_j': pytest.approx(p * 2.0005), 'duration_s': pytest.approx(2.001)}]
+    # constant speed on a horizontal, loss-free screw (eta = 1): friction only
+    causes = top[0]['energy_by_cause_j']
+    assert causes['friction'] == pytest.approx(p * 2.0005, rel=1e-9)
+    assert all(value == 0.0 for name, value in causes.items() if name != 'friction')
+    assert s['energy_by_cause_j']['friction']['X'] == pytest.approx(p * 2.0005, rel=1e-9)
 
 
 PROGRAM = """G21 G90 G94 G61

@@ -88,6 +88,7 @@ from os import PathLike
 
 from .canon import CENTER_ARC_RADIUS_TOLERANCE_MM
 from .codes import IGNORABLE_AXES
+from .context import OperationContext
 from .dialect import Dialect, dialect_by_name
 from .run import GcodeRun
 from .source import read_program
@@ -183,6 +184,9 @@ class MoveStream:
         ``file:line: message`` texts, complete once the iteration has ended.
     n_lines
         Number of lines of the program.
+    context
+        The operation, subroutine and tool of the moves (:class:`.context.OperationContext`:
+        its marks are complete up to the moves handed on so far).
     """
 
     def __init__(self, path: str | PathLike[str], kw: dict):
@@ -190,6 +194,7 @@ class MoveStream:
         self._kw = kw
         self._run: GcodeRun | None = None
         self.file = str(path)
+        self.context = OperationContext()
 
     @property
     def warnings(self) -> list[str]:
@@ -215,7 +220,8 @@ class MoveStream:
             msg = f'cannot read the program: {err.strerror or err}'
             raise GcodeError(msg, file=name, line=0, column=0) from err
         with fh:
-            self._run = GcodeRun(stream=fh, file=name, **self._kw)
+            self.context.reset()                  # the same object: callers hold it
+            self._run = GcodeRun(stream=fh, file=name, context=self.context, **self._kw)
             try:
                 for batch in self._run:
                     yield from batch

@@ -73,7 +73,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
                  'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
                  'warned', 'ignore_axes', 'rpm', 'polar_line', 'polar_inc',
-                 'arc_quick', 'nurbs', 'd_selected', 'feed_per_rev')
+                 'arc_quick', 'nurbs', 'd_selected', 'feed_per_rev', 'on_tool')
 
     def __init__(self, file: str, start: tuple[float, float, float],
                  arc_tolerance_m: float | None,
@@ -121,6 +121,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin):
         self.tools = None if tools is None else self.coords.tools  # G10 L1 writes reach G41
         self.tool_selected = 0              # T word
         self.tool_loaded = 0                # tool in the spindle (after M6); 0 = none
+        self.on_tool = None                 # called with the tool loaded by M6 / M61
         self.spindle = 0                    # 1 M3, -1 M4, 0 stopped (M5 / start-up)
         self.p_unit = 1.0                   # seconds per unit of a dwell's P word
         self.dialect = dialect_by_name(dialect)

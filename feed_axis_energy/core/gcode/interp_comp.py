@@ -83,6 +83,8 @@ class CompMixin:
                 self.tool_loaded = self.tool_selected = int(q)
             else:
                 self.tool_loaded = self.tool_selected
+            if self.on_tool is not None:
+                self.on_tool(self.tool_loaded)
         code = self.comp_code
         if code is not None:
             self.comp_code = None

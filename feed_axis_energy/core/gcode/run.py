@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from os import PathLike
 from typing import TextIO
 
+from .context import OperationContext
 from .dialect import Dialect
 from .fanuc_vars import READ_ONLY as FANUC_READ_ONLY
 from .flow import read_blocks
@@ -65,6 +66,9 @@ class GcodeRun:
         An error the front's reader finds in an ordinary line (a bad number or expression)
         is kept the same way; errors in O-word, macro and subprogram lines end the run.
         For ``check``: later errors may follow from an earlier one.
+    context
+        Where to note the operation, subroutine and tool of the moves (``None``: not
+        noted); see :mod:`.context`.
 
     Attributes
     ----------
@@ -80,7 +84,8 @@ class GcodeRun:
                  start: Vec3, arc_tolerance_m: float | None, home: Vec3 | None,
                  tools: Mapping[int, object] | None, dialect: Dialect,
                  search_path: Sequence[str | PathLike[str]] = (), batch: int | None = None,
-                 ignore_axes: Sequence[str] = (), max_errors: int = 0):
+                 ignore_axes: Sequence[str] = (), max_errors: int = 0,
+                 context: OperationContext | None = None):
         self.recent = _Recent()
         if text is not None:
             if '\r' in text:
@@ -109,6 +114,11 @@ class GcodeRun:
                                   tools=tools, dialect=dialect, params=self.params,
                                   ignore_axes=ignore_axes)
         self.params.provider = self.interp.system_value
+        self.context = context
+        self.emitted = 0                             # moves handed on so far
+        self.seen_code_blocks = False
+        if context is not None:
+            self.interp.on_tool = self._tool_loaded
         if self.dialect.fanuc_macro:
             self.params.read_only = FANUC_READ_ONLY     # #4001.., #5001..: fanuc_vars
 
@@ -153,6 +163,7 @@ class GcodeRun:
         p.close()
         self._warnings = reader_warnings + p.warnings
         if p.moves:
+            self.emitted += len(p.moves)
             yield p.moves
             p.moves = []
 
@@ -160,7 +171,28 @@ class GcodeRun:
         p = self.interp
         out = p.moves
         p.moves = []
+        self.emitted += len(out)
         return out
+
+    def _ordinal(self) -> int:
+        """The ordinal of the next move the interpreter emits."""
+        return self.emitted + len(self.interp.moves)
+
+    def _tool_loaded(self, tool: int) -> None:
+        self.context.set_tool(tool, self._ordinal())
+
+    def _comment_lines(self, lines: list[str], lo: int, hi: int) -> None:
+        """Note the operation names of the comment-only lines ``lo`` .. ``hi - 1``
+        (1-based) of the main file, skipped by the front's reader."""
+        for number in range(max(lo, 1), min(hi, len(lines) + 1)):
+            raw = lines[number - 1]
+            if '(' in raw or ';' in raw:
+                try:
+                    code = blank_comments(raw, file=self.file, line=number)
+                except GcodeError:
+                    continue
+                if not code.strip():
+                    self.context.comment(raw, self._ordinal())
 
     def _rest(self) -> str:
         """The text after the lines read so far."""
@@ -185,6 +217,7 @@ class GcodeRun:
         seen_code = False
         end_at = 0
         lineno = 0
+        context = self.context
         for lineno, raw in enumerate(self.source, 1):
             recent.raw = raw
             code = raw.upper()
@@ -214,13 +247,17 @@ class GcodeRun:
                     continue
                 if not code.isascii() or line_re(code.upper()) is None:
                     self.n_lines = lineno - 1
+                    self.seen_code_blocks = seen_code
                     return lineno, raw
                 code = code.upper()
             words = findall(code)
             if not words:
+                if context is not None and seen_code and not code.strip():
+                    context.comment(raw, self._ordinal())     # a comment-only line
                 continue
             if ((fanuc and 'M9' in code) or (macro and 'G65' in code)) and _fanuc_call(words):
                 self.n_lines = lineno - 1
+                self.seen_code_blocks = seen_code
                 return lineno, raw
             seen_code = True
             p.lineno = lineno
@@ -255,7 +292,21 @@ class GcodeRun:
         interpret = self._guarded(p.line)
         batch = self.batch or 0
         end_at = 0
+        context = self.context
+        frames = reader.frames
+        after = lineno - 1                  # the last main-file line run (comment scan)
         for block in reader:
+            if context is not None:
+                fr = frames[-1] if frames else None
+                sub = '' if fr is None or fr.kind == 'main' else (
+                    f'o<{fr.name}>' if fr.kind == 'sub' else f'O{fr.name}')
+                if sub != context.subroutine:
+                    context.set_subroutine(sub, self._ordinal())
+                if block.file == file:
+                    if block.line > after + 1 and self.seen_code_blocks:
+                        self._comment_lines(lines, after + 1, block.line)
+                    after = block.line
+                    self.seen_code_blocks = True
             p.src = block
             p.lineno = block.main_line
             interpret(block.words)

@@ -1,0 +1,283 @@
+"""Tables out of a simulation: the time series and the per-block table as CSV or Parquet.
+
+Both are written chunk by chunk into a directory that :func:`.outputs.staged_directory`
+builds (renamed into place when complete, nothing left on failure): memory is one chunk of
+samples, or of blocks, whatever the program's length.
+
+* ``timeseries.csv`` / ``.parquet``: every ``decimate``-th sample (counted from the first,
+  at the full rate): time, source line, per axis position, velocity, drawn power and
+  cumulative energy, the total power and energy, and the power of every cause summed over
+  the axes (:mod:`.breakdown`). Column names carry their SI unit (``X power [W]``).
+* ``blocks.csv`` / ``.parquet``: one row per source line that took time: line, the block's
+  text (at most :data:`TEXT_CHARS` characters), duration, energy, energy per axis and per
+  cause (summed over the axes); ascending line.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+import csv
+import io
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .breakdown import cause_names, cause_powers, LineEnergy
+from .errors import ConfigError, DataError, OutputError
+from .simulate import SimulationResult
+
+__all__ = ['FORMATS', 'TEXT_CHARS', 'TableWriter', 'require_pyarrow', 'SeriesExporter',
+           'write_blocks', 'series_columns', 'iter_source_texts', 'EXPORT_MARKER']
+
+FORMATS = ('csv', 'parquet')
+TEXT_CHARS = 120
+EXPORT_MARKER = '.feed_axis_energy_export'
+"""File in an export directory: ``--force`` may replace a directory holding it."""
+_BLOCK_ROWS = 65536
+
+
+def require_pyarrow(option: str):
+    """``(pyarrow, pyarrow.parquet)``, or a :class:`ConfigError` naming ``option``."""
+    try:
+        import pyarrow
+        import pyarrow.parquet
+    except ImportError as err:
+        msg = (f'{option} needs the pyarrow package, which is not installed '
+               '(pip install pyarrow==26.0.1, pinned in requirements.txt)')
+        raise ConfigError(msg, file='command line', key=option.lstrip('-')) from err
+    return pyarrow, pyarrow.parquet
+
+
+class TableWriter:
+    """One table written in pieces as CSV or Parquet (one Parquet row group per piece).
+
+    Parameters
+    ----------
+    path
+        The file to create (inside a staged directory: it must not exist).
+    columns
+        Column names.
+    fmt
+        ``'csv'`` or ``'parquet'``.
+    text_columns
+        Names of the columns that hold text.
+    int_columns
+        Names of the columns that hold integers (the others are floats).
+    """
+
+    def __init__(self, path: Path, columns: Sequence[str], *, fmt: str,
+                 text_columns: Sequence[str] = (), int_columns: Sequence[str] = ()) -> None:
+        if fmt not in FORMATS:
+            msg = f'TableWriter: format must be one of {FORMATS}, got {fmt!r}'
+            raise ValueError(msg)
+        self.path = Path(path)
+        self.columns = list(columns)
+        self.fmt = fmt
+        self.text = set(text_columns)
+        self.ints = set(int_columns)
+        self.rows = 0
+        self._fh = None
+        self._pq = None
+        if fmt == 'csv':
+            self._fh = open(self.path, 'x', encoding='utf-8', newline='')
+            csv.writer(self._fh).writerow(self.columns)
+        else:
+            pa, pq = require_pyarrow('--parquet')
+            self._pa = pa
+            fields = [pa.field(c, pa.string() if c in self.text else
+                               pa.int64() if c in self.ints else pa.float64())
+                      for c in self.columns]
+            self._schema = pa.schema(fields)
+            self._pq = pq.ParquetWriter(str(self.path), self._schema, compression='zstd')
+
+    def write(self, data: dict[str, Any]) -> None:
+        """Append rows: ``{column: array or list}``, every column, equal lengths."""
+        n = len(next(iter(data.values()))) if data else 0
+        if n == 0:
+            return
+        if self._fh is not None:
+            self._fh.write(_csv_rows(self.columns, data, self.text, self.ints))
+        else:
+            pa = self._pa
+            arrays = [pa.array(data[c], type=pa.string()) if c in self.text
+                      else pa.array(np.asarray(data[c], dtype=np.int64)) if c in self.ints
+                      else pa.array(np.asarray(data[c], dtype=float)) for c in self.columns]
+            self._pq.write_table(pa.Table.from_arrays(arrays, schema=self._schema))
+        self.rows += n
+
+    def close(self) -> None:
+        """Finish the file (flushed to disk)."""
+        if self._fh is not None:
+            self._fh.flush()
+            self._fh.close()
+            self._fh = None
+        if self._pq is not None:
+            self._pq.close()
+            self._pq = None
+
+
+def _csv_rows(columns: list[str], data: dict[str, Any], text: set[str],
+              ints: set[str]) -> str:
+    """CSV text of the rows; floats as their shortest round-trip text, text quoted as
+    needed."""
+    cells = []
+    for c in columns:
+        if c in text:
+            cells.append(data[c])
+        elif c in ints:
+            cells.append(np.asarray(data[c], dtype=np.int64).tolist())
+        else:
+            cells.append(list(map(repr, np.asarray(data[c], dtype=float).tolist())))
+    buf = io.StringIO()
+    csv.writer(buf).writerows(zip(*cells))
+    return buf.getvalue()
+
+
+def series_columns(axes: Sequence[str], causes: Sequence[str]) -> list[str]:
+    """Column names of the time series (see the module docstring)."""
+    cols = ['t [s]', 'line']
+    for what, unit in (('position', 'm'), ('velocity', 'm/s'), ('power', 'W'),
+                       ('energy', 'J')):
+        cols += [f'{a} {what} [{unit}]' for a in axes]
+    cols += ['total power [W]', 'total energy [J]']
+    cols += [f'{c} power [W]' for c in causes]
+    return cols
+
+
+class SeriesExporter:
+    """The time series, decimated, written chunk by chunk to every requested format.
+
+    Parameters
+    ----------
+    directories
+        ``{fmt: directory}`` (existing, e.g. staged) to write ``timeseries.<fmt>`` into.
+    decimate
+        Keep every ``decimate``-th sample of the full-rate grid (1: all).
+    """
+
+    def __init__(self, directories: dict[str, Path], *, decimate: int = 1) -> None:
+        if decimate < 1:
+            msg = f'decimate must be >= 1, got {decimate}'
+            raise ConfigError(msg, file='command line', key='decimate')
+        self.directories = dict(directories)
+        self.decimate = int(decimate)
+        self.seen = 0
+        self._writers: list[TableWriter] = []
+
+    def write(self, chunk: SimulationResult) -> None:
+        """Take one chunk at the full rate (without ``Motion.gaps``), in time order."""
+        if chunk.motion.gaps:
+            msg = 'SeriesExporter.write needs chunks at the full rate (expand_gaps)'
+            raise ValueError(msg)
+        p, dyn = chunk.power, chunk.dynamics
+        m = int(p.t.shape[0])
+        keep = np.nonzero((self.seen + np.arange(m)) % self.decimate == 0)[0]
+        self.seen += m
+        if keep.size == 0:
+            return
+        causes = cause_powers(dyn, p.mechanical_w, braking=p.braking,
+                              effects=p.effect_power_w)
+        names = cause_names([label for label, _ in p.effect_power_w])
+        if not self._writers:
+            cols = series_columns(p.axes, names)
+            self._writers = [TableWriter(d / f'timeseries.{fmt}', cols, fmt=fmt,
+                                         int_columns=('line',))
+                             for fmt, d in self.directories.items()]
+        data: dict[str, Any] = {'t [s]': p.t[keep], 'line': p.line[keep]}
+        for j, a in enumerate(p.axes):
+            data[f'{a} position [m]'] = dyn.position_m[keep, j]
+            data[f'{a} velocity [m/s]'] = dyn.velocity_m_s[keep, j]
+            data[f'{a} power [W]'] = p.power_w[keep, j]
+            data[f'{a} energy [J]'] = p.energy_j[keep, j]
+        data['total power [W]'] = p.total_w[keep]
+        data['total energy [J]'] = p.total_energy_j[keep]
+        summed = causes[:, :, keep].sum(axis=1)
+        for i, c in enumerate(names):
+            data[f'{c} power [W]'] = summed[i]
+        for name, values in data.items():
+            bad = ~np.isfinite(values)
+            if np.any(bad):
+                at = float(p.t[keep][int(np.argmax(bad))])
+                msg = f'the time series is not finite: {name} at t = {at:.6g} s'
+                raise DataError(msg, file=chunk.program or '<simulation>')
+        for w in self._writers:
+            w.write(data)
+
+    def close(self) -> None:
+        """Finish every file."""
+        for w in self._writers:
+            w.close()
+
+
+def iter_source_texts(path: Path, lines: np.ndarray, *,
+                      limit: int = TEXT_CHARS) -> Iterator[str]:
+    """The text of every 1-based line of ``lines`` (ascending), read line by line, cut to
+    ``limit`` characters with ``...``; ``''`` for lines the file lacks or cannot give."""
+    wanted = iter(np.asarray(lines, dtype=np.int64).tolist())
+    target = next(wanted, None)
+    given = 0
+    try:
+        with open(path, encoding='utf-8', errors='replace', newline=None) as fh:
+            for number, text in enumerate(fh, 1):
+                while target is not None and target < number:
+                    given += 1
+                    yield ''
+                    target = next(wanted, None)
+                if target is None:
+                    return
+                if target == number:
+                    text = text.rstrip('\n').strip()
+                    given += 1
+                    yield text if len(text) <= limit else text[:limit] + '...'
+                    target = next(wanted, None)
+    except OSError:
+        pass
+    for _ in range(int(np.asarray(lines).shape[0]) - given):
+        yield ''
+
+
+def write_blocks(directories: dict[str, Path], blocks: LineEnergy, *, program: Path | None,
+                 limit: int = TEXT_CHARS) -> int:
+    """Write ``blocks.<fmt>`` (see the module docstring) into every directory; return rows.
+
+    Parameters
+    ----------
+    directories
+        ``{fmt: directory}``.
+    blocks
+        Energy per line with the per-block breakdown (``by_axis_j``, ``by_cause_j``).
+    program
+        The program file the block texts are read from (``None``: no texts).
+    limit
+        Characters of text kept per block.
+    """
+    if blocks.by_axis_j is None or blocks.by_cause_j is None:
+        msg = 'write_blocks needs the per-block breakdown (block_breakdown=True)'
+        raise OutputError(msg)
+    cols = (['line', 'text', 'duration [s]', 'energy [J]']
+            + [f'{a} energy [J]' for a in blocks.axes]
+            + [f'{c} energy [J]' for c in blocks.causes])
+    writers = [TableWriter(d / f'blocks.{fmt}', cols, fmt=fmt, text_columns=('text',),
+                           int_columns=('line',))
+               for fmt, d in directories.items()]
+    texts = (iter_source_texts(program, blocks.lines, limit=limit) if program is not None
+             else None)
+    n = len(blocks)
+    try:
+        for lo in range(0, n, _BLOCK_ROWS):
+            hi = min(n, lo + _BLOCK_ROWS)
+            data: dict[str, Any] = {
+                'line': blocks.lines[lo:hi],
+                'text': [next(texts) for _ in range(hi - lo)] if texts else [''] * (hi - lo),
+                'duration [s]': blocks.duration_s[lo:hi],
+                'energy [J]': blocks.energy_j[lo:hi]}
+            for j, a in enumerate(blocks.axes):
+                data[f'{a} energy [J]'] = blocks.by_axis_j[lo:hi, j]
+            for j, c in enumerate(blocks.causes):
+                data[f'{c} energy [J]'] = blocks.by_cause_j[lo:hi, j]
+            for w in writers:
+                w.write(data)
+    finally:
+        for w in writers:
+            w.close()
+    return n

@@ -1,0 +1,185 @@
+"""Energy and time per operation, subroutine, tool and axis, accumulated chunk by chunk.
+
+The interpreter marks where the context of the moves changes
+(:class:`.gcode.context.OperationContext`); the samples carry only their source line. The
+two are joined in order: :meth:`RollupAccumulator.wrap` notes ``(line, context)`` of every
+move as the planner takes it, and :meth:`RollupAccumulator.add` walks the runs of source
+lines in the samples along those notes. While the notes ahead hold one context only (the
+usual case: contexts change a few times per program) a whole chunk is summed at once; the
+run-by-run walk is needed only in a chunk where the context changes. Each trapezoid
+interval goes to the context of its end sample (as the energy per block).
+
+Known limit: a move too short to get a sample of its own is skipped in the walk; if its
+line is also the line of the next run, the context may change a run early.
+"""
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Iterable, Iterator
+from typing import Any
+
+import numpy as np
+
+from .program import Move
+
+__all__ = ['RollupAccumulator', 'NO_TOOL']
+
+NO_TOOL = 'no tool'
+
+
+class RollupAccumulator:
+    """Energy and time by context (and moving time per axis) from the simulation chunks.
+
+    Parameters
+    ----------
+    context
+        The run's :class:`.gcode.context.OperationContext` (its ``table`` and ``marks``),
+        or ``None``: every move in one context (no operation, no tool).
+    """
+
+    def __init__(self, context: Any = None) -> None:
+        self.context = context
+        self._pending: deque[tuple[int, int]] = deque()    # (line, context) per move
+        self._popped = 0            # moves left behind
+        self._last_change = -1      # ordinal of the last note whose context differs
+        self._ctx = 0               # context of the samples now
+        self.energy = np.zeros(4)
+        self.duration = np.zeros(4)
+        self.axes: tuple[str, ...] = ()
+        self.axis_time: np.ndarray | None = None
+        self._prev: tuple[float, float, np.ndarray] | None = None
+
+    # -- the move side ----------------------------------------------------------------------
+    def wrap(self, moves: Iterable[Move]) -> Iterator[Move]:
+        """The moves unchanged, noting each one's line and context as it is taken."""
+        ctx = self.context
+        marks = ctx.marks if ctx is not None else [(0, 0)]
+        pending = self._pending
+        # marks are read only once their move exists (a mark may be replaced before)
+        j = 0
+        current = last = 0
+        for ordinal, move in enumerate(moves):
+            while j < len(marks) and marks[j][0] <= ordinal:
+                current = marks[j][1]
+                j += 1
+            if current != last:
+                self._last_change = ordinal
+                last = current
+            pending.append((move.line, current))
+            yield move
+
+    # -- the sample side --------------------------------------------------------------------
+    def _advance_to(self, line: int) -> None:
+        """Make the first note with ``line`` the current one (none: stay)."""
+        pending = self._pending
+        for i, (ln, _c) in enumerate(pending):
+            if ln == line:
+                for _ in range(i):
+                    pending.popleft()
+                self._popped += i
+                self._ctx = pending[0][1]
+                return
+
+    def _grow(self, size: int) -> None:
+        if size > self.energy.shape[0]:
+            n = max(size, 2 * self.energy.shape[0])
+            self.energy = np.concatenate((self.energy, np.zeros(n - self.energy.shape[0])))
+            self.duration = np.concatenate((self.duration,
+                                            np.zeros(n - self.duration.shape[0])))
+
+    def add(self, chunk: Any) -> None:
+        """Take one :class:`.simulate.SimulationResult` chunk (in time order)."""
+        p = chunk.power
+        t, line = p.t, p.line
+        m = int(t.shape[0])
+        if m == 0:
+            return
+        vel = chunk.dynamics.velocity_m_s
+        first = self._prev is None
+        if first:
+            self.axes = tuple(p.axes)
+            self.axis_time = np.zeros(len(self.axes))
+            t0, e0, v0 = float(t[0]), float(p.total_energy_j[0]), vel[0]
+        else:
+            t0, e0, v0 = self._prev
+        self._prev = (float(t[-1]), float(p.total_energy_j[-1]), vel[-1].copy())
+        if m == 1 and first:
+            return
+        self._axis_time(t, vel, t0, v0, first)
+        ends = np.asarray(line[1:] if first else line, dtype=np.int64)
+        starts = np.concatenate(([0], np.nonzero(ends[1:] != ends[:-1])[0] + 1))
+        keys = ends[starts]
+        if self._last_change <= self._popped:
+            # every note ahead has the current context: the whole chunk is one context,
+            # and its energy and time are the increments of the cumulative series
+            if self._pending:
+                self._ctx = self._pending[0][1]
+            self._advance_to(int(keys[-1]))
+            self._grow(self._ctx + 1)
+            self.energy[self._ctx] += float(p.total_energy_j[-1]) - e0
+            self.duration[self._ctx] += float(t[-1]) - t0
+            return
+        total = p.total_w
+        dt = np.diff(t) if first else np.diff(t, prepend=t0)
+        if first:
+            de = 0.5 * (total[1:] + total[:-1]) * dt
+        else:
+            de = np.empty(m)
+            de[0] = float(p.total_energy_j[0]) - e0      # the interval between the chunks
+            de[1:] = 0.5 * (total[1:] + total[:-1]) * dt[1:]
+        ctxs = np.empty(keys.shape[0], dtype=np.int64)
+        for i, key in enumerate(keys.tolist()):
+            self._advance_to(key)
+            ctxs[i] = self._ctx
+        e = np.add.reduceat(de, starts)
+        d = np.add.reduceat(dt, starts)
+        self._grow(int(ctxs.max()) + 1)
+        np.add.at(self.energy, ctxs, e)
+        np.add.at(self.duration, ctxs, d)
+
+    def _axis_time(self, t: np.ndarray, vel: np.ndarray, t0: float, v0: np.ndarray,
+                   first: bool) -> None:
+        """Add the time each axis moves: the intervals with a non-zero speed at either end
+        (the chunk's span minus its few standing intervals)."""
+        span = float(t[-1]) - t0
+        moving = vel != 0.0
+        for j in range(len(self.axes)):
+            mj = moving[:, j]
+            stand = ~(mj[1:] | mj[:-1])
+            idx = np.flatnonzero(stand)
+            still = float(np.sum(t[idx + 1] - t[idx])) if idx.size else 0.0
+            if not first and not (mj[0] or v0[j] != 0.0):
+                still += float(t[0]) - t0
+            self.axis_time[j] += span - still
+
+    # -- results ----------------------------------------------------------------------------
+    def rollups(self, energy_j: dict[str, float]) -> dict[str, list[dict[str, Any]]]:
+        """``{'operation', 'subroutine', 'tool', 'axis': [{'name', 'energy_j',
+        'duration_s'}]}``, each sorted by energy (largest first); ``energy_j`` is the
+        summary's energy per axis."""
+        table = self.context.table if self.context is not None else [('', '', 0)]
+        groups: dict[str, dict[str, list[float]]] = {'operation': {}, 'subroutine': {},
+                                                     'tool': {}}
+        for index, (operation, subroutine, tool) in enumerate(table):
+            if index >= self.energy.shape[0]:
+                break
+            e, d = float(self.energy[index]), float(self.duration[index])
+            if e == 0.0 and d == 0.0:
+                continue
+            names = {'operation': operation or '(none)',
+                     'subroutine': subroutine or '(main program)',
+                     'tool': f'T{tool}' if tool else NO_TOOL}
+            for group, name in names.items():
+                item = groups[group].setdefault(name, [0.0, 0.0])
+                item[0] += e
+                item[1] += d
+        out: dict[str, list[dict[str, Any]]] = {}
+        for group, items in groups.items():
+            out[group] = sorted(({'name': n, 'energy_j': v[0], 'duration_s': v[1]}
+                                 for n, v in items.items()), key=lambda r: -abs(r['energy_j']))
+        axis_time = self.axis_time if self.axis_time is not None else np.zeros(0)
+        out['axis'] = sorted(({'name': a, 'energy_j': float(energy_j.get(a, 0.0)),
+                               'duration_s': float(axis_time[j])}
+                              for j, a in enumerate(self.axes)),
+                             key=lambda r: -abs(r['energy_j']))
+        return out

@@ -1,0 +1,146 @@
+"""Roll-ups: operation names of the CAM formats, energy per operation, subroutine, tool, axis."""
+import math
+from pathlib import Path
+
+import pytest
+
+from feed_axis_energy.core.gcode import iter_moves
+from feed_axis_energy.core.gcode.context import operation_name
+from feed_axis_energy.core.machine import load_machine
+from feed_axis_energy.core.simstream import simulate_stream
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.parametrize('line,name', [
+    ('(2D ADAPTIVE1)', '2D ADAPTIVE1'),                        # Fusion 360
+    ('(begin operation: Profile)', 'Profile'),                 # FreeCAD linuxcnc post
+    ('(Begin operation: 3mm Endmill001)', '3mm Endmill001'),   # FreeCAD script_module
+    ('(finish operation: Profile)', None),
+    ('(Block-name: Fixture)', None),
+    ('; Operation:    0', 'operation 0'),                      # jscut
+    ('; Type:         Engrave', None),
+    ('( holes )', 'holes'),                                    # CamBam
+    ('( T3 : 0.125 )', None),
+    ('(T2  D=3.175 CR=0. - ZMIN=-5. - FLAT END MILL)', None),  # Fusion tool list
+    ('(Toolpath:Projected01)', 'Projected01'),
+    ('(MSG, Attach the probe tool)', None),                    # LinuxCNC active comments
+    ('(debug, x=#1)', None),
+    ('(' + 'x' * 61 + ')', None),
+])
+def test_operation_names(line, name):
+    assert operation_name(line) == name
+
+
+# Two operations with their own tool run the same subroutine from the same point at rest:
+# by symmetry they take the same energy; the dwell between them is roughing's time.
+PROGRAM = """o100 sub
+  G1 X50 F3000
+  G1 Y20
+  G2 X30 Y40 I-20 J0
+  G0 Z5
+  G0 X0 Y0 Z0
+o100 endsub
+(Program header comment)
+G21 G90 G94 G61
+G0 X0 Y0 Z0
+(Roughing)
+T1 M6
+o100 call
+G4 P0.2
+(Finishing)
+T2 M6
+o100 call
+M30
+"""
+
+
+def _run(tmp_path, chunk_samples):
+    machine = load_machine(REPO / 'config' / 'three_axis_mill.yaml')
+    path = tmp_path / 'ops.ngc'
+    path.write_text(PROGRAM)
+    stream = iter_moves(path, home=machine.home_point(), tools=dict(machine.gcode.tools))
+    summary, _ = simulate_stream(stream, machine, file=stream.file, rollup=True,
+                                 context=stream.context, chunk_samples=chunk_samples)
+    return summary
+
+
+@pytest.mark.parametrize('chunk_samples', [257, 100_000])
+def test_operations_tools_and_subroutines(tmp_path, chunk_samples):
+    s = _run(tmp_path, chunk_samples)
+    roll = s['rollups']
+    total, duration = s['energy_j']['total'], s['duration_s']
+    for group in ('operation', 'subroutine', 'tool'):
+        assert math.isclose(math.fsum(r['energy_j'] for r in roll[group]), total,
+                            rel_tol=1e-9)
+        assert math.isclose(math.fsum(r['duration_s'] for r in roll[group]), duration,
+                            rel_tol=1e-9)
+    op = {r['name']: r for r in roll['operation']}
+    assert set(op) == {'Roughing', 'Finishing'}      # the header comment names nothing
+    # equal but for where the 1 ms sample grid falls in each (discretisation)
+    assert math.isclose(op['Roughing']['energy_j'], op['Finishing']['energy_j'],
+                        rel_tol=1e-4)
+    assert op['Roughing']['duration_s'] == pytest.approx(op['Finishing']['duration_s'] + 0.2,
+                                                         abs=2e-3)
+    tool = {r['name']: r['energy_j'] for r in roll['tool']}
+    assert tool == {'T1': op['Roughing']['energy_j'], 'T2': op['Finishing']['energy_j']}
+    sub = {r['name']: r for r in roll['subroutine']}
+    # the main program only dwells (G0 X0 Y0 Z0 from the start point does not move)
+    assert set(sub) == {'o<100>', '(main program)'}
+    # (but for the interval into the dwell: its end sample is the dwell's)
+    assert abs(sub['(main program)']['energy_j']) < 1e-5 * total
+    assert sub['(main program)']['duration_s'] == pytest.approx(0.2, abs=2e-3)
+    axis = {r['name']: r for r in roll['axis']}
+    assert {a: axis[a]['energy_j'] for a in 'XYZ'} == {a: s['energy_j'][a] for a in 'XYZ'}
+    assert 0.0 < axis['Z']['duration_s'] < axis['X']['duration_s'] < duration
+
+
+def test_chunking_does_not_change_the_rollups(tmp_path):
+    small, large = _run(tmp_path, 257), _run(tmp_path, 100_000)
+    for group, items in large['rollups'].items():
+        got = {r['name']: r for r in small['rollups'][group]}
+        for r in items:
+            assert got[r['name']]['energy_j'] == pytest.approx(r['energy_j'], rel=1e-9)
+            assert got[r['name']]['duration_s'] == pytest.approx(r['duration_s'], rel=1e-9)
+
+
+def _shared():
+    import os
+    for cand in (os.environ.get('FAE_SHARED'), REPO.parent / 'shared', '/work/shared'):
+        if cand and (Path(cand) / 'corpus' / 'gcode').is_dir():
+            return Path(cand) / 'corpus' / 'gcode'
+    return None
+
+
+@pytest.mark.parametrize('name,operations,tools', [
+    # CamBam: section comments after a tool list in the header
+    ('jbeuckm__thrust_bucket/cambam__load_cell_spacer.nc', {'holes', 'cutout'}, {3}),
+    # a CAMotics script: section comments and three tool changes
+    ('CauldronDevelopmentLLC__CAMotics/examples__botomata_bottom__botomata_bottom.nc',
+     {'Pockets', 'Profiles', 'Cutout', 'Cleanup'}, {1, 2, 3}),
+    # jscut: "; Operation: 0", then step notes ("; plunge") that name nothing
+    ('cncjs__cncjs/examples__gcode__jsdc.gcode', {'operation 0'}, set()),
+])
+def test_corpus_operations(name, operations, tools):
+    corpus = _shared()
+    if corpus is None:
+        pytest.skip('shared corpus not found (set FAE_SHARED)')
+    stream = iter_moves(corpus / name, ignore_axes=('A', 'B', 'C'))
+    n = sum(1 for _ in stream)
+    used = {stream.context.table[i] for _, i in stream.context.marks} | {
+        stream.context.table[stream.context.index_at(n - 1)]}
+    assert {op for op, _, _ in used} - {''} == operations
+    assert {tool for _, _, tool in used} - {0} == tools
+
+
+def test_axis_time_is_the_time_the_axis_moves(tmp_path):
+    machine = load_machine(REPO / 'config' / 'three_axis_mill.yaml')
+    path = tmp_path / 'x.ngc'
+    path.write_text('G21 G90 G94 G61\nG1 X100 F3000\nG4 P0.5\nG1 X0\nM30\n')
+    stream = iter_moves(path, home=machine.home_point())
+    s, _ = simulate_stream(stream, machine, file=stream.file, rollup=True,
+                           context=stream.context, chunk_samples=300)
+    axis = {r['name']: r['duration_s'] for r in s['rollups']['axis']}
+    # everything but the 0.5 s dwell (one sample interval at each end of it)
+    assert axis['X'] == pytest.approx(s['duration_s'] - 0.5, abs=2.5e-3)
+    assert axis['Y'] == 0.0 and axis['Z'] == 0.0
