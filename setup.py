@@ -40,7 +40,8 @@ setup(
         ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
     ],
     install_requires=INSTALL_REQUIRES,
-    extras_require={'ros': ROS_WHEELS},
+    # pyarrow: only simulate --parquet (a clear error without it)
+    extras_require={'ros': ROS_WHEELS, 'parquet': ['pyarrow']},
     python_requires='>=3.10',
     zip_safe=False,
     maintainer='feed_axis_energy maintainers',

@@ -28,7 +28,7 @@ ROSDEP_KEYS = {
     'lz4': 'python3-lz4',
 }
 # no rosdep key: installed with pip (README "ROS 2 workspace" says so)
-PIP_ONLY = {'rosbags', 'mcap', 'distributed'}
+PIP_ONLY = {'rosbags', 'mcap', 'distributed', 'pyarrow'}
 
 
 def _sources() -> list[Path]:
