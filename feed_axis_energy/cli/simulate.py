@@ -3,12 +3,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import shutil
 import sys
 from pathlib import Path
 
 from feed_axis_energy.cli.common import add_machine_options
 from feed_axis_energy.core.errors import ConfigError
+
+# plottopics' constant, repeated so that --help does not import numpy (a test compares them)
+DEFAULT_PLOT_RATE_HZ = 20.0
 
 __all__ = ['add_parser', 'run', 'bag_bytes_per_sample']
 
@@ -24,6 +28,18 @@ _DISK_RESERVE = 1.1      # refuse when the estimate exceeds 1 / 1.1 of the free 
 def bag_bytes_per_sample(n_axes: int) -> int:
     """Estimated recording size per sample [bytes] for ``n_axes`` axes (see README)."""
     return _BAG_BYTES_BASE + _BAG_BYTES_AXIS * int(n_axes)
+
+
+def _plot_rate(text: str) -> float:
+    """``--plot-rate-hz``: a finite number >= 0 (a usage error otherwise)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not math.isfinite(value) or value < 0:
+        msg = f'expected a number of hertz >= 0 (0: every sample), got {text[:60]!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return value
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -48,6 +64,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--compression', choices=('none', 'zstd'), default='zstd',
                    help='MCAP chunk compression of the --out recording (default zstd at the '
                         'fast level -1: about 5x smaller for 1.2-1.5x the writer\'s CPU time)')
+    p.add_argument('--plot-rate-hz', type=_plot_rate, default=DEFAULT_PLOT_RATE_HZ,
+                   metavar='HZ',
+                   help='display rate of the --out recording\'s plot topics /plot/power and '
+                        '/plot/axes (one sample per message; per interval of 1/HZ the first '
+                        'sample and those of each power and torque minimum and maximum, so '
+                        f'no peak is lost); 0: every sample (default {DEFAULT_PLOT_RATE_HZ:g})')
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the table (keys in README)')
     p.add_argument('--top', type=int, default=5, metavar='N',
@@ -216,7 +238,8 @@ def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
         from feed_axis_energy.core.recording import SimulationBagWriter
         with _staged_out(args) as staged, \
                 SimulationBagWriter(staged, compression=args.compression,
-                                    rate_hz=options.rate_hz) as writer:
+                                    rate_hz=options.rate_hz,
+                                    plot_rate_hz=args.plot_rate_hz) as writer:
             # chunk_gaps: the writer takes the left-out dwell samples as they are (recthin)
             summary, blocks = simulate_stream(moves, machine, on_chunk=writer.write,
                                               chunk_gaps=True, **kw)
@@ -260,5 +283,6 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool,
         with _staged_out(args) as staged:
             write_simulation_bag(staged, result, summary=summary,
                                  progress=Progress('write bag', enabled=not args.quiet),
-                                 compression=args.compression)
+                                 compression=args.compression,
+                                 plot_rate_hz=args.plot_rate_hz)
     return summary

@@ -161,9 +161,12 @@ class StreamBagWriter:
         return count
 
     def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
-                           stamp_s: float, program: str = '') -> None:
-        """Write the per-block energy (:func:`.bagio.block_energy_cdr`)."""
-        for stamp, data in block_energy_cdr(blocks, stamp_s=stamp_s, program=program):
+                           stamp_s: float = 0.0, stamp_ns: int | None = None,
+                           program: str = '') -> None:
+        """Write the per-block energy (:func:`.bagio.block_energy_cdr`) at ``stamp_ns``
+        (or ``stamp_s``)."""
+        for stamp, data in block_energy_cdr(blocks, stamp_s=stamp_s, stamp_ns=stamp_ns,
+                                            program=program):
             self.write_raw(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY, stamp, bytes(data))
 
     def set_custom_data(self, key: str, value: object) -> None:
