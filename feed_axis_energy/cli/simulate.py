@@ -42,6 +42,15 @@ def _plot_rate(text: str) -> float:
     return value
 
 
+def _start_time(text: str) -> int:
+    """``--start-time``: ``now`` or ISO-8601 -> ns since the epoch (a usage error otherwise)."""
+    from feed_axis_energy.core.starttime import parse_start_time
+    try:
+        return parse_start_time(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the subcommand."""
     p = sub.add_parser(
@@ -70,6 +79,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         '/plot/axes (one sample per message; per interval of 1/HZ the first '
                         'sample and those of each power and torque minimum and maximum, so '
                         f'no peak is lost); 0: every sample (default {DEFAULT_PLOT_RATE_HZ:g})')
+    p.add_argument('--start-time', type=_start_time, default=None, metavar='now|ISO-8601',
+                   help='stamp the --out recording in wall-clock time from this start (e.g. '
+                        '2026-11-23T14:00:00Z; no offset: UTC) instead of simulation time '
+                        'from 0 (the default)')
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the table (keys in README)')
     p.add_argument('--top', type=int, default=5, metavar='N',
@@ -117,7 +130,8 @@ def run(args: argparse.Namespace) -> int:
         print_summary(summary, source_lines=program_text_lines(args.program, lines))
         if args.out is not None:
             print(f'recording: {args.out} (topics /setpoints, /axis_state, /power, '
-                  '/block_energy; units in README)')
+                  '/block_energy; plot-ready /plot/power, /plot/axes, /plot/block_energy; '
+                  'units in README)')
     return 0
 
 
@@ -225,6 +239,7 @@ def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
         _check_cost(args, estimate, n_axes=len(limits), rate_hz=options.rate_hz,
                     file=first.file)
         duration = estimate.duration_s
+        _check_start(args, duration)
         moves = _Moves(args, machine, check=False)
     else:
         moves = _Moves(args, machine, check=True, progress=progress,
@@ -239,7 +254,8 @@ def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
         with _staged_out(args) as staged, \
                 SimulationBagWriter(staged, compression=args.compression,
                                     rate_hz=options.rate_hz,
-                                    plot_rate_hz=args.plot_rate_hz) as writer:
+                                    plot_rate_hz=args.plot_rate_hz,
+                                    start_ns=args.start_time or 0) as writer:
             # chunk_gaps: the writer takes the left-out dwell samples as they are (recthin)
             summary, blocks = simulate_stream(moves, machine, on_chunk=writer.write,
                                               chunk_gaps=True, **kw)
@@ -248,6 +264,16 @@ def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
     if warnings is None:
         warnings = moves.warnings(args)
     return summary, warnings
+
+
+def _check_start(args, duration_s: float) -> None:
+    """Refuse a ``--start-time`` whose recording would end past the ROS 2 time range."""
+    if args.out is None or args.start_time is None:
+        return
+    from feed_axis_energy.core.starttime import check_end
+    why = check_end(args.start_time, duration_s)
+    if why is not None:
+        raise ConfigError(why, file='command line', key='start-time')
 
 
 def _warn(args, program, machine) -> list[str]:
@@ -280,9 +306,11 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool,
     # A trajectory has no source lines to attribute energy to.
     summary = summarize(result, top_blocks=0 if trajectory else args.top)
     if args.out is not None:
+        _check_start(args, summary['duration_s'])
         with _staged_out(args) as staged:
             write_simulation_bag(staged, result, summary=summary,
                                  progress=Progress('write bag', enabled=not args.quiet),
                                  compression=args.compression,
-                                 plot_rate_hz=args.plot_rate_hz)
+                                 plot_rate_hz=args.plot_rate_hz,
+                                 start_ns=args.start_time or 0)
     return summary

@@ -13,11 +13,13 @@ import numpy as np
 from feed_axis_energy.core import bagio
 from feed_axis_energy.core.bagwrite import StreamBagWriter
 from feed_axis_energy.core.cdr import joint_trajectory_rows, MessageRows
+from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.motion import Motion
 from feed_axis_energy.core.plottopics import (
     block_energy_joint_state, DEFAULT_PLOT_RATE_HZ, JOINT_STATE, joint_state_rows, PlotDecimator,
     TOPIC_PLOT_AXES, TOPIC_PLOT_BLOCK_ENERGY, TOPIC_PLOT_POWER)
 from feed_axis_energy.core.recthin import STANDSTILL_PERIOD_S, StandstillThinner
+from feed_axis_energy.core.starttime import check_end, MAX_STAMP_NS
 
 __all__ = ['setpoint_series', 'axis_state_series', 'power_series', 'simulation_series',
            'write_simulation_bag', 'SimulationBagWriter', 'SUMMARY_KEY', 'screw_joint']
@@ -243,6 +245,9 @@ class SimulationBagWriter:
         t_ns = _t_ns(t)
         if self.start_ns:
             t_ns += self.start_ns
+            if t_ns.shape[0] and int(t_ns[-1]) > MAX_STAMP_NS:
+                msg = check_end(self.start_ns, float(t[-1]))
+                raise ConfigError(msg, file='command line', key='start-time')
         return t_ns
 
     def _plot_rows(self, t: np.ndarray, columns: dict) -> dict[str, MessageRows]:
