@@ -12,11 +12,12 @@ from __future__ import annotations
 
 from datetime import datetime, timezone
 import math
+import struct
 import time
 
-from .errors import shorten
+from .errors import DataError, shorten
 
-__all__ = ['parse_start_time', 'check_end', 'MAX_STAMP_NS']
+__all__ = ['parse_start_time', 'check_end', 'restamp', 'MAX_STAMP_NS']
 
 _NS = 1_000_000_000
 MAX_STAMP_NS = (2 ** 31) * _NS - 1     # builtin_interfaces/Time.sec is int32
@@ -60,3 +61,26 @@ def check_end(start_ns: int, duration_s: float) -> str | None:
         return ('the recording would end after 2038-01-19 03:14:07 UTC, the last time a ROS 2 '
                 'stamp holds; choose an earlier --start-time')
     return None
+
+
+_STAMP = struct.Struct('<iI')
+
+
+def restamp(cdr: bytes, stamp_ns: int) -> bytes:
+    """A serialized message whose first field is a header (or a ``Time``, as
+    ``rosgraph_msgs/Clock``) with that stamp set to ``stamp_ns`` (little-endian CDR).
+
+    Raises
+    ------
+    DataError
+        Data too short or not little-endian CDR, or a stamp outside the ROS 2 time range.
+    """
+    if len(cdr) < 12 or cdr[1] != 1:
+        msg = 'expected little-endian CDR with a header stamp'
+        raise DataError(msg, file='<cdr>')
+    if not 0 <= stamp_ns <= MAX_STAMP_NS:
+        msg = f'stamp {stamp_ns} ns is outside the ROS 2 time range'
+        raise DataError(msg, file='<cdr>')
+    out = bytearray(cdr)
+    _STAMP.pack_into(out, 4, stamp_ns // _NS, stamp_ns % _NS)
+    return bytes(out)

@@ -252,3 +252,67 @@ def test_read_plot_topic_names_the_place(tmp_path):
         read_plot_topic(bag, '/plot/nothing')
     with pytest.raises(DataError, match='expected sensor_msgs/msg/JointState'):
         read_plot_topic(bag, bagio.TOPIC_POWER)
+
+
+# ---------------------------------------------------------------- the node graph's recorder
+@pytest.mark.parametrize('plot_rate_hz', [20.0, 0.0])
+def test_graph_plotter_writes_what_simulate_out_writes(tmp_path, plot_rate_hz):
+    """Batches of the graph's power / axis_state streams give the offline plot messages."""
+    from feed_axis_energy.core.plotgraph import GraphPlotter
+    from feed_axis_energy.core.recording import simulation_series
+    bag = tmp_path / 'rec'
+    machine_file, program = CASES['contour']
+    machine = load_machine(REPO / 'config' / machine_file)
+    prog = load_gcode(REPO / 'config' / 'programs' / program, home=machine.home_point())
+    whole = simulate_program(prog, machine)
+    start = 1_795_442_400 * _NS
+    with SimulationBagWriter(bag, plot_rate_hz=plot_rate_hz, standstill_period_s=None,
+                             start_ns=start) as writer:
+        writer.write(whole)
+        writer.finish([], summary={}, stamp_s=float(whole.power.t[-1]))
+    plotter = GraphPlotter(rate_hz=plot_rate_hz, start_ns=start)
+    got = []
+    series = simulation_series(whole)
+    for topic, key in (('power', bagio.TOPIC_POWER), ('axis_state', bagio.TOPIC_AXIS_STATE)):
+        s = series[key]
+        t_ns = np.rint(s.t * _NS).astype(np.int64)
+        for lo in range(0, t_ns.shape[0], 100):
+            fields = {f: None if getattr(s, f) is None else getattr(s, f)[lo:lo + 100]
+                      for f in ('positions', 'velocities', 'accelerations', 'effort')}
+            got += plotter.add(topic, t_ns[lo:lo + 100], s.names, fields)
+    got += plotter.finish()
+    for topic in (TOPIC_PLOT_POWER, TOPIC_PLOT_AXES):
+        mine = [(m[1], m[2]) for m in got if m[0] == topic]
+        (path,) = bag.glob('*.mcap')
+        with open(path, 'rb') as fh:
+            want = [(m.log_time, m.data) for _, _, m in
+                    make_reader(fh).iter_messages(topics=[topic], log_time_order=True)]
+        assert len(mine) == len(want) > 0
+        assert mine == want
+
+
+def test_graph_plotter_refuses_other_joint_names():
+    from feed_axis_energy.core.plotgraph import GraphPlotter
+    plotter = GraphPlotter(rate_hz=20)
+    ones = np.ones((3, 2))
+    plotter.add('power', np.arange(3), ('X', 'total'), {'positions': ones, 'velocities': ones})
+    with pytest.raises(DataError, match='differ'):
+        plotter.add('power', np.arange(3, 6), ('Y', 'total'),
+                    {'positions': ones, 'velocities': ones})
+    with pytest.raises(DataError, match='without velocities'):
+        plotter.add('power', np.arange(3, 6), ('X', 'total'),
+                    {'positions': ones, 'velocities': None})
+
+
+def test_restamp():
+    from feed_axis_energy.core.graph import header_stamp_ns
+    from feed_axis_energy.core.starttime import restamp
+    rows = joint_state_rows(np.array([1_500_000_000]), ('X',), [np.ones((1, 1)), None, None])
+    data = rows.rows[0, rows.start:rows.start + rows.length].tobytes()
+    new = restamp(data, 1_795_442_400 * _NS + 7)
+    assert header_stamp_ns(new) == 1_795_442_400 * _NS + 7
+    assert new[:4] == data[:4] and new[12:] == data[12:]
+    with pytest.raises(DataError):
+        restamp(data[:8], 0)
+    with pytest.raises(DataError):
+        restamp(data, 2 ** 31 * _NS)
