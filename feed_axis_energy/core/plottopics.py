@@ -200,17 +200,32 @@ class PlotDecimator:
         n = int(k.shape[0])
         if n == 0:
             return np.zeros(0, np.int64)
-        starts = np.flatnonzero(np.concatenate(([True], k[1:] != k[:-1])))
-        group = np.cumsum(np.concatenate(([0], (k[1:] != k[:-1]).astype(np.int64))))
-        picked = [starts]
+        new = np.empty(n, bool)
+        new[0] = True
+        np.not_equal(k[1:], k[:-1], out=new[1:])
+        starts = np.flatnonzero(new)
+        if not self.keys:
+            return starts
+        keep = new.copy()
+        size = n // starts.shape[0]
+        if size * starts.shape[0] == n and np.all(starts == np.arange(0, n, size)):
+            # intervals of equal length (motion at the full rate): one pass per extreme
+            for c in self.keys:
+                col = values[:, c].reshape(-1, size)
+                keep[starts + col.argmax(axis=1)] = True
+                keep[starts + col.argmin(axis=1)] = True
+            return np.flatnonzero(keep)
+        group = np.cumsum(new) - 1
         for c in self.keys:
-            col = values[:, c]
+            col = np.ascontiguousarray(values[:, c])
             for reduce in (np.maximum, np.minimum):
-                extreme = reduce.reduceat(col, starts)
-                hit = np.flatnonzero(col == extreme[group])
-                first = np.concatenate(([True], group[hit[1:]] != group[hit[:-1]]))
-                picked.append(hit[first])
-        return np.unique(np.concatenate(picked))
+                hit = np.flatnonzero(col == reduce.reduceat(col, starts)[group])
+                first = np.empty(hit.shape[0], bool)      # the first hit of each interval
+                first[0] = True
+                g = group[hit]
+                np.not_equal(g[1:], g[:-1], out=first[1:])
+                keep[hit[first]] = True
+        return np.flatnonzero(keep)
 
 
 def block_energy_joint_state(stamp_ns: int, lines: np.ndarray, energy_j: np.ndarray,
