@@ -22,12 +22,27 @@ __all__ = ['add_parser', 'run', 'bag_bytes_per_sample']
 # plus per-point lengths and stamps; measured 228 B (1 axis) and 437 B (3 axes), see README.
 _BAG_BYTES_AXIS = 105
 _BAG_BYTES_BASE = 125
+# The plot topics (one /plot/power and one /plot/axes JointState per kept sample, record and
+# index included): about 214 + 56 bytes per axis, rounded up
+_PLOT_BYTES_AXIS = 60
+_PLOT_BYTES_BASE = 220
 _DISK_RESERVE = 1.1      # refuse when the estimate exceeds 1 / 1.1 of the free space
 
 
-def bag_bytes_per_sample(n_axes: int) -> int:
-    """Estimated recording size per sample [bytes] for ``n_axes`` axes (see README)."""
-    return _BAG_BYTES_BASE + _BAG_BYTES_AXIS * int(n_axes)
+def bag_bytes_per_sample(n_axes: int, *, plot_rate_hz: float | None = None,
+                         rate_hz: float = 1000.0) -> float:
+    """Estimated recording size per sample [bytes] for ``n_axes`` axes (see README).
+
+    With ``plot_rate_hz`` the plot topics are counted at their largest share: per display
+    interval at most ``2 * n_axes + 3`` kept samples (the first and each power column's
+    extremes), all samples at 0 Hz.
+    """
+    k = int(n_axes)
+    size = float(_BAG_BYTES_BASE + _BAG_BYTES_AXIS * k)
+    if plot_rate_hz is not None:
+        share = 1.0 if plot_rate_hz <= 0 else min(1.0, (2 * k + 3) * plot_rate_hz / rate_hz)
+        size += share * (_PLOT_BYTES_BASE + _PLOT_BYTES_AXIS * k)
+    return size
 
 
 def _plot_rate(text: str) -> float:
@@ -147,11 +162,13 @@ def _check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: flo
                f'lower the rate (--rate-hz {max(rate, 1e-3):.3g} fits) or raise the limit')
         raise PlanningError(msg, file=file)
     if args.out is not None:
-        need = samples * bag_bytes_per_sample(n_axes)
+        per_sample = bag_bytes_per_sample(n_axes, plot_rate_hz=args.plot_rate_hz,
+                                          rate_hz=rate_hz)
+        need = samples * per_sample
         parent = args.out.resolve().parent
         free = shutil.disk_usage(parent).free if parent.is_dir() else None
         if free is not None and need * _DISK_RESERVE > free:
-            rate = free / _DISK_RESERVE / bag_bytes_per_sample(n_axes) / max(duration, 1e-9)
+            rate = free / _DISK_RESERVE / per_sample / max(duration, 1e-9)
             msg = (f'the recording of {what} needs about {need / 1e9:.2f} GB but {parent} '
                    f'has {free / 1e9:.2f} GB free; lower the rate (--rate-hz '
                    f'{max(rate, 1e-3):.3g} fits) or write elsewhere')
