@@ -99,11 +99,9 @@ def _template(names: tuple[str, ...], frame_id: str, points: int, widths: tuple[
     prefix = _prefix(names, frame_id)
     begin = len(prefix) + 4                       # after the points count
     count_at, value_at, time_at, end = _layout(begin, points, list(widths))
-    # rows hold the lead and the message and nothing else: a block of rows is the byte
-    # string of its records as it is (no copy); the float64 and uint32 views of the payload
-    # may be unaligned (numpy copies into them all the same)
-    payload = lead + 4
-    width = payload + end
+    # the payload (after the 4-byte encapsulation) starts 8-aligned: float64 views fit
+    payload = lead + 4 + (-(lead + 4) % 8)
+    width = payload + end + (-end % 8)
     template = np.zeros(width, np.uint8)
     template[payload - 4:payload] = np.frombuffer(_ENCAPSULATION, np.uint8)
     template[payload:payload + len(prefix)] = np.frombuffer(prefix, np.uint8)
@@ -245,8 +243,8 @@ def joint_trajectory_rows(t_ns: np.ndarray, names: tuple[str, ...],
     width = template.shape[0]
     rows = np.empty((n_msgs, width), np.uint8)
     rows[:] = template
-    u32 = rows[:, payload:].view('<u4')                      # end is a multiple of 4
-    f64 = rows[:, payload:width - (width - payload) % 8].view('<f8')
+    u32 = rows[:, payload:].view('<u4')
+    f64 = rows[:, payload:].view('<f8')
     stamps = t_ns.reshape(n_msgs, points)
     first = stamps[:, 0]
     u32[:, 0] = (first // _NS).astype('<u4')

@@ -22,7 +22,18 @@ summary; every chunk holds the messages of one stretch of time on every channel,
 barely overlap in time. Compression: ``zstd`` at level -1, a "fast" level (on simulated
 series 1.3x faster than level 1 for a 2-4 % larger file, level 1 1.7x faster than level 3,
 rosbags' choice, for 3 %) or ``lz4``, both decoded by rosbags, the mcap
-library and the common viewers (Foxglove, PlotJuggler), or none.
+library and the common viewers (Foxglove, PlotJuggler), or none. Who reads what: rosbags'
+MCAP storage (``rosbags/rosbag2/storage_mcap.py``) decompresses ``lz4`` with ``lz4.frame``
+and ``zstd``; the ``mcap`` Python library (``mcap/stream_reader.py``) both, lz4 when the
+``lz4`` package is installed (rosbags requires it); the MCAP C++ library, which PlotJuggler's
+MCAP loader uses, has ``LZ4Reader`` and ``ZStdReader`` (https://mcap.dev/docs/cpp); Foxglove
+decompresses chunks with ``@mcap/support``'s handlers for the well-known compressions lz4 and
+zstd. Measured on these recordings (``bench/bench_record.py``, README "Benchmarks"): lz4 is
+not faster than zstd -1 here and 35-50 % larger; zstd -3 is 5-15 % faster for a 4-6 %
+larger file; 4 MiB chunks 0-15 % faster than 1 MiB at the same size. Compressing a chunk's
+pieces as one frame without joining them, and rows without spare bytes (no copy into the
+chunk, unaligned float views), were tried and measured no faster: the copies are cheap
+next to encoding and compression.
 """
 from __future__ import annotations
 
@@ -53,31 +64,15 @@ _MSG_HEAD = np.dtype([('op', 'u1'), ('len', '<u8'), ('channel', '<u2'), ('seq', 
 
 
 def _compressor(compression: str):
-    """``(name in the chunk record, function (pieces, total size) -> bytes)``.
-
-    The function compresses the pieces of a chunk as one frame without joining them first
-    (a copy of every byte less).
-    """
+    """``(name in the chunk record, function bytes -> bytes)`` for a compression."""
     if compression == 'zstd':
         import zstandard
         # the frame's own checksum (XXH64, checked by every zstd decoder) stands in for the
         # chunk's CRC-32, which would cost a tenth of the writer's time
-        zstd = zstandard.ZstdCompressor(level=ZSTD_LEVEL, write_checksum=True)
-
-        def pack_zstd(pieces: list, size: int) -> bytes:
-            if len(pieces) == 1:
-                return zstd.compress(pieces[0])
-            obj = zstd.compressobj(size=size)
-            return b''.join([obj.compress(p) for p in pieces] + [obj.flush()])
-        return 'zstd', pack_zstd
+        return 'zstd', zstandard.ZstdCompressor(level=ZSTD_LEVEL, write_checksum=True).compress
     if compression == 'lz4':
         import lz4.frame
-
-        def pack_lz4(pieces: list, size: int) -> bytes:
-            obj = lz4.frame.LZ4FrameCompressor()
-            return b''.join([obj.begin(size)] + [obj.compress(p) for p in pieces]
-                            + [obj.flush()])
-        return 'lz4', pack_lz4
+        return 'lz4', lz4.frame.compress
     if compression == 'none':
         return '', None
     msg = f'compression must be one of {", ".join(MCAP_COMPRESSIONS)}, got {compression!r}'
@@ -238,12 +233,7 @@ class McapStream:
         head['log'] = stamps
         head['pub'] = stamps
         rows[:, c0:start] = head.view(np.uint8).reshape(m, RECORD_HEAD)
-        records = rows[:, c0:start + length]
-        if records.flags.c_contiguous:
-            records = records.reshape(-1)       # the records as they are: no copy
-        else:
-            records = records.tobytes()
-        self._append(channel, stamps, records, RECORD_HEAD + length)
+        self._append(channel, stamps, rows[:, c0:start + length].tobytes(), RECORD_HEAD + length)
 
     def add_message(self, channel: int, stamp: int, data: bytes) -> None:
         """Append one message (for the few messages that are not series)."""
@@ -257,8 +247,7 @@ class McapStream:
         self._append(channel, np.array([stamp], np.int64), head + bytes(data),
                      RECORD_HEAD + len(data))
 
-    def _append(self, channel: int, stamps: np.ndarray, records, size: int) -> None:
-        """Add records (bytes, or a 1-D uint8 array that is not modified afterwards)."""
+    def _append(self, channel: int, stamps: np.ndarray, records: bytes, size: int) -> None:
         m = stamps.shape[0]
         offsets = self._size + size * np.arange(m, dtype=np.int64)
         self._index.setdefault(channel, []).append((stamps, offsets))
@@ -281,6 +270,7 @@ class McapStream:
         """
         if not self._blocks:
             return
+        data = self._blocks[0] if len(self._blocks) == 1 else b''.join(self._blocks)
         indexes = []
         for channel in sorted(self._index):
             parts = self._index[channel]
@@ -288,24 +278,22 @@ class McapStream:
             pairs[:, 0] = np.concatenate([p[0] for p in parts])
             pairs[:, 1] = np.concatenate([p[1] for p in parts])
             indexes.append((channel, pairs.tobytes()))
-        self._do(self._write_chunk, self._blocks, self._size, indexes, self._start, self._end)
+        self._do(self._write_chunk, data, indexes, self._start, self._end)
         self._reset_chunk()
 
-    def _write_chunk(self, pieces: list, size: int, indexes: list[tuple[int, bytes]],
-                     start: int, end: int) -> None:
-        crc = 0                                  # "not computed" for zstd: see _compressor
+    def _write_chunk(self, data: bytes, indexes: list[tuple[int, bytes]], start: int,
+                     end: int) -> None:
         if self._compress is None or self._compression != 'zstd':
-            for piece in pieces:
-                crc = zlib.crc32(piece, crc)
-        packed = pieces if self._compress is None else [self._compress(pieces, size)]
-        packed_size = sum(len(p) for p in packed)
+            crc = zlib.crc32(data)
+        else:
+            crc = 0                              # "not computed": see _compressor
+        packed = data if self._compress is None else self._compress(data)
         name = self._compression.encode()
-        content = 8 + 8 + 8 + 4 + 4 + len(name) + 8 + packed_size
+        content = 8 + 8 + 8 + 4 + 4 + len(name) + 8 + len(packed)
         chunk_at = self._pos
-        self._write(struct.pack('<BQQQQI', _OP_CHUNK, content, start, end, size, crc)
-                    + struct.pack('<I', len(name)) + name + struct.pack('<Q', packed_size))
-        for piece in packed:                     # uncompressed: written piece by piece
-            self._write(piece)
+        self._write(struct.pack('<BQQQQI', _OP_CHUNK, content, start, end, len(data), crc)
+                    + struct.pack('<I', len(name)) + name + struct.pack('<Q', len(packed)))
+        self._write(packed)
         index_at = self._pos
         offsets: dict[int, int] = {}
         for channel, pairs in indexes:
@@ -316,8 +304,8 @@ class McapStream:
             message_start_time=start, message_end_time=end,
             chunk_start_offset=chunk_at, chunk_length=index_at - chunk_at,
             message_index_offsets=offsets, message_index_length=self._pos - index_at,
-            compression=self._compression, compressed_size=packed_size,
-            uncompressed_size=size))
+            compression=self._compression, compressed_size=len(packed),
+            uncompressed_size=len(data)))
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         """Write a metadata record (after the open chunk)."""
