@@ -207,24 +207,36 @@ class PlotDecimator:
         if not self.keys:
             return starts
         keep = new.copy()
-        size = n // starts.shape[0]
-        if size * starts.shape[0] == n and np.all(starts == np.arange(0, n, size)):
-            # intervals of equal length (motion at the full rate): one pass per extreme
-            for c in self.keys:
-                col = values[:, c].reshape(-1, size)
-                keep[starts + col.argmax(axis=1)] = True
-                keep[starts + col.argmin(axis=1)] = True
-            return np.flatnonzero(keep)
-        group = np.cumsum(new) - 1
+        sizes = np.diff(starts, append=n)
+        size = int(sizes.max())
+        full = sizes == size
+        # intervals of the common length (motion at the full rate): one gather and one
+        # argmax / argmin per key column
+        rows = starts[full][:, None] + np.arange(size)
         for c in self.keys:
-            col = np.ascontiguousarray(values[:, c])
+            block = values[:, c][rows]
+            keep[rows[:, 0] + block.argmax(axis=1)] = True
+            keep[rows[:, 0] + block.argmin(axis=1)] = True
+        if full.all():
+            return np.flatnonzero(keep)
+        # the other intervals (shorter: a standstill recorded at 1 Hz, the first ones)
+        group = np.cumsum(new) - 1
+        sub = np.flatnonzero(~full[group])
+        g = group[sub]
+        first_of = np.empty(sub.shape[0], bool)
+        first_of[0] = True
+        np.not_equal(g[1:], g[:-1], out=first_of[1:])
+        sub_starts = np.flatnonzero(first_of)
+        sub_group = np.cumsum(first_of) - 1
+        for c in self.keys:
+            col = values[sub, c]
             for reduce in (np.maximum, np.minimum):
-                hit = np.flatnonzero(col == reduce.reduceat(col, starts)[group])
+                hit = np.flatnonzero(col == reduce.reduceat(col, sub_starts)[sub_group])
                 first = np.empty(hit.shape[0], bool)      # the first hit of each interval
                 first[0] = True
-                g = group[hit]
-                np.not_equal(g[1:], g[:-1], out=first[1:])
-                keep[hit[first]] = True
+                h = sub_group[hit]
+                np.not_equal(h[1:], h[:-1], out=first[1:])
+                keep[sub[hit[first]]] = True
         return np.flatnonzero(keep)
 
 

@@ -316,3 +316,24 @@ def test_restamp():
         restamp(data[:8], 0)
     with pytest.raises(DataError):
         restamp(data, 2 ** 31 * _NS)
+
+
+@pytest.mark.parametrize('seed', [3, 4, 5, 6])
+def test_decimator_matches_a_brute_force_selection_on_irregular_times(seed):
+    rng = np.random.default_rng(seed)
+    # 1 kHz with holes (a standstill recorded at 1 Hz) and ties
+    t = np.sort(rng.choice(np.arange(20_000), size=6000, replace=False)) / 1000
+    v = rng.integers(-3, 4, size=(t.shape[0], 3)).astype(float)
+    dec = PlotDecimator(rate_hz=20, keys=[0, 2])
+    parts = [dec.push(t[a:b], v[a:b]) for a, b in ((0, 1000), (1000, 1001), (1001, 6000))]
+    parts.append(dec.finish())
+    got = np.concatenate([p[0] for p in parts])
+    k = np.floor(t * 20 + 1e-9).astype(int)
+    want = set()
+    for g in np.unique(k):
+        rows = np.flatnonzero(k == g)
+        want.add(rows[0])
+        for c in (0, 2):
+            want.add(rows[np.argmax(v[rows, c])])
+            want.add(rows[np.argmin(v[rows, c])])
+    np.testing.assert_array_equal(got, t[sorted(want)])
