@@ -140,6 +140,7 @@ class McapRecorder(Node):
         # directory holds a readable bag at every moment.
         bag_topics = {name: KNOWN_TOPICS[topic][1] for _, _, (topic, name) in self._subs}
         self.plotter = None
+        self._no_plot: set[str] = set()      # streams whose batches the plot topics refused
         if plot and any(t in PLOT_SOURCES for t in topics):
             self.plotter = GraphPlotter(rate_hz=plot_rate_hz, start_ns=self.start_ns,
                                         per_message=bagio.BLOCK_ENERGY_PER_MESSAGE)
@@ -229,11 +230,15 @@ class McapRecorder(Node):
                                    restamp(data, stamp + self.start_ns))
                 else:
                     self.bag.write(name, stamp, data)
-                if self.plotter is not None:
-                    self._plot(topic, stamp, data)
             except FeedAxisError as err:
                 self.get_logger().error(f'{topic}: {err}')
                 continue
+            if self.plotter is not None and topic not in self._no_plot:
+                try:
+                    self._plot(topic, stamp, data)
+                except FeedAxisError as err:    # logged once: the stream is still recorded
+                    self._no_plot.add(topic)
+                    self.get_logger().error(f'{topic}: no more plot samples from it: {err}')
             if stamp > newest.get(topic, -1):
                 newest[topic] = stamp
             if topic == 'program/end':

@@ -1,7 +1,10 @@
 """Plot-ready topics: read as Foxglove and PlotJuggler read them, compared with the simulation.
 
 Viewers take one value per field per message, at the message's log time (= header stamp);
-they decode with the schema stored in the MCAP file. The test does the same with the mcap
+they decode with the schema stored in the MCAP file. PlotJuggler's ROS 2 JointState parser
+(plotjuggler-ros-plugins, ``plugins/ros2_parsers/jointstates_msg.h``) makes one series
+``<topic>/<name>/<field>`` per name and filled field, one point per message, as
+:func:`_as_a_viewer_reads` does. The test does the same with the mcap
 library (raw records, the embedded schema text registered in an empty rosbags typestore),
 and checks that every plotted power is the simulated power at its stamp and that the peaks
 (maximum and minimum of every power column) are plotted.
