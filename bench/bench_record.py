@@ -2,7 +2,7 @@
 
 Usage: PYTHONPATH=. python bench/bench_record.py [--case demonstrator|contour|both]
        [--minutes M] [--compression zstd,lz4,none] [--repeat R]
-       [--background]
+       [--background] [--plot-rate-hz off,20,0]
 
 Simulates M minutes (default 20) of the bench_scale programs (1 axis demonstrator, 3 axis
 contour) once, keeps the chunks in memory, then times only the writing of those chunks as a
@@ -13,6 +13,8 @@ case and compression: samples simulated (and recorded: a standstill is recorded 
 wall time of the writer, simulated samples/s by wall and by CPU time (issue 10 target:
 >= 2e6 on one core), bag bytes per simulated sample; and the share of each stage (CDR
 encoding with numpy, compression, CRC, file writes) from a profiled run in one thread.
+``--plot-rate-hz`` (comma-separated; ``off``: no plot topics, 0: every sample) repeats each
+measurement per display rate of the plot topics and prints the bag's bytes per program hour.
 """
 import argparse
 import cProfile
@@ -55,9 +57,11 @@ def _chunks(case: str, minutes: float) -> list:
     return list(iter_simulation(motions, machine))
 
 
-def _write(chunks: list, path: Path, compression: str, background: bool = False) -> int:
+def _write(chunks: list, path: Path, compression: str, background: bool = False,
+           plot_rate_hz: float | None = None) -> int:
     """Write the chunks as a recording; return the number of samples recorded."""
-    with SimulationBagWriter(path, compression=compression, background=background) as writer:
+    with SimulationBagWriter(path, compression=compression, background=background,
+                             plot_rate_hz=plot_rate_hz) as writer:
         for chunk in chunks:
             writer.write(chunk)
         writer.finish([], summary={}, stamp_s=float(chunks[-1].power.t[-1]))
@@ -72,24 +76,28 @@ def main() -> None:
     ap.add_argument('--repeat', type=int, default=3)
     ap.add_argument('--background', action='store_true',
                     help='compress and write in a second thread (as simulate --out does)')
+    ap.add_argument('--plot-rate-hz', default='off,20',
+                    help='display rates of the plot topics, comma-separated (off: none)')
     args = ap.parse_args()
+    plots = [None if r == 'off' else float(r) for r in args.plot_rate_hz.split(',')]
     cases = ('demonstrator', 'contour') if args.case == 'both' else (args.case,)
     for case in cases:
         chunks = _chunks(case, args.minutes)
         n = sum(c.power.t.shape[0] for c in chunks)
-        for compression in args.compression.split(','):
+        hours = float(chunks[-1].power.t[-1]) / 3600
+        for compression, plot in ((c, p) for c in args.compression.split(',') for p in plots):
             best = cpu = float('inf')
             with tempfile.TemporaryDirectory() as tmp:
                 for i in range(args.repeat):
                     path = Path(tmp) / f'run{i}'
                     t0, c0 = time.perf_counter(), time.process_time()
-                    kept = _write(chunks, path, compression, args.background)
+                    kept = _write(chunks, path, compression, args.background, plot)
                     best = min(best, time.perf_counter() - t0)
                     cpu = min(cpu, time.process_time() - c0)
                     size = sum(f.stat().st_size for f in path.rglob('*') if f.is_file())
                 prof = cProfile.Profile()
                 prof.enable()
-                _write(chunks, Path(tmp) / 'profiled', compression)   # one thread
+                _write(chunks, Path(tmp) / 'profiled', compression, False, plot)   # one thread
                 prof.disable()
             stats = pstats.Stats(prof).stats
             total = sum(v[2] for v in stats.values())
@@ -97,10 +105,12 @@ def main() -> None:
                                if any(p in f'{k[0]}:{k[2]}' for p in pats)) / total
                      for name, pats in _STAGES.items()}
             split = ', '.join(f'{name} {100 * s:.0f} %' for name, s in share.items())
-            print(f'{case:12s} {compression:5s} {n:,} samples ({kept:,} recorded)  '
+            label = 'off' if plot is None else f'{plot:g} Hz'
+            print(f'{case:12s} {compression:5s} plot {label:6s} {n:,} samples '
+                  f'({kept:,} recorded)  '
                   f'writer {best:.3f} s  '
                   f'{n / best:,.0f} samples/s (CPU {cpu:.3f} s: {n / cpu:,.0f}/s)  '
-                  f'bag {size / n:.1f} B/sample  '
+                  f'bag {size / n:.1f} B/sample, {size / hours / 1e6:.1f} MB per program hour  '
                   f'(profiled: {split}, rest {100 * (1 - sum(share.values())):.0f} %)',
                   flush=True)
 

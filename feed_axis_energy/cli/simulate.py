@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import shutil
 import sys
@@ -10,6 +11,9 @@ from pathlib import Path
 
 from feed_axis_energy.cli.common import add_machine_options
 from feed_axis_energy.core.errors import ConfigError, shorten
+
+# plottopics' constant, repeated so that --help does not import numpy (a test compares them)
+DEFAULT_PLOT_RATE_HZ = 20.0
 
 __all__ = ['add_parser', 'run', 'bag_bytes_per_sample']
 
@@ -19,6 +23,10 @@ __all__ = ['add_parser', 'run', 'bag_bytes_per_sample']
 # plus per-point lengths and stamps; measured 228 B (1 axis) and 437 B (3 axes), see README.
 _BAG_BYTES_AXIS = 105
 _BAG_BYTES_BASE = 125
+# The plot topics (one /plot/power and one /plot/axes JointState per kept sample, record and
+# index included): about 214 + 56 bytes per axis, rounded up
+_PLOT_BYTES_AXIS = 60
+_PLOT_BYTES_BASE = 220
 _DISK_RESERVE = 1.1      # refuse when the estimate exceeds 1 / 1.1 of the free space
 BLOCK_TEXT_CHARS = 60    # block text shown in top_blocks (cut with '...')
 # the per-block breakdown costs 8 (axes + causes) bytes per program line; kept when the
@@ -26,9 +34,41 @@ BLOCK_TEXT_CHARS = 60    # block text shown in top_blocks (cut with '...')
 BLOCK_BREAKDOWN_BYTES = 16 << 20
 
 
-def bag_bytes_per_sample(n_axes: int) -> int:
-    """Estimated recording size per sample [bytes] for ``n_axes`` axes (see README)."""
-    return _BAG_BYTES_BASE + _BAG_BYTES_AXIS * int(n_axes)
+def bag_bytes_per_sample(n_axes: int, *, plot_rate_hz: float | None = None,
+                         rate_hz: float = 1000.0) -> float:
+    """Estimated recording size per sample [bytes] for ``n_axes`` axes (see README).
+
+    With ``plot_rate_hz`` the plot topics are counted at their largest share: per display
+    interval at most ``2 * n_axes + 3`` kept samples (the first and each power column's
+    extremes), all samples at 0 Hz.
+    """
+    k = int(n_axes)
+    size = float(_BAG_BYTES_BASE + _BAG_BYTES_AXIS * k)
+    if plot_rate_hz is not None:
+        share = 1.0 if plot_rate_hz <= 0 else min(1.0, (2 * k + 3) * plot_rate_hz / rate_hz)
+        size += share * (_PLOT_BYTES_BASE + _PLOT_BYTES_AXIS * k)
+    return size
+
+
+def _plot_rate(text: str) -> float:
+    """``--plot-rate-hz``: a finite number >= 0 (a usage error otherwise)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not math.isfinite(value) or value < 0:
+        msg = f'expected a number of hertz >= 0 (0: every sample), got {text[:60]!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def _start_time(text: str) -> int:
+    """``--start-time``: ``now`` or ISO-8601 -> ns since the epoch (a usage error otherwise)."""
+    from feed_axis_energy.core.starttime import parse_start_time
+    try:
+        return parse_start_time(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -73,6 +113,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     rate.add_argument('--export-rate-hz', type=_positive_float, default=None, metavar='HZ',
                       help='exported time series: about HZ samples per second (every '
                            'round(rate/HZ)-th sample)')
+    p.add_argument('--plot-rate-hz', type=_plot_rate, default=DEFAULT_PLOT_RATE_HZ,
+                   metavar='HZ',
+                   help='display rate of the --out recording\'s plot topics /plot/power and '
+                        '/plot/axes (one sample per message; per interval of 1/HZ the first '
+                        'sample and those of each power and torque minimum and maximum, so '
+                        f'no peak is lost); 0: every sample (default {DEFAULT_PLOT_RATE_HZ:g})')
+    p.add_argument('--start-time', type=_start_time, default=None, metavar='now|ISO-8601',
+                   help='stamp the --out recording in wall-clock time from this start (e.g. '
+                        '2026-11-23T14:00:00Z; no offset: UTC) instead of simulation time '
+                        'from 0 (the default)')
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the table (keys in README)')
     p.add_argument('--top', type=int, default=5, metavar='N',
@@ -173,7 +223,8 @@ def run(args: argparse.Namespace) -> int:
         print_summary(summary, source_lines=texts)
         if args.out is not None:
             print(f'recording: {args.out} (topics /setpoints, /axis_state, /power, '
-                  '/block_energy; units in README)')
+                  '/block_energy; plot-ready /plot/power, /plot/axes, /plot/block_energy; '
+                  'units in README)')
         for fmt, path in exports.items():
             print(f'{fmt}: {path} (timeseries.{fmt}, blocks.{fmt}; columns in README)')
     return 0
@@ -288,11 +339,13 @@ def _check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: flo
                f'lower the rate (--rate-hz {max(rate, 1e-3):.3g} fits) or raise the limit')
         raise PlanningError(msg, file=file)
     if args.out is not None:
-        need = samples * bag_bytes_per_sample(n_axes)
+        per_sample = bag_bytes_per_sample(n_axes, plot_rate_hz=args.plot_rate_hz,
+                                          rate_hz=rate_hz)
+        need = samples * per_sample
         parent = args.out.resolve().parent
         free = shutil.disk_usage(parent).free if parent.is_dir() else None
         if free is not None and need * _DISK_RESERVE > free:
-            rate = free / _DISK_RESERVE / bag_bytes_per_sample(n_axes) / max(duration, 1e-9)
+            rate = free / _DISK_RESERVE / per_sample / max(duration, 1e-9)
             msg = (f'the recording of {what} needs about {need / 1e9:.2f} GB but {parent} '
                    f'has {free / 1e9:.2f} GB free; lower the rate (--rate-hz '
                    f'{max(rate, 1e-3):.3g} fits) or write elsewhere')
@@ -381,6 +434,7 @@ def _run_stream(args, machine, options, progress, *, trace=None,
         _check_cost(args, estimate, n_axes=len(limits), rate_hz=options.rate_hz,
                     file=first.file)
         duration = estimate.duration_s
+        _check_start(args, duration)
         moves = _Moves(args, machine, check=False)
     else:
         moves = _Moves(args, machine, check=True, progress=progress,
@@ -402,7 +456,9 @@ def _run_stream(args, machine, options, progress, *, trace=None,
         from feed_axis_energy.core.recording import SimulationBagWriter
         with _staged_out(args) as staged, \
                 SimulationBagWriter(staged, compression=args.compression,
-                                    rate_hz=options.rate_hz) as writer:
+                                    rate_hz=options.rate_hz,
+                                    plot_rate_hz=args.plot_rate_hz,
+                                    start_ns=args.start_time or 0) as writer:
             # chunk_gaps: the writer takes the left-out dwell samples as they are (recthin)
             summary, blocks = simulate_stream(moves, machine,
                                               on_chunk=_consumers(writer, trace, export,
@@ -446,6 +502,16 @@ def _consumers(writer, trace, export, rate: float):
     return take
 
 
+def _check_start(args, duration_s: float) -> None:
+    """Refuse a ``--start-time`` whose recording would end past the ROS 2 time range."""
+    if args.out is None or args.start_time is None:
+        return
+    from feed_axis_energy.core.starttime import check_end
+    why = check_end(args.start_time, duration_s)
+    if why is not None:
+        raise ConfigError(why, file='command line', key='start-time')
+
+
 def _warn(args, program, machine) -> list[str]:
     """Print the parser's and ``check``'s sanity warnings on stderr; return them."""
     from feed_axis_energy.cli.check import warning_texts
@@ -481,10 +547,13 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool,
         export.series.write(result)
         export.write_blocks(line_table(result))
     if args.out is not None:
+        _check_start(args, summary['duration_s'])
         with _staged_out(args) as staged:
             write_simulation_bag(staged, result, summary=summary,
                                  progress=Progress('write bag', enabled=not args.quiet),
-                                 compression=args.compression)
+                                 compression=args.compression,
+                                 plot_rate_hz=args.plot_rate_hz,
+                                 start_ns=args.start_time or 0)
     blocks: list = []
     if trace is not None:
         trace.add(result)

@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import DataError, shorten
 
-__all__ = ['check_trajectory', 'field_layout', 'guard']
+__all__ = ['check_trajectory', 'check_joint_state', 'field_layout', 'guard']
 
 _NS = 1_000_000_000
 _FIELDS = ('positions', 'velocities', 'accelerations', 'effort')
@@ -88,6 +88,39 @@ def check_trajectory(msg, *, file: str, topic: str, index: int,
                 msg_ = (f'point {j}: {field} holds {float(np.abs(arr).max()):.3g}; expected '
                         f'magnitudes of at most {max_abs:g}')
                 raise DataError(msg_, **where)
+    return m
+
+
+def check_joint_state(msg, *, file: str, topic: str, index: int) -> int:
+    """Check one decoded ``sensor_msgs/JointState``; return its number of names.
+
+    ``position``, ``velocity`` and ``effort`` must be empty or have one finite value per
+    name, names unique, the stamp a valid time.
+
+    Raises
+    ------
+    DataError
+        Naming the bag, the topic and the 0-based message index.
+    """
+    names = list(msg.name)
+    m = len(names)
+    where = {'file': file, 'topic': topic, 'index': index}
+    if len(set(names)) != m:
+        msg_ = 'joint names repeat; expected one name per column'
+        raise DataError(msg_, **where)
+    stamp = msg.header.stamp
+    if stamp.sec < 0 or not 0 <= stamp.nanosec < _NS:
+        msg_ = f'header stamp {stamp.sec} s {stamp.nanosec} ns is not a valid time'
+        raise DataError(msg_, **where)
+    for field in ('position', 'velocity', 'effort'):
+        arr = getattr(msg, field)
+        if len(arr) not in (0, m):
+            msg_ = (f'{field} has {len(arr)} values for {m} names; expected one per name '
+                    'or none')
+            raise DataError(msg_, **where)
+        if len(arr) and not np.isfinite(arr).all():
+            msg_ = f'{field} holds NaN or infinite values; expected finite ones'
+            raise DataError(msg_, **where)
     return m
 
 

@@ -17,10 +17,13 @@ from pathlib import Path
 from typing import Iterable, Iterator, Sequence
 
 import numpy as np
+from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
+                                QosTime)
 from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StoragePlugin, Writer
 from rosbags.typesys import get_typestore, Stores
 
 from feed_axis_energy.core.bagcheck import check_trajectory, field_layout, guard
+from feed_axis_energy.core.bagqos import topic_qos
 from feed_axis_energy.core.cdr import (
     BLOCK_ENERGY_PER_MESSAGE, block_energy_cdr, joint_trajectory_cdr)
 from feed_axis_energy.core.errors import DataError, describe, shorten
@@ -191,7 +194,8 @@ class BagWriter:
     def _connection(self, topic: str, msgtype: str):
         if topic not in self._connections:
             self._connections[topic] = self._writer.add_connection(
-                topic, msgtype, typestore=typestore())
+                topic, msgtype, typestore=typestore(),
+                offered_qos_profiles=[_rosbags_qos(q) for q in topic_qos(topic)])
         return self._connections[topic]
 
     def write_message(self, topic: str, msgtype: str, stamp_ns: int, message) -> None:
@@ -236,6 +240,17 @@ class BagWriter:
 # YAML loader first, every rosbags call that touches file content is guarded, and every
 # decoded message is checked (type, array lengths, finite values) before it is used, so a
 # damaged bag ends in one DataError naming the bag, the topic and the message index.
+
+def _rosbags_qos(profile: dict) -> Qos:
+    """A :mod:`.bagqos` profile as rosbags' ``Qos``."""
+    def time(key: str) -> QosTime:
+        return QosTime(profile[key]['sec'], profile[key]['nsec'])
+    return Qos(QosHistory[profile['history'].upper()], profile['depth'],
+               QosReliability[profile['reliability'].upper()],
+               QosDurability[profile['durability'].upper()], time('deadline'), time('lifespan'),
+               QosLiveliness[profile['liveliness'].upper()], time('liveliness_lease_duration'),
+               profile['avoid_ros_namespace_conventions'])
+
 
 def read_metadata(path: str | Path) -> dict:
     """Return the parsed ``metadata.yaml`` of a bag directory (the bounded YAML loader).

@@ -24,6 +24,7 @@ import yaml
 
 from .bagio import (block_energy_cdr, DIAGNOSTIC_ARRAY, JOINT_TRAJECTORY, Series,
                     TOPIC_BLOCK_ENERGY, typestore)
+from .bagqos import qos_yaml, topic_qos
 from .cdr import joint_trajectory_rows, MessageRows
 from .graph_bag import create_bag_dir
 from .mcapstream import CHUNK_BYTES, McapStream, RECORD_HEAD
@@ -110,7 +111,7 @@ class StreamBagWriter:
         self._types[topic] = msgtype
         self._channels[topic] = self._mcap.add_channel(
             topic, schema_id=self._schemas[msgtype],
-            metadata={'offered_qos_profiles': ''})
+            metadata={'offered_qos_profiles': qos_yaml(topic_qos(topic))})
         return self._channels[topic]
 
     def close_chunk(self) -> None:
@@ -161,9 +162,12 @@ class StreamBagWriter:
         return count
 
     def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
-                           stamp_s: float, program: str = '') -> None:
-        """Write the per-block energy (:func:`.bagio.block_energy_cdr`)."""
-        for stamp, data in block_energy_cdr(blocks, stamp_s=stamp_s, program=program):
+                           stamp_s: float = 0.0, stamp_ns: int | None = None,
+                           program: str = '') -> None:
+        """Write the per-block energy (:func:`.bagio.block_energy_cdr`) at ``stamp_ns``
+        (or ``stamp_s``)."""
+        for stamp, data in block_energy_cdr(blocks, stamp_s=stamp_s, stamp_ns=stamp_ns,
+                                            program=program):
             self.write_raw(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY, stamp, bytes(data))
 
     def set_custom_data(self, key: str, value: object) -> None:
@@ -179,7 +183,8 @@ class StreamBagWriter:
         store = typestore()
         topics = [{'topic_metadata': {
             'name': topic, 'type': msgtype, 'serialization_format': 'cdr',
-            'offered_qos_profiles': [], 'type_description_hash': store.hash_rihs01(msgtype)},
+            'offered_qos_profiles': topic_qos(topic),
+            'type_description_hash': store.hash_rihs01(msgtype)},
             'message_count': mcap.counts[self._channels[topic]]}
             for topic, msgtype in self._types.items()]
         name = f'{self.path.name}.mcap'

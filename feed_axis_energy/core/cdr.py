@@ -391,7 +391,8 @@ def block_energy_cdr_array(stamp_ns: int, program: str, lines: np.ndarray,
     return _ENCAPSULATION + payload[:end].tobytes()
 
 
-def block_energy_cdr(blocks: Sequence[tuple[int, float, float]], *, stamp_s: float,
+def block_energy_cdr(blocks: Sequence[tuple[int, float, float]], *, stamp_s: float = 0.0,
+                     stamp_ns: int | None = None,
                      program: str = '') -> Iterator[tuple[int, bytes]]:
     """``(stamp_ns, CDR)`` of the ``/block_energy`` DiagnosticArrays (one status per line).
 
@@ -399,9 +400,10 @@ def block_energy_cdr(blocks: Sequence[tuple[int, float, float]], *, stamp_s: flo
     (:func:`.bagio.read_block_energy` joins them), laid out with numpy
     (:func:`block_energy_cdr_array`), so a program of a million lines costs a few
     megabytes at a time, not a million message objects. ``blocks`` may be a
-    :class:`.simstream.LineEnergy` (its arrays are used directly).
+    :class:`.simstream.LineEnergy` (its arrays are used directly). ``stamp_ns``, when
+    given, replaces ``stamp_s`` (a wall-clock stamp does not fit a float to the nanosecond).
     """
-    stamp = int(round(stamp_s * _NS))
+    stamp = int(round(stamp_s * _NS)) if stamp_ns is None else int(stamp_ns)
     columns = getattr(blocks, 'lines', None) is not None
     total = len(blocks)
     step = BLOCK_ENERGY_PER_MESSAGE

@@ -33,6 +33,8 @@ from typing import Mapping
 from mcap.writer import CompressionType, Writer as McapWriter
 import yaml
 
+from .bagqos import qos_yaml, topic_qos
+
 __all__ = ['ChunkedBagWriter', 'create_bag_dir']
 
 _DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
@@ -179,7 +181,7 @@ class ChunkedBagWriter:
                                             data=self._schemas[msgtype])
             channels[topic] = writer.register_channel(
                 topic=topic, message_encoding='cdr', schema_id=schema,
-                metadata={'offered_qos_profiles': ''})
+                metadata={'offered_qos_profiles': qos_yaml(topic_qos(topic))})
         seq = {}
         for topic, stamp, data in buffer:
             seq[topic] = seq.get(topic, -1) + 1
@@ -208,7 +210,7 @@ class ChunkedBagWriter:
                    for f in full), default=0)
         topics = [{'topic_metadata': {
             'name': topic, 'type': msgtype, 'serialization_format': 'cdr',
-            'offered_qos_profiles': [],
+            'offered_qos_profiles': topic_qos(topic),
             'type_description_hash': self._typestore.hash_rihs01(msgtype)},
             'message_count': counts.get(topic, 0)} for topic, msgtype in sorted(
                 self._types.items())]

@@ -13,8 +13,13 @@ import numpy as np
 from feed_axis_energy.core import bagio
 from feed_axis_energy.core.bagwrite import StreamBagWriter
 from feed_axis_energy.core.cdr import joint_trajectory_rows, MessageRows
+from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.motion import Motion
+from feed_axis_energy.core.plottopics import (
+    block_energy_joint_state, DEFAULT_PLOT_RATE_HZ, JOINT_STATE, joint_state_rows, PlotDecimator,
+    TOPIC_PLOT_AXES, TOPIC_PLOT_BLOCK_ENERGY, TOPIC_PLOT_POWER)
 from feed_axis_energy.core.recthin import STANDSTILL_PERIOD_S, StandstillThinner
+from feed_axis_energy.core.starttime import check_end, MAX_STAMP_NS
 
 __all__ = ['setpoint_series', 'axis_state_series', 'power_series', 'simulation_series',
            'write_simulation_bag', 'SimulationBagWriter', 'SUMMARY_KEY', 'screw_joint']
@@ -145,11 +150,30 @@ class SimulationBagWriter:
     background
         Compress and write the MCAP chunks in a second thread (same file; see
         :class:`.mcapstream.McapStream`).
+    plot_rate_hz
+        Display rate of the plot-ready topics (:mod:`.plottopics`; 0: every recorded
+        sample; ``None``: no plot topics).
+    start_ns
+        Added to every stamp [ns]: the wall-clock time of the program start (0: stamps
+        are simulation time).
     """
 
     def __init__(self, path: str | Path, *, batch: int = 100, compression: str = 'none',
                  standstill_period_s: float | None = STANDSTILL_PERIOD_S,
-                 rate_hz: float | None = None, background: bool = False) -> None:
+                 rate_hz: float | None = None, background: bool = False,
+                 plot_rate_hz: float | None = DEFAULT_PLOT_RATE_HZ, start_ns: int = 0) -> None:
+        if int(start_ns) < 0:
+            msg = f'start_ns must be >= 0, got {start_ns}'
+            raise ValueError(msg)
+        self.start_ns = int(start_ns)
+        self._plot: dict[str, PlotDecimator] | None = None
+        if plot_rate_hz is not None:
+            # keys (power / torque columns) are set once the axis count is known
+            self._plot = {TOPIC_PLOT_POWER: PlotDecimator(rate_hz=plot_rate_hz, keys=()),
+                          TOPIC_PLOT_AXES: PlotDecimator(rate_hz=plot_rate_hz, keys=())}
+        self.plot_messages = 0
+        self._pending: dict[str, MessageRows] = {}      # plot messages after the JT ones
+        self._plot_names: dict[str, tuple[str, ...]] = {}
         self._bag = StreamBagWriter(path, compression=compression, background=background)
         self.batch = int(batch)
         self._thin = (None if standstill_period_s is None else
@@ -169,6 +193,9 @@ class SimulationBagWriter:
             for topic in (bagio.TOPIC_SETPOINTS, bagio.TOPIC_AXIS_STATE, bagio.TOPIC_POWER):
                 self._bag.channel(topic, bagio.JOINT_TRAJECTORY)
             self._bag.channel(bagio.TOPIC_BLOCK_ENERGY, bagio.DIAGNOSTIC_ARRAY)
+            if self._plot is not None:
+                for topic in (TOPIC_PLOT_POWER, TOPIC_PLOT_AXES, TOPIC_PLOT_BLOCK_ENERGY):
+                    self._bag.channel(topic, JOINT_STATE)
         except BaseException as err:
             self._bag.__exit__(type(err), err, err.__traceback__)
             raise
@@ -183,7 +210,8 @@ class SimulationBagWriter:
         t = chunk.motion.t
         if self._thin is not None and t.shape[0]:
             t, columns = self._thinned(chunk, t, columns)
-        t_ns = _t_ns(t)
+        plots = self._merge_pending(self._plot_rows(t, columns))
+        t_ns = self._stamps(t)
         n, r, batch = int(t_ns.shape[0]), int(self._rest_t.shape[0]), self.batch
         lead = self._bag.lead
         first: dict[str, MessageRows] = {}
@@ -195,6 +223,7 @@ class SimulationBagWriter:
                      for topic, (names, fields) in columns.items()}
             if t_head.shape[0] < batch:          # still not a whole message
                 self._keep(t_head, heads, 0, t_head.shape[0])
+                self._pending = plots
                 return
             first = {topic: joint_trajectory_rows(t_head, names, fields, points=batch,
                                                   lead=lead)
@@ -210,7 +239,61 @@ class SimulationBagWriter:
         self._keep(t_ns, columns, start + full, n)
         for topic, block in first.items():     # joins the first chunk of the slices below
             self.messages += self._bag.write_rows(topic, block)
-        self._write_interleaved(blocks)
+        self._write_interleaved(blocks, plots)
+
+    def _stamps(self, t: np.ndarray) -> np.ndarray:
+        t_ns = _t_ns(t)
+        if self.start_ns:
+            t_ns += self.start_ns
+            if t_ns.shape[0] and int(t_ns[-1]) > MAX_STAMP_NS:
+                msg = check_end(self.start_ns, float(t[-1]))
+                raise ConfigError(msg, file='command line', key='start-time')
+        return t_ns
+
+    def _plot_rows(self, t: np.ndarray, columns: dict) -> dict[str, MessageRows]:
+        """The plot topics' messages of the display intervals completed by these samples."""
+        if self._plot is None:
+            return {}
+        power = columns[bagio.TOPIC_POWER]
+        state = columns[bagio.TOPIC_AXIS_STATE]
+        energy, watts = np.hstack(power[1][0]), np.hstack(power[1][1])
+        screw = [f[-1] for f in state[1][:2]] + [state[1][3][-1]]   # angle, omega, torque
+        if not self._plot_names:
+            k = screw[0].shape[1]
+            self._plot_names = {TOPIC_PLOT_POWER: power[0],
+                                TOPIC_PLOT_AXES: tuple(state[0][:k])}
+            self._plot[TOPIC_PLOT_POWER].keys = list(range(k + 1, 2 * k + 2))
+            self._plot[TOPIC_PLOT_AXES].keys = list(range(2 * k, 3 * k))
+        values = {TOPIC_PLOT_POWER: np.hstack((energy, watts)),
+                  TOPIC_PLOT_AXES: np.hstack(screw)}
+        return {topic: self._plot_block(topic, *self._plot[topic].push(t, values[topic]))
+                for topic in values}
+
+    def _plot_block(self, topic: str, t: np.ndarray, values: np.ndarray) -> MessageRows:
+        names = self._plot_names[topic]
+        k = len(names)
+        if topic == TOPIC_PLOT_POWER:
+            fields = [values[:, :k], values[:, k:], None]
+        else:
+            fields = [values[:, :k], values[:, k:2 * k], values[:, 2 * k:]]
+        return joint_state_rows(self._stamps(t), names, fields, lead=self._bag.lead)
+
+    def _write_plots(self, plots: dict[str, MessageRows]) -> None:
+        for topic, block in plots.items():
+            self.plot_messages += self._bag.write_rows(topic, block, msgtype=JOINT_STATE)
+
+    def _merge_pending(self, plots: dict[str, MessageRows]) -> dict[str, MessageRows]:
+        """The plot messages held back by the last write, followed by ``plots``."""
+        pending, self._pending = self._pending, {}
+        for topic, old in pending.items():
+            new = plots.get(topic)
+            if new is None or new.rows.shape[0] == 0:
+                plots[topic] = old
+            elif old.rows.shape[0]:
+                plots[topic] = MessageRows(stamps=np.concatenate((old.stamps, new.stamps)),
+                                           rows=np.concatenate((old.rows, new.rows)),
+                                           start=new.start, length=new.length)
+        return plots
 
     def _thinned(self, chunk, t: np.ndarray, columns: dict) -> tuple[np.ndarray, dict]:
         """The chunk's samples the recording keeps (:mod:`.recthin`), as times and columns."""
@@ -267,19 +350,55 @@ class SimulationBagWriter:
                                       for old, f in zip(self._rest[topic][1], fields)])
                       for topic, (names, fields) in columns.items()}
 
-    def _write_interleaved(self, blocks: dict[str, MessageRows]) -> None:
-        """Write the topics' messages in slices of time, one MCAP chunk per slice."""
+    def _write_interleaved(self, blocks: dict[str, MessageRows],
+                           plots: dict[str, MessageRows] | None = None) -> None:
+        """Write the topics' messages in slices of time, one MCAP chunk per slice.
+
+        The plot topics' messages go into the slice of their stamps; those later than the
+        samples written so far wait for the next write (:attr:`_pending`), so that chunks
+        do not overlap in time.
+        """
+        plots = plots or {}
+        # samples from here on wait for a whole message: so do the plot messages
+        limit = int(self._rest_t[0]) if self._rest_t.shape[0] else None
         if not blocks:
+            self._hold_plots(plots, limit)
             return
         m = next(iter(blocks.values())).rows.shape[0]
         per_message = sum(b.length + self._bag.lead for b in blocks.values())
+        stamps = next(iter(blocks.values())).stamps
+        if plots:
+            # plot messages per JointTrajectory message, on average
+            per_message += sum((b.length + self._bag.lead) * b.rows.shape[0]
+                               for b in plots.values()) // max(m, 1)
         step = max(1, -(-self._bag.chunk_bytes // per_message))
+        taken = dict.fromkeys(plots, 0)
         for lo in range(0, m, step):
             for topic, b in blocks.items():
                 part = MessageRows(stamps=b.stamps[lo:lo + step], rows=b.rows[lo:lo + step],
                                    start=b.start, length=b.length)
                 self.messages += self._bag.write_rows(topic, part)
+            if lo + step < m:
+                for topic, b in plots.items():
+                    a = taken[topic]
+                    z = int(np.searchsorted(b.stamps, stamps[lo + step], side='left'))
+                    if z > a:
+                        self._write_plots({topic: _rows(b, a, z)})
+                        taken[topic] = z
+            else:
+                self._hold_plots({topic: _rows(b, taken[topic], b.stamps.shape[0])
+                                  for topic, b in plots.items()}, limit)
             self._bag.close_chunk()
+
+    def _hold_plots(self, plots: dict[str, MessageRows], limit: int | None) -> None:
+        """Write the plot messages stamped before ``limit``, keep the others pending."""
+        for topic, b in plots.items():
+            z = b.stamps.shape[0] if limit is None else int(
+                np.searchsorted(b.stamps, limit, side='left'))
+            if z:
+                self._write_plots({topic: _rows(b, 0, z)})
+            if z < b.stamps.shape[0]:
+                self._pending[topic] = _rows(b, z, b.stamps.shape[0])
 
     def finish(self, blocks: Sequence[tuple[int, float, float]], *, summary: dict,
                stamp_s: float) -> None:
@@ -288,7 +407,8 @@ class SimulationBagWriter:
             t_held, fields = self._held
             self._held = None
             columns = {topic: (names, fields[topic]) for topic, (names, _) in self._rest.items()}
-            self._append_rest(_t_ns(np.array([t_held])), columns)
+            self._pending = self._merge_pending(self._plot_rows(np.array([t_held]), columns))
+            self._append_rest(self._stamps(np.array([t_held])), columns)
         r = int(self._rest_t.shape[0])
         if r:
             for topic, (names, fields) in self._rest.items():
@@ -298,17 +418,48 @@ class SimulationBagWriter:
             self.samples += r
         self._rest_t = np.zeros(0, np.int64)
         self._rest = {}
-        self._bag.write_block_energy(blocks, stamp_s=stamp_s,
+        self._write_plots(self._merge_pending({}))
+        if self._plot is not None:
+            for topic, dec in self._plot.items():
+                t_last, values = dec.finish()
+                if t_last.shape[0]:
+                    self._write_plots({topic: self._plot_block(topic, t_last, values)})
+        end_ns = int(round(stamp_s * 1e9)) + self.start_ns
+        self._bag.write_block_energy(blocks, stamp_ns=end_ns,
                                      program=str(summary.get('program', '')))
+        if self._plot is not None:
+            self._write_block_plot(blocks, end_ns)
         self._bag.set_custom_data(SUMMARY_KEY, summary)
+
+    def _write_block_plot(self, blocks, stamp_ns: int) -> None:
+        """``/plot/block_energy``: the per-line energy as numbers (:mod:`.plottopics`)."""
+        if getattr(blocks, 'lines', None) is not None:
+            lines, energy, duration = blocks.lines, blocks.energy_j, blocks.duration_s
+        else:
+            rows = np.array([(int(a), float(b), float(c)) for a, b, c in blocks],
+                            dtype=[('l', np.int64), ('e', float), ('d', float)])
+            lines, energy, duration = rows['l'], rows['e'], rows['d']
+        for data in block_energy_joint_state(stamp_ns, lines, energy, duration,
+                                             per_message=bagio.BLOCK_ENERGY_PER_MESSAGE):
+            self._bag.write_raw(TOPIC_PLOT_BLOCK_ENERGY, JOINT_STATE, stamp_ns, data)
+            self.plot_messages += 1
+
+
+def _rows(block: MessageRows, lo: int, hi: int) -> MessageRows:
+    """Messages ``lo:hi`` of a block."""
+    return MessageRows(stamps=block.stamps[lo:hi], rows=block.rows[lo:hi], start=block.start,
+                       length=block.length)
 
 
 def write_simulation_bag(path: str | Path, result, *, summary: dict, batch: int = 100,
                          progress: Callable[[float], None] | None = None,
-                         compression: str = 'none') -> None:
+                         compression: str = 'none',
+                         plot_rate_hz: float | None = DEFAULT_PLOT_RATE_HZ,
+                         start_ns: int = 0) -> None:
     """Write a whole simulation as a rosbag2/MCAP directory (topics in README)."""
     from feed_axis_energy.core.energy import energy_by_line
-    with SimulationBagWriter(path, batch=batch, compression=compression) as writer:
+    with SimulationBagWriter(path, batch=batch, compression=compression,
+                             plot_rate_hz=plot_rate_hz, start_ns=start_ns) as writer:
         writer.write(result)
         if progress is not None:
             progress(0.9)

@@ -36,6 +36,10 @@ from trajectory_msgs.msg import JointTrajectory
 
 from feed_axis_energy.core import bagio
 from feed_axis_energy.core.errors import FeedAxisError
+from feed_axis_energy.core.plotgraph import GraphPlotter, PLOT_SOURCES
+from feed_axis_energy.core.plottopics import (DEFAULT_PLOT_RATE_HZ, JOINT_STATE,
+                                              TOPIC_PLOT_BLOCK_ENERGY)
+from feed_axis_energy.core.starttime import parse_start_time, restamp
 from feed_axis_energy.core.graph import ChunkedBagWriter, EndTracker, header_stamp_ns
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import clock_qos, latched_qos, stream_qos
@@ -82,8 +86,25 @@ class McapRecorder(Node):
                                  'write and acknowledge after at most this many messages')
         self.ack_period_s = declare(self, 'ack_period_s', 0.005,
                                     'write and acknowledge what arrived at least this often [s]')
+        plot = declare(self, 'plot', True,
+                       'also record the plot-ready topics plot/power, plot/axes and '
+                       'plot/block_energy (one sample per JointState message; README)')
+        plot_rate_hz = declare(self, 'plot_rate_hz', DEFAULT_PLOT_RATE_HZ,
+                               'display rate of the plot topics [Hz]: per interval the first '
+                               'sample and every power/torque extreme; 0: every sample')
+        start_time = declare(self, 'start_time', '',
+                             'stamp the bag in wall-clock time from this start: now or '
+                             'ISO-8601 (no offset: UTC); empty: simulation time')
         if not out:
             raise StartupError('parameter output (the bag directory) is required')
+        if not plot_rate_hz >= 0 or plot_rate_hz == float('inf'):
+            raise StartupError(f'plot_rate_hz must be a finite number >= 0, got {plot_rate_hz}')
+        self.start_ns = 0
+        if start_time:
+            try:
+                self.start_ns = parse_start_time(start_time)
+            except ValueError as err:
+                raise StartupError(f'parameter start_time: {err}') from None
         unknown = [t for t in topics if t not in KNOWN_TOPICS]
         if unknown:
             msg = f'unknown topics {unknown}; known: {sorted(KNOWN_TOPICS)}'
@@ -118,8 +139,18 @@ class McapRecorder(Node):
         self._waitset = _rclpy.WaitSet(len(self._subs), 0, 0, 0, 0, 0, self.context.handle)
         # Created last (nothing left behind if a step above fails); from here on the
         # directory holds a readable bag at every moment.
-        self.bag = ChunkedBagWriter(out, typestore=bagio.typestore(), topics={
-            name: KNOWN_TOPICS[topic][1] for _, _, (topic, name) in self._subs})
+        bag_topics = {name: KNOWN_TOPICS[topic][1] for _, _, (topic, name) in self._subs}
+        self.plotter = None
+        self._no_plot: set[str] = set()      # streams whose batches the plot topics refused
+        if plot and any(t in PLOT_SOURCES for t in topics):
+            self.plotter = GraphPlotter(rate_hz=plot_rate_hz, start_ns=self.start_ns,
+                                        per_message=bagio.BLOCK_ENERGY_PER_MESSAGE)
+            for t in topics:
+                if t in PLOT_SOURCES:
+                    bag_topics[PLOT_SOURCES[t]] = JOINT_STATE
+            if 'block_energy' in topics:
+                bag_topics[TOPIC_PLOT_BLOCK_ENERGY] = JOINT_STATE
+        self.bag = ChunkedBagWriter(out, typestore=bagio.typestore(), topics=bag_topics)
         self._last_flush = time.monotonic()
         self._last_ack = time.monotonic()
         self._announce()
@@ -196,10 +227,20 @@ class McapRecorder(Node):
         for (topic, name), data in rx:
             try:
                 stamp = header_stamp_ns(data)
+                if self.start_ns:
+                    self.bag.write(name, stamp + self.start_ns,
+                                   restamp(data, stamp + self.start_ns))
+                else:
+                    self.bag.write(name, stamp, data)
             except FeedAxisError as err:
                 self.get_logger().error(f'{topic}: {err}')
                 continue
-            self.bag.write(name, stamp, data)
+            if self.plotter is not None and topic not in self._no_plot:
+                try:
+                    self._plot(topic, stamp, data)
+                except FeedAxisError as err:    # logged once: the stream is still recorded
+                    self._no_plot.add(topic)
+                    self.get_logger().error(f'{topic}: no more plot samples from it: {err}')
             if stamp > newest.get(topic, -1):
                 newest[topic] = stamp
             if topic == 'program/end':
@@ -214,6 +255,25 @@ class McapRecorder(Node):
         else:
             self._flush_if_due()   # also inside a long take loop: the bound holds there too
         self._check_end()
+
+    def _plot(self, topic: str, stamp: int, data: bytes) -> None:
+        """Write the plot-topic messages this batch completes (core.plotgraph)."""
+        if topic in PLOT_SOURCES:
+            batch = convert.decode_trajectory(data)
+            out = self.plotter.add(topic, batch.t_ns, batch.names, batch.fields)
+        elif topic == 'block_energy':
+            from rclpy.serialization import deserialize_message
+            try:
+                blocks = convert.block_energy_from_msg(
+                    deserialize_message(data, DiagnosticArray))
+            except (KeyError, ValueError) as err:    # a status without line/energy numbers
+                self.get_logger().error(f'block_energy: no plot/block_energy: {err}')
+                return
+            out = self.plotter.block_energy(blocks, stamp + self.start_ns)
+        else:
+            return
+        for name, log_ns, cdr in out:
+            self.bag.write(name, log_ns, cdr)
 
     def _publish_acks(self) -> None:
         # Also called by the slow timer: an ack skipped while its subscriber was still being
@@ -274,6 +334,9 @@ class McapRecorder(Node):
             return
         self._take(0.0)
         self._drain()
+        if self.plotter is not None and not self.bag.closed:
+            for name, log_ns, cdr in self.plotter.finish():
+                self.bag.write(name, log_ns, cdr)
         subs, self._subs = self._subs, []
         self._waitset.clear_entities()
         try:

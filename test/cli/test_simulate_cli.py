@@ -187,3 +187,29 @@ def test_a_failing_report_leaves_no_bag_behind(tmp_path: Path, monkeypatch, caps
                  '--report', str(tmp_path / 'r')]) == 1
     assert 'no space left' in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+def test_plot_rate_default_is_the_core_constant() -> None:
+    from feed_axis_energy.cli.simulate import DEFAULT_PLOT_RATE_HZ
+    from feed_axis_energy.core.plottopics import DEFAULT_PLOT_RATE_HZ as CORE
+    assert DEFAULT_PLOT_RATE_HZ == CORE
+
+
+@pytest.mark.parametrize('value', ['-1', 'fast', 'nan', 'inf'])
+def test_plot_rate_refused_as_usage_error(value: str, tmp_path: Path) -> None:
+    proc = _run('simulate', str(PROGRAM), '--out', str(tmp_path / 'b'), '--plot-rate-hz', value)
+    assert proc.returncode == 2
+    assert '--plot-rate-hz' in proc.stderr and 'Traceback' not in proc.stderr
+    assert not (tmp_path / 'b').exists()
+
+
+@pytest.mark.parametrize('plot_rate', ['0', '20', '500'])
+def test_bag_size_estimate_is_an_upper_bound(plot_rate: str, tmp_path: Path, capsys) -> None:
+    from feed_axis_energy.cli.simulate import bag_bytes_per_sample
+    program = ROOT / 'config' / 'programs' / 'three_axis_contour.nc'
+    out = tmp_path / 'b'
+    assert main(['simulate', str(program), '--machine',
+                 str(ROOT / 'config' / 'three_axis_mill.yaml'), '--out', str(out), '--json',
+                 '--quiet', '--compression', 'none', '--plot-rate-hz', plot_rate]) == 0
+    samples = json.loads(capsys.readouterr().out)['samples']
+    size = sum(f.stat().st_size for f in out.rglob('*') if f.is_file())
+    bound = samples * bag_bytes_per_sample(3, plot_rate_hz=float(plot_rate), rate_hz=1000.0)
+    assert 0.5 * bound < size <= bound

@@ -121,6 +121,14 @@ def test_same_messages_and_metadata_as_rosbags_writer(tmp_path):
         info.pop('relative_file_paths')
         info['files'][0].pop('path')
     assert meta['mine'] == meta['rosbags']
+    # the channels' metadata (offered QoS profiles as YAML text) too
+    channels = {}
+    for name, out in outs.items():
+        with open(next(out.glob('*.mcap')), 'rb') as fh:
+            channels[name] = {c.topic: c.metadata
+                              for c in make_reader(fh).get_summary().channels.values()}
+    assert channels['mine'] == channels['rosbags']
+    assert 'transient_local' in channels['mine']['/block_energy']['offered_qos_profiles']
 
 
 def test_refuses_an_existing_directory_and_leaves_nothing_on_failure(tmp_path):

@@ -15,7 +15,11 @@ from feed_axis_energy import lifeline  # noqa: E402
 from feed_axis_energy.core import bagio  # noqa: E402
 from feed_axis_energy.core.energy import energy_by_line  # noqa: E402
 from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
+from feed_axis_energy.core.graph import header_stamp_ns  # noqa: E402
 from feed_axis_energy.core.machine import load_machine  # noqa: E402
+from feed_axis_energy.core.plotread import read_plot_topic  # noqa: E402
+from feed_axis_energy.core.plottopics import (  # noqa: E402
+    TOPIC_PLOT_AXES, TOPIC_PLOT_BLOCK_ENERGY, TOPIC_PLOT_POWER)
 from feed_axis_energy.core.recording import simulation_series  # noqa: E402
 from feed_axis_energy.core.simulate import simulate_program  # noqa: E402
 from feed_axis_energy.paths import default_machine  # noqa: E402
@@ -61,6 +65,25 @@ def test_launch_recording_equals_offline_simulation(tmp_path, short_program, nod
     assert [b[0] for b in got_blocks] == [b[0] for b in ref_blocks]
     np.testing.assert_allclose([b[1] for b in got_blocks], [b[1] for b in ref_blocks],
                                rtol=1e-9, atol=1e-9)
+    # the plot topics, read back as a viewer plots them: the simulated power at each
+    # stamp, the peaks included (same rule as simulate --out; graph streams standstill at
+    # the full rate)
+    plot = read_plot_topic(bag, TOPIC_PLOT_POWER)
+    t_ref = np.rint(result.power.t * 1e9).astype(np.int64)
+    idx = np.searchsorted(t_ref, plot.t_ns)
+    np.testing.assert_array_equal(t_ref[idx], plot.t_ns)           # stamps of samples
+    simulated = np.column_stack((result.power.power_w, result.power.total_w))
+    np.testing.assert_allclose(plot.velocity, simulated[idx], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(plot.velocity.max(axis=0), simulated.max(axis=0), rtol=1e-9)
+    np.testing.assert_allclose(plot.velocity.min(axis=0), simulated.min(axis=0), rtol=1e-9,
+                               atol=1e-9)
+    assert idx.shape[0] < simulated.shape[0] / 5
+    axes = read_plot_topic(bag, TOPIC_PLOT_AXES)
+    np.testing.assert_allclose(axes.effort.max(axis=0), result.dynamics.torque_nm.max(axis=0),
+                               rtol=1e-9)
+    blocks = read_plot_topic(bag, TOPIC_PLOT_BLOCK_ENERGY)
+    assert [int(n) for n in blocks.names] == [b[0] for b in got_blocks]
+    np.testing.assert_array_equal(blocks.position[0], [b[1] for b in got_blocks])
 
 
 def _measured_bag(path, n=3000, batch=10):
@@ -158,13 +181,13 @@ def test_fast_replay_waits_for_a_stuck_consumer_then_exits_1(tmp_path, node_env,
     assert 'no acknowledgement on /measured/ack' in out and 'Traceback' not in out
 
 
-def _replay_into_recorder(tmp_path, node_env, streams, *, burst):
+def _replay_into_recorder(tmp_path, node_env, streams, *, burst, extra=None):
     """Replay ``tmp_path/measured`` at full speed into an ``exit_at_end`` recorder."""
     bag = tmp_path / 'rec'
     listed = ', '.join(streams)
     rec = _node('mcap_recorder', {'output': bag, 'topics': f'[{listed}, program/end]',
                                   'end_streams': f'[{listed}]', 'end_extra': '[""]',
-                                  'exit_at_end': True}, node_env)
+                                  'exit_at_end': True, **(extra or {})}, node_env)
     replay = _node('measured_replay', {'bag': tmp_path / 'measured', 'rate': 0.0,
                                        'burst': burst}, node_env)
     try:
@@ -184,6 +207,18 @@ def test_fast_replay_into_recorder_is_lossless(tmp_path, node_env, domain_id):
     got = bagio.read_series(bag, bagio.TOPIC_MEASURED_POWER)
     np.testing.assert_allclose(got.t, ref.t, rtol=0, atol=1e-12)
     np.testing.assert_allclose(got.positions, ref.positions, rtol=0, atol=0)
+
+
+def test_recorder_start_time_stamps_in_wall_clock_time(tmp_path, node_env, domain_id):
+    ref = _measured_bag(tmp_path / 'measured', n=500, batch=10)
+    start = 1_795_442_400 * 1_000_000_000               # 2026-11-23T14:00:00Z
+    bag = _replay_into_recorder(tmp_path, node_env, ['measured/power'], burst=20,
+                                extra={'start_time': '2026-11-23T14:00:00Z'})
+    got = bagio.read_raw_messages(bag, [bagio.TOPIC_MEASURED_POWER])
+    want = np.rint(ref.t[::10] * 1e9).astype(np.int64) + start
+    assert [m[1] for m in got] == want.tolist()                      # log times
+    assert [header_stamp_ns(m[2]) for m in got] == want.tolist()     # header stamps
+    assert bagio.read_metadata(bag)['starting_time']['nanoseconds_since_epoch'] == want[0]
 
 
 def test_replay_of_two_topics_into_recorder_exits_at_end(tmp_path, node_env, domain_id):
@@ -252,6 +287,8 @@ def test_recorder_survives_sigkill(tmp_path, node_env, domain_id):
     ('axis_dynamics', {'load_kg': -1.0}, 'load_kg'),
     ('axis_dynamics', {'load_kg': 'heavy'}, 'load_kg'),
     ('mcap_recorder', {}, 'output'),
+    ('mcap_recorder', {'output': '/nonexistent/rec', 'start_time': 'yesterday'}, 'start_time'),
+    ('mcap_recorder', {'output': '/nonexistent/rec', 'plot_rate_hz': -1.0}, 'plot_rate_hz'),
 ])
 def test_bad_parameters_exit_nonzero_with_a_clear_line(name, params, expect, node_env):
     proc = _node(name, params, node_env)
