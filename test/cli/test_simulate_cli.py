@@ -187,6 +187,8 @@ def test_a_failing_report_leaves_no_bag_behind(tmp_path: Path, monkeypatch, caps
                  '--report', str(tmp_path / 'r')]) == 1
     assert 'no space left' in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
 def test_plot_rate_default_is_the_core_constant() -> None:
     from feed_axis_energy.cli.simulate import DEFAULT_PLOT_RATE_HZ
     from feed_axis_energy.core.plottopics import DEFAULT_PLOT_RATE_HZ as CORE
