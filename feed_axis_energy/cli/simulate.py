@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import sys
 from pathlib import Path
 
@@ -67,10 +66,9 @@ def run(args: argparse.Namespace) -> int:
     from feed_axis_energy.cli.progress import Progress
     from feed_axis_energy.core.simstream import streamable
 
-    from feed_axis_energy.core.outputs import check_target, is_bag_directory
-
     machine, options = load_machine_and_options(args)
     if args.out is not None:
+        from feed_axis_energy.core.outputs import check_target, is_bag_directory
         # refused before any sample is computed, not after
         check_target(args.out, option='--out', force=args.force, kind='directory',
                      replaceable=is_bag_directory)
@@ -111,6 +109,7 @@ def _check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: flo
                f'lower the rate (--rate-hz {max(rate, 1e-3):.3g} fits) or raise the limit')
         raise PlanningError(msg, file=file)
     if args.out is not None:
+        import shutil
         need = samples * bag_bytes_per_sample(n_axes)
         parent = args.out.resolve().parent
         free = shutil.disk_usage(parent).free if parent.is_dir() else None
@@ -192,8 +191,6 @@ def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
     the warnings before any output, and keeps the moves in an unnamed temporary file
     (:mod:`~feed_axis_energy.core.movespool`) from which the simulation reads them back;
     otherwise the single pass checks as it goes and the warnings follow the simulation."""
-    from feed_axis_energy.core.movespool import MoveSpool
-    from feed_axis_energy.core.planstream import estimate_plan
     limits = machine.limits()
     if not (args.max_samples or args.out is not None):
         moves = _Moves(args, machine, check=True, progress=progress,
@@ -201,6 +198,8 @@ def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
         summary = _simulate(args, machine, options, progress, moves, limits=limits,
                             duration=None)
         return summary, moves.warnings(args)
+    from feed_axis_energy.core.movespool import MoveSpool
+    from feed_axis_energy.core.planstream import estimate_plan
     first = _Moves(args, machine, check=True)
     with MoveSpool(file=first.file) as spool:
         recorded = spool.record(first)

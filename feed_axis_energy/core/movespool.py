@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 import os
-import tempfile
 
 import numpy as np
 
@@ -89,6 +88,7 @@ class MoveSpool:
         PlanningError
             The temporary file cannot be created or written (e.g. the disk is full).
         """
+        import tempfile
         if self._fh is not None or self._complete:
             raise RuntimeError('MoveSpool.record: the spool has been written already')
         try:
@@ -121,6 +121,7 @@ class MoveSpool:
         self.count += len(batch)
 
     def _error(self, what: str, err: OSError) -> PlanningError:
+        import tempfile
         reason = err.strerror or type(err).__name__
         where = tempfile.gettempdir()
         msg = (f'{what} in {where} ({reason}); the first pass of --out/--max-samples keeps '
