@@ -2,9 +2,8 @@
 
 ``simulate --out`` (and ``--max-samples``) plans the program once without samples to know
 its cost before any output, then simulates it. Reading the G-code a second time costs the
-parser again (on the usual CAM lines about as much as rebuilding the moves from this file:
-the gain is for programs that need the parser's slower front); holding the parsed moves
-costs about 0.55 kB each (a 24-hour contour: about 1 GB). :class:`MoveSpool` instead
+parser and the checks again (about a third of a dense contour's time); holding the parsed
+moves costs about 0.55 kB each (a 24-hour contour: about 1 GB). :class:`MoveSpool` instead
 writes the moves of the first pass, as they stream by, into an anonymous temporary file
 (:func:`tempfile.TemporaryFile`: unlinked at creation, so nothing is left behind whatever
 happens) as fixed-size binary records of :data:`RECORD_BYTES` bytes, and gives them back in
