@@ -187,36 +187,25 @@ def _count_lines(path: Path) -> int:
 def _run_stream(args, machine, options, progress) -> tuple[dict, list[str]]:
     """Parse, plan, simulate and record chunk by chunk: memory holds one batch of moves and
     one chunk of samples, never the program. With ``--out`` or ``--max-samples`` a first
-    pass over the moves (parsing, checks and planning without samples) gives the cost and
-    the warnings before any output, and keeps the moves in an unnamed temporary file
-    (:mod:`~feed_axis_energy.core.movespool`) from which the simulation reads them back;
-    otherwise the single pass checks as it goes and the warnings follow the simulation."""
-    limits = machine.limits()
-    if not (args.max_samples or args.out is not None):
-        moves = _Moves(args, machine, check=True, progress=progress,
-                       n_lines=_count_lines(args.program))
-        summary = _simulate(args, machine, options, progress, moves, limits=limits,
-                            duration=None)
-        return summary, moves.warnings(args)
-    from feed_axis_energy.core.movespool import MoveSpool
+    pass over the moves (parsing and planning without samples) gives the cost and the
+    warnings before any output; otherwise the single pass checks as it goes and the
+    warnings follow the simulation."""
     from feed_axis_energy.core.planstream import estimate_plan
-    first = _Moves(args, machine, check=True)
-    with MoveSpool(file=first.file) as spool:
-        recorded = spool.record(first)
-        estimate = estimate_plan(recorded, limits, options=options, file=first.file)
-        for _ in recorded:          # the planner reads to the end; this makes sure of it
-            pass
+    from feed_axis_energy.core.simstream import simulate_stream
+    limits = machine.limits()
+    duration = None
+    warnings = None
+    if args.max_samples or args.out is not None:
+        first = _Moves(args, machine, check=True)
+        estimate = estimate_plan(first, limits, options=options, file=first.file)
         warnings = first.warnings(args)
         _check_cost(args, estimate, n_axes=len(limits), rate_hz=options.rate_hz,
                     file=first.file)
-        summary = _simulate(args, machine, options, progress, spool, limits=limits,
-                            duration=estimate.duration_s)
-    return summary, warnings
-
-
-def _simulate(args, machine, options, progress, moves, *, limits, duration) -> dict:
-    """The streaming simulation of ``moves`` (with ``--out`` into the recording)."""
-    from feed_axis_energy.core.simstream import simulate_stream
+        duration = estimate.duration_s
+        moves = _Moves(args, machine, check=False)
+    else:
+        moves = _Moves(args, machine, check=True, progress=progress,
+                       n_lines=_count_lines(args.program))
     top = args.top
     kw = dict(file=moves.file, load_kg=args.load_kg, options=options, top_blocks=top,
               duration_s=duration, progress=progress if duration else None, limits=limits)
@@ -232,7 +221,9 @@ def _simulate(args, machine, options, progress, moves, *, limits, duration) -> d
                                               chunk_gaps=True, **kw)
             writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
     progress.done()
-    return summary
+    if warnings is None:
+        warnings = moves.warnings(args)
+    return summary, warnings
 
 
 def _warn(args, program, machine) -> list[str]:
