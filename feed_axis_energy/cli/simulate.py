@@ -2,10 +2,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
-import shutil
 import sys
 from pathlib import Path
 
@@ -170,15 +170,14 @@ def run(args: argparse.Namespace) -> int:
     from feed_axis_energy.cli.progress import Progress
     from feed_axis_energy.core.simstream import streamable
 
-    from feed_axis_energy.core.outputs import check_target, is_bag_directory, Rollback
-
     machine, options = load_machine_and_options(args)
     if args.out is not None:
+        from feed_axis_energy.core.outputs import check_target, is_bag_directory
         # refused before any sample is computed, not after
         check_target(args.out, option='--out', force=args.force, kind='directory',
                      replaceable=is_bag_directory)
     if args.report is not None:
-        from feed_axis_energy.core.outputs import marked_or_empty
+        from feed_axis_energy.core.outputs import check_target, marked_or_empty
         from feed_axis_energy.report import MARKER
         check_target(args.report, option='--report', force=args.force, kind='directory',
                      replaceable=marked_or_empty(MARKER))
@@ -194,7 +193,12 @@ def run(args: argparse.Namespace) -> int:
     # the bag, the exports and the report or none of them: a new bag is removed if an export
     # or the report fails (one that replaced an earlier bag with --force cannot be brought
     # back); the exports are staged and only renamed into place at the end
-    with Rollback() as written, _Exports(args, exports) as export:
+    if args.out is not None or args.report is not None or exports:
+        from feed_axis_energy.core.outputs import Rollback
+        guard = Rollback()
+    else:                                   # nothing to write: no output machinery imported
+        guard = contextlib.nullcontext()
+    with guard as written, _Exports(args, exports) as export:
         if trajectory or not streamable(machine):
             summary, blocks = _run_whole(args, machine, options, progress,
                                          trajectory=trajectory, warnings=warnings, trace=trace,
@@ -295,7 +299,8 @@ class _Exports:
         return bool(self.targets)
 
     def __enter__(self) -> '_Exports':
-        import contextlib
+        if not self.targets:                # no export: nothing staged, nothing imported
+            return self
         from feed_axis_energy.core.exports import EXPORT_MARKER, SeriesExporter
         from feed_axis_energy.core.outputs import marked_or_empty, staged_directory
         self._stack = contextlib.ExitStack()
@@ -324,6 +329,8 @@ class _Exports:
     def __exit__(self, exc_type, exc, tb):
         if self.series is not None:
             self.series.close()
+        if self._stack is None:
+            return False
         return self._stack.__exit__(exc_type, exc, tb)
 
 
@@ -339,6 +346,7 @@ def _check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: flo
                f'lower the rate (--rate-hz {max(rate, 1e-3):.3g} fits) or raise the limit')
         raise PlanningError(msg, file=file)
     if args.out is not None:
+        import shutil
         per_sample = bag_bytes_per_sample(n_axes, plot_rate_hz=args.plot_rate_hz,
                                           rate_hz=rate_hz)
         need = samples * per_sample

@@ -43,7 +43,6 @@ from typing import Any
 from .calibrated import calibrated_from_value, CalibratedRange
 from .configcheck import check_choice as _choice, check_float as _float
 from .configcheck import check_mapping as _mapping, join_key as _join
-from .effects import EFFECTS
 from .errors import ConfigError, describe, shorten
 from .losses import LossModel, loss_from_dict
 from .mass import carried_axes, GRAVITY_M_S2, moved_mass_kg  # noqa: F401  (re-exported)
@@ -390,6 +389,8 @@ def _effects(value: Any, axis_names: tuple[str, ...], *,
     if not isinstance(value, list):
         msg = f'expected a list of effects, got {describe(value)}'
         raise ConfigError(msg, file=file, key='effects')
+    # the catalog is imported only for a machine that declares effects (start-up time)
+    from .effects import EFFECTS
     out = []
     for i, item in enumerate(value):
         key = f'effects[{i}]'

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, fields, replace
+from itertools import chain
 import math
 
 import numpy as np
@@ -295,17 +296,16 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
     k = len(axes)
     rate = options.rate_hz
     sample_s = 1.0 / rate
-    moves_seen: list[Move] = []
+    # the first move is kept for a program without motion; chain() passes the others on
+    # without a Python frame per move
+    source = iter(moves)
+    first = next(source, None)
+    if first is not None:
+        source = chain((first,), source)
 
     def on_move(count: int) -> None:
         if progress is not None and total_moves and not duration_s:
             progress(min(count / total_moves, 1.0))
-
-    def first_move(source: Iterable[Move]) -> Iterator[Move]:
-        for mv in source:
-            if not moves_seen:
-                moves_seen.append(mv)
-            yield mv
 
     def emit(count: int, *, report: bool = True) -> Motion:
         motion = chunk.take(count, axes, file)
@@ -317,7 +317,7 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
     steps = (np.zeros(0, np.int64), np.zeros(0), np.zeros((0, k)))   # not yet applied
     next_index = 0
     any_window = False
-    for win in iter_plan(first_move(moves), limits, options=options, file=file,
+    for win in iter_plan(source, limits, options=options, file=file,
                          window_blocks=window_blocks, on_move=on_move):
         any_window = True
         geo, grp = win.geo, win.groups
@@ -379,7 +379,7 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
                     yield emit(ready)
         next_index = stop_index
     if not any_window:
-        start = moves_seen[0].start if moves_seen else (0.0, 0.0, 0.0)
+        start = first.start if first is not None else (0.0, 0.0, 0.0)
         pos = np.asarray(start, dtype=float)[cols][None, :]
         yield Motion(t=np.zeros(1), axes=axes, pos=pos, vel=np.zeros_like(pos),
                      acc=np.zeros_like(pos), line=np.zeros(1, np.int32), source=file)

@@ -55,6 +55,8 @@ def compactable(machine: Machine) -> bool:
     """True when standstill samples may be left out: every declared effect is sample-local
     and constant at rest (``Effect.constant_at_rest``), so the power is the same at every
     sample of a dwell."""
+    if not machine.effects:
+        return True
     if not streamable(machine):
         return False
     from .effects import get_effect

@@ -82,6 +82,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from itertools import chain
 import math
 
 import numpy as np
@@ -250,9 +251,12 @@ class _Collector:
         if final and self.stop:
             self.stop[-1] = True
         m = len(self.kinds)
+        # fromiter over the flattened points: half the time of asarray on a list of tuples
         return _Segments(kind=np.asarray(self.kinds, dtype=np.int8), move=list(self.moves),
-                         p0=np.asarray(self.p0, dtype=float).reshape(m, 3),
-                         p1=np.asarray(self.p1, dtype=float).reshape(m, 3),
+                         p0=np.fromiter(chain.from_iterable(self.p0), float,
+                                        count=3 * m).reshape(m, 3),
+                         p1=np.fromiter(chain.from_iterable(self.p1), float,
+                                        count=3 * m).reshape(m, 3),
                          dwell=np.asarray(self.dwell, dtype=float),
                          stop_after=np.asarray(self.stop, bool))
 

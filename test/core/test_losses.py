@@ -77,3 +77,29 @@ def test_bad_loss_config_names_key(d, key):
         loss_from_dict(d, file='m.yaml', key='axes.X.loss')
     assert info.value.key == key
     assert str(info.value).startswith(f'm.yaml: {key}: ')
+
+
+@pytest.mark.parametrize('shape', [(0,), (3,), (40_000,), (5_000, 3)])
+@pytest.mark.parametrize('pattern', ['cruise', 'random', 'zeros'])
+def test_power_per_run_is_numpy_power_to_the_bit(shape, pattern) -> None:
+    """The regression's power evaluated once per run of equal speeds (cruise phases) is
+    np.power, bit for bit, whatever the runs (long, none, signed zeros) and the layout."""
+    from feed_axis_energy.core.losses import _power
+    rng = np.random.default_rng(7)
+    n = int(np.prod(shape))
+    if pattern == 'cruise':
+        x = np.repeat(rng.uniform(0.0, 500.0, max(n // 50, 1)), 50)[:n]
+        x[:: 97] = rng.uniform(0.0, 500.0, x[:: 97].shape)     # ramps: single values
+    elif pattern == 'random':
+        x = rng.uniform(0.0, 500.0, n)
+    else:
+        x = np.zeros(n)
+        x[1::2] = -0.0
+    x = np.asfortranarray(x.reshape(shape))
+    for b in (0.0, 0.3471, 1.0, 2.5):
+        got = _power(x, b)
+        assert got.shape == x.shape
+        assert got.tobytes() == np.power(x, b).tobytes()
+        if x.ndim == 2:
+            col = x[:, 1]                                        # a strided view
+            assert _power(col, b).tobytes() == np.power(col, b).tobytes()
