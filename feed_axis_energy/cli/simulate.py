@@ -10,6 +10,9 @@ import sys
 from pathlib import Path
 
 from feed_axis_energy.cli.common import add_machine_options
+from feed_axis_energy.cli.simulate_out import (bag_bytes_per_sample, check_cost, check_start,
+                                               consumers, export_targets, Exports,
+                                               report_trace, staged_out, write_report)
 from feed_axis_energy.core.errors import ConfigError, shorten
 
 # plottopics' constant, repeated so that --help does not import numpy (a test compares them)
@@ -17,37 +20,10 @@ DEFAULT_PLOT_RATE_HZ = 20.0
 
 __all__ = ['add_parser', 'run', 'bag_bytes_per_sample']
 
-# Recorded bytes per sample (all three topics, MCAP without compression; an upper bound of
-# the zstd-compressed size, which varies with the data) with k axes:
-# /setpoints 3 arrays of k doubles, /axis_state 4 arrays of 2k, /power 2 arrays of k + 1,
-# plus per-point lengths and stamps; measured 228 B (1 axis) and 437 B (3 axes), see README.
-_BAG_BYTES_AXIS = 105
-_BAG_BYTES_BASE = 125
-# The plot topics (one /plot/power and one /plot/axes JointState per kept sample, record and
-# index included): about 214 + 56 bytes per axis, rounded up
-_PLOT_BYTES_AXIS = 60
-_PLOT_BYTES_BASE = 220
-_DISK_RESERVE = 1.1      # refuse when the estimate exceeds 1 / 1.1 of the free space
 BLOCK_TEXT_CHARS = 60    # block text shown in top_blocks (cut with '...')
 # the per-block breakdown costs 8 (axes + causes) bytes per program line; kept when the
 # program's lines need at most this much, or when an export needs the per-block table
 BLOCK_BREAKDOWN_BYTES = 16 << 20
-
-
-def bag_bytes_per_sample(n_axes: int, *, plot_rate_hz: float | None = None,
-                         rate_hz: float = 1000.0) -> float:
-    """Estimated recording size per sample [bytes] for ``n_axes`` axes (see README).
-
-    With ``plot_rate_hz`` the plot topics are counted at their largest share: per display
-    interval at most ``2 * n_axes + 3`` kept samples (the first and each power column's
-    extremes), all samples at 0 Hz.
-    """
-    k = int(n_axes)
-    size = float(_BAG_BYTES_BASE + _BAG_BYTES_AXIS * k)
-    if plot_rate_hz is not None:
-        share = 1.0 if plot_rate_hz <= 0 else min(1.0, (2 * k + 3) * plot_rate_hz / rate_hz)
-        size += share * (_PLOT_BYTES_BASE + _PLOT_BYTES_AXIS * k)
-    return size
 
 
 def _plot_rate(text: str) -> float:
@@ -155,13 +131,6 @@ def _positive_float(text: str) -> float:
     return value
 
 
-def _usage_error(text: str) -> SystemExit:
-    """Print a usage error as argparse does; the caller raises the result (exit 2)."""
-    print(f'usage: feed-axis-energy simulate ... (see --help)\n'
-          f'feed-axis-energy simulate: error: {text}', file=sys.stderr)
-    return SystemExit(2)
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     # imported here: ``feed-axis-energy --help`` must not pay for the simulation's imports
@@ -181,14 +150,14 @@ def run(args: argparse.Namespace) -> int:
         from feed_axis_energy.report import MARKER
         check_target(args.report, option='--report', force=args.force, kind='directory',
                      replaceable=marked_or_empty(MARKER))
-    exports = _export_targets(args, options.rate_hz)
+    exports = export_targets(args, options.rate_hz)
     if args.max_samples < 0:
         msg = f'--max-samples must be >= 0, got {args.max_samples}'
         raise ConfigError(msg, file='command line', key='max-samples')
     progress = Progress('simulate', enabled=not args.quiet)
     trajectory = args.program.suffix.lower() == '.csv'
     warnings: list[str] = []
-    trace = _trace(args)
+    trace = report_trace(args)
     new_bag = args.out is not None and not os.path.lexists(args.out)
     # the bag, the exports and the report or none of them: a new bag is removed if an export
     # or the report fails (one that replaced an earlier bag with --force cannot be brought
@@ -198,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
         guard = Rollback()
     else:                                   # nothing to write: no output machinery imported
         guard = contextlib.nullcontext()
-    with guard as written, _Exports(args, exports) as export:
+    with guard as written, Exports(args, exports) as export:
         if trajectory or not streamable(machine):
             summary, blocks = _run_whole(args, machine, options, progress,
                                          trajectory=trajectory, warnings=warnings, trace=trace,
@@ -220,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
                                     limit=BLOCK_TEXT_CHARS)
         if args.report is not None:
             summary['report'] = str(args.report / 'index.html')
-            _write_report(args, summary, trace, blocks, trajectory=trajectory)
+            write_report(args, summary, trace, blocks, trajectory=trajectory)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -232,139 +201,6 @@ def run(args: argparse.Namespace) -> int:
         for fmt, path in exports.items():
             print(f'{fmt}: {path} (timeseries.{fmt}, blocks.{fmt}; columns in README)')
     return 0
-
-
-def _trace(args: argparse.Namespace):
-    """The decimated series for ``--report`` (None without it)."""
-    if args.report is None:
-        return None
-    from feed_axis_energy.report.decimate import PowerTrace
-    return PowerTrace()
-
-
-def _write_report(args: argparse.Namespace, summary: dict, trace, blocks, *,
-                  trajectory: bool) -> None:
-    """Write the ``--report`` directory (all or nothing)."""
-    from feed_axis_energy.cli.common import program_text_lines
-    from feed_axis_energy.report.sim_report import write_sim_report
-
-    def text(lines: list[int]) -> dict[int, str]:
-        return {} if trajectory else program_text_lines(args.program, lines)
-
-    if not args.quiet:
-        print('simulate: writing the report', file=sys.stderr)
-    write_sim_report(summary, trace, blocks, args.report, block_text=text, force=args.force)
-
-
-def _export_targets(args: argparse.Namespace, rate_hz: float) -> dict:
-    """``{'csv': DIR, 'parquet': DIR}`` of the requested exports, checked before any work
-    (and the decimation from ``--decimate`` / ``--export-rate-hz`` in ``args.decimate``)."""
-    from feed_axis_energy.core.exports import EXPORT_MARKER
-    from feed_axis_energy.core.outputs import check_target, marked_or_empty
-    exports = {fmt: getattr(args, fmt) for fmt in ('csv', 'parquet')
-               if getattr(args, fmt) is not None}
-    if (args.decimate or args.export_rate_hz) and not exports:
-        raise _usage_error('--decimate and --export-rate-hz apply to --csv or --parquet, '
-                           'neither given')
-    if len({Path(p).resolve() for p in exports.values()}) < len(exports):
-        raise _usage_error('--csv and --parquet name the same directory')
-    if args.export_rate_hz is not None:
-        hz = args.export_rate_hz
-        if hz > rate_hz:
-            msg = (f'--export-rate-hz {hz:g} Hz is above the sample rate {rate_hz:g} Hz; '
-                   'give at most the sample rate')
-            raise ConfigError(msg, file='command line', key='export-rate-hz')
-        args.decimate = max(1, round(rate_hz / hz))
-    if 'parquet' in exports:
-        from feed_axis_energy.core.exports import require_pyarrow
-        require_pyarrow('--parquet')        # before any work: a clear error if missing
-    for fmt, path in exports.items():
-        check_target(path, option=f'--{fmt}', force=args.force, kind='directory',
-                     replaceable=marked_or_empty(EXPORT_MARKER))
-    return exports
-
-
-class _Exports:
-    """The ``--csv``/``--parquet`` directories, staged (hidden temporaries renamed into
-    place when the command succeeds, removed when it fails), and their time series."""
-
-    def __init__(self, args: argparse.Namespace, targets: dict) -> None:
-        self.args = args
-        self.targets = targets
-        self.series = None
-        self.dirs: dict = {}
-        self._stack = None
-
-    def __bool__(self) -> bool:
-        return bool(self.targets)
-
-    def __enter__(self) -> '_Exports':
-        if not self.targets:                # no export: nothing staged, nothing imported
-            return self
-        from feed_axis_energy.core.exports import EXPORT_MARKER, SeriesExporter
-        from feed_axis_energy.core.outputs import marked_or_empty, staged_directory
-        self._stack = contextlib.ExitStack()
-        try:
-            for fmt, path in self.targets.items():
-                inner = self._stack.enter_context(staged_directory(
-                    path, option=f'--{fmt}', force=self.args.force,
-                    replaceable=marked_or_empty(EXPORT_MARKER)))
-                inner.mkdir()
-                (inner / EXPORT_MARKER).write_text('feed-axis-energy simulate export\n',
-                                                   encoding='utf-8')
-                self.dirs[fmt] = inner
-            if self.dirs:
-                self.series = SeriesExporter(self.dirs, decimate=self.args.decimate or 1)
-        except BaseException:
-            self._stack.__exit__(*sys.exc_info())
-            raise
-        return self
-
-    def write_blocks(self, blocks) -> None:
-        """The per-block tables (needs the per-block breakdown)."""
-        from feed_axis_energy.core.exports import write_blocks
-        if self.dirs:
-            write_blocks(self.dirs, blocks, program=self.args.program)
-
-    def __exit__(self, exc_type, exc, tb):
-        if self.series is not None:
-            self.series.close()
-        if self._stack is None:
-            return False
-        return self._stack.__exit__(exc_type, exc, tb)
-
-
-def _check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: float,
-                file: str) -> None:
-    """Refuse, before any sample is computed, a run beyond a documented limit."""
-    from feed_axis_energy.core.errors import PlanningError
-    samples, duration = estimate.samples, estimate.duration_s
-    what = f'{samples:,} samples ({duration / 3600.0:.2f} h at {rate_hz:g} Hz)'
-    if args.max_samples and samples > args.max_samples:
-        rate = args.max_samples / max(duration, 1e-9)
-        msg = (f'the run needs {what}, more than --max-samples {args.max_samples:,}; '
-               f'lower the rate (--rate-hz {max(rate, 1e-3):.3g} fits) or raise the limit')
-        raise PlanningError(msg, file=file)
-    if args.out is not None:
-        import shutil
-        per_sample = bag_bytes_per_sample(n_axes, plot_rate_hz=args.plot_rate_hz,
-                                          rate_hz=rate_hz)
-        need = samples * per_sample
-        parent = args.out.resolve().parent
-        free = shutil.disk_usage(parent).free if parent.is_dir() else None
-        if free is not None and need * _DISK_RESERVE > free:
-            rate = free / _DISK_RESERVE / per_sample / max(duration, 1e-9)
-            msg = (f'the recording of {what} needs about {need / 1e9:.2f} GB but {parent} '
-                   f'has {free / 1e9:.2f} GB free; lower the rate (--rate-hz '
-                   f'{max(rate, 1e-3):.3g} fits) or write elsewhere')
-            raise PlanningError(msg, file=file)
-
-
-def _staged_out(args: argparse.Namespace):
-    """The ``--out`` bag directory, built in a hidden temporary and renamed when complete."""
-    from feed_axis_energy.core.outputs import is_bag_directory, staged_directory
-    return staged_directory(args.out, option='--out', force=args.force,
-                            replaceable=is_bag_directory)
 
 
 class _Moves:
@@ -439,10 +275,10 @@ def _run_stream(args, machine, options, progress, *, trace=None,
         first = _Moves(args, machine, check=True)
         estimate = estimate_plan(first, limits, options=options, file=first.file)
         warnings = first.warnings(args)
-        _check_cost(args, estimate, n_axes=len(limits), rate_hz=options.rate_hz,
-                    file=first.file)
+        check_cost(args, estimate, n_axes=len(limits), rate_hz=options.rate_hz,
+                   file=first.file)
         duration = estimate.duration_s
-        _check_start(args, duration)
+        check_start(args, duration)
         moves = _Moves(args, machine, check=False)
     else:
         moves = _Moves(args, machine, check=True, progress=progress,
@@ -459,18 +295,18 @@ def _run_stream(args, machine, options, progress, *, trace=None,
         # power is constant, so a plot is the same); the exports get them at full rate
         summary, blocks = simulate_stream(
             moves, machine, chunk_gaps=True,
-            on_chunk=_consumers(None, trace, export, options.rate_hz), **kw)
+            on_chunk=consumers(None, trace, export, options.rate_hz), **kw)
     else:
         from feed_axis_energy.core.recording import SimulationBagWriter
-        with _staged_out(args) as staged, \
+        with staged_out(args) as staged, \
                 SimulationBagWriter(staged, compression=args.compression,
                                     rate_hz=options.rate_hz,
                                     plot_rate_hz=args.plot_rate_hz,
                                     start_ns=args.start_time or 0) as writer:
             # chunk_gaps: the writer takes the left-out dwell samples as they are (recthin)
             summary, blocks = simulate_stream(moves, machine,
-                                              on_chunk=_consumers(writer, trace, export,
-                                                                  options.rate_hz),
+                                              on_chunk=consumers(writer, trace, export,
+                                                                 options.rate_hz),
                                               chunk_gaps=True, **kw)
             writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
             if export:
@@ -482,42 +318,6 @@ def _run_stream(args, machine, options, progress, *, trace=None,
     if warnings is None:
         warnings = moves.warnings(args)
     return summary, warnings, blocks
-
-
-def _consumers(writer, trace, export, rate: float):
-    """``on_chunk`` for the bag writer and the report's trace (compact dwells, as computed)
-    and the exports (full rate); ``None`` when nothing takes the chunks."""
-    takers = []
-    if writer is not None:
-        takers.append(writer.write)
-    if trace is not None:
-        takers.append(trace.add)
-    if export:
-        from feed_axis_energy.core.simstream import expand_gaps
-
-        def to_export(chunk) -> None:
-            for piece in expand_gaps(chunk, rate_hz=rate):
-                export.series.write(piece)
-        takers.append(to_export)
-    if not takers:
-        return None
-    if len(takers) == 1:
-        return takers[0]
-
-    def take(chunk) -> None:
-        for taker in takers:
-            taker(chunk)
-    return take
-
-
-def _check_start(args, duration_s: float) -> None:
-    """Refuse a ``--start-time`` whose recording would end past the ROS 2 time range."""
-    if args.out is None or args.start_time is None:
-        return
-    from feed_axis_energy.core.starttime import check_end
-    why = check_end(args.start_time, duration_s)
-    if why is not None:
-        raise ConfigError(why, file='command line', key='start-time')
 
 
 def _warn(args, program, machine) -> list[str]:
@@ -555,8 +355,8 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool,
         export.series.write(result)
         export.write_blocks(line_table(result))
     if args.out is not None:
-        _check_start(args, summary['duration_s'])
-        with _staged_out(args) as staged:
+        check_start(args, summary['duration_s'])
+        with staged_out(args) as staged:
             write_simulation_bag(staged, result, summary=summary,
                                  progress=Progress('write bag', enabled=not args.quiet),
                                  compression=args.compression,

@@ -18,8 +18,8 @@ from feed_axis_energy.core.errors import DataError, PlanningError
 from feed_axis_energy.core.machine import load_machine, machine_from_dict, machine_to_dict
 from feed_axis_energy.core.program import Move, MoveKind, Program
 from feed_axis_energy.core.simulate import simulate_program
-from feed_axis_energy.core.trajectory import (AxisLimits, motion_from_samples, plan,
-                                              PlannerOptions)
+from feed_axis_energy.core.motion_samples import motion_from_samples
+from feed_axis_energy.core.trajectory import AxisLimits, plan, PlannerOptions
 
 CONFIG = Path(__file__).resolve().parents[2] / 'config'
 

@@ -30,7 +30,8 @@ from ..gcode import load_gcode
 from ..machine import load_machine, Machine
 from ..motion import Motion
 from ..simulate import simulate_motion, SimulationResult
-from ..trajectory import motion_from_samples, plan
+from ..motion_samples import motion_from_samples
+from ..trajectory import plan
 from .align import align_simulated, estimate_offset, OffsetResult
 from .csvload import load_run, MeasuredRun
 from .campaign import Campaign, default_instrument, RunSpec

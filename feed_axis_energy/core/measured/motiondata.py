@@ -31,7 +31,7 @@ import numpy as np
 
 from ..errors import DataError
 from ..motion import Motion
-from ..trajectory import motion_from_samples
+from ..motion_samples import motion_from_samples
 
 __all__ = ['MAX_RECONSTRUCTED_SAMPLES', 'reconstruct_motion']
 
@@ -70,7 +70,7 @@ def reconstruct_motion(t: np.ndarray, pos: np.ndarray, *, axes: tuple[str, ...],
     Raises
     ------
     DataError
-        Malformed samples (as :func:`.trajectory.motion_from_samples`), a bad rate, or a
+        Malformed samples (as :func:`.motion_samples.motion_from_samples`), a bad rate, or a
         reconstruction larger than :data:`MAX_RECONSTRUCTED_SAMPLES` (estimated first).
     """
     # validation (shapes, finite values, increasing time) as for samples taken as they are

@@ -3,7 +3,8 @@
 The header names every column with its unit in brackets: a time column ``time [s]`` (or
 ``t [ms]`` ...) and one position column per axis, ``X [mm]``; optional velocity and
 acceleration columns ``X_vel [mm/s]``, ``X_acc [mm/s^2]`` are used instead of differences
-of the positions where present (see :func:`~feed_axis_energy.core.trajectory.motion_from_samples`).
+of the positions where present (see
+:func:`~feed_axis_energy.core.motion_samples.motion_from_samples`).
 Example::
 
     time [s],X [mm],Y [mm]
@@ -19,7 +20,7 @@ import numpy as np
 
 from ..errors import ConfigError, DataError, shorten
 from ..motion import Motion
-from ..trajectory import motion_from_samples
+from ..motion_samples import motion_from_samples
 from ..units import check_si_values, to_si
 from .csvload import _parse, _read_csv, MIN_STEP_S
 
