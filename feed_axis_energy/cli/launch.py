@@ -305,8 +305,10 @@ def _describe_bag(path: Path) -> None:
     from feed_axis_energy.core import bagio
     topics = bagio.bag_topics(path)
     print(f'recording: {path}')
+    wide = max((len(t) for t in topics), default=0)
+    wide_type = max((len(m) for m, _ in topics.values()), default=0)
     for topic, (msgtype, count) in sorted(topics.items()):
-        print(f'  {topic:<16} {msgtype:<38} {count} messages')
+        print(f'  {topic:<{wide}}  {msgtype:<{wide_type}}  {count} messages')
     if bagio.TOPIC_POWER in topics:
         power = bagio.read_series(path, bagio.TOPIC_POWER)
         if power.t.shape[0]:
