@@ -57,6 +57,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'realtime: paced by the wall clock')
     p.add_argument('--record', type=Path, default=None, metavar='DIR',
                    help='record the graph into this rosbag2/MCAP directory (must not exist)')
+    p.add_argument('--plot-rate-hz', type=_plot_rate, default=None, metavar='HZ',
+                   help='display rate of the recording\'s plot topics (/plot/power, /plot/axes; '
+                        '0: every sample; default: the recorder\'s plot_rate_hz, 20); needs '
+                        '--record')
+    p.add_argument('--start-time', type=_start_time, default=None, metavar='now|ISO-8601',
+                   help='stamp the recording in wall-clock time from this start (no offset: '
+                        'UTC) instead of simulation time from 0; needs --record')
     p.add_argument('--domain-id', type=int, default=None, metavar='N',
                    help='ROS_DOMAIN_ID for the graph (default: inherited)')
     p.add_argument('--params', type=Path, default=None, metavar='YAML',
@@ -64,6 +71,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--timeout', type=float, default=None, metavar='S',
                    help='give up (exit 1) after this many seconds')
     p.set_defaults(run=run)
+
+
+def _plot_rate(text: str) -> float:
+    """``--plot-rate-hz``: as ``simulate``'s (a usage error otherwise)."""
+    from feed_axis_energy.cli.simulate import _plot_rate as check
+    return check(text)
+
+
+def _start_time(text: str) -> str:
+    """``--start-time``: checked as ``simulate``'s; the recorder gets the text itself."""
+    from feed_axis_energy.cli.simulate import _start_time as check
+    check(text)
+    return text
 
 
 def _package_root() -> str:
@@ -165,6 +185,10 @@ def graph_parameters(args: argparse.Namespace) -> dict[str, dict[str, object]]:
     }
     if args.record is not None:
         params['mcap_recorder'] = {'output': str(args.record.resolve()), 'exit_at_end': True}
+        if getattr(args, 'plot_rate_hz', None) is not None:
+            params['mcap_recorder']['plot_rate_hz'] = float(args.plot_rate_hz)
+        if getattr(args, 'start_time', None) is not None:
+            params['mcap_recorder']['start_time'] = args.start_time
     return params
 
 
@@ -357,6 +381,10 @@ def run(args: argparse.Namespace) -> int:
     if args.program is not None and not args.program.is_file():
         print(f'error: {args.program}: no such program file', file=sys.stderr)
         return 1
+    if args.record is None and (args.plot_rate_hz is not None or args.start_time is not None):
+        print('error: --plot-rate-hz and --start-time apply to the recording; give --record',
+              file=sys.stderr)
+        return 2
     if not math.isfinite(args.load_kg) or args.load_kg < 0:
         print(f'error: --load-kg must be a finite mass >= 0 kg, got {args.load_kg}',
               file=sys.stderr)

@@ -92,3 +92,37 @@ def test_stale_parameter_dirs_of_dead_launchers_removed(tmp_path, monkeypatch):
     other.mkdir()
     assert launch.remove_stale_parameter_dirs() == 1
     assert not stale.exists() and mine.is_dir() and other.is_dir()
+
+
+def test_recording_options_reach_the_recorder(tmp_path, node_env, domain_id):
+    """--start-time stamps the bag from that instant; --plot-rate-hz thins the plot topics."""
+    pytest.importorskip('rclpy')
+    from feed_axis_energy.core import bagio
+    program = tmp_path / 'p.nc'
+    program.write_text('G21 G90 G94 G61\nG0 X0\nG1 X100 F3000\nG1 X0\n', encoding='utf-8')
+    counts = {}
+    for rate in ('0', '2'):
+        bag = tmp_path / f'bag{rate}'
+        out = subprocess.run(
+            [sys.executable, '-m', 'feed_axis_energy', 'launch', '--program', str(program),
+             '--record', str(bag), '--domain-id', str(domain_id), '--timeout', '60',
+             '--plot-rate-hz', rate, '--start-time', '2026-01-02T03:04:05Z'],
+            env=node_env, capture_output=True, text=True, timeout=90)
+        assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-2000:]
+        meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+        # 2026-01-02T03:04:05Z in ns since the epoch
+        assert meta['starting_time']['nanoseconds_since_epoch'] >= 1_767_323_045 * 10 ** 9
+        counts[rate] = bagio.bag_topics(bag)['/plot/power'][1]
+    # 4.2 s of program at 1 kHz: every sample at 0 Hz; at 2 Hz a few per half second
+    assert counts['0'] > 1000 > 50 > counts['2'] > 0
+
+
+def test_recording_options_need_a_recording(node_env):
+    out = subprocess.run(
+        [sys.executable, '-m', 'feed_axis_energy', 'launch', '--plot-rate-hz', '5'],
+        env=node_env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and '--record' in out.stderr
+    out = subprocess.run(
+        [sys.executable, '-m', 'feed_axis_energy', 'launch', '--record', 'x',
+         '--start-time', 'yesterday'], env=node_env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and '--start-time' in out.stderr
