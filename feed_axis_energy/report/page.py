@@ -32,6 +32,7 @@ th { background: #f1f3f5; font-weight: 600; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
 td.code { font-family: ui-monospace, monospace; overflow-wrap: anywhere; }
 tr.warn td { background: #fff4e6; }
+tr.front td { background: #ebfbee; } tr.base td { font-style: italic; }
 .status-ok { color: #2b8a3e; } .status-weak, .status-edge, .status-ambiguous { color: #c92a2a; }
 img { max-width: 100%; height: auto; border: 1px solid #eee; margin: 0.3em 0; }
 section { border-top: 2px solid #dee2e6; margin-top: 2em; }

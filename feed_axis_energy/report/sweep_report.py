@@ -6,9 +6,7 @@ baseline), energy against cycle time with the Pareto front joined and the baseli
 """
 from __future__ import annotations
 
-import base64
 from html import escape
-import io
 import math
 import os
 from pathlib import Path
@@ -16,23 +14,9 @@ from typing import Sequence
 
 from feed_axis_energy.core.sweep import SweepRow
 
-__all__ = ['write_sweep_report', 'render_sweep']
+from .page import figure_png, img, page, table
 
-_CSS = """
-body { font-family: system-ui, sans-serif; margin: 1.5em auto; max-width: 60em; color: #222;
-       padding: 0 1em; }
-.scroll { overflow-x: auto; }
-table { border-collapse: collapse; margin: 0.6em 0 1.2em; font-size: 0.9em; }
-th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; }
-th { background: #f1f3f5; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; }
-tr.front td { background: #ebfbee; }
-tr.base td { font-style: italic; }
-img { max-width: 100%; height: auto; }
-.answer { font-size: 1.1em; background: #f8f9fa; padding: 0.5em 0.8em; }
-.note { color: #555; font-size: 0.9em; }
-@media print { body { max-width: none; margin: 0; } section { break-inside: avoid; } }
-"""
+__all__ = ['write_sweep_report', 'render_sweep']
 
 
 def _variant(row: SweepRow, names: Sequence[str]) -> str:
@@ -55,13 +39,11 @@ def _answer(rows: Sequence[SweepRow], names: Sequence[str]) -> str:
     return text
 
 
-def _plot(rows: Sequence[SweepRow], title: str) -> str:
-    """Energy against cycle time as a PNG ``data:`` URI (Agg canvas, no display)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
+def _plot(rows: Sequence[SweepRow], title: str) -> bytes:
+    """Energy against cycle time as PNG bytes (Agg canvas, no display)."""
     from matplotlib.figure import Figure
     ok = [r for r in rows if r.ok]
     fig = Figure(figsize=(7.0, 4.2))
-    FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     ax.scatter([r.cycle_time_s for r in ok], [r.energy_j for r in ok], s=18,
                color='#868e96', label='variant')
@@ -79,9 +61,7 @@ def _plot(rows: Sequence[SweepRow], title: str) -> str:
     ax.grid(True, alpha=0.3)
     ax.legend(loc='best', fontsize=8)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format='png', dpi=100)
-    return 'data:image/png;base64,' + base64.b64encode(buf.getvalue()).decode('ascii')
+    return figure_png(fig)
 
 
 def _num(value: float, fmt: str) -> str:
@@ -89,12 +69,12 @@ def _num(value: float, fmt: str) -> str:
 
 
 def _table(rows: Sequence[SweepRow], names: Sequence[str]) -> str:
-    head = list(names) + ['cycle time [s]', 'energy [J]', 'energy per part [J]',
-                          'energy change [%]', 'time change [%]', 'on the front']
-    out = ['<div class="scroll"><table><tr>' + ''.join(f'<th>{escape(h)}</th>' for h in head)
-           + '</tr>']
+    head = [escape(h) for h in list(names) + [
+        'cycle time [s]', 'energy [J]', 'energy per part [J]', 'energy change [%]',
+        'time change [%]', 'on the front']]
+    body, classes = [], []
     for r in rows:
-        cls = ' class="base"' if r.baseline else (' class="front"' if r.pareto else '')
+        classes.append('base' if r.baseline else 'front' if r.pareto else '')
         if r.values is None:
             cells = [f'<td colspan="{len(names)}">baseline (as configured)</td>'] if names else []
         else:
@@ -109,36 +89,31 @@ def _table(rows: Sequence[SweepRow], names: Sequence[str]) -> str:
                       f'<td>{"yes" if r.pareto else ""}</td>']
         else:
             cells += [f'<td colspan="6">failed: {escape(r.error[:300])}</td>']
-        out.append(f'<tr{cls}>' + ''.join(cells) + '</tr>')
-    out.append('</table></div>')
-    return '\n'.join(out)
+        body.append(cells)
+    return table(head, body, classes=classes)
 
 
 def render_sweep(rows: Sequence[SweepRow], names: Sequence[str]) -> str:
-    """The HTML page (plots embedded)."""
+    """The HTML page (plots embedded; style and layout of :mod:`.page`)."""
     programs: dict[str, list[SweepRow]] = {}
     for r in rows:
         programs.setdefault(r.program, []).append(r)
-    parts = ['<!DOCTYPE html>', '<html lang="en"><head><meta charset="utf-8">',
-             '<meta name="viewport" content="width=device-width, initial-scale=1">',
-             '<title>feed-axis-energy sweep</title>', f'<style>{_CSS}</style></head><body>',
-             '<h1>What-if sweep: energy against cycle time</h1>',
-             f'<p class="note">{len(rows)} runs of {len(programs)} program(s); varied: '
-             f'{escape(", ".join(names))}. A variant is on the Pareto front when no other run '
-             'of the same program needs at most as much energy and time and less of one. '
-             'Energy is the mechanical energy of all feed axes (braking as the machine config '
-             'says).</p>']
+    parts = [f'<p class="note">Varied: {escape(", ".join(names))}. A variant is on the Pareto '
+             'front when no other run of the same program needs at most as much energy and '
+             'time and less of one. Energy is the mechanical energy of all feed axes (braking '
+             'as the machine config says).</p>']
     for program, prog_rows in programs.items():
         parts.append(f'<section><h2>{escape(program)}</h2>')
         parts.append(f'<p class="answer">{_answer(prog_rows, names)}</p>')
         if any(r.ok for r in prog_rows):
-            uri = _plot(prog_rows, program[-80:])
-            parts.append(f'<img alt="energy against cycle time of {escape(program)}" '
-                         f'src="{uri}">')
+            parts.append(img(_plot(prog_rows, program[-80:]),
+                             f'energy against cycle time of {program}'))
         parts.append(_table(prog_rows, names))
         parts.append('</section>')
-    parts.append('</body></html>')
-    return '\n'.join(parts)
+    failed = sum(1 for r in rows if not r.ok)
+    answer = (f'{len(rows)} runs of {len(programs)} program(s), {failed} failed; the variant '
+              'with the least energy of each program is named in its section')
+    return page('What-if sweep: energy against cycle time', answer, '\n'.join(parts))
 
 
 def write_sweep_report(rows: Sequence[SweepRow], names: Sequence[str],
