@@ -23,6 +23,15 @@ _FIELDS = ('positions', 'velocities', 'accelerations', 'effort')
 _MAX_FAILURE_TEXT = 100
 
 
+def _check_names_and_stamp(names: list, stamp, where: dict) -> None:
+    """Joint names unique and the header stamp a valid time (``where``: the DataError's place)."""
+    if len(set(names)) != len(names):
+        raise DataError('joint names repeat; expected one name per column', **where)
+    if stamp.sec < 0 or not 0 <= stamp.nanosec < _NS:
+        msg = f'header stamp {stamp.sec} s {stamp.nanosec} ns is not a valid time'
+        raise DataError(msg, **where)
+
+
 @contextmanager
 def guard(path: Path, *, topic: str = '', index: int | None = None,
           doing: str = 'read') -> Iterator[None]:
@@ -63,13 +72,7 @@ def check_trajectory(msg, *, file: str, topic: str, index: int,
     names = list(msg.joint_names)
     m = len(names)
     where = {'file': file, 'topic': topic, 'index': index}
-    if len(set(names)) != m:
-        msg_ = 'joint names repeat; expected one name per column'
-        raise DataError(msg_, **where)
-    stamp = msg.header.stamp
-    if stamp.sec < 0 or not 0 <= stamp.nanosec < _NS:
-        msg_ = f'header stamp {stamp.sec} s {stamp.nanosec} ns is not a valid time'
-        raise DataError(msg_, **where)
+    _check_names_and_stamp(names, msg.header.stamp, where)
     for j, point in enumerate(msg.points):
         dur = point.time_from_start
         if dur.sec < 0 or not 0 <= dur.nanosec < _NS:
@@ -105,13 +108,7 @@ def check_joint_state(msg, *, file: str, topic: str, index: int) -> int:
     names = list(msg.name)
     m = len(names)
     where = {'file': file, 'topic': topic, 'index': index}
-    if len(set(names)) != m:
-        msg_ = 'joint names repeat; expected one name per column'
-        raise DataError(msg_, **where)
-    stamp = msg.header.stamp
-    if stamp.sec < 0 or not 0 <= stamp.nanosec < _NS:
-        msg_ = f'header stamp {stamp.sec} s {stamp.nanosec} ns is not a valid time'
-        raise DataError(msg_, **where)
+    _check_names_and_stamp(names, msg.header.stamp, where)
     for field in ('position', 'velocity', 'effort'):
         arr = getattr(msg, field)
         if len(arr) not in (0, m):
