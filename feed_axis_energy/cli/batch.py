@@ -16,7 +16,8 @@ import re
 import sys
 import time
 
-__all__ = ['add_parser', 'run', 'parse_loads', 'check_address']
+__all__ = ['add_parser', 'run', 'parse_loads', 'check_address', 'add_executor_options',
+           'check_executor_options']
 
 _HELP = 'simulate many programs x machines x loads in parallel; one table, JSON or CSV'
 _CONNECT_TIMEOUT_S = 10.0
@@ -51,6 +52,29 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def add_executor_options(p: argparse.ArgumentParser) -> None:
+    """``--jobs N | --scheduler ADDRESS`` and ``--connect-timeout`` (``batch``, ``sweep``);
+    :func:`check_executor_options` checks them and :func:`_execute` uses them."""
+    where = p.add_mutually_exclusive_group()
+    where.add_argument('--jobs', type=_positive_int, default=1, metavar='N',
+                       help='local worker processes (default 1: in this process; 0: one per '
+                            'CPU core)')
+    where.add_argument('--scheduler', metavar='ADDRESS',
+                       help='run the jobs on a Dask cluster (tcp://host:8786; needs the '
+                            '"distributed" package, and this package and the program and '
+                            'machine files at the same paths on every worker)')
+    p.add_argument('--connect-timeout', type=float, default=_CONNECT_TIMEOUT_S, metavar='S',
+                   help=f'seconds to wait for the --scheduler (default {_CONNECT_TIMEOUT_S:g})')
+
+
+def check_executor_options(args: argparse.Namespace) -> None:
+    """Refuse a ``--connect-timeout`` outside (0, 3600] s (ConfigError naming the option)."""
+    from feed_axis_energy.core.errors import ConfigError
+    if not 0.0 < args.connect_timeout <= 3600.0:
+        msg = f'--connect-timeout must be > 0 and <= 3600 s, got {args.connect_timeout}'
+        raise ConfigError(msg, file='command line', key='connect-timeout')
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the subcommand."""
     p = sub.add_parser(
@@ -76,16 +100,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='sampling rate [Hz] (default: each machine config\'s; at most 1e6)')
     p.add_argument('--profile', choices=('jerk', 'trapezoid'), default=None,
                    help='velocity profile (default: each machine config\'s)')
-    where = p.add_mutually_exclusive_group()
-    where.add_argument('--jobs', type=_positive_int, default=1, metavar='N',
-                       help='local worker processes (default 1: in this process; 0: one per '
-                            'CPU core)')
-    where.add_argument('--scheduler', metavar='ADDRESS',
-                       help='run the jobs on a Dask cluster (tcp://host:8786; needs the '
-                            '"distributed" package, and this package and the program and '
-                            'machine files at the same paths on every worker)')
-    p.add_argument('--connect-timeout', type=float, default=_CONNECT_TIMEOUT_S, metavar='S',
-                   help=f'seconds to wait for the --scheduler (default {_CONNECT_TIMEOUT_S:g})')
+    add_executor_options(p)
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the table (keys in README)')
     p.add_argument('--csv', type=Path, metavar='FILE',
@@ -123,9 +138,7 @@ def _jobs(args: argparse.Namespace) -> list:
     if args.rate_hz is not None and not 0.0 < args.rate_hz <= 1.0e6:
         msg = f'--rate-hz must be > 0 and <= 1e6 Hz, got {args.rate_hz}'
         raise ConfigError(msg, file='command line', key='rate-hz')
-    if not 0.0 < args.connect_timeout <= 3600.0:
-        msg = f'--connect-timeout must be > 0 and <= 3600 s, got {args.connect_timeout}'
-        raise ConfigError(msg, file='command line', key='connect-timeout')
+    check_executor_options(args)
     if args.batch_file is not None:
         spec = load_batch_file(args.batch_file)
         programs, machines = list(spec.programs), list(spec.machines)

@@ -32,7 +32,7 @@ def _parts(text: str) -> float:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the subcommand."""
-    from feed_axis_energy.cli.batch import _positive_int
+    from feed_axis_energy.cli.batch import add_executor_options
     from feed_axis_energy.core.sweep import ALIASES
     aliases = ', '.join(f'{k} ({v})' for k, v in ALIASES.items())
     p = sub.add_parser(
@@ -64,14 +64,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         '(default 1)')
     p.add_argument('--rate-hz', type=float, default=None, metavar='HZ',
                    help='sampling rate [Hz] (default: the machine config\'s)')
-    where = p.add_mutually_exclusive_group()
-    where.add_argument('--jobs', type=_positive_int, default=1, metavar='N',
-                       help='local worker processes (default 1: in this process; 0: one per '
-                            'CPU core)')
-    where.add_argument('--scheduler', metavar='ADDRESS',
-                       help='run the jobs on a Dask cluster (tcp://host:8786), as "batch"')
-    p.add_argument('--connect-timeout', type=float, default=10.0, metavar='S',
-                   help='seconds to wait for the --scheduler (default 10)')
+    add_executor_options(p)
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the table')
     p.add_argument('--csv', type=Path, metavar='FILE',
@@ -87,12 +80,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def _plan(args: argparse.Namespace):
     """Parameters, jobs and the (program, values) of each job; checks every variant first."""
+    from feed_axis_energy.cli.batch import check_executor_options
     from feed_axis_energy.core.batch import BatchJob, MAX_JOBS
     from feed_axis_energy.core.batchspec import expand_programs
     from feed_axis_energy.core.errors import ConfigError
     from feed_axis_energy.core.machine import load_machine, machine_to_dict
     from feed_axis_energy.core.sweep import parse_vary, resolve_paths, variant_machine, variants
     from feed_axis_energy.paths import default_machine
+    check_executor_options(args)
     if not 0.0 <= args.load_kg <= 1.0e6:
         msg = f'--load-kg must be 0 to 1e6 kg, got {args.load_kg}'
         raise ConfigError(msg, file='command line', key='load-kg')

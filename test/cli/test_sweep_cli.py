@@ -112,3 +112,10 @@ def test_two_processes_equal_serial(capsys):
     rc2, parallel = _json(capsys, argv + ['--jobs', '2'])
     assert rc1 == rc2 == 0 and serial['runs'] == 10
     assert serial == parallel
+
+
+def test_connect_timeout_checked_as_in_batch():
+    proc = _run('sweep', str(PROGRAMS / 'demonstrator_f100.nc'), '--vary', 'jerk=20,40',
+                '--connect-timeout', '-1')
+    assert proc.returncode == 1
+    assert '--connect-timeout' in proc.stderr and 'Traceback' not in proc.stderr
