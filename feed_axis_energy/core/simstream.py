@@ -28,6 +28,7 @@ from .program import Move
 from .simulate import declared_effects_parts, SimulationResult, sum_effect_parts
 from .standstill import grid_interval_counts
 from .trajectory import PlannerOptions
+from .units import rate_from_interval
 
 __all__ = ['streamable', 'compactable', 'iter_simulation', 'LineEnergy', 'SummaryAccumulator',
            'expand_gaps', 'simulate_stream', 'COMPACT_MIN_SAMPLES']
@@ -298,7 +299,7 @@ class SummaryAccumulator:
                 top_blocks: int = 5) -> dict[str, Any]:
         """The summary dict of :func:`.simulate.summarize` (same keys and meanings)."""
         n = self.n
-        rate = float(1.0 / self._median_dt()) if n >= 2 else 0.0
+        rate = rate_from_interval(self._median_dt()) if n >= 2 else 0.0
         axes = self.axes
         energy = {a: float(self.energy[j]) if n else 0.0 for j, a in enumerate(axes)}
         energy['total'] = float(self.energy[-1]) if n else 0.0
@@ -311,7 +312,7 @@ class SummaryAccumulator:
             'load_kg': float(load_kg),
             'duration_s': float(self.t_last - self.t_first) if n else 0.0,
             'samples': n,
-            'rate_hz': rate if math.isfinite(rate) else 0.0,
+            'rate_hz': rate,
             'braking': self.braking,
             'energy_j': energy,
             'peak_power_w': peak,

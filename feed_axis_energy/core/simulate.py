@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-import math
 from typing import Any
 
 import numpy as np
@@ -20,6 +19,7 @@ from .machine import Machine
 from .motion import Motion
 from .program import Program
 from .trajectory import plan, PlannerOptions
+from .units import rate_from_interval
 
 __all__ = ['SimulationResult', 'apply_declared_effects', 'declared_effects_power_w',
            'declared_effects_parts', 'sum_effect_parts', 'line_table',
@@ -235,7 +235,7 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
     p = result.power
     n = int(p.t.shape[0])
     dt = np.diff(p.t)
-    rate = float(1.0 / np.median(dt)) if n >= 2 else 0.0
+    rate = rate_from_interval(float(np.median(dt))) if n >= 2 else 0.0
     energy = {a: float(p.energy_j[-1, j]) if n else 0.0 for j, a in enumerate(p.axes)}
     energy['total'] = float(p.total_energy_j[-1]) if n else 0.0
     peak = {a: float(np.max(p.power_w[:, j])) if n else 0.0 for j, a in enumerate(p.axes)}
@@ -252,7 +252,7 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         'load_kg': float(result.load_kg),
         'duration_s': duration,
         'samples': n,
-        'rate_hz': rate if math.isfinite(rate) else 0.0,
+        'rate_hz': rate,
         'braking': p.braking,
         'energy_j': energy,
         'peak_power_w': peak,

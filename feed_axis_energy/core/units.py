@@ -13,7 +13,7 @@ from numpy.typing import ArrayLike
 from .errors import ConfigError, DataError, shorten
 
 __all__ = ['QUANTITIES', 'MAX_ABS_SI', 'check_si_values', 'known_units', 'quantity_of',
-           'si_unit_of', 'to_si']
+           'rate_from_interval', 'si_unit_of', 'to_si']
 
 _INCH_M = 0.0254
 
@@ -215,3 +215,17 @@ def check_si_values(values: np.ndarray, *, file: str, column: str,
         msg = f'sample {row}: {msg}'
         raise DataError(msg, file=file, topic=topic)
     raise DataError(msg, file=file, column=column, row=row)
+
+
+def rate_from_interval(interval_s: float) -> float:
+    """Sample rate [Hz] of a sample interval [s], without the float noise of ``1/dt``.
+
+    Intervals are differences of float time stamps, so ``1 / 0.001`` may come out as
+    ``1000.0000000001102``. The rate is rounded to 10 significant digits, far finer than any
+    clock a machine or a meter keeps. Returns 0.0 for an interval that is not finite and
+    positive (no rate to report).
+    """
+    interval = float(interval_s)
+    if not (interval > 0.0) or interval == float('inf'):
+        return 0.0
+    return float(f'{1.0 / interval:.10g}')

@@ -4,7 +4,8 @@ from numpy.testing import assert_allclose
 import pytest
 
 from feed_axis_energy.core.errors import ConfigError
-from feed_axis_energy.core.units import known_units, quantity_of, si_unit_of, to_si
+from feed_axis_energy.core.units import (known_units, quantity_of, rate_from_interval,
+                                         si_unit_of, to_si)
 
 
 @pytest.mark.parametrize('value, unit, expected, si', [
@@ -70,3 +71,19 @@ def test_unknown_unit_without_quantity_lists_all():
         to_si(1.0, 'furlong')
     with pytest.raises(ConfigError, match='unknown quantity'):
         to_si(1.0, 'm', quantity='colour')
+
+
+@pytest.mark.parametrize('interval, rate', [
+    (0.001, 1000.0), (1.0 / 3.0, 3.0), (0.1, 10.0), (0.05, 20.0), (2.5e-4, 4000.0),
+    (0.0, 0.0), (-0.001, 0.0), (float('nan'), 0.0), (float('inf'), 0.0)])
+def test_rate_from_interval_is_exact_for_float_noise_and_zero_without_a_rate(interval, rate):
+    assert rate_from_interval(interval) == rate
+
+
+def test_rate_from_interval_keeps_a_rate_that_is_not_round():
+    # a measured 99.99 Hz meter must not be rounded to 100 Hz
+    assert rate_from_interval(1.0 / 99.99) == 99.99
+    # float noise of a difference of stamps near 8 h (about 1e-12 s) is removed
+    t1, t0 = 28800.001, 28800.0
+    assert rate_from_interval(t1 - t0) == pytest.approx(1000.0, rel=1e-8)
+    assert rate_from_interval(0.001 + 1e-16) == 1000.0
