@@ -7,7 +7,7 @@ are integrated from the sum (:func:`apply_declared_effects`).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from typing import Any
 
@@ -15,6 +15,7 @@ import numpy as np
 
 from .breakdown import LineEnergy
 from .dynamics import AxisDynamics, compute_dynamics
+from .electrical import ElectricalAccumulator, electrical_power
 from .energy import EnergyIntegrator, PowerResult, compute_power, energy_by_line
 from .machine import Machine
 from .motion import Motion
@@ -171,6 +172,10 @@ def simulate_motion(motion: Motion, machine: Machine, *, load_kg: float = 0.0) -
     """
     dyn = compute_dynamics(motion, machine, load_kg=load_kg)
     power = apply_declared_effects(dyn, compute_power(dyn, braking=machine.braking), machine)
+    if machine.electrical:
+        extra = sum_effect_parts(list(power.effect_power_w))
+        power = replace(power, electrical=electrical_power(dyn, power.mechanical_w, machine,
+                                                           effects_w=extra))
     return SimulationResult(program=motion.source, machine=machine, load_kg=float(load_kg),
                             motion=motion, dynamics=dyn, power=power)
 
@@ -246,7 +251,7 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
     duration = float(p.t[-1] - p.t[0]) if n else 0.0
     causes = BreakdownAccumulator(per_line=True)
     causes.add(result.dynamics, p.mechanical_w, braking=p.braking, effects=p.effect_power_w)
-    return add_breakdown({
+    summary = add_breakdown({
         'program': result.program,
         'machine': result.machine.name,
         'load_kg': float(result.load_kg),
@@ -260,6 +265,12 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         'loss_energy_j': loss_energy,
         'top_blocks': [{'line': ln, 'energy_j': e, 'duration_s': d} for ln, e, d in blocks],
     }, causes)
+    if p.electrical is not None:
+        electrical = ElectricalAccumulator()
+        electrical.add(result.dynamics, p.mechanical_w, p.electrical, braking=p.braking,
+                       effects=p.effect_power_w)
+        summary['electrical'] = electrical.summary()
+    return summary
 
 
 def line_table(result: SimulationResult) -> LineEnergy:
