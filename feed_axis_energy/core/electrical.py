@@ -232,8 +232,9 @@ class ElectricalAccumulator:
         supply = per_axis(self._supply.energy[:k], cabinet_j)
         by_cause = self.causes.by_cause()
         for cause, row in by_cause.items():
+            total = row.pop('total')
             row['cabinet'] = cabinet_j if cause == 'standby' else 0.0
-            row['total'] += row['cabinet']
+            row['total'] = total + row['cabinet']
         return {
             'measured_at': self.measured_at,
             'point': POINTS[self.measured_at],
