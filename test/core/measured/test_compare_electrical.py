@@ -18,7 +18,9 @@ import pytest
 
 from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.gcode import load_gcode
-from feed_axis_energy.core.machine import load_machine
+from feed_axis_energy.core.identify.analyze import analyze_campaign
+from feed_axis_energy.core.identify.results import AnalyzeOptions
+from feed_axis_energy.core.machine import load_machine, machine_from_dict, machine_to_dict
 from feed_axis_energy.core.measured import load_campaign
 from feed_axis_energy.core.measured.compare import compare_campaign
 from feed_axis_energy.core.simulate import simulate_program
@@ -35,39 +37,45 @@ DRIVE = ('    drive: {kt_nm_a: %g, resistance_ohm: %g, resistance_between: termi
 PERIOD_MS = 50
 
 
-def _with_drives(text: str) -> str:
+def _with_drives(text: str, resistance: float = R) -> str:
     out = []
     for line in text.splitlines(keepends=True):
         out.append(line)
         if line.startswith('    loss:'):
-            out.append(DRIVE)
+            out.append(DRIVE.replace(f'resistance_ohm: {R:g}', f'resistance_ohm: {resistance:g}'))
     return ''.join(out)
 
 
-def _write(root: Path, measures: str | None, *, drives_in_config: bool = True) -> Path:
+def _write(root: Path, measures: str | None, *, drives_in_config: bool = True,
+           declared_r: float = R, loads: tuple[float, ...] = (0.0,)) -> Path:
     root.mkdir(parents=True, exist_ok=True)
     (root / 'truth.yaml').write_text(_with_drives(MACHINE_YAML))
-    (root / 'machine.yaml').write_text(_with_drives(MACHINE_YAML) if drives_in_config
-                                       else MACHINE_YAML)
+    (root / 'machine.yaml').write_text(_with_drives(MACHINE_YAML, declared_r)
+                                       if drives_in_config else MACHINE_YAML)
     (root / 'part.nc').write_text(PROGRAM)
-    sim = simulate_program(load_gcode(root / 'part.nc'), load_machine(root / 'truth.yaml'))
-    motor = sim.power.electrical.motor_w
-    pad = 1000
-    power = np.pad(motor, ((pad, pad), (0, 0)), mode='edge')
-    with open(root / 'run.csv', 'w', newline='') as fh:
-        w = csv.writer(fh)
-        w.writerow(['Time_ms', 'X_Power_W', 'Y_Power_W'])
-        for k in range(0, power.shape[0], PERIOD_MS):
-            w.writerow([k, f'{power[k, 0]:.12g}', f'{power[k, 1]:.12g}'])
+    runs = []
     instrument: dict = {'window_s': 0, 'stamp': 'end'}
     if measures is not None:
         instrument['measures'] = measures
+    for i, load in enumerate(loads):
+        sim = simulate_program(load_gcode(root / 'part.nc'), load_machine(root / 'truth.yaml'),
+                               load_kg=load)
+        motor = sim.power.electrical.motor_w
+        pad = 1000
+        power = np.pad(motor, ((pad, pad), (0, 0)), mode='edge')
+        name = 'r' if i == 0 else f'r{i}'
+        with open(root / f'{name}.csv', 'w', newline='') as fh:
+            w = csv.writer(fh)
+            w.writerow(['Time_ms', 'X_Power_W', 'Y_Power_W'])
+            for k in range(0, power.shape[0], PERIOD_MS):
+                w.writerow([k, f'{power[k, 0]:.12g}', f'{power[k, 1]:.12g}'])
+        runs.append({'name': name, 'load_kg': load, 'data': f'{name}.csv',
+                     'motion': {'program': 'part.nc'}, 'instrument': instrument})
     manifest = {'name': 'electrical', 'machine': 'machine.yaml',
                 'defaults': {'time': {'column': 'Time_ms', 'unit': 'ms'},
                              'axes': {a: {'power': {'column': f'{a}_Power_W', 'unit': 'W'}}
                                       for a in ('X', 'Y')}},
-                'runs': [{'name': 'r', 'load_kg': 0.0, 'data': 'run.csv',
-                          'motion': {'program': 'part.nc'}, 'instrument': instrument}]}
+                'runs': runs}
     out = root / 'campaign.yaml'
     out.write_text(json.dumps(manifest))
     return out
@@ -133,3 +141,41 @@ def test_manifest_measures_values(tmp_path):
         load_campaign(path)
     assert info.value.key == 'runs[0].instrument.measures'
     assert 'shaft, motor, supply' in str(info.value)
+
+
+@pytest.mark.parametrize('declared_r', [0.5 * R, 2.0 * R])
+def test_analyze_corrects_a_declared_resistance(tmp_path, declared_r):
+    # the meter measures the motor terminals; the declared resistance is half or twice the
+    # truth: copper is fitted as a change of the declared k = 1.5 R / kt^2 (also downwards)
+    c = load_campaign(_write(tmp_path, 'motor', declared_r=declared_r,
+                             loads=(0.0, 10.0, 20.0)))
+    machine = load_machine(tmp_path / 'machine.yaml')
+    res = analyze_campaign(c, machine=machine,
+                           options=AnalyzeOptions(effects=('copper', 'standby', 'coulomb')))
+    found = {(e.id, e.axis): e for e in res.effects}
+    for axis in ('X', 'Y'):
+        effect = found[('copper', axis)]
+        corr = effect.correction
+        k_true, k_decl = 1.5 * R / KT ** 2, 1.5 * declared_r / KT ** 2
+        assert corr['declared']['k_w_nm2'] == pytest.approx(k_decl, rel=1e-12)
+        assert corr['change']['k_w_nm2'] == pytest.approx(k_true - k_decl, rel=0.02)
+        assert corr['resistance_ohm']['corrected'] == pytest.approx(R, rel=0.02)
+        assert effect.to_dict()['correction'] == corr
+    aug = res.augmented_machine()
+    assert not [e for e in aug.effects if e.id == 'copper']    # folded into the drives
+    for axis in ('X', 'Y'):
+        assert aug.axis(axis).drive.resistance_ohm == pytest.approx(R, rel=0.02)
+    # the corrected data-sheet values are a valid machine file
+    assert machine_from_dict(machine_to_dict(aug)) == aug
+    assert abs(res.after.energy_error_pct) < 0.5 < abs(res.before.energy_error_pct)
+
+
+def test_shaft_meter_keeps_copper_an_addition(tmp_path):
+    c = load_campaign(_write(tmp_path, 'supply', loads=(0.0, 10.0)))
+    machine = load_machine(tmp_path / 'machine.yaml')
+    from feed_axis_energy.core.identify.drivecorr import declared_values
+    assert declared_values(machine, 'X', 'copper', 'supply') is None
+    assert declared_values(machine, 'X', 'copper', 'motor') == {
+        'k_w_nm2': pytest.approx(1.5 * R / KT ** 2, rel=1e-12)}
+    assert declared_values(machine, 'X', 'standby', 'motor') is None
+    assert c.runs[0].instrument.measures == 'supply'
