@@ -105,10 +105,11 @@ def electrical_power(dyn: AxisDynamics, mechanical_w: np.ndarray, machine: Machi
     if not machine.electrical:
         return None
     n, k = dyn.torque_nm.shape
-    parts = {c: np.empty((n, k)) for c in ELECTRICAL_CAUSES}
-    motor = np.empty((n, k))
-    supply = np.empty((n, k))
-    burned = np.empty((n, k))
+    # column-major like the planner's arrays: every step below works on one axis's column
+    parts = {c: np.empty((n, k), order='F') for c in ELECTRICAL_CAUSES}
+    motor = np.empty((n, k), order='F')
+    supply = np.empty((n, k), order='F')
+    burned = np.empty((n, k), order='F')
     for j, name in enumerate(dyn.axes):
         drive = machine.axis(name).drive
         torque = dyn.torque_nm[:, j]
@@ -122,20 +123,23 @@ def electrical_power(dyn: AxisDynamics, mechanical_w: np.ndarray, machine: Machi
         p_motor += iron
         eta = drive.converter_efficiency
         # >= 0 both ways: motoring it takes P/eta, braking it returns P·eta
-        conv = parts['converter'][:, j]
-        conv[...] = np.where(p_motor > 0.0, p_motor * (1.0 / eta - 1.0),
-                             -p_motor * (1.0 - eta))
-        p_conv = p_motor + conv
+        conv = np.maximum(p_motor, 0.0, out=parts['converter'][:, j])
+        conv *= 1.0 / eta - 1.0
+        if eta != 1.0:
+            conv -= (1.0 - eta) * np.minimum(p_motor, 0.0)
         if machine.braking == 'dissipated':
             limit = 0.0
         elif drive.regeneration_limit_w is None:
             limit = np.inf
         else:
             limit = drive.regeneration_limit_w
-        np.maximum(-p_conv - limit, 0.0, out=burned[:, j])
+        p_supply = np.add(p_motor, conv, out=supply[:, j])      # the converter's input
+        b = np.negative(p_supply, out=burned[:, j])
+        b -= limit
+        np.maximum(b, 0.0, out=b)
         parts['standby'][:, j] = drive.standby_w
-        s = np.add(p_conv, burned[:, j], out=supply[:, j])
-        s += drive.standby_w
+        p_supply += b
+        p_supply += drive.standby_w
     if effects_w is not None:
         motor += effects_w
         supply += effects_w
@@ -147,23 +151,40 @@ def electrical_power(dyn: AxisDynamics, mechanical_w: np.ndarray, machine: Machi
 
 
 class _Trapezoid:
-    """Trapezoid integral and largest value of columns of power, continued across chunks."""
+    """Trapezoid integral and largest value of per-axis power and of its total (plus a
+    constant ``offset``), continued across chunks."""
 
     def __init__(self) -> None:
-        self.energy: np.ndarray | None = None
-        self.peak: np.ndarray | None = None
+        self.energy: np.ndarray | None = None     # (k,) per axis
+        self.peak: np.ndarray | None = None       # (k + 1,): per axis, then the total
         self._last: np.ndarray | None = None
+        self._t_last: float | None = None
 
-    def add(self, t: np.ndarray, t_last: float | None, power: np.ndarray) -> None:
+    def add(self, t: np.ndarray, power: np.ndarray, offset: float = 0.0) -> None:
+        k = power.shape[1]
         if self.energy is None:
-            self.energy = np.zeros(power.shape[1])
-            self.peak = np.full(power.shape[1], -np.inf)
+            self.energy = np.zeros(k)
+            self.peak = np.full(k + 1, -np.inf)
+        # one weighted sum over the samples (w_i = (dt_{i-1} + dt_i) / 2): no temporaries
         dt = np.diff(t)
-        self.energy += (0.5 * (power[1:] + power[:-1]) * dt[:, None]).sum(axis=0)
-        if self._last is not None and t_last is not None:
-            self.energy += 0.5 * (power[0] + self._last) * float(t[0] - t_last)
-        self.peak = np.maximum(self.peak, power.max(axis=0))
+        w = np.zeros(t.shape[0])
+        w[:-1] += 0.5 * dt
+        w[1:] += 0.5 * dt
+        if self._last is not None:
+            d0 = float(t[0]) - self._t_last
+            w[0] += 0.5 * d0
+            self.energy += 0.5 * d0 * self._last
+        # column by column: reductions across a narrow array are slow in numpy
+        total = power[:, 0].copy()
+        for j in range(k):
+            column = power[:, j]
+            self.energy[j] += np.einsum('i,i', w, column)
+            self.peak[j] = max(self.peak[j], float(column.max()))
+            if j:
+                total += column
+        self.peak[k] = max(self.peak[k], float(total.max()) + offset)
         self._last = power[-1].copy()
+        self._t_last = float(t[-1])
 
 
 class ElectricalAccumulator:
@@ -198,11 +219,11 @@ class ElectricalAccumulator:
         # the mechanical causes with regenerative braking: the rule acts in the drive here
         self.causes.add(dyn, mechanical_w, braking=braking, effects=effects,
                         extra=elec.parts, burned=elec.burned_w)
-        self._motor.add(t, self._t_last, _with_total(elec.motor_w, 0.0))
-        self._supply.add(t, self._t_last, _with_total(elec.supply_w, elec.cabinet_w))
+        self._motor.add(t, elec.motor_w)
+        self._supply.add(t, elec.supply_w, elec.cabinet_w)
         standby = elec.parts[ELECTRICAL_CAUSES.index('standby')][1]
         # what the drives return to the supply: the negative part without their standby
-        self._returned.add(t, self._t_last, np.maximum(standby - elec.supply_w, 0.0))
+        self._returned.add(t, np.maximum(standby - elec.supply_w, 0.0))
         self._t_last = float(t[-1])
 
     @property
@@ -227,9 +248,8 @@ class ElectricalAccumulator:
             out['total'] = float(values.sum() + (extra or 0.0))
             return out
 
-        k = len(axes)
-        motor = per_axis(self._motor.energy[:k])
-        supply = per_axis(self._supply.energy[:k], cabinet_j)
+        motor = per_axis(self._motor.energy)
+        supply = per_axis(self._supply.energy, cabinet_j)
         by_cause = self.causes.by_cause()
         for cause, row in by_cause.items():
             total = row.pop('total')
@@ -248,14 +268,6 @@ class ElectricalAccumulator:
             'causes': list(self.causes.causes),
             'energy_by_cause_j': by_cause,
         }
-
-
-def _with_total(power: np.ndarray, offset: float) -> np.ndarray:
-    """``(n, k + 1)``: the axes' columns and their sum plus ``offset``."""
-    out = np.empty((power.shape[0], power.shape[1] + 1))
-    out[:, :-1] = power
-    out[:, -1] = power.sum(axis=1) + offset
-    return out
 
 
 def _peaks(peak: np.ndarray, axes: tuple[str, ...]) -> dict[str, float]:
