@@ -31,6 +31,7 @@ import numpy as np
 
 from .breakdown import BreakdownAccumulator
 from .dynamics import AxisDynamics
+from .errors import ConfigError
 from .machine import Machine
 
 __all__ = ['ELECTRICAL_CAUSES', 'POINTS', 'ElectricalPower', 'electrical_power',
@@ -112,6 +113,10 @@ def electrical_power(dyn: AxisDynamics, mechanical_w: np.ndarray, machine: Machi
     burned = np.empty((n, k), order='F')
     for j, name in enumerate(dyn.axes):
         drive = machine.axis(name).drive
+        if drive is None:
+            # machine_from_dict refuses this; a machine built in code may still hold it
+            msg = 'the electrical model needs a drive on every axis'
+            raise ConfigError(msg, key=f'axes.{name}.drive')
         torque = dyn.torque_nm[:, j]
         omega = dyn.omega_rad_s[:, j]
         copper = np.multiply(torque, torque, out=parts['copper'][:, j])

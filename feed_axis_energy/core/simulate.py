@@ -234,7 +234,8 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         resistances), ``top_blocks`` (list of ``{'line', 'energy_j', 'duration_s'}``), and
         the breakdown by cause (:func:`.breakdown.add_breakdown`: ``causes``,
         ``energy_by_cause_j``, ``braking_returned_j``; per top block ``energy_by_axis_j``,
-        ``energy_by_cause_j``).
+        ``energy_by_cause_j``); with declared drives ``electrical``
+        (:meth:`.electrical.ElectricalAccumulator.summary`, ``docs/electrical.md``).
     """
     from .breakdown import add_breakdown, BreakdownAccumulator
     p = result.power

@@ -212,3 +212,16 @@ def test_no_drive_no_electrical_output():
     summary, _ = simulate_stream(prog.moves, machine, file='mixed.nc')
     assert 'electrical' not in summary
     assert 'electrical' not in summarize(simulate_program(prog, machine))
+
+
+def test_a_machine_built_in_code_without_every_drive_is_refused():
+    from dataclasses import replace
+
+    from feed_axis_energy.core.errors import ConfigError
+    machine = _drives()
+    axes = tuple(replace(a, drive=None) if a.name == 'Y' else a for a in machine.axes)
+    partial = replace(machine, axes=axes)
+    prog = parse_gcode(MIXED, file='mixed.nc', home=machine.home_point())
+    with pytest.raises(ConfigError) as info:
+        simulate_stream(prog.moves, partial, file='mixed.nc')
+    assert info.value.key == 'axes.Y.drive'
