@@ -94,3 +94,21 @@ def test_bad_drive_value_exits_1_naming_the_key(program, tmp_path, capsys):
     assert main(['simulate', str(program), '--machine', str(path), '--quiet']) == 1
     err = capsys.readouterr().err
     assert 'axes.Z.drive.resistance_ohm' in err and 'Traceback' not in err
+
+
+def test_sweep_over_the_winding_resistance_compares_electrical_energy(program, tmp_path,
+                                                                      capsys):
+    # meter at the motor terminals: copper = 1.5 R (M/kt)^2 is linear in R at the same
+    # torque, so the energy is too: E(4) - E(2) = 2 (E(2) - E(1))
+    data = yaml.safe_load(DRIVES.read_text(encoding='utf-8'))
+    data['supply']['measured_at'] = 'motor'
+    path = tmp_path / 'm.yaml'
+    path.write_text(yaml.safe_dump(data), encoding='utf-8')
+    assert main(['sweep', str(program), '--machine', str(path), '--vary',
+                 'axes.*.drive.resistance_ohm=1,2,4', '--json', '--quiet', '--jobs', '1']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    rows = [r for r in doc['rows'] if not r['baseline']]
+    assert [r['energy_point'] for r in rows] == ['motor'] * 3
+    e1, e2, e4 = (r['energy_j'] for r in rows)
+    assert e1 < e2 < e4
+    assert math.isclose(e4 - e2, 2.0 * (e2 - e1), rel_tol=1e-9)
