@@ -24,18 +24,19 @@ up to ``P_motor``. Everything is per sample, so it runs chunk by chunk
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from .breakdown import BreakdownAccumulator
 from .dynamics import AxisDynamics
+from .energy import PowerResult
 from .errors import ConfigError
 from .machine import Machine
 
 __all__ = ['ELECTRICAL_CAUSES', 'POINTS', 'ElectricalPower', 'electrical_power',
-           'ElectricalAccumulator']
+           'with_electrical', 'ElectricalAccumulator']
 
 ELECTRICAL_CAUSES = ('copper', 'iron', 'converter', 'standby')
 POINTS = {'motor': 'motor terminals (between converter and motor)',
@@ -153,6 +154,18 @@ def electrical_power(dyn: AxisDynamics, mechanical_w: np.ndarray, machine: Machi
     return ElectricalPower(motor_w=motor, supply_w=supply,
                            parts=tuple((c, parts[c]) for c in ELECTRICAL_CAUSES),
                            burned_w=burned, cabinet_w=float(cabinet), measured_at=point)
+
+
+def with_electrical(dyn: AxisDynamics, power: PowerResult, machine: Machine) -> PowerResult:
+    """``power`` (declared effects included) with its ``electrical`` part when the machine
+    declares drives; ``power`` itself otherwise."""
+    if not machine.electrical:
+        return power
+    extra = None
+    for _label, part in power.effect_power_w:
+        extra = part.copy() if extra is None else extra + part
+    return replace(power, electrical=electrical_power(dyn, power.mechanical_w, machine,
+                                                      effects_w=extra))
 
 
 class _Trapezoid:

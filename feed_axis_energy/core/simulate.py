@@ -7,7 +7,7 @@ are integrated from the sum (:func:`apply_declared_effects`).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 import math
 from typing import Any
 
@@ -15,7 +15,7 @@ import numpy as np
 
 from .breakdown import LineEnergy
 from .dynamics import AxisDynamics, compute_dynamics
-from .electrical import ElectricalAccumulator, electrical_power
+from .electrical import ElectricalAccumulator, with_electrical
 from .energy import EnergyIntegrator, PowerResult, compute_power, energy_by_line
 from .machine import Machine
 from .motion import Motion
@@ -172,10 +172,7 @@ def simulate_motion(motion: Motion, machine: Machine, *, load_kg: float = 0.0) -
     """
     dyn = compute_dynamics(motion, machine, load_kg=load_kg)
     power = apply_declared_effects(dyn, compute_power(dyn, braking=machine.braking), machine)
-    if machine.electrical:
-        extra = sum_effect_parts(list(power.effect_power_w))
-        power = replace(power, electrical=electrical_power(dyn, power.mechanical_w, machine,
-                                                           effects_w=extra))
+    power = with_electrical(dyn, power, machine)
     return SimulationResult(program=motion.source, machine=machine, load_kg=float(load_kg),
                             motion=motion, dynamics=dyn, power=power)
 
