@@ -76,6 +76,9 @@ def _print(res: AnalysisResult) -> None:
         print('effects added (uncertainty: jackknife over runs):')
         print(format_table(['effect', 'parameter', 'value', '+-', 'unit',
                             'share of structure [%]', 'held-out gain [%]', 'aliases'], rows))
+        for e in res.effects:
+            if e.correction is not None:
+                print(correction_line(e.id, e.axis, e.correction))
     else:
         print('effects added: none')
     if res.unexplained:
@@ -180,3 +183,15 @@ def run(args: argparse.Namespace) -> int:
     for key, value in extra.items():
         print(f'{key.replace("_", " ")}: {value}')
     return 0
+
+
+def correction_line(effect_id: str, axis: str, corr: dict) -> str:
+    """One line: a catalog effect read as a change of the declared drive (docs/electrical.md)."""
+    parts = [f'{n} {corr["declared"][n]:.4g} -> {corr["corrected"][n]:.4g}'
+             for n in corr['declared']]
+    if 'resistance_ohm' in corr:
+        r = corr['resistance_ohm']
+        parts.append(f'winding resistance ({r["between"]}) {r["declared"]:.4g} -> '
+                     f'{r["corrected"]:.4g} ohm')
+    return (f'  {effect_id}@{axis} corrects the declared drive (value = change): '
+            + '; '.join(parts))

@@ -163,6 +163,9 @@ def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
     if by_cause:
         print()
         print(cause_table(summary, axes))
+    if summary.get('electrical'):
+        print()
+        print(electrical_tables(summary['electrical'], axes))
     for group, title in (('operation', 'operation'), ('tool', 'tool'),
                          ('subroutine', 'subroutine')):
         items = (summary.get('rollups') or {}).get(group) or []
@@ -228,6 +231,42 @@ def cause_table(summary: dict, axes: list[str]) -> str:
     table = '\n'.join(line.rstrip() for line in format_table(header, rows).splitlines())
     return ('energy by cause (net; "put in": the positive power only; docs/breakdown.md):\n'
             + table)
+
+
+def electrical_tables(electrical: dict, axes: list[str]) -> str:
+    """The summary's ``electrical`` object (``docs/electrical.md``) as text: energy and peak
+    power at both points, then the breakdown by cause at the supply side with a sum row."""
+    e = electrical
+    point = 'motor terminals' if e['measured_at'] == 'motor' else 'supply side'
+    rows = []
+    for label, key, peak in (('motor terminals', 'motor_energy_j', 'motor_peak_power_w'),
+                             ('supply side', 'supply_energy_j', 'supply_peak_power_w')):
+        energy = e[key]
+        rows.append([label] + [_joules(energy[a]) for a in axes]
+                    + [_joules(energy['cabinet']) if 'cabinet' in energy else '-',
+                       _joules(energy['total']), _finite(e[peak]['total'], '.1f')])
+    header = ['point'] + [f'{a} [J]' for a in axes] + ['cabinet [J]', 'total [J]',
+                                                       'peak [W]']
+    lines = ['electrical energy (declared drives; docs/electrical.md):',
+             format_table(header, rows),
+             f'the meter\'s point (supply.measured_at): {point}, the {e["point"]}',
+             f'returned to the supply by braking drives: {_joules(e["returned_j"])} J; '
+             f'cabinet standby {e["cabinet_standby_w"]:g} W']
+    by_cause = e['energy_by_cause_j']
+    total = e['supply_energy_j']['total']
+    body = []
+    for cause, values in by_cause.items():
+        share = 100.0 * values['total'] / total if total > 0.0 else math.nan
+        body.append([cause] + [_joules(values[a]) for a in axes]
+                    + [_joules(values['cabinet']), _joules(values['total']),
+                       _unsigned_zero(_finite(share, '.1f'))])
+    body.append(['sum'] + [_joules(math.fsum(v[k] for v in by_cause.values()))
+                           for k in axes + ['cabinet', 'total']] + [''])
+    head = ['cause'] + [f'{a} [J]' for a in axes] + ['cabinet [J]', 'total [J]', 'share [%]']
+    table = '\n'.join(line.rstrip() for line in format_table(head, body).splitlines())
+    lines += ['', 'electrical energy by cause at the supply side (net; motor terminals = all '
+              'but converter, standby, braking_burned):', table]
+    return '\n'.join(lines)
 
 
 def _joules(value: float) -> str:

@@ -163,6 +163,10 @@ def print_table(rows, names: list[str]) -> None:
             cells += ['-', '-', '-', '-', '-', 'failed']
         table.append(cells)
     print(format_table(header, table))
+    points = sorted({r.energy_point for r in rows if r.ok} - {'shaft'})
+    if points:
+        print(f'energy: electrical, at the {" / ".join(points)} point of the declared drives '
+              '(supply.measured_at; docs/electrical.md)')
     failed = [r for r in rows if not r.ok]
     if failed:
         print()

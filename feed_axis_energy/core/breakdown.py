@@ -45,16 +45,24 @@ FIXED_CAUSES = ('friction', 'screw', 'gravity_lift', 'gravity_lower', 'linear_in
 BRAKING_CAUSE = 'braking_burned'
 
 
-def cause_names(effect_labels: Sequence[str] = ()) -> tuple[str, ...]:
-    """All cause names in display order: the fixed ones, the effects, ``braking_burned``."""
-    return FIXED_CAUSES + tuple(effect_labels) + (BRAKING_CAUSE,)
+def cause_names(effect_labels: Sequence[str] = (),
+                extra_labels: Sequence[str] = ()) -> tuple[str, ...]:
+    """All cause names in display order: the fixed ones, the effects, the extra causes (the
+    electrical ones, :mod:`.electrical`), ``braking_burned``."""
+    return FIXED_CAUSES + tuple(effect_labels) + tuple(extra_labels) + (BRAKING_CAUSE,)
 
 
 def cause_rows(dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
                effects: Sequence[tuple[str, np.ndarray]] = (),
-               buffers: dict | None = None) -> list[tuple[int, int, np.ndarray]]:
+               buffers: dict | None = None, extra: Sequence[tuple[str, np.ndarray]] = (),
+               burned: np.ndarray | None = None) -> list[tuple[int, int, np.ndarray]]:
     """The power of every cause on every axis that can be non-zero, as
     ``(cause index, axis index, power (n,))`` [W] (see :func:`cause_powers`).
+
+    ``extra``: further causes ``(label, power (n, k))`` after the effects (the electrical
+    losses); ``burned``: the ``braking_burned`` power ``(n, k)`` when the caller applies the
+    braking rule itself (the electrical chain), instead of ``max(-M·omega, 0)`` with
+    ``'dissipated'``.
 
     ``buffers``: a dict kept by the caller from chunk to chunk; the rows are written into
     its arrays (valid until the next call with the same dict).
@@ -102,14 +110,19 @@ def cause_rows(dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
             if gravity is not None:
                 screw -= gravity
             rows.append((1, j, screw))
-    for i, (_label, power) in enumerate(effects):
+    for i, (_label, power) in enumerate(list(effects) + list(extra)):
         power = np.asarray(power)
         for j in range(k):
             column = power[:, j]
             if np.any(column):
                 rows.append((len(FIXED_CAUSES) + i, j, column))
-    if braking == 'dissipated':
-        c = len(FIXED_CAUSES) + len(effects)
+    c = len(FIXED_CAUSES) + len(effects) + len(extra)
+    if burned is not None:
+        for j in range(k):
+            column = burned[:, j]
+            if np.any(column):
+                rows.append((c, j, column))
+    elif braking == 'dissipated':
         for j in range(k):
             burned = np.negative(mech[:, j], out=buf((c, j)))
             np.maximum(burned, 0.0, out=burned)
@@ -118,7 +131,9 @@ def cause_rows(dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
 
 
 def cause_powers(dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
-                 effects: Sequence[tuple[str, np.ndarray]] = ()) -> np.ndarray:
+                 effects: Sequence[tuple[str, np.ndarray]] = (),
+                 extra: Sequence[tuple[str, np.ndarray]] = (),
+                 burned: np.ndarray | None = None) -> np.ndarray:
     """Power of every cause per axis, ``(c, k, n)`` in :func:`cause_names` order [W].
 
     Parameters
@@ -131,6 +146,8 @@ def cause_powers(dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
         ``'regenerative'`` or ``'dissipated'``.
     effects
         ``(label, power (n, k))`` of every declared effect, in declaration order.
+    extra, burned
+        Further causes and the burned braking power (:func:`cause_rows`).
 
     Returns
     -------
@@ -144,8 +161,9 @@ def cause_powers(dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
         An unknown braking rule.
     """
     n, k = dyn.velocity_m_s.shape
-    out = np.zeros((len(FIXED_CAUSES) + len(effects) + 1, k, n))
-    for c, j, row in cause_rows(dyn, mechanical_w, braking=braking, effects=effects):
+    out = np.zeros((len(FIXED_CAUSES) + len(effects) + len(extra) + 1, k, n))
+    for c, j, row in cause_rows(dyn, mechanical_w, braking=braking, effects=effects,
+                                extra=extra, burned=burned):
         out[c, j] = row
     return out
 
@@ -213,19 +231,22 @@ class BreakdownAccumulator:
         self._buffers: dict = {}                     # work arrays reused from chunk to chunk
 
     def add(self, dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
-            effects: Sequence[tuple[str, np.ndarray]] = ()) -> None:
+            effects: Sequence[tuple[str, np.ndarray]] = (),
+            extra: Sequence[tuple[str, np.ndarray]] = (),
+            burned: np.ndarray | None = None) -> None:
         """Take one chunk (in time order); arguments as :func:`cause_powers`."""
         t = dyn.t
         m = int(t.shape[0])
         if m == 0:
             return
         rows = cause_rows(dyn, mechanical_w, braking=braking, effects=effects,
-                          buffers=self._buffers)
+                          buffers=self._buffers, extra=extra, burned=burned)
         k = len(dyn.axes)
-        c = len(FIXED_CAUSES) + len(effects) + 1
+        c = len(FIXED_CAUSES) + len(effects) + len(extra) + 1
         if self.energy is None:
             self.axes = tuple(dyn.axes)
-            self.causes = cause_names([label for label, _ in effects])
+            self.causes = cause_names([label for label, _ in effects],
+                                      [label for label, _ in extra])
             self.energy = np.zeros((c, k))
             self.gross = np.zeros((c, k))
             self._signed = slice(4, c - 1)      # inertia (4, 5), then the effects

@@ -12,12 +12,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .dynamics import AxisDynamics
 from .errors import ConfigError, DataError
 from .machine import BRAKING_MODES
+
+if TYPE_CHECKING:
+    from .electrical import ElectricalPower
 
 __all__ = ['PowerResult', 'EnergyIntegrator', 'compute_power', 'energy_by_line',
            'power_with_total',
@@ -53,6 +57,10 @@ class PowerResult:
     effect_power_w
         ``(label, power (n, k))`` of every declared effect (included in ``power_w``), in
         declaration order; labels as :func:`.simulate.declared_effects_parts`.
+    electrical
+        Electrical power at the motor terminals and the supply side
+        (:class:`.electrical.ElectricalPower`) when the machine declares drives, else
+        ``None``.
     """
 
     t: np.ndarray
@@ -66,6 +74,7 @@ class PowerResult:
     line: np.ndarray
     braking: str = 'regenerative'
     effect_power_w: tuple[tuple[str, np.ndarray], ...] = ()
+    electrical: ElectricalPower | None = None
 
     @property
     def regenerated_energy_j(self) -> float:

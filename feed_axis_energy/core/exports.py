@@ -7,7 +7,10 @@ samples, or of blocks, whatever the program's length.
 * ``timeseries.csv`` / ``.parquet``: every ``decimate``-th sample (counted from the first,
   at the full rate): time, source line, per axis position, velocity, drawn power and
   cumulative energy, the total power and energy, and the power of every cause summed over
-  the axes (:mod:`.breakdown`). Column names carry their SI unit (``X power [W]``).
+  the axes (:mod:`.breakdown`). Column names carry their SI unit (``X power [W]``). With
+  declared drives (:mod:`.electrical`) also the electrical power per axis at the motor
+  terminals and at the supply side, the totals (the supply's with the cabinet's standby),
+  their cumulative energies, and the electrical causes summed over the axes.
 * ``blocks.csv`` / ``.parquet``: one row per source line that took time: line, the block's
   text (at most :data:`TEXT_CHARS` characters), duration, energy, energy per axis and per
   cause (summed over the axes); ascending line.
@@ -27,7 +30,8 @@ from .errors import ConfigError, DataError, OutputError
 from .simulate import SimulationResult
 
 __all__ = ['FORMATS', 'TEXT_CHARS', 'TableWriter', 'require_pyarrow', 'SeriesExporter',
-           'write_blocks', 'series_columns', 'iter_source_texts', 'EXPORT_MARKER']
+           'write_blocks', 'series_columns', 'iter_source_texts', 'EXPORT_MARKER',
+           'ELECTRICAL_SERIES']
 
 FORMATS = ('csv', 'parquet')
 TEXT_CHARS = 120
@@ -133,7 +137,11 @@ def _csv_rows(columns: list[str], data: dict[str, Any], text: set[str],
     return buf.getvalue()
 
 
-def series_columns(axes: Sequence[str], causes: Sequence[str]) -> list[str]:
+ELECTRICAL_SERIES = ('copper', 'iron', 'converter', 'standby', 'braking_burned')
+
+
+def series_columns(axes: Sequence[str], causes: Sequence[str], *,
+                   electrical: bool = False) -> list[str]:
     """Column names of the time series (see the module docstring)."""
     cols = ['t [s]', 'line']
     for what, unit in (('position', 'm'), ('velocity', 'm/s'), ('power', 'W'),
@@ -141,6 +149,11 @@ def series_columns(axes: Sequence[str], causes: Sequence[str]) -> list[str]:
         cols += [f'{a} {what} [{unit}]' for a in axes]
     cols += ['total power [W]', 'total energy [J]']
     cols += [f'{c} power [W]' for c in causes]
+    if electrical:
+        for point in ('motor', 'supply'):
+            cols += [f'{a} {point} power [W]' for a in axes]
+            cols += [f'total {point} power [W]', f'total {point} energy [J]']
+        cols += [f'electrical {c} power [W]' for c in ELECTRICAL_SERIES]
     return cols
 
 
@@ -163,6 +176,8 @@ class SeriesExporter:
         self.decimate = int(decimate)
         self.seen = 0
         self._writers: list[TableWriter] = []
+        self._elec_last: tuple[float, float, float] | None = None   # t, motor, supply [W]
+        self._elec_energy = np.zeros(2)                              # motor, supply [J]
 
     def write(self, chunk: SimulationResult) -> None:
         """Take one chunk at the full rate (without ``Motion.gaps``), in time order."""
@@ -178,8 +193,9 @@ class SeriesExporter:
         causes = cause_powers(dyn, p.mechanical_w, braking=p.braking,
                               effects=p.effect_power_w)
         names = cause_names([label for label, _ in p.effect_power_w])
+        elec = p.electrical
         if not self._writers:
-            cols = series_columns(p.axes, names)
+            cols = series_columns(p.axes, names, electrical=elec is not None)
             self._writers = [TableWriter(d / f'timeseries.{fmt}', cols, fmt=fmt,
                                          int_columns=('line',))
                              for fmt, d in self.directories.items()]
@@ -194,6 +210,8 @@ class SeriesExporter:
         summed = causes[:, :, keep].sum(axis=1)
         for i, c in enumerate(names):
             data[f'{c} power [W]'] = summed[i]
+        if elec is not None:
+            data.update(self._electrical(p.t, p.axes, elec, keep))
         for name, values in data.items():
             bad = ~np.isfinite(values)
             if np.any(bad):
@@ -202,6 +220,33 @@ class SeriesExporter:
                 raise DataError(msg, file=chunk.program or '<simulation>')
         for w in self._writers:
             w.write(data)
+
+    def _electrical(self, t: np.ndarray, axes: Sequence[str], elec: Any,
+                    keep: np.ndarray) -> dict[str, np.ndarray]:
+        """The electrical columns of the kept samples; the cumulative energies integrate
+        every sample (trapezoid, continued from the previous chunk)."""
+        totals = np.column_stack((elec.motor_w.sum(axis=1),
+                                  elec.supply_w.sum(axis=1) + elec.cabinet_w))
+        de = np.zeros_like(totals)
+        de[1:] = 0.5 * (totals[1:] + totals[:-1]) * np.diff(t)[:, None]
+        if self._elec_last is not None:
+            t0, motor0, supply0 = self._elec_last
+            de[0] = 0.5 * (totals[0] + (motor0, supply0)) * (t[0] - t0)
+        energy = np.cumsum(de, axis=0) + self._elec_energy
+        self._elec_energy = energy[-1].copy()
+        self._elec_last = (float(t[-1]), float(totals[-1, 0]), float(totals[-1, 1]))
+        out: dict[str, np.ndarray] = {}
+        for i, (point, power) in enumerate((('motor', elec.motor_w),
+                                            ('supply', elec.supply_w))):
+            for j, a in enumerate(axes):
+                out[f'{a} {point} power [W]'] = power[keep, j]
+            out[f'total {point} power [W]'] = totals[keep, i]
+            out[f'total {point} energy [J]'] = energy[keep, i]
+        parts = dict(elec.parts)
+        parts['braking_burned'] = elec.burned_w
+        for c in ELECTRICAL_SERIES:
+            out[f'electrical {c} power [W]'] = parts[c][keep].sum(axis=1)
+        return out
 
     def close(self) -> None:
         """Finish every file."""

@@ -21,6 +21,10 @@ A machine file looks like (see ``config/demonstrator.yaml``)::
       dialect: linuxcnc
       tools: {1: {radius_m: 0.003, length_m: 0.045}}
 
+Each axis may declare its motor and drive (``drive:``) and the machine its cabinet standby
+and meter point (``supply:``), from data-sheet values (:mod:`.drive_model`,
+``docs/electrical.md``).
+
 Each axis may also give ``travel_m: [min, max]``, its travel in machine coordinates [m],
 and ``loss_calibrated: {feed_mm_s: [low, high], load_kg: [low, high]}``, the speeds and loads
 its loss function was fitted on (written by ``fit-loss``; :mod:`.calibrated`).
@@ -43,9 +47,12 @@ from typing import Any
 from .calibrated import calibrated_from_value, CalibratedRange
 from .configcheck import check_choice as _choice, check_float as _float
 from .configcheck import check_mapping as _mapping, join_key as _join
+from .drive_model import (check_drives, drive_from_value, drive_to_dict, DriveSpec,
+                          supply_from_value, supply_to_dict, SupplySpec)
 from .errors import ConfigError, describe, shorten
 from .losses import LossModel, loss_from_dict
 from .mass import carried_axes, GRAVITY_M_S2, moved_mass_kg  # noqa: F401  (re-exported)
+from .machine_effects import DeclaredEffect, effects_from_value, effects_to_list
 from .machine_gcode import (GcodeSettings, gcode_from_dict, gcode_to_dict, ToolSpec,
                             travel_from_value)
 from .safeyaml import load_yaml_file
@@ -160,6 +167,8 @@ class AxisSpec:
         ``(min, max)`` travel limits in machine coordinates [m], or ``None`` (unknown).
     loss_calibrated
         Speeds and loads the loss function was fitted on, or ``None`` (not recorded).
+    drive
+        Motor and drive from data-sheet values (:mod:`.drive_model`), or ``None``.
     """
 
     name: str
@@ -172,6 +181,7 @@ class AxisSpec:
     inclination_deg: float = 0.0
     travel_m: tuple[float, float] | None = None
     loss_calibrated: CalibratedRange | None = None
+    drive: DriveSpec | None = None
 
     @property
     def screw_inertia_kg_m2(self) -> float:
@@ -183,34 +193,6 @@ class AxisSpec:
     def rotary_inertia_kg_m2(self) -> float:
         """Motor + coupling + screw inertia [kg·m^2]."""
         return self.inertias.motor_kg_m2 + self.inertias.coupling_kg_m2 + self.screw_inertia_kg_m2
-
-
-@dataclass(frozen=True)
-class DeclaredEffect:
-    """A catalog effect the machine model declares (see :mod:`.effects`).
-
-    Attributes
-    ----------
-    id
-        Catalog id (``'load_friction'``).
-    axis
-        The axis it acts on, or ``None`` for every axis.
-    params
-        ``(name, value)`` pairs in SI units; parameters not given take the catalog default.
-    calibrated
-        Speeds, loads and positions it was identified on (``analyze --out-machine``), or
-        ``None``.
-    """
-
-    id: str
-    axis: str | None = None
-    params: tuple[tuple[str, float], ...] = ()
-    calibrated: CalibratedRange | None = None
-
-    @property
-    def values(self) -> dict[str, float]:
-        """Parameters as a dict."""
-        return dict(self.params)
 
 
 @dataclass(frozen=True)
@@ -239,6 +221,8 @@ class Machine:
         LinuxCNC's fresh parameter file).
     gcode
         Dialect and tool table of the G-code front end (:mod:`.machine_gcode`).
+    supply
+        Cabinet standby and the meter's point (:mod:`.drive_model`), or ``None``.
     """
 
     name: str
@@ -249,6 +233,12 @@ class Machine:
     effects: tuple[DeclaredEffect, ...] = ()
     home_m: tuple[tuple[str, float], ...] = ()
     gcode: GcodeSettings = GcodeSettings()
+    supply: SupplySpec | None = None
+
+    @property
+    def electrical(self) -> bool:
+        """True when the axes declare motor and drive (:mod:`.electrical` applies)."""
+        return any(a.drive is not None for a in self.axes)
 
     def home_point(self) -> tuple[float, float, float] | None:
         """The G28 reference point as program ``(X, Y, Z)`` [m] (0 for other axes), or None."""
@@ -340,7 +330,7 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         msg = f'unknown axis name {shorten(str(name))!r}; expected one of {", ".join(AXIS_NAMES)}'
         raise ConfigError(msg, file=file, key=key)
     allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
-               'loss', 'travel_m', 'loss_calibrated')
+               'loss', 'travel_m', 'loss_calibrated', 'drive')
     d = _mapping(d, file=file, key=key, allowed=allowed)
     for part in ('screw', 'inertias', 'limits', 'loss'):
         if part not in d:
@@ -360,7 +350,8 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
                                minimum=-90.0, strict=False, maximum=90.0),
         travel_m=travel_from_value(d.get('travel_m'), file=file, key=f'{key}.travel_m'),
         loss_calibrated=calibrated_from_value(d.get('loss_calibrated'), file=file,
-                                              key=f'{key}.loss_calibrated'))
+                                              key=f'{key}.loss_calibrated'),
+        drive=drive_from_value(d.get('drive'), file=file, key=f'{key}.drive'))
 
 
 def _check_stacking(axes: tuple[AxisSpec, ...], *, file: str) -> None:
@@ -380,46 +371,6 @@ def _check_stacking(axes: tuple[AxisSpec, ...], *, file: str) -> None:
                 raise ConfigError(msg, file=file, key=key)
             chain.append(current)
             current = names[current].rides_on
-
-
-def _effects(value: Any, axis_names: tuple[str, ...], *,
-             file: str) -> tuple[DeclaredEffect, ...]:
-    if value is None:
-        return ()
-    if not isinstance(value, list):
-        msg = f'expected a list of effects, got {describe(value)}'
-        raise ConfigError(msg, file=file, key='effects')
-    # the catalog is imported only for a machine that declares effects (start-up time)
-    from .effects import EFFECTS
-    out = []
-    for i, item in enumerate(value):
-        key = f'effects[{i}]'
-        item = _mapping(item, file=file, key=key,
-                        allowed=('id', 'axis', 'params', 'calibrated'))
-        effect_id = item.get('id')
-        if not isinstance(effect_id, str) or effect_id not in EFFECTS:
-            msg = f'unknown effect {describe(effect_id)}; expected one of {", ".join(EFFECTS)}'
-            raise ConfigError(msg, file=file, key=f'{key}.id')
-        cls = EFFECTS[effect_id]
-        if not cls.machine_property:
-            msg = (f'effect {effect_id!r} describes how a measured and a simulated record line '
-                   'up, not the machine; compare estimates it for every run')
-            raise ConfigError(msg, file=file, key=f'{key}.id')
-        axis = _choice(item, 'axis', axis_names + (None,), file=file, key=key, default=None)
-        params_d = _mapping(item.get('params', {}) or {}, file=file, key=f'{key}.params',
-                            allowed=cls.param_names())
-        params = tuple((name, _float(params_d, name, file=file, key=f'{key}.params',
-                                     minimum=-1.0e12, strict=False, maximum=1.0e12))
-                       for name in cls.param_names() if name in params_d)
-        try:
-            cls.resolve(dict(params))      # the physical bounds (a negative loss, ...)
-        except ConfigError as err:
-            raise ConfigError(err.reason, file=file, key=f'{key}.params') from None
-        calibrated = calibrated_from_value(item.get('calibrated'), file=file,
-                                           key=f'{key}.calibrated')
-        out.append(DeclaredEffect(id=effect_id, axis=axis, params=params,
-                                  calibrated=calibrated))
-    return tuple(out)
 
 
 def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
@@ -444,7 +395,7 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
     """
     d = _mapping(d, file=file, key='',
                  allowed=('name', 'braking', 'load_axis', 'planner', 'axes', 'effects',
-                          'home_m', 'gcode'))
+                          'home_m', 'gcode', 'supply'))
     name = d.get('name', Path(file).stem)
     if not isinstance(name, str) or not name:
         msg = f'expected a non-empty string, got {describe(name)}'
@@ -456,6 +407,8 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
         raise ConfigError(msg, file=file, key='axes')
     axes = tuple(_axis(n, v, file=file) for n, v in axes_d.items())
     _check_stacking(axes, file=file)
+    supply = supply_from_value(d.get('supply'), file=file)
+    check_drives({a.name: a.drive for a in axes}, supply, file=file)
     planner_d = _mapping(d.get('planner', {}), file=file, key='planner',
                          allowed=('profile', 'corner_tolerance_m', 'rate_hz', 'cycle_s'))
     planner = PlannerSettings(
@@ -473,9 +426,10 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
         braking=_choice(d, 'braking', BRAKING_MODES, file=file, key=''),
         load_axis=_choice(d, 'load_axis', tuple(a.name for a in axes), file=file, key=''),
         planner=planner,
-        effects=_effects(d.get('effects'), tuple(a.name for a in axes), file=file),
+        effects=effects_from_value(d.get('effects'), tuple(a.name for a in axes), file=file),
         home_m=_home(d.get('home_m'), tuple(a.name for a in axes), file=file),
-        gcode=gcode_from_dict(d.get('gcode'), file=file))
+        gcode=gcode_from_dict(d.get('gcode'), file=file),
+        supply=supply)
 
 
 def _home(value: Any, axis_names: tuple[str, ...], *,
@@ -548,6 +502,8 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
             axes[a.name]['travel_m'] = [float(v) for v in a.travel_m]
         if a.loss_calibrated is not None:
             axes[a.name]['loss_calibrated'] = a.loss_calibrated.to_dict()
+        if a.drive is not None:
+            axes[a.name]['drive'] = drive_to_dict(a.drive)
     out = {
         'name': machine.name,
         'braking': machine.braking,
@@ -563,11 +519,9 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
     gcode = gcode_to_dict(machine.gcode)
     if gcode is not None:
         out['gcode'] = gcode
+    if machine.supply is not None:
+        out['supply'] = supply_to_dict(machine.supply)
     if machine.effects:
         # only when present, so that the paper's model keeps its plain form
-        out['effects'] = [{'id': e.id, 'axis': e.axis,
-                           'params': {n: float(v) for n, v in e.params}}
-                          | ({} if e.calibrated is None
-                             else {'calibrated': e.calibrated.to_dict()})
-                          for e in machine.effects]
+        out['effects'] = effects_to_list(machine.effects)
     return out

@@ -19,6 +19,7 @@ import numpy as np
 
 from .breakdown import add_breakdown, BreakdownAccumulator, LineEnergy
 from .dynamics import compute_dynamics
+from .electrical import ElectricalAccumulator, electrical_power
 from .energy import apply_braking, EnergyIntegrator, power_with_total, PowerResult
 from .errors import ConfigError
 from .machine import Machine
@@ -111,12 +112,13 @@ def iter_simulation(motions: Iterable[Motion], machine: Machine, *, load_kg: flo
         if extra is not None:
             drawn = drawn + extra
         total = _row_sum(drawn)
+        elec = electrical_power(dyn, mechanical, machine, effects_w=extra)
         energy = integrator.update(dyn.t, power_with_total(drawn, total))
         power = PowerResult(t=dyn.t, axes=dyn.axes, power_w=drawn, total_w=total,
                             energy_j=energy[:, :k], total_energy_j=energy[:, k],
                             mechanical_w=mechanical, loss_power_w=loss_power,
                             line=dyn.line, braking=machine.braking,
-                            effect_power_w=tuple(parts))
+                            effect_power_w=tuple(parts), electrical=elec)
         yield SimulationResult(program=program or motion.source, machine=machine,
                                load_kg=float(load_kg), motion=motion, dynamics=dyn,
                                power=power)
@@ -143,6 +145,7 @@ class SummaryAccumulator:
     def __init__(self, *, rate_hz: float | None = None, block_breakdown: bool = False) -> None:
         self.rate_hz = rate_hz
         self.causes = BreakdownAccumulator(per_line=block_breakdown)
+        self.electrical = ElectricalAccumulator()
         self.n = 0
         self.t_first = 0.0
         self.t_last = 0.0
@@ -172,6 +175,9 @@ class SummaryAccumulator:
             return
         self.causes.add(chunk.dynamics, p.mechanical_w, braking=p.braking,
                         effects=p.effect_power_w)
+        if p.electrical is not None:
+            self.electrical.add(chunk.dynamics, p.mechanical_w, p.electrical,
+                                braking=p.braking, effects=p.effect_power_w)
         if self.first is None:
             self.first = chunk
             self.axes = tuple(p.axes)
@@ -306,7 +312,7 @@ class SummaryAccumulator:
         peak = {a: float(self.peak[j]) if n else 0.0 for j, a in enumerate(axes)}
         peak['total'] = float(self.peak[-1]) if n else 0.0
         blocks = self.top_blocks(top_blocks)
-        return add_breakdown({
+        summary = add_breakdown({
             'program': program,
             'machine': machine.name,
             'load_kg': float(load_kg),
@@ -320,6 +326,10 @@ class SummaryAccumulator:
             'loss_energy_j': self.loss_energy,
             'top_blocks': [{'line': ln, 'energy_j': e, 'duration_s': d} for ln, e, d in blocks],
         }, self.causes)
+        electrical = self.electrical.summary()
+        if electrical:
+            summary['electrical'] = electrical
+        return summary
 
 
 _MOTION_ROWS = ('t', 'pos', 'vel', 'acc', 'line')
@@ -404,7 +414,8 @@ def expand_gaps(chunk: SimulationResult, *, rate_hz: float,
                                    for f in _DYNAMICS_ROWS})
         rows = {f: getattr(pw, f)[src] for f in _POWER_ROWS[1:]}
         rows.update(t=t, energy_j=energy, total_energy_j=total_energy,
-                    effect_power_w=tuple((label, a[src]) for label, a in pw.effect_power_w))
+                    effect_power_w=tuple((label, a[src]) for label, a in pw.effect_power_w),
+                    electrical=None if pw.electrical is None else pw.electrical.take(src))
         yield replace(chunk, motion=motion, dynamics=dynamics, power=replace(pw, **rows))
 
 

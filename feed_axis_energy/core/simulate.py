@@ -14,6 +14,7 @@ import numpy as np
 
 from .breakdown import LineEnergy
 from .dynamics import AxisDynamics, compute_dynamics
+from .electrical import ElectricalAccumulator, with_electrical
 from .energy import EnergyIntegrator, PowerResult, compute_power, energy_by_line
 from .machine import Machine
 from .motion import Motion
@@ -171,6 +172,7 @@ def simulate_motion(motion: Motion, machine: Machine, *, load_kg: float = 0.0) -
     """
     dyn = compute_dynamics(motion, machine, load_kg=load_kg)
     power = apply_declared_effects(dyn, compute_power(dyn, braking=machine.braking), machine)
+    power = with_electrical(dyn, power, machine)
     return SimulationResult(program=motion.source, machine=machine, load_kg=float(load_kg),
                             motion=motion, dynamics=dyn, power=power)
 
@@ -229,7 +231,8 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         resistances), ``top_blocks`` (list of ``{'line', 'energy_j', 'duration_s'}``), and
         the breakdown by cause (:func:`.breakdown.add_breakdown`: ``causes``,
         ``energy_by_cause_j``, ``braking_returned_j``; per top block ``energy_by_axis_j``,
-        ``energy_by_cause_j``).
+        ``energy_by_cause_j``); with declared drives ``electrical``
+        (:meth:`.electrical.ElectricalAccumulator.summary`, ``docs/electrical.md``).
     """
     from .breakdown import add_breakdown, BreakdownAccumulator
     p = result.power
@@ -246,7 +249,7 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
     duration = float(p.t[-1] - p.t[0]) if n else 0.0
     causes = BreakdownAccumulator(per_line=True)
     causes.add(result.dynamics, p.mechanical_w, braking=p.braking, effects=p.effect_power_w)
-    return add_breakdown({
+    summary = add_breakdown({
         'program': result.program,
         'machine': result.machine.name,
         'load_kg': float(result.load_kg),
@@ -260,6 +263,12 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         'loss_energy_j': loss_energy,
         'top_blocks': [{'line': ln, 'energy_j': e, 'duration_s': d} for ln, e, d in blocks],
     }, causes)
+    if p.electrical is not None:
+        electrical = ElectricalAccumulator()
+        electrical.add(result.dynamics, p.mechanical_w, p.electrical, braking=p.braking,
+                       effects=p.effect_power_w)
+        summary['electrical'] = electrical.summary()
+    return summary
 
 
 def line_table(result: SimulationResult) -> LineEnergy:

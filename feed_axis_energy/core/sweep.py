@@ -368,7 +368,7 @@ class SweepRow:
     ok
         False when the simulation failed (``error`` says why; the numbers are ``nan``).
     cycle_time_s, energy_j
-        Duration of the program [s] and energy of all axes [J].
+        Duration of the program [s] and energy of all axes [J] (:func:`sweep_energy`).
     energy_per_part_j
         ``energy_j`` divided by the parts one run of the program makes.
     d_energy_pct, d_time_pct
@@ -377,6 +377,9 @@ class SweepRow:
         On the program's energy-time Pareto front (baseline included).
     error
         The failure's message, or ``''``.
+    energy_point
+        Where ``energy_j`` is taken: ``'shaft'`` (mechanical), or with declared drives the
+        meter's point ``'motor'`` or ``'supply'`` (:func:`sweep_energy`).
     """
 
     program: str
@@ -390,6 +393,7 @@ class SweepRow:
     d_time_pct: float
     pareto: bool
     error: str = ''
+    energy_point: str = 'shaft'
 
     def to_dict(self, params: Sequence[Vary]) -> dict[str, Any]:
         """Plain JSON-able values (numbers absent where they are not known)."""
@@ -403,10 +407,21 @@ class SweepRow:
             out['error'] = self.error
             return out
         out.update(cycle_time_s=self.cycle_time_s, energy_j=self.energy_j,
-                   energy_per_part_j=self.energy_per_part_j, pareto=self.pareto)
+                   energy_per_part_j=self.energy_per_part_j, pareto=self.pareto,
+                   energy_point=self.energy_point)
         if math.isfinite(self.d_energy_pct):
             out.update(d_energy_pct=self.d_energy_pct, d_time_pct=self.d_time_pct)
         return out
+
+
+def sweep_energy(summary: dict[str, Any]) -> tuple[float, str]:
+    """``(energy [J], point)`` a sweep compares: with declared drives the electrical energy at
+    the meter's point (``supply.measured_at``; so that motor and drive values change it),
+    else the mechanical energy of all axes (``'shaft'``)."""
+    elec = summary.get('electrical')
+    if elec:
+        return float(elec['energy_j']['total']), str(elec['measured_at'])
+    return float(summary['energy_j']['total']), 'shaft'
 
 
 def _pct(value: float, base: float) -> float:
@@ -427,7 +442,7 @@ def sweep_rows(results: Sequence[tuple[str, tuple[Any, ...] | None, Any]], *,
     base: dict[str, tuple[float, float]] = {}
     for program, values, r in results:
         if values is None and r.ok:
-            base[program] = (r.summary['duration_s'], r.summary['energy_j']['total'])
+            base[program] = (r.summary['duration_s'], sweep_energy(r.summary)[0])
     points: dict[str, list[int]] = {}
     for i, (program, _, r) in enumerate(results):
         if r.ok:
@@ -435,7 +450,7 @@ def sweep_rows(results: Sequence[tuple[str, tuple[Any, ...] | None, Any]], *,
     front: set[int] = set()
     for idx in points.values():
         flags = pareto_front([(results[i][2].summary['duration_s'],
-                               results[i][2].summary['energy_j']['total']) for i in idx])
+                               sweep_energy(results[i][2].summary)[0]) for i in idx])
         front.update(i for i, f in zip(idx, flags) if f)
     rows = []
     for i, (program, values, r) in enumerate(results):
@@ -443,8 +458,8 @@ def sweep_rows(results: Sequence[tuple[str, tuple[Any, ...] | None, Any]], *,
             rows.append(SweepRow(program, values, values is None, False, math.nan, math.nan,
                                  math.nan, math.nan, math.nan, False, error=r.error))
             continue
-        t, e = r.summary['duration_s'], r.summary['energy_j']['total']
+        t, (e, point) = r.summary['duration_s'], sweep_energy(r.summary)
         bt, be = base.get(program, (math.nan, math.nan))
         rows.append(SweepRow(program, values, values is None, True, t, e, e / parts,
-                             _pct(e, be), _pct(t, bt), i in front))
+                             _pct(e, be), _pct(t, bt), i in front, energy_point=point))
     return rows

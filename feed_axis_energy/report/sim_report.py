@@ -163,7 +163,40 @@ def _answer(summary: Mapping[str, Any], causes: list[tuple[str, float, bool]]) -
     largest = max((c for c in causes if c[2] and c[1] > 0), key=lambda c: c[1], default=None)
     if largest is not None and total > 0:
         text += f'; {fmt_pct(100.0 * largest[1] / total)} of it {escape(largest[0])}'
+    elec = summary.get('electrical')
+    if isinstance(elec, Mapping) and elec.get('energy_j'):
+        text += (f'; electrical energy at the {escape(str(elec.get("point", "")))}: '
+                 f'<b>{fmt_si(elec["energy_j"].get("total"), "J")}</b>')
     return text + '.'
+
+
+def _electrical_html(elec: Mapping[str, Any]) -> str:
+    """The summary's ``electrical`` object (declared drives, ``docs/electrical.md``)."""
+    motor, supply = elec['motor_energy_j'], elec['supply_energy_j']
+    axes = [a for a in motor if a != 'total']
+    cell = '<td class="num">{}</td>'.format
+    rows = [[label] + [cell(fmt_si(energy.get(a), 'J', signed=True)) for a in axes]
+            + [cell(fmt_si(energy['cabinet'], 'J') if 'cabinet' in energy else '–'),
+               cell(fmt_si(energy['total'], 'J', signed=True)),
+               cell(fmt_si(elec[peak].get('total'), 'W'))]
+            for label, energy, peak in (('motor terminals', motor, 'motor_peak_power_w'),
+                                        ('supply side', supply, 'supply_peak_power_w'))]
+    head = (['point'] + [f'axis {escape(a)}' for a in axes]
+            + ['cabinet', 'total', 'peak power'])
+    total = supply['total']
+    causes = [[escape(c)] + [cell(fmt_si(v.get(a), 'J', signed=True)) for a in axes]
+              + [cell(fmt_si(v.get('cabinet'), 'J')), cell(fmt_si(v['total'], 'J', signed=True)),
+                 cell(fmt_pct(100.0 * v['total'] / total) if total else '–')]
+              for c, v in elec['energy_by_cause_j'].items()]
+    return (f'<p class="note">The machine declares its motors and drives. The meter\'s point '
+            f'is the {escape(str(elec["point"]))}. Motor terminals: shaft power plus copper '
+            f'and iron losses; supply side: plus converter losses, standby and braking energy '
+            f'the regeneration limit burns, and the cabinet\'s standby; '
+            f'{fmt_si(elec["returned_j"], "J")} went back to the supply while braking.</p>'
+            + table(head, rows, row_head=True)
+            + '<h3>Electrical energy by cause, supply side</h3>'
+            + table(['cause'] + [f'axis {escape(a)}' for a in axes]
+                    + ['cabinet', 'total', 'share of total'], causes, row_head=True))
 
 
 def _overview(summary: Mapping[str, Any]) -> str:
@@ -224,6 +257,13 @@ def _causes_html(summary: Mapping[str, Any], causes: list[tuple[str, float, bool
             'breakdown fills this section when the simulation provides it.</p>')
     return (note + table(head, rows, row_head=True) + extra
             + (img(png, 'energy by cause', link='causes.png') if png else ''))
+
+
+def _electrical_section(summary: Mapping[str, Any]) -> str:
+    elec = summary.get('electrical')
+    if not isinstance(elec, Mapping) or not elec.get('energy_by_cause_j'):
+        return ''
+    return '<h2>Electrical energy (declared drives)</h2>' + _electrical_html(elec)
 
 
 def _rollups_html(rollups: dict[str, list[tuple[str, float, float]]]) -> str:
@@ -327,6 +367,7 @@ def write_sim_report(summary: Mapping[str, Any], trace: PowerTrace,
 (a loop, a subroutine) adds up. "First runs at" links the power plot's time axis to the block.</p>
 {_blocks_table(rows, texts, trace, total) if rows else '<p>No source lines.</p>'}
 {img(images['blocks.png'], 'energy per block', link='blocks.png') if rows else ''}
+{_electrical_section(summary)}
 <h2>Per operation and tool</h2>{_rollups_html(rollups_from_summary(summary))}
 <h2>Path and bounding box</h2>{_bbox_html(tr)}
 {img(images['path.png'], 'path coloured by power', link='path.png')}

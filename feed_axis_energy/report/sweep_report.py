@@ -98,10 +98,13 @@ def render_sweep(rows: Sequence[SweepRow], names: Sequence[str]) -> str:
     programs: dict[str, list[SweepRow]] = {}
     for r in rows:
         programs.setdefault(r.program, []).append(r)
+    points = sorted({r.energy_point for r in rows if r.ok} - {'shaft'})
+    what = ('the mechanical energy of all feed axes (braking as the machine config says)'
+            if not points else f'the electrical energy at the {escape(" / ".join(points))} '
+            'point of the declared motors and drives')
     parts = [f'<p class="note">Varied: {escape(", ".join(names))}. A variant is on the Pareto '
              'front when no other run of the same program needs at most as much energy and '
-             'time and less of one. Energy is the mechanical energy of all feed axes (braking '
-             'as the machine config says).</p>']
+             f'time and less of one. Energy is {what}.</p>']
     for program, prog_rows in programs.items():
         parts.append(f'<section><h2>{escape(program)}</h2>')
         parts.append(f'<p class="answer">{_answer(prog_rows, names)}</p>')

@@ -50,6 +50,7 @@ from .diagnostics import binned_structure, Diagnostic, noise_sigma, spectrum_str
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
+from .drivecorr import common_measures, correction_bounds, declared_values, describe_correction
 from .selection import at_bounds, Block, Design, loro_folds, solve_normal
 
 POSITION_DIVISIONS = (15, 10, 6, 3)
@@ -310,6 +311,8 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
 
     cmp = compare_campaign(campaign, machine=machine, runs=runs,
                            progress=lambda f: report(0.4 * f))
+    # copper and iron as corrections of declared drives (motor-terminal meters, .drivecorr)
+    measures = common_measures(campaign.run(r.name).instrument.measures for r in cmp.runs)
     data = _prepare(campaign, cmp.runs, machine)
     axes = cmp.runs[0].axes
     if any(r.cmp.axes != axes for r in data):
@@ -323,6 +326,8 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         for j, axis in enumerate(axes):
             for shape in _shape_grid(effect_id, data, j, options.shape_grid_points):
                 names, cols, bounds = _block(data, effect_id, j, shape)
+                bounds = correction_bounds(names, bounds, declared_values(
+                    machine, axis, effect_id, measures))
                 if names:
                     design.add_block((effect_id, axis), shape, names, cols, bounds=bounds)
     report(0.7)
@@ -389,8 +394,12 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
             if alt_mean <= full_mean + 0.1 * (wo_mean - full_mean):
                 aliases.append(label(other.key))
                 seen.add(other.key)
+        corrects = declared_values(machine, block.key[1], block.key[0], measures) is not None
         fitted.append(FittedEffect(
             id=block.key[0], axis=block.key[1], params=tuple(params),
+            correction=describe_correction(machine, block.key[0], block.key[1],
+                                           {p.name: p.value for p in params})
+            if corrects else None,
             share_of_residual=drop / sse0 if sse0 > 0 else 0.0,
             share_of_structured=min(max(drop / structured0, 0.0), 1.0) if structured0 > 0
             else 0.0,
@@ -402,12 +411,13 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     # figures are fresh comparisons with the effects declared, offsets estimated anew
     # (:mod:`.realign`)
     names = [r.cmp.name for r in data]
-    full_machine = machine_with(machine, blocks, theta)
+    full_machine = machine_with(machine, blocks, theta, measures=measures)
     augmented = realigned_runs(campaign, full_machine, names,
                                baseline=cmp.runs if full_machine is machine else ())
     after_cmp = dict(enumerate(augmented))
     for train, test in folds:
-        fold_machine = machine_with(machine, blocks, design.fit(cols, train))
+        fold_machine = machine_with(machine, blocks, design.fit(cols, train),
+                                    measures=measures)
         base = cmp.runs if fold_machine is machine else ()
         after_cmp.update(zip(test, realigned_runs(campaign, fold_machine,
                                                   [names[r] for r in test], baseline=base)))

@@ -27,12 +27,14 @@ from ..effects import get_effect
 from ..machine import DeclaredEffect, Machine
 from ..measured.campaign import Campaign
 from ..measured.compare import _compare, _MotionCache, DEFAULT_MAX_LAG_S, RunComparison
+from .drivecorr import declared_values, fold_corrections
 from .selection import Block
 
 __all__ = ['augmented_outcome', 'machine_with', 'realigned_runs']
 
 
-def machine_with(machine: Machine, blocks: Sequence[Block], theta: np.ndarray) -> Machine:
+def machine_with(machine: Machine, blocks: Sequence[Block], theta: np.ndarray, *,
+                 measures: str | None = None) -> Machine:
     """The machine plus the blocks' effects with coefficients ``theta`` (in block order).
 
     Parameters
@@ -44,6 +46,9 @@ def machine_with(machine: Machine, blocks: Sequence[Block], theta: np.ndarray) -
         their shape parameters the block's values.
     theta
         Linear coefficients of every block's columns, concatenated.
+    measures
+        What every run's meter measures; with ``'motor'``, ``copper`` and ``iron`` on axes
+        with a declared drive change the drive's values instead (:mod:`.drivecorr`).
 
     Returns
     -------
@@ -52,14 +57,18 @@ def machine_with(machine: Machine, blocks: Sequence[Block], theta: np.ndarray) -
         construction as :meth:`.results.AnalysisResult.augmented_machine`).
     """
     added = []
+    folded = []
     pos = 0
     for block in blocks:
         values = [(name, float(theta[pos + i])) for i, name in enumerate(block.names)]
         pos += len(block.names)
         values += [(name, float(value)) for name, value in block.shape.items()]
-        if get_effect(block.key[0]).machine_property:
+        if declared_values(machine, block.key[1], block.key[0], measures) is not None:
+            folded.append((block.key[0], block.key[1], dict(values)))
+        elif get_effect(block.key[0]).machine_property:
             added.append(DeclaredEffect(id=block.key[0], axis=block.key[1],
                                         params=tuple(values)))
+    machine = fold_corrections(machine, folded)
     if not added:
         return machine
     return replace(machine, effects=machine.effects + tuple(added))

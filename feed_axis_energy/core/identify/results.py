@@ -16,6 +16,7 @@ from ..measured.compare import json_clean
 from ..measured.metrics import group_metrics, Metrics
 from .consistency import Fate
 from .diagnostics import Diagnostic
+from .drivecorr import fold_corrections
 from .selection import Step
 
 __all__ = ['AnalyzeOptions', 'AnalysisResult', 'FittedEffect', 'ParamEstimate', 'RunOutcome',
@@ -116,6 +117,9 @@ class FittedEffect:
         Share of its explained variance per-run refits would add (0: same on every run).
     aliases
         Candidates that fit nearly as well in its place (``id@axis``).
+    correction
+        When the effect corrects a declared drive (:mod:`.drivecorr`): the declared value,
+        the change (the fitted parameters) and the corrected value, else ``None``.
     """
 
     id: str
@@ -127,6 +131,7 @@ class FittedEffect:
     heldout_gain_rel: float
     heterogeneity: float
     aliases: tuple[str, ...] = ()
+    correction: dict[str, Any] | None = None
 
     def values(self) -> dict[str, float]:
         """Parameter values by name."""
@@ -141,7 +146,8 @@ class FittedEffect:
                 'heldout_gain_w2': self.heldout_gain_w2,
                 'heldout_gain_rel': self.heldout_gain_rel,
                 'heterogeneity': self.heterogeneity,
-                'aliases': list(self.aliases)}
+                'aliases': list(self.aliases)} | (
+                    {} if self.correction is None else {'correction': self.correction})
 
 
 @dataclass(frozen=True)
@@ -254,8 +260,13 @@ class AnalysisResult:
         added = tuple(DeclaredEffect(id=e.id, axis=e.axis,
                                      params=tuple((p.name, float(p.value)) for p in e.params),
                                      calibrated=self.calibrated.get(e.axis))
-                      for e in self.effects if get_effect(e.id).machine_property)
-        return replace(self.machine, effects=self.machine.effects + added)
+                      for e in self.effects
+                      if get_effect(e.id).machine_property and e.correction is None)
+        # corrections of a declared drive change its data-sheet values (.drivecorr)
+        machine = fold_corrections(self.machine, [(e.id, e.axis, e.values())
+                                                  for e in self.effects
+                                                  if e.correction is not None])
+        return replace(machine, effects=machine.effects + added)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able summary (keys in docs/analyze.md); NaN becomes ``None``."""

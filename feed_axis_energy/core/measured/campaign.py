@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = ['AXIS_QUANTITIES', 'KINEMATIC_QUANTITIES', 'FILTER_OPS', 'RECONSTRUCT', 'ROLES',
-           'STAMPS',
+           'STAMPS', 'MEASURES',
            'Campaign', 'ColumnSpec', 'InstrumentSpec', 'RowFilter', 'RunSpec',
            'default_instrument']
 
@@ -34,6 +34,7 @@ FILTER_OPS = ('equal', 'not_equal', 'greater', 'less')
 ROLES = ('calibrate', 'validate')
 STAMPS = ('end', 'centre', 'start')
 RECONSTRUCT = ('pulses', 'samples')
+MEASURES = ('shaft', 'motor', 'supply')
 
 
 @dataclass(frozen=True)
@@ -51,11 +52,18 @@ class InstrumentSpec:
     declared
         ``False`` when the manifest says nothing and this is the default (see
         :func:`default_instrument`).
+    measures
+        What the meter measures (:data:`MEASURES`): ``'shaft'`` (default: compared with the
+        simulated shaft power ``M·omega`` after the braking rule, the paper's model whose
+        loss function holds every loss) or the electrical power of the declared drives at
+        ``'motor'`` (between converter and motor) or ``'supply'`` (an axis's drive input,
+        without the cabinet); ``docs/electrical.md``.
     """
 
     window_s: float | None = None
     stamp: str = 'end'
     declared: bool = True
+    measures: str = 'shaft'
 
     def window_for(self, period_s: float) -> float:
         """The window [s] for a run whose median sampling period is ``period_s``."""

@@ -89,12 +89,25 @@ def _simulate(spec: RunSpec, run: MeasuredRun, machine: Machine,
 
 
 def _sim_columns(spec: RunSpec, sim: SimulationResult, machine: Machine) -> np.ndarray:
-    """Simulated power of the run's measured axes, ``(m, k)``; axes the motion lacks are 0."""
+    """Simulated power of the run's measured axes, ``(m, k)``; axes the motion lacks are 0.
+
+    What the meter measures (``instrument.measures``): the shaft power after the braking rule,
+    or the electrical power of the declared drives at the motor terminals or the drive's
+    supply side (``docs/electrical.md``).
+    """
     p = sim.power
+    measures = spec.instrument.measures
+    source = p.power_w
+    if measures != 'shaft':
+        if p.electrical is None:
+            msg = (f'the meter measures {measures} power, but machine {machine.name!r} '
+                   'declares no motors and drives (axes.<A>.drive, docs/electrical.md)')
+            raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.instrument.measures')
+        source = p.electrical.motor_w if measures == 'motor' else p.electrical.supply_w
     cols = []
     for axis in spec.power_axes:
         if axis in p.axes:
-            cols.append(p.power_w[:, p.axes.index(axis)])
+            cols.append(source[:, p.axes.index(axis)])
         elif axis in machine.axis_names:
             # An axis that never moves has omega = 0, hence zero actual power (eq. 1).
             cols.append(np.zeros(p.t.shape[0]))

@@ -332,10 +332,12 @@ def bag_manifest(campaign: Campaign, runs: Sequence[tuple[RunSpec, MeasuredRun, 
             entry['allow_gaps'] = True
         if spec.role is not None:
             entry['role'] = spec.role
-        if spec.instrument.declared:
-            meter = spec.instrument
+        meter = spec.instrument
+        if meter.declared:
             entry['instrument'] = {'window_s': 'period' if meter.window_s is None
                                    else meter.window_s, 'stamp': meter.stamp}
+        if meter.measures != 'shaft':
+            entry.setdefault('instrument', {})['measures'] = meter.measures
         entries.append(entry)
     return {
         'name': campaign.name,

@@ -25,9 +25,12 @@ Per axis the quantities ``power``, ``position``, ``velocity``, ``acceleration``,
 run or for none; at least one axis must have ``power``. A run has either a ``time:
 {column, unit}`` or a ``period_s`` (the run's own setting wins over ``defaults``).
 
-``instrument`` declares the power meter: ``point`` (point samples) or ``{window_s, stamp}``
-with ``window_s`` a number of seconds (``0``: point samples) or ``period`` (one median
-sampling period, the default) and ``stamp`` one of ``end`` (default), ``centre``, ``start``.
+``instrument`` declares the power meter: ``point`` (point samples) or ``{window_s, stamp,
+measures}`` with ``window_s`` a number of seconds (``0``: point samples) or ``period`` (one
+median sampling period, the default), ``stamp`` one of ``end`` (default), ``centre``,
+``start``, and ``measures`` one of ``shaft`` (default), ``motor``, ``supply`` (electrical
+power of the machine's declared drives, ``docs/electrical.md``; ``{measures: motor}`` alone
+keeps the default window).
 Without it: a period window stamped at its end for runs with an NC program, point samples
 for motion from the data (:func:`.campaign.default_instrument`). ``motion.reconstruct``
 (motion from data only): ``pulses`` (default) rebuilds data coarser than the simulation rate
@@ -50,8 +53,8 @@ from ..errors import ConfigError, describe, shorten
 from ..safeyaml import load_yaml_file
 from ..units import si_unit_of
 from .campaign import (AXIS_QUANTITIES, Campaign, ColumnSpec, FILTER_OPS,  # noqa: F401
-                       InstrumentSpec, KINEMATIC_QUANTITIES, RECONSTRUCT,  # (re-exported)
-                       ROLES, RowFilter, RunSpec, STAMPS)
+                       InstrumentSpec, KINEMATIC_QUANTITIES, MEASURES,  # (re-exported)
+                       RECONSTRUCT, ROLES, RowFilter, RunSpec, STAMPS)
 
 __all__ = [
     'AXIS_QUANTITIES', 'KINEMATIC_QUANTITIES', 'Campaign', 'ColumnSpec', 'RowFilter', 'RunSpec',
@@ -301,14 +304,22 @@ class _Ctx:
             return InstrumentSpec(window_s=0.0, stamp='end')
         if not isinstance(value, dict):
             self.fail(key, f'expected point or a mapping {{window_s, stamp}}, got {_kind(value)}')
-        m = self.mapping(value, key, ('window_s', 'stamp'))
+        m = self.mapping(value, key, ('window_s', 'stamp', 'measures'))
+        measures = m.get('measures', 'shaft')
+        if measures not in MEASURES:
+            self.fail(f'{key}.measures',
+                      f'expected one of {", ".join(MEASURES)}, got {_kind(measures)}')
+        if set(m) == {'measures'}:
+            # what is measured only: the window and stamp stay the default of the run
+            return InstrumentSpec(declared=False, measures=measures)
         window = m.get('window_s', 'period')
         if window != 'period':
             window = self.number(window, f'{key}.window_s', minimum=0.0)
         stamp = m.get('stamp', 'end')
         if stamp not in STAMPS:
             self.fail(f'{key}.stamp', f'expected one of {", ".join(STAMPS)}, got {_kind(stamp)}')
-        return InstrumentSpec(window_s=None if window == 'period' else window, stamp=stamp)
+        return InstrumentSpec(window_s=None if window == 'period' else window, stamp=stamp,
+                              measures=measures)
 
     def check_run_fields(self, d: dict, key: str, *, partial: bool) -> dict[str, Any]:
         """Check the typed fields present in ``d``; return their converted values."""
