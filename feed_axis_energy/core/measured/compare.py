@@ -186,7 +186,8 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
         fits = ()
         if check_meter and offset_s is None and found.status != 'weak':
             fits = check_instrument(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
-                                    offset_s=used, window_s=window, stamp=stamp)
+                                    offset_s=used, window_s=window, stamp=stamp,
+                                    same_clock=spec.motion_program is None)
     except DataError as err:
         # align names its arrays only; the run's file is the place the user can act on
         msg = f'simulated power cannot be aligned: {err.reason}'
