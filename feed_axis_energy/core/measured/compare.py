@@ -201,7 +201,7 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
                                   columns=('time', f'measured {a} power',
                                            f'simulated {a} power'), **where)
                 for j, a in enumerate(spec.power_axes)}
-    labels = state_labels(sim.motion.t, sim.motion.vel, sim.motion.acc, run.t - used,
+    labels = state_labels(sim.motion.t, sim.motion.vel, run.t - used,
                           period_s=period)
     states = residual_by_state(labels, meas.sum(axis=1) - aligned.sum(axis=1))
     return RunComparison(
