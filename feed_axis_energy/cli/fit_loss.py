@@ -34,8 +34,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     'acceleration), average the actual power there, divide by the feed '
                     '(loss coefficient y [W/(mm/s)] at feed x [mm/s]) and fit the power '
                     'regression y = a*x^b per axis by least squares in log-log space '
-                    '(paper, section 2.1). Exits 1 when an axis has too few distinct feeds '
-                    'or cannot be fitted.')
+                    '(paper, section 2.1). With --method samples, fit Coulomb + viscous loss '
+                    'and the motor inertia to every moving sample instead. Exits 1 when an '
+                    'axis has too few distinct feeds (or moving samples) or cannot be fitted.')
     p.add_argument('manifest', type=Path, help='campaign manifest (YAML)')
     p.add_argument('--runs', metavar='NAME,...',
                    help='runs to use (default: those with role calibrate, else all)')
@@ -54,10 +55,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'samples: Coulomb + viscous loss and the motor inertia fitted to every '
                         'moving sample (velocity and acceleration at its stamp), with the '
                         'kinematics each run\'s motion comes from (docs/measured.md)')
-    g = p.add_argument_group('steady segments')
+    g = p.add_argument_group('steady segments (--velocity, --max-accel and --min-speed also '
+                             'for --method samples)')
     g.add_argument('--velocity', choices=VELOCITY_SOURCES, default=_D.velocity,
                    help='velocity columns that define steady motion (default: auto = '
-                        'commanded, else actual)')
+                        'commanded, else actual); with --method samples the kinematics of '
+                        'every sample (auto: each run\'s motion source, else as above)')
     g.add_argument('--speed-tol', type=float, default=_D.rel_speed_tol, metavar='FRAC',
                    help=f'speeds within this fraction of the segment mean '
                         f'(default: {_D.rel_speed_tol:g})')
