@@ -356,18 +356,18 @@ def test_umich_validate_runs_compare():
     assert [r.name for r in result.runs] == ['exp03', 'exp06']
     for run in result.runs:
         assert run.axes == ('X', 'Y')              # Z has no power column
-        assert run.motion_source == 'data:commanded'
+        assert run.motion_source == 'data:actual'
         # motion from the data: point samples unless the manifest declares a meter
         assert run.window_s == 0.0 and run.instrument == 'point samples (default)'
-        # The motion uses the measured commanded velocities (not positions rounded to ~1 mm
-        # and glitching to the home position), so the records align clearly and the
-        # simulated power follows the measured one to about a watt.
+        # The motion uses the measured actual velocities and accelerations (not positions
+        # rounded to ~1 mm and glitching to the home position), so the records align clearly
+        # and the simulated power follows the measured one to about a watt.
         assert run.offset.status == 'ok'
         assert run.metrics.avg_diff_error_w < 2.0
         assert run.metrics.n_samples == run.t.size
         assert math.isfinite(run.metrics.rmse_w) and run.metrics.energy_meas_j > 0.0
     assert [g.load_kg for g in result.groups] == [0.0]
-    # the default meter fits these data better than a trailing window of one period: no
-    # instrument warning
+    # the default meter fits these data better than a window of one period stamped at its
+    # end, centre or start: no instrument warning
     assert result.instrument_warnings == []
     json.dumps(result.to_dict(), allow_nan=False)
