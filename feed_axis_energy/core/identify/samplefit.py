@@ -237,6 +237,11 @@ def _fit_axis(cols: _Columns, *, axis: str, machine: Machine,
         else:
             y = y - motor * rot
         x = np.column_stack(basis)[use]
+        if x.shape[0] < options.min_samples:
+            msg = (f'{x.shape[0]} moving sample(s) with positive model power (braking: '
+                   f'dissipated reads 0 otherwise); need at least {options.min_samples}')
+            return SampleFit(axis=axis, status='insufficient', message=msg, n_samples=n,
+                             n_accel=n_accel)
         coef, cov = _solve(x, y[use])
         params = coef.copy() if fit_inertia else np.array([motor, *coef])
     force_power = known + params[1] * speed + params[2] * v * v

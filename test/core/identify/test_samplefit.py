@@ -145,3 +145,15 @@ def test_bad_options_name_the_key():
         fit_loss_samples([run], machine=_machine(), velocity=['actual', 'actual'])
     with pytest.raises(ConfigError, match='min_samples'):
         SampleFitOptions(min_samples=0)
+
+
+def test_dissipated_braking_without_driving_samples_is_insufficient():
+    # every sample brakes hard (a·v < 0): with dissipated braking the meter reads 0 there and
+    # nothing is left to fit
+    machine = _machine(braking='dissipated')
+    t = np.arange(60) * 0.01
+    v = 0.2 - 0.3 * t
+    acc = np.full_like(t, -0.3)
+    fit = fit_loss_samples([_run(t, v, acc, np.zeros_like(t))], machine=machine,
+                           velocity='actual')['X']
+    assert fit.status == 'insufficient' and 'positive model power' in fit.message
