@@ -6,8 +6,8 @@ Loads ``config/campaigns/umich_mill.yaml`` with its data files looked up in the 
 directory (env ``FAE_SHARED``, else ``../shared`` beside the repository, else
 ``/work/shared``). For motion from the commanded and from the actual kinematics, and for the
 two ``fit-loss`` methods (``steady``: the paper's power regression on steady segments found
-as ``fit-loss`` finds them by default, with the configured inertia; ``samples``: Coulomb + viscous loss and motor inertia fitted to every
-moving sample), it prints
+as ``fit-loss`` finds them by default, with the configured inertia; ``samples``: Coulomb +
+viscous loss and motor inertia fitted to every moving sample), it prints
 
 1. the choice, made on the calibrate runs only: each calibrate run compared with a fit on
    the other two (leave one run out; the steady fit with ``--min-feeds 2``, since two runs
