@@ -111,7 +111,7 @@ def _print_states(cmp: CampaignComparison) -> None:
                        for k, f in (('samples_pct', '.1f'), ('mean_w', '+.3f'), ('rms_w', '.3f'),
                                     ('squared_error_pct', '.1f'))])
     print('residual dP by motion state, runs pooled (standstill; steady motion; transient: '
-          '|a| > 0.05 m/s^2 within one sample):')
+          'mean |a| over a period > 0.05 m/s^2 within one sample):')
     print(format_table(['state', 'samples', 'samples [%]', 'mean dP [W]', 'RMS dP [W]',
                         'share of dP^2 [%]'], rows))
 

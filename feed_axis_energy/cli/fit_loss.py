@@ -13,6 +13,9 @@ from feed_axis_energy.cli.import_run import split_names
 from feed_axis_energy.core.identify import fit_loss, machine_with_losses, SteadyOptions
 from feed_axis_energy.core.calibrated import range_warnings
 from feed_axis_energy.core.identify.lossfit import VELOCITY_SOURCES
+from feed_axis_energy.core.identify.samplefit import (fit_loss_samples,
+                                                      machine_with_sample_fits,
+                                                      SampleFitOptions)
 from feed_axis_energy.core.identify.steady import range_uses
 from feed_axis_energy.core.machine import load_machine, machine_to_dict
 from feed_axis_energy.core.measured import load_campaign, load_run
@@ -31,8 +34,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     'acceleration), average the actual power there, divide by the feed '
                     '(loss coefficient y [W/(mm/s)] at feed x [mm/s]) and fit the power '
                     'regression y = a*x^b per axis by least squares in log-log space '
-                    '(paper, section 2.1). Exits 1 when an axis has too few distinct feeds '
-                    'or cannot be fitted.')
+                    '(paper, section 2.1). With --method samples, fit Coulomb + viscous loss '
+                    'and the motor inertia to every moving sample instead. Exits 1 when an '
+                    'axis has too few distinct feeds (or moving samples) or cannot be fitted.')
     p.add_argument('manifest', type=Path, help='campaign manifest (YAML)')
     p.add_argument('--runs', metavar='NAME,...',
                    help='runs to use (default: those with role calibrate, else all)')
@@ -46,10 +50,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='replace an existing --out-machine file (never through a symbolic '
                         'link)')
     p.add_argument('--json', action='store_true', help='print one JSON object')
-    g = p.add_argument_group('steady segments')
+    p.add_argument('--method', choices=('steady', 'samples'), default='steady',
+                   help='steady (default): the paper\'s power regression on steady segments; '
+                        'samples: Coulomb + viscous loss and the motor inertia fitted to every '
+                        'moving sample (velocity and acceleration at its stamp), with the '
+                        'kinematics each run\'s motion comes from (docs/measured.md)')
+    g = p.add_argument_group('steady segments (--velocity, --max-accel and --min-speed also '
+                             'for --method samples)')
     g.add_argument('--velocity', choices=VELOCITY_SOURCES, default=_D.velocity,
                    help='velocity columns that define steady motion (default: auto = '
-                        'commanded, else actual)')
+                        'commanded, else actual); with --method samples the kinematics of '
+                        'every sample (auto: each run\'s motion source, else as above)')
     g.add_argument('--speed-tol', type=float, default=_D.rel_speed_tol, metavar='FRAC',
                    help=f'speeds within this fraction of the segment mean '
                         f'(default: {_D.rel_speed_tol:g})')
@@ -98,6 +109,8 @@ def run(args: argparse.Namespace) -> int:
         if axis not in machine.axis_names:
             print(f'error: machine {machine.name!r} has no axis {axis!r}', file=sys.stderr)
             return 1
+    if args.method == 'samples':
+        return _run_samples(args, runs, specs, machine, machine_path, axes)
     fits = fit_loss(runs, machine=machine, axes=axes, options=options)
     loaded = [r.name for r in runs if r.load_kg > 0]
     if not fits:
@@ -161,8 +174,82 @@ def _print(fits: dict, specs: list, loaded: list[str]) -> None:
                   '(written as loss_calibrated with --out-machine)')
 
 
-def _write_machine(path: Path, machine, *, runs: list, manifest: Path, force: bool) -> None:
-    head = (f'# Written by feed-axis-energy fit-loss: loss functions fitted on runs '
+def _run_samples(args: argparse.Namespace, runs: list, specs: list, machine,
+                 machine_path: Path, axes: list[str] | None) -> int:
+    """``--method samples``: loss and inertia fitted to every moving sample."""
+    # the kinematics the comparison simulates: the run's motion source, unless --velocity
+    velocity = [s.motion_from_data or 'auto' if args.velocity == 'auto' else args.velocity
+                for s in specs]
+    options = SampleFitOptions(min_speed_m_s=args.min_speed, accel_m_s2=args.max_accel)
+    fits = fit_loss_samples(runs, machine=machine, axes=axes, velocity=velocity,
+                            options=options)
+    if not fits:
+        print('error: no run has power for an axis of the machine', file=sys.stderr)
+        return 1
+    all_ok = all(f.ok for f in fits.values())
+    uses = {}
+    for run, source in zip(runs, velocity):
+        for axis, use in range_uses([run], velocity=source).items():
+            uses.setdefault(axis, []).extend(use)
+    warnings = range_warnings({a: f.calibrated for a, f in fits.items() if f.ok}, uses,
+                              max_accel_m_s2=args.max_accel, min_speed_m_s=args.min_speed)
+    for w in warnings:
+        print(f'warning: {w}', file=sys.stderr)
+    if all_ok and args.out_machine is not None:
+        _write_machine(args.out_machine, machine_with_sample_fits(machine, fits), runs=specs,
+                       manifest=args.manifest, force=args.force, what='loss functions and '
+                       'motor inertias (fit-loss --method samples)')
+    if args.json:
+        print(json.dumps({'manifest': str(args.manifest), 'machine': str(machine_path),
+                          'method': 'samples', 'runs': [s.name for s in specs],
+                          'velocity': velocity,
+                          'fits': {a: f.to_dict() for a, f in fits.items()},
+                          'warnings': warnings,
+                          'out_machine': str(args.out_machine) if all_ok and
+                          args.out_machine is not None else None}, indent=2))
+    else:
+        _print_samples(fits, specs, velocity)
+        if all_ok and args.out_machine is not None:
+            print(f'machine with the fitted loss functions and inertias: {args.out_machine}')
+    if not all_ok:
+        for axis, f in fits.items():
+            if not f.ok:
+                print(f'error: axis {axis}: fit {f.status}: {f.message}', file=sys.stderr)
+        if args.out_machine is not None:
+            print(f'error: {args.out_machine} not written', file=sys.stderr)
+        return 1
+    return 0
+
+
+def _print_samples(fits: dict, specs: list, velocity: list[str]) -> None:
+    kinds = ', '.join(f'{s.name} ({v})' for s, v in zip(specs, velocity))
+    print(f'runs (kinematics): {kinds}')
+    num = (lambda v, fmt: '-' if v is None else format(v, fmt))
+    rows = []
+    for axis, f in fits.items():
+        rows.append([axis, f.status, num(f.coulomb_n, '.4g'), num(f.coulomb_se, '.2g'),
+                     num(f.viscous_n_s_m, '.4g'), num(f.viscous_se, '.2g'),
+                     num(f.motor_kg_m2, '.4g'), num(f.motor_se, '.2g'),
+                     num(f.effective_mass_kg, '.4g'), num(f.rmse_w, '.3g'), num(f.r2, '.4f'),
+                     str(f.n_samples), str(f.n_accel)])
+    print(format_table(['axis', 'status', 'coulomb [N]', '+-', 'viscous [N s/m]', '+-',
+                        'motor [kg m2]', '+-', 'eff. mass [kg]', 'RMS [W]', 'R2', 'samples',
+                        'accelerating'], rows))
+    print('P = J*(2 pi/lead)^2*a*v + k*(m*a + m*g*sin(incl) + coulomb*sgn(v) + viscous*v)*v '
+          'per moving sample (k = 1/eta driving, eta back-driven; J = motor + coupling + '
+          'screw); +-: standard errors; eff. mass = m + J*(2 pi/lead)^2')
+    for axis, f in fits.items():
+        if f.ok and not f.inertia_fitted:
+            print(f'axis {axis}: {f.message}')
+        if f.calibrated is not None and f.ok:
+            lo, hi = f.calibrated.feed_mm_s
+            print(f'axis {axis}: calibrated at {lo:.3g}-{hi:.3g} mm/s '
+                  '(written as loss_calibrated with --out-machine)')
+
+
+def _write_machine(path: Path, machine, *, runs: list, manifest: Path, force: bool,
+                   what: str = 'loss functions') -> None:
+    head = (f'# Written by feed-axis-energy fit-loss: {what} fitted on runs '
             f'{", ".join(s.name for s in runs)} of {manifest}.\n')
     text = head + yaml.safe_dump(machine_to_dict(machine), sort_keys=False, width=99)
     write_text_atomic(path, text, option='--out-machine', force=force)

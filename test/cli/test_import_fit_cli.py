@@ -103,6 +103,47 @@ def test_fit_loss_with_too_few_feeds_exits_1_and_writes_nothing(tmp_path, capsys
                  str(out)]) == 0
 
 
+def test_fit_loss_samples_writes_loss_and_inertia(tmp_path, capsys):
+    # power = Fc·|v| + cv·v² + M·a·v on every sample, M the effective mass of a motor inertia
+    # J: the samples method must find Fc, cv and J and write them into a machine that loads
+    demo = load_machine(ROOT / 'config' / 'demonstrator.yaml')
+    spec = demo.axis('X')
+    motor = 3.0e-4
+    j = motor + spec.inertias.coupling_kg_m2 + spec.screw_inertia_kg_m2
+    mass = spec.table_mass_kg + j * (2.0 * math.pi / spec.screw.lead_m) ** 2
+    assert spec.rides_on is None and spec.inclination_deg == 0.0
+    manifest = _campaign(tmp_path, [50, 150, 300], a=0.0)
+    for csv in tmp_path.glob('f*.csv'):
+        data = np.loadtxt(csv, delimiter=',', skiprows=1)
+        v = data[:, 2] / 1000.0
+        t = np.arange(v.size) * 0.01
+        p = 20.0 * np.abs(v) + 80.0 * v * v + mass * np.gradient(v, t) * v
+        rows = [f'{pi:.17g},{xi:.17g},{vi:.17g}' for pi, xi, vi in zip(p, data[:, 1], data[:, 2])]
+        csv.write_text('\n'.join(['P_W,X_mm,V_mm_s'] + rows) + '\n')
+    out = tmp_path / 'fitted.yaml'
+    assert main(['fit-loss', str(manifest), '--method', 'samples', '--json', '--out-machine',
+                 str(out)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    fit = report['fits']['X']
+    assert report['method'] == 'samples' and report['velocity'] == ['actual'] * 3
+    assert fit['status'] == 'ok' and fit['inertia_fitted']
+    assert_allclose([fit['coulomb_n'], fit['viscous_n_s_m'], fit['motor_kg_m2']],
+                    [20.0, 80.0, motor], rtol=1e-6)
+    axis = load_machine(out).axis('X')
+    assert axis.loss.to_dict() == {'model': 'coulomb_viscous', 'coulomb_n': fit['coulomb_n'],
+                                   'viscous_n_s_m': fit['viscous_n_s_m'], 'mu': 0.0}
+    assert axis.inertias.motor_kg_m2 == fit['motor_kg_m2']
+    assert_allclose(axis.loss_calibrated.feed_mm_s, [50.0, 300.0], rtol=0.01)
+    # the table names every parameter with its unit; a second write is refused
+    assert main(['fit-loss', str(manifest), '--method', 'samples', '--out-machine',
+                 str(out)]) == 1
+    captured = capsys.readouterr()
+    assert 'exists' in captured.err
+    assert main(['fit-loss', str(manifest), '--method', 'samples']) == 0
+    text = capsys.readouterr().out
+    assert 'coulomb [N]' in text and 'motor [kg m2]' in text and 'eff. mass [kg]' in text
+
+
 @pytest.mark.skipif(not SAMPLES.is_file(), reason='sample bags not generated')
 def test_fit_loss_on_the_sample_bags(capsys):
     assert main(['fit-loss', str(SAMPLES), '--json']) in (0, 1)

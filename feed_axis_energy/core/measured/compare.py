@@ -199,7 +199,8 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
         fits = ()
         if check_meter and offset_s is None and found.status != 'weak':
             fits = check_instrument(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
-                                    offset_s=used, window_s=window, stamp=stamp)
+                                    offset_s=used, window_s=window, stamp=stamp,
+                                    same_clock=spec.motion_program is None)
     except DataError as err:
         # align names its arrays only; the run's file is the place the user can act on
         msg = f'simulated power cannot be aligned: {err.reason}'
@@ -213,7 +214,7 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
                                   columns=('time', f'measured {a} power',
                                            f'simulated {a} power'), **where)
                 for j, a in enumerate(spec.power_axes)}
-    labels = state_labels(sim.motion.t, sim.motion.vel, sim.motion.acc, run.t - used,
+    labels = state_labels(sim.motion.t, sim.motion.vel, run.t - used,
                           period_s=period)
     states = residual_by_state(labels, meas.sum(axis=1) - aligned.sum(axis=1))
     return RunComparison(

@@ -252,6 +252,37 @@ def test_a_declared_instrument_that_does_not_fit_is_reported(tmp_path):
     assert compare_campaign(c, max_lag_s=0.5).instrument_warnings == []
 
 
+def test_a_wrong_stamp_position_is_reported_when_the_motion_comes_from_the_data(tmp_path):
+    # the meter averages the 50 ms ending at each stamp, where the positions are read. With
+    # the motion from the data the simulation runs on those stamps, so a window declared at
+    # its start cannot hide behind a 50 ms offset: the check searches offsets near 0 only
+    runs = [{'name': f'r{k}', 'load_kg': 5.0, 'offset_ms': 100 * k, 'noise_w': 0.2,
+             'motion': 'actual', 'instrument': {'window_s': 'period', 'stamp': 'start'}}
+            for k in range(2)]
+    res = compare_campaign(load_campaign(write_campaign(tmp_path, runs)), max_lag_s=0.5)
+    for r in res.runs:
+        fits = {f.label: f for f in r.meter_fits}
+        assert set(fits) == {'declared', 'point', 'period', 'period_centre'}
+        assert all(f.same_clock and f.reach_s == pytest.approx(0.0125) for f in fits.values())
+        assert all(abs(f.offset_s) <= 0.0125 + 1e-9 for f in fits.values())
+        assert fits['period'].stamp == 'end' and fits['period_centre'].stamp == 'centre'
+        # the right meter, the one the data were made with, is the best by far
+        assert fits['period'].rms_w < 0.5 * fits['declared'].rms_w
+        assert fits['period'].rms_w < min(fits['point'].rms_w, fits['period_centre'].rms_w)
+        # compare itself shifts the declared window by a period to fit (the record reads
+        # 50 ms "late"): nothing else would tell
+        assert r.offset_used_s == pytest.approx(0.05, abs=0.01)
+    warning = ' '.join(res.instrument_warnings)
+    assert ('a 50 ms window stamped at its end fit better than 50 ms window stamped at its '
+            'start') in warning, warning
+    assert "within 12.5 ms of the data's own stamps" in warning
+    assert res.to_dict()['runs'][0]['instrument_check'][0]['same_clock'] is True
+    # declared as the data were made: nothing to report
+    right = [dict(r, instrument={'window_s': 'period', 'stamp': 'end'}) for r in runs]
+    c = load_campaign(write_campaign(tmp_path / 'right', right))
+    assert compare_campaign(c, max_lag_s=0.5).instrument_warnings == []
+
+
 def test_a_weak_alignment_is_a_result_compared_at_offset_zero(campaign):
     run = {r.name: r for r in campaign[1].runs}['noise']
     assert run.offset.status == 'weak'
@@ -325,18 +356,18 @@ def test_umich_validate_runs_compare():
     assert [r.name for r in result.runs] == ['exp03', 'exp06']
     for run in result.runs:
         assert run.axes == ('X', 'Y')              # Z has no power column
-        assert run.motion_source == 'data:commanded'
+        assert run.motion_source == 'data:actual'
         # motion from the data: point samples unless the manifest declares a meter
         assert run.window_s == 0.0 and run.instrument == 'point samples (default)'
-        # The motion uses the measured commanded velocities (not positions rounded to ~1 mm
-        # and glitching to the home position), so the records align clearly and the
-        # simulated power follows the measured one to about a watt.
+        # The motion uses the measured actual velocities and accelerations (not positions
+        # rounded to ~1 mm and glitching to the home position), so the records align clearly
+        # and the simulated power follows the measured one to about a watt.
         assert run.offset.status == 'ok'
         assert run.metrics.avg_diff_error_w < 2.0
         assert run.metrics.n_samples == run.t.size
         assert math.isfinite(run.metrics.rmse_w) and run.metrics.energy_meas_j > 0.0
     assert [g.load_kg for g in result.groups] == [0.0]
-    # the default meter fits these data better than a trailing window of one period: no
-    # instrument warning
+    # the default meter fits these data better than a window of one period stamped at its
+    # end, centre or start: no instrument warning
     assert result.instrument_warnings == []
     json.dumps(result.to_dict(), allow_nan=False)
