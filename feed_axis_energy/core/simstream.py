@@ -28,6 +28,7 @@ from .program import Move
 from .simulate import declared_effects_parts, SimulationResult, sum_effect_parts
 from .standstill import grid_interval_counts
 from .trajectory import PlannerOptions
+from .uncertainty import add_uncertainty, UncertaintyAccumulator
 
 __all__ = ['streamable', 'compactable', 'iter_simulation', 'LineEnergy', 'SummaryAccumulator',
            'expand_gaps', 'simulate_stream', 'COMPACT_MIN_SAMPLES']
@@ -162,6 +163,7 @@ class SummaryAccumulator:
         self._line_d = np.zeros(1024)
         self._line_seen = np.zeros(1024, dtype=bool)
         self.first: SimulationResult | None = None
+        self.spread: UncertaintyAccumulator | None = None
 
     def add(self, chunk: SimulationResult) -> None:
         """Take one chunk (in time order)."""
@@ -173,10 +175,13 @@ class SummaryAccumulator:
                         effects=p.effect_power_w)
         if self.first is None:
             self.first = chunk
+            self.spread = UncertaintyAccumulator.of(chunk.machine)
             self.axes = tuple(p.axes)
             self.braking = p.braking
             self.t_first = float(p.t[0])
         # column by column: a reduction along axis 0 of a narrow array is slow in numpy
+        if self.spread is not None:
+            self.spread.add(chunk.dynamics, p.mechanical_w, braking=p.braking)
         peak = np.array([p.power_w[:, j].max() for j in range(p.power_w.shape[1])]
                         + [p.total_w.max()])
         self.peak = peak if self.peak is None else np.maximum(self.peak, peak)
@@ -305,7 +310,7 @@ class SummaryAccumulator:
         peak = {a: float(self.peak[j]) if n else 0.0 for j, a in enumerate(axes)}
         peak['total'] = float(self.peak[-1]) if n else 0.0
         blocks = self.top_blocks(top_blocks)
-        return add_breakdown({
+        out = add_breakdown({
             'program': program,
             'machine': machine.name,
             'load_kg': float(load_kg),
@@ -319,6 +324,7 @@ class SummaryAccumulator:
             'loss_energy_j': self.loss_energy,
             'top_blocks': [{'line': ln, 'energy_j': e, 'duration_s': d} for ln, e, d in blocks],
         }, self.causes)
+        return add_uncertainty(out, self.spread)
 
 
 _MOTION_ROWS = ('t', 'pos', 'vel', 'acc', 'line')

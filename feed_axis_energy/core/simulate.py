@@ -229,9 +229,11 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         resistances), ``top_blocks`` (list of ``{'line', 'energy_j', 'duration_s'}``), and
         the breakdown by cause (:func:`.breakdown.add_breakdown`: ``causes``,
         ``energy_by_cause_j``, ``braking_returned_j``; per top block ``energy_by_axis_j``,
-        ``energy_by_cause_j``).
+        ``energy_by_cause_j``), and ``energy_uncertainty`` where an axis has a
+        ``loss_covariance`` (:mod:`.uncertainty`).
     """
     from .breakdown import add_breakdown, BreakdownAccumulator
+    from .uncertainty import add_uncertainty, UncertaintyAccumulator
     p = result.power
     n = int(p.t.shape[0])
     dt = np.diff(p.t)
@@ -246,7 +248,10 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
     duration = float(p.t[-1] - p.t[0]) if n else 0.0
     causes = BreakdownAccumulator(per_line=True)
     causes.add(result.dynamics, p.mechanical_w, braking=p.braking, effects=p.effect_power_w)
-    return add_breakdown({
+    spread = UncertaintyAccumulator.of(result.machine)
+    if spread is not None:
+        spread.add(result.dynamics, p.mechanical_w, braking=p.braking)
+    return add_uncertainty(add_breakdown({
         'program': result.program,
         'machine': result.machine.name,
         'load_kg': float(result.load_kg),
@@ -259,7 +264,7 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         'regenerated_energy_j': p.regenerated_energy_j,
         'loss_energy_j': loss_energy,
         'top_blocks': [{'line': ln, 'energy_j': e, 'duration_s': d} for ln, e, d in blocks],
-    }, causes)
+    }, causes), spread)
 
 
 def line_table(result: SimulationResult) -> LineEnergy:

@@ -377,6 +377,9 @@ class SweepRow:
         On the program's energy-time Pareto front (baseline included).
     error
         The failure's message, or ``''``.
+    energy_sd_j
+        Standard uncertainty of ``energy_j`` from the loss functions' covariance [J]
+        (:mod:`.uncertainty`; ``nan`` where not known).
     """
 
     program: str
@@ -390,6 +393,7 @@ class SweepRow:
     d_time_pct: float
     pareto: bool
     error: str = ''
+    energy_sd_j: float = math.nan
 
     def to_dict(self, params: Sequence[Vary]) -> dict[str, Any]:
         """Plain JSON-able values (numbers absent where they are not known)."""
@@ -406,6 +410,8 @@ class SweepRow:
                    energy_per_part_j=self.energy_per_part_j, pareto=self.pareto)
         if math.isfinite(self.d_energy_pct):
             out.update(d_energy_pct=self.d_energy_pct, d_time_pct=self.d_time_pct)
+        if math.isfinite(self.energy_sd_j):
+            out['energy_sd_j'] = self.energy_sd_j
         return out
 
 
@@ -445,6 +451,8 @@ def sweep_rows(results: Sequence[tuple[str, tuple[Any, ...] | None, Any]], *,
             continue
         t, e = r.summary['duration_s'], r.summary['energy_j']['total']
         bt, be = base.get(program, (math.nan, math.nan))
+        spread = r.summary.get('energy_uncertainty') or {}
+        sd = float((spread.get('energy_sd_j') or {}).get('total', math.nan))
         rows.append(SweepRow(program, values, values is None, True, t, e, e / parts,
-                             _pct(e, be), _pct(t, bt), i in front))
+                             _pct(e, be), _pct(t, bt), i in front, energy_sd_j=sd))
     return rows
