@@ -107,8 +107,15 @@ class UncertaintyAccumulator:
         t = np.asarray(dyn.t, dtype=float)
         if t.shape[0] == 0:
             return
+        # trapezoid weights of the samples: the integral of f is f @ c, plus the interval
+        # from the previous chunk's last sample (its half is added with the carried value)
+        c = np.zeros(t.shape[0])
         dt = np.diff(t)
+        c[:-1] += 0.5 * dt
+        c[1:] += 0.5 * dt
         d0 = None if self._t_last is None else float(t[0] - self._t_last)
+        if d0 is not None:
+            c[0] += 0.5 * d0
         for j, name in enumerate(dyn.axes):
             cov = self.covariances.get(name)
             if cov is None:
@@ -120,15 +127,18 @@ class UncertaintyAccumulator:
                 math.cos(math.radians(spec.inclination_deg)))
             grads = spec.loss.power_gradient_w(dyn.velocity_m_s[:, j], normal_force_n=normal)
             w = self._weight(dyn, mechanical_w, j, braking)
-            rows = np.empty((len(cov.params), t.shape[0]))
-            for i, param in enumerate(cov.params):
-                np.multiply(grads[param], w, out=rows[i])
+            cw = c * w if isinstance(w, np.ndarray) else c
+            last = np.array([float(grads[p][-1]) for p in cov.params])
+            if isinstance(w, np.ndarray):
+                last *= w[-1]
             g = self.gradient[name]
+            buf = np.empty(t.shape[0])
+            for i, param in enumerate(cov.params):
+                # multiply and sum, not np.dot: BLAS may start threads for a long vector
+                g[i] += float(np.multiply(grads[param], cw, out=buf).sum())
             if d0 is not None:
-                g += 0.5 * (rows[:, 0] + self._last[name]) * d0
-            if dt.size:
-                g += 0.5 * ((rows[:, 1:] + rows[:, :-1]) @ dt)
-            self._last[name] = rows[:, -1].copy()
+                g += 0.5 * d0 * self._last[name]
+            self._last[name] = last
         self._t_last = float(t[-1])
 
     def standard_uncertainty_j(self) -> dict[str, float]:
