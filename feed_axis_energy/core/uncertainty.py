@@ -25,6 +25,9 @@ below 1 or ``'dissipated'`` braking, whose switching points move with ``theta``)
 first order. The covariance ``fit-loss`` writes is itself first order in ``a``
 (:meth:`.identify.lossfit.LossFit.covariance`).
 
+Declared effects (:mod:`.effects`) are held fixed: one that depends on the torque (``copper``)
+would also change with ``theta``; its share is not in ``g``.
+
 The axes' loss functions are taken as independent (each is fitted on its own axis's power),
 so ``u(E_total)² = sum_k u(E_k)²``. Axes without ``loss_covariance`` add nothing and are
 named: the figure covers only the axes listed.
