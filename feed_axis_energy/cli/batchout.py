@@ -16,7 +16,8 @@ from feed_axis_energy.cli.common import format_table
 from feed_axis_energy.core.batch import JobResult
 from feed_axis_energy.core.errors import ConfigError, shorten
 
-__all__ = ['print_table', 'csv_text', 'check_csv_target', 'write_text_atomic']
+__all__ = ['print_table', 'csv_text', 'check_csv_target', 'write_text_atomic',
+           'rollup_cell', 'ROLLUP_COLUMNS']
 
 
 def _axes(results: list[JobResult]) -> list[str]:
@@ -61,7 +62,8 @@ def csv_text(results: list[JobResult]) -> str:
                'rate [Hz]', 'energy [J]', 'peak power [W]', 'loss energy [J]',
                'braking energy [J]']
               + [f'energy {a} [J]' for a in axes] + [f'peak power {a} [W]' for a in axes]
-              + ['machine name', 'error'])
+              + ['machine name', 'error', 'energy uncertainty [J]']
+              + [f'energy by {g} [J]' for g in ROLLUP_COLUMNS])
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator='\n')
     writer.writerow(header)
@@ -75,11 +77,38 @@ def csv_text(results: list[JobResult]) -> str:
                     repr(s['loss_energy_j']), repr(s['regenerated_energy_j'])]
             row += [repr(s['energy_j'][a]) if a in s['energy_j'] else '' for a in axes]
             row += [repr(s['peak_power_w'][a]) if a in s['peak_power_w'] else '' for a in axes]
-            row += [s['machine'], '']
+            row += [s['machine'], '', _uncertainty(s)]
+            row += [rollup_cell(s, g) for g in ROLLUP_COLUMNS]
         else:
-            row += ['failed'] + [''] * (7 + 2 * len(axes)) + ['', r.error]
+            row += ['failed'] + [''] * (7 + 2 * len(axes)) + ['', r.error, '']
+            row += [''] * len(ROLLUP_COLUMNS)
         writer.writerow(row)
     return buf.getvalue()
+
+
+ROLLUP_COLUMNS = ('operation', 'tool')
+"""Roll-ups in the CSV, one cell each (the JSON output has all of them, ``rollups``)."""
+
+
+def _uncertainty(summary: dict) -> str:
+    """The loss-function uncertainty of the total [J], or '' where not known."""
+    spread = summary.get('energy_uncertainty')
+    return repr(spread['energy_sd_j']['total']) if spread else ''
+
+
+def rollup_cell(summary: dict, group: str) -> str:
+    """A roll-up as one compact cell: a JSON object ``{name: J}``, largest energy first.
+
+    JSON, so that names with commas, semicolons or quotes (CAM comments) come back intact
+    with ``json.loads``; empty where the run has no roll-ups (a trajectory CSV, declared
+    effects that need the whole record).
+    """
+    import json
+    items = (summary.get('rollups') or {}).get(group)
+    if not items:
+        return ''
+    return json.dumps({str(it['name']): it['energy_j'] for it in items}, ensure_ascii=False,
+                      separators=(',', ':'))
 
 
 def check_csv_target(path: Path, *, force: bool) -> None:

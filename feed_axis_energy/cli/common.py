@@ -154,6 +154,10 @@ def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
     rows = [[axis, f'{summary["energy_j"][axis]:.2f}', f'{summary["peak_power_w"][axis]:.1f}']
             for axis in axes + ['total']]
     print(format_table(['axis', 'energy [J]', 'peak power [W]'], rows))
+    from feed_axis_energy.core.uncertainty import uncertainty_words
+    spread = uncertainty_words(summary)
+    if spread is not None:
+        print(f'energy uncertainty: {spread}')
     fate = ('returned to the supply' if summary['braking'] == 'regenerative'
             else 'burned in the brake resistor: drawn before to accelerate or lift, '
             'braking_burned below')

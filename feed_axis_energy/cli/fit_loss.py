@@ -170,8 +170,10 @@ def _print(fits: dict, specs: list, loaded: list[str]) -> None:
             lo, hi = f.calibrated.feed_mm_s
             loads = ('' if f.calibrated.load_kg is None else
                      f', loads {f.calibrated.load_kg[0]:g}-{f.calibrated.load_kg[1]:g} kg')
+            cov = (' and the covariance of a and b as loss_covariance'
+                   if f.covariance() is not None else '')
             print(f'axis {axis}: calibrated at {lo:.3g}-{hi:.3g} mm/s{loads} '
-                  '(written as loss_calibrated with --out-machine)')
+                  f'(written as loss_calibrated{cov} with --out-machine)')
 
 
 def _run_samples(args: argparse.Namespace, runs: list, specs: list, machine,

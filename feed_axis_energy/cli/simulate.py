@@ -182,6 +182,7 @@ def run(args: argparse.Namespace) -> int:
             summary['bag'] = str(args.out)
         for fmt, path in exports.items():
             summary[fmt] = str(path)
+        export.write_rollups(summary)
         lines = [b['line'] for b in summary['top_blocks']]
         texts = {} if trajectory else program_text_lines(args.program, lines)
         for block in summary['top_blocks']:
@@ -198,8 +199,10 @@ def run(args: argparse.Namespace) -> int:
             print(f'recording: {args.out} (topics /setpoints, /axis_state, /power, '
                   '/block_energy; plot-ready /plot/power, /plot/axes, /plot/block_energy; '
                   'units in README)')
+        rollups = ', rollups.{fmt}' if summary.get('rollups') else ''
         for fmt, path in exports.items():
-            print(f'{fmt}: {path} (timeseries.{fmt}, blocks.{fmt}; columns in README)')
+            print(f'{fmt}: {path} (timeseries.{fmt}, blocks.{fmt}{rollups.format(fmt=fmt)}; '
+                  'columns in README)')
     return 0
 
 

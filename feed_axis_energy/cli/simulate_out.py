@@ -143,6 +143,12 @@ class Exports:
         if self.dirs:
             write_blocks(self.dirs, blocks, program=self.args.program)
 
+    def write_rollups(self, summary: dict) -> None:
+        """The roll-ups per operation, subroutine, tool and axis (when the summary has them)."""
+        from feed_axis_energy.core.exports import write_rollups
+        if self.dirs:
+            write_rollups(self.dirs, summary.get('rollups'))
+
     def __exit__(self, exc_type, exc, tb):
         if self.series is not None:
             self.series.close()

@@ -150,6 +150,11 @@ def print_table(rows, names: list[str]) -> None:
     from feed_axis_energy.core.errors import shorten
     header = ['program'] + names + ['cycle time [s]', 'energy [J]', 'energy/part [J]',
                                     'dE [%]', 'dt [%]', 'front']
+    # the loss-function uncertainty only where some run knows it
+    spread = any(r.ok and math.isfinite(r.energy_sd_j) for r in rows)
+    from feed_axis_energy.core.uncertainty import two_digits
+    if spread:
+        header.insert(len(names) + 3, 'u(E) [J]')
     table = []
     for r in rows:
         cells = [shorten(r.program)]
@@ -161,12 +166,18 @@ def print_table(rows, names: list[str]) -> None:
                       _signed(r.d_time_pct), '*' if r.pareto else '']
         else:
             cells += ['-', '-', '-', '-', '-', 'failed']
+        if spread:
+            sd = r.energy_sd_j if r.ok else math.nan
+            cells.insert(len(names) + 3, f'±{two_digits(sd)}' if math.isfinite(sd) else '-')
         table.append(cells)
     print(format_table(header, table))
     points = sorted({r.energy_point for r in rows if r.ok} - {'shaft'})
     if points:
         print(f'energy: electrical, at the {" / ".join(points)} point of the declared drives '
               '(supply.measured_at; docs/electrical.md)')
+    if spread:
+        print('u(E): one standard uncertainty of the energy from the covariance of the loss '
+              'functions (loss_covariance in the machine config; first order)')
     failed = [r for r in rows if not r.ok]
     if failed:
         print()
@@ -183,7 +194,7 @@ def csv_text(rows, names: list[str]) -> str:
     w = csv.writer(buf, lineterminator='\n')
     w.writerow(['program', 'baseline'] + names + [
         'status', 'cycle time [s]', 'energy [J]', 'energy per part [J]', 'energy change [%]',
-        'time change [%]', 'pareto', 'error'])
+        'time change [%]', 'pareto', 'error', 'energy uncertainty [J]'])
 
     def num(v: float) -> str:
         return repr(float(v)) if math.isfinite(v) else ''
@@ -193,7 +204,7 @@ def csv_text(rows, names: list[str]) -> str:
         w.writerow([r.program, int(r.baseline)] + vals + [
             'ok' if r.ok else 'failed', num(r.cycle_time_s), num(r.energy_j),
             num(r.energy_per_part_j), num(r.d_energy_pct), num(r.d_time_pct),
-            int(r.pareto), r.error])
+            int(r.pareto), r.error, num(r.energy_sd_j)])
     return buf.getvalue()
 
 

@@ -220,12 +220,18 @@ def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
         summary = summarize(result, top_blocks=0)
         _record_whole(job, bag, result, summary)
         return summary, []
-    from .gcode import load_gcode
-    program = load_gcode(job.program_path, home=machine.home_point())
+    from .gcode import iter_moves
+    from .program import Program
+    # the moves of the whole program, as simulate's streamed path reads them, with the
+    # operation context of each (roll-ups per operation, subroutine and tool)
+    stream = iter_moves(job.program_path, **machine.gcode_keywords())
+    program = Program(moves=tuple(stream), file=stream.file, n_lines=stream.n_lines,
+                      warnings=tuple(stream.warnings))
     warnings = list(program.warnings)
     limits = machine.limits()
     if job.feed_override != 1.0 or job.rapid_override != 1.0:
         from .sweep import override_moves
+        # one move for one move: the context's marks (move ordinals) still hold
         program = replace(program, moves=tuple(override_moves(
             program.moves, feed=job.feed_override, rapid=job.rapid_override, limits=limits)))
     if job.max_samples:
@@ -239,7 +245,8 @@ def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
             raise PlanningError(msg, file=program.file)
     if streamable(machine):
         kw = dict(file=program.file, load_kg=job.load_kg, options=options,
-                  top_blocks=job.top_blocks, total_moves=len(program.moves), limits=limits)
+                  top_blocks=job.top_blocks, total_moves=len(program.moves), limits=limits,
+                  rollup=True, context=stream.context)
         if bag is None:
             summary, _ = simulate_stream(program.moves, machine, **kw)
         else:

@@ -14,6 +14,12 @@ samples, or of blocks, whatever the program's length.
 * ``blocks.csv`` / ``.parquet``: one row per source line that took time: line, the block's
   text (at most :data:`TEXT_CHARS` characters), duration, energy, energy per axis and per
   cause (summed over the axes); ascending line.
+* ``rollups.csv`` / ``.parquet`` (when the simulation has roll-ups: G-code on the streamed
+  path, :mod:`.rollup`): one row per operation, subroutine, tool and axis: group, name,
+  energy, duration; the rows of each of operation, subroutine and tool add up to the
+  program's energy and time. Per operation and tool rather than a column of the time series:
+  a sample carries only its source line (a line may run in several operations), and this
+  table is exact and a few rows long.
 """
 from __future__ import annotations
 
@@ -30,14 +36,15 @@ from .errors import ConfigError, DataError, OutputError
 from .simulate import SimulationResult
 
 __all__ = ['FORMATS', 'TEXT_CHARS', 'TableWriter', 'require_pyarrow', 'SeriesExporter',
-           'write_blocks', 'series_columns', 'iter_source_texts', 'EXPORT_MARKER',
-           'ELECTRICAL_SERIES']
+           'write_blocks', 'write_rollups', 'series_columns', 'iter_source_texts',
+           'EXPORT_MARKER', 'ELECTRICAL_SERIES', 'ROLLUP_GROUPS']
 
 FORMATS = ('csv', 'parquet')
 TEXT_CHARS = 120
 EXPORT_MARKER = '.feed_axis_energy_export'
 """File in an export directory: ``--force`` may replace a directory holding it."""
 _BLOCK_ROWS = 65536
+ROLLUP_GROUPS = ('operation', 'subroutine', 'tool', 'axis')
 
 
 def require_pyarrow(option: str):
@@ -326,3 +333,29 @@ def write_blocks(directories: dict[str, Path], blocks: LineEnergy, *, program: P
         for w in writers:
             w.close()
     return n
+
+
+def write_rollups(directories: dict[str, Path], rollups: dict[str, Any] | None) -> int:
+    """Write ``rollups.<fmt>`` (see the module docstring) into every directory; return rows.
+
+    Parameters
+    ----------
+    directories
+        ``{fmt: directory}``.
+    rollups
+        The summary's ``rollups`` (``{group: [{'name', 'energy_j', 'duration_s'}]}``);
+        ``None`` or empty: nothing is written.
+    """
+    if not rollups:
+        return 0
+    rows = [(g, str(it['name']), float(it['energy_j']), float(it['duration_s']))
+            for g in ROLLUP_GROUPS for it in rollups.get(g) or ()]
+    cols = ['group', 'name', 'energy [J]', 'duration [s]']
+    data = {c: [r[i] for r in rows] for i, c in enumerate(cols)}
+    for fmt, d in directories.items():
+        w = TableWriter(d / f'rollups.{fmt}', cols, fmt=fmt, text_columns=('group', 'name'))
+        try:
+            w.write(data)
+        finally:
+            w.close()
+    return len(rows)

@@ -9,7 +9,12 @@ against the direction of movement". Each model here is one frozen dataclass with
   ``v < 0`` and exactly zero at ``v == 0``. The drive has to supply ``-force_n(v)``.
 * ``power_w(v_m_s, *, normal_force_n=0.0) -> ndarray``: the loss power ``-force_n(v)·v`` [W],
   never negative.
-* ``to_dict() -> dict``: the YAML form, ``{'model': <registry name>, ...params}``.
+* ``to_dict() -> dict``: the YAML form, ``{'model': <registry name>, ...params}``;
+* ``param_units() -> dict``: the unit of every parameter, as a covariance of the parameters
+  in a machine config (``loss_covariance``, :mod:`.losscov`) must state them;
+* ``power_gradient_w(v_m_s, *, normal_force_n=0.0) -> dict``: the derivative of the loss
+  power with respect to every parameter, ``d power_w / d param`` [W per unit of the
+  parameter] (:mod:`.uncertainty` propagates the parameters' covariance to the energy).
 
 Models are registered by name in :data:`LOSS_MODELS`; :func:`loss_from_dict` builds one from
 a machine file.
@@ -48,6 +53,13 @@ class LossModel(Protocol):
 
     def to_dict(self) -> dict[str, Any]:
         """YAML form including ``model``."""
+
+    def param_units(self) -> dict[str, str]:
+        """Unit of every parameter, in the order of the YAML form."""
+
+    def power_gradient_w(self, v_m_s: np.ndarray, *,
+                         normal_force_n: float | np.ndarray = 0.0) -> dict[str, np.ndarray]:
+        """``d power_w / d param`` for every parameter [W per unit of the parameter]."""
 
 
 LOSS_MODELS: dict[str, type] = {}
@@ -213,6 +225,39 @@ class PowerRegressionLoss:
         v = np.asarray(v_m_s, dtype=float)
         return -self.force_n(v, normal_force_n=normal_force_n) * v
 
+    def param_units(self) -> dict[str, str]:
+        """``a`` in ``y_unit`` per ``x_unit`` to the power ``b`` (``y = a·x**b``); ``b`` is
+        a pure number."""
+        return {'a': f'{self.y_unit}/({self.x_unit})^b', 'b': '1'}
+
+    def power_gradient_w(self, v_m_s: np.ndarray, *,
+                         normal_force_n: float | np.ndarray = 0.0) -> dict[str, np.ndarray]:
+        """``d power_w / d a`` [W per unit of ``a``] and ``d power_w / d b`` [W].
+
+        The loss power is ``a`` times a function of the speed, so ``dP/da`` is the power at
+        ``a = 1`` and ``dP/db = P·ln x`` (``x`` the speed in ``x_unit``; 0 at standstill,
+        where ``P = 0`` for every ``b``).
+
+        Parameters
+        ----------
+        v_m_s
+            Carriage velocity [m/s], any shape.
+        normal_force_n
+            Unused by this model.
+
+        Returns
+        -------
+        dict
+            ``{'a': ndarray, 'b': ndarray}``, each shaped as ``v_m_s``.
+        """
+        v = np.asarray(v_m_s, dtype=float)
+        unit = PowerRegressionLoss(a=1.0, b=self.b, x_unit=self.x_unit, y_unit=self.y_unit)
+        per_a = unit.power_w(v)
+        x = np.abs(v) * X_UNITS[self.x_unit]
+        with np.errstate(divide='ignore'):
+            log_x = np.log(np.where(x > 0.0, x, 1.0))
+        return {'a': per_a, 'b': self.a * per_a * log_x}
+
     def to_dict(self) -> dict[str, Any]:
         """YAML form: ``{'model': 'power_regression', 'a', 'b', 'x_unit', 'y_unit'}``."""
         return {'model': self.model, 'a': self.a, 'b': self.b,
@@ -286,6 +331,32 @@ class CoulombViscousLoss:
         """Loss power ``-force_n(v)·v`` [W] (never negative)."""
         v = np.asarray(v_m_s, dtype=float)
         return -self.force_n(v, normal_force_n=normal_force_n) * v
+
+    def param_units(self) -> dict[str, str]:
+        """``coulomb_n`` [N], ``viscous_n_s_m`` [N·s/m], ``mu`` (a pure number)."""
+        return {'coulomb_n': 'N', 'viscous_n_s_m': 'N*s/m', 'mu': '1'}
+
+    def power_gradient_w(self, v_m_s: np.ndarray, *,
+                         normal_force_n: float | np.ndarray = 0.0) -> dict[str, np.ndarray]:
+        """``d power_w / d param``: ``|v|``, ``v²`` and ``|N|·|v|`` (the power is linear in
+        every parameter).
+
+        Parameters
+        ----------
+        v_m_s
+            Carriage velocity [m/s], any shape.
+        normal_force_n
+            Guideway normal force [N] (scalar or broadcastable).
+
+        Returns
+        -------
+        dict
+            ``{'coulomb_n', 'viscous_n_s_m', 'mu'}`` -> ndarray of the broadcast shape.
+        """
+        speed = np.abs(np.asarray(v_m_s, dtype=float))
+        normal = np.abs(np.asarray(normal_force_n, dtype=float))
+        return {'coulomb_n': speed.copy(), 'viscous_n_s_m': speed * speed,
+                'mu': np.broadcast_to(normal * speed, np.broadcast(normal, speed).shape).copy()}
 
     def to_dict(self) -> dict[str, Any]:
         """YAML form: ``{'model': 'coulomb_viscous', 'coulomb_n', 'viscous_n_s_m', 'mu'}``."""

@@ -27,7 +27,9 @@ and meter point (``supply:``), from data-sheet values (:mod:`.drive_model`,
 
 Each axis may also give ``travel_m: [min, max]``, its travel in machine coordinates [m],
 and ``loss_calibrated: {feed_mm_s: [low, high], load_kg: [low, high]}``, the speeds and loads
-its loss function was fitted on (written by ``fit-loss``; :mod:`.calibrated`).
+its loss function was fitted on (written by ``fit-loss``; :mod:`.calibrated`), and
+``loss_covariance: {params, units, matrix}``, the covariance of the loss parameters
+(written by ``fit-loss``; :mod:`.losscov`; simulations then give the energy's uncertainty).
 
 ``effects`` lists effects of the catalog (:mod:`.effects`, ``docs/effects.md``) that the
 model declares in addition to the loss function, usually written by ``feed-axis-energy
@@ -50,6 +52,7 @@ from .configcheck import check_mapping as _mapping, join_key as _join
 from .drive_model import (check_drives, drive_from_value, drive_to_dict, DriveSpec,
                           supply_from_value, supply_to_dict, SupplySpec)
 from .errors import ConfigError, describe, shorten
+from .losscov import covariance_from_value, LossCovariance
 from .losses import LossModel, loss_from_dict
 from .mass import carried_axes, GRAVITY_M_S2, moved_mass_kg  # noqa: F401  (re-exported)
 from .machine_effects import DeclaredEffect, effects_from_value, effects_to_list
@@ -169,6 +172,8 @@ class AxisSpec:
         Speeds and loads the loss function was fitted on, or ``None`` (not recorded).
     drive
         Motor and drive from data-sheet values (:mod:`.drive_model`), or ``None``.
+    loss_covariance
+        Covariance of the loss parameters, or ``None`` (not known).
     """
 
     name: str
@@ -181,6 +186,7 @@ class AxisSpec:
     inclination_deg: float = 0.0
     travel_m: tuple[float, float] | None = None
     loss_calibrated: CalibratedRange | None = None
+    loss_covariance: LossCovariance | None = None
     drive: DriveSpec | None = None
 
     @property
@@ -330,13 +336,14 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         msg = f'unknown axis name {shorten(str(name))!r}; expected one of {", ".join(AXIS_NAMES)}'
         raise ConfigError(msg, file=file, key=key)
     allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
-               'loss', 'travel_m', 'loss_calibrated', 'drive')
+               'loss', 'travel_m', 'loss_calibrated', 'loss_covariance', 'drive')
     d = _mapping(d, file=file, key=key, allowed=allowed)
     for part in ('screw', 'inertias', 'limits', 'loss'):
         if part not in d:
             msg = 'missing required section'
             raise ConfigError(msg, file=file, key=f'{key}.{part}')
     rides_on = _choice(d, 'rides_on', AXIS_NAMES + (None,), file=file, key=key, default=None)
+    loss = loss_from_dict(d['loss'], file=file, key=f'{key}.loss')
     return AxisSpec(
         name=name,
         table_mass_kg=_float(d, 'table_mass_kg', file=file, key=key, minimum=0.0, strict=False,
@@ -344,13 +351,14 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         screw=_screw(d['screw'], file=file, key=f'{key}.screw'),
         inertias=_inertias(d['inertias'], file=file, key=f'{key}.inertias'),
         limits=_limits(d['limits'], file=file, key=f'{key}.limits'),
-        loss=loss_from_dict(d['loss'], file=file, key=f'{key}.loss'),
-        rides_on=rides_on,
+        loss=loss, rides_on=rides_on,
         inclination_deg=_float(d, 'inclination_deg', file=file, key=key, default=0.0,
                                minimum=-90.0, strict=False, maximum=90.0),
         travel_m=travel_from_value(d.get('travel_m'), file=file, key=f'{key}.travel_m'),
         loss_calibrated=calibrated_from_value(d.get('loss_calibrated'), file=file,
                                               key=f'{key}.loss_calibrated'),
+        loss_covariance=covariance_from_value(d.get('loss_covariance'), loss=loss, file=file,
+                                              key=f'{key}.loss_covariance'),
         drive=drive_from_value(d.get('drive'), file=file, key=f'{key}.drive'))
 
 
@@ -504,6 +512,8 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
             axes[a.name]['loss_calibrated'] = a.loss_calibrated.to_dict()
         if a.drive is not None:
             axes[a.name]['drive'] = drive_to_dict(a.drive)
+        if a.loss_covariance is not None:
+            axes[a.name]['loss_covariance'] = a.loss_covariance.to_dict()
     out = {
         'name': machine.name,
         'braking': machine.braking,

@@ -29,6 +29,7 @@ from .program import Move
 from .simulate import declared_effects_parts, SimulationResult, sum_effect_parts
 from .standstill import grid_interval_counts
 from .trajectory import PlannerOptions
+from .uncertainty import add_uncertainty, UncertaintyAccumulator
 from .units import rate_from_interval
 
 __all__ = ['streamable', 'compactable', 'iter_simulation', 'LineEnergy', 'SummaryAccumulator',
@@ -166,6 +167,7 @@ class SummaryAccumulator:
         self._line_d = np.zeros(1024)
         self._line_seen = np.zeros(1024, dtype=bool)
         self.first: SimulationResult | None = None
+        self.spread: UncertaintyAccumulator | None = None
 
     def add(self, chunk: SimulationResult) -> None:
         """Take one chunk (in time order)."""
@@ -180,10 +182,13 @@ class SummaryAccumulator:
                                 braking=p.braking, effects=p.effect_power_w)
         if self.first is None:
             self.first = chunk
+            self.spread = UncertaintyAccumulator.of(chunk.machine)
             self.axes = tuple(p.axes)
             self.braking = p.braking
             self.t_first = float(p.t[0])
         # column by column: a reduction along axis 0 of a narrow array is slow in numpy
+        if self.spread is not None:
+            self.spread.add(chunk.dynamics, p.mechanical_w, braking=p.braking)
         peak = np.array([p.power_w[:, j].max() for j in range(p.power_w.shape[1])]
                         + [p.total_w.max()])
         self.peak = peak if self.peak is None else np.maximum(self.peak, peak)
@@ -329,7 +334,7 @@ class SummaryAccumulator:
         electrical = self.electrical.summary()
         if electrical:
             summary['electrical'] = electrical
-        return summary
+        return add_uncertainty(summary, self.spread)
 
 
 _MOTION_ROWS = ('t', 'pos', 'vel', 'acc', 'line')

@@ -232,9 +232,11 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         the breakdown by cause (:func:`.breakdown.add_breakdown`: ``causes``,
         ``energy_by_cause_j``, ``braking_returned_j``; per top block ``energy_by_axis_j``,
         ``energy_by_cause_j``); with declared drives ``electrical``
-        (:meth:`.electrical.ElectricalAccumulator.summary`, ``docs/electrical.md``).
+        (:meth:`.electrical.ElectricalAccumulator.summary`, ``docs/electrical.md``), and
+        ``energy_uncertainty`` where an axis has a ``loss_covariance`` (:mod:`.uncertainty`).
     """
     from .breakdown import add_breakdown, BreakdownAccumulator
+    from .uncertainty import add_uncertainty, UncertaintyAccumulator
     p = result.power
     n = int(p.t.shape[0])
     dt = np.diff(p.t)
@@ -249,6 +251,9 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
     duration = float(p.t[-1] - p.t[0]) if n else 0.0
     causes = BreakdownAccumulator(per_line=True)
     causes.add(result.dynamics, p.mechanical_w, braking=p.braking, effects=p.effect_power_w)
+    spread = UncertaintyAccumulator.of(result.machine)
+    if spread is not None:
+        spread.add(result.dynamics, p.mechanical_w, braking=p.braking)
     summary = add_breakdown({
         'program': result.program,
         'machine': result.machine.name,
@@ -268,7 +273,7 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         electrical.add(result.dynamics, p.mechanical_w, p.electrical, braking=p.braking,
                        effects=p.effect_power_w)
         summary['electrical'] = electrical.summary()
-    return summary
+    return add_uncertainty(summary, spread)
 
 
 def line_table(result: SimulationResult) -> LineEnergy:

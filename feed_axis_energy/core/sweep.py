@@ -380,6 +380,9 @@ class SweepRow:
     energy_point
         Where ``energy_j`` is taken: ``'shaft'`` (mechanical), or with declared drives the
         meter's point ``'motor'`` or ``'supply'`` (:func:`sweep_energy`).
+    energy_sd_j
+        Standard uncertainty of ``energy_j`` from the loss functions' covariance [J]
+        (:mod:`.uncertainty`; ``nan`` where not known).
     """
 
     program: str
@@ -394,6 +397,7 @@ class SweepRow:
     pareto: bool
     error: str = ''
     energy_point: str = 'shaft'
+    energy_sd_j: float = math.nan
 
     def to_dict(self, params: Sequence[Vary]) -> dict[str, Any]:
         """Plain JSON-able values (numbers absent where they are not known)."""
@@ -411,6 +415,8 @@ class SweepRow:
                    energy_point=self.energy_point)
         if math.isfinite(self.d_energy_pct):
             out.update(d_energy_pct=self.d_energy_pct, d_time_pct=self.d_time_pct)
+        if math.isfinite(self.energy_sd_j):
+            out['energy_sd_j'] = self.energy_sd_j
         return out
 
 
@@ -460,6 +466,9 @@ def sweep_rows(results: Sequence[tuple[str, tuple[Any, ...] | None, Any]], *,
             continue
         t, (e, point) = r.summary['duration_s'], sweep_energy(r.summary)
         bt, be = base.get(program, (math.nan, math.nan))
+        spread = r.summary.get('energy_uncertainty') or {}
+        sd = float((spread.get('energy_sd_j') or {}).get('total', math.nan))
         rows.append(SweepRow(program, values, values is None, True, t, e, e / parts,
-                             _pct(e, be), _pct(t, bt), i in front, energy_point=point))
+                             _pct(e, be), _pct(t, bt), i in front, energy_point=point,
+                             energy_sd_j=sd))
     return rows

@@ -14,6 +14,7 @@ import numpy as np
 
 from feed_axis_energy.core.measured.compare import CampaignComparison, RunComparison
 from feed_axis_energy.core.measured.metrics import Metrics
+from feed_axis_energy.core.uncertainty import two_digits
 
 from .page import fmt_duration, fmt_pct, fmt_si, img, page, short, table
 
@@ -65,6 +66,10 @@ def compare_answer(cmp: CampaignComparison) -> str:
             f'{fmt_pct(worst, signed=True)})')
     if pcts:
         text += f'; the power differs by {fmt_pct(float(np.median(pcts)))} on average (median)'
+    spread = [r.energy_sd_pct for r in cmp.runs if math.isfinite(r.energy_sd_pct)]
+    if spread:
+        text += (f'; ±{two_digits(float(np.median(spread)))} % of the simulated energy from the '
+                 'loss-function uncertainty (median)')
     return text + '.'
 
 

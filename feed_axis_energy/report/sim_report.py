@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from feed_axis_energy.core.uncertainty import UNCERTAINTY_KEY, uncertainty_words
+
 from . import staged_report
 from .decimate import PowerTrace, Trace
 from .page import fmt_duration, fmt_pct, fmt_si, img, page, short, table
@@ -163,6 +165,9 @@ def _answer(summary: Mapping[str, Any], causes: list[tuple[str, float, bool]]) -
     largest = max((c for c in causes if c[2] and c[1] > 0), key=lambda c: c[1], default=None)
     if largest is not None and total > 0:
         text += f'; {fmt_pct(100.0 * largest[1] / total)} of it {escape(largest[0])}'
+    spread = uncertainty_words(summary, per_axis=False)
+    if spread is not None:
+        text += f'; {escape(spread)}'
     elec = summary.get('electrical')
     if isinstance(elec, Mapping) and elec.get('energy_j'):
         text += (f'; electrical energy at the {escape(str(elec.get("point", "")))}: '
@@ -202,13 +207,27 @@ def _electrical_html(elec: Mapping[str, Any]) -> str:
 def _overview(summary: Mapping[str, Any]) -> str:
     energy, peak = summary['energy_j'], summary['peak_power_w']
     total = energy['total']
+    spread = summary.get(UNCERTAINTY_KEY)
+    sd = spread.get('energy_sd_j', {}) if isinstance(spread, Mapping) else None
     rows = []
     for axis in [a for a in energy if a != 'total'] + ['total']:
         share = 100.0 * energy[axis] / total if total else math.nan
         rows.append([escape(axis), f'<td class="num">{fmt_si(energy[axis], "J")}</td>',
                      f'<td class="num">{fmt_pct(share)}</td>',
                      f'<td class="num">{fmt_si(peak.get(axis), "W")}</td>'])
-    return table(['axis', 'energy', 'share of total', 'peak power'], rows, row_head=True)
+        if sd is not None:
+            value = sd.get(axis)
+            rows[-1].append(f'<td class="num">±{fmt_si(value, "J")}</td>' if _finite(value)
+                            else '<td>not known</td>')
+    head = ['axis', 'energy', 'share of total', 'peak power']
+    note = ''
+    if sd is not None:
+        head.append('uncertainty from the loss function')
+        note = ('<p class="note">One standard uncertainty of the energy from the covariance of '
+                'the fitted loss parameters (<code>loss_covariance</code> in the machine '
+                'config), propagated to first order; it does not cover effects the model '
+                'misses.</p>')
+    return table(head, rows, row_head=True) + note
 
 
 def _blocks_table(rows: list[tuple[int, float, float]], texts: Mapping[int, str],

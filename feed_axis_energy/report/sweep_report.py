@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Sequence
 
 from feed_axis_energy.core.sweep import SweepRow
+from feed_axis_energy.core.uncertainty import two_digits
 
 from .page import figure_png, img, page, table
 
@@ -31,8 +32,12 @@ def _answer(rows: Sequence[SweepRow], names: Sequence[str]) -> str:
     if not ok:
         return 'every run of this program failed (errors in the table)'
     best = min(ok, key=lambda r: (r.energy_j, r.cycle_time_s))
+    spread = ''
+    if math.isfinite(best.energy_sd_j) and best.energy_j > 0.0:
+        spread = (f' ±{two_digits(100.0 * best.energy_sd_j / best.energy_j)} % from the '
+                  'loss-function uncertainty')
     text = (f'least energy: {best.energy_j:,.1f} J per run ({best.energy_per_part_j:,.1f} J per '
-            f'part) in {best.cycle_time_s:,.2f} s with {escape(_variant(best, names))}')
+            f'part{spread}) in {best.cycle_time_s:,.2f} s with {escape(_variant(best, names))}')
     if not best.baseline and math.isfinite(best.d_energy_pct):
         text += (f': {best.d_energy_pct:+.1f} % energy and {best.d_time_pct:+.1f} % time '
                  f'against the baseline')
@@ -69,9 +74,10 @@ def _num(value: float, fmt: str) -> str:
 
 
 def _table(rows: Sequence[SweepRow], names: Sequence[str]) -> str:
+    spread = any(r.ok and math.isfinite(r.energy_sd_j) for r in rows)
     head = [escape(h) for h in list(names) + [
         'cycle time [s]', 'energy [J]', 'energy per part [J]', 'energy change [%]',
-        'time change [%]', 'on the front']]
+        'time change [%]', 'on the front'] + (['uncertainty [J]'] if spread else [])]
     body, classes = [], []
     for r in rows:
         classes.append('base' if r.baseline else 'front' if r.pareto else '')
@@ -87,8 +93,11 @@ def _table(rows: Sequence[SweepRow], names: Sequence[str]) -> str:
                       f'<td class="num">{_num(r.d_energy_pct, "+.1f")}</td>',
                       f'<td class="num">{_num(r.d_time_pct, "+.1f")}</td>',
                       f'<td>{"yes" if r.pareto else ""}</td>']
+            if spread:
+                cells.append(f'<td class="num">±{two_digits(r.energy_sd_j)}</td>'
+                             if math.isfinite(r.energy_sd_j) else '<td>not known</td>')
         else:
-            cells += [f'<td colspan="6">failed: {escape(r.error[:300])}</td>']
+            cells += [f'<td colspan="{6 + spread}">failed: {escape(r.error[:300])}</td>']
         body.append(cells)
     return table(head, body, classes=classes)
 

@@ -294,3 +294,27 @@ def test_out_that_only_fails_leaves_no_directory(tmp_path, capsys):
     (tmp_path / 'file').write_text('x')
     assert main(['batch', str(bad), '--out', str(tmp_path / 'file'), '--quiet']) == 1
     assert 'not a directory' in capsys.readouterr().err
+
+
+def test_rollups_per_operation_and_tool_in_json_and_csv(tmp_path, capsys):
+    prog = tmp_path / 'ops.nc'
+    prog.write_text('(two operations, two tools)\nG21 G90 G94\nG0 X0\n(Rough; pass, "one")\n'
+                    'T1 M6\nG1 X50 F3000\nG1 X0\n(Finish)\nT2 M6\nG1 X20 F1200\nM30\n')
+    out = tmp_path / 'res.csv'
+    rc, doc = _json(capsys, ['batch', str(prog), '--rate-hz', '300', '--csv', str(out),
+                             '--json', '--quiet'])
+    assert rc == 0
+    summary = doc['results'][0]['summary']
+    total = summary['energy_j']['total']
+    ops = {it['name']: it['energy_j'] for it in summary['rollups']['operation']}
+    tools = {it['name']: it['energy_j'] for it in summary['rollups']['tool']}
+    assert set(ops) >= {'Rough; pass, "one"', 'Finish'} and set(tools) >= {'T1', 'T2'}
+    assert math.isclose(math.fsum(ops.values()), total, rel_tol=1e-9)
+    # the rough pass moves 100 mm at 50 mm/s, the finish 30 mm at 20 mm/s: T1 takes more
+    assert tools['T1'] > tools['T2'] > 0.0
+    with open(out, newline='') as fh:
+        row = next(csv.DictReader(fh))
+    # one compact cell per group: a JSON object that reads back with the names intact
+    assert json.loads(row['energy by operation [J]']) == ops
+    assert json.loads(row['energy by tool [J]']) == tools
+    assert row['energy uncertainty [J]'] == ''      # the demonstrator has no covariance

@@ -45,17 +45,18 @@ def test_import_writes_bags_and_manifest(tmp_path, capsys):
     assert "no run 'nope'" in capsys.readouterr().err
 
 
-def _campaign(tmp_path, feeds_mm_s, a=0.3, b=0.4):
-    """A CSV campaign: one run per feed, strokes back and forth, power a·x^(1+b) when steady."""
+def _campaign(tmp_path, feeds_mm_s, a=0.3, b=0.4, scatter=()):
+    """A CSV campaign: one run per feed, strokes back and forth, power a·x^(1+b) when steady
+    (times ``scatter[i]`` for the i-th feed, if given)."""
     runs = []
-    for feed in feeds_mm_s:
+    for i, feed in enumerate(feeds_mm_s):
         v = np.concatenate([np.zeros(20), np.linspace(0, feed, 10), np.full(300, feed),
                             np.linspace(feed, 0, 10), np.zeros(20)])
         v = np.concatenate([v, -v])
         t = np.arange(v.shape[0]) * 0.01
         x = np.cumsum(v) * 0.01
         acc = np.gradient(v, t)
-        p = a * np.abs(v) ** (1 + b) + 0.02 * acc * v
+        p = a * np.abs(v) ** (1 + b) * (scatter[i] if scatter else 1.0) + 0.02 * acc * v
         rows = [f'{pi:.17g},{xi:.17g},{vi:.17g}' for pi, xi, vi in zip(p, x, v)]
         lines = ['P_W,X_mm,V_mm_s'] + rows
         (tmp_path / f'f{feed}.csv').write_text('\n'.join(lines) + '\n')
@@ -152,3 +153,33 @@ def test_fit_loss_on_the_sample_bags(capsys):
     for fit in report['fits'].values():
         if fit['status'] != 'insufficient':
             assert math.isfinite(fit['r2_log'])
+
+
+def test_fit_loss_writes_the_covariance_and_simulate_shows_the_uncertainty(tmp_path, capsys):
+    manifest = _campaign(tmp_path, [50, 100, 150, 300], scatter=(1.04, 0.97, 1.02, 0.98))
+    out = tmp_path / 'fitted.yaml'
+    assert main(['fit-loss', str(manifest), '--json', '--out-machine', str(out)]) == 0
+    fit = json.loads(capsys.readouterr().out)['fits']['X']
+    cov = load_machine(out).axis('X').loss_covariance
+    assert cov.params == ('a', 'b') and cov.units == ('W/(mm/s)/(mm/s)^b', '1')
+    # (ln a, b) of the log-log fit taken to (a, b): var(a) = a²·var(ln a)
+    (c00, c01), (_, c11) = fit['cov_ln_a_b']
+    a = fit['a']
+    assert_allclose(cov.array(), [[a * a * c00, a * c01], [a * c01, c11]], rtol=1e-12)
+    assert_allclose(math.sqrt(cov.matrix[0][0]), fit['a_se'], rtol=1e-12)
+    assert_allclose(math.sqrt(cov.matrix[1][1]), fit['b_se'], rtol=1e-12)
+    assert main(['fit-loss', str(manifest)]) == 0
+    assert 'covariance of a and b as loss_covariance' in capsys.readouterr().out
+    program = str(ROOT / 'config' / 'programs' / 'demonstrator_f300.nc')
+    assert main(['simulate', program, '--machine', str(out), '--json', '--quiet']) == 0
+    summary = json.loads(capsys.readouterr().out)
+    u = summary['energy_uncertainty']
+    assert u['axes'] == ['X'] and u['energy_sd_j']['total'] > 0.0
+    assert_allclose(u['relative_pct'],
+                    100.0 * u['energy_sd_j']['total'] / summary['energy_j']['total'])
+    assert main(['simulate', program, '--machine', str(out), '--quiet']) == 0
+    text = capsys.readouterr().out
+    assert 'energy uncertainty: ±' in text and '% of the total)' in text
+    # the machine as shipped has no covariance: nothing is shown
+    assert main(['simulate', program, '--quiet']) == 0
+    assert 'uncertainty' not in capsys.readouterr().out

@@ -113,7 +113,7 @@ def test_existing_directory_refused_then_replaced_with_force(tmp_path, capsys):
     assert _simulate(tmp_path, capsys, '--csv', str(target))[0] == 1
     assert _simulate(tmp_path, capsys, '--csv', str(target), '--force')[0] == 0
     assert sorted(p.name for p in target.iterdir()) == [EXPORT_MARKER, 'blocks.csv',
-                                                        'timeseries.csv']
+                                                        'rollups.csv', 'timeseries.csv']
 
 
 def test_failure_leaves_nothing(tmp_path, capsys):
@@ -153,3 +153,47 @@ def test_with_a_recording_the_export_still_has_every_sample(tmp_path, capsys):
     assert code == 0 and (tmp_path / 'bag' / 'metadata.yaml').is_file()
     _, rows = _read_csv(tmp_path / 'c' / 'timeseries.csv')
     assert len(rows) == summary['samples']
+
+
+def test_rollups_table_adds_up_and_parquet_equals_csv(tmp_path, capsys):
+    prog = tmp_path / 'ops.nc'
+    prog.write_text('G21 G90 G94 G17\nG0 X0 Y0 Z20\n(Rough, "outer")\nT1 M6\n'
+                    'G1 X30 Y5 F2400\nG1 X0 Y0\n(Finish)\nT2 M6\nG1 X10 Y10 F1200\nM30\n')
+    code = main(['simulate', str(prog), '--machine', str(MILL), '--json', '--quiet',
+                 '--csv', str(tmp_path / 'c')])
+    summary = json.loads(capsys.readouterr().out)
+    assert code == 0
+    header, rows = _read_csv(tmp_path / 'c' / 'rollups.csv')
+    assert header == ['group', 'name', 'energy [J]', 'duration [s]']
+    groups = {}
+    for group, name, e, d in rows:
+        groups.setdefault(group, {})[name] = (float(e), float(d))
+    assert set(groups) == {'operation', 'subroutine', 'tool', 'axis'}
+    assert set(groups['operation']) == {'(none)', 'Rough, "outer"', 'Finish'}
+    assert set(groups['tool']) == {'no tool', 'T1', 'T2'}
+    for group in ('operation', 'subroutine', 'tool'):
+        assert math.isclose(math.fsum(e for e, _ in groups[group].values()),
+                            summary['energy_j']['total'], rel_tol=1e-9)
+        assert math.isclose(math.fsum(d for _, d in groups[group].values()),
+                            summary['duration_s'], rel_tol=1e-9)
+    # the same rows as the summary's roll-ups, full precision
+    assert groups['tool']['T1'][0] == next(it['energy_j'] for it in summary['rollups']['tool']
+                                           if it['name'] == 'T1')
+    pq = pytest.importorskip('pyarrow.parquet')
+    assert main(['simulate', str(prog), '--machine', str(MILL), '--quiet',
+                 '--parquet', str(tmp_path / 'p')]) == 0
+    assert 'rollups.parquet' in capsys.readouterr().out
+    table = pq.read_table(tmp_path / 'p' / 'rollups.parquet')
+    assert table.column('name').to_pylist() == [r[1] for r in rows]
+    np.testing.assert_array_equal(table.column('energy [J]').to_numpy(),
+                                  np.array([r[2] for r in rows], dtype=float))
+
+
+def test_a_trajectory_csv_has_no_rollups_table(tmp_path, capsys):
+    traj = tmp_path / 't.csv'
+    t = np.arange(200) * 0.01
+    traj.write_text('time [s],X [mm]\n' + ''.join(f'{a:.4f},{10 * np.sin(a):.6f}\n' for a in t))
+    assert main(['simulate', str(traj), '--quiet', '--csv', str(tmp_path / 'c')]) == 0
+    assert 'rollups' not in capsys.readouterr().out
+    assert not (tmp_path / 'c' / 'rollups.csv').exists()
+    assert (tmp_path / 'c' / 'timeseries.csv').is_file()

@@ -15,7 +15,7 @@ import yaml
 from feed_axis_energy.core.batch import BatchJob, JobResult, MAX_JOBS, run_batch, run_job
 from feed_axis_energy.core.batchspec import expand_programs, load_batch_file, make_jobs
 from feed_axis_energy.core.errors import ConfigError
-from feed_axis_energy.core.gcode import load_gcode
+from feed_axis_energy.core.gcode import iter_moves
 from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.simstream import simulate_stream
 
@@ -75,11 +75,18 @@ def test_job_equals_direct_streaming_simulation():
     path = PROGRAMS / 'three_axis_contour.nc'
     result = run_job(_job(0, path, MILL, load_kg=50.0, top_blocks=3))
     machine = load_machine(MILL)
-    program = load_gcode(path, home=machine.home_point())
-    ref, _ = simulate_stream(program.moves, machine, file=program.file, load_kg=50.0,
-                             top_blocks=3)
+    # as simulate's streamed path runs it: the moves read with the machine's G-code settings,
+    # the roll-ups from their operation context
+    stream = iter_moves(path, **machine.gcode_keywords())
+    ref, _ = simulate_stream(stream, machine, file=stream.file, load_kg=50.0, top_blocks=3,
+                             rollup=True, context=stream.context)
     ref['program'] = 'three_axis_contour.nc'
     assert result.ok and result.summary == ref
+    # the roll-ups add up to the program's energy
+    for group in ('operation', 'tool', 'subroutine'):
+        items = result.summary['rollups'][group]
+        assert math.isclose(math.fsum(it['energy_j'] for it in items),
+                            ref['energy_j']['total'], rel_tol=1e-9)
 
 
 def test_load_rate_and_profile_reach_the_simulation():

@@ -27,6 +27,26 @@ REPO = Path(__file__).resolve().parents[2]
     ('(MSG, Attach the probe tool)', None),                    # LinuxCNC active comments
     ('(debug, x=#1)', None),
     ('(' + 'x' * 61 + ')', None),
+    # Mastercam (operation comments are plain lines; header and tool lines are not names)
+    ('(CONTOUR)', 'CONTOUR'),
+    ('(OD ROUGH RIGHT - 80 DEG.)', 'OD ROUGH RIGHT - 80 DEG.'),
+    ('(PROGRAM NAME - HELLOWORLD)', None),
+    ('(MATERIAL - ALUMINUM MM - 2024)', None),
+    ('(POST DEV - IN-HOUSE SOLUTIONS)', None),
+    ('( DATE - NOV. 15 2019 )', None),
+    ('(T1|.25 SPOT|H1|D1|TOOL DIA. - .25)', None),
+    ('( 1/16 FLAT ENDMILL TOOL - 1 DIA. OFF. - 1 LEN. - 1 DIA. - .0625)', None),
+    ('(TOOL - 7 DIA. OFF. - 7 LEN. - 7 DIA. - .5)', None),
+    ('(TOOL - 1 OFFSET - 1)', None),
+    ('( MACHINE GROUP-1 )', None),
+    # Estlcam's operation start text, and its header
+    ('(No. 1: Engraving 1)', 'Engraving 1'),
+    ('(No. 12: Pocket 3)', 'Pocket 3'),
+    ('(Required tools:)', None),
+    # Vectric-style posts
+    ('(Toolpath:- Profile 1)', 'Profile 1'),
+    ('(Toolpath: Pocket 2 Tool: 6mm End Mill)', 'Pocket 2'),
+    ('(Toolpaths used in this file:)', None),
 ])
 def test_operation_names(line, name):
     assert operation_name(line) == name
@@ -144,3 +164,105 @@ def test_axis_time_is_the_time_the_axis_moves(tmp_path):
     # everything but the 0.5 s dwell (one sample interval at each end of it)
     assert axis['X'] == pytest.approx(s['duration_s'] - 0.5, abs=2.5e-3)
     assert axis['Y'] == 0.0 and axis['Z'] == 0.0
+
+
+def _operations(tmp_path, text):
+    """Operation of every move, in order, and the tools used, of a hand-written program."""
+    path = tmp_path / 'p.nc'
+    path.write_text(text)
+    stream = iter_moves(path)
+    n = sum(1 for _ in stream)
+    ctx = stream.context
+    ops = [ctx.table[ctx.index_at(i)][0] for i in range(n)]
+    return [op for i, op in enumerate(ops) if i == 0 or op != ops[i - 1]], {
+        ctx.table[ctx.index_at(i)][2] for i in range(n)}
+
+
+# as Mastercam's generic Fanuc post writes a program: header after the program number, a
+# tool line and the operation comment before each tool change
+MASTERCAM = """%
+O1000
+(PROGRAM NAME - HELLOWORLD)
+(DATE=DD-MM-YY - 30-06-05 TIME=HH:MM - 19:37)
+(MCX FILE - C:\\JOBS\\HELLO.MCX-8)
+(MATERIAL - ALUMINUM MM - 2024)
+(T1|.25 SPOT|H1|D1|TOOL DIA. - .25)
+N10G21
+N20G0G17G40G49G80G90
+( 1/16 FLAT ENDMILL TOOL - 1 DIA. OFF. - 1 LEN. - 1 DIA. - 1.5)
+(CONTOUR)
+N60T1M6
+N70G0G90X0.Y10.S5000M3
+N100G1Z-.5F50.
+N110Y0.F500.
+N120G0Z5.
+(TOOL - 2 DIA. OFF. - 2 LEN. - 2 DIA. - 3.)
+( MACHINE GROUP-1 )
+(POCKET - STANDARD)
+N130T2M6
+N140G0X5.Y5.
+N150G1Z-1.F300.
+N160X20.
+M30
+%
+"""
+
+# Estlcam's default post: header before the first code, "(No. N: NAME)" per operation
+ESTLCAM = """(Project 004)
+(Created by Estlcam version 11 build 11.245)
+(Machining time about 00:00:07 hours)
+
+(Required tools:)
+(End mill 3mm)
+G21
+G90
+G94
+M03 S24000
+G00 Z5.0000
+
+
+(No. 1: Engraving 1)
+G00 X0.0000 Y25.4000
+G01 Z-1.0000 F600
+G01 Y0.0000 F1200
+G00 Z5.0000
+
+(No. 2: Pocket 1)
+G00 X10 Y10
+G01 Z-1.0000 F600
+(plunge done)
+G01 X20 F1200
+G00 Z5.0000
+M05
+M30
+"""
+
+# a Vectric-style post: toolpath name after the tool change, then its notes
+VECTRIC = """( Material Size)
+( X= 100.000, Y= 100.000, Z= 10.000)
+(Toolpaths used in this file:)
+(Profile 1)
+G00 G21 G17 G90 G40 G49 G80
+T1 M6
+(Toolpath:- Profile 1)
+(cut the outline)
+G0 X0 Y0 Z5
+G1 Z-1 F300
+G1 X50 F1200
+G0 Z5
+T2 M6
+(Toolpath:- Pocket 1)
+G0 X10 Y10
+G1 Z-1 F300
+G1 X20 F1200
+M30
+"""
+
+
+@pytest.mark.parametrize('text,operations,tools', [
+    (MASTERCAM, ['', 'CONTOUR', 'POCKET - STANDARD'], {0, 1, 2}),
+    (ESTLCAM, ['', 'Engraving 1', 'Pocket 1'], {0}),
+    (VECTRIC, ['', 'Profile 1', 'Pocket 1'], {0, 1, 2}),
+])
+def test_cam_programs_operations(tmp_path, text, operations, tools):
+    assert _operations(tmp_path, text) == (operations, tools)

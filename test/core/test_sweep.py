@@ -10,7 +10,8 @@ from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.machine import load_machine, machine_to_dict
 from feed_axis_energy.core.program import MoveKind, straight_move
 from feed_axis_energy.core.sweep import (apply_overrides, override_moves, parse_vary,
-                                         pareto_front, resolve_paths, variant_machine)
+                                         pareto_front, resolve_paths, sweep_rows,
+                                         variant_machine)
 from feed_axis_energy.core.trajectory import AxisLimits
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -155,3 +156,21 @@ def test_overrides_refused_on_trajectory_csv(tmp_path):
     res = run_job(BatchJob(index=0, program='t.csv', program_path=str(csv), machine='m',
                            machine_path=str(DEMO), feed_override=0.5))
     assert not res.ok and 'trajectory CSV' in res.error
+
+
+def test_rows_carry_the_loss_function_uncertainty_where_known():
+    from types import SimpleNamespace
+    from feed_axis_energy.report.sweep_report import render_sweep
+
+    def result(e, sd=None):
+        summary = {'duration_s': 10.0, 'energy_j': {'total': e}}
+        if sd is not None:
+            summary['energy_uncertainty'] = {'energy_sd_j': {'total': sd}}
+        return SimpleNamespace(ok=True, summary=summary, error='')
+    rows = sweep_rows([('p.nc', None, result(200.0, 3.0)), ('p.nc', (2.0,), result(100.0, 1.5)),
+                       ('q.nc', None, result(50.0))])
+    assert [r.energy_sd_j for r in rows[:2]] == [3.0, 1.5] and math.isnan(rows[2].energy_sd_j)
+    assert rows[1].to_dict([])['energy_sd_j'] == 1.5 and 'energy_sd_j' not in rows[2].to_dict([])
+    html = render_sweep(rows, ['lead'])
+    assert '±1.5 % from the loss-function uncertainty' in html     # 1.5 J of 100 J
+    assert 'not known' not in html.split('q.nc')[0] and 'uncertainty [J]' in html

@@ -153,3 +153,17 @@ def test_a_report_without_samples(tmp_path) -> None:
                        loss_energy_j=0.0, regenerated_energy_j=0.0)
     html = write_sim_report(summary, PowerTrace(), [], tmp_path / 'r').read_text()
     assert '0 J per part' in html and 'No source lines' in html
+
+
+def test_the_loss_function_uncertainty_is_in_the_answer_where_known(tmp_path) -> None:
+    spread = {'energy_sd_j': {'X': 213.0, 'total': 213.0}, 'relative_pct': 1.5,
+              'axes': ['X'], 'axes_without': ['Y'], 'gradient': {'X': {'a': 1.0}},
+              'units': {'X': {'a': 'N'}}, 'method': 'delta method'}
+    index = write_sim_report(_summary(energy_uncertainty=spread), _trace(), BLOCKS,
+                             tmp_path / 'rep')
+    html = index.read_text()
+    answer = re.search(r'<p class="answer">(.*?)</p>', html, re.S).group(1)
+    assert '±210 J (±1.5 % of the total) from the loss-function uncertainty' in answer
+    assert '±213 J' in html and 'not known' in html       # per axis: X known, Y not
+    plain = write_sim_report(_summary(), _trace(), BLOCKS, tmp_path / 'plain').read_text()
+    assert 'uncertainty' not in plain

@@ -14,15 +14,21 @@ What is recognised (``docs/breakdown.md``, "Roll-ups"):
 * **operation**: a comment alone on its line, after the program's first line of code
   (the header's comments describe the program, not an operation):
 
-  - ``(begin operation: NAME)`` (FreeCAD's posts), ``(Toolpath: NAME)``, ``; Operation: N``
-    (jscut: "operation N") name NAME;
+  - ``(begin operation: NAME)`` (FreeCAD's posts), ``(Toolpath: NAME)`` and Vectric's
+    ``(Toolpath:- NAME)`` (a trailing `` Tool: ...`` is cut), ``; Operation: N`` (jscut:
+    "operation N"), Estlcam's ``(No. N: NAME)`` name NAME;
   - until the program uses one of those forms, any other short comment line (at most
     60 characters) without a ``key: value`` colon
     or ``=``, as Fusion 360 (``(2D ADAPTIVE1)``), CamBam (``( holes )``) and CAMotics
     scripts write their operation names, is an operation name;
   - not names: LinuxCNC's active comments (``MSG``, ``DEBUG``, ``PRINT``, ``LOG*``,
     ``PROBE*``), tool descriptions (``T2 D=3.175 ...``), FreeCAD's ``finish operation`` /
-    ``end operation`` / ``begin preamble``/``postamble`` and other ``key: value`` lines.
+    ``end operation`` / ``begin preamble``/``postamble`` and other ``key: value`` lines;
+    Mastercam's header (``PROGRAM NAME - ...``, ``MATERIAL - ...``, ``MCX FILE - ...``,
+    ``NC FILE``, ``POST DEV``, ``DATE``, ``TIME``), its tool lines (``... TOOL - 1 DIA.
+    OFF. - 1 LEN. - 1 DIA. - .5``, ``TOOL - 1 OFFSET - 1``, ``T1|.25 SPOT|H1|...``) and
+    ``MACHINE GROUP-1``. Mastercam writes each operation's comment as a plain comment line
+    (``(CONTOUR)``), which the rule above takes.
 """
 from __future__ import annotations
 
@@ -33,12 +39,22 @@ __all__ = ['OperationContext', 'operation_name', 'NO_OPERATION']
 
 NO_OPERATION = ''
 _MAX_NAME = 60
-_NAMED = re.compile(r'^(?:begin\s+operation|toolpath)\s*:\s*(?P<name>.+)$', re.IGNORECASE)
+# FreeCAD "begin operation: NAME"; Estlcam's default operation start text "No. N: NAME"
+_NAMED = re.compile(r'^(?:begin\s+operation\s*:|no\.\s*\d+\s*:)\s*(?P<name>.+)$',
+                    re.IGNORECASE)
+# "Toolpath: NAME" and Vectric's "Toolpath:- NAME", some posts adding " Tool: TOOLNAME"
+_TOOLPATH = re.compile(r'^toolpath\s*:-?\s*(?P<name>.+?)(?:\s+tool\s*:.*)?$', re.IGNORECASE)
 _JSCUT = re.compile(r'^operation\s*:\s*(?P<n>\d+)\s*$', re.IGNORECASE)
 _NOT_NAMES = re.compile(
     r'^(?:msg\b|debug\b|print\b|log|probe|abs\b|end\s+operation|finish\s+operation|'
     r'begin\s+(?:preamble|postamble)|end\s+(?:preamble|postamble)|'
-    r't\s*\d+\b.*(?:d\s*=|dia)|tool\s+change)', re.IGNORECASE)
+    r't\s*\d+\b.*(?:d\s*=|dia)|tool\s+change|'
+    # Mastercam: header lines "KEY - value", tool table "T1|...", "MACHINE GROUP-1"
+    r'(?:program\s+name|mcx\s+file|nc\s+file|material|post\s+dev|date|time)\s*[-=]|'
+    r't\d+\s*\||machine\s+group\b)', re.IGNORECASE)
+# Mastercam's tool lines anywhere in the comment: "TOOL - 1 DIA. OFF. ...", "TOOL - 1 OFFSET"
+_MASTERCAM_TOOL = re.compile(r'\btool\s*-\s*\d+\s+(?:.*\bdia\.\s*off\b|offset\b)',
+                             re.IGNORECASE)
 _COMMENTS = re.compile(r'\(([^()]*)\)|;(.*)$')
 
 
@@ -50,8 +66,8 @@ def operation_name(line: str, *, explicit_only: bool = False) -> str | None:
     line
         A raw source line whose code part is empty (only comments and blanks).
     explicit_only
-        Only the explicit forms (``begin operation:``, ``Toolpath:``, ``Operation: N``),
-        not a plain section comment.
+        Only the explicit forms (``begin operation:``, ``Toolpath:``, ``Operation: N``,
+        ``No. N:``), not a plain section comment.
 
     Returns
     -------
@@ -63,7 +79,7 @@ def operation_name(line: str, *, explicit_only: bool = False) -> str | None:
     text = ' '.join(t for t in texts if t)
     if not text:
         return None
-    m = _NAMED.match(text)
+    m = _NAMED.match(text) or _TOOLPATH.match(text)
     if m:
         return m.group('name').strip()[:_MAX_NAME]
     m = _JSCUT.match(text)
@@ -71,7 +87,7 @@ def operation_name(line: str, *, explicit_only: bool = False) -> str | None:
         return f'operation {m.group("n")}'
     if explicit_only or len(text) > _MAX_NAME or ':' in text or '=' in text:
         return None
-    if _NOT_NAMES.match(text):
+    if _NOT_NAMES.match(text) or _MASTERCAM_TOOL.search(text):
         return None
     return text
 

@@ -33,6 +33,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..calibrated import CalibratedRange
+from ..losscov import LossCovariance
 from ..losses import PowerRegressionLoss
 from ..machine import Machine
 from ..measured.csvload import MeasuredRun
@@ -116,6 +117,20 @@ class LossFit:
             raise ValueError(msg)
         return PowerRegressionLoss(a=float(self.a), b=float(self.b), x_unit='mm/s',
                                    y_unit='W/(mm/s)')
+
+    def covariance(self) -> LossCovariance | None:
+        """Covariance of ``(a, b)`` in the units of :meth:`loss` (``None`` when not known).
+
+        The fit's covariance of ``(ln a, b)`` taken to ``(a, b)`` to first order
+        (``d a = a·d ln a``): ``[[a²·C00, a·C01], [a·C01, C11]]``.
+        """
+        if not self.ok or self.cov_ln_a_b is None:
+            return None
+        a = float(self.a)
+        (c00, c01), (_, c11) = self.cov_ln_a_b
+        units = self.loss().param_units()
+        return LossCovariance.of(('a', 'b'), (units['a'], units['b']),
+                                 [[a * a * c00, a * c01], [a * c01, c11]])
 
     def to_dict(self, *, segments: bool = True) -> dict[str, Any]:
         """Plain-type form (for JSON); ``segments=False`` leaves the segment list out."""
@@ -265,7 +280,8 @@ def fit_loss(runs: Sequence[MeasuredRun], *, machine: Machine | None = None,
 def machine_with_losses(machine: Machine, fits: dict[str, LossFit]) -> Machine:
     """Return ``machine`` with the loss of every axis that has an ``'ok'`` fit replaced.
 
-    The axis also gets the fit's calibrated range (``loss_calibrated``).
+    The axis also gets the fit's calibrated range (``loss_calibrated``) and the covariance
+    of ``(a, b)`` (``loss_covariance``; ``None`` with fewer than 3 segments).
 
     Parameters
     ----------
@@ -279,6 +295,7 @@ def machine_with_losses(machine: Machine, fits: dict[str, LossFit]) -> Machine:
     Machine
         A new machine.
     """
-    axes = tuple(replace(a, loss=fits[a.name].loss(), loss_calibrated=fits[a.name].calibrated)
+    axes = tuple(replace(a, loss=fits[a.name].loss(), loss_calibrated=fits[a.name].calibrated,
+                         loss_covariance=fits[a.name].covariance())
                  if a.name in fits and fits[a.name].ok else a for a in machine.axes)
     return replace(machine, axes=axes)

@@ -32,6 +32,7 @@ from ..motion import Motion
 from ..simulate import simulate_motion, SimulationResult
 from ..motion_samples import motion_from_samples
 from ..trajectory import plan
+from ..uncertainty import relative_sd_pct
 from .align import align_simulated, estimate_offset, OffsetResult
 from .csvload import load_run, MeasuredRun
 from .campaign import Campaign, default_instrument, RunSpec
@@ -225,6 +226,7 @@ def _compare(spec: RunSpec, machine: Machine, cache: _MotionCache, *, max_lag_s:
         sim_duration_s=float(sim.power.t[-1] - sim.power.t[0]),
         excluded_rows=int(run.extra.get('excluded_rows', 0)), stamp=stamp,
         instrument=meter.describe(period), meter_fits=fits, states=states,
+        energy_sd_pct=relative_sd_pct(sim, spec.power_axes),
     )
 
 

@@ -97,6 +97,10 @@ class RunComparison:
         (:func:`.instrument.check_instrument`).
     states
         Residual of the total by motion state (:mod:`.states`).
+    energy_sd_pct
+        Standard uncertainty of the simulated energy of ``axes`` from the covariance of the
+        loss parameters, % of that energy (:func:`..uncertainty.relative_sd_pct`; ``nan``
+        when the machine config gives no ``loss_covariance`` for every axis).
     """
 
     name: str
@@ -119,6 +123,7 @@ class RunComparison:
     instrument: str = ''
     meter_fits: tuple[MeterFit, ...] = ()
     states: tuple[StateResidual, ...] = ()
+    energy_sd_pct: float = math.nan
 
     @property
     def total_meas_w(self) -> np.ndarray:
@@ -142,6 +147,9 @@ class RunComparison:
         """JSON-able summary (no time series); keys carry units, NaN becomes ``None``."""
         metrics = {TOTAL: self.metrics.to_dict()}
         metrics.update({a: m.to_dict() for a, m in self.axis_metrics.items()})
+        # the loss-function uncertainty only where it is known
+        spread = ({'energy_sd_pct': self.energy_sd_pct} if math.isfinite(self.energy_sd_pct)
+                  else {})
         return json_clean({
             'name': self.name,
             'role': self.role,
@@ -159,7 +167,7 @@ class RunComparison:
             'residual_by_state': [st.to_dict() for st in self.states],
             'offset': offset_dict(self.offset, used_s=self.offset_used_s),
             'metrics': metrics,
-        })
+        } | spread)
 
 
 @dataclass(frozen=True)
