@@ -89,6 +89,11 @@ def _print_tables(cmp: CampaignComparison) -> None:
           'dE = simulated - measured energy):')
     print(format_table(['run', 'load [kg]', 'offset [s]', 'status', 'used [s]',
                         'runner-up [s] (resid. RMS)'] + METRIC_HEADER, rows))
+    spread = [f'{r.name} ±{r.energy_sd_pct:.2g} %' for r in cmp.runs
+              if math.isfinite(r.energy_sd_pct)]
+    if spread:
+        print('energy uncertainty from the loss functions (one standard uncertainty of the '
+              f'simulated energy, loss_covariance): {", ".join(spread)}')
     print()
     rows = [[f'{g.load_kg:g}', str(len(g.runs))] + metric_cells(g.metrics) for g in cmp.groups]
     print('per load (runs pooled):')

@@ -245,8 +245,10 @@ def _print_samples(fits: dict, specs: list, velocity: list[str]) -> None:
             print(f'axis {axis}: {f.message}')
         if f.calibrated is not None and f.ok:
             lo, hi = f.calibrated.feed_mm_s
+            cov = (' and the covariance of coulomb and viscous as loss_covariance'
+                   if f.covariance() is not None else '')
             print(f'axis {axis}: calibrated at {lo:.3g}-{hi:.3g} mm/s '
-                  '(written as loss_calibrated with --out-machine)')
+                  f'(written as loss_calibrated{cov} with --out-machine)')
 
 
 def _write_machine(path: Path, machine, *, runs: list, manifest: Path, force: bool,

@@ -183,3 +183,22 @@ def test_fit_loss_writes_the_covariance_and_simulate_shows_the_uncertainty(tmp_p
     # the machine as shipped has no covariance: nothing is shown
     assert main(['simulate', program, '--quiet']) == 0
     assert 'uncertainty' not in capsys.readouterr().out
+    # compare names each run's uncertainty from the covariance, and only where it is known
+    assert main(['compare', str(manifest), '--machine', str(out)]) == 0
+    text = capsys.readouterr().out
+    line = [ln for ln in text.splitlines() if ln.startswith('energy uncertainty')]
+    assert len(line) == 1 and line[0].count('±') == 4 and 'f50 ±' in line[0]
+    assert main(['compare', str(manifest)]) == 0
+    assert 'energy uncertainty' not in capsys.readouterr().out
+
+
+def test_fit_loss_samples_writes_the_covariance_of_its_loss(tmp_path, capsys):
+    manifest = _campaign(tmp_path, [50, 100, 150, 300], scatter=(1.04, 0.97, 1.02, 0.98))
+    out = tmp_path / 'fitted.yaml'
+    assert main(['fit-loss', str(manifest), '--method', 'samples', '--json',
+                 '--out-machine', str(out)]) == 0
+    fit = json.loads(capsys.readouterr().out)['fits']['X']
+    cov = load_machine(out).axis('X').loss_covariance
+    assert cov.params == ('coulomb_n', 'viscous_n_s_m') and cov.units == ('N', 'N*s/m')
+    assert_allclose(np.sqrt(np.diag(cov.array())), [fit['coulomb_se'], fit['viscous_se']],
+                    rtol=1e-12)

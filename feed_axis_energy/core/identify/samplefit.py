@@ -38,6 +38,7 @@ from scipy.optimize import lsq_linear
 
 from ..calibrated import CalibratedRange
 from ..errors import ConfigError, DataError
+from ..losscov import LossCovariance
 from ..losses import CoulombViscousLoss
 from ..machine import GRAVITY_M_S2, Machine, moved_mass_kg
 from ..measured.csvload import MeasuredRun
@@ -106,6 +107,9 @@ class SampleFit:
         Moving samples fitted, and those accelerating by more than ``accel_m_s2``.
     calibrated
         Speeds of the moving samples that do not accelerate, loads of the runs.
+    cov_loss
+        Covariance of ``(coulomb_n, viscous_n_s_m)`` [N², N²·s/m, N²·s²/m²] from the
+        least-squares fit (``None`` where no degree of freedom is left).
     """
 
     axis: str
@@ -124,11 +128,25 @@ class SampleFit:
     n_samples: int = 0
     n_accel: int = 0
     calibrated: CalibratedRange | None = None
+    cov_loss: tuple[tuple[float, float], tuple[float, float]] | None = None
 
     @property
     def ok(self) -> bool:
         """``True`` when the fit can be used."""
         return self.status == 'ok'
+
+    def covariance(self) -> LossCovariance | None:
+        """Covariance of the loss parameters in the units of :meth:`loss` (``None`` if unknown).
+
+        The block of ``(coulomb_n, viscous_n_s_m)`` in the least-squares covariance; the
+        motor inertia's own uncertainty is not carried (it changes the inertia's energy, not
+        the loss), and a coefficient held at its bound of 0 keeps the unbounded figure.
+        """
+        if not self.ok or self.cov_loss is None:
+            return None
+        units = self.loss().param_units()
+        return LossCovariance.of(('coulomb_n', 'viscous_n_s_m'),
+                                 (units['coulomb_n'], units['viscous_n_s_m']), self.cov_loss)
 
     def loss(self) -> CoulombViscousLoss:
         """The fitted loss model (``ValueError`` unless the status is ``'ok'``)."""
@@ -148,7 +166,8 @@ class SampleFit:
                 'inertia_fitted': self.inertia_fitted,
                 'effective_mass_kg': self.effective_mass_kg, 'rmse_w': self.rmse_w,
                 'r2': self.r2, 'n_samples': self.n_samples, 'n_accel': self.n_accel,
-                'calibrated': None if self.calibrated is None else self.calibrated.to_dict()}
+                'calibrated': None if self.calibrated is None else self.calibrated.to_dict(),
+                'cov_loss': None if self.cov_loss is None else [list(r) for r in self.cov_loss]}
 
 
 @dataclass
@@ -253,9 +272,16 @@ def _fit_axis(cols: _Columns, *, axis: str, machine: Machine,
     ss_tot = float(np.sum((p - p.mean()) ** 2))
     r2 = 1.0 - float(res @ res) / ss_tot if ss_tot > 0.0 else 0.0
     se = [None, None, None]
+    cov_loss = None
     if cov is not None:
         diag = [math.sqrt(max(float(c), 0.0)) for c in np.diag(cov)]
         se = diag if fit_inertia else [None, *diag]
+        j = 1 if fit_inertia else 0
+        block = np.asarray(cov, dtype=float)[j:j + 2, j:j + 2]
+        block = 0.5 * (block + block.T)
+        if np.all(np.isfinite(block)):
+            cov_loss = ((float(block[0, 0]), float(block[0, 1])),
+                        (float(block[1, 0]), float(block[1, 1])))
     steady = np.abs(a) <= options.accel_m_s2
     feeds = speed[steady] if steady.any() else speed
     calibrated = CalibratedRange(
@@ -272,7 +298,7 @@ def _fit_axis(cols: _Columns, *, axis: str, machine: Machine,
                      motor_se=se[0], coulomb_se=se[1], viscous_se=se[2],
                      inertia_fitted=fit_inertia, effective_mass_kg=mass,
                      rmse_w=math.sqrt(float(res @ res) / n), r2=r2, n_samples=n,
-                     n_accel=n_accel, calibrated=calibrated)
+                     n_accel=n_accel, calibrated=calibrated, cov_loss=cov_loss)
 
 
 def fit_loss_samples(runs: Sequence[MeasuredRun], *, machine: Machine,
@@ -348,6 +374,7 @@ def machine_with_sample_fits(machine: Machine, fits: dict[str, SampleFit]) -> Ma
         f = fits.get(a.name)
         if f is not None and f.ok:
             a = replace(a, loss=f.loss(), loss_calibrated=f.calibrated,
+                        loss_covariance=f.covariance(),
                         inertias=replace(a.inertias, motor_kg_m2=float(f.motor_kg_m2)))
         axes.append(a)
     return replace(machine, axes=tuple(axes))

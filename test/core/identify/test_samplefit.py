@@ -157,3 +157,35 @@ def test_dissipated_braking_without_driving_samples_is_insufficient():
     fit = fit_loss_samples([_run(t, v, acc, np.zeros_like(t))], machine=machine,
                            velocity='actual')['X']
     assert fit.status == 'insufficient' and 'positive model power' in fit.message
+
+
+@pytest.mark.parametrize('with_accel', [True, False])
+def test_loss_covariance_matches_the_scatter_of_refits_and_is_written(with_accel):
+    # noisy power from a known loss: the covariance the fit reports for (coulomb, viscous)
+    # is the spread of the fitted values over noise seeds, and fit-loss writes it to the
+    # machine as loss_covariance, the block of the loss parameters (inertia left out)
+    machine = _machine()
+    spec = machine.axis('X')
+    j_total = 1.0e-4 + spec.inertias.coupling_kg_m2 + spec.screw_inertia_kg_m2
+    mass = moved_mass_kg(machine, 'X', 0.0) + j_total * (2.0 * math.pi / spec.screw.lead_m) ** 2
+    t, v, acc = _profile()
+    if not with_accel:
+        acc = np.zeros_like(acc)
+    clean = mass * acc * v + 30.0 * np.abs(v) + 500.0 * v * v
+    rng = np.random.default_rng(7)
+    fits = [fit_loss_samples([_run(t, v, acc, clean + rng.normal(0.0, 0.5, t.size))],
+                             machine=machine, velocity='actual')['X'] for _ in range(300)]
+    assert all(f.ok and f.inertia_fitted == with_accel for f in fits)
+    got = np.array([[f.coulomb_n, f.viscous_n_s_m] for f in fits])
+    scatter = np.cov(got.T)
+    reported = np.mean([np.array(f.cov_loss) for f in fits], axis=0)
+    assert_allclose(np.sqrt(np.diag(reported)), np.sqrt(np.diag(scatter)), rtol=0.15)
+    corr = (lambda c: c[0, 1] / math.sqrt(c[0, 0] * c[1, 1]))
+    assert corr(reported) == pytest.approx(corr(scatter), abs=0.1)
+    fit = fits[0]
+    assert_allclose(np.sqrt(np.diag(np.array(fit.cov_loss))), [fit.coulomb_se, fit.viscous_se],
+                    rtol=1e-12)
+    fitted = machine_with_sample_fits(machine, {'X': fit})
+    cov = machine_from_dict(machine_to_dict(fitted), file='<test>').axis('X').loss_covariance
+    assert cov.params == ('coulomb_n', 'viscous_n_s_m') and cov.units == ('N', 'N*s/m')
+    assert_allclose(cov.array(), np.array(fit.cov_loss), rtol=1e-12)
