@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+from itertools import chain
 import json
 import math
 import os
@@ -219,19 +220,20 @@ class _Moves:
         self.n_lines = n_lines
 
     def __iter__(self):
+        # the moves of the checked batches, chained in C: no generator step per move
+        return chain.from_iterable(self.batches())
+
+    def batches(self):
+        """The moves in the interpreter's batches (lists), each checked before it is given
+        (:meth:`.gcode.MoveStream.batches`)."""
         progress, n_lines = self.progress, self.n_lines
-        count = 0
-        batch: list = []                # checked 4096 at a time (add_many: arrays)
-        for move in self.stream:
-            batch.append(move)
-            count += 1
-            if not count & 4095:
-                self._check(batch)
-                batch = []
-                if progress is not None:
-                    progress(min(move.line / n_lines, 1.0))
-            yield move
-        self._check(batch)
+        for batch in self.stream.batches():
+            if not batch:
+                continue
+            self._check(batch)
+            if progress is not None:
+                progress(min(batch[-1].line / n_lines, 1.0))
+            yield batch
 
     def _check(self, batch: list) -> None:
         if self.checker is not None and batch:
