@@ -67,6 +67,7 @@ EFFECTS = [{'id': 'standby', 'params': {'p0_w': 15.0}},
            {'id': 'braking_loss', 'params': {'fraction': 0.3}}]
 
 
+@pytest.mark.parametrize('per_line', [True, False])
 @pytest.mark.parametrize('braking', ['regenerative', 'dissipated'])
 @pytest.mark.parametrize('config,program,effects', [
     ('demonstrator.yaml', 'demonstrator_f300.nc', None),
@@ -74,7 +75,9 @@ EFFECTS = [{'id': 'standby', 'params': {'p0_w': 15.0}},
     ('three_axis_mill.yaml', None, None),
     ('three_axis_mill.yaml', None, EFFECTS),
 ])
-def test_causes_add_up_to_the_energy(config, program, effects, braking):
+def test_causes_add_up_to_the_energy(config, program, effects, braking, per_line):
+    # per_line=False: the sums are taken without a power row per cause (_add_sums); they
+    # must agree with the rows of the whole record (simulate_program, per line)
     machine = _machine(config, braking=braking, effects=effects)
     if program is None:
         prog = parse_gcode(MIXED, file='mixed.nc', home=machine.home_point())
@@ -83,17 +86,18 @@ def test_causes_add_up_to_the_energy(config, program, effects, braking):
     # 777 samples: chunk boundaries fall inside moves, arcs and the dwell
     chunks = []
     summary, blocks = simulate_stream(prog.moves, machine, file=prog.file, load_kg=20.0,
-                                      chunk_samples=777, block_breakdown=True,
+                                      chunk_samples=777, block_breakdown=per_line,
                                       on_chunk=chunks.append, top_blocks=3)
     assert len(chunks) > 3
-    _check_sums(summary, blocks)
+    _check_sums(summary, blocks if per_line else None)
     whole = summarize(simulate_program(prog, machine, load_kg=20.0), top_blocks=3)
     _check_sums(whole)
-    for cause, values in whole['energy_by_cause_j'].items():
-        for axis, value in values.items():
-            got = summary['energy_by_cause_j'][cause][axis]
-            assert abs(got - value) <= 1e-9 * max(abs(whole['energy_j']['total']), 1.0)
-    for block in summary['top_blocks']:
+    for key in ('energy_by_cause_j', 'gross_by_cause_j'):
+        for cause, values in whole[key].items():
+            for axis, value in values.items():
+                got = summary[key][cause][axis]
+                assert abs(got - value) <= 1e-9 * max(abs(whole['energy_j']['total']), 1.0)
+    for block in summary['top_blocks'] if per_line else ():
         assert math.isclose(sum(block['energy_by_cause_j'].values()), block['energy_j'],
                             rel_tol=1e-9, abs_tol=1e-9)
     names = summary['causes']
