@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
+from itertools import chain
 import json
 import math
 import os
@@ -24,6 +26,7 @@ BLOCK_TEXT_CHARS = 60    # block text shown in top_blocks (cut with '...')
 # the per-block breakdown costs 8 (axes + causes) bytes per program line; kept when the
 # program's lines need at most this much, or when an export needs the per-block table
 BLOCK_BREAKDOWN_BYTES = 16 << 20
+GC_THRESHOLD = 20_000   # first-generation threshold of the collector while streaming
 
 
 def _plot_rate(text: str) -> float:
@@ -222,19 +225,20 @@ class _Moves:
         self.n_lines = n_lines
 
     def __iter__(self):
+        # the moves of the checked batches, chained in C: no generator step per move
+        return chain.from_iterable(self.batches())
+
+    def batches(self):
+        """The moves in the interpreter's batches (lists), each checked before it is given
+        (:meth:`.gcode.MoveStream.batches`)."""
         progress, n_lines = self.progress, self.n_lines
-        count = 0
-        batch: list = []                # checked 4096 at a time (add_many: arrays)
-        for move in self.stream:
-            batch.append(move)
-            count += 1
-            if not count & 4095:
-                self._check(batch)
-                batch = []
-                if progress is not None:
-                    progress(min(move.line / n_lines, 1.0))
-            yield move
-        self._check(batch)
+        for batch in self.stream.batches():
+            if not batch:
+                continue
+            self._check(batch)
+            if progress is not None:
+                progress(min(batch[-1].line / n_lines, 1.0))
+            yield batch
 
     def _check(self, batch: list) -> None:
         if self.checker is not None and batch:
@@ -269,6 +273,19 @@ def _run_stream(args, machine, options, progress, *, trace=None,
     pass over the moves (parsing and planning without samples) gives the cost and the
     warnings before any output; otherwise the single pass checks as it goes and the
     warnings follow the simulation."""
+    # the moves (a tracked object each) live for a batch: with the default first threshold
+    # (700 allocations) the collector walks them again and again (about 2 % of a contour's
+    # instructions); cycles are still collected, less often
+    threshold = gc.get_threshold()
+    gc.set_threshold(max(threshold[0], GC_THRESHOLD), *threshold[1:])
+    try:
+        return _run_stream_gc(args, machine, options, progress, trace=trace, export=export)
+    finally:
+        gc.set_threshold(*threshold)
+
+
+def _run_stream_gc(args, machine, options, progress, *, trace=None,
+                   export=None) -> tuple[dict, list[str], object]:
     from feed_axis_energy.core.planstream import estimate_plan
     from feed_axis_energy.core.simstream import simulate_stream
     limits = machine.limits()

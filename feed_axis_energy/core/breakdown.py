@@ -239,8 +239,9 @@ class BreakdownAccumulator:
         m = int(t.shape[0])
         if m == 0:
             return
-        rows = cause_rows(dyn, mechanical_w, braking=braking, effects=effects,
-                          buffers=self._buffers, extra=extra, burned=burned)
+        if braking not in BRAKING_MODES:
+            msg = f'braking must be one of {", ".join(BRAKING_MODES)}, got {braking!r}'
+            raise ConfigError(msg, key='braking')
         k = len(dyn.axes)
         c = len(FIXED_CAUSES) + len(effects) + len(extra) + 1
         if self.energy is None:
@@ -266,6 +267,13 @@ class BreakdownAccumulator:
             w[0] += 0.5 * d0
             self.energy += 0.5 * d0 * self._last
             self.gross[self._signed] += 0.5 * d0 * np.maximum(self._last[self._signed], 0.0)
+        if not self.per_line:
+            self._last = self._add_sums(dyn, np.asarray(mechanical_w), braking,
+                                        list(effects) + list(extra), burned, w)
+            self._t_last = float(t[-1])
+            return
+        rows = cause_rows(dyn, mechanical_w, braking=braking, effects=effects,
+                          buffers=self._buffers, extra=extra, burned=burned)
         last = np.zeros((c, k))
         signed = range(4, c - 1)
         # einsum's own loop, not BLAS: a threaded BLAS burns CPU on a loaded machine
@@ -275,10 +283,82 @@ class BreakdownAccumulator:
                 positive = np.maximum(row, 0.0, out=self._work('positive', (1, m))[0])
                 self.gross[ci, j] += np.einsum('i,i', positive, w)
             last[ci, j] = row[-1]
-        if self.per_line:
-            self._add_lines(rows, k, c, dyn.line, dt, d0, first, m)
+        self._add_lines(rows, k, c, dyn.line, dt, d0, first, m)
         self._last = last
         self._t_last = float(t[-1])
+
+    def _add_sums(self, dyn: AxisDynamics, mech: np.ndarray, braking: str,
+                  effects: Sequence[tuple[str, np.ndarray]], burned: np.ndarray | None,
+                  w: np.ndarray) -> np.ndarray:
+        """The chunk's energy by cause and axis without a power array per cause (no
+        per-line table): each cause's weighted sum taken from the dynamics' columns
+        directly, the screw's as the rest of ``M·omega``. ``effects``: the declared effects
+        then the extra causes, in row order; ``burned`` as in :func:`cause_rows`. Equal to
+        the sums over :func:`cause_rows` to rounding. Returns the last sample's power per
+        cause."""
+        m = w.shape[0]
+        energy, gross = self.energy, self.gross
+        c, k = energy.shape
+        last = np.zeros((c, k))
+        tmp = self._work('positive', (1, m))[0]
+        v, a, loss, g = (dyn.velocity_m_s, dyn.acceleration_m_s2, dyn.loss_force_n,
+                         dyn.gravity_force_n)
+        om, al = dyn.omega_rad_s, dyn.alpha_rad_s2
+        for j in range(k):
+            vj = v[:, j]
+            mass, inertia = float(dyn.mass_kg[j]), float(dyn.inertia_kg_m2[j])
+            # einsum's own loop, not BLAS: a threaded BLAS burns CPU on a loaded machine
+            e_fric = float(np.einsum('i,i,i', loss[:, j], vj, w))
+            parts = [e_fric]
+            last[0, j] = loss[-1, j] * vj[-1]
+            for ci, x, y, factor in ((4, vj, a[:, j], mass), (5, om[:, j], al[:, j], inertia)):
+                prod = np.multiply(x, y, out=tmp)
+                e = factor * float(np.einsum('i,i', prod, w))
+                energy[ci, j] += e
+                parts.append(e)
+                np.maximum(prod, 0.0, out=prod)
+                gross[ci, j] += factor * float(np.einsum('i,i', prod, w))
+                last[ci, j] = x[-1] * factor * y[-1]
+            gj = g[:, j]
+            if gj.size and not (gj[0] == 0.0 and not np.any(gj)):
+                gv = np.multiply(gj, vj, out=tmp)
+                e_grav = float(np.einsum('i,i', gv, w))
+                parts.append(e_grav)
+                np.maximum(gv, 0.0, out=gv)
+                lift = float(np.einsum('i,i', gv, w))
+                energy[2, j] += lift
+                energy[3, j] += e_grav - lift
+                p_last = gj[-1] * vj[-1]
+                last[2, j], last[3, j] = max(p_last, 0.0), min(p_last, 0.0)
+            energy[0, j] += e_fric
+            if dyn.efficiency[j] != 1.0:
+                e_mech = float(np.einsum('i,i', mech[:, j], w))
+                energy[1, j] += e_mech - sum(parts)
+                last[1, j] = mech[-1, j] - sum(last[i, j] for i in (0, 2, 3, 4, 5))
+        signed_effect = len(FIXED_CAUSES)
+        for i, (_label, power) in enumerate(effects):
+            power = np.asarray(power)
+            ci = signed_effect + i
+            for j in range(k):
+                column = power[:, j]
+                if np.any(column):
+                    energy[ci, j] += float(np.einsum('i,i', column, w))
+                    positive = np.maximum(column, 0.0, out=tmp)
+                    gross[ci, j] += float(np.einsum('i,i', positive, w))
+                    last[ci, j] = column[-1]
+        ci = c - 1
+        if burned is not None:
+            for j in range(k):
+                column = burned[:, j]
+                if np.any(column):
+                    energy[ci, j] += float(np.einsum('i,i', column, w))
+                    last[ci, j] = column[-1]
+        elif braking == 'dissipated':
+            for j in range(k):
+                low = np.minimum(mech[:, j], 0.0, out=tmp)
+                energy[ci, j] -= float(np.einsum('i,i', low, w))
+                last[ci, j] = max(-mech[-1, j], 0.0)
+        return last
 
     def _add_lines(self, rows: list, k: int, c: int, line: np.ndarray, dt: np.ndarray,
                    d0: float, first: bool, m: int) -> None:

@@ -174,6 +174,14 @@ class MoveChecker:
         self.long_dwell_s = 0.0
         self._axes = [(i, name, limits.travel_m.get(name), limits.velocity_m_s.get(name))
                       for i, name in enumerate(PROGRAM_AXES)]
+        inf = float('inf')
+        travel = [t for _, _, t, _ in self._axes]
+        speed = [v for _, _, _, v in self._axes]
+        # the thresholds of _add_straight per axis, as add() computes them (none: inf)
+        self._bounds = (
+            np.array([-inf if t is None else t[0] - _TRAVEL_MARGIN_M for t in travel]),
+            np.array([inf if t is None else t[1] + _TRAVEL_MARGIN_M for t in travel]),
+            np.array([inf if v is None else v * _FEED_MARGIN for v in speed]))
 
     def add(self, move: Move) -> None:
         """Check one move."""
@@ -264,17 +272,23 @@ class MoveChecker:
         lo = np.minimum(start, end)
         hi = np.maximum(start, end)
         usable = ~rapid & np.isfinite(feed) & (feed > 0.0) & (length > 0.0)
-        for i, name, travel, vmax in self._axes:
-            if travel is not None:
-                self._note_many(self.travel, (name, 'min'), line, lo[:, i],
-                                lo[:, i] < travel[0] - _TRAVEL_MARGIN_M, lower=True)
-                self._note_many(self.travel, (name, 'max'), line, hi[:, i],
-                                hi[:, i] > travel[1] + _TRAVEL_MARGIN_M, lower=False)
-            if vmax is not None:
-                with np.errstate(invalid='ignore', divide='ignore'):
-                    v = np.where(usable, feed * np.abs(d[:, i]) / length, 0.0)
-                self._note_many(self.feed, name, line, v, v > vmax * _FEED_MARGIN,
+        # all axes at once (no limit: +-inf); a note only for an axis with a hit
+        below, above, fast = self._bounds
+        lo_hit = lo < below
+        hi_hit = hi > above
+        with np.errstate(invalid='ignore', divide='ignore'):
+            v = np.where(usable[:, None], feed[:, None] * np.abs(d) / length[:, None], 0.0)
+        v_hit = v > fast
+        lo_any, hi_any, v_any = (h.any(axis=0).tolist() for h in (lo_hit, hi_hit, v_hit))
+        for i, name, _travel, _vmax in self._axes:
+            if lo_any[i]:
+                self._note_many(self.travel, (name, 'min'), line, lo[:, i], lo_hit[:, i],
+                                lower=True)
+            if hi_any[i]:
+                self._note_many(self.travel, (name, 'max'), line, hi[:, i], hi_hit[:, i],
                                 lower=False)
+            if v_any[i]:
+                self._note_many(self.feed, name, line, v[:, i], v_hit[:, i], lower=False)
 
     @staticmethod
     def _note_many(table: dict, key: object, line: np.ndarray, value: np.ndarray,

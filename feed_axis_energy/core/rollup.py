@@ -14,8 +14,10 @@ line is also the line of the next run, the context may change a run early.
 """
 from __future__ import annotations
 
-from collections import deque
-from collections.abc import Iterable, Iterator
+from bisect import bisect_right
+from collections.abc import Iterable, Iterator, Sequence
+from itertools import chain, islice
+from operator import attrgetter
 from typing import Any
 
 import numpy as np
@@ -25,6 +27,16 @@ from .program import Move
 __all__ = ['RollupAccumulator', 'NO_TOOL']
 
 NO_TOOL = 'no tool'
+NOTE_BATCH = 4096
+"""Moves noted at a time by :meth:`RollupAccumulator.wrap` from a plain iterable."""
+_NO_MARKS = [(0, 0)]
+_LINE = attrgetter('line')
+
+
+def _lists(it: Iterator[Move], size: int) -> Iterator[list[Move]]:
+    """The items of ``it`` in lists of ``size``."""
+    while batch := list(islice(it, size)):
+        yield batch
 
 
 class RollupAccumulator:
@@ -39,7 +51,15 @@ class RollupAccumulator:
 
     def __init__(self, context: Any = None) -> None:
         self.context = context
-        self._pending: deque[tuple[int, int]] = deque()    # (line, context) per move
+        # the notes: the line of every move from ordinal ``_popped - _at`` on, and the
+        # ordinals where the context changes (``_change_at``, ascending) with the new one
+        self._lines: list[int] = []
+        self._at = 0                # index in _lines of the first note not left behind
+        self._noted = 0             # moves noted
+        self._mark = 0              # marks of the context read so far
+        self._noted_ctx = 0         # context of the last note
+        self._change_at: list[int] = [0]
+        self._change_ctx: list[int] = [0]
         self._popped = 0            # moves left behind
         self._last_change = -1      # ordinal of the last note whose context differs
         self._ctx = 0               # context of the samples now
@@ -51,34 +71,72 @@ class RollupAccumulator:
 
     # -- the move side ----------------------------------------------------------------------
     def wrap(self, moves: Iterable[Move]) -> Iterator[Move]:
-        """The moves unchanged, noting each one's line and context as it is taken."""
+        """The moves unchanged, noting each one's line and context as it is taken.
+
+        Taken a list at a time: from ``moves.batches()`` where it exists (a
+        :class:`.gcode.MoveStream` or what wraps it; the context's marks are complete up to
+        the end of each list), else in lists of :data:`NOTE_BATCH` moves; the moves are
+        then chained in C, without a generator step or a tuple per move.
+        """
+        batches = getattr(moves, 'batches', None)
+        lists = batches() if batches is not None else _lists(iter(moves), NOTE_BATCH)
+        return chain.from_iterable(self._noted_lists(lists))
+
+    def _noted_lists(self, lists: Iterable[list[Move]]) -> Iterator[list[Move]]:
+        for moves in lists:
+            self.note(moves)
+            yield moves
+
+    def note(self, moves: Sequence[Move]) -> None:
+        """Note the next moves (in program order, once they all exist): their lines, and
+        the context changes the marks give for their ordinals."""
+        first = self._noted
+        end = first + len(moves)
         ctx = self.context
-        marks = ctx.marks if ctx is not None else [(0, 0)]
-        pending = self._pending
-        # marks are read only once their move exists (a mark may be replaced before)
-        j = 0
-        current = last = 0
-        for ordinal, move in enumerate(moves):
-            while j < len(marks) and marks[j][0] <= ordinal:
+        marks = ctx.marks if ctx is not None else _NO_MARKS
+        j = self._mark
+        current = self._noted_ctx
+        while j < len(marks) and marks[j][0] < end:
+            # every mark up to a move's ordinal applies from that move on; several at one
+            # ordinal: the last one
+            at = max(marks[j][0], first)
+            current = marks[j][1]
+            j += 1
+            while j < len(marks) and max(marks[j][0], first) == at:
                 current = marks[j][1]
                 j += 1
-            if current != last:
-                self._last_change = ordinal
-                last = current
-            pending.append((move.line, current))
-            yield move
+            if current != self._noted_ctx:
+                self._noted_ctx = current
+                self._last_change = at
+                self._change_at.append(at)
+                self._change_ctx.append(current)
+        self._mark = j
+        self._lines.extend(map(_LINE, moves))
+        self._noted = end
+
+    def _ctx_at(self, ordinal: int) -> int:
+        """The context of the note ``ordinal``."""
+        return self._change_ctx[bisect_right(self._change_at, ordinal) - 1]
 
     # -- the sample side --------------------------------------------------------------------
     def _advance_to(self, line: int) -> None:
         """Make the first note with ``line`` the current one (none: stay)."""
-        pending = self._pending
-        for i, (ln, _c) in enumerate(pending):
-            if ln == line:
-                for _ in range(i):
-                    pending.popleft()
-                self._popped += i
-                self._ctx = pending[0][1]
-                return
+        lines = self._lines
+        try:
+            i = lines.index(line, self._at)
+        except ValueError:
+            return
+        self._popped += i - self._at
+        self._at = i
+        self._ctx = self._ctx_at(self._popped)
+        if i > 4096 and 2 * i > len(lines):
+            # forget the notes left behind (and the changes before the current one)
+            del lines[:i]
+            self._at = 0
+            keep = bisect_right(self._change_at, self._popped) - 1
+            if keep > 0:
+                del self._change_at[:keep]
+                del self._change_ctx[:keep]
 
     def _grow(self, size: int) -> None:
         if size > self.energy.shape[0]:
@@ -112,8 +170,8 @@ class RollupAccumulator:
         if self._last_change <= self._popped:
             # every note ahead has the current context: the whole chunk is one context,
             # and its energy and time are the increments of the cumulative series
-            if self._pending:
-                self._ctx = self._pending[0][1]
+            if self._at < len(self._lines):
+                self._ctx = self._ctx_at(self._popped)
             self._advance_to(int(keys[-1]))
             self._grow(self._ctx + 1)
             self.energy[self._ctx] += float(p.total_energy_j[-1]) - e0

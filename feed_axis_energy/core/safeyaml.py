@@ -6,7 +6,10 @@ Every YAML file the core reads (machine configs, campaign manifests, a bag's
 * the file must be a regular file and is read as bytes, at most ``max_bytes``
   (:data:`MAX_BYTES` by default), then decoded as UTF-8; a bad byte is named by line and
   column;
-* it is parsed by PyYAML's pure-Python safe loader (only plain data: mappings, lists,
+* a text in the small subset of :mod:`.yamlsubset` (plain block mappings of numbers and
+  names, as the machine configs are) is read there without importing PyYAML, to the same
+  data PyYAML would build (start-up time, issue 10); every other text is parsed by
+  PyYAML's pure-Python safe loader (:mod:`.yamlload`; only plain data: mappings, lists,
   text, numbers, booleans, null, timestamps), with two limits that PyYAML lacks:
 
   - nesting deeper than :data:`MAX_DEPTH` levels is refused while composing, so no
@@ -27,10 +30,8 @@ from pathlib import Path
 import stat
 from typing import Any
 
-import yaml
-from yaml.nodes import MappingNode, Node, SequenceNode
-
-from .errors import ConfigError, DataError, shorten
+from .errors import ConfigError, DataError
+from .yamlsubset import parse_subset
 
 __all__ = ['MAX_BYTES', 'MAX_DEPTH', 'MAX_EXPANDED_NODES', 'load_yaml_file', 'load_yaml_text',
            'read_text_file']
@@ -41,93 +42,6 @@ MAX_DEPTH = 50
 """Deepest nesting of mappings and lists accepted (our files use at most 6 levels)."""
 MAX_EXPANDED_NODES = 200_000
 """Most values a document may hold once every alias is expanded."""
-
-
-class _LimitExceeded(Exception):
-    """Raised inside the loader; turned into the caller's error type with the place."""
-
-    def __init__(self, message: str, mark: Any = None):
-        super().__init__(message)
-        self.mark = mark
-
-
-class _BoundedLoader(yaml.SafeLoader):
-    """PyYAML's safe loader with a nesting limit and alias bookkeeping."""
-
-    def __init__(self, stream: str):
-        super().__init__(stream)
-        self._depth = 0
-        self.aliases = 0
-
-    def compose_node(self, parent: Node | None, index: Any) -> Node:
-        if self.check_event(yaml.AliasEvent):
-            self.aliases += 1
-            return super().compose_node(parent, index)
-        self._depth += 1
-        try:
-            if self._depth > MAX_DEPTH:
-                msg = f'nested deeper than {MAX_DEPTH} levels'
-                raise _LimitExceeded(msg, self.peek_event().start_mark)
-            return super().compose_node(parent, index)
-        finally:
-            self._depth -= 1
-
-
-def _expanded_size(root: Node, budget: int) -> int:
-    """Count the values of ``root`` with aliases expanded; stop once above ``budget``."""
-    sizes: dict[int, int] = {}
-    on_path: set[int] = set()
-    # iterative post-order walk: (node, children done?)
-    stack: list[tuple[Node, bool]] = [(root, False)]
-    while stack:
-        node, done = stack.pop()
-        key = id(node)
-        if done:
-            on_path.discard(key)
-            total = 1 + sum(sizes[id(c)] for c in _children(node))
-            sizes[key] = total
-            if total > budget:
-                return total
-            continue
-        if key in sizes:
-            continue
-        if key in on_path:
-            raise _LimitExceeded('an alias refers to the node that contains it (recursive '
-                                 'alias)', node.start_mark)
-        on_path.add(key)
-        stack.append((node, True))
-        for child in _children(node):
-            if id(child) in on_path:
-                raise _LimitExceeded('an alias refers to the node that contains it '
-                                     '(recursive alias)', child.start_mark)
-            if id(child) not in sizes:
-                stack.append((child, False))
-    return sizes[id(root)]
-
-
-def _children(node: Node) -> list[Node]:
-    if isinstance(node, SequenceNode):
-        return list(node.value)
-    if isinstance(node, MappingNode):
-        return [n for pair in node.value for n in pair]
-    return []
-
-
-def _where(mark: Any) -> str:
-    if mark is None:
-        return ''
-    return f'line {mark.line + 1}, column {mark.column + 1}: '
-
-
-def _yaml_message(err: yaml.YAMLError) -> str:
-    mark = getattr(err, 'problem_mark', None)
-    problem = getattr(err, 'problem', None)
-    if problem is None:
-        # the first line only: PyYAML appends a quoted excerpt of the input
-        problem = str(err).splitlines()[0] if str(err) else type(err).__name__
-    context = getattr(err, 'context', None)
-    text = f'{context}: {problem}' if context else str(problem)
-    return f'{_where(mark)}not valid YAML: {shorten(text, limit=120)}'
 
 
 def load_yaml_text(text: str, *, file: str, error: type = ConfigError) -> Any:
@@ -154,38 +68,12 @@ def load_yaml_text(text: str, *, file: str, error: type = ConfigError) -> Any:
         :data:`MAX_EXPANDED_NODES`, a recursive alias or a value PyYAML cannot build (such
         as a date that does not exist), naming line and column where known.
     """
-    try:
-        loader = _BoundedLoader(text)
-    except yaml.reader.ReaderError as err:
-        pos = int(err.position)
-        line = text.count('\n', 0, pos) + 1
-        column = pos - (text.rfind('\n', 0, pos) + 1) + 1
-        msg = (f'line {line}, column {column}: character U+{int(err.character):04X} is not '
-               'allowed in YAML (control character); expected printable text')
-        raise _make(error, msg, file) from None
-    try:
-        node = loader.get_single_node()
-        if node is None:
-            return None
-        if loader.aliases:
-            size = _expanded_size(node, MAX_EXPANDED_NODES)
-            if size > MAX_EXPANDED_NODES:
-                msg = (f'{loader.aliases} aliases (*name) expand the document to more than '
-                       f'{MAX_EXPANDED_NODES} values; expected plain data (write the values '
-                       'out, or use fewer nested aliases)')
-                raise _LimitExceeded(msg)
-        return loader.construct_document(node)
-    except _LimitExceeded as err:
-        raise _make(error, f'{_where(err.mark)}{err}', file) from None
-    except yaml.YAMLError as err:
-        raise _make(error, _yaml_message(err), file) from None
-    except (ValueError, OverflowError, TypeError) as err:
-        # PyYAML's constructors let these through, e.g. a timestamp 2024-13-45 or an
-        # integer of more than 4300 digits
-        msg = f'not valid YAML: a value cannot be read ({shorten(str(err), limit=120)})'
-        raise _make(error, msg, file) from None
-    finally:
-        loader.dispose()
+    data = parse_subset(text, max_depth=MAX_DEPTH - 1)
+    if data is not None:
+        return data
+    from .yamlload import load_pyyaml
+    return load_pyyaml(text, file=file, make_error=lambda message, f: _make(error, message, f),
+                       max_depth=MAX_DEPTH, max_expanded=MAX_EXPANDED_NODES)
 
 
 def read_text_file(path: str | Path, *, error: type = ConfigError, what: str = 'file',

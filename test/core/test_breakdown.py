@@ -67,6 +67,7 @@ EFFECTS = [{'id': 'standby', 'params': {'p0_w': 15.0}},
            {'id': 'braking_loss', 'params': {'fraction': 0.3}}]
 
 
+@pytest.mark.parametrize('per_line', [True, False])
 @pytest.mark.parametrize('braking', ['regenerative', 'dissipated'])
 @pytest.mark.parametrize('config,program,effects', [
     ('demonstrator.yaml', 'demonstrator_f300.nc', None),
@@ -74,7 +75,9 @@ EFFECTS = [{'id': 'standby', 'params': {'p0_w': 15.0}},
     ('three_axis_mill.yaml', None, None),
     ('three_axis_mill.yaml', None, EFFECTS),
 ])
-def test_causes_add_up_to_the_energy(config, program, effects, braking):
+def test_causes_add_up_to_the_energy(config, program, effects, braking, per_line):
+    # per_line=False: the sums are taken without a power row per cause (_add_sums); they
+    # must agree with the rows of the whole record (simulate_program, per line)
     machine = _machine(config, braking=braking, effects=effects)
     if program is None:
         prog = parse_gcode(MIXED, file='mixed.nc', home=machine.home_point())
@@ -83,17 +86,18 @@ def test_causes_add_up_to_the_energy(config, program, effects, braking):
     # 777 samples: chunk boundaries fall inside moves, arcs and the dwell
     chunks = []
     summary, blocks = simulate_stream(prog.moves, machine, file=prog.file, load_kg=20.0,
-                                      chunk_samples=777, block_breakdown=True,
+                                      chunk_samples=777, block_breakdown=per_line,
                                       on_chunk=chunks.append, top_blocks=3)
     assert len(chunks) > 3
-    _check_sums(summary, blocks)
+    _check_sums(summary, blocks if per_line else None)
     whole = summarize(simulate_program(prog, machine, load_kg=20.0), top_blocks=3)
     _check_sums(whole)
-    for cause, values in whole['energy_by_cause_j'].items():
-        for axis, value in values.items():
-            got = summary['energy_by_cause_j'][cause][axis]
-            assert abs(got - value) <= 1e-9 * max(abs(whole['energy_j']['total']), 1.0)
-    for block in summary['top_blocks']:
+    for key in ('energy_by_cause_j', 'gross_by_cause_j'):
+        for cause, values in whole[key].items():
+            for axis, value in values.items():
+                got = summary[key][cause][axis]
+                assert abs(got - value) <= 1e-9 * max(abs(whole['energy_j']['total']), 1.0)
+    for block in summary['top_blocks'] if per_line else ():
         assert math.isclose(sum(block['energy_by_cause_j'].values()), block['energy_j'],
                             rel_tol=1e-9, abs_tol=1e-9)
     names = summary['causes']
@@ -204,3 +208,35 @@ def test_dissipated_braking_burns_what_the_axis_returns():
     assert math.isclose(s['energy_j']['X'], put_in, rel_tol=1e-6)
     assert math.isclose(by[BRAKING_CAUSE]['X'], put_in, rel_tol=1e-3)
     assert by['friction']['X'] == 0.0
+
+
+@pytest.mark.parametrize('braking', ['regenerative', 'dissipated'])
+@pytest.mark.parametrize('given_burned', [False, True])
+def test_sums_without_rows_equal_the_rows_with_extra_causes_and_a_given_burned_row(
+        braking, given_burned):
+    # the summary's fast path (no per-line table: _add_sums) and the per-row path must give
+    # the same energy, gross energy and cause names with extra causes after the effects (the
+    # electrical losses) and a burned row handed in by the caller
+    from feed_axis_energy.core.breakdown import BreakdownAccumulator
+    machine = _machine('three_axis_mill.yaml', braking=braking)
+    result = simulate_program(parse_gcode(MIXED), machine, load_kg=20.0)
+    dyn, mech = result.dynamics, result.power.mechanical_w
+    n, k = mech.shape
+    rng = np.random.default_rng(3)
+    effects = [('standby', np.full((n, k), 2.0))]
+    extra = [('copper', rng.uniform(0.0, 5.0, (n, k))),
+             ('converter', rng.uniform(-1.0, 3.0, (n, k)))]
+    burned = rng.uniform(0.0, 4.0, (n, k)) if given_burned else None
+    accs = [BreakdownAccumulator(per_line=flag) for flag in (True, False)]
+    for acc in accs:
+        acc.add(dyn, mech, braking=braking, effects=effects, extra=extra, burned=burned)
+    rows, sums = accs
+    assert rows.causes == sums.causes and rows.causes[-1] == BRAKING_CAUSE
+    scale = float(np.abs(rows.energy).max())
+    np.testing.assert_allclose(sums.energy, rows.energy, rtol=0, atol=1e-12 * scale)
+    np.testing.assert_allclose(sums.gross, rows.gross, rtol=0, atol=1e-12 * scale)
+    burned_j = rows.energy[-1]
+    if given_burned or braking == 'dissipated':
+        assert np.all(burned_j > 0.0)
+    else:
+        assert np.all(burned_j == 0.0)

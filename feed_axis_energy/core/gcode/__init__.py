@@ -213,6 +213,14 @@ class MoveStream:
 
     def __iter__(self) -> Iterator[Move]:
         """The moves in order (the file is open while the iteration runs)."""
+        for batch in self.batches():
+            yield from batch
+
+    def batches(self) -> Iterator[list[Move]]:
+        """The moves in order as the interpreter hands them on, in lists of about ``batch``
+        moves (:func:`iter_moves`); the context's marks are complete up to the last move
+        of the list just given. A consumer that takes lists saves a generator step per
+        move."""
         name = self.file
         try:
             fh = open(self._path, encoding='utf-8-sig', newline=None)
@@ -223,8 +231,7 @@ class MoveStream:
             self.context.reset()                  # the same object: callers hold it
             self._run = GcodeRun(stream=fh, file=name, context=self.context, **self._kw)
             try:
-                for batch in self._run:
-                    yield from batch
+                yield from self._run
             except UnicodeDecodeError:
                 read_program(self._path, file=name)     # raises, naming line and column
                 raise
