@@ -260,9 +260,9 @@ CATALOG = {
 
 # Outside the catalog.
 def _out_backlash(s: State) -> np.ndarray:
-    # reversal spike: the nut's preload/backlash takes up over the first 4 mm of a new
+    # reversal spike: the nut's preload/backlash takes up over the first 6 mm of a new
     # direction (a decaying force pulse after every reversal)
-    return np.exp(-s.reversal_s / 0.004) * np.sign(s.v)
+    return np.exp(-s.reversal_s / 0.006) * np.sign(s.v)
 
 
 def _out_cogging(s: State) -> np.ndarray:
