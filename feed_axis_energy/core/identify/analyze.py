@@ -47,7 +47,7 @@ from ..measured.csvload import load_run
 from ..measured.campaign import Campaign
 from .consistency import heterogeneity, label, select_consistent
 from .diagnostics import binned_structure, Diagnostic, noise_sigma, spectrum_structure
-from .meteralt import meter_alternative, meter_columns
+from .alternatives import check_alternatives
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -342,14 +342,13 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         refine=lambda block, others: _refine_shape(design, data, block, others))
     blocks, steps, rejected = list(chosen.blocks), chosen.steps, list(chosen.rejected)
     fates = chosen.fates
-    meter = meter_alternative(
-        design, blocks, [meter_columns(r.state.t, r.state.power_w, r.sim_index, r.aligned)
-                         for r in data], axes=axes) if blocks else None
-    if meter is not None:
-        # a meter gain or lag fits as well: no catalog effect is claimed
-        rejected.append(meter)
+    alt = check_alternatives(design, blocks, [(r.state, r.sim_index, r.aligned) for r in data],
+                             axes=axes)
+    if alt is not None:
+        # something outside the catalog fits as well: no catalog effect is claimed
+        rejected.append(alt)
         claimed = {b.key for b in blocks}
-        fates = tuple(replace(f, fate='not_claimed', reason=meter['message'])
+        fates = tuple(replace(f, fate='not_claimed', reason=alt['message'])
                       if (f.effect, f.axis) in claimed else f for f in fates)
         blocks = []
     report(0.85)

@@ -96,7 +96,7 @@ def test_meter_averages_and_delays(tm, axis):
     assert y2[-1] == pytest.approx(10.2)
 
 
-@pytest.mark.parametrize('case', ['clean', 'load_friction', 'meter_gain', 'pump'])
+@pytest.mark.parametrize('case', ['clean', 'load_friction', 'meter_gain', 'backlash', 'pump'])
 def test_truth_rig_subset_names_right_without_misalignment(study, tmp_path, case):
     # one seed of a few hidden cases: a false attribution or a misaligned run fails
     axis = study.tm.read_axis(study.MACHINE)
