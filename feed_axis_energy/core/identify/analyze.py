@@ -30,7 +30,7 @@ parameters are found by a profile search and carry no uncertainty (``None``).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 
 import numpy as np
@@ -47,6 +47,7 @@ from ..measured.csvload import load_run
 from ..measured.campaign import Campaign
 from .consistency import heterogeneity, label, select_consistent
 from .diagnostics import binned_structure, Diagnostic, noise_sigma, spectrum_structure
+from .alternatives import check_alternatives
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -345,6 +346,16 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         structured0=structured0, noise_ss=noise_ss, sigma2=sigma2,
         refine=lambda block, others: _refine_shape(design, data, block, others))
     blocks, steps, rejected = list(chosen.blocks), chosen.steps, list(chosen.rejected)
+    fates = chosen.fates
+    alt = check_alternatives(design, blocks, [(r.state, r.sim_index, r.aligned) for r in data],
+                             axes=axes)
+    if alt is not None:
+        # something outside the catalog fits as well: no catalog effect is claimed
+        rejected.append(alt)
+        claimed = {b.key for b in blocks}
+        fates = tuple(replace(f, fate='not_claimed', reason=alt['message'])
+                      if (f.effect, f.axis) in claimed else f for f in fates)
+        blocks = []
     report(0.85)
 
     cols = [c for b in blocks for c in b.cols]
@@ -468,7 +479,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra,
         augmented=tuple(augmented_outcome(c) for c in augmented),
         alignment_warnings=tuple(cmp.warnings),
-        candidates=chosen.fates, warnings=tuple(warnings),
+        candidates=fates, warnings=tuple(warnings),
         calibrated={a: observed_range(u) for a, u in uses.items()}, rounds=chosen.rounds,
         cap_reached=chosen.cap_reached)
 
