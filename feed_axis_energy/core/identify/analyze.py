@@ -45,7 +45,8 @@ from ..measured.compare import (_MotionCache, _simulate, compare_campaign, offse
                                 RunComparison)
 from ..measured.csvload import load_run
 from ..measured.campaign import Campaign
-from .consistency import heterogeneity, label, select_consistent
+from .ambiguity import AmbiguousGroup, find_groups, form_text
+from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import binned_structure, Diagnostic, noise_sigma, spectrum_structure
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
@@ -143,17 +144,21 @@ def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
 def _block(runs: Sequence[_Run], effect_id: str, axis_j: int, shape: Mapping[str, float]):
     """Names, per-run columns and physical bounds of one candidate.
 
-    Columns that are zero, or whose largest value is below 1 % of the block's strongest
-    column (the far tail of a position bump), are left out: they carry no information, and
-    a fit on them would give huge, meaningless coefficients.
+    Columns that are zero, or whose largest value is below 1 % of the strongest column of
+    the block *in the same unit* (the far tail of a position bump), are left out: they
+    carry no information, and a fit on them would give huge, meaningless coefficients.
+    Columns in different units are not compared: ``iron``'s ``|omega|`` column is about
+    ``1/omega`` of its ``omega²`` column and carries half of the effect.
     """
     effect = get_effect(effect_id)
     cols = [_columns(r, effect_id, axis_j, shape) for r in runs]
     p = len(effect.linear_params())
     peak = np.array([max((float(np.max(np.abs(c[:, i]))) if c.shape[0] else 0.0)
                          for c in cols) for i in range(p)]) if cols else np.zeros(p)
-    top = float(peak.max()) if p else 0.0
-    used = [i for i in range(p) if peak[i] > 0.0 and peak[i] >= 0.01 * top]
+    units = [next(q.unit for q in effect.params if q.name == n)
+             for n in effect.linear_params()]
+    top = {u: max(float(peak[i]) for i in range(p) if units[i] == u) for u in set(units)}
+    used = [i for i in range(p) if peak[i] > 0.0 and peak[i] >= 0.01 * top[units[i]]]
     lo, hi = effect.linear_bounds()
     names = tuple(effect.linear_params()[i] for i in used)
     return names, [c[:, used] for c in cols], (lo[used], hi[used])
@@ -398,6 +403,11 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
             heterogeneity=heterogeneity(design, blocks, i, sigma2)[0],
             aliases=tuple(aliases)))
 
+    # selected effects whose power other candidates reproduce within the noise: one finding
+    periods = [float(np.median(np.diff(r.cmp.t))) if r.cmp.t.size > 1 else 0.0 for r in data]
+    groups = find_groups(design, blocks, theta, sigma2=sigma2,
+                         keys=[(e, a) for e in ids for a in axes], periods_s=periods, axes=axes)
+
     # in-sample residual after (diagnostics, at the baseline offset); the before/after
     # figures are fresh comparisons with the effects declared, offsets estimated anew
     # (:mod:`.realign`)
@@ -445,7 +455,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
                             position_m=r.states['position'][:, j]) for r in data]
             for j, axis in enumerate(axes)}
     warnings = machine_warnings(machine, uses)
-    status, message = _verdict(fitted, unexplained, steps, data, folds, explained)
+    status, message = _verdict(fitted, unexplained, steps, data, folds, explained, groups)
     if chosen.cap_reached:
         message += (f'; the consistency loop reached its cap of {options.max_rounds} rounds '
                     '(kept the effects consistent in its last round; see candidates)')
@@ -458,14 +468,25 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra,
         augmented=tuple(augmented_outcome(c) for c in augmented),
         alignment_warnings=tuple(cmp.warnings),
-        candidates=chosen.fates, warnings=tuple(warnings),
+        candidates=mark_groups(chosen.fates, groups), warnings=tuple(warnings),
+        ambiguous=tuple(groups),
         calibrated={a: observed_range(u) for a, u in uses.items()}, rounds=chosen.rounds,
         cap_reached=chosen.cap_reached)
 
 
-def _verdict(fitted, unexplained, steps, data, folds, explained) -> tuple[str, str]:
+def _found(fitted: Sequence[FittedEffect], groups: Sequence[AmbiguousGroup]) -> str:
+    """What was added, in words: an effect of an ambiguous group is never named alone."""
+    grouped = {m for g in groups for m in g.selected}
+    parts = [f'{e.id} on {e.axis}' for e in fitted if label((e.id, e.axis)) not in grouped]
+    parts += [f'a loss on {g.axis} that these data cannot attribute to one effect '
+              f'({form_text(g)})' for g in groups]
+    return ', '.join(parts)
+
+
+def _verdict(fitted, unexplained, steps, data, folds, explained,
+             groups=()) -> tuple[str, str]:
     n_test = len({r for _, test in folds for r in test})
-    names = ', '.join(f'{e.id} on {e.axis}' for e in fitted)
+    names = _found(fitted, groups)
     share = (f' ({100 * explained:.0f} % of the structured residual explained)'
              if math.isfinite(explained) else '')
     if n_test < 2:

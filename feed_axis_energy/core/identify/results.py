@@ -14,6 +14,7 @@ from ..effects import get_effect
 from ..machine import DeclaredEffect, Machine
 from ..measured.compare import json_clean
 from ..measured.metrics import group_metrics, Metrics
+from .ambiguity import AmbiguousGroup
 from .consistency import Fate
 from .diagnostics import Diagnostic
 from .selection import Step
@@ -195,6 +196,9 @@ class AnalysisResult:
         added effect into the augmented machine (``calibrated``).
     rounds, cap_reached
         Rounds of the consistency loop and whether its cap was reached.
+    ambiguous
+        Findings the data cannot attribute to one effect (:mod:`.ambiguity`): selected
+        effects whose power other candidates reproduce within the noise, with their forms.
     """
 
     status: str
@@ -221,6 +225,7 @@ class AnalysisResult:
     calibrated: dict[str, CalibratedRange | None] = field(default_factory=dict)
     rounds: int = 0
     cap_reached: bool = False
+    ambiguous: tuple[AmbiguousGroup, ...] = ()
 
     @property
     def heldout_runs(self) -> tuple[RunOutcome, ...]:
@@ -281,6 +286,7 @@ class AnalysisResult:
             'before': metrics('before'),
             'after': metrics('after'),
             'effects': [e.to_dict() for e in self.effects],
+            'ambiguous': [g.to_dict() for g in self.ambiguous],
             'augmented': list(self.augmented),
             'alignment_warnings': list(self.alignment_warnings),
             'unexplained': [dict(u) for u in self.unexplained],
