@@ -35,7 +35,7 @@ from scipy import stats
 from .selection import Block, Design, solve_normal
 
 __all__ = ['EQUIVALENCE_ALPHA', 'MAX_FORM_SIZE', 'EquivalentForm', 'AmbiguousGroup',
-           'find_groups', 'form_text']
+           'find_groups', 'form_text', 'found_text']
 
 EQUIVALENCE_ALPHA = 1e-3
 """Probability below which a projection residual counts as evidence for the effect's shape."""
@@ -128,6 +128,19 @@ def form_text(group: AmbiguousGroup) -> str:
     for f in group.forms:
         parts.setdefault(f.replaces, []).append(short(f.members))
     return '; '.join(' = '.join([short(rep)] + alts) for rep, alts in parts.items())
+
+
+def found_text(effects: Sequence[Any], groups: Sequence[AmbiguousGroup]) -> str:
+    """What was added, in words (``effects`` have ``id`` and ``axis``).
+
+    A selected effect of an ambiguous group is never named alone: the group is named as a
+    loss of one shape with its forms.
+    """
+    grouped = {m for g in groups for m in g.selected}
+    parts = [f'{e.id} on {e.axis}' for e in effects if f'{e.id}@{e.axis}' not in grouped]
+    parts += [f'a loss on {g.axis} that these data cannot attribute to one effect '
+              f'({form_text(g)})' for g in groups]
+    return ', '.join(parts)
 
 
 def _residual(gram: np.ndarray, target: np.ndarray, cols: list[int], lower: np.ndarray,

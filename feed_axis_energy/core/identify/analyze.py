@@ -45,9 +45,9 @@ from ..measured.compare import (_MotionCache, _simulate, compare_campaign, offse
                                 RunComparison)
 from ..measured.csvload import load_run
 from ..measured.campaign import Campaign
-from .ambiguity import AmbiguousGroup, find_groups, form_text
+from .ambiguity import find_groups, found_text
 from .consistency import heterogeneity, label, mark_groups, select_consistent
-from .diagnostics import binned_structure, Diagnostic, noise_sigma, spectrum_structure
+from .diagnostics import diagnose_runs, noise_sigma
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -239,37 +239,6 @@ def _axis_index(runs: Sequence[_Run], axis: str) -> int:
     return list(runs[0].cmp.axes).index(axis)
 
 
-# ----------------------------------------------------------------------------- diagnostics
-
-def _diagnose(runs: Sequence[_Run], residuals: Sequence[np.ndarray],
-              sigmas: Mapping[str, float]) -> tuple[list[Diagnostic], dict]:
-    out: list[Diagnostic] = []
-    spectra = {}
-    axes = runs[0].cmp.axes
-    for j, axis in enumerate(axes):
-        y = np.concatenate([res[:, j] for res in residuals])
-        for name in STATE_NAMES:
-            x = np.concatenate([r.states[name][:, j] for r in runs])
-            out.append(binned_structure(y, x, sigma=sigmas[axis], name=name, axis=axis))
-        # the sampling period (the window may be 0: point samples)
-        period = float(np.median([np.median(np.diff(r.cmp.t)) for r in runs]))
-        out.append(spectrum_structure([res[:, j] for res in residuals], period_s=period,
-                                      sigma=sigmas[axis], axis=axis))
-        spectra[axis] = _avg_spectrum([res[:, j] for res in residuals], period)
-    return out, spectra
-
-
-def _avg_spectrum(series: Sequence[np.ndarray], period: float) -> tuple[np.ndarray, np.ndarray]:
-    from scipy import signal
-    runs = [s for s in series if s.size >= 16]
-    if not runs:
-        return np.zeros(0), np.zeros(0)
-    seg = int(min(256, min(s.size for s in runs)))
-    psd = [signal.welch(s, fs=1.0 / period, nperseg=seg, scaling='spectrum')[1] for s in runs]
-    f = signal.welch(runs[0], fs=1.0 / period, nperseg=seg)[0]
-    return f, np.mean(psd, axis=0)
-
-
 # ----------------------------------------------------------------------------- main
 
 def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
@@ -437,9 +406,9 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
             offset_before=offset_dict(c.offset, used_s=c.offset_used_s),
             offset_after=offset_dict(a.offset, used_s=a.offset_used_s)))
 
-    diag_before, _ = _diagnose(data, [r.residual for r in data], sigmas)
-    diag_after, spectra_after = _diagnose(data, residual_after, sigmas)
-    _, spectra_before = _diagnose(data, [r.residual for r in data], sigmas)
+    diag_before, spectra_before = diagnose_runs(data, [r.residual for r in data], sigmas,
+                                                names=STATE_NAMES)
+    diag_after, spectra_after = diagnose_runs(data, residual_after, sigmas, names=STATE_NAMES)
     spectra = {a: (spectra_before[a][0], spectra_before[a][1], spectra_after[a][1])
                for a in axes}
     unexplained = list(rejected)
@@ -474,19 +443,10 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         cap_reached=chosen.cap_reached)
 
 
-def _found(fitted: Sequence[FittedEffect], groups: Sequence[AmbiguousGroup]) -> str:
-    """What was added, in words: an effect of an ambiguous group is never named alone."""
-    grouped = {m for g in groups for m in g.selected}
-    parts = [f'{e.id} on {e.axis}' for e in fitted if label((e.id, e.axis)) not in grouped]
-    parts += [f'a loss on {g.axis} that these data cannot attribute to one effect '
-              f'({form_text(g)})' for g in groups]
-    return ', '.join(parts)
-
-
 def _verdict(fitted, unexplained, steps, data, folds, explained,
              groups=()) -> tuple[str, str]:
     n_test = len({r for _, test in folds for r in test})
-    names = _found(fitted, groups)
+    names = found_text(fitted, groups)
     share = (f' ({100 * explained:.0f} % of the structured residual explained)'
              if math.isfinite(explained) else '')
     if n_test < 2:
