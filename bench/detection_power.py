@@ -43,7 +43,7 @@ import numpy as np
 
 from feed_axis_energy.core.effects import EFFECTS, get_effect, state_from_simulation
 from feed_axis_energy.core.gcode import parse_gcode
-from feed_axis_energy.core.identify.analyze import analyze_campaign
+from feed_axis_energy.core.identify.analyze import analyze_campaign, AnalyzeOptions
 from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.measured import load_campaign
 from feed_axis_energy.core.rig import (EffectSpec, Instrument, make_campaign, PAPER_FEEDS_MM_S,
@@ -167,7 +167,9 @@ def trial(effect_id: str | None, params: dict | None, *, seed: int, noise_w: flo
                     effects=effects, instrument=Instrument(noise_w=noise_w), seed=seed,
                     program=camp.program)
     out = work / f'{effect_id or "clean"}_{seed}_{time.perf_counter_ns()}'
-    res = analyze_campaign(load_campaign(make_campaign(out, cfg)))
+    # the findings only: the re-aligned before/after figures are not needed here
+    res = analyze_campaign(load_campaign(make_campaign(out, cfg)),
+                           options=AnalyzeOptions(realign=False))
     return score(res, effect_id)
 
 

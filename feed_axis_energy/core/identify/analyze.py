@@ -381,11 +381,11 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     # figures are fresh comparisons with the effects declared, offsets estimated anew
     # (:mod:`.realign`)
     names = [r.cmp.name for r in data]
-    full_machine = machine_with(machine, blocks, theta)
+    full_machine = machine_with(machine, blocks, theta) if options.realign else machine
     augmented = realigned_runs(campaign, full_machine, names,
                                baseline=cmp.runs if full_machine is machine else ())
     after_cmp = dict(enumerate(augmented))
-    for train, test in folds:
+    for train, test in folds if options.realign else ():
         fold_machine = machine_with(machine, blocks, design.fit(cols, train))
         base = cmp.runs if fold_machine is machine else ()
         after_cmp.update(zip(test, realigned_runs(campaign, fold_machine,

@@ -57,6 +57,11 @@ class AnalyzeOptions:
     max_rounds
         Cap of the consistency loop (selection redone without inconsistent effects); when
         reached, the effects consistent in the last round are kept and the result says so.
+    realign
+        ``False`` skips the re-aligned before/after comparisons (:mod:`.realign`): *after*
+        and ``augmented`` are then the baseline comparison, unchanged. The findings are the
+        same; for studies that need only them (``bench/detection_power.py``), a third less
+        work.
     """
 
     holdout: str = 'loro'
@@ -70,6 +75,7 @@ class AnalyzeOptions:
     min_explained: float = 0.5
     shape_grid_points: int = 8
     max_rounds: int = 6
+    realign: bool = True
 
 
 @dataclass(frozen=True)
