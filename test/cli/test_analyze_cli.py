@@ -9,6 +9,7 @@ import sys
 import pytest
 
 from feed_axis_energy.cli import main
+from feed_axis_energy.core.effects import get_effect
 from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.rig import Instrument, make_campaign, parse_effects, RigConfig
 
@@ -115,6 +116,12 @@ def test_an_ambiguous_finding_is_reported_as_one_group(tmp_path, capsys) -> None
     forms = [f['members'] for f in group['forms']]
     assert ['coulomb@X', 'viscous@X'] in forms
     assert all(f['relative_residual'] <= f['limit'] for f in group['forms'])
+    # a form is a physical alternative: its values within the catalog's plausible range
+    for f in group['forms']:
+        for member, values in f['parameters'].items():
+            params = {p.name: p for p in get_effect(member.split('@')[0]).params}
+            for name, value in values.items():
+                assert params[name].low <= value <= params[name].high, (member, name, value)
     assert group['energy_j'] > 0.0 and group['power_rms_w'] > 0.0
     assert 'iron = ' in group['message'] and 'coulomb + viscous' in group['message']
     fates = {c['effect']: c for c in d['candidates']}

@@ -6,7 +6,8 @@ selected effect, whether the fitted power of the whole selection ``p_S = X_S the
 campaign's measured samples, every run pooled) lies in the span of the *other* selected
 effects plus a set ``G`` of one or two other candidates on the same axis: the bounded
 least-squares projection (the parameters of ``G`` within their physical bounds) leaves a
-residual sum of squares ``r²``.
+residual sum of squares ``r²``. Every parameter of the projection lies within its physical
+bounds and the catalog's plausible range (:func:`plausible_bounds`).
 
 Threshold, tied to the noise: if the truth lies in that span, ``p_S`` differs from it only
 by the noise ``E``'s own parameters fitted, whose sum of squares is at most
@@ -32,10 +33,11 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from ..effects import EFFECTS, get_effect
 from .selection import Block, Design, solve_normal
 
 __all__ = ['EQUIVALENCE_ALPHA', 'MAX_FORM_SIZE', 'EquivalentForm', 'AmbiguousGroup',
-           'find_groups', 'form_text', 'found_text']
+           'find_groups', 'form_text', 'found_text', 'plausible_bounds']
 
 EQUIVALENCE_ALPHA = 1e-3
 """Probability below which a projection residual counts as evidence for the effect's shape."""
@@ -158,17 +160,35 @@ def _residual(gram: np.ndarray, target: np.ndarray, cols: list[int], lower: np.n
     return max(0.0, float(target_ss - 2.0 * phi @ b + phi @ g @ phi)), phi
 
 
+def plausible_bounds(design: Design) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of every design column for a form: physical bounds and the catalog's range.
+
+    A form is a physical alternative, so its parameters must lie in the catalog's plausible
+    range (``Param.low`` .. ``Param.high``) as well as in the physical bounds. Without that,
+    two nearly collinear columns (``iron``'s ``|omega|`` and symmetric ``coulomb``) can
+    cancel with coefficients of 1e9 and "reproduce" anything at the level of rounding.
+    """
+    lower, upper = design.lower.copy(), design.upper.copy()
+    for block in design.blocks:
+        if block.key[0] not in EFFECTS:     # not a catalog effect: its own bounds only
+            continue
+        params = {p.name: p for p in get_effect(block.key[0]).params}
+        for name, col in zip(block.names, block.cols):
+            lower[col] = max(lower[col], params[name].low)
+            upper[col] = min(upper[col], params[name].high)
+    return lower, upper
+
+
 def _best_forms(gram, target, target_ss, design: Design, rest: list[int],
                 replaced: Sequence[Block], taken, keys, limit_ss: float, max_size: int,
-                forms_skip: Sequence[str]):
+                forms_skip: Sequence[str], lower: np.ndarray, upper: np.ndarray):
     """Forms of ``max_size`` candidates at most that replace ``replaced`` beside ``rest``."""
     axis = replaced[0].key[1]
     best: dict[tuple[str, str], tuple[float, Block]] = {}
     for other in design.blocks:
         if other.key in taken or other.key[1] != axis or other.key[0] in forms_skip:
             continue
-        ss, _ = _residual(gram, target, rest + list(other.cols), design.lower, design.upper,
-                          target_ss)
+        ss, _ = _residual(gram, target, rest + list(other.cols), lower, upper, target_ss)
         if other.key not in best or ss < best[other.key][0]:
             best[other.key] = (ss, other)
     order = sorted(best, key=lambda k: list(keys).index(k) if k in keys else len(keys))
@@ -180,7 +200,7 @@ def _best_forms(gram, target, target_ss, design: Design, rest: list[int],
     for combo in combos:
         members = [best[k][1] for k in combo]
         cols = rest + [c for m in members for c in m.cols]
-        ss, phi = _residual(gram, target, cols, design.lower, design.upper, target_ss)
+        ss, phi = _residual(gram, target, cols, lower, upper, target_ss)
         if ss > limit_ss:
             continue
         params: dict[str, dict[str, float]] = {}
@@ -244,6 +264,7 @@ def find_groups(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
     target = gram[:, cols_s] @ theta
     target_ss = float(theta @ gram[np.ix_(cols_s, cols_s)] @ theta)
     taken = {b.key for b in blocks}
+    lower, upper = plausible_bounds(design)
     starts = list(np.cumsum([0] + [len(b.cols) for b in blocks[:-1]]))
     own = {}
     for i, b in enumerate(blocks):
@@ -266,7 +287,7 @@ def find_groups(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
             if own_ss <= 0.0:
                 continue
             found = _best_forms(gram, target, target_ss, design, rest, replaced, taken, keys,
-                                limit_ss, max_size if size == 1 else 1, skip)
+                                limit_ss, max_size if size == 1 else 1, skip, lower, upper)
             for combo, params, ss in found:
                 forms.append((subset, EquivalentForm(
                     replaces=tuple(_label(b.key) for b in replaced),

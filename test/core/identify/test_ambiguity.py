@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from feed_axis_energy.core.identify.ambiguity import find_groups, form_text
+from feed_axis_energy.core.identify.ambiguity import find_groups, form_text, plausible_bounds
 from feed_axis_energy.core.identify.consistency import Fate, mark_groups
 from feed_axis_energy.core.identify.selection import Design
 
@@ -103,3 +103,14 @@ def test_fates_record_every_member():
     assert 'ambiguous' in out['a'].reason
     assert out['b'].fate == 'equivalent' and out['c'].fate == 'equivalent'
     assert out['u'].fate == 'rejected' and out['u'].group is None
+
+
+def test_forms_are_bounded_by_the_catalog_range():
+    # coulomb's forces are unbounded physically but plausible within +-500 N; iron >= 0
+    design = Design([np.zeros(3)])
+    design.add_block(('coulomb', 'X'), {}, ('f_pos_n', 'f_neg_n'), [np.ones((3, 2))])
+    design.add_block(('iron', 'X'), {}, ('k_h_w_s_rad',), [np.ones((3, 1))],
+                     bounds=([0.0], [np.inf]))
+    lower, upper = plausible_bounds(design)
+    assert list(lower) == [-500.0, -500.0, 0.0]
+    assert list(upper) == [500.0, 500.0, 1.0]
