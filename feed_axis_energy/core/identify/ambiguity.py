@@ -14,7 +14,11 @@ by the noise ``E``'s own parameters fitted, whose sum of squares is at most
 ``sigma² · chi²(p_E)`` (``p_E`` parameters of ``E``). So ``G`` is an *equivalent form* of
 ``E`` when ``r² <= sigma² · chi2.ppf(1 - alpha, p_E)`` (``alpha`` = 1e-3): a larger residual
 would be evidence, at ``p < alpha``, for ``E``'s own shape. The relative residual
-``r / |p_E|`` and its limit are reported beside it.
+``r / |p_E|`` and its limit are reported beside it. The same limit applies to the data
+themselves: ``G`` is also equivalent when its bounded fit to the residual is worse than the
+selection's by less than ``sigma² · chi2.ppf(1 - alpha, p_E)`` (the data cannot prefer ``E``
+at ``p < alpha``; e.g. weak ``copper`` selected as ``coulomb``, whose fitted powers differ
+more than the noise but fit the data equally well).
 
 Forms of one or two candidates are searched (pairs only of candidates that do not suffice
 alone, each with its best shape variant); ``iron`` = ``coulomb`` + ``viscous`` is such a
@@ -63,6 +67,10 @@ class EquivalentForm:
         ``{member: {name: value}}``: their bounded fit to the selection's power.
     relative_residual, limit
         ``r / |p_E|`` and its limit ``sqrt(sigma² chi2.ppf(1 - alpha, p_E)) / |p_E|``.
+    data_increase, data_limit
+        How much worse the form fits the residual itself than the selection [sigma²], and
+        the limit ``chi2.ppf(1 - alpha, p_E)``. A form qualifies when either figure is
+        within its limit.
     """
 
     replaces: tuple[str, ...]
@@ -70,12 +78,15 @@ class EquivalentForm:
     parameters: dict[str, dict[str, float]]
     relative_residual: float
     limit: float
+    data_increase: float = math.nan
+    data_limit: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict (keys in docs/analyze.md)."""
         return {'replaces': list(self.replaces), 'members': list(self.members),
                 'parameters': {k: dict(v) for k, v in self.parameters.items()},
-                'relative_residual': self.relative_residual, 'limit': self.limit}
+                'relative_residual': self.relative_residual, 'limit': self.limit,
+                'data_increase': self.data_increase, 'data_limit': self.data_limit}
 
 
 @dataclass(frozen=True)
@@ -179,18 +190,44 @@ def plausible_bounds(design: Design) -> tuple[np.ndarray, np.ndarray]:
     return lower, upper
 
 
+class _Data:
+    """Pooled cross products of the design and the selection's own fit to the residual."""
+
+    def __init__(self, design: Design, gram: np.ndarray, cols_s: list[int],
+                 theta: np.ndarray) -> None:
+        self.xy = sum(design.xy[r] for r in range(design.runs))
+        self.yy = float(design.yy.sum())
+        g = gram[np.ix_(cols_s, cols_s)]
+        self.sse_s = float(self.yy - 2.0 * theta @ self.xy[cols_s] + theta @ g @ theta)
+
+    def increase(self, gram: np.ndarray, cols: list[int], lower: np.ndarray,
+                 upper: np.ndarray) -> tuple[float, np.ndarray]:
+        """How much worse the bounded fit of ``cols`` fits the residual: ``(dSSE, coef)``."""
+        g = gram[np.ix_(cols, cols)]
+        b = self.xy[cols]
+        phi = solve_normal(g, b, lower[cols], upper[cols])
+        return float(self.yy - 2.0 * phi @ b + phi @ g @ phi) - self.sse_s, phi
+
+
 def _best_forms(gram, target, target_ss, design: Design, rest: list[int],
                 replaced: Sequence[Block], taken, keys, limit_ss: float, max_size: int,
-                forms_skip: Sequence[str], lower: np.ndarray, upper: np.ndarray):
-    """Forms of ``max_size`` candidates at most that replace ``replaced`` beside ``rest``."""
+                forms_skip: Sequence[str], lower: np.ndarray, upper: np.ndarray, data: _Data):
+    """Forms of ``max_size`` candidates at most that replace ``replaced`` beside ``rest``.
+
+    A form qualifies when it reproduces the selection's fitted power (projection residual)
+    *or* fits the residual itself (data) within ``limit_ss`` of the selection's fit.
+    """
     axis = replaced[0].key[1]
     best: dict[tuple[str, str], tuple[float, Block]] = {}
     for other in design.blocks:
         if other.key in taken or other.key[1] != axis or other.key[0] in forms_skip:
             continue
-        ss, _ = _residual(gram, target, rest + list(other.cols), lower, upper, target_ss)
-        if other.key not in best or ss < best[other.key][0]:
-            best[other.key] = (ss, other)
+        cols = rest + list(other.cols)
+        ss, _ = _residual(gram, target, cols, lower, upper, target_ss)
+        inc, _ = data.increase(gram, cols, lower, upper)
+        score = min(ss, inc)
+        if other.key not in best or score < best[other.key][0]:
+            best[other.key] = (score, other)
     order = sorted(best, key=lambda k: list(keys).index(k) if k in keys else len(keys))
     alone = [k for k in order if best[k][0] <= limit_ss]
     combos = [(k,) for k in alone]
@@ -201,8 +238,11 @@ def _best_forms(gram, target, target_ss, design: Design, rest: list[int],
         members = [best[k][1] for k in combo]
         cols = rest + [c for m in members for c in m.cols]
         ss, phi = _residual(gram, target, cols, lower, upper, target_ss)
-        if ss > limit_ss:
+        inc, phi_data = data.increase(gram, cols, lower, upper)
+        if ss > limit_ss and inc > limit_ss:
             continue
+        if ss > limit_ss:
+            phi = phi_data      # qualified by the data: report that fit
         params: dict[str, dict[str, float]] = {}
         at = len(rest)
         for m in members:
@@ -210,7 +250,7 @@ def _best_forms(gram, target, target_ss, design: Design, rest: list[int],
             vals.update({n: float(v) for n, v in m.shape.items()})
             params[_label(m.key)] = vals
             at += len(m.cols)
-        out.append((combo, params, ss))
+        out.append((combo, params, ss, inc))
     return out
 
 
@@ -265,6 +305,7 @@ def find_groups(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
     target_ss = float(theta @ gram[np.ix_(cols_s, cols_s)] @ theta)
     taken = {b.key for b in blocks}
     lower, upper = plausible_bounds(design)
+    data = _Data(design, gram, cols_s, theta)
     starts = list(np.cumsum([0] + [len(b.cols) for b in blocks[:-1]]))
     own = {}
     for i, b in enumerate(blocks):
@@ -287,13 +328,15 @@ def find_groups(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
             if own_ss <= 0.0:
                 continue
             found = _best_forms(gram, target, target_ss, design, rest, replaced, taken, keys,
-                                limit_ss, max_size if size == 1 else 1, skip, lower, upper)
-            for combo, params, ss in found:
+                                limit_ss, max_size if size == 1 else 1, skip, lower, upper,
+                                data)
+            for combo, params, ss, inc in found:
                 forms.append((subset, EquivalentForm(
                     replaces=tuple(_label(b.key) for b in replaced),
                     members=tuple(_label(k) for k in combo), parameters=params,
                     relative_residual=math.sqrt(ss / own_ss),
-                    limit=math.sqrt(limit_ss / own_ss))))
+                    limit=math.sqrt(limit_ss / own_ss), data_increase=inc / sigma2,
+                    data_limit=limit_ss / sigma2)))
     return _merge(design, blocks, theta, starts, forms, keys=keys, periods_s=periods_s,
                   axes=axes)
 
