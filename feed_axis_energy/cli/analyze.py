@@ -122,7 +122,8 @@ def _print_ambiguous(res: AnalysisResult) -> None:
                                for m, vals in f.parameters.items())
             print(f'     {" + ".join(f.replaces)} = {" + ".join(f.members)}: differ by '
                   f'{100 * f.relative_residual:.2f} % of its power (limit '
-                  f'{100 * f.limit:.2f} %); {values}')
+                  f'{100 * f.limit:.2f} %), fit the data worse by {f.data_increase:.1f} '
+                  f'sigma² (limit {f.data_limit:.1f}); {values}')
 
 
 def _offset_cells(offset: dict | None) -> list[str]:
