@@ -66,11 +66,15 @@ def _print(res: AnalysisResult) -> None:
     print()
     if res.effects:
         rows = []
+        finding = {m: n for n, g in enumerate(res.ambiguous, start=1) for m in g.selected}
         for e in res.effects:
+            name = f'{e.id}@{e.axis}'
+            if name in finding:
+                name += f' (finding {finding[name]})'
             for p in e.params:
                 unc = f'{p.uncertainty:.3g}' if p.uncertainty is not None else '-'
                 value = f'{p.value:.5g}' + ('' if p.at_bound is None else f' ({p.at_bound} bound)')
-                rows.append([f'{e.id}@{e.axis}', p.name, value, unc, p.unit,
+                rows.append([name, p.name, value, unc, p.unit,
                              f'{100 * e.share_of_structured:.1f}',
                              f'{100 * e.heldout_gain_rel:.1f}', ', '.join(e.aliases)])
         print('effects added (uncertainty: jackknife over runs):')
@@ -79,6 +83,7 @@ def _print(res: AnalysisResult) -> None:
         for e in res.effects:
             if e.correction is not None:
                 print(correction_line(e.id, e.axis, e.correction))
+        _print_ambiguous(res)
     else:
         print('effects added: none')
     if res.unexplained:
@@ -105,6 +110,23 @@ def _print(res: AnalysisResult) -> None:
     print('held-out runs, before and after (after: effects fitted without the run):')
     print(format_table(['run', 'load [kg]', ''] + METRIC_HEADER, rows))
     _print_alignment(res)
+
+
+def _print_ambiguous(res: AnalysisResult) -> None:
+    if not res.ambiguous:
+        return
+    print()
+    print('ambiguous findings (one power shape, several equivalent forms: the data cannot '
+          'tell them apart; the effect above is one form, not a finding of that effect):')
+    for n, g in enumerate(res.ambiguous, start=1):
+        print(f'  {n}. {g.message}')
+        for f in g.forms:
+            values = '; '.join(f'{m} ' + ', '.join(f'{k} {v:.4g}' for k, v in vals.items())
+                               for m, vals in f.parameters.items())
+            print(f'     {" + ".join(f.replaces)} = {" + ".join(f.members)}: differ by '
+                  f'{100 * f.relative_residual:.2f} % of its power (limit '
+                  f'{100 * f.limit:.2f} %), fit the data worse by {f.data_increase:.1f} '
+                  f'sigma² (limit {f.data_limit:.1f}); {values}')
 
 
 def _offset_cells(offset: dict | None) -> list[str]:

@@ -131,6 +131,9 @@ class RigConfig:
     bags
         Also write ``bags/<run>/`` (rosbag2/MCAP, topics ``/measured/power`` and
         ``/measured/kinematics``, file time); not byte-reproducible, so off by default.
+    program
+        ``program(feed_mm_s) -> NC text`` of each feed's run; ``None``: the reciprocating
+        stroke on the machine's load axis (``stroke_mm``, ``cycles``, ``dwell_s``).
     """
 
     machine: Path
@@ -146,6 +149,7 @@ class RigConfig:
     dwell_s: float = 1.0
     tail_s: float = 1.0
     bags: bool = False
+    program: Callable[[float], str] | None = None
 
 
 @dataclass(frozen=True)
@@ -462,8 +466,9 @@ def _write_campaign(out: Path, config: RigConfig, machine,
     axes: tuple[str, ...] = ()
     for i, feed in enumerate(config.feeds_mm_s):
         program_rel = f'programs/f{feed:g}.nc'
-        text = stroke_program(feed, axis=machine.load_axis, stroke_mm=config.stroke_mm,
-                              cycles=config.cycles, dwell_s=config.dwell_s)
+        text = (config.program(feed) if config.program is not None else
+                stroke_program(feed, axis=machine.load_axis, stroke_mm=config.stroke_mm,
+                               cycles=config.cycles, dwell_s=config.dwell_s))
         (out / program_rel).write_text(text, encoding='utf-8')
         for load in config.loads_kg:
             name = f'f{feed:g}_load{load:g}kg'

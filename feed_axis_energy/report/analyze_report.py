@@ -16,6 +16,7 @@ from pathlib import Path
 from matplotlib.figure import Figure
 import numpy as np
 
+from feed_axis_energy.core.identify.ambiguity import found_text
 from feed_axis_energy.core.identify.analyze import AnalysisResult, STATE_NAMES
 
 from . import _stem, staged_report
@@ -108,7 +109,7 @@ _HOLDOUT_WORDS = {
 
 def analyze_answer(res: AnalysisResult) -> str:
     """The one-line answer: what was added and how much better runs not fitted on got."""
-    added = ', '.join(f'{e.id} on {e.axis}' for e in res.effects)
+    added = found_text(res.effects, res.ambiguous)
     what = f'Added {escape(short(added, 120))}' if res.effects else 'No effect added'
     before, after = res.before.avg_pct_error_pct, res.after.avg_pct_error_pct
     text = (f'{what}: on runs the fit did not see, the power error goes from '
@@ -146,6 +147,18 @@ def _html(res: AnalysisResult, images: dict[str, bytes], run_images: dict[str, s
     effects = (table(['effect', 'axis', 'parameter', 'value', '&plusmn;', 'unit',
                       'share of the pattern explained', 'gain on unseen runs',
                       'could also be'], eff) if res.effects else '<p>No effect added.</p>')
+    if res.ambiguous:
+        items = ''.join(
+            f'<li>{escape(short(g.message, 400))}<ul>'
+            + ''.join(f'<li>{escape(" + ".join(f.replaces))} = '
+                      f'{escape(" + ".join(f.members))}: they differ by '
+                      f'{fmt_pct(100 * f.relative_residual)} of its power (limit '
+                      f'{fmt_pct(100 * f.limit)}, from the noise)</li>' for f in g.forms)
+            + '</ul></li>' for g in res.ambiguous)
+        effects += ('<p>The power of these effects has one shape that other forms of the '
+                    'catalog reproduce within the noise: the data cannot tell which it is. '
+                    'The effect listed above is one form (its fitted power is what counts), '
+                    f'not a finding of that effect:</p><ol>{items}</ol>')
     unexpl = ''.join(f'<li><b>{escape(u["diagnostic"])}</b>: {escape(short(u["message"], 300))}'
                      f'</li>' for u in res.unexplained) or '<li>none</li>'
     fates = table(['effect', 'axis', 'fate', 'gain on unseen runs', 'why'],

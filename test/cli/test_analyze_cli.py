@@ -9,6 +9,7 @@ import sys
 import pytest
 
 from feed_axis_energy.cli import main
+from feed_axis_energy.core.effects import get_effect
 from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.rig import Instrument, make_campaign, parse_effects, RigConfig
 
@@ -96,3 +97,41 @@ def test_out_machine_is_removed_when_the_report_fails(manifest, tmp_path, capsys
     err = capsys.readouterr().err
     assert code == 1 and '--report' in err and 'No space' in err
     assert list(tmp_path.iterdir()) == []          # neither output, no temporary, no 'new'
+
+
+def test_an_ambiguous_finding_is_reported_as_one_group(tmp_path, capsys) -> None:
+    # iron's power k_h|w| + k_e w² is exactly symmetric coulomb + viscous: one finding with
+    # its forms in the text, the JSON and the report, never iron (or coulomb) named alone
+    cfg = RigConfig(machine=ROOT / 'config' / 'demonstrator.yaml', loads_kg=(0.0, 22.711),
+                    feeds_mm_s=(150.0, 300.0, 450.0), cycles=1,
+                    effects=parse_effects('iron=k_h_w_s_rad:0.04,k_e_w_s2_rad2:8e-5'),
+                    instrument=Instrument(noise_w=1.0), seed=3)
+    manifest = make_campaign(tmp_path / 'rig', cfg)
+    report = tmp_path / 'report'
+    assert main(['analyze', str(manifest), '--json', '--quiet', '--report', str(report)]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert len(d['ambiguous']) == 1
+    group = d['ambiguous'][0]
+    assert group['selected'] == ['iron@X']
+    forms = [f['members'] for f in group['forms']]
+    assert ['coulomb@X', 'viscous@X'] in forms
+    assert all(f['relative_residual'] <= f['limit'] for f in group['forms'])
+    # a form is a physical alternative: its values within the catalog's plausible range
+    for f in group['forms']:
+        for member, values in f['parameters'].items():
+            params = {p.name: p for p in get_effect(member.split('@')[0]).params}
+            for name, value in values.items():
+                assert params[name].low <= value <= params[name].high, (member, name, value)
+    assert group['energy_j'] > 0.0 and group['power_rms_w'] > 0.0
+    assert 'iron = ' in group['message'] and 'coulomb + viscous' in group['message']
+    fates = {c['effect']: c for c in d['candidates']}
+    assert fates['iron']['fate'] == 'accepted' and fates['iron']['group'] == 0
+    assert fates['coulomb']['fate'] == 'equivalent' and fates['viscous']['fate'] == 'equivalent'
+    assert 'cannot attribute to one effect' in d['message']
+    assert 'added iron' not in d['message']
+    html = Path(d['report']).read_text()
+    assert 'cannot tell which it is' in html and 'coulomb@X + viscous@X' in html
+    assert main(['analyze', str(manifest), '--quiet']) == 0
+    text = capsys.readouterr().out
+    assert 'iron@X (finding 1)' in text
+    assert 'ambiguous findings' in text and 'iron@X = coulomb@X + viscous@X' in text

@@ -45,9 +45,10 @@ from ..measured.compare import (_MotionCache, _simulate, compare_campaign, offse
                                 RunComparison)
 from ..measured.csvload import load_run
 from ..measured.campaign import Campaign
-from .consistency import heterogeneity, label, select_consistent
-from .diagnostics import binned_structure, Diagnostic, noise_sigma, spectrum_structure
 from .alternatives import check_alternatives
+from .ambiguity import find_groups, found_text
+from .consistency import heterogeneity, label, mark_groups, select_consistent
+from .diagnostics import diagnose_runs, noise_sigma
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -145,17 +146,21 @@ def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
 def _block(runs: Sequence[_Run], effect_id: str, axis_j: int, shape: Mapping[str, float]):
     """Names, per-run columns and physical bounds of one candidate.
 
-    Columns that are zero, or whose largest value is below 1 % of the block's strongest
-    column (the far tail of a position bump), are left out: they carry no information, and
-    a fit on them would give huge, meaningless coefficients.
+    Columns that are zero, or whose largest value is below 1 % of the strongest column of
+    the block *in the same unit* (the far tail of a position bump), are left out: they
+    carry no information, and a fit on them would give huge, meaningless coefficients.
+    Columns in different units are not compared: ``iron``'s ``|omega|`` column is about
+    ``1/omega`` of its ``omega²`` column and carries half of the effect.
     """
     effect = get_effect(effect_id)
     cols = [_columns(r, effect_id, axis_j, shape) for r in runs]
     p = len(effect.linear_params())
     peak = np.array([max((float(np.max(np.abs(c[:, i]))) if c.shape[0] else 0.0)
                          for c in cols) for i in range(p)]) if cols else np.zeros(p)
-    top = float(peak.max()) if p else 0.0
-    used = [i for i in range(p) if peak[i] > 0.0 and peak[i] >= 0.01 * top]
+    units = [next(q.unit for q in effect.params if q.name == n)
+             for n in effect.linear_params()]
+    top = {u: max(float(peak[i]) for i in range(p) if units[i] == u) for u in set(units)}
+    used = [i for i in range(p) if peak[i] > 0.0 and peak[i] >= 0.01 * top[units[i]]]
     lo, hi = effect.linear_bounds()
     names = tuple(effect.linear_params()[i] for i in used)
     return names, [c[:, used] for c in cols], (lo[used], hi[used])
@@ -234,37 +239,6 @@ def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
 
 def _axis_index(runs: Sequence[_Run], axis: str) -> int:
     return list(runs[0].cmp.axes).index(axis)
-
-
-# ----------------------------------------------------------------------------- diagnostics
-
-def _diagnose(runs: Sequence[_Run], residuals: Sequence[np.ndarray],
-              sigmas: Mapping[str, float]) -> tuple[list[Diagnostic], dict]:
-    out: list[Diagnostic] = []
-    spectra = {}
-    axes = runs[0].cmp.axes
-    for j, axis in enumerate(axes):
-        y = np.concatenate([res[:, j] for res in residuals])
-        for name in STATE_NAMES:
-            x = np.concatenate([r.states[name][:, j] for r in runs])
-            out.append(binned_structure(y, x, sigma=sigmas[axis], name=name, axis=axis))
-        # the sampling period (the window may be 0: point samples)
-        period = float(np.median([np.median(np.diff(r.cmp.t)) for r in runs]))
-        out.append(spectrum_structure([res[:, j] for res in residuals], period_s=period,
-                                      sigma=sigmas[axis], axis=axis))
-        spectra[axis] = _avg_spectrum([res[:, j] for res in residuals], period)
-    return out, spectra
-
-
-def _avg_spectrum(series: Sequence[np.ndarray], period: float) -> tuple[np.ndarray, np.ndarray]:
-    from scipy import signal
-    runs = [s for s in series if s.size >= 16]
-    if not runs:
-        return np.zeros(0), np.zeros(0)
-    seg = int(min(256, min(s.size for s in runs)))
-    psd = [signal.welch(s, fs=1.0 / period, nperseg=seg, scaling='spectrum')[1] for s in runs]
-    f = signal.welch(runs[0], fs=1.0 / period, nperseg=seg)[0]
-    return f, np.mean(psd, axis=0)
 
 
 # ----------------------------------------------------------------------------- main
@@ -418,15 +392,21 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
             heterogeneity=heterogeneity(design, blocks, i, sigma2)[0],
             aliases=tuple(aliases)))
 
+    # selected effects whose power other candidates reproduce within the noise: one finding
+    periods = [float(np.median(np.diff(r.cmp.t))) if r.cmp.t.size > 1 else 0.0 for r in data]
+    groups = find_groups(design, blocks, theta, sigma2=sigma2,
+                         keys=[(e, a) for e in ids for a in axes], periods_s=periods, axes=axes)
+
     # in-sample residual after (diagnostics, at the baseline offset); the before/after
     # figures are fresh comparisons with the effects declared, offsets estimated anew
     # (:mod:`.realign`)
     names = [r.cmp.name for r in data]
-    full_machine = machine_with(machine, blocks, theta, measures=measures)
+    full_machine = (machine_with(machine, blocks, theta, measures=measures) if options.realign
+                    else machine)
     augmented = realigned_runs(campaign, full_machine, names,
                                baseline=cmp.runs if full_machine is machine else ())
     after_cmp = dict(enumerate(augmented))
-    for train, test in folds:
+    for train, test in folds if options.realign else ():
         fold_machine = machine_with(machine, blocks, design.fit(cols, train),
                                     measures=measures)
         base = cmp.runs if fold_machine is machine else ()
@@ -448,9 +428,9 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
             offset_before=offset_dict(c.offset, used_s=c.offset_used_s),
             offset_after=offset_dict(a.offset, used_s=a.offset_used_s)))
 
-    diag_before, _ = _diagnose(data, [r.residual for r in data], sigmas)
-    diag_after, spectra_after = _diagnose(data, residual_after, sigmas)
-    _, spectra_before = _diagnose(data, [r.residual for r in data], sigmas)
+    diag_before, spectra_before = diagnose_runs(data, [r.residual for r in data], sigmas,
+                                                names=STATE_NAMES)
+    diag_after, spectra_after = diagnose_runs(data, residual_after, sigmas, names=STATE_NAMES)
     spectra = {a: (spectra_before[a][0], spectra_before[a][1], spectra_after[a][1])
                for a in axes}
     unexplained = list(rejected)
@@ -466,7 +446,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
                             position_m=r.states['position'][:, j]) for r in data]
             for j, axis in enumerate(axes)}
     warnings = machine_warnings(machine, uses)
-    status, message = _verdict(fitted, unexplained, steps, data, folds, explained)
+    status, message = _verdict(fitted, unexplained, steps, data, folds, explained, groups)
     if chosen.cap_reached:
         message += (f'; the consistency loop reached its cap of {options.max_rounds} rounds '
                     '(kept the effects consistent in its last round; see candidates)')
@@ -479,14 +459,16 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra,
         augmented=tuple(augmented_outcome(c) for c in augmented),
         alignment_warnings=tuple(cmp.warnings),
-        candidates=fates, warnings=tuple(warnings),
+        candidates=mark_groups(fates, groups), warnings=tuple(warnings),
+        ambiguous=tuple(groups),
         calibrated={a: observed_range(u) for a, u in uses.items()}, rounds=chosen.rounds,
         cap_reached=chosen.cap_reached)
 
 
-def _verdict(fitted, unexplained, steps, data, folds, explained) -> tuple[str, str]:
+def _verdict(fitted, unexplained, steps, data, folds, explained,
+             groups=()) -> tuple[str, str]:
     n_test = len({r for _, test in folds for r in test})
-    names = ', '.join(f'{e.id} on {e.axis}' for e in fitted)
+    names = found_text(fitted, groups)
     share = (f' ({100 * explained:.0f} % of the structured residual explained)'
              if math.isfinite(explained) else '')
     if n_test < 2:

@@ -10,7 +10,7 @@ last round and says so.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from typing import Any
 
@@ -20,16 +20,18 @@ from scipy import stats
 from .selection import Block, Design, forward_select, solve_normal, Step
 
 __all__ = ['FATES', 'Fate', 'ConsistentSelection', 'select_consistent', 'prune',
-           'heterogeneity', 'label']
+           'heterogeneity', 'label', 'mark_groups']
 
 FATES = ('accepted', 'rejected', 'dropped_in_pruning', 'excluded_inconsistent',
-         'not_claimed', 'not_tried', 'round_cap', 'no_basis')
+         'not_claimed', 'not_tried', 'round_cap', 'no_basis', 'equivalent')
 """Possible fates: ``accepted``; ``rejected`` (its held-out gain did not pass);
 ``dropped_in_pruning`` (selected, then made redundant by a later effect); ``excluded_inconsistent``
 (fits, but not with one set of parameters for every run); ``not_claimed`` (selected, but the
 selection explained too little of the structured residual); ``not_tried`` (``max_effects``
 reached first); ``round_cap`` (left out when the consistency loop reached its cap);
-``no_basis`` (the effect adds nothing on these runs, e.g. braking loss without braking)."""
+``no_basis`` (the effect adds nothing on these runs, e.g. braking loss without braking);
+``equivalent`` (not selected, but part of an equivalent form of a selected effect: one
+ambiguous finding, :mod:`.ambiguity`)."""
 
 
 @dataclass(frozen=True)
@@ -55,12 +57,13 @@ class Fate:
     reason: str
     heldout_gain_rel: float = math.nan
     heldout_gain_se: float = math.nan
+    group: int | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict (keys in docs/analyze.md)."""
         return {'effect': self.effect, 'axis': self.axis, 'fate': self.fate,
                 'reason': self.reason, 'heldout_gain_rel': self.heldout_gain_rel,
-                'heldout_gain_se': self.heldout_gain_se}
+                'heldout_gain_se': self.heldout_gain_se, 'group': self.group}
 
 
 @dataclass(frozen=True)
@@ -326,4 +329,37 @@ def _fates(keys, design: Design, blocks, steps: Sequence[Step], stop: str,
                             f'rejected ({last.reason})', gain, se))
         else:
             out.append(Fate(key[0], key[1], 'rejected', 'no selection round ran'))
+    return tuple(out)
+
+
+def mark_groups(fates: Sequence[Fate], groups: Sequence[Any]) -> tuple[Fate, ...]:
+    """Record each member's part in an ambiguous finding (:mod:`.ambiguity`).
+
+    A selected member stays ``accepted`` (its fitted values are the finding's, and go into
+    the augmented machine), with the finding added to its reason; a member that was not
+    selected becomes ``equivalent`` (whatever stopped it before: it fits as well as the
+    selected one). Both carry the group's index.
+    """
+    where: dict[str, tuple[int, Any]] = {}
+    for n, g in enumerate(groups):
+        for m in g.members:
+            where.setdefault(m, (n, g))
+    out = []
+    for f in fates:
+        hit = where.get(label((f.effect, f.axis)))
+        if hit is None:
+            out.append(f)
+            continue
+        n, g = hit
+        forms = [' + '.join(form.members) for form in g.forms
+                 if label((f.effect, f.axis)) in form.members]
+        if f.fate == 'accepted':
+            out.append(replace(f, reason=(f'{f.reason}; ambiguous (finding {n + 1}): '
+                                          f'{g.message}'), group=n))
+        else:
+            what = (f'part of the form {"; ".join(forms)}' if forms else 'a member')
+            out.append(replace(f, fate='equivalent', group=n, reason=(
+                f'{what} of finding {n + 1}, which reproduces the selected '
+                f'{", ".join(g.selected)} within the noise (was: {f.fate}: '
+                f'{f.reason[:120]})')))
     return tuple(out)

@@ -18,14 +18,15 @@ amplitude above that): tiny but detectable structure on long records is not wort
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 import math
 
 import numpy as np
 from scipy import signal, stats
 
-__all__ = ['Diagnostic', 'binned_structure', 'noise_sigma', 'spectrum_structure']
+__all__ = ['Diagnostic', 'binned_structure', 'noise_sigma', 'spectrum_structure',
+           'diagnose_runs', 'average_spectrum']
 
 
 @dataclass(frozen=True)
@@ -186,3 +187,38 @@ def spectrum_structure(residuals: Sequence[np.ndarray], *, period_s: float, sigm
                f'(sine of about {amplitude:.2f} W)' if structured else
                f'no dominant frequency (peak {ratio:.1f} x the median at {peak:.2f} Hz)')
     return Diagnostic('spectrum', axis, ratio, math.nan, amplitude, peak, structured, message)
+
+
+def diagnose_runs(runs: Sequence, residuals: Sequence[np.ndarray], sigmas: Mapping[str, float],
+                  *, names: Sequence[str]) -> tuple[list[Diagnostic], dict]:
+    """Binned structure against each state of ``names`` and the spectrum, per measured axis.
+
+    ``runs`` carry ``cmp`` (``axes``, stamps ``t``) and ``states`` (``{name: (m, k)}``);
+    ``residuals[r]`` is ``(m, k)``. Returns the diagnostics and ``{axis: (f, psd)}``.
+    """
+    out: list[Diagnostic] = []
+    spectra = {}
+    axes = runs[0].cmp.axes
+    for j, axis in enumerate(axes):
+        y = np.concatenate([res[:, j] for res in residuals])
+        for name in names:
+            x = np.concatenate([r.states[name][:, j] for r in runs])
+            out.append(binned_structure(y, x, sigma=sigmas[axis], name=name, axis=axis))
+        # the sampling period (the window may be 0: point samples)
+        period = float(np.median([np.median(np.diff(r.cmp.t)) for r in runs]))
+        out.append(spectrum_structure([res[:, j] for res in residuals], period_s=period,
+                                      sigma=sigmas[axis], axis=axis))
+        spectra[axis] = average_spectrum([res[:, j] for res in residuals], period)
+    return out, spectra
+
+
+def average_spectrum(series: Sequence[np.ndarray],
+                     period: float) -> tuple[np.ndarray, np.ndarray]:
+    """Welch spectrum (``scaling='spectrum'``) averaged over runs: ``(f, psd)``."""
+    runs = [s for s in series if s.size >= 16]
+    if not runs:
+        return np.zeros(0), np.zeros(0)
+    seg = int(min(256, min(s.size for s in runs)))
+    psd = [signal.welch(s, fs=1.0 / period, nperseg=seg, scaling='spectrum')[1] for s in runs]
+    f = signal.welch(runs[0], fs=1.0 / period, nperseg=seg)[0]
+    return f, np.mean(psd, axis=0)

@@ -203,3 +203,16 @@ def test_roles_holdout_scores_validate_runs_only(tmp_path) -> None:
     held = {r.name for r in res.heldout_runs}
     assert held == {r.name for r in campaign.runs if r.role == 'validate'}
     assert [e.id for e in res.effects] == ['standby']
+
+
+def test_without_realignment_the_findings_are_the_same(tmp_path) -> None:
+    # realign=False (the detection study) skips only the re-aligned before/after figures
+    campaign = _campaign(tmp_path, 'iron=k_h_w_s_rad:0.04,k_e_w_s2_rad2:8e-5', seed=4)
+    full = analyze_campaign(campaign)
+    quick = analyze_campaign(campaign, options=AnalyzeOptions(realign=False))
+    assert [(e.id, e.axis, e.values()) for e in quick.effects] == [
+        (e.id, e.axis, e.values()) for e in full.effects]
+    assert [g.to_dict() for g in quick.ambiguous] == [g.to_dict() for g in full.ambiguous]
+    assert quick.ambiguous and quick.message == full.message
+    # after is the baseline, unchanged
+    assert all(r.after == r.before for r in quick.runs)

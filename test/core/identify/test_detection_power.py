@@ -31,11 +31,46 @@ def test_scaling_gives_the_requested_rms(study):
 
 def test_a_clearly_detectable_effect_is_named_and_a_clean_campaign_gets_nothing(
         study, tmp_path):
-    rms = study.unit_rms_w('load_friction')
-    params = study.scaled_params('load_friction', 4.0, 1.5, rms)
-    named, others, aliasing = study.trial('load_friction', params, seed=1, noise_w=1.5,
-                                          work=tmp_path)
-    assert named and others == [] and aliasing == []
-    named, others, aliasing = study.trial(None, None, seed=1, noise_w=1.5, work=tmp_path)
-    assert not named and others == [] and aliasing == []
+    # standby (a constant power, also at rest) has no other form in the catalog: named alone
+    rms = study.unit_rms_w('standby')
+    params = study.scaled_params('standby', 4.0, 1.5, rms)
+    o = study.trial('standby', params, seed=1, noise_w=1.5, work=tmp_path)
+    assert o.named and not o.group and o.false == () and o.aliasing == ()
+    o = study.trial(None, None, seed=1, noise_w=1.5, work=tmp_path)
+    assert not o.named and not o.group and o.false == () and o.aliasing == ()
     assert math.isfinite(rms)
+
+
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_iron_is_one_ambiguous_finding_never_a_wrong_effect(study, tmp_path, seed):
+    # iron's power k_h|w| + k_e w² is symmetric coulomb plus viscous: on main (20 seeds)
+    # coulomb or position_friction was named beside or instead of it in 5-10 of 20 seeds
+    params = study.scaled_params('iron', 2.0, 1.5, study.unit_rms_w('iron'))
+    o = study.trial('iron', params, seed=seed, noise_w=1.5, work=tmp_path)
+    assert o.false == () and o.aliasing == (), o
+    assert o.group and not o.named, o
+
+
+def test_score_counts_groups(study):
+    # a result-like object: iron selected, in a group with coulomb and viscous; a separate
+    # copper effect outside the group is a false attribution
+    class G:
+        members = ('iron@X', 'coulomb@X', 'viscous@X')
+        selected = ('iron@X',)
+
+    class E:
+        def __init__(self, i):
+            self.id, self.axis, self.aliases = i, 'X', ()
+
+        def values(self):
+            return {}
+
+    class R:
+        axes = ('X',)
+        ambiguous = (G,)
+        effects = (E('iron'), E('copper'))
+
+    o = study.score(R, 'viscous')
+    assert o.group and not o.named and o.false == ('copper',)
+    o = study.score(R, 'standby')
+    assert not o.group and o.false == ('group(iron@X, coulomb@X, viscous@X)', 'copper')
