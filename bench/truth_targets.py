@@ -204,7 +204,9 @@ def trial(case: str, amp: float, runs: list[Run], axis: tm.AxisData, seed: int,
              if p.name.startswith('c')]
     flat = bool(bumps) and (min(bumps) >= 0.0 or max(bumps) <= 0.0)
     errors = {r.name: r.offset_before['found_s'] - offsets[r.name] for r in res.runs}
+    grouped = {m.split('@')[0] for g in getattr(res, 'ambiguous', ()) for m in g.selected}
     return {'case': case, 'seed': seed, 'named': named, 'status': res.status,
+            'in_group': case in grouped,
             'verdict': verdict(case, named, aliases, res.status, flat=flat), 'errors': errors,
             'unexplained': sorted({u['diagnostic'] for u in res.unexplained}),
             'offsets': offsets}
@@ -271,19 +273,26 @@ def print_table(results: list[dict], cases: tuple[str, ...], *, tol: float, size
         mis = int((errs > tol).sum())
         total[kind, 'n'] += len(rs)
         total[kind, 'right'] += verdicts['right']
+        grouped = sum(1 for r in rs if r['verdict'] == 'right' and r.get('in_group'))
+        total[kind, 'grouped'] += grouped
         total['false'] += verdicts['false']
         total['misaligned'] += mis
         total['runs'] += errs.size
-        print(f'| `{case}` | {kind} | '
-              + ', '.join(f'{k} {v}' for k, v in sorted(verdicts.items())) + ' | '
+        cells = [f'{k} {v}' + (f' ({grouped} inside an ambiguous finding)'
+                               if k == 'right' and grouped else '')
+                 for k, v in sorted(verdicts.items())]
+        print(f'| `{case}` | {kind} | ' + ', '.join(cells) + ' | '
               + (', '.join(f'{k} {v}' for k, v in sorted(wrong.items())) or '-')
               + f' | {mis}/{errs.size} | {1e3 * errs.max():.1f} |')
     print()
     for kind in ('catalog', 'outside', 'clean'):
         n = total[kind, 'n']
         if n:
+            grouped = total[kind, 'grouped']
             print(f'{kind}: right {total[kind, "right"]}/{n} '
-                  f'({100.0 * total[kind, "right"] / n:.1f} %)')
+                  f'({100.0 * total[kind, "right"] / n:.1f} %)'
+                  + (f', of which {grouped} reported inside an ambiguous finding (the true '
+                     'effect selected, its equivalent forms named beside it)' if grouped else ''))
     print(f'false attributions: {total["false"]} of {len(results)} analyses; misaligned runs: '
           f'{total["misaligned"]} of {total["runs"]} (offset error > {1e3 * tol:g} ms)')
 
