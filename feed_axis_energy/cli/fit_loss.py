@@ -116,7 +116,6 @@ def run(args: argparse.Namespace) -> int:
     if not fits:
         print('error: no run has power for an axis of the machine', file=sys.stderr)
         return 1
-    all_ok = all(f.ok for f in fits.values())
     # the fitted runs also move outside the steady feeds the fit saw (rapids, slow moves)
     warnings = range_warnings({a: f.calibrated for a, f in fits.items() if f.ok},
                               range_uses(runs, velocity=args.velocity),
@@ -124,20 +123,36 @@ def run(args: argparse.Namespace) -> int:
                               min_speed_m_s=options.min_speed_m_s)
     for w in warnings:
         print(f'warning: {w}', file=sys.stderr)
-    if all_ok and args.out_machine is not None:
-        _write_machine(args.out_machine, machine_with_losses(machine, fits), runs=specs,
-                       manifest=args.manifest, force=args.force)
+    return _finish(args, fits, specs, machine_path, warnings,
+                   fitted=lambda: machine_with_losses(machine, fits), what='loss functions',
+                   show=lambda: _print(fits, specs, loaded))
+
+
+def _finish(args: argparse.Namespace, fits: dict, specs: list, machine_path: Path,
+            warnings: list[str], *, fitted, what: str, show, head: dict | None = None,
+            more: dict | None = None) -> int:
+    """Write the fitted machine (all axes ok), print the JSON or the tables; exit code.
+
+    ``fitted()`` builds the machine to write, ``what`` names what was fitted (file header
+    and the closing line), ``show()`` prints the tables; ``head``/``more``: JSON keys of the
+    method before and after ``runs``.
+    """
+    all_ok = all(f.ok for f in fits.values())
+    written = all_ok and args.out_machine is not None
+    if written:
+        _write_machine(args.out_machine, fitted(), runs=specs, manifest=args.manifest,
+                       force=args.force, what=what)
     if args.json:
         print(json.dumps({'manifest': str(args.manifest), 'machine': str(machine_path),
-                          'runs': [s.name for s in specs],
+                          **(head or {}), 'runs': [s.name for s in specs], **(more or {}),
                           'fits': {a: f.to_dict() for a, f in fits.items()},
                           'warnings': warnings,
-                          'out_machine': str(args.out_machine) if all_ok and
-                          args.out_machine is not None else None}, indent=2))
+                          'out_machine': str(args.out_machine) if written else None},
+                         indent=2))
     else:
-        _print(fits, specs, loaded)
-        if all_ok and args.out_machine is not None:
-            print(f'machine with the fitted loss functions: {args.out_machine}')
+        show()
+        if written:
+            print(f'machine with the fitted {what.split(" (")[0]}: {args.out_machine}')
     if not all_ok:
         for axis, f in fits.items():
             if not f.ok:
@@ -188,7 +203,6 @@ def _run_samples(args: argparse.Namespace, runs: list, specs: list, machine,
     if not fits:
         print('error: no run has power for an axis of the machine', file=sys.stderr)
         return 1
-    all_ok = all(f.ok for f in fits.values())
     uses = {}
     for run, source in zip(runs, velocity):
         for axis, use in range_uses([run], velocity=source).items():
@@ -197,30 +211,11 @@ def _run_samples(args: argparse.Namespace, runs: list, specs: list, machine,
                               max_accel_m_s2=args.max_accel, min_speed_m_s=args.min_speed)
     for w in warnings:
         print(f'warning: {w}', file=sys.stderr)
-    if all_ok and args.out_machine is not None:
-        _write_machine(args.out_machine, machine_with_sample_fits(machine, fits), runs=specs,
-                       manifest=args.manifest, force=args.force, what='loss functions and '
-                       'motor inertias (fit-loss --method samples)')
-    if args.json:
-        print(json.dumps({'manifest': str(args.manifest), 'machine': str(machine_path),
-                          'method': 'samples', 'runs': [s.name for s in specs],
-                          'velocity': velocity,
-                          'fits': {a: f.to_dict() for a, f in fits.items()},
-                          'warnings': warnings,
-                          'out_machine': str(args.out_machine) if all_ok and
-                          args.out_machine is not None else None}, indent=2))
-    else:
-        _print_samples(fits, specs, velocity)
-        if all_ok and args.out_machine is not None:
-            print(f'machine with the fitted loss functions and inertias: {args.out_machine}')
-    if not all_ok:
-        for axis, f in fits.items():
-            if not f.ok:
-                print(f'error: axis {axis}: fit {f.status}: {f.message}', file=sys.stderr)
-        if args.out_machine is not None:
-            print(f'error: {args.out_machine} not written', file=sys.stderr)
-        return 1
-    return 0
+    return _finish(args, fits, specs, machine_path, warnings,
+                   fitted=lambda: machine_with_sample_fits(machine, fits),
+                   what='loss functions and inertias (fit-loss --method samples)',
+                   show=lambda: _print_samples(fits, specs, velocity),
+                   head={'method': 'samples'}, more={'velocity': velocity})
 
 
 def _print_samples(fits: dict, specs: list, velocity: list[str]) -> None:
