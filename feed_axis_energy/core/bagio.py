@@ -333,6 +333,18 @@ def _connections(reader: Reader, path: Path, topics: Sequence[str], *,
     return conns
 
 
+def _topic_connections(reader: Reader, path: Path, topic: str, *, msgtype: str) -> list:
+    """The connections of ``topic``, all of type ``msgtype``; a missing topic is an error
+    naming the topics the bag has."""
+    conns = _connections(reader, path, [topic], msgtype=msgtype)
+    if not conns:
+        have = shorten(', '.join(sorted(c.topic for c in reader.connections)),
+                       limit=200) or 'none'
+        msg = f'topic {topic!r} not in bag (topics: {have})'
+        raise DataError(msg, file=str(path))
+    return conns
+
+
 def _messages(reader: Reader, path: Path, conns: list) -> Iterator[tuple[str, int, int, bytes]]:
     """``(topic, index within the topic, log time [ns], raw CDR)`` with guarded reading."""
     counts: dict[str, int] = {}
@@ -366,13 +378,7 @@ def read_series(path: str | Path, topic: str) -> Series:
     path = Path(path)
     msgs = []
     with _open_reader(path) as reader:
-        conns = _connections(reader, path, [topic], msgtype=None)
-        if not conns:
-            have = shorten(', '.join(sorted(c.topic for c in reader.connections)),
-                           limit=200) or 'none'
-            msg = f'topic {topic!r} not in bag (topics: {have})'
-            raise DataError(msg, file=str(path))
-        _connections(reader, path, [topic], msgtype=JOINT_TRAJECTORY)
+        conns = _topic_connections(reader, path, topic, msgtype=JOINT_TRAJECTORY)
         first = None
         for _, index, _, raw in _messages(reader, path, conns):
             message = _decode(path, topic, index, raw, JOINT_TRAJECTORY)

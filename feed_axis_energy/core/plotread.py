@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from .bagcheck import check_joint_state
-from .bagio import _connections, _decode, _messages, _open_reader
-from .errors import DataError, shorten
+from .bagio import _decode, _messages, _open_reader, _topic_connections
+from .errors import DataError
 from .plottopics import JOINT_STATE
 
 __all__ = ['PlotSeries', 'read_plot_topic']
@@ -54,12 +54,7 @@ def read_plot_topic(path: str | Path, topic: str) -> PlotSeries:
     path = Path(path)
     rows: list[tuple[int, object]] = []
     with _open_reader(path) as reader:
-        conns = _connections(reader, path, [topic], msgtype=JOINT_STATE)
-        if not conns:
-            have = shorten(', '.join(sorted(c.topic for c in reader.connections)),
-                           limit=200) or 'none'
-            msg = f'topic {topic!r} not in bag (topics: {have})'
-            raise DataError(msg, file=str(path))
+        conns = _topic_connections(reader, path, topic, msgtype=JOINT_STATE)
         first = None
         for _, index, log_ns, raw in _messages(reader, path, conns):
             message = _decode(path, topic, index, raw, JOINT_STATE)
