@@ -371,7 +371,9 @@ class SimulationBagWriter:
             # plot messages per JointTrajectory message, on average
             per_message += sum((b.length + self._bag.lead) * b.rows.shape[0]
                                for b in plots.values()) // max(m, 1)
-        step = max(1, -(-self._bag.chunk_bytes // per_message))
+        # a slice fills 7/8 of a chunk: the plot messages vary about their average, and a
+        # slice over the limit would close the chunk inside it and leave a small one behind
+        step = max(1, self._bag.chunk_bytes * 7 // 8 // per_message)
         taken = dict.fromkeys(plots, 0)
         for lo in range(0, m, step):
             for topic, b in blocks.items():

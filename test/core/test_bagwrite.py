@@ -100,6 +100,31 @@ def test_chunks_hold_one_stretch_of_time_on_every_topic(tmp_path):
     assert set(summary.statistics.channel_message_counts.values()) >= {98}
 
 
+def test_plot_topics_do_not_split_chunks(tmp_path):
+    """With the plot topics (default 20 Hz) a slice of time still makes one chunk, not a full
+    one and a small remainder: only the end of each write and of the bag leaves a small one."""
+    machine, prog = _contour()
+    out = tmp_path / 'rec'
+    calls = []
+    with SimulationBagWriter(out, compression='none') as writer:
+        writer._bag.chunk_bytes = 100_000
+
+        def write(chunk):
+            calls.append(1)
+            writer.write(chunk)
+        summary, blocks = simulate_stream(prog.moves, machine, file=prog.file,
+                                          chunk_samples=20_000, on_chunk=write)
+        writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
+    (path,) = out.glob('*.mcap')
+    with open(path, 'rb') as fh:
+        summary = make_reader(fh).get_summary()
+    sizes = [c.uncompressed_size for c in summary.chunk_indexes]
+    assert len(sizes) > 20
+    assert max(sizes) < 100_000 + 20_000          # a slice ends near the limit, not far over
+    small = sum(1 for s in sizes if s < 25_000)
+    assert small <= len(calls) + 2, (small, len(calls), sorted(sizes)[:10])
+
+
 def test_same_messages_and_metadata_as_rosbags_writer(tmp_path):
     rng = np.random.default_rng(7)
     t = np.cumsum(rng.uniform(1e-4, 2e-3, 1234))
