@@ -29,10 +29,25 @@ def _axes(results: list[JobResult]) -> list[str]:
     return list(names)
 
 
+def _electrical(summary: dict, key: str) -> float | None:
+    """The electrical energy total [J] at ``key`` (``motor_energy_j``, ``supply_energy_j``),
+    or None where the machine declares no drives."""
+    side = summary.get('electrical') or {}
+    values = side.get(key)
+    return None if not values else values['total']
+
+
 def print_table(results: list[JobResult]) -> None:
-    """Print one row per job (errors listed below the table)."""
+    """Print one row per job (errors listed below the table).
+
+    With drives declared on any machine, a column of the electrical energy at the supply
+    side ('-' for a job whose machine declares none)."""
+    electrical = any(r.ok and _electrical(r.summary, 'supply_energy_j') is not None
+                     for r in results)
     header = ['job', 'program', 'machine', 'load [kg]', 'duration [s]', 'samples',
-              'energy [J]', 'peak power [W]', 'loss energy [J]', 'status']
+              'energy [J]', 'peak power [W]', 'loss energy [J]']
+    header += ['supply energy [J]'] if electrical else []
+    header += ['status']
     rows = []
     for r in results:
         job = r.job
@@ -42,9 +57,13 @@ def print_table(results: list[JobResult]) -> None:
             s = r.summary
             cells += [f'{s["duration_s"]:.3f}', str(s['samples']),
                       f'{s["energy_j"]["total"]:.2f}', f'{s["peak_power_w"]["total"]:.1f}',
-                      f'{s["loss_energy_j"]:.2f}', 'ok']
+                      f'{s["loss_energy_j"]:.2f}']
+            if electrical:
+                supply = _electrical(s, 'supply_energy_j')
+                cells.append('-' if supply is None else f'{supply:.2f}')
+            cells.append('ok')
         else:
-            cells += ['-', '-', '-', '-', '-', 'failed']
+            cells += ['-'] * (6 if electrical else 5) + ['failed']
         rows.append(cells)
     print(format_table(header, rows))
     failed = [r for r in results if not r.ok]
@@ -56,14 +75,18 @@ def print_table(results: list[JobResult]) -> None:
 
 
 def csv_text(results: list[JobResult]) -> str:
-    """One CSV row per job: inputs, status, summary values (full precision) or the error."""
+    """One CSV row per job: inputs, status, summary values (full precision) or the error.
+
+    The electrical energy totals at the motor terminals and the supply side are empty where
+    the job's machine declares no drives (``docs/electrical.md``)."""
     axes = _axes(results)
     header = (['job', 'program', 'machine', 'load [kg]', 'status', 'duration [s]', 'samples',
                'rate [Hz]', 'energy [J]', 'peak power [W]', 'loss energy [J]',
                'braking energy [J]']
               + [f'energy {a} [J]' for a in axes] + [f'peak power {a} [W]' for a in axes]
               + ['machine name', 'error', 'energy uncertainty [J]']
-              + [f'energy by {g} [J]' for g in ROLLUP_COLUMNS])
+              + [f'energy by {g} [J]' for g in ROLLUP_COLUMNS]
+              + ['motor energy [J]', 'supply energy [J]'])
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator='\n')
     writer.writerow(header)
@@ -79,9 +102,11 @@ def csv_text(results: list[JobResult]) -> str:
             row += [repr(s['peak_power_w'][a]) if a in s['peak_power_w'] else '' for a in axes]
             row += [s['machine'], '', _uncertainty(s)]
             row += [rollup_cell(s, g) for g in ROLLUP_COLUMNS]
+            row += ['' if e is None else repr(e) for e in
+                    (_electrical(s, 'motor_energy_j'), _electrical(s, 'supply_energy_j'))]
         else:
             row += ['failed'] + [''] * (7 + 2 * len(axes)) + ['', r.error, '']
-            row += [''] * len(ROLLUP_COLUMNS)
+            row += [''] * (len(ROLLUP_COLUMNS) + 2)
         writer.writerow(row)
     return buf.getvalue()
 

@@ -318,3 +318,31 @@ def test_rollups_per_operation_and_tool_in_json_and_csv(tmp_path, capsys):
     assert json.loads(row['energy by operation [J]']) == ops
     assert json.loads(row['energy by tool [J]']) == tools
     assert row['energy uncertainty [J]'] == ''      # the demonstrator has no covariance
+
+
+def test_electrical_energy_columns_where_drives_are_declared(tmp_path, capsys):
+    """A job on a machine with drives has its motor-terminal and supply energy in the CSV and
+    a supply column in the table; a job on a machine without drives has empty cells."""
+    prog = PROGRAMS / 'three_axis_contour.nc'
+    drives = ROOT / 'config' / 'three_axis_mill_drives.yaml'
+    out = tmp_path / 'res.csv'
+    argv = ['batch', str(prog), '--machine', str(MILL), '--machine', str(drives),
+            '--rate-hz', '300', '--csv', str(out), '--json', '--quiet']
+    rc, doc = _json(capsys, argv)
+    assert rc == 0
+    plain, declared = (r['summary'] for r in doc['results'])
+    assert 'electrical' not in plain
+    with open(out, newline='') as fh:
+        rows = list(csv.DictReader(fh))
+    assert rows[0]['motor energy [J]'] == rows[0]['supply energy [J]'] == ''
+    elec = declared['electrical']
+    assert float(rows[1]['motor energy [J]']) == elec['motor_energy_j']['total']
+    assert float(rows[1]['supply energy [J]']) == elec['supply_energy_j']['total']
+    # the supply side carries every loss on top of the shafts' energy
+    assert float(rows[1]['supply energy [J]']) > float(rows[1]['energy [J]']) > 0.0
+    assert main(argv[:8] + ['--quiet']) == 0
+    table = capsys.readouterr().out.splitlines()
+    assert 'supply energy [J]' in table[0]
+    cells = [line.split() for line in table[2:4]]
+    assert cells[0][-2] == '-'
+    assert math.isclose(float(cells[1][-2]), elec['supply_energy_j']['total'], abs_tol=0.006)
