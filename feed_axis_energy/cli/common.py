@@ -180,12 +180,17 @@ def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
         print()
         print('blocks with the most energy:')
         rows = []
+        supply = all('supply_energy_j' in b for b in summary['top_blocks'])
         for b in summary['top_blocks']:
             text = b.get('text', source_lines.get(b['line'], '')).strip()
             rows.append([str(b['line']), f'{b["energy_j"]:.2f}', f'{b["duration_s"]:.3f}',
                          _main_cause(b), text[:48]])
-        print(format_table(['line', 'energy [J]', 'duration [s]', 'main cause', 'block'],
-                           rows))
+            if supply:
+                rows[-1].insert(2, f'{b["supply_energy_j"]:.2f}')
+        header = ['line', 'energy [J]', 'duration [s]', 'main cause', 'block']
+        if supply:
+            header.insert(2, 'supply energy [J]')
+        print(format_table(header, rows))
 
 
 def rollup_table(items: list[dict], *, title: str, total: float, rows: int = 10) -> str:

@@ -306,6 +306,10 @@ def _run_stream_gc(args, machine, options, progress, *, trace=None,
     top = args.top
     n_lines = moves.n_lines or _count_lines(args.program)
     columns = len(limits) + 8 + len(machine.effects)
+    if machine.electrical:
+        # the electrical side's own per-line table: axes and causes with the drives' four
+        columns *= 2
+        columns += 4
     kw = dict(file=moves.file, load_kg=args.load_kg, options=options, top_blocks=top,
               duration_s=duration, progress=progress if duration else None, limits=limits,
               block_breakdown=bool(export) or 8 * columns * n_lines <= BLOCK_BREAKDOWN_BYTES,

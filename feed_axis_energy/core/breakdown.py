@@ -174,13 +174,17 @@ class LineEnergy(Sequence):
     A sequence of tuples like :func:`.energy.energy_by_line` returns, without a Python
     tuple per line (a 24-hour contour has millions of lines). With the per-block breakdown
     on, ``by_axis_j`` ``(n, k)`` and ``by_cause_j`` ``(n, c)`` hold the energy of each line
-    per axis (``axes``) and per cause summed over the axes (``causes``); else ``None``.
+    per axis (``axes``) and per cause summed over the axes (``causes``); else ``None``. With
+    declared drives (:mod:`.electrical`), ``motor_j`` and ``supply_j`` ``(n,)`` hold each
+    line's electrical energy at the motor terminals and at the supply side; else ``None``.
     """
 
     def __init__(self, lines: np.ndarray, energy_j: np.ndarray, duration_s: np.ndarray, *,
                  axes: tuple[str, ...] = (), causes: tuple[str, ...] = (),
                  by_axis_j: np.ndarray | None = None,
-                 by_cause_j: np.ndarray | None = None) -> None:
+                 by_cause_j: np.ndarray | None = None,
+                 motor_j: np.ndarray | None = None,
+                 supply_j: np.ndarray | None = None) -> None:
         self.lines = lines
         self.energy_j = energy_j
         self.duration_s = duration_s
@@ -188,6 +192,8 @@ class LineEnergy(Sequence):
         self.causes = causes
         self.by_axis_j = by_axis_j
         self.by_cause_j = by_cause_j
+        self.motor_j = motor_j
+        self.supply_j = supply_j
 
     def __len__(self) -> int:
         return int(self.lines.shape[0])

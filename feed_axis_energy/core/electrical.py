@@ -36,7 +36,7 @@ from .errors import ConfigError
 from .machine import Machine
 
 __all__ = ['ELECTRICAL_CAUSES', 'POINTS', 'ElectricalPower', 'electrical_power',
-           'with_electrical', 'ElectricalAccumulator']
+           'with_electrical', 'ElectricalAccumulator', 'add_block_electrical']
 
 ELECTRICAL_CAUSES = ('copper', 'iron', 'converter', 'standby')
 POINTS = {'motor': 'motor terminals (between converter and motor)',
@@ -208,14 +208,17 @@ class _Trapezoid:
 class ElectricalAccumulator:
     """Electrical energy, peaks and breakdown by cause, chunk by chunk (bounded memory).
 
-    Memory: a few numbers per axis and cause; nothing per sample or per line.
+    Memory: a few numbers per axis and cause; nothing per sample. With ``per_line``, also
+    the energy of every source line per axis and cause (:class:`.breakdown.BreakdownAccumulator`),
+    from which :meth:`lines_energy` gives each line's energy at the motor terminals and at the
+    supply side.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, *, per_line: bool = False) -> None:
         self.axes: tuple[str, ...] = ()
         self.measured_at = 'motor'
         self.cabinet_w = 0.0
-        self.causes = BreakdownAccumulator()
+        self.causes = BreakdownAccumulator(per_line=per_line)
         self._motor = _Trapezoid()
         self._supply = _Trapezoid()
         self._returned = _Trapezoid()
@@ -243,6 +246,25 @@ class ElectricalAccumulator:
         # what the drives return to the supply: the negative part without their standby
         self._returned.add(t, np.maximum(standby - elec.supply_w, 0.0))
         self._t_last = float(t[-1])
+
+    def lines_energy(self, lines: np.ndarray,
+                     duration_s: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Energy [J] of the given source lines at the motor terminals and at the supply side
+        (the cabinet's standby for each line's ``duration_s`` included); ``None`` without
+        ``per_line`` or before any chunk.
+
+        Per line the causes add up to the supply side of every axis; the motor terminals are
+        all causes but ``converter``, ``standby`` and ``braking_burned`` (module docstring).
+        """
+        table = self.causes.lines_table(lines)
+        if table is None:
+            return None
+        _, by_cause = table
+        causes = self.causes.causes
+        supply = by_cause.sum(axis=1)
+        drive = sum(by_cause[:, causes.index(c)] for c in ('converter', 'standby',
+                                                           'braking_burned'))
+        return supply - drive, supply + self.cabinet_w * np.asarray(duration_s, float)
 
     @property
     def duration_s(self) -> float:
@@ -292,3 +314,17 @@ def _peaks(peak: np.ndarray, axes: tuple[str, ...]) -> dict[str, float]:
     out = {a: float(peak[j]) for j, a in enumerate(axes)}
     out['total'] = float(peak[-1])
     return out
+
+
+def add_block_electrical(blocks: list[dict[str, Any]], acc: ElectricalAccumulator) -> None:
+    """Give every block dict (``line``, ``duration_s``: a summary's ``top_blocks``) its
+    ``motor_energy_j`` and ``supply_energy_j`` [J]; nothing without a per-line accumulator."""
+    if not blocks:
+        return
+    energy = acc.lines_energy(np.array([b['line'] for b in blocks], dtype=np.int64),
+                              np.array([b['duration_s'] for b in blocks]))
+    if energy is None:
+        return
+    for block, motor, supply in zip(blocks, energy[0].tolist(), energy[1].tolist()):
+        block['motor_energy_j'] = motor
+        block['supply_energy_j'] = supply

@@ -13,7 +13,9 @@ samples, or of blocks, whatever the program's length.
   their cumulative energies, and the electrical causes summed over the axes.
 * ``blocks.csv`` / ``.parquet``: one row per source line that took time: line, the block's
   text (at most :data:`TEXT_CHARS` characters), duration, energy, energy per axis and per
-  cause (summed over the axes); ascending line.
+  cause (summed over the axes), with declared drives the electrical energy at the motor
+  terminals and at the supply side (the cabinet's standby for the line's time included);
+  ascending line.
 * ``rollups.csv`` / ``.parquet`` (when the simulation has roll-ups: G-code on the streamed
   path, :mod:`.rollup`): one row per operation, subroutine, tool and axis: group, name,
   energy, duration; the rows of each of operation, subroutine and tool add up to the
@@ -306,9 +308,11 @@ def write_blocks(directories: dict[str, Path], blocks: LineEnergy, *, program: P
     if blocks.by_axis_j is None or blocks.by_cause_j is None:
         msg = 'write_blocks needs the per-block breakdown (block_breakdown=True)'
         raise OutputError(msg)
+    electrical = blocks.motor_j is not None and blocks.supply_j is not None
     cols = (['line', 'text', 'duration [s]', 'energy [J]']
             + [f'{a} energy [J]' for a in blocks.axes]
-            + [f'{c} energy [J]' for c in blocks.causes])
+            + [f'{c} energy [J]' for c in blocks.causes]
+            + (['motor energy [J]', 'supply energy [J]'] if electrical else []))
     writers = [TableWriter(d / f'blocks.{fmt}', cols, fmt=fmt, text_columns=('text',),
                            int_columns=('line',))
                for fmt, d in directories.items()]
@@ -327,6 +331,9 @@ def write_blocks(directories: dict[str, Path], blocks: LineEnergy, *, program: P
                 data[f'{a} energy [J]'] = blocks.by_axis_j[lo:hi, j]
             for j, c in enumerate(blocks.causes):
                 data[f'{c} energy [J]'] = blocks.by_cause_j[lo:hi, j]
+            if electrical:
+                data['motor energy [J]'] = blocks.motor_j[lo:hi]
+                data['supply energy [J]'] = blocks.supply_j[lo:hi]
             for w in writers:
                 w.write(data)
     finally:

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from .breakdown import add_breakdown, BreakdownAccumulator, LineEnergy
-from .electrical import ElectricalAccumulator
+from .electrical import add_block_electrical, ElectricalAccumulator
 from .machine import Machine
 from .simulate import SimulationResult
 from .standstill import grid_interval_counts
@@ -51,7 +51,7 @@ class SummaryAccumulator:
     def __init__(self, *, rate_hz: float | None = None, block_breakdown: bool = False) -> None:
         self.rate_hz = rate_hz
         self.causes = BreakdownAccumulator(per_line=block_breakdown)
-        self.electrical = ElectricalAccumulator()
+        self.electrical = ElectricalAccumulator(per_line=block_breakdown)
         self.n = 0
         self.t_first = 0.0
         self.t_last = 0.0
@@ -185,8 +185,11 @@ class SummaryAccumulator:
         idx = np.nonzero(self._line_seen)[0]
         table = self.causes.lines_table(idx)
         by_axis, by_cause = (None, None) if table is None else table
+        electrical = self.electrical.lines_energy(idx, self._line_d[idx])
+        motor, supply = (None, None) if electrical is None else electrical
         return LineEnergy(idx, self._line_e[idx], self._line_d[idx], axes=self.causes.axes,
-                          causes=self.causes.causes, by_axis_j=by_axis, by_cause_j=by_cause)
+                          causes=self.causes.causes, by_axis_j=by_axis, by_cause_j=by_cause,
+                          motor_j=motor, supply_j=supply)
 
     def top_blocks(self, count: int) -> list[tuple[int, float, float]]:
         """The ``count`` lines with the largest ``|energy|`` (ties: lower line first)."""
@@ -239,4 +242,5 @@ class SummaryAccumulator:
         electrical = self.electrical.summary()
         if electrical:
             summary['electrical'] = electrical
+            add_block_electrical(summary['top_blocks'], self.electrical)
         return add_uncertainty(summary, self.spread)

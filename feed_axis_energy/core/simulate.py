@@ -14,7 +14,7 @@ import numpy as np
 
 from .breakdown import LineEnergy
 from .dynamics import AxisDynamics, compute_dynamics
-from .electrical import ElectricalAccumulator, with_electrical
+from .electrical import add_block_electrical, ElectricalAccumulator, with_electrical
 from .energy import EnergyIntegrator, PowerResult, compute_power, energy_by_line
 from .machine import Machine
 from .motion import Motion
@@ -232,7 +232,8 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         the breakdown by cause (:func:`.breakdown.add_breakdown`: ``causes``,
         ``energy_by_cause_j``, ``braking_returned_j``; per top block ``energy_by_axis_j``,
         ``energy_by_cause_j``); with declared drives ``electrical``
-        (:meth:`.electrical.ElectricalAccumulator.summary`, ``docs/electrical.md``), and
+        (:meth:`.electrical.ElectricalAccumulator.summary`, ``docs/electrical.md``; per top
+        block ``motor_energy_j`` and ``supply_energy_j``), and
         ``energy_uncertainty`` where an axis has a ``loss_covariance`` (:mod:`.uncertainty`).
     """
     from .breakdown import add_breakdown, BreakdownAccumulator
@@ -269,11 +270,19 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         'top_blocks': [{'line': ln, 'energy_j': e, 'duration_s': d} for ln, e, d in blocks],
     }, causes)
     if p.electrical is not None:
-        electrical = ElectricalAccumulator()
-        electrical.add(result.dynamics, p.mechanical_w, p.electrical, braking=p.braking,
-                       effects=p.effect_power_w)
+        electrical = _electrical_lines(result)
         summary['electrical'] = electrical.summary()
+        add_block_electrical(summary['top_blocks'], electrical)
     return add_uncertainty(summary, spread)
+
+
+def _electrical_lines(result: SimulationResult) -> ElectricalAccumulator:
+    """The electrical side of a whole result, with the energy of every source line."""
+    p = result.power
+    electrical = ElectricalAccumulator(per_line=True)
+    electrical.add(result.dynamics, p.mechanical_w, p.electrical, braking=p.braking,
+                   effects=p.effect_power_w)
+    return electrical
 
 
 def line_table(result: SimulationResult) -> LineEnergy:
@@ -297,6 +306,10 @@ def line_table(result: SimulationResult) -> LineEnergy:
     lines = np.array([r[0] for r in rows], dtype=np.int64)
     table = causes.lines_table(lines)
     by_axis, by_cause = (None, None) if table is None else table
-    return LineEnergy(lines, np.array([r[1] for r in rows]), np.array([r[2] for r in rows]),
+    duration = np.array([r[2] for r in rows])
+    motor = supply = None
+    if p.electrical is not None:
+        motor, supply = _electrical_lines(result).lines_energy(lines, duration)
+    return LineEnergy(lines, np.array([r[1] for r in rows]), duration,
                       axes=tuple(p.axes), causes=causes.causes, by_axis_j=by_axis,
-                      by_cause_j=by_cause)
+                      by_cause_j=by_cause, motor_j=motor, supply_j=supply)

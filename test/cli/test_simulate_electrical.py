@@ -45,6 +45,8 @@ def test_table_names_the_point_and_adds_up(program, capsys):
     assert "the meter's point (supply.measured_at): supply side" in out
     for word in ('motor terminals', 'copper', 'iron', 'converter', 'standby'):
         assert word in out
+    top = out[out.index('blocks with the most energy'):].splitlines()
+    assert 'supply energy [J]' in top[1]
 
 
 def test_json_export_and_report_agree(program, tmp_path, capsys):
@@ -68,6 +70,15 @@ def test_json_export_and_report_agree(program, tmp_path, capsys):
     axes_sum = sum(body[:, col[f'{a} supply power [W]']] for a in 'XYZ')
     np.testing.assert_allclose(body[:, col['total supply power [W]']],
                                axes_sum + e['cabinet_standby_w'], rtol=1e-12, atol=1e-9)
+    # per block: blocks.csv's electrical columns add up to the totals, and the table's
+    # top blocks show the supply side
+    with open(out / 'blocks.csv', newline='', encoding='utf-8') as fh:
+        blocks = list(csv.DictReader(fh))
+    for column, key in (('motor energy [J]', 'motor_energy_j'),
+                        ('supply energy [J]', 'supply_energy_j')):
+        assert math.isclose(math.fsum(float(b[column]) for b in blocks), e[key]['total'],
+                            rel_tol=1e-9)
+    assert all('supply_energy_j' in b for b in s['top_blocks'])
     html = (report / 'index.html').read_text(encoding='utf-8')
     assert 'Electrical energy (declared drives)' in html
     assert 'Electrical energy by cause, supply side' in html

@@ -12,7 +12,8 @@ from feed_axis_energy.core.machine import (GRAVITY_M_S2, load_machine, machine_f
                                            machine_to_dict, moved_mass_kg)
 from feed_axis_energy.core.motion_samples import motion_from_samples
 from feed_axis_energy.core.simstream import simulate_stream
-from feed_axis_energy.core.simulate import simulate_motion, simulate_program, summarize
+from feed_axis_energy.core.simulate import (line_table, simulate_motion, simulate_program,
+                                            summarize)
 
 REPO = Path(__file__).resolve().parents[2]
 DRIVES = REPO / 'config' / 'three_axis_mill_drives.yaml'
@@ -195,6 +196,47 @@ def test_causes_add_up_to_the_electrical_energy(program, effects, braking):
             mech[cause]['total'], rel=1e-12, abs=1e-12)
     if braking == 'dissipated':
         assert e['returned_j'] == 0.0
+
+
+@pytest.mark.parametrize('braking', ['regenerative', 'dissipated'])
+def test_energy_per_block_adds_up_to_the_electrical_totals(braking):
+    """Each source line's energy at the motor terminals and at the supply side (cabinet
+    standby for the line's time included): the lines add up to the totals, streamed in small
+    chunks as in one piece, and the top blocks carry their line's values."""
+    machine = _drives(braking=braking, effects=EFFECTS)
+    prog = parse_gcode(MIXED, file='mixed.nc', home=machine.home_point())
+    summary, blocks = simulate_stream(prog.moves, machine, file=prog.file, load_kg=20.0,
+                                      chunk_samples=777, block_breakdown=True, top_blocks=3)
+    e = summary['electrical']
+    assert blocks.motor_j is not None and blocks.supply_j is not None
+    for values, key in ((blocks.motor_j, 'motor_energy_j'),
+                        (blocks.supply_j, 'supply_energy_j')):
+        total = e[key]['total']
+        assert math.fsum(values.tolist()) == pytest.approx(total, rel=1e-9)
+    # the cabinet's share of a line is its standby power times the line's time
+    assert math.fsum(blocks.duration_s.tolist()) * e['cabinet_standby_w'] == pytest.approx(
+        e['supply_energy_j']['cabinet'], rel=1e-9)
+    # between the terminals and the supply only losses come in (converter, standby, burned
+    # braking, cabinet), none negative: no line takes less at the supply than at the motor
+    assert np.all(blocks.supply_j - blocks.motor_j >= -1e-9)
+    assert np.all(blocks.supply_j - blocks.motor_j
+                  >= blocks.duration_s * e['cabinet_standby_w'] - 1e-9)
+    whole = simulate_program(prog, machine, load_kg=20.0)
+    table = line_table(whole)
+    np.testing.assert_array_equal(table.lines, blocks.lines)
+    scale = max(abs(e['supply_energy_j']['total']), 1.0)
+    assert np.max(np.abs(table.motor_j - blocks.motor_j)) <= 1e-9 * scale
+    assert np.max(np.abs(table.supply_j - blocks.supply_j)) <= 1e-9 * scale
+    row = {int(ln): i for i, ln in enumerate(blocks.lines)}
+    assert len(summary['top_blocks']) == 3
+    for b in summary['top_blocks']:
+        assert b['motor_energy_j'] == pytest.approx(blocks.motor_j[row[b['line']]], rel=1e-12)
+        assert b['supply_energy_j'] == pytest.approx(blocks.supply_j[row[b['line']]],
+                                                     rel=1e-12)
+    for a, b in zip(summarize(whole, top_blocks=3)['top_blocks'], summary['top_blocks']):
+        assert a['line'] == b['line']
+        for key in ('motor_energy_j', 'supply_energy_j'):
+            assert abs(a[key] - b[key]) <= 1e-9 * scale
 
 
 def test_measured_at_motor_reports_the_terminals():
