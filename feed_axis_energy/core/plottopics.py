@@ -33,7 +33,8 @@ import numpy as np
 from .bagio import typestore
 from .cdr import MessageRows
 
-__all__ = ['PlotDecimator', 'joint_state_rows', 'block_energy_joint_state',
+__all__ = ['PlotDecimator', 'held_then', 'held_tail', 'joint_state_rows',
+           'block_energy_joint_state',
            'TOPIC_PLOT_POWER', 'TOPIC_PLOT_AXES', 'TOPIC_PLOT_BLOCK_ENERGY', 'JOINT_STATE',
            'DEFAULT_PLOT_RATE_HZ']
 
@@ -126,6 +127,11 @@ def joint_state_rows(t_ns: np.ndarray, names: Sequence[str],
 class PlotDecimator:
     """Keep, per display interval, the first sample and each key column's extremes.
 
+    Two ways to use it: :meth:`push` / :meth:`finish` take and return whole rows of values
+    (the decimator holds the rows of the open interval); :meth:`select` /
+    :meth:`finish_select` take only the key columns and return row indices, so a caller with
+    many value columns gathers just the kept rows and holds the open interval's rows itself.
+
     Parameters
     ----------
     rate_hz
@@ -142,61 +148,99 @@ class PlotDecimator:
             raise ValueError(msg)
         self.rate_hz = rate
         self.keys = list(keys)
-        self._held: tuple[np.ndarray, np.ndarray] | None = None   # rows of an open interval
+        self._held_t = np.zeros(0)                  # times and key values of the open
+        self._held_v: np.ndarray | None = None      # interval's samples
         self._held_k = -1
+        self._rows: np.ndarray | None = None        # push: the open interval's whole rows
 
     def _interval(self, t: np.ndarray) -> np.ndarray:
         x = t * self.rate_hz
         return np.floor(x + _EPS * np.maximum(1.0, np.abs(x))).astype(np.int64)
+
+    @property
+    def held(self) -> int:
+        """Samples of the open interval, held back until it is complete."""
+        return int(self._held_t.shape[0])
+
+    def intervals(self, t: np.ndarray) -> np.ndarray:
+        """The display interval of every time ``t`` [s] (for :meth:`select`'s ``k``)."""
+        return self._interval(t)
+
+    def select(self, t: np.ndarray, keys: np.ndarray,
+               k: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Take the next samples (times ``(n,)`` [s], key columns ``(n, c)``; ``k``: their
+        :meth:`intervals` when already known); return the kept samples of the intervals that
+        are complete as ``(t, rows)``: ``rows`` index the held samples followed by these
+        (``held`` before the call, then ``0..n-1``). Afterwards the last :attr:`held` of
+        those samples are held back."""
+        n = int(t.shape[0])
+        h = self.held
+        if self.rate_hz == 0:
+            return t, np.arange(n)
+        if n == 0:
+            return t[:0], np.zeros(0, np.int64)
+        keys = keys.reshape(n, -1)
+        k = self._interval(t) if k is None else k
+        out_t, out_i = [], []
+        lo = 0
+        if h:
+            lo = int(np.searchsorted(k, self._held_k, side='right'))
+            ht = np.concatenate((self._held_t, t[:lo]))
+            hv = np.concatenate((self._held_v, keys[:lo]))
+            if lo == n:                          # the interval goes on
+                self._held_t, self._held_v = ht, hv
+                return t[:0], np.zeros(0, np.int64)
+            sel = self._select(hv, np.zeros(ht.shape[0], np.int64))
+            out_t.append(ht[sel])
+            out_i.append(sel)
+        last = int(k[-1])
+        hi = int(np.searchsorted(k, last, side='left'))
+        if hi > lo:
+            sel = self._select(keys[lo:hi], k[lo:hi]) + lo
+            out_t.append(t[sel])
+            out_i.append(sel + h)
+        self._held_t, self._held_v = t[hi:].copy(), keys[hi:].copy()
+        self._held_k = last
+        if not out_t:
+            return t[:0], np.zeros(0, np.int64)
+        if len(out_t) == 1:
+            return out_t[0], out_i[0]
+        return np.concatenate(out_t), np.concatenate(out_i)
+
+    def finish_select(self) -> tuple[np.ndarray, np.ndarray]:
+        """The kept samples of the last (open) interval as ``(t, rows)``, ``rows`` indexing
+        the held samples."""
+        if not self.held:
+            return np.zeros(0), np.zeros(0, np.int64)
+        sel = self._select(self._held_v, np.zeros(self.held, np.int64))
+        t = self._held_t[sel]
+        self._held_t, self._held_v = np.zeros(0), None
+        return t, sel
 
     def push(self, t: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Take the next samples (times ``(n,)`` [s], ``values`` ``(n, c)``); return the kept
         ones of the intervals that are complete, as ``(t, values)``."""
         if self.rate_hz == 0:
             return t, values
-        n = int(t.shape[0])
-        if n == 0:
-            return t[:0], values[:0]
-        k = self._interval(t)
-        out_t, out_v = [], []
-        lo = 0
-        if self._held is not None:
-            lo = int(np.searchsorted(k, self._held_k, side='right'))
-            ht, hv = self._held
-            ht = np.concatenate((ht, t[:lo]))
-            hv = np.concatenate((hv, values[:lo]))
-            if lo == n:                          # the interval goes on
-                self._held = (ht, hv)
-                return t[:0], values[:0]
-            sel = self._select(hv, np.zeros(ht.shape[0], np.int64))
-            out_t.append(ht[sel])
-            out_v.append(hv[sel])
-            self._held = None
-        last = int(k[-1])
-        hi = int(np.searchsorted(k, last, side='left'))
-        if hi > lo:
-            sel = self._select(values[lo:hi], k[lo:hi]) + lo
-            out_t.append(t[sel])
-            out_v.append(values[sel])
-        self._held = (t[hi:].copy(), values[hi:].copy())
-        self._held_k = last
-        if not out_t:
-            return t[:0], values[:0]
-        if len(out_t) == 1:
-            return out_t[0], out_v[0]
-        return np.concatenate(out_t), np.concatenate(out_v)
+        keys = values[:, self.keys] if self.keys else values[:, :0]
+        held = self._rows if self._rows is not None else values[:0]
+        t_out, idx = self.select(t, keys)
+        out = held_then(held, values, idx)
+        self._rows = held_tail(held, values, self.held)
+        return t_out, out
 
     def finish(self) -> tuple[np.ndarray, np.ndarray]:
         """The kept samples of the last (open) interval."""
-        if self._held is None:
+        if not self.held:
             return np.zeros(0), np.zeros((0, 0))
-        ht, hv = self._held
-        self._held = None
-        sel = self._select(hv, np.zeros(ht.shape[0], np.int64))
-        return ht[sel], hv[sel]
+        rows = self._rows
+        t, idx = self.finish_select()
+        self._rows = None
+        return t, rows[idx]
 
     def _select(self, values: np.ndarray, k: np.ndarray) -> np.ndarray:
-        """Row indices kept of whole intervals ``k`` (non-decreasing), sorted."""
+        """Row indices kept of whole intervals ``k`` (non-decreasing), sorted; ``values``:
+        the key columns."""
         n = int(k.shape[0])
         if n == 0:
             return np.zeros(0, np.int64)
@@ -204,7 +248,7 @@ class PlotDecimator:
         new[0] = True
         np.not_equal(k[1:], k[:-1], out=new[1:])
         starts = np.flatnonzero(new)
-        if not self.keys:
+        if values.shape[1] == 0:
             return starts
         keep = new.copy()
         sizes = np.diff(starts, append=n)
@@ -213,7 +257,7 @@ class PlotDecimator:
         # intervals of the common length (motion at the full rate): one gather and one
         # argmax / argmin per key column
         rows = starts[full][:, None] + np.arange(size)
-        for c in self.keys:
+        for c in range(values.shape[1]):
             block = values[:, c][rows]
             keep[rows[:, 0] + block.argmax(axis=1)] = True
             keep[rows[:, 0] + block.argmin(axis=1)] = True
@@ -228,7 +272,7 @@ class PlotDecimator:
         np.not_equal(g[1:], g[:-1], out=first_of[1:])
         sub_starts = np.flatnonzero(first_of)
         sub_group = np.cumsum(first_of) - 1
-        for c in self.keys:
+        for c in range(values.shape[1]):
             col = values[sub, c]
             for reduce in (np.maximum, np.minimum):
                 hit = np.flatnonzero(col == reduce.reduceat(col, sub_starts)[sub_group])
@@ -238,6 +282,27 @@ class PlotDecimator:
                 np.not_equal(h[1:], h[:-1], out=first[1:])
                 keep[sub[hit[first]]] = True
         return np.flatnonzero(keep)
+
+
+def held_tail(held: np.ndarray, rows: np.ndarray, count: int) -> np.ndarray:
+    """The last ``count`` rows of ``held`` followed by ``rows`` (a copy)."""
+    n = rows.shape[0]
+    if count <= n:
+        return rows[n - count:].copy()
+    return np.concatenate((held[held.shape[0] - (count - n):], rows))
+
+
+def held_then(held: np.ndarray, rows: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Rows ``idx`` of ``held`` followed by ``rows`` (both ``(., c)``), without joining them
+    first (:meth:`PlotDecimator.select`'s indices)."""
+    h = held.shape[0]
+    if idx.shape[0] and int(idx[0]) >= h:            # sorted: none of the held rows
+        return rows[idx - h]
+    out = np.empty((idx.shape[0],) + rows.shape[1:], rows.dtype)
+    old = idx < h
+    out[old] = held[idx[old]]
+    out[~old] = rows[idx[~old] - h]
+    return out
 
 
 def block_energy_joint_state(stamp_ns: int, lines: np.ndarray, energy_j: np.ndarray,

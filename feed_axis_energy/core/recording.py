@@ -16,8 +16,9 @@ from feed_axis_energy.core.cdr import joint_trajectory_rows, MessageRows
 from feed_axis_energy.core.errors import ConfigError
 from feed_axis_energy.core.motion import Motion
 from feed_axis_energy.core.plottopics import (
-    block_energy_joint_state, DEFAULT_PLOT_RATE_HZ, JOINT_STATE, joint_state_rows, PlotDecimator,
-    TOPIC_PLOT_AXES, TOPIC_PLOT_BLOCK_ENERGY, TOPIC_PLOT_POWER)
+    block_energy_joint_state, DEFAULT_PLOT_RATE_HZ, JOINT_STATE, TOPIC_PLOT_AXES,
+    TOPIC_PLOT_BLOCK_ENERGY, TOPIC_PLOT_POWER)
+from feed_axis_energy.core.recplot import RecordingPlots
 from feed_axis_energy.core.recthin import STANDSTILL_PERIOD_S, StandstillThinner
 from feed_axis_energy.core.starttime import check_end, MAX_STAMP_NS
 
@@ -166,15 +167,12 @@ class SimulationBagWriter:
             msg = f'start_ns must be >= 0, got {start_ns}'
             raise ValueError(msg)
         self.start_ns = int(start_ns)
-        self._plot: dict[str, PlotDecimator] | None = None
-        if plot_rate_hz is not None:
-            # keys (power / torque columns) are set once the axis count is known
-            self._plot = {TOPIC_PLOT_POWER: PlotDecimator(rate_hz=plot_rate_hz, keys=()),
-                          TOPIC_PLOT_AXES: PlotDecimator(rate_hz=plot_rate_hz, keys=())}
         self.plot_messages = 0
         self._pending: dict[str, MessageRows] = {}      # plot messages after the JT ones
-        self._plot_names: dict[str, tuple[str, ...]] = {}
         self._bag = StreamBagWriter(path, compression=compression, background=background)
+        self._plot = (None if plot_rate_hz is None else
+                      RecordingPlots(rate_hz=plot_rate_hz, stamps=self._stamps,
+                                     lead=self._bag.lead))
         self.batch = int(batch)
         self._thin = (None if standstill_period_s is None else
                       StandstillThinner(period_s=standstill_period_s, rate_hz=rate_hz))
@@ -252,31 +250,7 @@ class SimulationBagWriter:
 
     def _plot_rows(self, t: np.ndarray, columns: dict) -> dict[str, MessageRows]:
         """The plot topics' messages of the display intervals completed by these samples."""
-        if self._plot is None:
-            return {}
-        power = columns[bagio.TOPIC_POWER]
-        state = columns[bagio.TOPIC_AXIS_STATE]
-        energy, watts = np.hstack(power[1][0]), np.hstack(power[1][1])
-        screw = [f[-1] for f in state[1][:2]] + [state[1][3][-1]]   # angle, omega, torque
-        if not self._plot_names:
-            k = screw[0].shape[1]
-            self._plot_names = {TOPIC_PLOT_POWER: power[0],
-                                TOPIC_PLOT_AXES: tuple(state[0][:k])}
-            self._plot[TOPIC_PLOT_POWER].keys = list(range(k + 1, 2 * k + 2))
-            self._plot[TOPIC_PLOT_AXES].keys = list(range(2 * k, 3 * k))
-        values = {TOPIC_PLOT_POWER: np.hstack((energy, watts)),
-                  TOPIC_PLOT_AXES: np.hstack(screw)}
-        return {topic: self._plot_block(topic, *self._plot[topic].push(t, values[topic]))
-                for topic in values}
-
-    def _plot_block(self, topic: str, t: np.ndarray, values: np.ndarray) -> MessageRows:
-        names = self._plot_names[topic]
-        k = len(names)
-        if topic == TOPIC_PLOT_POWER:
-            fields = [values[:, :k], values[:, k:], None]
-        else:
-            fields = [values[:, :k], values[:, k:2 * k], values[:, 2 * k:]]
-        return joint_state_rows(self._stamps(t), names, fields, lead=self._bag.lead)
+        return {} if self._plot is None else self._plot.rows(t, columns)
 
     def _write_plots(self, plots: dict[str, MessageRows]) -> None:
         for topic, block in plots.items():
@@ -319,15 +293,23 @@ class SimulationBagWriter:
         t_src = t[np.maximum(sel.src, 0)]
         back = (t_src - sel.t)[sel.filled]
         out = {}
+        gathered: dict[int, np.ndarray] = {}     # an array on two topics is taken once
         for topic, (names, fields) in columns.items():
             taken = []
             for i, f in enumerate(fields):
                 if f is None:
                     taken.append(None)
                     continue
-                parts = [a if not shift else np.concatenate((held[1][topic][i][k], a))
-                         for k, a in enumerate(f)]
-                taken.append(tuple(a[idx] for a in parts))
+                parts = []
+                for k, a in enumerate(f):
+                    if shift:
+                        parts.append(np.concatenate((held[1][topic][i][k], a))[idx])
+                        continue
+                    got = gathered.get(id(a))
+                    if got is None:
+                        got = gathered[id(a)] = a[idx]
+                    parts.append(got)
+                taken.append(tuple(parts))
             if topic == bagio.TOPIC_POWER and back.size:
                 # energy (positions) of a left-out sample: E_row - P_row (t_row - t)
                 for energy, power in zip(taken[0], taken[1]):
@@ -422,10 +404,7 @@ class SimulationBagWriter:
         self._rest = {}
         self._write_plots(self._merge_pending({}))
         if self._plot is not None:
-            for topic, dec in self._plot.items():
-                t_last, values = dec.finish()
-                if t_last.shape[0]:
-                    self._write_plots({topic: self._plot_block(topic, t_last, values)})
+            self._write_plots(self._plot.finish())
         end_ns = int(round(stamp_s * 1e9)) + self.start_ns
         self._bag.write_block_energy(blocks, stamp_ns=end_ns,
                                      program=str(summary.get('program', '')))

@@ -102,8 +102,6 @@ class StandstillThinner:
             return None
         # the run's first sample for every row: the last row that is not still, or the anchor
         last_moving = np.maximum.accumulate(np.where(still, -1, np.arange(n)))
-        anchor = np.where(last_moving >= 0, t[np.maximum(last_moving, 0)], self._anchor)
-        prev = np.concatenate(([self._t_prev], t[:-1]))
         gaps = sorted((int(r), int(f), int(c)) for r, f, c in gaps)
         for row, first, count in gaps:
             if not still[row]:
@@ -112,17 +110,27 @@ class StandstillThinner:
             if self.rate_hz is None:
                 msg = 'a chunk with gaps needs the grid rate (rate_hz)'
                 raise ValueError(msg)
-            prev[row] = (first + count - 1) / self.rate_hz
         ends_run = np.zeros(n, bool)
         ends_run[:-1] = still[:-1] & ~still[1:]
-        new_period = self._period(t, anchor) > self._period(prev, anchor)
-        keep = ~still | ends_run | new_period
+        keep = ~still | ends_run
+        # the period test only where it can matter: the still rows (the others are kept)
+        rows = np.flatnonzero(still)
+        if rows.shape[0]:
+            lm = last_moving[rows]
+            anchor_s = np.where(lm >= 0, t[np.maximum(lm, 0)], self._anchor)
+            prev_s = np.where(rows > 0, t[rows - 1], self._t_prev)
+            for row, first, count in gaps:
+                prev_s[np.searchsorted(rows, row)] = (first + count - 1) / self.rate_hz
+            keep[rows] |= self._period(t[rows], anchor_s) > self._period(prev_s, anchor_s)
+        last_anchor = (float(t[last_moving[-1]]) if last_moving[-1] >= 0 else self._anchor)
         src = [np.flatnonzero(keep)]
         times = [t[src[0]]]
         filled = [np.zeros(src[0].shape[0], bool)]
         for row, first, count in gaps:
             before = float(t[row - 1]) if row > 0 else self._t_prev
-            idx = self._gap_keep(first, count, float(anchor[row]), before)
+            lm = int(last_moving[row])
+            idx = self._gap_keep(first, count, float(t[lm]) if lm >= 0 else self._anchor,
+                                 before)
             src.append(np.full(idx.shape[0], row))
             times.append(idx / self.rate_hz)
             filled.append(np.ones(idx.shape[0], bool))
@@ -132,13 +140,15 @@ class StandstillThinner:
             filled.append(np.zeros(1, bool))
         hold_last = bool(still[-1] and not keep[-1])
         self.held, self.held_t = hold_last, float(t[-1])
-        self._anchor, self._t_prev = float(anchor[-1]), float(t[-1])
-        src_a = np.concatenate(src)
-        t_a = np.concatenate(times)
-        f_a = np.concatenate(filled)
+        self._anchor, self._t_prev = last_anchor, float(t[-1])
+        src_a = np.concatenate(src) if len(src) > 1 else src[0]
+        t_a = np.concatenate(times) if len(times) > 1 else times[0]
+        f_a = np.concatenate(filled) if len(filled) > 1 else filled[0]
         if hold_last:
             mask = ~((src_a == n - 1) & ~f_a)
             src_a, t_a, f_a = src_a[mask], t_a[mask], f_a[mask]
+        if len(src) == 1:                        # the chunk's own rows: in time order already
+            return Selection(src=src_a, t=t_a, filled=f_a, hold_last=hold_last)
         order = np.argsort(t_a, kind='stable')   # the gaps' samples lie between rows
         return Selection(src=src_a[order], t=t_a[order], filled=f_a[order],
                          hold_last=hold_last)
