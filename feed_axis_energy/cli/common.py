@@ -195,19 +195,27 @@ def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
 
 def rollup_table(items: list[dict], *, title: str, total: float, rows: int = 10) -> str:
     """Energy and time per operation/tool/... (``summary['rollups'][group]``), the
-    ``rows`` largest and the rest as one row."""
+    ``rows`` largest and the rest as one row; with declared drives the supply side too."""
     shown = items[:rows]
+    supply = bool(items) and all('supply_energy_j' in it for it in items)
     body = [[str(it['name'])[:48], _joules(it['energy_j']),
              _finite(100.0 * it['energy_j'] / total, '.1f') if total > 0.0 else '-',
              f'{it["duration_s"]:.2f}'] for it in shown]
+    if supply:
+        for row, it in zip(body, shown):
+            row.append(_joules(it['supply_energy_j']))
     rest = items[rows:]
     if rest:
         e = math.fsum(it['energy_j'] for it in rest)
         body.append([f'({len(rest)} more)', _joules(e),
                      _finite(100.0 * e / total, '.1f') if total > 0.0 else '-',
                      f'{math.fsum(it["duration_s"] for it in rest):.2f}'])
-    return (f'energy per {title}:\n'
-            + format_table([title, 'energy [J]', 'share [%]', 'time [s]'], body))
+        if supply:
+            body[-1].append(_joules(math.fsum(it['supply_energy_j'] for it in rest)))
+    header = [title, 'energy [J]', 'share [%]', 'time [s]']
+    if supply:
+        header.append('supply energy [J]')
+    return f'energy per {title}:\n' + format_table(header, body)
 
 
 def _main_cause(block: dict) -> str:

@@ -18,7 +18,8 @@ samples, or of blocks, whatever the program's length.
   ascending line.
 * ``rollups.csv`` / ``.parquet`` (when the simulation has roll-ups: G-code on the streamed
   path, :mod:`.rollup`): one row per operation, subroutine, tool and axis: group, name,
-  energy, duration; the rows of each of operation, subroutine and tool add up to the
+  energy, duration (with declared drives also the energy at the motor terminals and at the
+  supply side); the rows of each of operation, subroutine and tool add up to the
   program's energy and time. Per operation and tool rather than a column of the time series:
   a sample carries only its source line (a line may run in several operations), and this
   table is exact and a few rows long.
@@ -350,14 +351,19 @@ def write_rollups(directories: dict[str, Path], rollups: dict[str, Any] | None) 
     directories
         ``{fmt: directory}``.
     rollups
-        The summary's ``rollups`` (``{group: [{'name', 'energy_j', 'duration_s'}]}``);
+        The summary's ``rollups`` (``{group: [{'name', 'energy_j', 'duration_s'}]}``, with
+        declared drives also ``motor_energy_j`` and ``supply_energy_j``: two more columns);
         ``None`` or empty: nothing is written.
     """
     if not rollups:
         return 0
+    items = [(g, it) for g in ROLLUP_GROUPS for it in rollups.get(g) or ()]
+    electrical = bool(items) and all('supply_energy_j' in it for _, it in items)
     rows = [(g, str(it['name']), float(it['energy_j']), float(it['duration_s']))
-            for g in ROLLUP_GROUPS for it in rollups.get(g) or ()]
-    cols = ['group', 'name', 'energy [J]', 'duration [s]']
+            + ((float(it['motor_energy_j']), float(it['supply_energy_j'])) if electrical
+               else ()) for g, it in items]
+    cols = (['group', 'name', 'energy [J]', 'duration [s]']
+            + (['motor energy [J]', 'supply energy [J]'] if electrical else []))
     data = {c: [r[i] for r in rows] for i, c in enumerate(cols)}
     for fmt, d in directories.items():
         w = TableWriter(d / f'rollups.{fmt}', cols, fmt=fmt, text_columns=('group', 'name'))

@@ -65,9 +65,13 @@ class RollupAccumulator:
         self._ctx = 0               # context of the samples now
         self.energy = np.zeros(4)
         self.duration = np.zeros(4)
+        # with declared drives: energy at the motor terminals and at the supply side
+        # (cabinet included) per context, columns 0 and 1; None without
+        self.electrical: np.ndarray | None = None
         self.axes: tuple[str, ...] = ()
         self.axis_time: np.ndarray | None = None
         self._prev: tuple[float, float, np.ndarray] | None = None
+        self._prev_elec: np.ndarray | None = None     # motor and supply power of the last
 
     # -- the move side ----------------------------------------------------------------------
     def wrap(self, moves: Iterable[Move]) -> Iterator[Move]:
@@ -141,9 +145,34 @@ class RollupAccumulator:
     def _grow(self, size: int) -> None:
         if size > self.energy.shape[0]:
             n = max(size, 2 * self.energy.shape[0])
-            self.energy = np.concatenate((self.energy, np.zeros(n - self.energy.shape[0])))
-            self.duration = np.concatenate((self.duration,
-                                            np.zeros(n - self.duration.shape[0])))
+            extra = n - self.energy.shape[0]
+            self.energy = np.concatenate((self.energy, np.zeros(extra)))
+            self.duration = np.concatenate((self.duration, np.zeros(extra)))
+            if self.electrical is not None:
+                self.electrical = np.concatenate((self.electrical, np.zeros((extra, 2))))
+
+    def _electrical_steps(self, chunk: Any, t: np.ndarray, t0: float,
+                          first: bool) -> np.ndarray | None:
+        """Motor-terminal and supply energy ``(m - first, 2)`` [J] of every interval (the
+        one from the previous chunk's last sample first), or None without drives."""
+        elec = chunk.power.electrical
+        if elec is None:
+            return None
+        power = np.empty((t.shape[0], 2))
+        power[:, 0] = elec.motor_w[:, 0]
+        power[:, 1] = elec.supply_w[:, 0]
+        for j in range(1, elec.motor_w.shape[1]):   # column by column: narrow arrays
+            power[:, 0] += elec.motor_w[:, j]
+            power[:, 1] += elec.supply_w[:, j]
+        power[:, 1] += elec.cabinet_w
+        if self.electrical is None:
+            self.electrical = np.zeros((self.energy.shape[0], 2))
+        steps = 0.5 * (power[1:] + power[:-1]) * np.diff(t)[:, None]
+        if not first:
+            head = 0.5 * (power[:1] + self._prev_elec) * (float(t[0]) - t0)
+            steps = np.concatenate((head, steps))
+        self._prev_elec = power[-1:].copy()
+        return steps
 
     def add(self, chunk: Any) -> None:
         """Take one :class:`.simulate.SimulationResult` chunk (in time order)."""
@@ -161,6 +190,7 @@ class RollupAccumulator:
         else:
             t0, e0, v0 = self._prev
         self._prev = (float(t[-1]), float(p.total_energy_j[-1]), vel[-1].copy())
+        steps = self._electrical_steps(chunk, t, t0, first)
         if m == 1 and first:
             return
         self._axis_time(t, vel, t0, v0, first)
@@ -176,6 +206,8 @@ class RollupAccumulator:
             self._grow(self._ctx + 1)
             self.energy[self._ctx] += float(p.total_energy_j[-1]) - e0
             self.duration[self._ctx] += float(t[-1]) - t0
+            if steps is not None:
+                self.electrical[self._ctx] += steps.sum(axis=0)
             return
         total = p.total_w
         dt = np.diff(t) if first else np.diff(t, prepend=t0)
@@ -194,6 +226,9 @@ class RollupAccumulator:
         self._grow(int(ctxs.max()) + 1)
         np.add.at(self.energy, ctxs, e)
         np.add.at(self.duration, ctxs, d)
+        if steps is not None:
+            for c in range(2):
+                np.add.at(self.electrical[:, c], ctxs, np.add.reduceat(steps[:, c], starts))
 
     def _axis_time(self, t: np.ndarray, vel: np.ndarray, t0: float, v0: np.ndarray,
                    first: bool) -> None:
@@ -211,11 +246,16 @@ class RollupAccumulator:
             self.axis_time[j] += span - still
 
     # -- results ----------------------------------------------------------------------------
-    def rollups(self, energy_j: dict[str, float]) -> dict[str, list[dict[str, Any]]]:
+    def rollups(self, energy_j: dict[str, float],
+                electrical: dict[str, Any] | None = None) -> dict[str, list[dict[str, Any]]]:
         """``{'operation', 'subroutine', 'tool', 'axis': [{'name', 'energy_j',
         'duration_s'}]}``, each sorted by energy (largest first); ``energy_j`` is the
-        summary's energy per axis."""
+        summary's energy per axis. With declared drives every item also has
+        ``motor_energy_j`` and ``supply_energy_j`` (the axes' from ``electrical``, the
+        summary's electrical object; the supply side of operations, subroutines and tools
+        includes the cabinet's standby for their time)."""
         table = self.context.table if self.context is not None else [('', '', 0)]
+        elec = self.electrical
         groups: dict[str, dict[str, list[float]]] = {'operation': {}, 'subroutine': {},
                                                      'tool': {}}
         for index, (operation, subroutine, tool) in enumerate(table):
@@ -228,16 +268,29 @@ class RollupAccumulator:
                      'subroutine': subroutine or '(main program)',
                      'tool': f'T{tool}' if tool else NO_TOOL}
             for group, name in names.items():
-                item = groups[group].setdefault(name, [0.0, 0.0])
+                item = groups[group].setdefault(name, [0.0, 0.0, 0.0, 0.0])
                 item[0] += e
                 item[1] += d
+                if elec is not None:
+                    item[2] += float(elec[index, 0])
+                    item[3] += float(elec[index, 1])
         out: dict[str, list[dict[str, Any]]] = {}
         for group, items in groups.items():
-            out[group] = sorted(({'name': n, 'energy_j': v[0], 'duration_s': v[1]}
-                                 for n, v in items.items()), key=lambda r: -abs(r['energy_j']))
+            rows = []
+            for n, v in items.items():
+                row = {'name': n, 'energy_j': v[0], 'duration_s': v[1]}
+                if elec is not None:
+                    row['motor_energy_j'], row['supply_energy_j'] = v[2], v[3]
+                rows.append(row)
+            out[group] = sorted(rows, key=lambda r: -abs(r['energy_j']))
         axis_time = self.axis_time if self.axis_time is not None else np.zeros(0)
-        out['axis'] = sorted(({'name': a, 'energy_j': float(energy_j.get(a, 0.0)),
-                               'duration_s': float(axis_time[j])}
-                              for j, a in enumerate(self.axes)),
-                             key=lambda r: -abs(r['energy_j']))
+        axes = []
+        for j, a in enumerate(self.axes):
+            row = {'name': a, 'energy_j': float(energy_j.get(a, 0.0)),
+                   'duration_s': float(axis_time[j])}
+            if elec is not None and electrical:
+                row['motor_energy_j'] = float(electrical['motor_energy_j'].get(a, 0.0))
+                row['supply_energy_j'] = float(electrical['supply_energy_j'].get(a, 0.0))
+            axes.append(row)
+        out['axis'] = sorted(axes, key=lambda r: -abs(r['energy_j']))
         return out

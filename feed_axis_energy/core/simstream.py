@@ -296,5 +296,5 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
     summary = acc.summary(program=file, machine=machine, load_kg=load_kg,
                           top_blocks=top_blocks)
     if rolls is not None:
-        summary['rollups'] = rolls.rollups(summary['energy_j'])
+        summary['rollups'] = rolls.rollups(summary['energy_j'], summary.get('electrical'))
     return summary, acc.block_energy()

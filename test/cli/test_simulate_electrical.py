@@ -79,6 +79,10 @@ def test_json_export_and_report_agree(program, tmp_path, capsys):
         assert math.isclose(math.fsum(float(b[column]) for b in blocks), e[key]['total'],
                             rel_tol=1e-9)
     assert all('supply_energy_j' in b for b in s['top_blocks'])
+    with open(out / 'rollups.csv', newline='', encoding='utf-8') as fh:
+        rolls = [r for r in csv.DictReader(fh) if r['group'] == 'tool']
+    assert math.isclose(math.fsum(float(r['supply energy [J]']) for r in rolls),
+                        e['supply_energy_j']['total'], rel_tol=1e-9)
     html = (report / 'index.html').read_text(encoding='utf-8')
     assert 'Electrical energy (declared drives)' in html
     assert 'Electrical energy by cause, supply side' in html

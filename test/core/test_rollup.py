@@ -6,7 +6,7 @@ import pytest
 
 from feed_axis_energy.core.gcode import iter_moves
 from feed_axis_energy.core.gcode.context import operation_name
-from feed_axis_energy.core.machine import load_machine
+from feed_axis_energy.core.machine import load_machine, machine_to_dict
 from feed_axis_energy.core.simstream import simulate_stream
 
 REPO = Path(__file__).resolve().parents[2]
@@ -113,6 +113,41 @@ def test_operations_tools_and_subroutines(tmp_path, chunk_samples):
     axis = {r['name']: r for r in roll['axis']}
     assert {a: axis[a]['energy_j'] for a in 'XYZ'} == {a: s['energy_j'][a] for a in 'XYZ'}
     assert 0.0 < axis['Z']['duration_s'] < axis['X']['duration_s'] < duration
+
+
+@pytest.mark.parametrize('chunk_samples', [257, 100_000])
+def test_electrical_energy_per_operation_adds_up(tmp_path, chunk_samples):
+    """With declared drives every roll-up item has its energy at the motor terminals and at
+    the supply side; operations, subroutines and tools add up to the electrical totals
+    (cabinet standby included), the axes are the summary's, and the dwell in the main
+    program draws electrical energy while the shafts take none."""
+    machine = load_machine(REPO / 'config' / 'three_axis_mill_drives.yaml')
+    path = tmp_path / 'ops.ngc'
+    path.write_text(PROGRAM)
+    stream = iter_moves(path, home=machine.home_point(), tools=dict(machine.gcode.tools))
+    s, _ = simulate_stream(stream, machine, file=stream.file, rollup=True,
+                           context=stream.context, chunk_samples=chunk_samples)
+    e = s['electrical']
+    roll = s['rollups']
+    for key in ('motor_energy_j', 'supply_energy_j'):
+        for group in ('operation', 'subroutine', 'tool'):
+            assert math.isclose(math.fsum(r[key] for r in roll[group]), e[key]['total'],
+                                rel_tol=1e-9), (key, group)
+        axis = {r['name']: r[key] for r in roll['axis']}
+        assert axis == {a: e[key][a] for a in 'XYZ'}
+    for r in roll['operation']:
+        # only losses come in between the terminals and the supply (none negative)
+        assert r['supply_energy_j'] >= r['motor_energy_j'] + e['cabinet_standby_w'] * (
+            r['duration_s']) - 1e-9
+    sub = {r['name']: r for r in roll['subroutine']}
+    standby = e['cabinet_standby_w'] + sum(a['drive']['standby_w'] for a in
+                                           machine_to_dict(machine)['axes'].values())
+    main = sub['(main program)']
+    # at standstill the shafts take nothing, but the standby runs and the vertical Z
+    # holds its carriage against gravity (copper losses): more than the standby alone
+    assert abs(main['energy_j']) < 1e-5 * s['energy_j']['total']
+    assert main['motor_energy_j'] > 0.0
+    assert main['supply_energy_j'] > standby * main['duration_s']
 
 
 def test_chunking_does_not_change_the_rollups(tmp_path):
