@@ -3,11 +3,12 @@
 ``PYTHONPATH=. .venv/bin/python bench/bench_umich_fit.py``
 
 Loads ``config/campaigns/umich_mill.yaml`` with its data files looked up in the shared data
-directory (env ``FAE_SHARED``, else ``../shared`` beside the repository, else
-``/work/shared``). For motion from the commanded and from the actual kinematics, and for the
-two ``fit-loss`` methods (``steady``: the paper's power regression on steady segments found
-as ``fit-loss`` finds them by default, with the configured inertia; ``samples``: Coulomb +
-viscous loss and motor inertia fitted to every moving sample), it prints
+directory (env ``FAE_SHARED``, else ``../shared`` beside the repository; see
+``bench/shared_lookup.py``). For motion from the commanded and from the actual kinematics,
+and for the two ``fit-loss`` methods (``steady``: the paper's power regression on steady
+segments found as ``fit-loss`` finds them by default, with the configured inertia;
+``samples``: Coulomb + viscous loss and motor inertia fitted to every moving sample), it
+prints
 
 1. the choice, made on the calibrate runs only: each calibrate run compared with a fit on
    the other two (leave one run out; the steady fit with ``--min-feeds 2``, since two runs
@@ -20,7 +21,6 @@ CPU time at the end (``time.process_time``).
 from __future__ import annotations
 
 from dataclasses import replace
-import os
 from pathlib import Path
 import sys
 import time
@@ -32,16 +32,14 @@ from feed_axis_energy.core.measured import load_campaign, load_run
 from feed_axis_energy.core.measured.campaign import Campaign
 from feed_axis_energy.core.measured.compare import compare_campaign
 from feed_axis_energy.core.measured.metrics import group_metrics
+from shared_lookup import HINT, shared_path  # bench/shared_lookup.py
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def shared_data() -> Path | None:
     """The UMich data directory, or None."""
-    for base in (os.environ.get('FAE_SHARED'), ROOT.parent / 'shared', '/work/shared'):
-        if base and (Path(base) / 'data' / 'umich-cnc-mill' / 'experiment_03.csv').exists():
-            return Path(base) / 'data' / 'umich-cnc-mill'
-    return None
+    return shared_path('data', 'umich-cnc-mill', needs=('experiment_03.csv',))
 
 
 def fitted(campaign: Campaign, guessed: Machine, names: list[str], method: str,
@@ -60,7 +58,7 @@ def main() -> int:
     """Print both tables."""
     data = shared_data()
     if data is None:
-        print('UMich data not found (set FAE_SHARED)', file=sys.stderr)
+        print(f'UMich data not found: {HINT}', file=sys.stderr)
         return 1
     c0 = time.process_time()
     base = load_campaign(ROOT / 'config' / 'campaigns' / 'umich_mill.yaml', check_files=False)

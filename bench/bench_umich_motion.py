@@ -3,16 +3,15 @@
 ``PYTHONPATH=. .venv/bin/python bench/bench_umich_motion.py``
 
 Loads ``config/campaigns/umich_mill.yaml`` with its data files looked up in the shared data
-directory (env ``FAE_SHARED``, else ``../shared`` beside the repository, else
-``/work/shared``), fits the loss on the calibrate runs (as ``fit-loss``) and compares the
-validate runs with the guessed and the fitted machine for every combination of
+directory (env ``FAE_SHARED``, else ``../shared`` beside the repository; see
+``bench/shared_lookup.py``), fits the loss on the calibrate runs (as ``fit-loss``) and
+compares the validate runs with the guessed and the fitted machine for every combination of
 ``motion.reconstruct`` (samples, pulses) and instrument (point samples, a trailing window of
 one period). Prints pooled RMSE [W] and energy error [%], and CPU time.
 """
 from __future__ import annotations
 
 from dataclasses import replace
-import os
 from pathlib import Path
 import sys
 import time
@@ -23,23 +22,21 @@ from feed_axis_energy.core.measured import load_campaign, load_run
 from feed_axis_energy.core.measured.campaign import InstrumentSpec
 from feed_axis_energy.core.measured.compare import compare_campaign
 from feed_axis_energy.core.measured.metrics import group_metrics
+from shared_lookup import HINT, shared_path  # bench/shared_lookup.py
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def shared_data() -> Path | None:
     """The UMich data directory, or None."""
-    for base in (os.environ.get('FAE_SHARED'), ROOT.parent / 'shared', '/work/shared'):
-        if base and (Path(base) / 'data' / 'umich-cnc-mill' / 'experiment_03.csv').exists():
-            return Path(base) / 'data' / 'umich-cnc-mill'
-    return None
+    return shared_path('data', 'umich-cnc-mill', needs=('experiment_03.csv',))
 
 
 def main() -> int:
     """Print the table."""
     data = shared_data()
     if data is None:
-        print('UMich data not found (set FAE_SHARED)', file=sys.stderr)
+        print(f'UMich data not found: {HINT}', file=sys.stderr)
         return 1
     c0 = time.process_time()
     campaign = load_campaign(ROOT / 'config' / 'campaigns' / 'umich_mill.yaml',

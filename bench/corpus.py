@@ -65,6 +65,7 @@ for _p in (ROOT, ROOT / 'bench'):
         sys.path.insert(0, str(_p))
 
 import oracle_quirks  # noqa: E402  (bench/oracle_quirks.py)
+from shared_lookup import HINT, shared_path  # noqa: E402  (bench/shared_lookup.py)
 
 from feed_axis_energy.core.errors import FeedAxisError, GcodeError  # noqa: E402
 from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
@@ -100,20 +101,13 @@ def find_corpus(explicit: str | os.PathLike[str] | None = None) -> Path | None:
     Returns
     -------
     Path or None
-        ``explicit``, else ``$FAE_SHARED/corpus/gcode``, else ``<repo>/../shared/corpus/gcode``,
-        else ``/work/shared/corpus/gcode``: the first that holds ``oracle.json``.
+        ``explicit``, else ``corpus/gcode`` of the shared data (``$FAE_SHARED``, else
+        ``<repo>/../shared``; :mod:`shared_lookup`) if it holds ``oracle.json`` and
+        ``programs.csv``.
     """
     if explicit is not None:
         return Path(explicit)
-    candidates = []
-    if os.environ.get('FAE_SHARED'):
-        candidates.append(Path(os.environ['FAE_SHARED']))
-    candidates += [ROOT.parent / 'shared', Path('/work/shared')]
-    for shared in candidates:
-        folder = shared / 'corpus' / 'gcode'
-        if (folder / 'oracle.json').is_file() and (folder / 'programs.csv').is_file():
-            return folder
-    return None
+    return shared_path('corpus', 'gcode', needs=('oracle.json', 'programs.csv'))
 
 
 @dataclass(frozen=True)
@@ -893,7 +887,7 @@ def main(argv: list[str] | None = None) -> int:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog='Exit status: 0 report printed, 1 corpus not found, 2 usage error.')
     ap.add_argument('--corpus', help='corpus folder (default: $FAE_SHARED/corpus/gcode, '
-                                     '../shared/corpus/gcode, /work/shared/corpus/gcode)')
+                                     'else ../shared/corpus/gcode beside the repository)')
     ap.add_argument('--plan', action='store_true',
                     help='also plan every accepted program on config/three_axis_mill.yaml')
     ap.add_argument('--json', action='store_true', help='print one JSON object')
@@ -918,8 +912,8 @@ def main(argv: list[str] | None = None) -> int:
         ap.error('--mem-lines and --skip-largest must be >= 0, --timeout > 0')
     corpus = find_corpus(args.corpus)
     if corpus is None or not (corpus / 'oracle.json').is_file():
-        where = args.corpus or 'the default places'
-        print(f'error: no corpus (programs.csv + oracle.json) at {where}', file=sys.stderr)
+        where = f'at {args.corpus}' if args.corpus else f'found; give --corpus DIR or {HINT}'
+        print(f'error: no corpus (programs.csv + oracle.json) {where}', file=sys.stderr)
         return 1
 
     def progress(msg: str) -> None:

@@ -18,24 +18,22 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
 from pathlib import Path
 import sys
 
 from feed_axis_energy.core.errors import FeedAxisError
 from feed_axis_energy.core.gcode import iter_moves
 from feed_axis_energy.core.gcode.dialect import DIALECTS
-
-REPO = Path(__file__).resolve().parents[1]
+from shared_lookup import HINT, shared_path  # bench/shared_lookup.py
 
 
 def _corpus(given: str | None) -> Path:
-    for cand in (given, os.environ.get('FAE_SHARED') and Path(os.environ['FAE_SHARED']) /
-                 'corpus' / 'gcode', REPO.parent / 'shared' / 'corpus' / 'gcode',
-                 Path('/work/shared/corpus/gcode')):
-        if cand and (Path(cand) / 'programs.csv').is_file():
-            return Path(cand)
-    sys.exit('error: no corpus (programs.csv) found; give --corpus DIR or set FAE_SHARED')
+    if given and (Path(given) / 'programs.csv').is_file():
+        return Path(given)
+    found = shared_path('corpus', 'gcode', needs=('programs.csv',))
+    if found is None:
+        sys.exit(f'error: no corpus (programs.csv) found; give --corpus DIR or {HINT}')
+    return found
 
 
 def contexts(corpus: Path) -> dict:

@@ -20,19 +20,15 @@ import json
 import os
 import sys
 
+from shared_lookup import shared_path  # bench/shared_lookup.py (standard library only)
+
 SYSTEM_PYTHON = '/usr/bin/python3'
 
 
 def default_oracle() -> str:
-    """Path of ``shared/tools/run_oracle.py`` ($FAE_SHARED, ../shared, /work/shared)."""
-    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    places = [os.environ.get('FAE_SHARED', ''), os.path.join(os.path.dirname(here), 'shared'),
-              '/work/shared']
-    for shared in places:
-        path = os.path.join(shared, 'tools', 'run_oracle.py')
-        if shared and os.path.isfile(path):
-            return path
-    return ''
+    """Path of ``tools/run_oracle.py`` in the shared data ($FAE_SHARED, else ../shared), or ''."""
+    path = shared_path('tools', 'run_oracle.py')
+    return '' if path is None else str(path)
 
 
 def _load(path: str):

@@ -39,13 +39,14 @@ import numpy as np
 
 from .lookahead import BlockGroups, group_blocks, path_cumsum, through_acceleration
 from .motion import Motion
+from .phasesample import _corner_terms, _junction_times, _phase_table
 from .profiles import plan_profiles, reach_speed
 from .program import Move, PROGRAM_AXES
 from .samplechunk import Chunk, GridCursor, WindowSampler
+from .segments import (_Collector, _Geometry, _geometry, _junction_speeds, _path_limits, _REST,
+                       _Segments)
 from .standstill import first_grid_index, standstill_runs
-from .trajectory import (_check_limits, _Collector, _corner_terms, _Geometry, _geometry,
-                         _junction_speeds, _junction_times, _path_limits, _phase_table, _REST,
-                         _Segments, AxisLimits, PlannerOptions)
+from .trajectory import _check_limits, AxisLimits, PlannerOptions
 
 __all__ = ['DEFAULT_CHUNK_SAMPLES', 'WINDOW_BLOCKS', 'PlannedWindow', 'iter_plan',
            'iter_motion', 'concat_motion', 'PlanEstimate', 'estimate_plan']
@@ -69,7 +70,7 @@ class PlannedWindow:
         Start time of every phase, ``7 g + 1`` values; ``t_start[0]`` is the window's start,
         ``t_start[-1]`` its end [s].
     phases
-        The table of phases with a duration (see :func:`.trajectory._phase_table`).
+        The table of phases with a duration (see :func:`.phasesample._phase_table`).
     path_start_m
         Program path length before the first block [m].
     tan_entry

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .motion import Motion
-from .trajectory import _apply_steps, _BlockLocator, _sample
+from .phasesample import _apply_steps, _BlockLocator, _sample
 
 if TYPE_CHECKING:
     from .planstream import PlannedWindow

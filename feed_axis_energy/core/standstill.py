@@ -66,7 +66,7 @@ def standstill_runs(phases: tuple[np.ndarray, ...], *, rate_hz: float, lo: int, 
     Parameters
     ----------
     phases
-        The phase table of a planned window (:func:`.trajectory._phase_table`).
+        The phase table of a planned window (:func:`.phasesample._phase_table`).
     rate_hz
         Sample rate [Hz].
     lo, hi

@@ -11,17 +11,11 @@ import threading
 import pytest
 
 from feed_axis_energy.cli import main
+from shared_data import need_shared
 
 ROOT = Path(__file__).resolve().parents[2]
 PROGRAMS = ROOT / 'config' / 'programs'
 MILL = ROOT / 'config' / 'three_axis_mill.yaml'
-
-
-def _shared() -> Path | None:
-    for cand in (os.environ.get('FAE_SHARED'), ROOT.parent / 'shared', '/work/shared'):
-        if cand and Path(cand).is_dir():
-            return Path(cand)
-    return None
 
 
 def _run(*argv: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
@@ -196,10 +190,7 @@ def test_bad_input_is_a_clear_error(argv, code, message):
 
 
 def test_real_corpus_directory_every_job_a_row():
-    shared = _shared()
-    corpus = shared / 'corpus' / 'gcode' / 'LinuxCNC__linuxcnc' if shared else None
-    if corpus is None or not corpus.is_dir():
-        pytest.skip('shared corpus not found (set FAE_SHARED)')
+    corpus = need_shared('corpus', 'gcode', 'LinuxCNC__linuxcnc')
     proc = _run('batch', str(corpus), '--machine', str(MILL), '--rate-hz', '100',
                 '--max-samples', '2000000', '--jobs', '2', '--json', '--quiet')
     assert proc.returncode in (0, 1), proc.stderr

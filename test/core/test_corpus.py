@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import os
 from pathlib import Path
 import subprocess
 import sys
 import textwrap
 
 import pytest
+from shared_data import shared_path, SKIP_REASON
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -36,7 +36,7 @@ def _load_bench():
 corpus = _load_bench()
 CORPUS = corpus.find_corpus()
 needs_corpus = pytest.mark.skipif(CORPUS is None,
-                                  reason='shared corpus (corpus/gcode) not found')
+                                  reason=f'shared corpus (corpus/gcode): {SKIP_REASON}')
 
 ACCEPTANCE_FLOOR = 0.96
 """Share of the programs the reference accepts that we accept (issue 8 target: 0.95).
@@ -97,12 +97,7 @@ def test_report_names_every_refusal_with_its_place(report):
 # live: our own small programs through the reference interpreter
 # ----------------------------------------------------------------------------------------
 def _oracle_script() -> Path | None:
-    shared = [os.environ.get('FAE_SHARED', ''), str(ROOT.parent / 'shared'), '/work/shared']
-    for folder in shared:
-        path = Path(folder) / 'tools' / 'run_oracle.py' if folder else None
-        if path is not None and path.is_file():
-            return path
-    return None
+    return shared_path('tools', 'run_oracle.py')
 
 
 def _has_linuxcnc() -> bool:
@@ -116,7 +111,8 @@ def _has_linuxcnc() -> bool:
 ORACLE = _oracle_script()
 needs_reference = pytest.mark.skipif(
     ORACLE is None or not _has_linuxcnc(),
-    reason='reference interpreter (linuxcnc-uspace, shared/tools/run_oracle.py) not available')
+    reason='reference interpreter (linuxcnc-uspace, tools/run_oracle.py of the shared data: '
+    'set FAE_SHARED) not available')
 
 # One program per construct; each runs to M2 in LinuxCNC 2.9. Millimetres unless stated.
 LIVE_PROGRAMS = {

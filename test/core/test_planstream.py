@@ -1,6 +1,5 @@
 """Streaming planner: chunks of motion from windows of blocks equal the whole-program plan."""
 import math
-import os
 from pathlib import Path
 import tracemalloc
 
@@ -14,17 +13,11 @@ from feed_axis_energy.core.planstream import (concat_motion, estimate_plan, iter
                                               iter_plan)
 from feed_axis_energy.core.program import Move, MoveKind, Program
 from feed_axis_energy.core.trajectory import AxisLimits, plan, PlannerOptions
+from shared_data import need_shared
 
 REPO = Path(__file__).resolve().parents[2]
 LIM_XYZ = {'X': AxisLimits(0.5, 3.0, 60.0), 'Y': AxisLimits(0.4, 2.0, 40.0),
            'Z': AxisLimits(0.3, 1.5, 30.0)}
-
-
-def _shared() -> Path | None:
-    for cand in (os.environ.get('FAE_SHARED'), REPO.parent / 'shared', '/work/shared'):
-        if cand and Path(cand).is_dir():
-            return Path(cand)
-    return None
 
 
 def _line(line, p, q, feed=0.1, stop=False, kind=MoveKind.LINEAR):
@@ -172,12 +165,9 @@ def test_week_long_dwell_is_sampled_lazily():
 
 
 def test_corpus_programs_equal_whole_plan():
-    shared = _shared()
-    if shared is None:
-        pytest.skip('shared corpus not found')
+    root = need_shared('corpus', 'gcode')
     machine = load_machine(REPO / 'config' / 'three_axis_mill.yaml')
     opts = machine.planner.options()
-    root = shared / 'corpus' / 'gcode'
     names = ['CauldronDevelopmentLLC__CAMotics/examples__locket__engrave.ngc']
     paths = [root / n for n in names if (root / n).is_file()]
     if not paths:

@@ -8,6 +8,7 @@ from feed_axis_energy.core.gcode import iter_moves
 from feed_axis_energy.core.gcode.context import operation_name
 from feed_axis_energy.core.machine import load_machine, machine_to_dict
 from feed_axis_energy.core.simstream import simulate_stream
+from shared_data import need_shared
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -159,14 +160,6 @@ def test_chunking_does_not_change_the_rollups(tmp_path):
             assert got[r['name']]['duration_s'] == pytest.approx(r['duration_s'], rel=1e-9)
 
 
-def _shared():
-    import os
-    for cand in (os.environ.get('FAE_SHARED'), REPO.parent / 'shared', '/work/shared'):
-        if cand and (Path(cand) / 'corpus' / 'gcode').is_dir():
-            return Path(cand) / 'corpus' / 'gcode'
-    return None
-
-
 @pytest.mark.parametrize('name,operations,tools', [
     # CamBam: section comments after a tool list in the header
     ('jbeuckm__thrust_bucket/cambam__load_cell_spacer.nc', {'holes', 'cutout'}, {3}),
@@ -177,9 +170,7 @@ def _shared():
     ('cncjs__cncjs/examples__gcode__jsdc.gcode', {'operation 0'}, set()),
 ])
 def test_corpus_operations(name, operations, tools):
-    corpus = _shared()
-    if corpus is None:
-        pytest.skip('shared corpus not found (set FAE_SHARED)')
+    corpus = need_shared('corpus', 'gcode')
     stream = iter_moves(corpus / name, ignore_axes=('A', 'B', 'C'))
     n = sum(1 for _ in stream)
     used = {stream.context.table[i] for _, i in stream.context.marks} | {

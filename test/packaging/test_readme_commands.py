@@ -20,6 +20,7 @@ import subprocess
 import sys
 
 import pytest
+from shared_data import shared_path
 
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / 'README.md'
@@ -55,13 +56,6 @@ def readme_blocks() -> list[tuple[str, int, str, str]]:
     return blocks
 
 
-def _shared() -> Path | None:
-    for cand in (os.environ.get('FAE_SHARED'), ROOT.parent / 'shared', '/work/shared'):
-        if cand and Path(cand).is_dir():
-            return Path(cand).resolve()
-    return None
-
-
 def _env() -> dict[str, str]:
     env = dict(os.environ)
     env['PATH'] = f'{Path(sys.executable).parent}{os.pathsep}{env.get("PATH", "")}'
@@ -78,7 +72,7 @@ def workdir(tmp_path_factory) -> Path:
     clone.mkdir()
     for name in ('config', 'bags'):
         shutil.copytree(ROOT / name, clone / name)
-    shared = _shared()
+    shared = shared_path()
     if shared is not None:
         (base / 'shared').symlink_to(shared, target_is_directory=True)
     return clone

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 import random
 import re
@@ -15,6 +14,7 @@ from feed_axis_energy.core.errors import GcodeError
 from feed_axis_energy.core.gcode.cutter import CutterComp, LEFT, RIGHT
 from feed_axis_energy.core.gcode.cutter_corners import arc_sweep, find_turn
 from feed_axis_energy.core.program import Move, MoveKind
+from shared_data import shared_path
 
 MM = 1e-3
 ROOT = Path(__file__).resolve().parents[3]
@@ -309,13 +309,6 @@ def test_mode_errors_as_linuxcnc():
 
 
 # -- agreement with LinuxCNC's interpreter, where it is installed ---------------------------
-def _shared() -> Path | None:
-    for cand in (os.environ.get('FAE_SHARED'), ROOT.parent / 'shared', '/work/shared'):
-        if cand and Path(cand).is_dir():
-            return Path(cand)
-    return None
-
-
 # Runs under /usr/bin/python3 with LinuxCNC's `gcode` module: the oracle's canon, with the
 # tool diameters given on the command line, printing every canon move as JSON (mm).
 _TRACE = r'''
@@ -358,10 +351,8 @@ print(json.dumps({'log': c.log, 'error': gcode.strerror(res) if res > gcode.MIN_
 
 
 def _reference(program: Path, diameters: dict[int, float]) -> dict | None:
-    shared = _shared()
-    tools = shared / 'tools' if shared else None
-    if tools is None or not (tools / 'run_oracle.py').is_file() \
-            or not Path('/usr/bin/python3').exists():
+    tools = shared_path('tools', needs=('run_oracle.py',))
+    if tools is None or not Path('/usr/bin/python3').exists():
         return None
     script = program.with_suffix('.trace.py')
     script.write_text(_TRACE)
@@ -512,7 +503,8 @@ def test_agrees_with_the_reference_interpreter(name, tmp_path):
     prog.write_text(text)
     ref = _reference(prog, diameters)
     if ref is None:
-        pytest.skip('LinuxCNC reference interpreter (linuxcnc-uspace) not installed')
+        pytest.skip('LinuxCNC reference interpreter (linuxcnc-uspace) not installed, or '
+                    'tools/run_oracle.py not in the shared data (set FAE_SHARED)')
     ours, err = _ours(text, diameters)
     assert (err is None) == (ref['error'] is None), (err, ref['error'])
     if err is not None:

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 import re
 import subprocess
@@ -13,6 +12,7 @@ import pytest
 from feed_axis_energy.core.errors import GcodeError
 from feed_axis_energy.core.gcode.cycles import (CYCLE_CODES, CycleMemory, CycleSpec,
                                                 expand_cycle, PECK_BACKOFF_M, word_failer)
+from shared_data import shared_path
 
 MM = 1e-3
 ROOT = Path(__file__).resolve().parents[3]
@@ -240,17 +240,9 @@ def test_a_runaway_peck_count_is_refused_not_expanded():
 
 
 # -- agreement with LinuxCNC's interpreter, where it is installed -------------------------
-def _shared() -> Path | None:
-    for cand in (os.environ.get('FAE_SHARED'), ROOT.parent / 'shared', '/work/shared'):
-        if cand and Path(cand).is_dir():
-            return Path(cand)
-    return None
-
-
 def _oracle() -> Path | None:
-    shared = _shared()
-    tool = shared / 'tools' / 'run_oracle.py' if shared else None
-    if tool is None or not tool.is_file() or not Path('/usr/bin/python3').exists():
+    tool = shared_path('tools', 'run_oracle.py')
+    if tool is None or not Path('/usr/bin/python3').exists():
         return None
     ok = subprocess.run(['/usr/bin/python3', '-c', 'import gcode; gcode.parse'],
                         capture_output=True, cwd='/')
@@ -354,7 +346,8 @@ M2
 def test_agrees_with_the_reference_interpreter(name, tmp_path):
     tool = _oracle()
     if tool is None:
-        pytest.skip('LinuxCNC reference interpreter (linuxcnc-uspace) not installed')
+        pytest.skip('LinuxCNC reference interpreter (linuxcnc-uspace) not installed, or '
+                    'tools/run_oracle.py not in the shared data (set FAE_SHARED)')
     prog = tmp_path / name
     prog.write_text(FIXTURES[name])
     run = subprocess.run(['/usr/bin/python3', str(tool), '--one', str(prog)],

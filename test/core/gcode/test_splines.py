@@ -12,7 +12,6 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
-import os
 from pathlib import Path
 import random
 import subprocess
@@ -26,6 +25,7 @@ from feed_axis_energy.core.gcode import parse_gcode
 from feed_axis_energy.core.gcode.splines import (ControlPoint, knot_vector, MAX_ORDER,
                                                  nurbs_point, nurbs_polyline)
 from feed_axis_energy.core.program import MoveKind
+from shared_data import shared_path
 
 MM = 1e-3
 ROOT = Path(__file__).resolve().parents[3]
@@ -337,10 +337,7 @@ def test_random_nurbs_stays_in_the_hull_and_ends_on_the_last_point(points, order
 
 # -- against the reference interpreter (where linuxcnc-uspace is installed) --------------------
 def _oracle_script() -> Path | None:
-    for folder in (os.environ.get('FAE_SHARED', ''), str(ROOT.parent / 'shared'), '/work/shared'):
-        if folder and (Path(folder) / 'tools' / 'run_oracle.py').is_file():
-            return Path(folder) / 'tools' / 'run_oracle.py'
-    return None
+    return shared_path('tools', 'run_oracle.py')
 
 
 def _has_reference() -> bool:
@@ -380,7 +377,7 @@ def _random_program(rng: random.Random) -> str:
 
 
 @pytest.mark.skipif(not _has_reference(), reason='reference interpreter (linuxcnc-uspace, '
-                    'shared/tools/run_oracle.py) not available')
+                    'tools/run_oracle.py of the shared data: set FAE_SHARED) not available')
 def test_random_spline_programs_agree_with_the_reference(tmp_path):
     spec = importlib.util.spec_from_file_location('fae_bench_corpus_splines',
                                                   ROOT / 'bench' / 'corpus.py')

@@ -3,7 +3,6 @@ held-out RMSE at least 30 % below the guessed config's, with loss and inertia fi
 calibrate runs only (``fit-loss --method samples``) and motion from the actual kinematics.
 """
 from dataclasses import replace
-import os
 from pathlib import Path
 
 import pytest
@@ -13,22 +12,16 @@ from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.measured import load_campaign, load_run
 from feed_axis_energy.core.measured.compare import compare_campaign
 from feed_axis_energy.core.measured.metrics import group_metrics
+from shared_data import shared_path, SKIP_REASON
 
 ROOT = Path(__file__).resolve().parents[3]
 MANIFEST = ROOT / 'config' / 'campaigns' / 'umich_mill.yaml'
 
 
-def _data() -> Path | None:
-    for base in (os.environ.get('FAE_SHARED'), ROOT.parent / 'shared', '/work/shared'):
-        if base and (Path(base) / 'data' / 'umich-cnc-mill' / 'experiment_03.csv').is_file():
-            return Path(base) / 'data' / 'umich-cnc-mill'
-    return None
+DATA = shared_path('data', 'umich-cnc-mill', needs=('experiment_03.csv',))
 
 
-DATA = _data()
-
-
-@pytest.mark.skipif(DATA is None, reason='UMich CNC mill data not found (set FAE_SHARED)')
+@pytest.mark.skipif(DATA is None, reason=f'UMich CNC mill data: {SKIP_REASON}')
 def test_samples_fit_on_calibrate_runs_meets_the_validate_targets():
     campaign = load_campaign(MANIFEST, check_files=False)
     campaign = replace(campaign, runs=tuple(replace(r, data=DATA / r.data.name)
