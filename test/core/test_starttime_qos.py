@@ -68,6 +68,11 @@ def test_simulate_start_time_stamps_every_topic(tmp_path):
         assert [m[1] for m in shifted] == [m[1] + NOV23_14H for m in plain]     # log times
         assert [header_stamp_ns(m[2]) for m in shifted] == [m[1] for m in shifted]
         assert [m[2][12:] for m in shifted] == [m[2][12:] for m in plain]       # the rest
+        # read back as a series: the same times bit for bit, the start kept apart
+        wall, sim = bagio.read_series(out, topic), bagio.read_series(ref, topic)
+        assert (wall.t0_ns, sim.t0_ns) == (NOV23_14H, 0)
+        np.testing.assert_array_equal(wall.t, sim.t)
+        np.testing.assert_array_equal(wall.stamps_ns(), sim.stamps_ns() + NOV23_14H)
     plot, plain = read_plot_topic(out, TOPIC_PLOT_POWER), read_plot_topic(ref, TOPIC_PLOT_POWER)
     np.testing.assert_array_equal(plot.t_ns, plain.t_ns + NOV23_14H)   # log time = stamp
     assert bagio.read_block_energy(out) == bagio.read_block_energy(ref)
