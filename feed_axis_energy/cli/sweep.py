@@ -84,7 +84,7 @@ def _plan(args: argparse.Namespace):
     from feed_axis_energy.core.batch import BatchJob, MAX_JOBS
     from feed_axis_energy.core.batchspec import expand_programs
     from feed_axis_energy.core.errors import ConfigError
-    from feed_axis_energy.core.machine import load_machine, machine_to_dict
+    from feed_axis_energy.core.machine import machine_to_dict
     from feed_axis_energy.core.sweep import parse_vary, resolve_paths, variant_machine, variants
     from feed_axis_energy.paths import default_machine
     check_executor_options(args)
@@ -101,7 +101,7 @@ def _plan(args: argparse.Namespace):
         raise ConfigError('a parameter is varied twice', file='command line', key='vary')
     machine_file = str(args.machine) if args.machine is not None else str(default_machine())
     machine_path = os.path.abspath(machine_file)
-    as_dict = machine_to_dict(load_machine(machine_path))
+    as_dict = machine_to_dict(variant_machine(machine_path, ()))   # read once, cached
     for p in params:
         if not p.is_run_key:
             resolve_paths(p.key, as_dict)

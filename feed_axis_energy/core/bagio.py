@@ -70,11 +70,16 @@ class Series:
     Attributes
     ----------
     t
-        Sample times [s], shape ``(n,)``.
+        Sample times [s] since ``t0_ns``, shape ``(n,)``.
     names
         Joint names (columns), e.g. ``('X', 'X_screw')`` or ``('X', 'total')``.
     positions, velocities, accelerations, effort
         Arrays of shape ``(n, len(names))`` or ``None`` when the field is absent.
+    t0_ns
+        The time ``t`` counts from [ns since the epoch of the stamps]: 0 for simulation time.
+        :func:`read_series` sets it to the first sample's stamp, so that ``t`` keeps every
+        nanosecond of a recording stamped in wall-clock time (``--start-time``; float64
+        seconds since 1970 hold only about 0.2 us there).
     """
 
     t: np.ndarray
@@ -83,14 +88,22 @@ class Series:
     velocities: np.ndarray | None = None
     accelerations: np.ndarray | None = None
     effort: np.ndarray | None = None
+    t0_ns: int = 0
 
     def __post_init__(self) -> None:
+        if isinstance(self.t0_ns, bool) or not isinstance(self.t0_ns, (int, np.integer)):
+            msg = f'Series.t0_ns must be an integer [ns], got {type(self.t0_ns).__name__}'
+            raise ValueError(msg)
         n, m = self.t.shape[0], len(self.names)
         for field in ('positions', 'velocities', 'accelerations', 'effort'):
             arr = getattr(self, field)
             if arr is not None and arr.shape != (n, m):
                 msg = f'Series.{field} has shape {arr.shape}, expected ({n}, {m})'
                 raise ValueError(msg)
+
+    def stamps_ns(self) -> np.ndarray:
+        """The sample times as integer stamps [ns]: ``t0_ns + round(t * 1e9)``, int64."""
+        return np.rint(self.t * _NS).astype(np.int64) + np.int64(self.t0_ns)
 
 
 def series_to_messages(series: Series, *, batch: int = 100, frame_id: str = '') -> list:
@@ -106,10 +119,10 @@ def series_to_messages(series: Series, *, batch: int = 100, frame_id: str = '') 
     dur_cls = ts.types['builtin_interfaces/msg/Duration']
     empty = np.zeros(0, dtype=np.float64)
     fields = [getattr(series, f) for f in ('positions', 'velocities', 'accelerations', 'effort')]
-    if np.any(series.t < 0):
+    t_ns = series.stamps_ns()
+    if np.any(t_ns < 0):
         msg = 'bag time series must not have negative times'
         raise ValueError(msg)
-    t_ns = np.rint(series.t * _NS).astype(np.int64)
     out = []
     names = list(series.names)
     for i0 in range(0, t_ns.shape[0], batch):
@@ -130,7 +143,11 @@ def series_to_messages(series: Series, *, batch: int = 100, frame_id: str = '') 
 
 
 def messages_to_series(messages: Iterable) -> Series:
-    """Join JointTrajectory messages (in stamp order) back into one :class:`Series`."""
+    """Join JointTrajectory messages (in stamp order) back into one :class:`Series`.
+
+    Times are summed in integer nanoseconds; ``t0_ns`` is the first sample's stamp and ``t``
+    counts from it, exactly to the nanosecond for any stamp (wall-clock ones included).
+    """
     t_parts: list[np.ndarray] = []
     cols: dict[str, list[np.ndarray]] = {f: [] for f in
                                          ('positions', 'velocities', 'accelerations', 'effort')}
@@ -141,7 +158,7 @@ def messages_to_series(messages: Iterable) -> Series:
         stamp = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
         rel = np.array([p.time_from_start.sec * _NS + p.time_from_start.nanosec
                         for p in msg.points], dtype=np.int64)
-        t_parts.append((stamp + rel) / _NS)
+        t_parts.append(stamp + rel)
         for field, parts in cols.items():
             rows = [getattr(p, field) for p in msg.points]
             parts.append(np.array(rows, dtype=np.float64).reshape(len(rows), -1))
@@ -152,7 +169,9 @@ def messages_to_series(messages: Iterable) -> Series:
     for field, parts in cols.items():
         arr = np.concatenate(parts, axis=0) if parts else np.zeros((0, 0))
         arrays[field] = arr if arr.shape[1] == m and m > 0 else None
-    return Series(t=np.concatenate(t_parts), names=names, **arrays)
+    t_ns = np.concatenate(t_parts)
+    t0_ns = int(t_ns[0]) if t_ns.shape[0] else 0
+    return Series(t=(t_ns - t0_ns) / _NS, names=names, t0_ns=t0_ns, **arrays)
 
 
 class BagWriter:
@@ -209,10 +228,10 @@ class BagWriter:
         The messages are those of :func:`series_to_messages`, serialised all at once by
         :func:`.cdr.joint_trajectory_cdr` (same bytes, without a Python object per point).
         """
-        if np.any(series.t < 0):
+        t_ns = series.stamps_ns()
+        if np.any(t_ns < 0):
             msg = 'bag time series must not have negative times'
             raise ValueError(msg)
-        t_ns = np.rint(series.t * _NS).astype(np.int64)
         fields = [getattr(series, f) for f in ('positions', 'velocities', 'accelerations',
                                                'effort')]
         raw = joint_trajectory_cdr(t_ns, tuple(series.names), fields, batch=batch)
@@ -367,6 +386,9 @@ def _decode(path: Path, topic: str, index: int, raw: bytes, msgtype: str):
 
 def read_series(path: str | Path, topic: str) -> Series:
     """Read all JointTrajectory messages of ``topic`` into one :class:`Series`.
+
+    ``t0_ns`` is the stamp of the topic's first sample and ``t`` [s] counts from it (exact to
+    the nanosecond); a recording stamped in simulation time from 0 reads ``t0_ns = 0``.
 
     Raises
     ------

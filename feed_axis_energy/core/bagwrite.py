@@ -144,10 +144,10 @@ class StreamBagWriter:
 
         The messages equal :func:`.bagio.series_to_messages`' (the last may be shorter).
         """
-        if np.any(series.t < 0):
+        t_ns = series.stamps_ns()           # the series' start (t0_ns) kept
+        if np.any(t_ns < 0):
             msg = 'bag time series must not have negative times'
             raise ValueError(msg)
-        t_ns = np.rint(series.t * _NS).astype(np.int64)
         values = [series.positions, series.velocities, series.accelerations, series.effort]
         n = int(t_ns.shape[0])
         full = (n // batch) * batch

@@ -9,11 +9,10 @@ core sees float seconds rebuilt from those integers.
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
 import math
 from pathlib import Path
 import struct
-from typing import Iterable, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -21,6 +20,7 @@ from .dynamics import compute_dynamics
 from .energy import apply_braking, compute_power, EnergyIntegrator
 from .errors import ConfigError, DataError
 from .graph_bag import ChunkedBagWriter
+from .graph_end import EndTracker, ProgramEnd, restamp_end_marker
 from .machine import Machine
 from .motion import Motion
 from .simulate import declared_effects_power_w
@@ -28,7 +28,7 @@ from .simulate import declared_effects_power_w
 __all__ = ['NS_PER_S', 'seconds_to_ns', 'ns_to_seconds', 'batch_bounds', 'FlowWindow',
            'pacing_delay_s', 'block_starts', 'lines_at', 'StreamingPower', 'header_stamp_ns',
            'ProgramEnd', 'EndTracker', 'ChunkedBagWriter', 'latency_stats', 'read_raw',
-           'recording_gaps']
+           'recording_gaps', 'restamp_end_marker']
 
 NS_PER_S = 1_000_000_000
 
@@ -310,107 +310,6 @@ def header_stamp_ns(cdr: bytes | memoryview) -> int:
         raise DataError(msg, file='<cdr>')
     sec, nsec = _STAMP.unpack_from(cdr, 4)
     return sec * NS_PER_S + nsec
-
-
-@dataclass(frozen=True)
-class ProgramEnd:
-    """The end-of-program marker (see docs/nodes.md, topic ``program/end``).
-
-    Attributes
-    ----------
-    program
-        Program file.
-    samples, batches
-        Number of samples and of messages per stream.
-    first_ns, last_ns
-        Stamp of the first sample and of the last batch's header.
-    topic_last_ns
-        Producers whose streams end at different stamps (``measured_replay``): last header
-        stamp per topic (``{'measured/power': ns}``, no leading slash). When given, a topic
-        that is not listed has no message to wait for. Empty: every stream ends at ``last_ns``.
-    """
-
-    program: str
-    samples: int
-    batches: int
-    first_ns: int
-    last_ns: int
-    topic_last_ns: dict[str, int] = field(default_factory=dict)
-
-    def last_ns_of(self, topic: str) -> int:
-        """Last stamp stream ``topic`` must reach (-1: nothing to wait for)."""
-        if not self.topic_last_ns:
-            return self.last_ns
-        return self.topic_last_ns.get(topic.lstrip('/'), -1)
-
-    def to_pairs(self) -> list[tuple[str, str]]:
-        """Key/value strings (for a ``diagnostic_msgs/KeyValue`` list)."""
-        return [('program', self.program), ('samples', str(self.samples)),
-                ('batches', str(self.batches)), ('first_stamp_ns', str(self.first_ns)),
-                ('last_stamp_ns', str(self.last_ns))] + [
-                    (f'{_TOPIC_LAST}{t}', str(ns)) for t, ns in sorted(self.topic_last_ns.items())]
-
-    @classmethod
-    def from_pairs(cls, pairs: Iterable[tuple[str, str]]) -> 'ProgramEnd':
-        """Inverse of :meth:`to_pairs` (``DataError`` on a missing or bad value)."""
-        d = dict(pairs)
-        try:
-            per_topic = {k[len(_TOPIC_LAST):].lstrip('/'): int(v) for k, v in d.items()
-                         if k.startswith(_TOPIC_LAST)}
-            return cls(program=d['program'], samples=int(d['samples']),
-                       batches=int(d['batches']), first_ns=int(d['first_stamp_ns']),
-                       last_ns=int(d['last_stamp_ns']), topic_last_ns=per_topic)
-        except (KeyError, ValueError) as err:
-            msg = f'bad end-of-program marker {d!r}: {err}'
-            raise DataError(msg, file='program/end') from err
-
-
-_TOPIC_LAST = 'last_stamp_ns:'
-
-
-class EndTracker:
-    """Knows when every stream has delivered its last batch of the program.
-
-    Parameters
-    ----------
-    streams
-        Topics that must each reach the end marker's last stamp.
-    extra
-        Topics of which at least one message must have arrived (e.g. ``block_energy``).
-    """
-
-    def __init__(self, streams: Iterable[str], extra: Iterable[str] = ()) -> None:
-        self._last = {s: -1 for s in streams}
-        self._extra = {e: False for e in extra}
-        self.end: ProgramEnd | None = None
-
-    @property
-    def streams(self) -> tuple[str, ...]:
-        """The topics that must reach the end marker's last stamp."""
-        return tuple(self._last)
-
-    def seen(self, topic: str, stamp_ns: int) -> None:
-        """Record a message of ``topic`` with header stamp ``stamp_ns``."""
-        if topic in self._last:
-            self._last[topic] = max(self._last[topic], stamp_ns)
-        if topic in self._extra:
-            self._extra[topic] = True
-
-    def min_stamp_ns(self) -> int:
-        """Newest stamp that every stream has reached (-1 before)."""
-        return min(self._last.values()) if self._last else -1
-
-    @property
-    def done(self) -> bool:
-        """True once the marker arrived and every stream and extra topic caught up.
-
-        A stream has caught up when it reached the marker's last stamp for it
-        (:meth:`ProgramEnd.last_ns_of`).
-        """
-        end = self.end
-        return (end is not None and all(last >= end.last_ns_of(topic)
-                                        for topic, last in self._last.items())
-                and all(self._extra.values()))
 
 
 def latency_stats(latencies_s: Sequence[float]) -> dict[str, float]:

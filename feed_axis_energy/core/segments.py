@@ -221,6 +221,29 @@ def _geometry(seg: _Segments, file: str) -> _Geometry:
                      theta0=theta0, sweep=sweep, r0=r0, kr=kr, kc=kc, r_min=r_min)
 
 
+def line_speed_limits(u: np.ndarray, axis_vmax: np.ndarray) -> np.ndarray:
+    """Path speed [m/s] of straight moves at which the first axis reaches its speed limit.
+
+    ``min_k vmax_k / |u_k|`` over the program axes; an axis that does not move sets no limit.
+    The one rule for the planner's lines and rapids and for :mod:`.sweep`'s rapid override.
+
+    Parameters
+    ----------
+    u
+        Unit directions, shape ``(3,)`` or ``(m, 3)``.
+    axis_vmax
+        Speed limit [m/s] of each program axis, shape ``(3,)`` (``inf`` where absent).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``()`` or ``(m,)``; ``inf`` when no moving axis has a limit.
+    """
+    with np.errstate(divide='ignore'):
+        return np.min(np.asarray(axis_vmax, dtype=float) / np.abs(np.asarray(u, dtype=float)),
+                      axis=-1)
+
+
 def _path_limits(seg: _Segments, geo: _Geometry, lim: np.ndarray,
                  file: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Path speed, acceleration and jerk limits per segment; ``lim`` is (3 kinds, 3 axes)."""
@@ -244,7 +267,7 @@ def _path_limits(seg: _Segments, geo: _Geometry, lim: np.ndarray,
     with np.errstate(divide='ignore'):
         is_line = seg.kind == _LINE
         au = np.abs(geo.u[is_line])
-        vmax[is_line] = np.minimum(np.min(lim[0] / au, axis=1), feed[is_line])
+        vmax[is_line] = np.minimum(line_speed_limits(au, lim[0]), feed[is_line])
         amax[is_line] = np.min(lim[1] / au, axis=1)
         jmax[is_line] = np.min(lim[2] / au, axis=1)
         arcs = seg.kind == _ARC

@@ -262,9 +262,20 @@ def apply_overrides(machine_dict: Mapping[str, Any],
     return d
 
 
+@functools.lru_cache(maxsize=8)
+def _base_machine(path: str):
+    """The machine file at ``path`` read, validated and turned into its YAML form, once."""
+    from .machine import load_machine, machine_to_dict
+    machine = load_machine(path)
+    return machine, machine_to_dict(machine)
+
+
 @functools.lru_cache(maxsize=64)
 def variant_machine(path: str, overrides: tuple[tuple[str, Any, bool], ...]):
     """The machine file at ``path`` with ``overrides`` applied, validated (cached per process).
+
+    The file is read and parsed once per process; every variant is derived from the parsed
+    form (:func:`apply_overrides` copies it), so a sweep of any size reads it once.
 
     Raises
     ------
@@ -272,11 +283,11 @@ def variant_machine(path: str, overrides: tuple[tuple[str, Any, bool], ...]):
         The file, or a changed value the machine validation refuses (the message names the
         key and says which variant it is).
     """
-    from .machine import load_machine, machine_from_dict, machine_to_dict
-    machine = load_machine(path)
+    from .machine import machine_from_dict
+    machine, as_dict = _base_machine(path)
     if not overrides:
         return machine
-    d = apply_overrides(machine_to_dict(machine), overrides)
+    d = apply_overrides(as_dict, overrides)
     shown = ', '.join(f'{k}{"*" if r else ""}={_show(v)}' for k, v, r in overrides)
     return machine_from_dict(d, file=f'{path} [{shorten(shown, limit=160)}]')
 
@@ -344,13 +355,14 @@ def override_moves(moves: Iterable[Any], *, feed: float = 1.0, rapid: float = 1.
 
 
 def _rapid_speed(mv: Any, vmax: Sequence[float]) -> float:
-    """Path speed of a straight rapid at which the first axis reaches its speed limit."""
-    speed = math.inf
-    for k in range(3):
-        share = abs(mv.end[k] - mv.start[k]) / mv.length_m
-        if share > 1e-12:
-            speed = min(speed, vmax[k] / share)
-    return speed
+    """Path speed of a straight rapid at which the first axis reaches its speed limit: the
+    planner's own rule (:func:`.trajectory.line_speed_limits`) on the move's direction."""
+    from . import trajectory
+    d = [e - s for s, e in zip(mv.start, mv.end)]
+    norm = math.sqrt(sum(x * x for x in d))
+    if norm == 0.0:
+        return math.inf
+    return float(trajectory.line_speed_limits([x / norm for x in d], vmax))
 
 
 @dataclass(frozen=True)

@@ -101,9 +101,9 @@ from .phasesample import (_apply_steps, _BlockLocator, _corner_steps,  # noqa: F
 from .profiles import plan_profiles
 from .program import Program, PROGRAM_AXES
 from .segments import (_collect, _Collector, _Geometry, _geometry,  # noqa: F401
-                       _junction_speeds, _path_limits, _REST, _Segments)
+                       _junction_speeds, _path_limits, _REST, _Segments, line_speed_limits)
 
-__all__ = ['AxisLimits', 'PlannerOptions', 'plan']
+__all__ = ['AxisLimits', 'PlannerOptions', 'plan', 'line_speed_limits']
 
 _CHUNK = 1 << 18           # samples evaluated per vectorised block
 

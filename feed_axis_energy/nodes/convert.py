@@ -253,7 +253,7 @@ def series_to_cdr(series: bagio.Series, *, batch: int = 100,
     if batch < 1:
         msg = f'batch must be >= 1, got {batch}'
         raise ValueError(msg)
-    t_ns = seconds_to_ns(series.t)
+    t_ns = seconds_to_ns(series.t) + np.int64(series.t0_ns)
     out = []
     for i0 in range(0, t_ns.shape[0], batch):
         i1 = min(i0 + batch, t_ns.shape[0])
@@ -284,7 +284,7 @@ def series_to_msg(series: bagio.Series, *, frame_id: str = ''):
     """A whole series as one rclpy ``JointTrajectory`` (object path; slow, for small data)."""
     from builtin_interfaces.msg import Duration
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
-    t_ns = seconds_to_ns(series.t)
+    t_ns = seconds_to_ns(series.t) + np.int64(series.t0_ns)
     stamp = int(t_ns[0]) if t_ns.shape[0] else 0
     msg = JointTrajectory()
     msg.header.stamp = _time(stamp)

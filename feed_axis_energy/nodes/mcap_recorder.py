@@ -40,7 +40,8 @@ from feed_axis_energy.core.plotgraph import GraphPlotter, PLOT_SOURCES
 from feed_axis_energy.core.plottopics import (DEFAULT_PLOT_RATE_HZ, JOINT_STATE,
                                               TOPIC_PLOT_BLOCK_ENERGY)
 from feed_axis_energy.core.starttime import parse_start_time, restamp
-from feed_axis_energy.core.graph import ChunkedBagWriter, EndTracker, header_stamp_ns
+from feed_axis_energy.core.graph import (ChunkedBagWriter, EndTracker, header_stamp_ns,
+                                         restamp_end_marker)
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import clock_qos, latched_qos, stream_qos
 from feed_axis_energy.nodes.runner import (declare, guard_parameters, run, StartupError,
@@ -228,8 +229,10 @@ class McapRecorder(Node):
             try:
                 stamp = header_stamp_ns(data)
                 if self.start_ns:
-                    self.bag.write(name, stamp + self.start_ns,
-                                   restamp(data, stamp + self.start_ns))
+                    # the marker's stamp values move with it (the tracker keeps sim time)
+                    moved = (restamp_end_marker(data, self.start_ns) if topic == 'program/end'
+                             else restamp(data, stamp + self.start_ns))
+                    self.bag.write(name, stamp + self.start_ns, moved)
                 else:
                     self.bag.write(name, stamp, data)
             except FeedAxisError as err:

@@ -24,7 +24,9 @@ def test_series_round_trip_is_exact(tmp_path: Path, n: int, batch: int) -> None:
     assert count == -(-n // batch)
     back = bagio.read_series(tmp_path / 'bag', bagio.TOPIC_POWER)
     assert back.names == series.names
-    assert_allclose(back.t, series.t, rtol=0, atol=1e-9)
+    assert back.t0_ns == 500_000_000 and back.t[0] == 0.0     # t counts from the first stamp
+    assert_array_equal(back.stamps_ns(), series.stamps_ns())
+    assert_allclose(back.t + 0.5, series.t, rtol=0, atol=1e-9)
     assert_array_equal(back.positions, series.positions)
     assert_array_equal(back.velocities, series.velocities)
     assert back.accelerations is None and back.effort is None
@@ -79,3 +81,47 @@ def test_mcap_file_is_readable_by_plain_mcap_reader(tmp_path: Path) -> None:
         reader = make_reader(f)
         topics = [channel.topic for _, channel, _ in reader.iter_messages()]
     assert topics == [bagio.TOPIC_POWER] * 3
+
+
+# 2026-11-23T14:00:00.000000123Z: a wall-clock stamp (--start-time), about 1.8e18 ns
+WALL_START_NS = 1_795_356_000_000_000_123
+
+
+def _write_stamped(path: Path, t_ns: np.ndarray, values: np.ndarray) -> None:
+    """A /power topic whose messages carry exactly the integer stamps ``t_ns``."""
+    from feed_axis_energy.core.cdr import joint_trajectory_cdr
+    ts = bagio.typestore()
+    with bagio.BagWriter(path) as writer:
+        for stamp, raw in joint_trajectory_cdr(t_ns, ('X', 'total'), [values, None, None, None],
+                                               batch=100):
+            message = ts.deserialize_cdr(raw, bagio.JOINT_TRAJECTORY)
+            writer.write_message(bagio.TOPIC_POWER, bagio.JOINT_TRAJECTORY, stamp, message)
+
+
+def test_wall_clock_stamps_read_back_to_the_nanosecond(tmp_path: Path) -> None:
+    # 1 kHz with an odd nanosecond offset: float seconds since 1970 (resolution ~0.24 us
+    # near 1.8e9 s) would round every sample time; t counted from t0_ns keeps them.
+    rel = np.arange(250, dtype=np.int64) * 1_000_000 + 7
+    values = np.column_stack([np.arange(250.0), -np.arange(250.0)])
+    _write_stamped(tmp_path / 'wall', WALL_START_NS + rel, values)
+    _write_stamped(tmp_path / 'sim', rel, values)
+    wall = bagio.read_series(tmp_path / 'wall', bagio.TOPIC_POWER)
+    sim = bagio.read_series(tmp_path / 'sim', bagio.TOPIC_POWER)
+    assert_array_equal(np.rint((wall.t - wall.t[0]) * 1e9).astype(np.int64), rel - 7)
+    assert wall.t0_ns == WALL_START_NS + 7 and sim.t0_ns == 7
+    assert_array_equal(wall.stamps_ns(), WALL_START_NS + rel)
+    assert_array_equal(wall.t, sim.t)                    # the same run, bit for bit
+    assert_array_equal(wall.positions, values)
+
+
+def test_series_with_a_start_writes_its_stamps(tmp_path: Path) -> None:
+    series = _series(150)
+    start = bagio.Series(t=series.t, names=series.names, positions=series.positions,
+                         velocities=series.velocities, t0_ns=WALL_START_NS)
+    with bagio.BagWriter(tmp_path / 'bag') as writer:
+        writer.write_series(bagio.TOPIC_POWER, start, batch=100)
+    back = bagio.read_series(tmp_path / 'bag', bagio.TOPIC_POWER)
+    assert_array_equal(back.stamps_ns(), WALL_START_NS + np.rint(series.t * 1e9).astype(np.int64))
+    assert back.t0_ns == WALL_START_NS + 500_000_000
+    with pytest.raises(ValueError, match='t0_ns must be an integer'):
+        bagio.Series(t=series.t, names=series.names, t0_ns=1.5)

@@ -234,3 +234,18 @@ def test_writer_thread_error_reaches_the_caller_and_nothing_is_left(tmp_path, mo
                                               chunk_samples=2000, on_chunk=writer.write)
             writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
     assert list(tmp_path.iterdir()) == []
+
+
+def test_write_series_keeps_a_wall_clock_start(tmp_path):
+    """A series read from a wall-clock bag (``t0_ns``) is written back at its stamps."""
+    t0 = 1_790_000_000_123_456_789
+    t = np.arange(250) * 1e-3
+    series = bagio.Series(t=t, names=('X',), positions=np.sin(t)[:, None], t0_ns=t0)
+    for name, cls in (('rosbags', bagio.BagWriter), ('mine', StreamBagWriter)):
+        out = tmp_path / name
+        with cls(out, compression='none') as writer:
+            writer.write_series('/s', series, batch=100)
+        back = bagio.read_series(out, '/s')
+        assert back.t0_ns == t0
+        np.testing.assert_array_equal(back.stamps_ns(), series.stamps_ns())
+        np.testing.assert_array_equal(back.positions, series.positions)

@@ -68,6 +68,11 @@ def test_simulate_start_time_stamps_every_topic(tmp_path):
         assert [m[1] for m in shifted] == [m[1] + NOV23_14H for m in plain]     # log times
         assert [header_stamp_ns(m[2]) for m in shifted] == [m[1] for m in shifted]
         assert [m[2][12:] for m in shifted] == [m[2][12:] for m in plain]       # the rest
+        # read back as a series: the same times bit for bit, the start kept apart
+        wall, sim = bagio.read_series(out, topic), bagio.read_series(ref, topic)
+        assert (wall.t0_ns, sim.t0_ns) == (NOV23_14H, 0)
+        np.testing.assert_array_equal(wall.t, sim.t)
+        np.testing.assert_array_equal(wall.stamps_ns(), sim.stamps_ns() + NOV23_14H)
     plot, plain = read_plot_topic(out, TOPIC_PLOT_POWER), read_plot_topic(ref, TOPIC_PLOT_POWER)
     np.testing.assert_array_equal(plot.t_ns, plain.t_ns + NOV23_14H)   # log time = stamp
     assert bagio.read_block_energy(out) == bagio.read_block_energy(ref)
@@ -133,3 +138,54 @@ def test_profiles_match_the_node_graph():
         assert profile.durability.name.lower() == want['durability']
         assert profile.liveliness.name.lower() == want['liveliness']
         assert profile.deadline.nanoseconds == 0 and profile.lifespan.nanoseconds == 0
+
+
+def _marker_cdr(end, *, name='program_end') -> bytes:
+    ts = bagio.typestore()
+    t = ts.types
+    msg = t[bagio.DIAGNOSTIC_ARRAY](
+        header=t['std_msgs/msg/Header'](stamp=t['builtin_interfaces/msg/Time'](
+            sec=end.last_ns // _NS, nanosec=end.last_ns % _NS), frame_id=''),
+        status=[t['diagnostic_msgs/msg/DiagnosticStatus'](
+            level=0, name=name, message='program streamed completely', hardware_id='',
+            values=[t['diagnostic_msgs/msg/KeyValue'](key=k, value=v)
+                    for k, v in end.to_pairs()])])
+    return bytes(ts.serialize_cdr(msg, bagio.DIAGNOSTIC_ARRAY))
+
+
+def _marker(cdr: bytes):
+    from feed_axis_energy.core.graph import ProgramEnd
+    msg = bagio.typestore().deserialize_cdr(cdr, bagio.DIAGNOSTIC_ARRAY)
+    return msg, ProgramEnd.from_pairs((kv.key, kv.value) for s in msg.status
+                                      for kv in s.values)
+
+
+@pytest.mark.parametrize('per_topic', [{}, {'measured/power': 2_500_000_000,
+                                            'measured/kinematics': 1_200_000_000}])
+def test_end_marker_moves_to_wall_clock_time_with_its_stamps(per_topic):
+    # /program/end says up to which stamp each stream runs; in a wall-clock recording those
+    # values must be wall-clock stamps too, or they point 56 years before the data.
+    from feed_axis_energy.core.graph import ProgramEnd, restamp_end_marker
+    end = ProgramEnd('p.nc', samples=300, batches=3, first_ns=1_000_000,
+                     last_ns=2_500_000_000, topic_last_ns=per_topic)
+    moved = restamp_end_marker(_marker_cdr(end), NOV23_14H)
+    assert header_stamp_ns(moved) == NOV23_14H + end.last_ns
+    msg, got = _marker(moved)
+    assert got == ProgramEnd('p.nc', samples=300, batches=3, first_ns=NOV23_14H + 1_000_000,
+                             last_ns=NOV23_14H + 2_500_000_000,
+                             topic_last_ns={k: NOV23_14H + v for k, v in per_topic.items()})
+    (status,) = msg.status
+    assert (status.name, status.message) == ('program_end', 'program streamed completely')
+    assert restamp_end_marker(_marker_cdr(end), 0) == _marker_cdr(end)
+
+
+def test_end_marker_that_is_not_one_is_a_clear_error():
+    from feed_axis_energy.core.errors import DataError
+    from feed_axis_energy.core.graph import ProgramEnd, restamp_end_marker
+    end = ProgramEnd('p.nc', samples=3, batches=1, first_ns=0, last_ns=2)
+    with pytest.raises(DataError, match='no status named program_end'):
+        restamp_end_marker(_marker_cdr(end, name='other'), NOV23_14H)
+    with pytest.raises(DataError, match='program/end'):
+        restamp_end_marker(b'\x00\x01\x00\x00' + b'\xff' * 9, NOV23_14H)
+    with pytest.raises(DataError, match='time range'):
+        restamp_end_marker(_marker_cdr(end), MAX_STAMP_NS)

@@ -2,6 +2,7 @@
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -174,3 +175,52 @@ def test_rows_carry_the_loss_function_uncertainty_where_known():
     html = render_sweep(rows, ['lead'])
     assert '±1.5 % from the loss-function uncertainty' in html     # 1.5 J of 100 J
     assert 'not known' not in html.split('q.nc')[0] and 'uncertainty [J]' in html
+
+
+def _peak_path_speed(motion) -> float:
+    return float(np.max(np.linalg.norm(motion.vel, axis=1)))
+
+
+def test_rapid_override_uses_the_planners_speed_limit_per_axis():
+    # Per-axis speed limits and a rapid along (0.2, 0.4, 0.4), 0.6 m long: by hand X allows
+    # 0.5 / (1/3) = 1.5, Y 0.2 / (2/3) = 0.3, Z 0.3 / (2/3) = 0.45 m/s, so Y limits the path
+    # speed to 0.3 m/s. The planned rapid cruises there; the override at 0.5 runs the same
+    # move at half of it, i.e. sweep and planner agree on the limit.
+    from feed_axis_energy.core.program import Program
+    from feed_axis_energy.core.trajectory import plan
+    lim = {'X': AxisLimits(0.5, 20.0, 2000.0), 'Y': AxisLimits(0.2, 20.0, 2000.0),
+           'Z': AxisLimits(0.3, 20.0, 2000.0)}
+    end = (0.2, 0.4, 0.4)
+    g0 = straight_move(MoveKind.RAPID, 1, (0.0, 0.0, 0.0), end, math.inf, True, 0.6)
+    program = Program('rapid.nc', (g0,))
+    full = plan(program, lim)
+    assert _peak_path_speed(full) == pytest.approx(0.3, rel=1e-9)
+    half = plan(Program('rapid.nc', tuple(override_moves([g0], rapid=0.5, limits=lim))), lim)
+    assert _peak_path_speed(half) == pytest.approx(0.5 * 0.3, rel=1e-9)
+    (moved,) = override_moves([g0], rapid=0.5, limits=lim)
+    assert moved.feed_m_s == pytest.approx(0.5 * 0.3, rel=1e-12)
+
+
+def test_rapid_override_has_no_rule_of_its_own(monkeypatch):
+    # One source of truth: the override follows whatever the planner's rule says.
+    from feed_axis_energy.core import trajectory
+    lim = {'X': AxisLimits(0.6, 2.5, 50.0)}
+    g0 = straight_move(MoveKind.RAPID, 3, (0.0, 0, 0), (0.1, 0, 0), math.inf, True, 0.1)
+    monkeypatch.setattr(trajectory, 'line_speed_limits', lambda u, vmax: np.float64(0.125))
+    (moved,) = override_moves([g0], rapid=0.5, limits=lim)
+    assert moved.feed_m_s == 0.0625
+
+
+def test_variants_read_the_machine_file_once(tmp_path):
+    path = tmp_path / 'machine.yaml'
+    path.write_bytes(DEMO.read_bytes())
+    first = variant_machine(str(path), (('axes.*.limits.jerk_m_s3', 0.5, True),))
+    path.unlink()               # the other variants come from the parsed file
+    base = variant_machine(str(path), ())
+    second = variant_machine(str(path), (('axes.*.limits.jerk_m_s3', 2.0, True),))
+    want = load_machine(DEMO)
+    assert base == want
+    for got, factor in ((first, 0.5), (second, 2.0)):
+        assert got.axis_names == want.axis_names
+        for axis in want.axes:
+            assert got.axis(axis.name).limits.jerk_m_s3 == factor * axis.limits.jerk_m_s3

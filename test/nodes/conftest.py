@@ -11,10 +11,22 @@ ROOT = Path(__file__).resolve().parents[2]
 _COUNTER = itertools.count()
 
 
+def _domain_range() -> tuple[int, int]:
+    """``FAE_DOMAIN_IDS=LO-HI`` confines the tests to those domain ids (one range per person
+    sharing a machine); default 20-219."""
+    text = os.environ.get('FAE_DOMAIN_IDS', '')
+    try:
+        lo, hi = (int(v) for v in text.split('-'))
+    except ValueError:
+        return 20, 219
+    return (lo, hi) if 0 <= lo <= hi <= 232 else (20, 219)
+
+
 @pytest.fixture
 def domain_id():
     """A ROS_DOMAIN_ID no other test (or concurrent test run) is likely to use."""
-    return 20 + (os.getpid() * 7 + next(_COUNTER) * 13) % 200
+    lo, hi = _domain_range()
+    return lo + (os.getpid() * 7 + next(_COUNTER) * 13) % (hi - lo + 1)
 
 
 @pytest.fixture

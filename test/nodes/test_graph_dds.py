@@ -15,7 +15,7 @@ from feed_axis_energy import lifeline  # noqa: E402
 from feed_axis_energy.core import bagio  # noqa: E402
 from feed_axis_energy.core.energy import energy_by_line  # noqa: E402
 from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
-from feed_axis_energy.core.graph import header_stamp_ns  # noqa: E402
+from feed_axis_energy.core.graph import header_stamp_ns, ProgramEnd, read_raw  # noqa: E402
 from feed_axis_energy.core.machine import load_machine  # noqa: E402
 from feed_axis_energy.core.plotread import read_plot_topic  # noqa: E402
 from feed_axis_energy.core.plottopics import (  # noqa: E402
@@ -205,7 +205,7 @@ def test_fast_replay_into_recorder_is_lossless(tmp_path, node_env, domain_id):
     ref = _measured_bag(tmp_path / 'measured', n=5000, batch=5)
     bag = _replay_into_recorder(tmp_path, node_env, ['measured/power'], burst=5)
     got = bagio.read_series(bag, bagio.TOPIC_MEASURED_POWER)
-    np.testing.assert_allclose(got.t, ref.t, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(got.stamps_ns(), ref.stamps_ns())
     np.testing.assert_allclose(got.positions, ref.positions, rtol=0, atol=0)
 
 
@@ -219,6 +219,12 @@ def test_recorder_start_time_stamps_in_wall_clock_time(tmp_path, node_env, domai
     assert [m[1] for m in got] == want.tolist()                      # log times
     assert [header_stamp_ns(m[2]) for m in got] == want.tolist()     # header stamps
     assert bagio.read_metadata(bag)['starting_time']['nanoseconds_since_epoch'] == want[0]
+    # the end marker's stamps (values and header) are in the recording's wall-clock time too
+    ((_, log_ns, cdr),) = read_raw(bag, ['/program/end'])
+    marker = bagio.typestore().deserialize_cdr(cdr, bagio.DIAGNOSTIC_ARRAY)
+    end = ProgramEnd.from_pairs((kv.key, kv.value) for st in marker.status for kv in st.values)
+    assert end.first_ns == want[0]
+    assert end.last_ns_of('measured/power') == want[-1] == header_stamp_ns(cdr) == log_ns
 
 
 def test_replay_of_two_topics_into_recorder_exits_at_end(tmp_path, node_env, domain_id):
@@ -237,7 +243,7 @@ def test_replay_of_two_topics_into_recorder_exits_at_end(tmp_path, node_env, dom
     for topic, ref in ((bagio.TOPIC_MEASURED_POWER, power),
                        (bagio.TOPIC_MEASURED_KINEMATICS, kin)):
         got = bagio.read_series(bag, topic)
-        np.testing.assert_allclose(got.t, ref.t, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(got.stamps_ns(), ref.stamps_ns())
         np.testing.assert_allclose(got.positions, ref.positions, rtol=0, atol=0)
     assert bagio.bag_topics(bag)['/program/end'][1] == 1
 
@@ -278,7 +284,7 @@ def test_recorder_survives_sigkill(tmp_path, node_env, domain_id):
     got = bagio.read_series(bag, bagio.TOPIC_POWER)   # readable without a clean close
     n = got.t.shape[0] // 10
     assert 10 <= n <= len(sent)
-    np.testing.assert_allclose(got.t[::10], np.array(sent[:n]) / 1e9, atol=1e-12)
+    np.testing.assert_array_equal(got.stamps_ns()[::10], sent[:n])
 
 
 @pytest.mark.parametrize('name,params,expect', [

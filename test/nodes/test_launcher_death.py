@@ -32,6 +32,16 @@ def _wait_for_power(bag, samples=100, timeout=30.0):
     raise AssertionError(f'no {samples} power samples in the recording after {timeout} s')
 
 
+def _state(pid):
+    """Scheduler state and kernel wait channel of a process (what a survivor was doing)."""
+    try:
+        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
+        wchan = Path(f'/proc/{pid}/wchan').read_text().strip() or '-'
+    except OSError:
+        return 'gone'
+    return f'state {state}, wchan {wchan}'
+
+
 def _start_launcher(tmp_path, node_env, domain_id, *, record):
     prog = tmp_path / 'long.nc'
     prog.write_text('G21 G90 G94 G61\nG0 X0\nG1 X300 F600\n')   # 30 s in real time
@@ -70,11 +80,15 @@ def test_no_node_survives_the_launcher_by_2_s(tmp_path, node_env, domain_id, sig
         assert streaming.wait(timeout=30)
         _wait_for_power(bag)
         os.kill(launcher.pid, sig)
-        t_kill = time.monotonic()
-        launcher.wait(timeout=10)
-        while any(lifeline.alive(pid) for pid, _ in kids) and time.monotonic() - t_kill < 2.0:
+        # The 2 s count from the moment the launcher is gone: at once after SIGKILL; after
+        # SIGTERM once its own orderly stop (stop the nodes, describe the bag) has ended,
+        # which took 12-14 s with the machine at load ~7 (a 10 s wait here raised
+        # TimeoutExpired). The launcher's own pace is not what this test is about.
+        launcher.wait(timeout=90)
+        t_gone = time.monotonic()
+        while any(lifeline.alive(pid) for pid, _ in kids) and time.monotonic() - t_gone < 2.0:
             time.sleep(0.05)
-        survivors = [cmd for pid, cmd in kids if lifeline.alive(pid)]
+        survivors = [f'{cmd} ({_state(pid)})' for pid, cmd in kids if lifeline.alive(pid)]
     finally:
         launcher.kill()
         for pid, _ in kids:   # never leave a node running, even when the test fails

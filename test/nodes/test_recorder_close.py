@@ -6,6 +6,7 @@ import pytest
 
 rclpy = pytest.importorskip('rclpy')
 from conftest import child_only, IN_CHILD, run_module_in_child  # noqa: E402
+from rclpy.duration import Duration  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from feed_axis_energy.core import bagio  # noqa: E402
@@ -13,6 +14,14 @@ from feed_axis_energy.core.graph import ProgramEnd  # noqa: E402
 from feed_axis_energy.nodes import convert  # noqa: E402
 from feed_axis_energy.nodes.mcap_recorder import McapRecorder  # noqa: E402
 from feed_axis_energy.nodes.qos import latched_qos, stream_qos  # noqa: E402
+
+
+def _until(condition, what, timeout_s=30.0):
+    """Wait until ``condition()`` is true, failing with ``what`` after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, f'not within {timeout_s:g} s: {what}'
+        time.sleep(0.01)
 
 
 def _batches(n_batches, batch=10):
@@ -46,22 +55,25 @@ def test_end_reached_inside_the_take_loop(context, tmp_path, ack_every):
         pub = writer.create_publisher(JointTrajectory, 'power', stream_qos())
         pub_end = writer.create_publisher(DiagnosticArray, 'program/end', latched_qos())
         pub_blocks = writer.create_publisher(DiagnosticArray, 'block_energy', latched_qos())
-        deadline = time.monotonic() + 20
-        while (pub.get_subscription_count() < 1 or pub_end.get_subscription_count() < 1
-               or pub_blocks.get_subscription_count() < 1) and time.monotonic() < deadline:
-            time.sleep(0.05)
+        _until(lambda: min(p.get_subscription_count() for p in (pub, pub_end, pub_blocks)),
+               'the recorder matched the writers')
         batches = _batches(30)
         # The end marker names batch 9 as the last one: batches 10.. are still queued when
         # the recorder sees the end complete.
         end = ProgramEnd('p.nc', 100, 10, batches[0][0], batches[9][0])
         pub_end.publish(convert.program_end_msg(end))
         pub_blocks.publish(convert.block_energy_msg([(1, 1.0, 0.1)], stamp_ns=batches[9][0]))
-        time.sleep(0.3)
-        rec.poll(0.1)   # takes the latched marker and block energies first
+        # the latched marker and block energies are taken first (conditions, not sleeps:
+        # under load delivery takes longer than any fixed pause)
+        _until(lambda: rec.poll(0.01) or (rec.tracker.end is not None and rec.received >= 2),
+               'the recorder took the end marker and the block energies')
+        assert rec.exit_code is None
         for _, cdr in batches:
             pub.publish(cdr)
-        time.sleep(0.5)   # everything sits in the recorder's DDS queue
-        rec.poll(0.1)
+        # every batch sits in the recorder's reader queue once the reliable writer has its
+        # acknowledgements (depth 100 > 30 batches: none is replaced)
+        assert pub.wait_for_all_acked(Duration(seconds=30)), 'batches not acknowledged'
+        rec.poll(0.1)   # one take loop: the end completes with batches 10.. still queued
         assert rec.exit_code == 0
         rec.poll(0.01)   # after the close: nothing to take, no error
         rec.close()
@@ -76,8 +88,10 @@ def test_end_reached_inside_the_take_loop(context, tmp_path, ack_every):
 def test_flush_is_due_by_wall_time_without_the_timer(context, tmp_path):
     """The take loop itself flushes once ``chunk_period_s`` has passed (no 0.2 s timer lag).
 
-    Only ``poll`` runs here (no executor, so no timer): the message must reach the bag
-    within ``chunk_period_s`` plus a few polls.
+    Only ``poll`` runs here (no executor, so no timer): the flush that writes the message
+    must start within ``chunk_period_s`` plus a few polls of the flush before it. Timed on
+    the recorder's own flushes, not on when this test sees the message in the bag (DDS
+    delivery and the check's bag reads each took tens of ms under load).
     """
     from trajectory_msgs.msg import JointTrajectory
     bag = tmp_path / 'rec'
@@ -92,16 +106,25 @@ def test_flush_is_due_by_wall_time_without_the_timer(context, tmp_path):
         while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
             time.sleep(0.05)
         rec.poll(0.01)
+        flushes = []    # (start, end, messages buffered) of every flush of the recorder
+        flush = rec._flush
+
+        def timed_flush():
+            t0, buffered = time.monotonic(), rec.bag.buffered
+            flush()
+            flushes.append((t0, time.monotonic(), buffered))
+        rec._flush = timed_flush
         rec._flush()   # start the period now
         ((_, cdr),) = _batches(1)
         pub.publish(cdr)
-        t_pub = time.monotonic()
-        while read_count(bag) == 0 and time.monotonic() - t_pub < 2.0:
-            rec.poll(0.005)
-        # measured before the check's own bag read (which costs tens of ms under load)
-        elapsed = time.monotonic() - t_pub
+        _until(lambda: rec.poll(0.005) or any(f[2] for f in flushes),
+               'a flush wrote the message', timeout_s=20.0)
+        k = next(i for i, f in enumerate(flushes) if f[2])
+        assert k >= 1
+        # due chunk_period_s after the previous flush ended (when the period restarts)
+        assert flushes[k][0] - flushes[k - 1][1] < 0.3 + 0.1
+        assert flushes[k][0] - flushes[k - 1][1] >= 0.3    # and not before
         assert read_count(bag) == 1
-        assert elapsed < 0.3 + 0.1
     finally:
         writer.destroy_node()
         rec.close()

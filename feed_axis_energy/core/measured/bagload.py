@@ -1,7 +1,8 @@
 """The rosbag2 form of a measured run: topics, metadata, and loading it back as a MeasuredRun.
 
 A measured-run bag (written by :mod:`.importer`) holds, all in SI and stamped in seconds
-from the run start (integer nanoseconds in the bag):
+from the run start (integer nanoseconds in the bag; a bag stamped in wall-clock time, e.g.
+recorded from the live graph, reads the same, times counted from its first stamp):
 
 ========================  ============================================================
 topic                     content (``trajectory_msgs/msg/JointTrajectory``, batched)
@@ -98,8 +99,10 @@ def load_run_from_bag(spec: RunSpec, *, min_duration_s: float | None = None) -> 
     Returns
     -------
     MeasuredRun
-        The run in SI; ``t`` starts at 0. ``extra`` carries ``t0_s``, ``excluded_rows`` and
-        ``rows`` from the bag's metadata when present (else 0, 0 and the sample numbers).
+        The run in SI; ``t`` starts at 0, exact to the nanosecond of the stamps (wall-clock
+        stamps included: :attr:`.bagio.Series.t0_ns`). ``extra`` carries ``t0_s``,
+        ``excluded_rows`` and ``rows`` from the bag's metadata when present (else the first
+        stamp [s], 0 and the sample numbers).
 
     Raises
     ------
@@ -134,7 +137,7 @@ def load_run_from_bag(spec: RunSpec, *, min_duration_s: float | None = None) -> 
     def take(quantity: str, joints: list[str]) -> np.ndarray:
         topic = QUANTITY_TOPIC[quantity]
         s = series(topic)
-        if s.t.shape != t.shape or not np.array_equal(s.t, t):
+        if s.t0_ns != power_s.t0_ns or s.t.shape != t.shape or not np.array_equal(s.t, t):
             msg = (f'stamps differ from those of {bagio.TOPIC_MEASURED_POWER} '
                    f'({s.t.shape[0]} vs {t.shape[0]} samples); every topic of a measured '
                    'run must share them')
@@ -166,7 +169,8 @@ def load_run_from_bag(spec: RunSpec, *, min_duration_s: float | None = None) -> 
         if q in spec.axes[axes[0]]:
             kin[_RUN_FIELD[q]] = take(q, list(axes))
     extra: dict[str, Any] = {
-        'excluded_rows': 0, 'rows': np.arange(1, t.shape[0] + 1, dtype=np.int64), 't0_s': 0.0,
+        'excluded_rows': 0, 'rows': np.arange(1, t.shape[0] + 1, dtype=np.int64),
+        't0_s': power_s.t0_ns / 1e9,
     }
     if meta is not None:
         extra.update(_run_metadata(meta, n=t.shape[0], file=file))
