@@ -15,8 +15,9 @@ Tests import it as ``from shared_data import ...`` (``test/`` is on ``sys.path``
 from __future__ import annotations
 
 from collections.abc import Iterable
-import os
+import importlib.util
 from pathlib import Path
+import sys
 
 import pytest
 
@@ -26,43 +27,31 @@ REPO = Path(__file__).resolve().parents[1]
 SKIP_REASON = 'shared data not found (set FAE_SHARED to the shared directory)'
 
 
-def shared_candidates() -> list[Path]:
-    """Directories that may hold the shared data, in the order they are tried.
+def _bench_lookup():
+    """``bench/shared_lookup.py``, loaded by path under its own module name: the one place
+    that says where the shared data is looked up (standard library only)."""
+    name = 'fae_bench_shared_lookup'
+    module = sys.modules.get(name)
+    if module is None:
+        spec = importlib.util.spec_from_file_location(
+            name, REPO / 'bench' / 'shared_lookup.py')
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return module
 
-    Returns
-    -------
-    list of pathlib.Path
-        ``$FAE_SHARED`` (when set and not empty), then ``<repository>/../shared``.
-    """
-    out = []
-    given = os.environ.get('FAE_SHARED')
-    if given:
-        out.append(Path(given))
-    out.append(REPO.parent / 'shared')
-    return out
+
+def shared_candidates() -> list[Path]:
+    """Directories that may hold the shared data, in the order they are tried:
+    ``$FAE_SHARED`` (when set and not empty), then ``<repository>/../shared``
+    (:func:`bench/shared_lookup.shared_candidates`)."""
+    return _bench_lookup().shared_candidates()
 
 
 def shared_path(*parts: str, needs: Iterable[str] = ()) -> Path | None:
-    """The first candidate's ``parts`` that exists (and holds ``needs``), or ``None``.
-
-    Parameters
-    ----------
-    *parts
-        Path components inside the shared directory (none: the directory itself).
-    needs
-        Names that must exist inside the found path, e.g. ``('oracle.json',)``.
-
-    Returns
-    -------
-    pathlib.Path or None
-        The resolved path, or ``None`` when no candidate holds it.
-    """
-    needs = tuple(needs)
-    for base in shared_candidates():
-        path = base.joinpath(*parts)
-        if path.exists() and all((path / name).exists() for name in needs):
-            return path.resolve()
-    return None
+    """The first candidate's ``parts`` that exists (and holds ``needs``), or ``None``
+    (:func:`bench/shared_lookup.shared_path`)."""
+    return _bench_lookup().shared_path(*parts, needs=tuple(needs))
 
 
 def need_shared(*parts: str, needs: Iterable[str] = ()) -> Path:
