@@ -153,10 +153,6 @@ class PlotDecimator:
         self._held_k = -1
         self._rows: np.ndarray | None = None        # push: the open interval's whole rows
 
-    def _interval(self, t: np.ndarray) -> np.ndarray:
-        x = t * self.rate_hz
-        return np.floor(x + _EPS * np.maximum(1.0, np.abs(x))).astype(np.int64)
-
     @property
     def held(self) -> int:
         """Samples of the open interval, held back until it is complete."""
@@ -164,7 +160,8 @@ class PlotDecimator:
 
     def intervals(self, t: np.ndarray) -> np.ndarray:
         """The display interval of every time ``t`` [s] (for :meth:`select`'s ``k``)."""
-        return self._interval(t)
+        x = t * self.rate_hz
+        return np.floor(x + _EPS * np.maximum(1.0, np.abs(x))).astype(np.int64)
 
     def select(self, t: np.ndarray, keys: np.ndarray,
                k: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -180,7 +177,7 @@ class PlotDecimator:
         if n == 0:
             return t[:0], np.zeros(0, np.int64)
         keys = keys.reshape(n, -1)
-        k = self._interval(t) if k is None else k
+        k = self.intervals(t) if k is None else k
         out_t, out_i = [], []
         lo = 0
         if h:
