@@ -250,7 +250,8 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
     loss_energy = float(np.sum(0.5 * (loss_total[1:] + loss_total[:-1]) * dt)) if n else 0.0
     blocks = sorted(energy_by_line(p), key=lambda b: -abs(b[1]))[:max(0, int(top_blocks))]
     duration = float(p.t[-1] - p.t[0]) if n else 0.0
-    causes = BreakdownAccumulator(per_line=True)
+    # per line only for the blocks listed: without them nothing per line is reported
+    causes = BreakdownAccumulator(per_line=bool(blocks))
     causes.add(result.dynamics, p.mechanical_w, braking=p.braking, effects=p.effect_power_w)
     spread = UncertaintyAccumulator.of(result.machine)
     if spread is not None:
@@ -270,16 +271,16 @@ def summarize(result: SimulationResult, *, top_blocks: int = 5) -> dict[str, Any
         'top_blocks': [{'line': ln, 'energy_j': e, 'duration_s': d} for ln, e, d in blocks],
     }, causes)
     if p.electrical is not None:
-        electrical = _electrical_lines(result)
+        electrical = _electrical_lines(result, per_line=bool(blocks))
         summary['electrical'] = electrical.summary()
         add_block_electrical(summary['top_blocks'], electrical)
     return add_uncertainty(summary, spread)
 
 
-def _electrical_lines(result: SimulationResult) -> ElectricalAccumulator:
-    """The electrical side of a whole result, with the energy of every source line."""
+def _electrical_lines(result: SimulationResult, *, per_line: bool = True) -> ElectricalAccumulator:
+    """The electrical side of a whole result (with the energy of every source line)."""
     p = result.power
-    electrical = ElectricalAccumulator(per_line=True)
+    electrical = ElectricalAccumulator(per_line=per_line)
     electrical.add(result.dynamics, p.mechanical_w, p.electrical, braking=p.braking,
                    effects=p.effect_power_w)
     return electrical
