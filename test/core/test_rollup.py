@@ -76,8 +76,8 @@ M30
 """
 
 
-def _run(tmp_path, chunk_samples):
-    machine = load_machine(REPO / 'config' / 'three_axis_mill.yaml')
+def _run(tmp_path, chunk_samples, machine_file='three_axis_mill.yaml'):
+    machine = load_machine(REPO / 'config' / machine_file)
     path = tmp_path / 'ops.ngc'
     path.write_text(PROGRAM)
     stream = iter_moves(path, home=machine.home_point(), tools=dict(machine.gcode.tools))
@@ -122,12 +122,8 @@ def test_electrical_energy_per_operation_adds_up(tmp_path, chunk_samples):
     the supply side; operations, subroutines and tools add up to the electrical totals
     (cabinet standby included), the axes are the summary's, and the dwell in the main
     program draws electrical energy while the shafts take none."""
+    s = _run(tmp_path, chunk_samples, 'three_axis_mill_drives.yaml')
     machine = load_machine(REPO / 'config' / 'three_axis_mill_drives.yaml')
-    path = tmp_path / 'ops.ngc'
-    path.write_text(PROGRAM)
-    stream = iter_moves(path, home=machine.home_point(), tools=dict(machine.gcode.tools))
-    s, _ = simulate_stream(stream, machine, file=stream.file, rollup=True,
-                           context=stream.context, chunk_samples=chunk_samples)
     e = s['electrical']
     roll = s['rollups']
     for key in ('motor_energy_j', 'supply_energy_j'):
