@@ -21,25 +21,16 @@ CPU time at the end (``time.process_time``).
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
-import sys
 import time
 
 from feed_axis_energy.core.identify import fit_loss, machine_with_losses, SteadyOptions
 from feed_axis_energy.core.identify.samplefit import fit_loss_samples, machine_with_sample_fits
 from feed_axis_energy.core.machine import load_machine, Machine
-from feed_axis_energy.core.measured import load_campaign, load_run
+from feed_axis_energy.core.measured import load_run
 from feed_axis_energy.core.measured.campaign import Campaign
 from feed_axis_energy.core.measured.compare import compare_campaign
 from feed_axis_energy.core.measured.metrics import group_metrics
-from shared_lookup import HINT, shared_path  # bench/shared_lookup.py
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def shared_data() -> Path | None:
-    """The UMich data directory, or None."""
-    return shared_path('data', 'umich-cnc-mill', needs=('experiment_03.csv',))
+from bench_umich_motion import umich_campaign  # bench/ is sys.path[0]
 
 
 def fitted(campaign: Campaign, guessed: Machine, names: list[str], method: str,
@@ -56,13 +47,10 @@ def fitted(campaign: Campaign, guessed: Machine, names: list[str], method: str,
 
 def main() -> int:
     """Print both tables."""
-    data = shared_data()
-    if data is None:
-        print(f'UMich data not found: {HINT}', file=sys.stderr)
-        return 1
     c0 = time.process_time()
-    base = load_campaign(ROOT / 'config' / 'campaigns' / 'umich_mill.yaml', check_files=False)
-    base = replace(base, runs=tuple(replace(r, data=data / r.data.name) for r in base.runs))
+    base = umich_campaign()
+    if base is None:
+        return 1
     guessed = load_machine(base.machine)
     calibrate = [s.name for s in base.runs_with_role('calibrate')]
     validate = [s.name for s in base.runs_with_role('validate')]

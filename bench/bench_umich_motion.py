@@ -19,30 +19,33 @@ import time
 from feed_axis_energy.core.identify import fit_loss, machine_with_losses
 from feed_axis_energy.core.machine import load_machine
 from feed_axis_energy.core.measured import load_campaign, load_run
-from feed_axis_energy.core.measured.campaign import InstrumentSpec
+from feed_axis_energy.core.measured.campaign import Campaign, InstrumentSpec
 from feed_axis_energy.core.measured.compare import compare_campaign
 from feed_axis_energy.core.measured.metrics import group_metrics
-from shared_lookup import HINT, shared_path  # bench/shared_lookup.py
+from shared_lookup import HINT, umich_data  # bench/shared_lookup.py
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def shared_data() -> Path | None:
-    """The UMich data directory, or None."""
-    return shared_path('data', 'umich-cnc-mill', needs=('experiment_03.csv',))
+def umich_campaign() -> Campaign | None:
+    """``config/campaigns/umich_mill.yaml`` with its data files in the shared data directory,
+    or None (said on stderr, naming ``FAE_SHARED``) when the data is not found."""
+    data = umich_data()
+    if data is None:
+        print(f'UMich data not found: {HINT}', file=sys.stderr)
+        return None
+    campaign = load_campaign(ROOT / 'config' / 'campaigns' / 'umich_mill.yaml',
+                             check_files=False)
+    return replace(campaign, runs=tuple(replace(r, data=data / r.data.name)
+                                        for r in campaign.runs))
 
 
 def main() -> int:
     """Print the table."""
-    data = shared_data()
-    if data is None:
-        print(f'UMich data not found: {HINT}', file=sys.stderr)
-        return 1
     c0 = time.process_time()
-    campaign = load_campaign(ROOT / 'config' / 'campaigns' / 'umich_mill.yaml',
-                             check_files=False)
-    campaign = replace(campaign, runs=tuple(replace(r, data=data / r.data.name)
-                                            for r in campaign.runs))
+    campaign = umich_campaign()
+    if campaign is None:
+        return 1
     guessed = load_machine(campaign.machine)
     calibrate = [load_run(s) for s in campaign.runs_with_role('calibrate')]
     fitted = machine_with_losses(guessed, fit_loss(calibrate, machine=guessed))

@@ -17,7 +17,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ['REPO', 'HINT', 'shared_candidates', 'shared_path']
+__all__ = ['REPO', 'HINT', 'shared_candidates', 'shared_path', 'umich_data']
 
 REPO = Path(__file__).resolve().parents[1]
 HINT = 'set FAE_SHARED to the shared directory (default: ../shared beside the repository)'
@@ -59,3 +59,8 @@ def shared_path(*parts: str, needs: tuple[str, ...] = ()) -> Path | None:
         if path.exists() and all((path / name).exists() for name in needs):
             return path.resolve()
     return None
+
+
+def umich_data() -> Path | None:
+    """The UMich CNC mill runs (``data/umich-cnc-mill``), or ``None``."""
+    return shared_path('data', 'umich-cnc-mill', needs=('experiment_03.csv',))
