@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from .program import Move
+from .simsummary import row_sum
 
 __all__ = ['RollupAccumulator', 'NO_TOOL']
 
@@ -71,7 +72,7 @@ class RollupAccumulator:
         self.axes: tuple[str, ...] = ()
         self.axis_time: np.ndarray | None = None
         self._prev: tuple[float, float, np.ndarray] | None = None
-        self._prev_elec: np.ndarray | None = None     # motor and supply power of the last
+        self._prev_elec: np.ndarray | None = None     # motor and supply power, last sample
 
     # -- the move side ----------------------------------------------------------------------
     def wrap(self, moves: Iterable[Move]) -> Iterator[Move]:
@@ -159,12 +160,8 @@ class RollupAccumulator:
         if elec is None:
             return None
         power = np.empty((t.shape[0], 2))
-        power[:, 0] = elec.motor_w[:, 0]
-        power[:, 1] = elec.supply_w[:, 0]
-        for j in range(1, elec.motor_w.shape[1]):   # column by column: narrow arrays
-            power[:, 0] += elec.motor_w[:, j]
-            power[:, 1] += elec.supply_w[:, j]
-        power[:, 1] += elec.cabinet_w
+        power[:, 0] = row_sum(elec.motor_w)
+        power[:, 1] = row_sum(elec.supply_w) + elec.cabinet_w
         if self.electrical is None:
             self.electrical = np.zeros((self.energy.shape[0], 2))
         steps = 0.5 * (power[1:] + power[:-1]) * np.diff(t)[:, None]
