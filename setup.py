@@ -15,7 +15,7 @@ PACKAGE = 'feed_axis_energy'
 CONFIG_PATTERNS = ['*.yaml', 'programs/*.nc', 'campaigns/*.yaml']
 
 # Runtime dependencies of the package itself (pins: requirements.txt, constraints.txt).
-# zstandard and lz4 compress MCAP chunks (core/mcapstream.py); matplotlib draws the reports.
+# zstandard and lz4 compress MCAP chunks (record/mcapstream.py); matplotlib draws the reports.
 INSTALL_REQUIRES = ['numpy', 'scipy', 'PyYAML', 'rosbags', 'mcap', 'zstandard', 'lz4',
                     'matplotlib']
 # The nodes need rclpy and the message packages. A ROS 2 install provides them (package.xml);

@@ -24,8 +24,8 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 
-from feed_axis_energy.core.measured import load_campaign  # noqa: E402
-from feed_axis_energy.core.measured.importer import import_campaign  # noqa: E402
+from feed_axis_energy.measured import load_campaign  # noqa: E402
+from feed_axis_energy.measured.importer import import_campaign  # noqa: E402
 
 RUNS = ('exp01', 'exp08', 'exp09')
 DURATION_S = 60.0

@@ -20,13 +20,13 @@ import time
 
 import numpy as np
 
-from feed_axis_energy.core.gcode import parse_gcode
-from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.measured.align import estimate_offset
-from feed_axis_energy.core.rig import (instrument_record, Instrument, OUTSIDE_KINDS,
-                                       PAPER_FEEDS_MM_S, PAPER_LOADS_KG, parse_effects,
-                                       simulate_run, stroke_program)
-from feed_axis_energy.core.simulate import simulate_program
+from feed_axis_energy.gcode.load import parse_gcode
+from feed_axis_energy.machine.file import load_machine
+from feed_axis_energy.measured.align import estimate_offset
+from feed_axis_energy.identify.rigtruth import (instrument_record, Instrument, OUTSIDE_KINDS,
+                                                parse_effects, simulate_run)
+from feed_axis_energy.identify.rig import PAPER_FEEDS_MM_S, PAPER_LOADS_KG, stroke_program
+from feed_axis_energy.sim.simulate import simulate_program
 from feed_axis_energy.paths import config_dir
 
 MAX_LAG_S = 5.0

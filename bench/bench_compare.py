@@ -18,11 +18,11 @@ import time
 
 import numpy as np
 
-from feed_axis_energy.core.gcode import load_gcode
-from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.measured import load_campaign
-from feed_axis_energy.core.measured.compare import compare_campaign
-from feed_axis_energy.core.simulate import simulate_program
+from feed_axis_energy.gcode.load import load_gcode
+from feed_axis_energy.machine.file import load_machine
+from feed_axis_energy.measured.manifest import load_campaign
+from feed_axis_energy.measured.compare import compare_campaign
+from feed_axis_energy.sim.simulate import simulate_program
 from feed_axis_energy.paths import config_dir
 from feed_axis_energy.report import write_report
 

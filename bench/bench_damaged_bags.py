@@ -22,10 +22,10 @@ import tracemalloc
 
 import numpy as np
 
-from feed_axis_energy.core import bagio
-from feed_axis_energy.core.errors import DataError
-from feed_axis_energy.core.measured.importer import import_campaign
-from feed_axis_energy.core.measured.manifest import load_campaign
+from feed_axis_energy.record import bagio
+from feed_axis_energy.errors import DataError
+from feed_axis_energy.measured.importer import import_campaign
+from feed_axis_energy.measured.manifest import load_campaign
 
 TOPICS = (bagio.TOPIC_MEASURED_POWER, bagio.TOPIC_MEASURED_KINEMATICS)
 

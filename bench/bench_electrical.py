@@ -22,10 +22,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_simulate import contour_gcode  # noqa: E402
 
-from feed_axis_energy.core.gcode import parse_gcode  # noqa: E402
-from feed_axis_energy.core.machine import (load_machine, machine_from_dict,  # noqa: E402
+from feed_axis_energy.gcode.load import parse_gcode  # noqa: E402
+from feed_axis_energy.machine.file import (load_machine, machine_from_dict,  # noqa: E402
                                            machine_to_dict)
-from feed_axis_energy.core.simstream import simulate_stream  # noqa: E402
+from feed_axis_energy.sim.stream import simulate_stream  # noqa: E402
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 

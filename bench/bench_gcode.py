@@ -16,7 +16,7 @@ import tempfile
 import time
 import warnings
 
-from feed_axis_energy.core.gcode import load_gcode
+from feed_axis_energy.gcode.load import load_gcode
 
 
 def make_program(n_lines: int, *, seed: int = 1) -> str:

@@ -22,8 +22,8 @@ import warnings
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_gcode import make_program  # noqa: E402
-from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
-from feed_axis_energy.core.gcode.flow import read_blocks  # noqa: E402
+from feed_axis_energy.gcode.load import load_gcode  # noqa: E402
+from feed_axis_energy.gcode.read.flow import read_blocks  # noqa: E402
 
 
 def best_of(fn, repeat: int) -> float:

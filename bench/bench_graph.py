@@ -32,8 +32,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from feed_axis_energy.core import bagio  # noqa: E402
-from feed_axis_energy.core.graph import ChunkedBagWriter, latency_stats  # noqa: E402
+from feed_axis_energy.record import bagio  # noqa: E402
+from feed_axis_energy.record.crashsafe import ChunkedBagWriter  # noqa: E402
+from feed_axis_energy.graph.flow import latency_stats  # noqa: E402
 
 
 def _env(domain: int) -> dict[str, str]:
@@ -77,7 +78,7 @@ def bench_realtime(seconds: float, domain: int) -> None:
     import rclpy
     from rclpy.context import Context
     from trajectory_msgs.msg import JointTrajectory
-    from feed_axis_energy.core.graph import header_stamp_ns
+    from feed_axis_energy.graph.flow import header_stamp_ns
     from feed_axis_energy.nodes.qos import stream_qos
     from feed_axis_energy.nodes.runner import make_executor
     with tempfile.TemporaryDirectory() as tmp:

@@ -14,8 +14,9 @@ import time
 
 import numpy as np
 
-from feed_axis_energy.core.program import Move, MoveKind, Program
-from feed_axis_energy.core.trajectory import AxisLimits, plan, PlannerOptions
+from feed_axis_energy.gcode.program import Move, MoveKind, Program
+from feed_axis_energy.machine.limits import AxisLimits, PlannerOptions
+from feed_axis_energy.plan.trajectory import plan
 
 PROGRAM_S = 600.0
 

@@ -37,11 +37,11 @@ sys.path.insert(0, str(ROOT / 'bench'))
 
 from bench_scale import contour_program, demonstrator_program  # noqa: E402
 
-from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
-from feed_axis_energy.core.machine import load_machine  # noqa: E402
-from feed_axis_energy.core.planstream import iter_motion  # noqa: E402
-from feed_axis_energy.core.recording import SimulationBagWriter  # noqa: E402
-from feed_axis_energy.core.simstream import iter_simulation  # noqa: E402
+from feed_axis_energy.gcode.load import load_gcode  # noqa: E402
+from feed_axis_energy.machine.file import load_machine  # noqa: E402
+from feed_axis_energy.plan.stream import iter_motion  # noqa: E402
+from feed_axis_energy.record.recording import SimulationBagWriter  # noqa: E402
+from feed_axis_energy.sim.stream import iter_simulation  # noqa: E402
 
 _STAGES = {
     'CDR encoding': ('cdr.py',),
@@ -83,9 +83,9 @@ def _floor(case: str, chunks: list, repeat: int) -> None:
     from mcap.records import Chunk
     from mcap.stream_reader import StreamReader
 
-    from feed_axis_energy.core.bagwrite import RECORD_HEAD
-    from feed_axis_energy.core.cdr import joint_trajectory_rows
-    from feed_axis_energy.core.recording import simulation_columns
+    from feed_axis_energy.record.mcapstream import RECORD_HEAD
+    from feed_axis_energy.record.cdr import joint_trajectory_rows
+    from feed_axis_energy.record.recording import simulation_columns
     n = sum(c.power.t.shape[0] for c in chunks)
     cdr = float('inf')
     for _ in range(repeat):

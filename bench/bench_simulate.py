@@ -11,7 +11,7 @@ Run by hand from the repository root: ``.venv/bin/python bench/bench_simulate.py
     0.87 mm (0.5 deg corners) at F18000 (300 mm/s, about 340 blocks per second), G64, with a
     50 ms dwell after every quarter circle.
 
-The stages are the ones :func:`feed_axis_energy.core.simulate.simulate_program` runs (the plan
+The stages are the ones :func:`feed_axis_energy.sim.simulate.simulate_program` runs (the plan
 uses the machine's own planner settings, sampled at ``--rate``). Each stage is timed on its
 own, best of ``--repeat`` (the machine is shared); the total is the sum of the best stage
 times. Printed per program and stage: wall time, samples per second and real-time factor
@@ -28,11 +28,12 @@ import sys
 import time
 from typing import Callable
 
-from feed_axis_energy.core.dynamics import compute_dynamics
-from feed_axis_energy.core.energy import compute_power
-from feed_axis_energy.core.gcode import parse_gcode
-from feed_axis_energy.core.machine import load_machine, Machine
-from feed_axis_energy.core.trajectory import plan
+from feed_axis_energy.physics.dynamics import compute_dynamics
+from feed_axis_energy.physics.energy import compute_power
+from feed_axis_energy.gcode.load import parse_gcode
+from feed_axis_energy.machine.file import load_machine
+from feed_axis_energy.machine.spec import Machine
+from feed_axis_energy.plan.trajectory import plan
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 

@@ -23,13 +23,15 @@ from __future__ import annotations
 from dataclasses import replace
 import time
 
-from feed_axis_energy.core.identify import fit_loss, machine_with_losses, SteadyOptions
-from feed_axis_energy.core.identify.samplefit import fit_loss_samples, machine_with_sample_fits
-from feed_axis_energy.core.machine import load_machine, Machine
-from feed_axis_energy.core.measured import load_run
-from feed_axis_energy.core.measured.campaign import Campaign
-from feed_axis_energy.core.measured.compare import compare_campaign
-from feed_axis_energy.core.measured.metrics import group_metrics
+from feed_axis_energy.identify.lossfit import fit_loss, machine_with_losses
+from feed_axis_energy.identify.steady import SteadyOptions
+from feed_axis_energy.identify.samplefit import fit_loss_samples, machine_with_sample_fits
+from feed_axis_energy.machine.file import load_machine
+from feed_axis_energy.machine.spec import Machine
+from feed_axis_energy.measured.csvload import load_run
+from feed_axis_energy.measured.campaign import Campaign
+from feed_axis_energy.measured.compare import compare_campaign
+from feed_axis_energy.measured.metrics import group_metrics
 from bench_umich_motion import umich_campaign  # bench/ is sys.path[0]
 
 

@@ -16,12 +16,13 @@ from pathlib import Path
 import sys
 import time
 
-from feed_axis_energy.core.identify import fit_loss, machine_with_losses
-from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.measured import load_campaign, load_run
-from feed_axis_energy.core.measured.campaign import Campaign, InstrumentSpec
-from feed_axis_energy.core.measured.compare import compare_campaign
-from feed_axis_energy.core.measured.metrics import group_metrics
+from feed_axis_energy.identify.lossfit import fit_loss, machine_with_losses
+from feed_axis_energy.machine.file import load_machine
+from feed_axis_energy.measured.manifest import load_campaign
+from feed_axis_energy.measured.csvload import load_run
+from feed_axis_energy.measured.campaign import Campaign, InstrumentSpec
+from feed_axis_energy.measured.compare import compare_campaign
+from feed_axis_energy.measured.metrics import group_metrics
 from shared_lookup import HINT, umich_data  # bench/shared_lookup.py
 
 ROOT = Path(__file__).resolve().parents[1]

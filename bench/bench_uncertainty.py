@@ -1,4 +1,4 @@
-"""Benchmark: what the loss-function uncertainty (``core/uncertainty.py``) costs a simulation.
+"""Benchmark: what the loss-function uncertainty (``physics/uncertainty.py``) costs a simulation.
 
 Run by hand from the repository root: ``.venv/bin/python bench/bench_uncertainty.py``
 (options: ``--repeat R``, ``--seconds S``).
@@ -21,10 +21,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_simulate import contour_gcode, reciprocating_gcode  # noqa: E402
 
-from feed_axis_energy.core.gcode import parse_gcode  # noqa: E402
-from feed_axis_energy.core.machine import (load_machine, machine_from_dict,  # noqa: E402
+from feed_axis_energy.gcode.load import parse_gcode  # noqa: E402
+from feed_axis_energy.machine.file import (load_machine, machine_from_dict,  # noqa: E402
                                            machine_to_dict)
-from feed_axis_energy.core.simstream import simulate_stream  # noqa: E402
+from feed_axis_energy.sim.stream import simulate_stream  # noqa: E402
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 

@@ -18,7 +18,7 @@ reference run (``shared/tools/run_oracle.py``) set the interpreter up:
 Acceptance is counted with the program's own dialect (``programs.csv``; what a user of that
 control would choose); agreement with the reference is checked on the programs both accept,
 parsed with the ``linuxcnc`` dialect (the reference's own semantics: ``G4 P`` in seconds).
-Compared (with ``core/gcode_stats.py``, which counts as the reference does): numbers of
+Compared (with ``gcode/stats.py``, which counts as the reference does): numbers of
 feed moves, traverses, arcs and dwells; feed and traverse path length (relative 1e-6, at
 least 1e-4 mm: the reference rounds to 4 decimals); total dwell; final position and bounding
 box (1 um). ``--plan`` also plans every accepted program on ``config/three_axis_mill.yaml``
@@ -67,9 +67,9 @@ for _p in (ROOT, ROOT / 'bench'):
 import oracle_quirks  # noqa: E402  (bench/oracle_quirks.py)
 from shared_lookup import HINT, shared_path  # noqa: E402  (bench/shared_lookup.py)
 
-from feed_axis_energy.core.errors import FeedAxisError, GcodeError  # noqa: E402
-from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
-from feed_axis_energy.core.gcode_stats import ProgramStats, summarize  # noqa: E402
+from feed_axis_energy.errors import FeedAxisError, GcodeError  # noqa: E402
+from feed_axis_energy.gcode.load import load_gcode  # noqa: E402
+from feed_axis_energy.gcode.stats import ProgramStats, summarize  # noqa: E402
 
 __all__ = ['find_corpus', 'load_corpus', 'run_ours', 'compare', 'evaluate', 'format_report',
            'report_json', 'memory_figure', 'Entry', 'OurResult', 'Disagreement', 'Report']
@@ -241,9 +241,9 @@ def _parse_keywords(dialect: str | None, search_path: list[Path]) -> dict[str, A
 
 
 def known_dialects() -> tuple[str, ...]:
-    """Dialect names our front end knows (``core/machine_gcode.DIALECTS`` once it exists)."""
+    """Dialect names our front end knows (``gcode/settings.DIALECTS`` once it exists)."""
     try:
-        from feed_axis_energy.core.machine_gcode import DIALECTS
+        from feed_axis_energy.gcode.settings import DIALECTS
     except ImportError:
         return (REFERENCE_DIALECT,)
     return tuple(DIALECTS)
@@ -302,8 +302,8 @@ def run_ours(path: Path, *, dialect: str | None, search_path: list[Path],
 
 def make_planner(machine_path: Path) -> Callable[[Any], str]:
     """Return a function that plans a program on a machine (per block, no samples)."""
-    from feed_axis_energy.core.machine import load_machine
-    from feed_axis_energy.core.planstream import estimate_plan
+    from feed_axis_energy.machine.file import load_machine
+    from feed_axis_energy.plan.stream import estimate_plan
     machine = load_machine(machine_path)
     limits = machine.limits()
     options = machine.planner.options()
@@ -826,8 +826,8 @@ _CHILD = textwrap.dedent('''
                     return int(line.split()[1])
         return 0
 
-    import feed_axis_energy.core.gcode as g
-    from feed_axis_energy.core.gcode_stats import MoveStats
+    import feed_axis_energy.gcode.load as g
+    from feed_axis_energy.gcode.stats import MoveStats
     base = status_kb('VmRSS')
     t0 = time.perf_counter()
     acc = MoveStats()

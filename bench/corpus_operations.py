@@ -7,10 +7,10 @@ Run by hand from the repository root::
 
 The first form reads every program of ``programs.csv`` with ``iter_moves`` (the program's
 own dialect; programs the parser refuses are recorded as errors) and writes, per program, the
-number of moves and its :class:`~feed_axis_energy.core.gcode.context.OperationContext`: the
+number of moves and its :class:`~feed_axis_energy.gcode.context.OperationContext`: the
 table of ``(operation, subroutine, tool)`` contexts and the change marks, i.e. everything
 the roll-ups per operation and tool use. Run it before and after a change of
-``core/gcode/context.py`` and compare: the second form prints every program whose contexts
+``gcode/context.py`` and compare: the second form prints every program whose contexts
 differ, with its generator, and the count.
 """
 from __future__ import annotations
@@ -21,9 +21,9 @@ import json
 from pathlib import Path
 import sys
 
-from feed_axis_energy.core.errors import FeedAxisError
-from feed_axis_energy.core.gcode import iter_moves
-from feed_axis_energy.core.gcode.dialect import DIALECTS
+from feed_axis_energy.errors import FeedAxisError
+from feed_axis_energy.gcode.load import iter_moves
+from feed_axis_energy.gcode.dialect import DIALECTS
 from shared_lookup import HINT, shared_path  # bench/shared_lookup.py
 
 

@@ -4,7 +4,7 @@
 [--effects ID,...] [--sizes S,...] [--seeds N] [--noise-w W]``
 
 For every catalog effect that describes the machine (all but ``time_offset``), a campaign of
-the virtual rig (``core/rig.py``) is made with the effect's example parameters scaled so that
+the virtual rig (``identify/rig.py``) is made with the effect's example parameters scaled so that
 the RMS of its extra power over every simulated sample of the campaign is ``size`` times the
 noise level, and ``analyze`` runs on it with default options, once per seed. Campaigns:
 
@@ -41,14 +41,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-from feed_axis_energy.core.effects import EFFECTS, get_effect, state_from_simulation
-from feed_axis_energy.core.gcode import parse_gcode
-from feed_axis_energy.core.identify.analyze import analyze_campaign, AnalyzeOptions
-from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.measured import load_campaign
-from feed_axis_energy.core.rig import (EffectSpec, Instrument, make_campaign, PAPER_FEEDS_MM_S,
-                                       PAPER_LOADS_KG, RigConfig, stroke_program)
-from feed_axis_energy.core.simulate import simulate_program
+from feed_axis_energy.effects.catalog import EFFECTS, get_effect
+from feed_axis_energy.physics.effectstate import state_from_simulation
+from feed_axis_energy.gcode.load import parse_gcode
+from feed_axis_energy.identify.analyze import analyze_campaign
+from feed_axis_energy.identify.results import AnalyzeOptions
+from feed_axis_energy.machine.file import load_machine
+from feed_axis_energy.measured.manifest import load_campaign
+from feed_axis_energy.identify.rigtruth import EffectSpec, Instrument
+from feed_axis_energy.identify.rig import (make_campaign, PAPER_FEEDS_MM_S, PAPER_LOADS_KG,
+                                           RigConfig, stroke_program)
+from feed_axis_energy.sim.simulate import simulate_program
 from feed_axis_energy.paths import config_dir
 
 MACHINE = Path(config_dir()) / 'demonstrator.yaml'

@@ -39,8 +39,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from feed_axis_energy import lifeline  # noqa: E402
-from feed_axis_energy.core import bagio  # noqa: E402
-from feed_axis_energy.core.graph import header_stamp_ns  # noqa: E402
+from feed_axis_energy.record import bagio  # noqa: E402
+from feed_axis_energy.graph.flow import header_stamp_ns  # noqa: E402
 
 TARGETS = ('mcap_recorder', 'gcode_trajectory', 'axis_dynamics', 'energy_estimator',
            'launcher')
@@ -60,10 +60,10 @@ def _program(path: Path, seconds: float) -> Path:
 
 def planned_stamps(program: Path) -> list[int]:
     """Header stamps of the program's batches (100 samples), as gcode_trajectory sends them."""
-    from feed_axis_energy.core.gcode import load_gcode
-    from feed_axis_energy.core.graph import seconds_to_ns
-    from feed_axis_energy.core.machine import load_machine
-    from feed_axis_energy.core.trajectory import plan
+    from feed_axis_energy.gcode.load import load_gcode
+    from feed_axis_energy.graph.flow import seconds_to_ns
+    from feed_axis_energy.machine.file import load_machine
+    from feed_axis_energy.plan.trajectory import plan
     from feed_axis_energy.paths import default_machine
     machine = load_machine(default_machine())
     motion = plan(load_gcode(program), machine.limits(), options=machine.planner.options())

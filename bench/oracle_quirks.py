@@ -33,8 +33,8 @@ import dataclasses
 from itertools import combinations
 from typing import Any
 
-from feed_axis_energy.core.gcode.interp import Interpreter
-from feed_axis_energy.core.program import Move, MoveKind
+from feed_axis_energy.gcode.interp.interpreter import Interpreter
+from feed_axis_energy.gcode.program import Move, MoveKind
 
 __all__ = ['QUIRKS', 'quirks', 'explain']
 

@@ -31,10 +31,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import truth_model as tm  # noqa: E402
 
-from feed_axis_energy.core.gcode import parse_gcode  # noqa: E402,I100
-from feed_axis_energy.core.machine import load_machine  # noqa: E402
-from feed_axis_energy.core.measured.align import estimate_offset  # noqa: E402
-from feed_axis_energy.core.simulate import simulate_program  # noqa: E402
+from feed_axis_energy.gcode.load import parse_gcode  # noqa: E402,I100
+from feed_axis_energy.machine.file import load_machine  # noqa: E402
+from feed_axis_energy.measured.align import estimate_offset  # noqa: E402
+from feed_axis_energy.sim.simulate import simulate_program  # noqa: E402
 from feed_axis_energy.paths import config_dir  # noqa: E402
 
 MACHINE = Path(config_dir()) / 'demonstrator.yaml'

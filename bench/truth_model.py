@@ -19,7 +19,7 @@ over 50 ms windows stamped at their end, adds 1.5 W Gaussian noise and quantises
 its clock may run fast (``drift_ppm``) and may start seconds before or after the program.
 
 Effects (``CATALOG``: what each catalog effect *is* physically, written independently of
-``core/effects``; ``OUTSIDE``: effects the catalog does not hold) are given as a force at
+``effects``; ``OUTSIDE``: effects the catalog does not hold) are given as a force at
 the nut or as a power at the drive, each scaled by one amplitude so that the study can set
 the RMS of its extra power.
 """

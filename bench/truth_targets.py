@@ -46,8 +46,8 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import truth_model as tm  # noqa: E402
 
-from feed_axis_energy.core.identify.analyze import analyze_campaign  # noqa: E402,I100
-from feed_axis_energy.core.measured import load_campaign  # noqa: E402
+from feed_axis_energy.identify.analyze import analyze_campaign  # noqa: E402,I100
+from feed_axis_energy.measured.manifest import load_campaign  # noqa: E402
 from feed_axis_energy.paths import config_dir  # noqa: E402
 
 MACHINE = Path(config_dir()) / 'demonstrator.yaml'

@@ -13,7 +13,7 @@ import os
 import pytest
 from report_browser import chromium, problems
 
-from feed_axis_energy.core.outputs import REPORT_MARKER
+from feed_axis_energy.outputs import REPORT_MARKER
 
 
 @pytest.fixture(autouse=True)

@@ -10,8 +10,8 @@ import importlib
 import sys
 
 from feed_axis_energy import __version__
-from feed_axis_energy.core.errors import FeedAxisError
-from feed_axis_energy.core.interrupt import Terminated, terminate_on_signals
+from feed_axis_energy.errors import FeedAxisError
+from feed_axis_energy.interrupt import Terminated, terminate_on_signals
 
 __all__ = ['main', 'build_parser']
 
@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         # SIGTERM and SIGINT raise Terminated inside the command so that staged outputs
-        # are removed (core/outputs.py); the handlers are restored afterwards.
+        # are removed (outputs.py); the handlers are restored afterwards.
         with terminate_on_signals():
             return int(args.run(args) or 0)
     except FeedAxisError as err:

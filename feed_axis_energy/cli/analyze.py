@@ -12,13 +12,12 @@ import yaml
 
 from feed_axis_energy.cli.common import format_table, metric_cells, METRIC_HEADER
 from feed_axis_energy.cli.progress import Progress
-from feed_axis_energy.core.errors import ConfigError
-from feed_axis_energy.core.identify.analyze import (AnalysisResult, analyze_campaign,
-                                                    AnalyzeOptions, HOLDOUTS)
-from feed_axis_energy.core.machine import load_machine, machine_to_dict
-from feed_axis_energy.core.measured.manifest import load_campaign
-from feed_axis_energy.core.outputs import (check_target, marked_or_empty, REPORT_MARKER,
-                                           Rollback, write_text_atomic)
+from feed_axis_energy.errors import ConfigError
+from feed_axis_energy.identify import AnalysisResult, analyze_campaign, AnalyzeOptions, HOLDOUTS
+from feed_axis_energy.machine import load_machine, machine_to_dict
+from feed_axis_energy.measured import load_campaign
+from feed_axis_energy.outputs import (check_target, marked_or_empty, REPORT_MARKER, Rollback,
+                                      write_text_atomic)
 
 __all__ = ['add_parser', 'run']
 
@@ -194,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
             extra['out_machine'] = str(args.out_machine)
         if args.report is not None:
             # imported here: matplotlib is only needed for reports
-            from feed_axis_energy.report.analyze_report import write_analyze_report
+            from feed_axis_energy.report import write_analyze_report
             extra['report'] = str(write_analyze_report(result, args.report, force=args.force))
     if args.json:
         out = result.to_dict()

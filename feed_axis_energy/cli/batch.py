@@ -54,7 +54,7 @@ def _positive_int(text: str) -> int:
 
 def add_executor_options(p: argparse.ArgumentParser) -> None:
     """``--jobs N | --scheduler ADDRESS`` and ``--connect-timeout`` (``batch``, ``sweep``);
-    :func:`check_executor_options` checks them and :func:`_execute` uses them."""
+    :func:`check_executor_options` checks them and :func:`execute_jobs` uses them."""
     where = p.add_mutually_exclusive_group()
     where.add_argument('--jobs', type=_positive_int, default=1, metavar='N',
                        help='local worker processes (default 1: in this process; 0: one per '
@@ -69,7 +69,7 @@ def add_executor_options(p: argparse.ArgumentParser) -> None:
 
 def check_executor_options(args: argparse.Namespace) -> None:
     """Refuse a ``--connect-timeout`` outside (0, 3600] s (ConfigError naming the option)."""
-    from feed_axis_energy.core.errors import ConfigError
+    from feed_axis_energy.errors import ConfigError
     if not 0.0 < args.connect_timeout <= 3600.0:
         msg = f'--connect-timeout must be > 0 and <= 3600 s, got {args.connect_timeout}'
         raise ConfigError(msg, file='command line', key='connect-timeout')
@@ -125,9 +125,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def _jobs(args: argparse.Namespace) -> list:
     """The campaign's jobs from the command line and the batch file; checks machines."""
-    from feed_axis_energy.core.batchspec import expand_programs, load_batch_file, make_jobs
-    from feed_axis_energy.core.errors import ConfigError
-    from feed_axis_energy.core.machine import load_machine
+    from feed_axis_energy.sim import expand_programs, load_batch_file, make_jobs
+    from feed_axis_energy.errors import ConfigError
+    from feed_axis_energy.machine import load_machine
     from feed_axis_energy.paths import default_machine
     if args.batch_file is not None and args.programs:
         msg = 'give programs either on the command line or in --batch-file, not both'
@@ -169,8 +169,8 @@ def _check_out(args: argparse.Namespace, jobs: list) -> list[Path]:
 
     Returns the directories created here, deepest first (removed again if they stay empty).
     """
-    from feed_axis_energy.core.errors import OutputError
-    from feed_axis_energy.core.outputs import check_target, is_bag_directory
+    from feed_axis_energy.errors import OutputError
+    from feed_axis_energy.outputs import check_target, is_bag_directory
     out = args.out
     if out.is_symlink() and not out.is_dir():
         raise OutputError('is a dangling symbolic link', path=out, option='--out')
@@ -193,7 +193,7 @@ def _check_out(args: argparse.Namespace, jobs: list) -> list[Path]:
     return created
 
 
-class _JobProgress:
+class JobProgress:
     """``[batch] 12/100 jobs, 1 failed, 3.4 s`` on stderr, at most every 0.5 s (and at the end)."""
 
     def __init__(self, *, enabled: bool, interval_s: float = 0.5, label: str = 'batch'):
@@ -218,9 +218,9 @@ class _JobProgress:
         sys.stderr.flush()
 
 
-def _execute(args: argparse.Namespace, jobs: list, progress: _JobProgress) -> tuple[list, str]:
+def execute_jobs(args: argparse.Namespace, jobs: list, progress: JobProgress) -> tuple[list, str]:
     """Run the jobs where asked; returns the results and a description of the workers."""
-    from feed_axis_energy.core.batch import run_batch
+    from feed_axis_energy.sim import run_batch
     if args.scheduler is not None:
         client = _connect(args.scheduler, timeout_s=args.connect_timeout)
         try:
@@ -254,7 +254,7 @@ def check_address(address: str) -> str:
     Checked here because ``distributed.Client`` given a malformed address fails with a
     ``ValueError`` and then prints a traceback when the half-made client is collected.
     """
-    from feed_axis_energy.core.errors import ConfigError, shorten
+    from feed_axis_energy.errors import ConfigError, shorten
     match = _ADDRESS_RE.fullmatch(address)
     if match is None or not 0 < int(match['port']) < 65536:
         msg = (f'expected a scheduler address tcp://HOST:PORT (or tls://, ws://, wss://), '
@@ -278,15 +278,15 @@ def _mp_context():
         return multiprocessing.get_context('fork')
     if 'forkserver' in methods:
         ctx = multiprocessing.get_context('forkserver')
-        ctx.set_forkserver_preload(['feed_axis_energy.core.batch', 'feed_axis_energy.core.gcode',
-                                    'feed_axis_energy.core.simstream'])
+        ctx.set_forkserver_preload(['feed_axis_energy.sim.batch', 'feed_axis_energy.gcode.load',
+                                    'feed_axis_energy.sim.stream'])
         return ctx
     return multiprocessing.get_context('spawn')
 
 
 def _connect(address: str, *, timeout_s: float):
     """A Dask client of the scheduler at ``address``, or a clear error."""
-    from feed_axis_energy.core.errors import ConfigError, shorten
+    from feed_axis_energy.errors import ConfigError, shorten
     check_address(address)
     try:
         from distributed import Client
@@ -305,15 +305,15 @@ def _connect(address: str, *, timeout_s: float):
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     import json
-    from feed_axis_energy.cli.batchout import check_csv_target, csv_text, print_table
-    from feed_axis_energy.cli.batchout import write_text_atomic
+    from feed_axis_energy.cli.batchout import (check_csv_target, csv_text, print_table,
+                                               write_text_atomic)
     jobs = _jobs(args)
     if args.csv is not None:
         check_csv_target(args.csv, force=args.force)
     created = [] if args.out is None else _check_out(args, jobs)
-    progress = _JobProgress(enabled=not args.quiet)
+    progress = JobProgress(enabled=not args.quiet)
     try:
-        results, where = _execute(args, jobs, progress)
+        results, where = execute_jobs(args, jobs, progress)
     finally:
         _remove_if_empty(created)
     failed = sum(1 for r in results if not r.ok)

@@ -13,8 +13,8 @@ import os
 from pathlib import Path
 
 from feed_axis_energy.cli.common import format_table
-from feed_axis_energy.core.batch import JobResult
-from feed_axis_energy.core.errors import ConfigError, shorten
+from feed_axis_energy.sim import JobResult
+from feed_axis_energy.errors import ConfigError, shorten
 
 __all__ = ['print_table', 'csv_text', 'check_csv_target', 'write_text_atomic',
            'rollup_cell', 'ROLLUP_COLUMNS']

@@ -27,7 +27,7 @@ def _max_dwell(text: str) -> float:
 
 
 def _tool(text: str) -> tuple:
-    from feed_axis_energy.core.machine_gcode import parse_tool_option
+    from feed_axis_energy.gcode import parse_tool_option
     try:
         return parse_tool_option(text)
     except ValueError as err:
@@ -35,14 +35,13 @@ def _tool(text: str) -> tuple:
 
 
 def _ignored_axes(text: str) -> tuple[str, ...]:
-    from feed_axis_energy.cli.common import _axes   # the same rule as simulate's option
-    return _axes(text)
+    from feed_axis_energy.cli.common import axes_option   # the same rule as simulate's option
+    return axes_option(text)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the subcommand."""
-    from feed_axis_energy.core.gcode_check import DEFAULT_MAX_DWELL_S
-    from feed_axis_energy.core.machine_gcode import DIALECTS
+    from feed_axis_energy.gcode import DEFAULT_MAX_DWELL_S, DIALECTS
     p = sub.add_parser(
         'check', help=HELP,
         description='Parse each PROGRAM as `simulate` would and list its problems: the '
@@ -77,7 +76,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _limits(machine: Any, max_dwell_s: float):
-    from feed_axis_energy.core.gcode_check import CheckLimits
+    from feed_axis_energy.gcode import CheckLimits
     travel = {}
     velocity = {}
     for axis in machine.axes:
@@ -105,7 +104,7 @@ def program_problems(path: Path, *, machine: Any, keywords: dict[str, Any],
     path
         The program file.
     machine
-        The :class:`~feed_axis_energy.core.machine.Machine`.
+        The :class:`~feed_axis_energy.machine.file.Machine`.
     keywords
         Keywords for ``load_gcode`` (tools, G28 position, dialect).
     max_dwell_s
@@ -114,15 +113,14 @@ def program_problems(path: Path, *, machine: Any, keywords: dict[str, Any],
     Returns
     -------
     tuple
-        The problems (:class:`~feed_axis_energy.core.gcode_check.Problem`: the error if
+        The problems (:class:`~feed_axis_energy.gcode.check.Problem`: the error if
         any, the parser's warnings, the sanity warnings with the source text of their
-        line) and the :class:`~feed_axis_energy.core.gcode_stats.ProgramStats` (``None``
+        line) and the :class:`~feed_axis_energy.gcode.stats.ProgramStats` (``None``
         when the program is refused).
     """
-    from feed_axis_energy.core.errors import GcodeError
-    from feed_axis_energy.core.gcode import iter_moves
-    from feed_axis_energy.core.gcode_check import (MAX_ERRORS, MoveChecker, problem_from_error,
-                                                   problems_from_warnings)
+    from feed_axis_energy.errors import GcodeError
+    from feed_axis_energy.gcode import (iter_moves, MAX_ERRORS, MoveChecker, problem_from_error,
+                                        problems_from_warnings)
     name = str(path)
     # Streamed: a program of any length is checked in bounded memory. An error in a line is
     # kept and checking goes on with the next line (up to MAX_ERRORS).
@@ -148,7 +146,7 @@ def program_problems(path: Path, *, machine: Any, keywords: dict[str, Any],
 
 def _with_text(problems: list[Any], path: Path) -> list[Any]:
     """Fill in the source text of the lines the problems name (one streaming pass)."""
-    from feed_axis_energy.core.errors import shorten
+    from feed_axis_energy.errors import shorten
     name = str(path)
     wanted = {p.line for p in problems if p.line > 0 and not p.text and p.file == name}
     if not wanted:
@@ -176,16 +174,16 @@ def warning_texts(path: Path, program: Any, machine: Any) -> list[str]:
 
 
 def sanity_checker(path: Path, machine: Any) -> Any:
-    """A :class:`~feed_axis_energy.core.gcode_check.MoveChecker` with ``check``'s default
+    """A :class:`~feed_axis_energy.gcode.check.MoveChecker` with ``check``'s default
     limits on ``machine``: feed it moves (``add``, ``add_many``), e.g. while they stream."""
-    from feed_axis_energy.core.gcode_check import DEFAULT_MAX_DWELL_S, MoveChecker
+    from feed_axis_energy.gcode import DEFAULT_MAX_DWELL_S, MoveChecker
     return MoveChecker(file=str(path), limits=_limits(machine, DEFAULT_MAX_DWELL_S))
 
 
 def checked_warning_texts(path: Path, parser_warnings: list[str], checker: Any) -> list[str]:
     """The parser's warnings and those of a fed :func:`sanity_checker`, as text lines in line
     order. Used by ``simulate`` for its ``warnings`` (JSON) and its stderr lines."""
-    from feed_axis_energy.core.gcode_check import problems_from_warnings
+    from feed_axis_energy.gcode import problems_from_warnings
     problems = problems_from_warnings(parser_warnings, file=str(path))
     sanity = checker.problems()
     return [_warning_line(p) for p in sorted(problems + sanity, key=lambda p: p.line)]
@@ -210,11 +208,11 @@ def _stats_dict(s: Any) -> dict[str, Any] | None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
-    from feed_axis_energy.core.machine import load_machine
+    from feed_axis_energy.machine import load_machine
     from feed_axis_energy.paths import default_machine
     machine = load_machine(args.machine if args.machine is not None else default_machine())
     if args.tool:
-        from feed_axis_energy.core.machine_gcode import with_tools
+        from feed_axis_energy.gcode import with_tools
         machine = replace(machine, gcode=with_tools(machine.gcode, dict(args.tool)))
     keywords = _parse_keywords(machine, args)
     results = []

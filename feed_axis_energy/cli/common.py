@@ -7,10 +7,9 @@ from dataclasses import replace
 import math
 from pathlib import Path
 
-from feed_axis_energy.core.errors import ConfigError
-from feed_axis_energy.core.machine import load_machine, Machine
-from feed_axis_energy.core.machine_gcode import DIALECTS, parse_tool_option, with_tools
-from feed_axis_energy.core.trajectory import PlannerOptions
+from feed_axis_energy.errors import ConfigError
+from feed_axis_energy.machine import load_machine, Machine, PlannerOptions
+from feed_axis_energy.gcode import DIALECTS, parse_tool_option, with_tools
 from feed_axis_energy.paths import default_machine
 
 __all__ = ['add_machine_options', 'load_machine_and_options', 'print_summary', 'cause_table',
@@ -31,7 +30,7 @@ def _tool(text: str) -> tuple:
         raise argparse.ArgumentTypeError(str(err)) from None
 
 
-def _axes(text: str) -> tuple[str, ...]:
+def axes_option(text: str) -> tuple[str, ...]:
     axes = tuple(a.strip().upper() for a in text.split(',') if a.strip())
     bad = [a for a in axes if a not in ('A', 'B', 'C', 'U', 'V', 'W')]
     if bad or not axes:
@@ -69,8 +68,8 @@ def add_machine_options(p: argparse.ArgumentParser) -> None:
                         'replacing its entry; repeat for more tools (e.g. --tool 1:3:45.2)')
     p.add_argument('--dialect', choices=DIALECTS, default=None,
                    help='G-code dialect of the program (default: the machine config\'s '
-                        'gcode.dialect, else linuxcnc; docs in core/gcode/dialect.py)')
-    p.add_argument('--ignore-axes', type=_axes, default=(), metavar='A,B',
+                        'gcode.dialect, else linuxcnc; docs in gcode/dialect.py)')
+    p.add_argument('--ignore-axes', type=axes_option, default=(), metavar='A,B',
                    help='drop the words of these axes (A, B, C, U, V, W) with one warning '
                         'each; without it a program moving such an axis is refused')
 
@@ -154,7 +153,7 @@ def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
     rows = [[axis, f'{summary["energy_j"][axis]:.2f}', f'{summary["peak_power_w"][axis]:.1f}']
             for axis in axes + ['total']]
     print(format_table(['axis', 'energy [J]', 'peak power [W]'], rows))
-    from feed_axis_energy.core.uncertainty import uncertainty_words
+    from feed_axis_energy.physics import uncertainty_words
     spread = uncertainty_words(summary)
     if spread is not None:
         print(f'energy uncertainty: {spread}')

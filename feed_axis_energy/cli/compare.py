@@ -9,15 +9,12 @@ import sys
 
 from feed_axis_energy.cli.common import format_table, metric_cells, METRIC_HEADER
 from feed_axis_energy.cli.progress import Progress
-from feed_axis_energy.core.calibrated import machine_warnings
-from feed_axis_energy.core.errors import ConfigError
-from feed_axis_energy.core.identify.steady import range_uses
-from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.measured.csvload import load_run
-from feed_axis_energy.core.measured.compare import (CampaignComparison, compare_campaign,
-                                                    DEFAULT_MAX_LAG_S)
-from feed_axis_energy.core.measured.manifest import load_campaign
-from feed_axis_energy.core.outputs import check_target, marked_or_empty, REPORT_MARKER
+from feed_axis_energy.machine import load_machine, machine_warnings
+from feed_axis_energy.errors import ConfigError
+from feed_axis_energy.identify import range_uses
+from feed_axis_energy.measured import (CampaignComparison, compare_campaign, DEFAULT_MAX_LAG_S,
+                                       load_campaign, load_run)
+from feed_axis_energy.outputs import check_target, marked_or_empty, REPORT_MARKER
 
 __all__ = ['add_parser', 'run']
 

@@ -11,11 +11,11 @@ from pathlib import Path
 
 from feed_axis_energy.cli.common import format_table
 from feed_axis_energy.cli.progress import Progress
-from feed_axis_energy.core.gcode import load_gcode
-from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.outputs import marked_or_empty, staged_directory
-from feed_axis_energy.core.recording import write_simulation_bag
-from feed_axis_energy.core.simulate import simulate_program, summarize
+from feed_axis_energy.gcode import load_gcode
+from feed_axis_energy.machine import load_machine
+from feed_axis_energy.outputs import marked_or_empty, staged_directory
+from feed_axis_energy.record import write_simulation_bag
+from feed_axis_energy.sim import simulate_program, summarize
 from feed_axis_energy.paths import default_machine, program_path
 
 __all__ = ['add_parser', 'run', 'PAPER_LOADS_KG', 'PAPER_FEEDS_MM_S']

@@ -10,16 +10,12 @@ import yaml
 
 from feed_axis_energy.cli.common import format_table
 from feed_axis_energy.cli.import_run import split_names
-from feed_axis_energy.core.identify import fit_loss, machine_with_losses, SteadyOptions
-from feed_axis_energy.core.calibrated import range_warnings
-from feed_axis_energy.core.identify.lossfit import VELOCITY_SOURCES
-from feed_axis_energy.core.identify.samplefit import (fit_loss_samples,
-                                                      machine_with_sample_fits,
-                                                      SampleFitOptions)
-from feed_axis_energy.core.identify.steady import range_uses
-from feed_axis_energy.core.machine import load_machine, machine_to_dict
-from feed_axis_energy.core.measured import load_campaign, load_run
-from feed_axis_energy.core.outputs import check_target, write_text_atomic
+from feed_axis_energy.identify import (fit_loss, fit_loss_samples, machine_with_losses,
+                                       machine_with_sample_fits, range_uses, SampleFitOptions,
+                                       SteadyOptions, VELOCITY_SOURCES)
+from feed_axis_energy.machine import load_machine, machine_to_dict, range_warnings
+from feed_axis_energy.measured import load_campaign, load_run
+from feed_axis_energy.outputs import check_target, write_text_atomic
 
 __all__ = ['add_parser', 'run']
 

@@ -8,8 +8,7 @@ import sys
 
 from feed_axis_energy.cli.common import format_table
 from feed_axis_energy.cli.progress import Progress
-from feed_axis_energy.core.measured.importer import import_campaign
-from feed_axis_energy.core.measured.manifest import load_campaign
+from feed_axis_energy.measured import import_campaign, load_campaign
 
 __all__ = ['add_parser', 'run', 'split_names']
 

@@ -57,11 +57,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'realtime: paced by the wall clock')
     p.add_argument('--record', type=Path, default=None, metavar='DIR',
                    help='record the graph into this rosbag2/MCAP directory (must not exist)')
-    p.add_argument('--plot-rate-hz', type=_plot_rate, default=None, metavar='HZ',
+    p.add_argument('--plot-rate-hz', type=plot_rate_option, default=None, metavar='HZ',
                    help='display rate of the recording\'s plot topics (/plot/power, /plot/axes; '
                         '0: every sample; default: the recorder\'s plot_rate_hz, 20); needs '
                         '--record')
-    p.add_argument('--start-time', type=_start_time, default=None, metavar='now|ISO-8601',
+    p.add_argument('--start-time', type=start_time_option, default=None, metavar='now|ISO-8601',
                    help='stamp the recording in wall-clock time from this start (no offset: '
                         'UTC) instead of simulation time from 0; needs --record')
     p.add_argument('--domain-id', type=int, default=None, metavar='N',
@@ -73,15 +73,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def _plot_rate(text: str) -> float:
+def plot_rate_option(text: str) -> float:
     """``--plot-rate-hz``: as ``simulate``'s (a usage error otherwise)."""
-    from feed_axis_energy.cli.simulate import _plot_rate as check
+    from feed_axis_energy.cli.simulate import plot_rate_option as check
     return check(text)
 
 
-def _start_time(text: str) -> str:
+def start_time_option(text: str) -> str:
     """``--start-time``: checked as ``simulate``'s; the recorder gets the text itself."""
-    from feed_axis_energy.cli.simulate import _start_time as check
+    from feed_axis_energy.cli.simulate import start_time_option as check
     check(text)
     return text
 
@@ -326,7 +326,7 @@ class Supervisor:
 
 
 def _describe_bag(path: Path) -> None:
-    from feed_axis_energy.core import bagio
+    from feed_axis_energy.record import bagio
     topics = bagio.bag_topics(path)
     print(f'recording: {path}')
     wide = max((len(t) for t in topics), default=0)
@@ -416,7 +416,7 @@ def run(args: argparse.Namespace) -> int:
     if args.record is not None:
         # A recorder stopped alone near the end exits 0 like a finished one; its bag must
         # hold what the end marker says was sent, or the launch is not a success.
-        from feed_axis_energy.core.graph import recording_gaps
+        from feed_axis_energy.graph import recording_gaps
         gaps = recording_gaps(args.record)
         if gaps:
             print(f'error: {args.record}: incomplete recording: {"; ".join(gaps)}',

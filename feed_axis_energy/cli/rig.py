@@ -2,7 +2,7 @@
 
 Truth = declared machine + catalog effects (``--effects``) [+ an effect outside the catalog];
 the instrument averages over 50 ms, adds noise, quantises and starts at an unknown offset.
-See :mod:`feed_axis_energy.core.rig` for the file layout.
+See :mod:`feed_axis_energy.identify.rig` for the file layout.
 """
 from __future__ import annotations
 
@@ -10,12 +10,11 @@ import argparse
 from pathlib import Path
 
 from feed_axis_energy.cli.common import format_table
-from feed_axis_energy.core.effects import EFFECTS
-from feed_axis_energy.core.errors import ConfigError
+from feed_axis_energy.effects import EFFECTS
+from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.cli.progress import Progress
-from feed_axis_energy.core.rig import (Instrument, make_campaign, OUTSIDE_KINDS,
-                                       PAPER_FEEDS_MM_S, PAPER_LOADS_KG, parse_effects,
-                                       RigConfig)
+from feed_axis_energy.identify import (Instrument, make_campaign, OUTSIDE_KINDS, PAPER_FEEDS_MM_S,
+                                       PAPER_LOADS_KG, parse_effects, RigConfig)
 from feed_axis_energy.paths import default_machine
 
 __all__ = ['add_parser', 'run', 'DEFAULT_EFFECTS']

@@ -12,15 +12,14 @@ import sys
 from pathlib import Path
 
 from feed_axis_energy.cli.common import add_machine_options
-from feed_axis_energy.cli.simulate_out import (bag_bytes_per_sample, check_cost, check_start,
-                                               consumers, export_targets, Exports,
-                                               report_trace, staged_out, write_report)
-from feed_axis_energy.core.errors import ConfigError, shorten
+from feed_axis_energy.cli.simulate_out import (check_cost, check_start, consumers, export_targets,
+                                               Exports, report_trace, staged_out, write_report)
+from feed_axis_energy.errors import ConfigError, shorten
 
 # plottopics' constant, repeated so that --help does not import numpy (a test compares them)
 DEFAULT_PLOT_RATE_HZ = 20.0
 
-__all__ = ['add_parser', 'run', 'bag_bytes_per_sample']
+__all__ = ['add_parser', 'run']
 
 BLOCK_TEXT_CHARS = 60    # block text shown in top_blocks (cut with '...')
 # the per-block breakdown costs 8 (axes + causes) bytes per program line; kept when the
@@ -29,7 +28,7 @@ BLOCK_BREAKDOWN_BYTES = 16 << 20
 GC_THRESHOLD = 20_000   # first-generation threshold of the collector while streaming
 
 
-def _plot_rate(text: str) -> float:
+def plot_rate_option(text: str) -> float:
     """``--plot-rate-hz``: a finite number >= 0 (a usage error otherwise)."""
     try:
         value = float(text)
@@ -41,9 +40,9 @@ def _plot_rate(text: str) -> float:
     return value
 
 
-def _start_time(text: str) -> int:
+def start_time_option(text: str) -> int:
     """``--start-time``: ``now`` or ISO-8601 -> ns since the epoch (a usage error otherwise)."""
-    from feed_axis_energy.core.starttime import parse_start_time
+    from feed_axis_energy.record import parse_start_time
     try:
         return parse_start_time(text)
     except ValueError as err:
@@ -92,13 +91,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     rate.add_argument('--export-rate-hz', type=_positive_float, default=None, metavar='HZ',
                       help='exported time series: about HZ samples per second (every '
                            'round(rate/HZ)-th sample)')
-    p.add_argument('--plot-rate-hz', type=_plot_rate, default=DEFAULT_PLOT_RATE_HZ,
+    p.add_argument('--plot-rate-hz', type=plot_rate_option, default=DEFAULT_PLOT_RATE_HZ,
                    metavar='HZ',
                    help='display rate of the --out recording\'s plot topics /plot/power and '
                         '/plot/axes (one sample per message; per interval of 1/HZ the first '
                         'sample and those of each power and torque minimum and maximum, so '
                         f'no peak is lost); 0: every sample (default {DEFAULT_PLOT_RATE_HZ:g})')
-    p.add_argument('--start-time', type=_start_time, default=None, metavar='now|ISO-8601',
+    p.add_argument('--start-time', type=start_time_option, default=None, metavar='now|ISO-8601',
                    help='stamp the --out recording in wall-clock time from this start (e.g. '
                         '2026-11-23T14:00:00Z; no offset: UTC) instead of simulation time '
                         'from 0 (the default)')
@@ -140,16 +139,16 @@ def run(args: argparse.Namespace) -> int:
     from feed_axis_energy.cli.common import (load_machine_and_options, print_summary,
                                              program_text_lines)
     from feed_axis_energy.cli.progress import Progress
-    from feed_axis_energy.core.simstream import streamable
+    from feed_axis_energy.sim import streamable
 
     machine, options = load_machine_and_options(args)
     if args.out is not None:
-        from feed_axis_energy.core.outputs import check_target, is_bag_directory
+        from feed_axis_energy.outputs import check_target, is_bag_directory
         # refused before any sample is computed, not after
         check_target(args.out, option='--out', force=args.force, kind='directory',
                      replaceable=is_bag_directory)
     if args.report is not None:
-        from feed_axis_energy.core.outputs import check_target, marked_or_empty
+        from feed_axis_energy.outputs import check_target, marked_or_empty
         from feed_axis_energy.report import MARKER
         check_target(args.report, option='--report', force=args.force, kind='directory',
                      replaceable=marked_or_empty(MARKER))
@@ -166,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
     # or the report fails (one that replaced an earlier bag with --force cannot be brought
     # back); the exports are staged and only renamed into place at the end
     if args.out is not None or args.report is not None or exports:
-        from feed_axis_energy.core.outputs import Rollback
+        from feed_axis_energy.outputs import Rollback
         guard = Rollback()
     else:                                   # nothing to write: no output machinery imported
         guard = contextlib.nullcontext()
@@ -217,7 +216,7 @@ class _Moves:
                  progress=None, n_lines: int = 0) -> None:
         from feed_axis_energy.cli.check import sanity_checker
         from feed_axis_energy.cli.common import program_keywords
-        from feed_axis_energy.core.gcode import iter_moves
+        from feed_axis_energy.gcode import iter_moves
         self.stream = iter_moves(args.program, **program_keywords(machine, args))
         self.file = self.stream.file
         self.checker = sanity_checker(args.program, machine) if check else None
@@ -286,8 +285,8 @@ def _run_stream(args, machine, options, progress, *, trace=None,
 
 def _run_stream_gc(args, machine, options, progress, *, trace=None,
                    export=None) -> tuple[dict, list[str], object]:
-    from feed_axis_energy.core.planstream import estimate_plan
-    from feed_axis_energy.core.simstream import simulate_stream
+    from feed_axis_energy.plan import estimate_plan
+    from feed_axis_energy.sim import simulate_stream
     limits = machine.limits()
     duration = None
     warnings = None
@@ -321,7 +320,7 @@ def _run_stream_gc(args, machine, options, progress, *, trace=None,
             moves, machine, chunk_gaps=True,
             on_chunk=consumers(None, trace, export, options.rate_hz), **kw)
     else:
-        from feed_axis_energy.core.recording import SimulationBagWriter
+        from feed_axis_energy.record import SimulationBagWriter
         with staged_out(args) as staged, \
                 SimulationBagWriter(staged, compression=args.compression,
                                     rate_hz=options.rate_hz,
@@ -358,11 +357,11 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool,
     """Whole-record path: trajectory CSVs and declared effects that need the whole record."""
     from feed_axis_energy.cli.common import program_keywords
     from feed_axis_energy.cli.progress import Progress
-    from feed_axis_energy.core.gcode import load_gcode
-    from feed_axis_energy.core.measured.trajcsv import load_trajectory_csv
-    from feed_axis_energy.core.recording import write_simulation_bag
-    from feed_axis_energy.core.energy import energy_by_line
-    from feed_axis_energy.core.simulate import simulate_motion, simulate_program, summarize
+    from feed_axis_energy.gcode import load_gcode
+    from feed_axis_energy.sim import (load_trajectory_csv, simulate_motion, simulate_program,
+                                      summarize)
+    from feed_axis_energy.record import write_simulation_bag
+    from feed_axis_energy.physics import energy_by_line
     if trajectory:
         motion = load_trajectory_csv(args.program, axes=machine.axis_names)
         result = simulate_motion(motion, machine, load_kg=args.load_kg)
@@ -375,7 +374,7 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool,
     # A trajectory has no source lines to attribute energy to.
     summary = summarize(result, top_blocks=0 if trajectory else args.top)
     if export:
-        from feed_axis_energy.core.simulate import line_table
+        from feed_axis_energy.sim import line_table
         export.series.write(result)
         export.write_blocks(line_table(result))
     if args.out is not None:

@@ -9,7 +9,7 @@ import contextlib
 import sys
 from pathlib import Path
 
-from feed_axis_energy.core.errors import ConfigError
+from feed_axis_energy.errors import ConfigError
 
 __all__ = ['bag_bytes_per_sample', 'check_cost', 'check_start', 'consumers', 'export_targets',
            'Exports', 'report_trace', 'staged_out', 'usage_error', 'write_report']
@@ -55,7 +55,7 @@ def report_trace(args: argparse.Namespace):
     """The decimated series for ``--report`` (None without it)."""
     if args.report is None:
         return None
-    from feed_axis_energy.report.decimate import PowerTrace
+    from feed_axis_energy.report import PowerTrace
     return PowerTrace()
 
 
@@ -63,7 +63,7 @@ def write_report(args: argparse.Namespace, summary: dict, trace, blocks, *,
                  trajectory: bool) -> None:
     """Write the ``--report`` directory (all or nothing)."""
     from feed_axis_energy.cli.common import program_text_lines
-    from feed_axis_energy.report.sim_report import write_sim_report
+    from feed_axis_energy.report import write_sim_report
 
     def text(lines: list[int]) -> dict[int, str]:
         return {} if trajectory else program_text_lines(args.program, lines)
@@ -76,8 +76,8 @@ def write_report(args: argparse.Namespace, summary: dict, trace, blocks, *,
 def export_targets(args: argparse.Namespace, rate_hz: float) -> dict:
     """``{'csv': DIR, 'parquet': DIR}`` of the requested exports, checked before any work
     (and the decimation from ``--decimate`` / ``--export-rate-hz`` in ``args.decimate``)."""
-    from feed_axis_energy.core.exports import EXPORT_MARKER
-    from feed_axis_energy.core.outputs import check_target, marked_or_empty
+    from feed_axis_energy.sim import EXPORT_MARKER
+    from feed_axis_energy.outputs import check_target, marked_or_empty
     exports = {fmt: getattr(args, fmt) for fmt in ('csv', 'parquet')
                if getattr(args, fmt) is not None}
     if (args.decimate or args.export_rate_hz) and not exports:
@@ -93,7 +93,7 @@ def export_targets(args: argparse.Namespace, rate_hz: float) -> dict:
             raise ConfigError(msg, file='command line', key='export-rate-hz')
         args.decimate = max(1, round(rate_hz / hz))
     if 'parquet' in exports:
-        from feed_axis_energy.core.exports import require_pyarrow
+        from feed_axis_energy.sim import require_pyarrow
         require_pyarrow('--parquet')        # before any work: a clear error if missing
     for fmt, path in exports.items():
         check_target(path, option=f'--{fmt}', force=args.force, kind='directory',
@@ -118,8 +118,8 @@ class Exports:
     def __enter__(self) -> 'Exports':
         if not self.targets:                # no export: nothing staged, nothing imported
             return self
-        from feed_axis_energy.core.exports import EXPORT_MARKER, SeriesExporter
-        from feed_axis_energy.core.outputs import marked_or_empty, staged_directory
+        from feed_axis_energy.sim import EXPORT_MARKER, SeriesExporter
+        from feed_axis_energy.outputs import marked_or_empty, staged_directory
         self._stack = contextlib.ExitStack()
         try:
             for fmt, path in self.targets.items():
@@ -139,13 +139,13 @@ class Exports:
 
     def write_blocks(self, blocks) -> None:
         """The per-block tables (needs the per-block breakdown)."""
-        from feed_axis_energy.core.exports import write_blocks
+        from feed_axis_energy.sim import write_blocks
         if self.dirs:
             write_blocks(self.dirs, blocks, program=self.args.program)
 
     def write_rollups(self, summary: dict) -> None:
         """The roll-ups per operation, subroutine, tool and axis (when the summary has them)."""
-        from feed_axis_energy.core.exports import write_rollups
+        from feed_axis_energy.sim import write_rollups
         if self.dirs:
             write_rollups(self.dirs, summary.get('rollups'))
 
@@ -160,7 +160,7 @@ class Exports:
 def check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: float,
                file: str) -> None:
     """Refuse, before any sample is computed, a run beyond a documented limit."""
-    from feed_axis_energy.core.errors import PlanningError
+    from feed_axis_energy.errors import PlanningError
     samples, duration = estimate.samples, estimate.duration_s
     what = f'{samples:,} samples ({duration / 3600.0:.2f} h at {rate_hz:g} Hz)'
     if args.max_samples and samples > args.max_samples:
@@ -185,7 +185,7 @@ def check_cost(args: argparse.Namespace, estimate, *, n_axes: int, rate_hz: floa
 
 def staged_out(args: argparse.Namespace):
     """The ``--out`` bag directory, built in a hidden temporary and renamed when complete."""
-    from feed_axis_energy.core.outputs import is_bag_directory, staged_directory
+    from feed_axis_energy.outputs import is_bag_directory, staged_directory
     return staged_directory(args.out, option='--out', force=args.force,
                             replaceable=is_bag_directory)
 
@@ -199,7 +199,7 @@ def consumers(writer, trace, export, rate: float):
     if trace is not None:
         takers.append(trace.add)
     if export:
-        from feed_axis_energy.core.simstream import expand_gaps
+        from feed_axis_energy.sim import expand_gaps
 
         def to_export(chunk) -> None:
             for piece in expand_gaps(chunk, rate_hz=rate):
@@ -220,7 +220,7 @@ def check_start(args, duration_s: float) -> None:
     """Refuse a ``--start-time`` whose recording would end past the ROS 2 time range."""
     if args.out is None or args.start_time is None:
         return
-    from feed_axis_energy.core.starttime import check_end
+    from feed_axis_energy.record import check_end
     why = check_end(args.start_time, duration_s)
     if why is not None:
         raise ConfigError(why, file='command line', key='start-time')

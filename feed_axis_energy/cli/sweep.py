@@ -4,7 +4,7 @@ Every combination of the ``--vary`` values is a variant of the machine (or of th
 feed and rapid override, load); each program runs on each variant and once on the machine as
 configured (the baseline), as independent jobs on the executors of ``batch``
 (:mod:`feed_axis_energy.cli.batch`). The grammar of ``--vary`` and the Pareto front are in
-:mod:`feed_axis_energy.core.sweep`.
+:mod:`feed_axis_energy.sim.sweep`.
 """
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ def _parts(text: str) -> float:
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the subcommand."""
     from feed_axis_energy.cli.batch import add_executor_options
-    from feed_axis_energy.core.sweep import ALIASES
+    from feed_axis_energy.sim import ALIASES
     aliases = ', '.join(f'{k} ({v})' for k, v in ALIASES.items())
     p = sub.add_parser(
         'sweep', help=_HELP,
@@ -81,11 +81,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def _plan(args: argparse.Namespace):
     """Parameters, jobs and the (program, values) of each job; checks every variant first."""
     from feed_axis_energy.cli.batch import check_executor_options
-    from feed_axis_energy.core.batch import BatchJob, MAX_JOBS
-    from feed_axis_energy.core.batchspec import expand_programs
-    from feed_axis_energy.core.errors import ConfigError
-    from feed_axis_energy.core.machine import machine_to_dict
-    from feed_axis_energy.core.sweep import parse_vary, resolve_paths, variant_machine, variants
+    from feed_axis_energy.sim import (BatchJob, expand_programs, MAX_JOBS, parse_vary,
+                                      resolve_paths, variant_machine, variants)
+    from feed_axis_energy.errors import ConfigError
+    from feed_axis_energy.machine import machine_to_dict
     from feed_axis_energy.paths import default_machine
     check_executor_options(args)
     if not 0.0 <= args.load_kg <= 1.0e6:
@@ -147,12 +146,12 @@ def _signed(value: float) -> str:
 def print_table(rows, names: list[str]) -> None:
     """One line per program and variant; failures listed below."""
     from feed_axis_energy.cli.common import format_table
-    from feed_axis_energy.core.errors import shorten
+    from feed_axis_energy.errors import shorten
     header = ['program'] + names + ['cycle time [s]', 'energy [J]', 'energy/part [J]',
                                     'dE [%]', 'dt [%]', 'front']
     # the loss-function uncertainty only where some run knows it
     spread = any(r.ok and math.isfinite(r.energy_sd_j) for r in rows)
-    from feed_axis_energy.core.uncertainty import two_digits
+    from feed_axis_energy.physics import two_digits
     if spread:
         header.insert(len(names) + 3, 'u(E) [J]')
     table = []
@@ -211,19 +210,19 @@ def csv_text(rows, names: list[str]) -> str:
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     import json
-    from feed_axis_energy.cli.batch import _execute, _JobProgress
+    from feed_axis_energy.cli.batch import execute_jobs, JobProgress
     from feed_axis_energy.cli.batchout import check_csv_target, write_text_atomic
-    from feed_axis_energy.core.outputs import check_target
-    from feed_axis_energy.core.sweep import sweep_rows
+    from feed_axis_energy.outputs import check_target
+    from feed_axis_energy.sim import sweep_rows
     params, names, jobs, labels = _plan(args)
     if args.csv is not None:
         check_csv_target(args.csv, force=args.force)
     if args.report is not None:
-        from feed_axis_energy.core.outputs import marked_or_empty, REPORT_MARKER
+        from feed_axis_energy.outputs import marked_or_empty, REPORT_MARKER
         check_target(args.report, option='--report', force=args.force, kind='directory',
                      replaceable=marked_or_empty(REPORT_MARKER))
-    progress = _JobProgress(enabled=not args.quiet, label='sweep')
-    results, where = _execute(args, jobs, progress)
+    progress = JobProgress(enabled=not args.quiet, label='sweep')
+    results, where = execute_jobs(args, jobs, progress)
     rows = sweep_rows([(p, v, r) for (p, v), r in zip(labels, results)], parts=args.parts)
     failed = sum(1 for r in rows if not r.ok)
     if not args.quiet:
@@ -232,7 +231,7 @@ def run(args: argparse.Namespace) -> int:
     if args.csv is not None:
         write_text_atomic(args.csv, csv_text(rows, names), force=args.force)
     if args.report is not None:
-        from feed_axis_energy.report.sweep_report import write_sweep_report
+        from feed_axis_energy.report import write_sweep_report
         index = write_sweep_report(rows, names, args.report, force=args.force)
     if args.json:
         doc = {'parameters': [{'name': n, 'key': p.key, 'values': list(p.values),

@@ -11,11 +11,11 @@ import numpy as np
 from rclpy.node import Node
 from trajectory_msgs.msg import JointTrajectory
 
-from feed_axis_energy.core import recording
-from feed_axis_energy.core.dynamics import compute_dynamics
-from feed_axis_energy.core.errors import FeedAxisError
-from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.motion import Motion
+from feed_axis_energy.record import recording
+from feed_axis_energy.physics import compute_dynamics
+from feed_axis_energy.errors import FeedAxisError
+from feed_axis_energy.machine import load_machine
+from feed_axis_energy.plan import Motion
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import stream_qos
 from feed_axis_energy.nodes.runner import (check_mass, declare, guard_parameters, LiveParameter,

@@ -18,9 +18,9 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from feed_axis_energy.core import bagio
-from feed_axis_energy.core.errors import DataError
-from feed_axis_energy.core.graph import NS_PER_S, ProgramEnd, seconds_to_ns
+from feed_axis_energy.record import bagio
+from feed_axis_energy.errors import DataError
+from feed_axis_energy.graph import NS_PER_S, ProgramEnd, seconds_to_ns
 
 __all__ = ['FIELDS', 'TrajectoryBatch', 'encode_trajectory', 'decode_trajectory',
            'series_to_cdr', 'cdr_to_series', 'batch_to_series', 'series_to_msg',

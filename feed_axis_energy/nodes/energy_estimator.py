@@ -16,11 +16,11 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from trajectory_msgs.msg import JointTrajectory
 
-from feed_axis_energy.core import bagio, recording
-from feed_axis_energy.core.errors import FeedAxisError
-from feed_axis_energy.core.graph import EndTracker, seconds_to_ns, StreamingPower
-from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.motion import Motion
+from feed_axis_energy.record import bagio, recording
+from feed_axis_energy.errors import FeedAxisError
+from feed_axis_energy.graph import EndTracker, seconds_to_ns, StreamingPower
+from feed_axis_energy.machine import load_machine
+from feed_axis_energy.plan import Motion
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import latched_qos, stream_qos
 from feed_axis_energy.nodes.runner import (check_mass, declare, guard_parameters, LiveParameter,

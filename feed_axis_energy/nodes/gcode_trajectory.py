@@ -1,7 +1,7 @@
 """``gcode_trajectory``: plans an NC program and streams its setpoints (a lifecycle node).
 
 configure: load the machine and survey the program (a first planning pass: samples, duration,
-the table of source lines; :class:`~feed_axis_energy.core.graph_source.SetpointSource`);
+the table of source lines; :class:`~feed_axis_energy.graph.source.SetpointSource`);
 activate: wait until the graph is matched, publish ``program/lines``, stream ``setpoints``
 planned anew chunk by chunk (bounded memory: one planner chunk and one batch, never every
 sample of the program) with at most ``flow_window`` batches in flight, publish
@@ -20,12 +20,11 @@ from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 from diagnostic_msgs.msg import DiagnosticArray
 
-from feed_axis_energy.core.gcode import iter_moves
-from feed_axis_energy.core.graph import (FlowWindow, header_stamp_ns, NS_PER_S, pacing_delay_s,
-                                         ProgramEnd)
-from feed_axis_energy.core.graph_source import SetpointSource
-from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.planstream import iter_motion
+from feed_axis_energy.gcode import iter_moves
+from feed_axis_energy.graph import (FlowWindow, header_stamp_ns, NS_PER_S, pacing_delay_s,
+                                    ProgramEnd, SetpointSource)
+from feed_axis_energy.machine import load_machine
+from feed_axis_energy.plan import iter_motion
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import clock_qos, latched_qos, stream_qos
 from feed_axis_energy.nodes.runner import (check_positive, declare, guard_parameters,

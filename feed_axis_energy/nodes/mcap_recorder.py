@@ -34,14 +34,12 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
-from feed_axis_energy.core import bagio
-from feed_axis_energy.core.errors import FeedAxisError
-from feed_axis_energy.core.plotgraph import GraphPlotter, PLOT_SOURCES
-from feed_axis_energy.core.plottopics import (DEFAULT_PLOT_RATE_HZ, JOINT_STATE,
-                                              TOPIC_PLOT_BLOCK_ENERGY)
-from feed_axis_energy.core.starttime import parse_start_time, restamp
-from feed_axis_energy.core.graph import (ChunkedBagWriter, EndTracker, header_stamp_ns,
-                                         restamp_end_marker)
+from feed_axis_energy.record import (bagio, BLOCK_ENERGY_PER_MESSAGE, ChunkedBagWriter,
+                                     DEFAULT_PLOT_RATE_HZ, JOINT_STATE, parse_start_time, restamp,
+                                     TOPIC_PLOT_BLOCK_ENERGY)
+from feed_axis_energy.errors import FeedAxisError
+from feed_axis_energy.graph import (EndTracker, GraphPlotter, header_stamp_ns, PLOT_SOURCES,
+                                    restamp_end_marker)
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import clock_qos, latched_qos, stream_qos
 from feed_axis_energy.nodes.runner import (declare, guard_parameters, run, StartupError,
@@ -145,7 +143,7 @@ class McapRecorder(Node):
         self._no_plot: set[str] = set()      # streams whose batches the plot topics refused
         if plot and any(t in PLOT_SOURCES for t in topics):
             self.plotter = GraphPlotter(rate_hz=plot_rate_hz, start_ns=self.start_ns,
-                                        per_message=bagio.BLOCK_ENERGY_PER_MESSAGE)
+                                        per_message=BLOCK_ENERGY_PER_MESSAGE)
             for t in topics:
                 if t in PLOT_SOURCES:
                     bag_topics[PLOT_SOURCES[t]] = JOINT_STATE

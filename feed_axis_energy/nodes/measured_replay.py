@@ -21,8 +21,8 @@ from rclpy.node import Node
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory
 
-from feed_axis_energy.core import bagio
-from feed_axis_energy.core.graph import FlowWindow, ProgramEnd
+from feed_axis_energy.record import bagio
+from feed_axis_energy.graph import FlowWindow, ProgramEnd
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import latched_qos, stream_qos
 from feed_axis_energy.nodes.runner import (declare, guard_parameters, run, StartupError,

@@ -27,7 +27,7 @@ from rclpy.signals import SignalHandlerOptions
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 
 from feed_axis_energy import lifeline
-from feed_axis_energy.core.errors import FeedAxisError
+from feed_axis_energy.errors import FeedAxisError
 from feed_axis_energy.paths import config_dir
 
 __all__ = ['StartupError', 'run', 'make_executor', 'declare', 'steady_timer', 'STARTUP_ERRORS',

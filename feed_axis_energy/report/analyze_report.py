@@ -16,10 +16,9 @@ from pathlib import Path
 from matplotlib.figure import Figure
 import numpy as np
 
-from feed_axis_energy.core.identify.ambiguity import found_text
-from feed_axis_energy.core.identify.analyze import AnalysisResult, STATE_NAMES
+from feed_axis_energy.identify import AnalysisResult, found_text, STATE_NAMES
 
-from . import _stem, staged_report
+from .staging import report_stem, staged_report
 from .html import METRIC_ROWS
 from .page import figure_png, fmt_pct, img, page, short, table
 
@@ -219,7 +218,7 @@ def write_analyze_report(res: AnalysisResult, out_dir: str | os.PathLike[str], *
                'spectrum.png': _spectrum(res, tmp / 'spectrum.png', dpi)}
         images = {}
         for i, run in enumerate(res.heldout_runs):
-            name = f'{_stem(i, run.name)}_after.png'
+            name = f'{report_stem(i, run.name)}_after.png'
             png[name] = _run_plot(run, tmp / name, dpi)
             images[run.name] = name
         html = _html(res, png, images)

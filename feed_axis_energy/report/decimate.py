@@ -123,8 +123,8 @@ class PowerTrace:
         self.pos_max = np.full(k, -np.inf)
 
     def add(self, chunk) -> None:
-        """Take one chunk of :func:`feed_axis_energy.core.simstream.iter_simulation` (or a
-        whole :class:`~feed_axis_energy.core.simulate.SimulationResult`), in time order."""
+        """Take one chunk of :func:`feed_axis_energy.sim.stream.iter_simulation` (or a
+        whole :class:`~feed_axis_energy.sim.simulate.SimulationResult`), in time order."""
         p = chunk.power
         t = np.asarray(p.t, dtype=float)
         if t.shape[0] == 0:

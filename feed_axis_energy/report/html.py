@@ -12,9 +12,8 @@ import math
 
 import numpy as np
 
-from feed_axis_energy.core.measured.compare import CampaignComparison, RunComparison
-from feed_axis_energy.core.measured.metrics import Metrics
-from feed_axis_energy.core.uncertainty import two_digits
+from feed_axis_energy.measured import CampaignComparison, Metrics, RunComparison
+from feed_axis_energy.physics import two_digits
 
 from .page import fmt_duration, fmt_pct, fmt_si, img, page, short, table
 

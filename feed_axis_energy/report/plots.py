@@ -17,7 +17,7 @@ from __future__ import annotations
 from matplotlib.figure import Figure
 import numpy as np
 
-from feed_axis_energy.core.measured.compare import RunComparison
+from feed_axis_energy.measured import RunComparison
 
 from .page import figure_png
 

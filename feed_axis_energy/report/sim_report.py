@@ -2,7 +2,7 @@
 
 The page embeds every plot as a ``data:`` URI (it opens offline as one file and prints on A4);
 the same plots are written beside it as PNG files. Inputs are plain data: the summary dict of
-:func:`feed_axis_energy.core.simulate.summarize`, a :class:`.decimate.PowerTrace` fed with the
+:func:`feed_axis_energy.sim.simulate.summarize`, a :class:`.decimate.PowerTrace` fed with the
 simulation's chunks, and ``(line, energy_j, duration_s)`` per source line. The breakdown by
 cause and the roll-ups per operation and tool are read from the summary through
 :func:`causes_from_summary`, :func:`causes_by_axis` and :func:`rollups_from_summary`, the one
@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from feed_axis_energy.core.uncertainty import UNCERTAINTY_KEY, uncertainty_words
+from feed_axis_energy.physics import UNCERTAINTY_KEY, uncertainty_words
 
-from . import staged_report
+from .staging import staged_report
 from .decimate import PowerTrace, Trace
 from .page import fmt_duration, fmt_pct, fmt_si, img, page, short, table
 from .sim_plots import plot_bbox_path, plot_blocks, plot_causes, plot_energy, plot_power
@@ -140,7 +140,7 @@ def _finite(v: Any) -> bool:
 def top_lines(blocks: Iterable[tuple[int, float, float]], count: int
               ) -> list[tuple[int, float, float]]:
     """The ``count`` source lines with the largest ``|energy|``, largest first (ties: the
-    lower line first). A :class:`~feed_axis_energy.core.simstream.LineEnergy` is read as its
+    lower line first). A :class:`~feed_axis_energy.sim.stream.LineEnergy` is read as its
     arrays; any other iterable of ``(line, energy_j, duration_s)`` once."""
     if all(hasattr(blocks, a) for a in ('lines', 'energy_j', 'duration_s')):
         lines = np.asarray(blocks.lines)
@@ -332,7 +332,7 @@ def write_sim_report(summary: Mapping[str, Any], trace: PowerTrace,
     Parameters
     ----------
     summary
-        The simulation summary (keys of :func:`feed_axis_energy.core.simulate.summarize`;
+        The simulation summary (keys of :func:`feed_axis_energy.sim.simulate.summarize`;
         optionally :data:`CAUSE_KEY`, ``causes``, ``braking_returned_j``, :data:`ROLLUP_KEY`
         and ``warnings``).
     trace

@@ -12,8 +12,8 @@ import os
 from pathlib import Path
 from typing import Sequence
 
-from feed_axis_energy.core.sweep import SweepRow
-from feed_axis_energy.core.uncertainty import two_digits
+from feed_axis_energy.sim import SweepRow
+from feed_axis_energy.physics import two_digits
 
 from .page import figure_png, img, page, table
 
@@ -142,7 +142,7 @@ def write_sweep_report(rows: Sequence[SweepRow], names: Sequence[str],
     OutputError
         ``out_dir`` exists (without ``force``), or must not be written.
     """
-    from feed_axis_energy.report import staged_report
+    from .staging import staged_report
     out = Path(out_dir)
     text = render_sweep(rows, names)
     with staged_report(out, written_by='feed-axis-energy sweep --report', force=force) as tmp:

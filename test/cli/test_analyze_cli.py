@@ -9,9 +9,10 @@ import sys
 import pytest
 
 from feed_axis_energy.cli import main
-from feed_axis_energy.core.effects import get_effect
-from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.rig import Instrument, make_campaign, parse_effects, RigConfig
+from feed_axis_energy.effects.catalog import get_effect
+from feed_axis_energy.machine.file import load_machine
+from feed_axis_energy.identify.rigtruth import Instrument, parse_effects
+from feed_axis_energy.identify.rig import make_campaign, RigConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 

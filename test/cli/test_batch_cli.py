@@ -214,7 +214,7 @@ def _bag_contents(directory: Path) -> dict:
     """Per recording: metadata (paths left out) and every message (topic, time, bytes)."""
     from mcap.reader import make_reader
 
-    from feed_axis_energy.core import bagio
+    from feed_axis_energy.record import bagio
     out = {}
     for bag in sorted(p for p in directory.iterdir()):
         info = bagio.read_metadata(bag)
@@ -246,7 +246,7 @@ def test_out_one_recording_per_job_serial_equals_two_processes(progs, tmp_path, 
     for r in serial['results']:
         assert Path(r['summary']['bag']).parent == tmp_path / 'serial'
     # the bag holds the job's summary
-    from feed_axis_energy.core import bagio
+    from feed_axis_energy.record import bagio
     stored = bagio.read_custom_data(tmp_path / 'serial' / names[1], 'feed_axis_energy/summary')
     summary = dict(serial['results'][1]['summary'])
     summary.pop('bag')

@@ -182,7 +182,7 @@ def test_errors_and_warnings_before_and_after_an_error_are_all_listed(tmp_path, 
 
 
 def test_checking_stops_after_max_errors(tmp_path, capsys):
-    from feed_axis_energy.core.gcode_check import MAX_ERRORS
+    from feed_axis_energy.gcode.check import MAX_ERRORS
     prog = _write(tmp_path, 'bad.nc', 'G21\n' + 'G1 X1.2.3\n' * (MAX_ERRORS + 50) + 'M2\n')
     assert main(['check', str(prog), '--machine', str(MILL), '--quiet', '--json']) == 1
     (program,) = json.loads(capsys.readouterr().out)['programs']

@@ -12,7 +12,7 @@ import pytest
 from feed_axis_energy.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
-_HELPER = ROOT / 'test' / 'core' / 'measured' / 'test_compare.py'
+_HELPER = ROOT / 'test' / 'measured' / 'test_compare.py'
 
 
 def _run(*argv: str) -> subprocess.CompletedProcess:

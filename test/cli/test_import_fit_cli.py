@@ -11,8 +11,9 @@ import pytest
 import yaml
 
 from feed_axis_energy.cli import main
-from feed_axis_energy.core.machine import load_machine
-from feed_axis_energy.core.measured import load_campaign, load_run
+from feed_axis_energy.machine.file import load_machine
+from feed_axis_energy.measured.manifest import load_campaign
+from feed_axis_energy.measured.csvload import load_run
 
 ROOT = Path(__file__).resolve().parents[2]
 FIXTURES = ROOT / 'test' / 'fixtures' / 'measured'

@@ -17,10 +17,10 @@ import pytest
 import yaml
 
 from feed_axis_energy.cli import main
-from feed_axis_energy.core import bagio
-from feed_axis_energy.core.interrupt import Terminated
-from feed_axis_energy.core.measured import load_campaign
-from feed_axis_energy.core.recording import SUMMARY_KEY
+from feed_axis_energy.record import bagio
+from feed_axis_energy.interrupt import Terminated
+from feed_axis_energy.measured.manifest import load_campaign
+from feed_axis_energy.record.recording import SUMMARY_KEY
 
 ROOT = Path(__file__).resolve().parents[2]
 FIXTURES = ROOT / 'test' / 'fixtures' / 'measured'
@@ -206,7 +206,7 @@ def test_import_failure_part_way_removes_every_bag_of_the_invocation(
 
 def test_simulate_failure_after_the_first_chunk_leaves_nothing(tmp_path, capsys,
                                                                monkeypatch) -> None:
-    from feed_axis_energy.core.recording import SimulationBagWriter
+    from feed_axis_energy.record.recording import SimulationBagWriter
     real = SimulationBagWriter.write
     calls = []
 

@@ -7,8 +7,9 @@ import sys
 import pytest
 
 from feed_axis_energy.cli import main
-from feed_axis_energy.core.effects import EFFECTS
-from feed_axis_energy.core.measured import load_campaign, load_run
+from feed_axis_energy.effects.catalog import EFFECTS
+from feed_axis_energy.measured.manifest import load_campaign
+from feed_axis_energy.measured.csvload import load_run
 
 ROOT = Path(__file__).resolve().parents[2]
 

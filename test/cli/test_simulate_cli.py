@@ -9,8 +9,8 @@ from numpy.testing import assert_allclose
 import pytest
 
 from feed_axis_energy.cli import main
-from feed_axis_energy.core import bagio
-from feed_axis_energy.core.recording import SUMMARY_KEY
+from feed_axis_energy.record import bagio
+from feed_axis_energy.record.recording import SUMMARY_KEY
 
 ROOT = Path(__file__).resolve().parents[2]
 PROGRAM = ROOT / 'config' / 'programs' / 'demonstrator_f300.nc'
@@ -111,9 +111,9 @@ def test_simulate_refuses_beyond_max_samples_before_starting(tmp_path: Path) -> 
 
 
 def test_simulate_streamed_json_equals_whole_summary(capsys) -> None:
-    from feed_axis_energy.core.gcode import load_gcode
-    from feed_axis_energy.core.machine import load_machine
-    from feed_axis_energy.core.simulate import simulate_program, summarize
+    from feed_axis_energy.gcode.load import load_gcode
+    from feed_axis_energy.machine.file import load_machine
+    from feed_axis_energy.sim.simulate import simulate_program, summarize
     machine = load_machine(ROOT / 'config' / 'demonstrator.yaml')
     ref = summarize(simulate_program(load_gcode(PROGRAM), machine, load_kg=3.0))
     assert main(['simulate', str(PROGRAM), '--load-kg', '3', '--json', '--quiet']) == 0
@@ -177,7 +177,7 @@ def test_simulate_report_of_a_trajectory_csv(tmp_path: Path) -> None:
 
 def test_a_failing_report_leaves_no_bag_behind(tmp_path: Path, monkeypatch, capsys) -> None:
     import feed_axis_energy.report.sim_report as sim_report
-    from feed_axis_energy.core.errors import OutputError
+    from feed_axis_energy.errors import OutputError
 
     def broken(*args, **kwargs):
         raise OutputError('no space left on device', path=str(tmp_path / 'r'))
@@ -191,7 +191,7 @@ def test_a_failing_report_leaves_no_bag_behind(tmp_path: Path, monkeypatch, caps
 
 def test_plot_rate_default_is_the_core_constant() -> None:
     from feed_axis_energy.cli.simulate import DEFAULT_PLOT_RATE_HZ
-    from feed_axis_energy.core.plottopics import DEFAULT_PLOT_RATE_HZ as CORE
+    from feed_axis_energy.record.plottopics import DEFAULT_PLOT_RATE_HZ as CORE
     assert DEFAULT_PLOT_RATE_HZ == CORE
 
 
@@ -205,7 +205,7 @@ def test_plot_rate_refused_as_usage_error(value: str, tmp_path: Path) -> None:
 
 @pytest.mark.parametrize('plot_rate', ['0', '20', '500'])
 def test_bag_size_estimate_is_an_upper_bound(plot_rate: str, tmp_path: Path, capsys) -> None:
-    from feed_axis_energy.cli.simulate import bag_bytes_per_sample
+    from feed_axis_energy.cli.simulate_out import bag_bytes_per_sample
     program = ROOT / 'config' / 'programs' / 'three_axis_contour.nc'
     out = tmp_path / 'b'
     assert main(['simulate', str(program), '--machine',

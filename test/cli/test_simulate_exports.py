@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from feed_axis_energy.cli import main
-from feed_axis_energy.core.exports import EXPORT_MARKER
+from feed_axis_energy.sim.exports import EXPORT_MARKER
 
 ROOT = Path(__file__).resolve().parents[2]
 MILL = ROOT / 'config' / 'three_axis_mill.yaml'

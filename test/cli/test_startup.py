@@ -33,7 +33,7 @@ def test_simulate_imports_no_scipy_rosbags_or_matplotlib(tmp_path):
     mods = _modules_after('from feed_axis_energy.cli import main\n'
                           f'main(["simulate", {str(prog)!r}, "--json", "--quiet"])')
     assert not any(m.startswith(('scipy', 'rosbags', 'matplotlib')) for m in mods)
-    # the shipped machine config lies in core/yamlsubset's subset: PyYAML is not imported
+    # the shipped machine config lies in yamlsubset's subset: PyYAML is not imported
     assert not any(m == 'yaml' or m.startswith('yaml.') for m in mods)
 
 

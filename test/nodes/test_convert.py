@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from feed_axis_energy.core import bagio
-from feed_axis_energy.core.errors import DataError
-from feed_axis_energy.core.graph import ProgramEnd
+from feed_axis_energy.record import bagio
+from feed_axis_energy.errors import DataError
+from feed_axis_energy.graph.end import ProgramEnd
 
 rclpy = pytest.importorskip('rclpy')
 from feed_axis_energy.nodes import convert  # noqa: E402

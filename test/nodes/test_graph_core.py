@@ -2,8 +2,11 @@
 import numpy as np
 import pytest
 
-from feed_axis_energy.core import bagio, graph
-from feed_axis_energy.core.energy import energy_by_line, EnergyIntegrator, PowerResult
+from feed_axis_energy.record import bagio
+from feed_axis_energy.graph import flow as graph
+from feed_axis_energy.graph.end import EndTracker
+from feed_axis_energy.record.crashsafe import ChunkedBagWriter
+from feed_axis_energy.physics.energy import energy_by_line, EnergyIntegrator, PowerResult
 
 
 def test_flow_window_waits_for_every_source():
@@ -89,7 +92,7 @@ def test_header_stamp_from_cdr():
 
 
 def test_end_tracker():
-    tr = graph.EndTracker(['a', 'b'], ['blocks'])
+    tr = EndTracker(['a', 'b'], ['blocks'])
     tr.seen('a', 100)
     tr.seen('b', 100)
     assert not tr.done
@@ -105,7 +108,7 @@ def _series(t0, n):
 
 
 def test_chunked_writer_readable_after_each_flush(tmp_path):
-    bag = graph.ChunkedBagWriter(tmp_path / 'bag', typestore=bagio.typestore())
+    bag = ChunkedBagWriter(tmp_path / 'bag', typestore=bagio.typestore())
     bag.add_topic('/power', bagio.JOINT_TRAJECTORY)
     ts = bagio.typestore()
     for chunk in range(3):
@@ -120,7 +123,7 @@ def test_chunked_writer_readable_after_each_flush(tmp_path):
 
 
 def test_chunked_writer_empty_bag(tmp_path):
-    bag = graph.ChunkedBagWriter(tmp_path / 'bag', typestore=bagio.typestore())
+    bag = ChunkedBagWriter(tmp_path / 'bag', typestore=bagio.typestore())
     bag.add_topic('/power', bagio.JOINT_TRAJECTORY)
     bag.close()
     assert bagio.bag_topics(tmp_path / 'bag') == {'/power': (bagio.JOINT_TRAJECTORY, 0)}
@@ -134,7 +137,7 @@ def test_end_tracker_per_topic_last_stamps():
     assert back == end
     assert back.last_ns_of('/measured/kinematics') == 200
     assert back.last_ns_of('measured/other') == -1   # listed topics only: nothing to wait for
-    tr = graph.EndTracker(['measured/power', 'measured/kinematics'])
+    tr = EndTracker(['measured/power', 'measured/kinematics'])
     tr.end = back
     tr.seen('measured/power', 300)
     tr.seen('measured/kinematics', 100)

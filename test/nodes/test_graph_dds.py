@@ -12,16 +12,18 @@ import pytest
 pytest.importorskip('rclpy')
 
 from feed_axis_energy import lifeline  # noqa: E402
-from feed_axis_energy.core import bagio  # noqa: E402
-from feed_axis_energy.core.energy import energy_by_line  # noqa: E402
-from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
-from feed_axis_energy.core.graph import header_stamp_ns, ProgramEnd, read_raw  # noqa: E402
-from feed_axis_energy.core.machine import load_machine  # noqa: E402
-from feed_axis_energy.core.plotread import read_plot_topic  # noqa: E402
-from feed_axis_energy.core.plottopics import (  # noqa: E402
-    TOPIC_PLOT_AXES, TOPIC_PLOT_BLOCK_ENERGY, TOPIC_PLOT_POWER)
-from feed_axis_energy.core.recording import simulation_series  # noqa: E402
-from feed_axis_energy.core.simulate import simulate_program  # noqa: E402
+from feed_axis_energy.record import bagio  # noqa: E402
+from feed_axis_energy.physics.energy import energy_by_line  # noqa: E402
+from feed_axis_energy.gcode.load import load_gcode  # noqa: E402
+from feed_axis_energy.graph.flow import header_stamp_ns, read_raw  # noqa: E402
+from feed_axis_energy.graph.end import ProgramEnd  # noqa: E402
+from feed_axis_energy.machine.file import load_machine  # noqa: E402
+from feed_axis_energy.record.plotread import read_plot_topic  # noqa: E402
+from feed_axis_energy.record.plottopics import (TOPIC_PLOT_AXES,  # noqa: E402
+                                                TOPIC_PLOT_BLOCK_ENERGY,
+                                                TOPIC_PLOT_POWER)
+from feed_axis_energy.record.recording import simulation_series  # noqa: E402
+from feed_axis_energy.sim.simulate import simulate_program  # noqa: E402
 from feed_axis_energy.paths import default_machine  # noqa: E402
 
 PY = sys.executable
@@ -106,7 +108,7 @@ def _collect(domain_id, topic, until_n, timeout_s, started, *, ack_topic=None,
     from rclpy.context import Context
     from std_msgs.msg import Header
     from trajectory_msgs.msg import JointTrajectory
-    from feed_axis_energy.core.graph import header_stamp_ns
+    from feed_axis_energy.graph.flow import header_stamp_ns
     from feed_axis_energy.nodes import convert
     from feed_axis_energy.nodes.qos import stream_qos
     from feed_axis_energy.nodes.runner import make_executor

@@ -8,10 +8,10 @@ import yaml
 
 pytest.importorskip('rclpy')
 
-from feed_axis_energy.core import bagio  # noqa: E402
-from feed_axis_energy.core.gcode import load_gcode  # noqa: E402
-from feed_axis_energy.core.machine import load_machine, machine_to_dict  # noqa: E402
-from feed_axis_energy.core.simulate import simulate_program  # noqa: E402
+from feed_axis_energy.record import bagio  # noqa: E402
+from feed_axis_energy.gcode.load import load_gcode  # noqa: E402
+from feed_axis_energy.machine.file import load_machine, machine_to_dict  # noqa: E402
+from feed_axis_energy.sim.simulate import simulate_program  # noqa: E402
 from feed_axis_energy.paths import default_machine  # noqa: E402
 
 

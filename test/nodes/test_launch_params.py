@@ -97,7 +97,7 @@ def test_stale_parameter_dirs_of_dead_launchers_removed(tmp_path, monkeypatch):
 def test_recording_options_reach_the_recorder(tmp_path, node_env, domain_id):
     """--start-time stamps the bag from that instant; --plot-rate-hz thins the plot topics."""
     pytest.importorskip('rclpy')
-    from feed_axis_energy.core import bagio
+    from feed_axis_energy.record import bagio
     program = tmp_path / 'p.nc'
     program.write_text('G21 G90 G94 G61\nG0 X0\nG1 X100 F3000\nG1 X0\n', encoding='utf-8')
     counts = {}

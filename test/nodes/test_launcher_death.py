@@ -12,7 +12,7 @@ import pytest
 pytest.importorskip('rclpy')
 
 from feed_axis_energy import lifeline  # noqa: E402
-from feed_axis_energy.core import bagio  # noqa: E402
+from feed_axis_energy.record import bagio  # noqa: E402
 
 PY = sys.executable
 

@@ -9,8 +9,8 @@ from conftest import child_only, IN_CHILD, run_module_in_child  # noqa: E402
 from rclpy.duration import Duration  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
-from feed_axis_energy.core import bagio  # noqa: E402
-from feed_axis_energy.core.graph import ProgramEnd  # noqa: E402
+from feed_axis_energy.record import bagio  # noqa: E402
+from feed_axis_energy.graph.end import ProgramEnd  # noqa: E402
 from feed_axis_energy.nodes import convert  # noqa: E402
 from feed_axis_energy.nodes.mcap_recorder import McapRecorder  # noqa: E402
 from feed_axis_energy.nodes.qos import latched_qos, stream_qos  # noqa: E402

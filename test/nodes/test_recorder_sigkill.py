@@ -18,9 +18,9 @@ import pytest
 
 pytest.importorskip('rclpy')
 
-from feed_axis_energy.core import bagio  # noqa: E402
+from feed_axis_energy.record import bagio  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'core'))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'record'))
 from test_graph_bag import read_mcap, read_rosbags  # noqa: E402
 
 PERIOD_S = 0.5
@@ -39,7 +39,7 @@ def _record_and_kill(bag, node_env, domain_id, *, mode, kill_after_s):
     from rclpy.context import Context
     from std_msgs.msg import Header
     from trajectory_msgs.msg import JointTrajectory
-    from feed_axis_energy.core.graph import FlowWindow
+    from feed_axis_energy.graph.flow import FlowWindow
     from feed_axis_energy.nodes import convert
     from feed_axis_energy.nodes.qos import stream_qos
     from feed_axis_energy.nodes.runner import make_executor

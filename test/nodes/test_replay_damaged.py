@@ -10,7 +10,7 @@ import pytest
 pytest.importorskip('rclpy')
 
 _SPEC = importlib.util.spec_from_file_location(
-    'hostile_inputs', Path(__file__).resolve().parents[1] / 'core' / 'measured' /
+    'hostile_inputs', Path(__file__).resolve().parents[1] / 'measured' /
     'hostile_inputs.py')
 hostile_inputs = importlib.util.module_from_spec(_SPEC)
 _SPEC.loader.exec_module(hostile_inputs)

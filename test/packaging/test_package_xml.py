@@ -71,7 +71,7 @@ def test_scan_finds_known_imports():
     # the scanner itself: it must see imports at module level and inside functions
     found = third_party_imports()
     assert 'feed_axis_energy/nodes/runner.py' in found['rclpy']
-    assert 'feed_axis_energy/core/mcapstream.py' in found['zstandard']   # inside a function
+    assert 'feed_axis_energy/record/mcapstream.py' in found['zstandard']   # inside a function
     assert 'launch/feed_axis_energy.launch.py' in found['launch_ros']
 
 

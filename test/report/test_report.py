@@ -12,13 +12,13 @@ import sys
 import numpy as np
 import pytest
 
-from feed_axis_energy.core.measured import load_campaign
-from feed_axis_energy.core.measured.compare import compare_campaign
-from feed_axis_energy.core.outputs import OutputError
+from feed_axis_energy.measured.manifest import load_campaign
+from feed_axis_energy.measured.compare import compare_campaign
+from feed_axis_energy.errors import OutputError
 from feed_axis_energy.report import MARKER, PLOT_KINDS, write_report
 import feed_axis_energy.report.plots as plots
 
-_HELPER = Path(__file__).resolve().parents[1] / 'core' / 'measured' / 'test_compare.py'
+_HELPER = Path(__file__).resolve().parents[1] / 'measured' / 'test_compare.py'
 
 
 def _synthetic():

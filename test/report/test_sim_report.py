@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from feed_axis_energy.core.outputs import OutputError
+from feed_axis_energy.errors import OutputError
 from feed_axis_energy.report import MARKER
 from feed_axis_energy.report.decimate import PowerTrace
 from feed_axis_energy.report.page import fmt_duration, fmt_pct, fmt_si, short

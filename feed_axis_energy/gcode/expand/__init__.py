@@ -1,0 +1,1 @@
+"""Moves that one block expands into: canned cycles, cutter compensation, splines."""

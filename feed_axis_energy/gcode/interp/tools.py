@@ -1,0 +1,159 @@
+"""The tool table part of :class:`.coords.Coords`: tool selection, G10 L1/L10/L11, tool
+length offsets G43/G43.1/G43.2/G49 and the cutter radius for G41/G42.
+
+LinuxCNC 2.9 semantics (``interp_convert.cc``: ``convert_setup_tool``,
+``convert_tool_length_offset``). A tool the table lacks is an error at its H/D/P word, as in
+LinuxCNC; T0/H0 is "no tool" (length and radius 0).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import NoReturn
+
+from ...errors import GcodeError
+from ..settings import MAX_TOOL_NUMBER, ToolSpec
+
+__all__ = ['ToolTable', 'tool_spec', 'MAX_OFFSET_M']
+
+Vec3 = tuple[float, float, float]
+Fail = Callable[[str, str], NoReturn]
+
+_AXES = ('X', 'Y', 'Z')
+_MM = 1000.0
+MAX_OFFSET_M = 1.0e3
+"""Largest offset, stored position or tool length [m] accepted (an absurd value would plan
+an endless move or overflow to inf); :mod:`.coords` uses it for every offset."""
+G59_3_Z_PARAM = 5383
+"""Z of coordinate system 9 (G59.3), the fixture G10 L11 measures against."""
+
+
+def _raise(message: str, letter: str) -> NoReturn:
+    raise GcodeError(message, file='<program>', line=0, column=0)
+
+
+def tool_spec(entry: object) -> ToolSpec:
+    """A tool table entry as ToolSpec.
+
+    Accepted: a ToolSpec, a number (the radius [m]), a ``(radius_m, length_m)`` pair, a
+    mapping or an object with ``radius_m`` (and optionally ``length_m``).
+    """
+    if isinstance(entry, ToolSpec):
+        return entry
+    if isinstance(entry, (int, float)) and not isinstance(entry, bool):
+        return ToolSpec(radius_m=float(entry))
+    if isinstance(entry, Mapping):
+        return ToolSpec(radius_m=float(entry.get('radius_m', 0.0)),
+                        length_m=float(entry.get('length_m', 0.0)))
+    if hasattr(entry, 'radius_m'):
+        return ToolSpec(radius_m=float(entry.radius_m),
+                        length_m=float(getattr(entry, 'length_m', 0.0)))
+    radius, length = entry
+    return ToolSpec(radius_m=float(radius), length_m=float(length))
+
+
+class ToolTable:
+    """Tool table methods of :class:`.coords.Coords` (a mixin: the state lives there).
+
+    Uses ``tools`` ({T: ToolSpec}), ``tlo``, ``selected_tool``, ``loaded_tool``, ``g5x``,
+    ``g92``, ``params`` and ``_update()`` of the class it is mixed into.
+    """
+
+    __slots__ = ()
+
+    def _g10_tool(self, l_word: int, number: int, values: Mapping[str, float],
+                  position: Vec3, *, fail: Fail) -> None:
+        """G10 L1 (values), L10 (the current point reads Z in the active system with the new
+        length), L11 (the same in G59.3, without G92) -- LinuxCNC's convert_setup_tool."""
+        if not 1 <= number <= MAX_TOOL_NUMBER:
+            fail(f'P value out of range with G10 L{l_word} (a tool number 1 ... '
+                 f'{MAX_TOOL_NUMBER})', 'P')
+        old = self.tools.get(number)
+        if old is None:
+            fail(f'tool {number} is not in the tool table (add it under gcode.tools of the '
+                 'machine config)', 'P')
+        for axis in ('X', 'Y'):
+            if axis in values:
+                fail(f'tool {axis} offsets (lathe tools) are not supported', axis)
+        if 'Z' not in values and 'R' not in values:
+            fail(f'G10 L{l_word} without offsets has no effect', 'G')
+        radius = values.get('R', old.radius_m)
+        if not 0.0 <= radius <= 1.0:
+            fail(f'tool radius {radius:.6g} m: expected 0 ... 1 m', 'R')
+        length = old.length_m
+        if 'Z' in values:
+            length = values['Z']
+            if l_word == 10:
+                # the machine Z seen in the active system with no tool length offset
+                length = position[2] - self.g5x[2] - self.g92[2] - values['Z']
+            elif l_word == 11:
+                length = position[2] - self.params.get(G59_3_Z_PARAM) / _MM - values['Z']
+            if not abs(length) <= MAX_OFFSET_M:
+                fail(f'tool length beyond {MAX_OFFSET_M:g} m', 'Z')
+        self.tools[number] = ToolSpec(radius_m=radius, length_m=length)
+
+    # -- tools ----------------------------------------------------------------------------
+    def select_tool(self, number: int) -> None:
+        """T word: the tool the next M6 loads (not checked against the table here)."""
+        self.selected_tool = number
+
+    def change_tool(self) -> None:
+        """M6: the selected tool becomes the loaded one (the offset stays until G43/G49)."""
+        self.loaded_tool = self.selected_tool
+
+    def set_loaded_tool(self, number: int) -> None:
+        """M61 Q..: declare the loaded tool without a change."""
+        self.selected_tool = self.loaded_tool = number
+
+    def tool(self, number: int | None, *, letter: str, fail: Fail = _raise) -> ToolSpec:
+        """The table entry of tool ``number`` (``None``: the loaded tool); T0 = no tool.
+
+        Raises through ``fail`` at ``letter`` when the table lacks the tool.
+        """
+        if number is None:
+            number = self.loaded_tool
+        if number == 0:
+            return ToolSpec()
+        spec = self.tools.get(number)
+        if spec is None:
+            fail(f'tool {number} is not in the tool table (add it under gcode.tools of the '
+                 'machine config)', letter)
+        return spec
+
+    def cutter_radius(self, d_word: float | None, *, fail: Fail = _raise) -> float:
+        """Radius [m] for G41/G42 with the line's D word (absent: the loaded tool)."""
+        number = None
+        if d_word is not None:
+            number = int(d_word)
+            if number != d_word or number < 0:
+                fail('D word must be a tool number (a whole number >= 0)', 'D')
+        return self.tool(number, letter='D' if d_word is not None else 'G', fail=fail).radius_m
+
+    def tool_length(self, code: str, h_word: float | None, values: Mapping[str, float], *,
+                    fail: Fail = _raise) -> None:
+        """G43 [H..] / G43.1 axes / G43.2 H.. or axes / G49."""
+        tlo = list(self.tlo)
+        if code == 'G49':
+            tlo = [0.0, 0.0, 0.0]
+        elif code == 'G43' or (code == 'G43.2' and h_word is not None):
+            number = None
+            if h_word is not None:
+                number = int(h_word)
+                if number != h_word or number < 0:
+                    fail('H word must be a tool number (a whole number >= 0)', 'H')
+            spec = self.tool(number, letter='H' if h_word is not None else 'G', fail=fail)
+            if code == 'G43':
+                tlo = [0.0, 0.0, spec.length_m]
+            else:
+                if values:
+                    fail('G43.2: Can not have both H and axis words', 'H')
+                tlo[2] += spec.length_m
+        elif code in ('G43.1', 'G43.2'):
+            if not values and code == 'G43.2':
+                fail('G43.2: No axes specified and H word missing', 'G')
+            for i, axis in enumerate(_AXES):
+                if axis in values:
+                    tlo[i] = values[axis] + (tlo[i] if code == 'G43.2' else 0.0)
+        else:
+            raise ValueError(f'not a tool length code: {code!r}')
+        self.tlo = tuple(tlo)
+        self._update()

@@ -1,0 +1,319 @@
+"""G-code (RS-274 / ISO 6983, milling) to moves in SI units: the user's reference.
+
+``parse_gcode(text)`` / ``load_gcode(path)`` return a :class:`~..program.Program`;
+``iter_moves(path)`` streams the same moves in bounded memory. A program that cannot be
+simulated exactly raises :class:`~..errors.GcodeError` naming ``file:line:column`` and the
+offending word (a subroutine file names itself). Semantics are LinuxCNC 2.9's (RS274NGC),
+checked against its interpreter; where controls differ a :mod:`dialect <.dialect>` profile
+applies (``linuxcnc`` by default; ``fanuc``, ``haas``, ``grbl``, ``mach3``).
+
+Layout (as LinuxCNC's rs274ngc): :mod:`.source` (bytes, line ends), :mod:`.lexer`,
+:mod:`.expr` and :mod:`.params` (words, expressions, parameters), :mod:`.flow` (O-words,
+Fanuc subprograms), :mod:`.interp` with :mod:`.interp_motion`, :mod:`.interp_modes`,
+:mod:`.interp_comp` (modal state), :mod:`.coords` (coordinate systems, tool length),
+:mod:`.cycles` and :mod:`.cutter` (canned cycles, cutter compensation), :mod:`.splines`
+(G5.x), :mod:`.canon` (the
+canonical moves and arc rules), :mod:`.run` (one pass: plain lines on a fast path, the rest
+through the front's reader).
+
+Reading
+-------
+* UTF-8 (BOM allowed), LF / CRLF / CR line ends; comments ``( )`` and ``;``; block delete
+  ``/``; ``%`` lines (the second ends the program); grbl ``$`` lines skipped with a warning.
+  Blanks inside words and lower-case letters are read as LinuxCNC reads them.
+* Parameters ``#1``..``#5601``, ``#<local>``, ``#<_global>``, expressions ``[ ]`` with
+  LinuxCNC's operators and functions; assignments take effect after their line. In the
+  Macro B dialects (``fanuc``, ``haas``) Fanuc's read-only system variables: modal groups
+  ``#4001``.. and positions ``#5001``.., ``#5021``.., ``#5041``.., ``#5081``..
+  (:mod:`.fanuc_vars`: given from the modal state, or refused by number).
+* O-word subroutines (in the program, or ``<name>.ngc`` next to it or on ``search_path``)
+  and ``if/elseif/else``, ``while``, ``do``, ``repeat``, ``break/continue``; Fanuc
+  ``O1234`` + ``M98 P.. L..`` / ``M99``. Loops stop with an error after 10^6 passes.
+* Non-finite or absurd numbers (beyond 1e12 program units) are errors.
+
+Motion (canonical moves, :mod:`.canon`)
+---------------------------------------
+* G0, G1; G2/G3 with I/J/K (incremental under G91.1, absolute under G90.1) or R (negative:
+  over 180 degrees), P turns, helices; a full circle may be written with I/J only. Arc
+  tolerances are LinuxCNC's: end and start radius may differ by 0.0283 mm (G20: 0.00283
+  inch), or by up to 0.1 % of the radius, never by more than 2.83 mm (0.283 inch); an R may
+  fall 0.00127 mm short of the chord. Parser and planner share one sweep (``Move.sweep_rad``):
+  an end angle within 1e-12 rad of the start is a full turn, anything else the short way
+  the arc runs.
+* An explicit G0/G1 without axis words, and any zero-length move, is issued with length 0
+  (as LinuxCNC; the planner drops it). A feed move with no F in force runs at the
+  machine's limits with one warning (LinuxCNC's preview accepts it).
+* Polar words ``@`` (distance) and ``^`` (angle, degrees) in the XY plane, from the origin
+  under G90 or added to the current point's under G91.
+* Canned cycles G73, G81..G89 with G98/G99 (start-up G99) and L repeats, sticky R/Z/P/Q
+  words, G80; the cycle is the motion mode. Cutter radius compensation G41/G42 (D = tool
+  number, or the tool in the spindle), G41.1/G42.1 (D = diameter), G40, in G17/G18; the
+  radius comes from the machine's ``gcode.tools`` (``tools=``); tool 0 or radius 0 leaves
+  the path unchanged; what LinuxCNC refuses under compensation is refused.
+* G38.2..G38.5 probing runs to its end point (no contact simulated, one warning); G33.1
+  rigid tapping goes in and back at K x S.
+* Splines (:mod:`.splines`, LinuxCNC 2.9's rules and messages): G5 cubic (``I J`` first
+  offset from the start, ``P Q`` second offset from the end; without I/J minus the previous
+  P/Q) and G5.1 quadratic (``I J``), in G17 only, without Z; they leave the motion mode as
+  it was. G5.2 NURBS: the start and one point per line (X Y together, weight P > 0, order
+  L above 3, else 3; lines without G continue), issued at G5.3 (at least L points; no
+  motion mode after it). All are issued as LinuxCNC's preview issues them: straight feeds,
+  15 per control point, at the current Z. An unfinished G5.2 is dropped with a warning.
+  Only in the ``linuxcnc`` dialect: the others refuse G5.x (Fanuc's G05/G05.1 are
+  high-speed machining modes).
+* G4 dwell (P unit per dialect); M0/M1 stop; M2/M30 end (later lines warned about).
+
+Modes and coordinates
+---------------------
+G17/G18/G19, G20/G21, G90/G91, G90.1/G91.1, G93/G94/G95 (F cleared on a switch; G95: F per
+spindle revolution times S), G61/G61.1/G64,
+G9; G54..G59.3, G10 L1/L2/L10/L11/L20, G92/G92.1/G92.2/G92.3, G52, G53, G28/G30 (+ .1),
+G43/G43.1/G43.2/G49 as LinuxCNC 2.9 (:mod:`.coords`); moves are in machine coordinates.
+S, T, M6, M61, M3..M9 are tracked where they matter (G84/G86 need a turning spindle, G41
+without D uses the loaded tool, or in the Fanuc/Haas dialects the D of an earlier line);
+harmless I/O M codes and the control's contouring modes per dialect are accepted.
+
+Refused with a clear message
+----------------------------
+Axes A/B/C/U/V/W (or dropped with ``ignore_axes``/``--ignore-axes``, one warning each),
+G5.2 without a positive weight on its first point, G5.2 under G93 or cutter compensation
+(G5/G5.1 under compensation as LinuxCNC), G33 spindle-synchronised motion, G7 lathe mode,
+G17.1-G19.1 UVW planes, unknown G and M codes, words nothing uses.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+import gc
+from os import PathLike
+
+from .canon import CENTER_ARC_RADIUS_TOLERANCE_MM
+from .interp.codes import IGNORABLE_AXES
+from .context import OperationContext
+from .dialect import Dialect, dialect_by_name
+from .run import GcodeRun
+from .read.source import read_program
+from ..errors import ConfigError, GcodeError
+from .program import Move, Program
+
+__all__ = ['parse_gcode', 'load_gcode', 'iter_moves', 'MoveStream', 'DEFAULT_ARC_TOLERANCE_M']
+
+# LinuxCNC's centre-format radius tolerance in G21 (canon.CENTER_ARC_RADIUS_TOLERANCE_MM):
+# what arc_tolerance_m=None means for a metric program (G20: 0.002828 inch).
+DEFAULT_ARC_TOLERANCE_M = CENTER_ARC_RADIUS_TOLERANCE_MM * 1e-3
+
+Vec3 = tuple[float, float, float]
+
+
+def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0.0),
+                arc_tolerance_m: float | None = None, home: Vec3 | None = None,
+                tools: Mapping[int, object] | None = None,
+                dialect: str | Dialect | None = None,
+                search_path: Sequence[str | PathLike[str]] = (),
+                ignore_axes: Sequence[str] = ()) -> Program:
+    """Parse an NC program into moves in SI units.
+
+    Parameters
+    ----------
+    text
+        The program text (LF, CRLF or CR line ends).
+    file
+        Name used in error messages and stored in the result; subroutine files are looked
+        for in its directory first.
+    start
+        Tool position [m] before the first line.
+    arc_tolerance_m
+        Absolute tolerance [m] of the arc end-point check (start and end radius may differ
+        by this, or by up to 0.1 % of the radius but never by more than 100 times this);
+        ``None``: LinuxCNC's, 0.02828 mm under G21 and 0.002828 inch under G20.
+    home
+        The G28 position [m] in machine coordinates (a machine's ``home_m``); without it
+        #5161..#5163 are 0 as in LinuxCNC's fresh parameter file.
+    tools
+        Tool table: tool number -> ``ToolSpec`` (or ``(radius_m, length_m)``, or a radius).
+        Without it G41/G42 work only with tool 0 (radius 0, the path unchanged) or
+        G41.1/G42.1, and G43 H only with H0.
+    dialect
+        A :class:`Dialect` or its name (``linuxcnc``, ``fanuc``, ``haas``, ``grbl``,
+        ``mach3``); ``None``: ``linuxcnc``.
+    search_path
+        Directories searched for subroutine files (``o<name> call``) after the program's.
+    ignore_axes
+        Axis letters among A, B, C, U, V, W whose words are dropped (one warning each);
+        otherwise such a word is an error naming its line.
+
+    Returns
+    -------
+    Program
+        The moves in order, ``n_lines`` and any warnings (``file:line: message``).
+
+    Raises
+    ------
+    GcodeError
+        For anything that cannot be simulated exactly; names file, line, column and word.
+    ConfigError
+        For an unknown dialect name or an axis that cannot be ignored.
+    """
+    run = GcodeRun(text, file=file, start=start, arc_tolerance_m=arc_tolerance_m, home=home,
+                   tools=tools, dialect=dialect_by_name(dialect), search_path=search_path,
+                   ignore_axes=_axes(ignore_axes))
+    # The parse allocates one Move per block and frees nothing: cyclic garbage collection
+    # passes over the growing list find nothing and cost ~15 % of the time, so they are
+    # paused for the duration (and resumed even when the program is refused).
+    gc_was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        moves: list[Move] = []
+        for batch in run:
+            moves += batch
+    finally:
+        if gc_was_enabled:
+            gc.enable()
+    return Program(file=file, moves=tuple(moves), n_lines=run.n_lines,
+                   warnings=tuple(run.warnings))
+
+
+class MoveStream:
+    """The moves of a program file one by one, in bounded memory (see :func:`iter_moves`).
+
+    Attributes
+    ----------
+    file
+        The program's name.
+    warnings
+        ``file:line: message`` texts, complete once the iteration has ended.
+    n_lines
+        Number of lines of the program.
+    context
+        The operation, subroutine and tool of the moves (:class:`.context.OperationContext`:
+        its marks are complete up to the moves handed on so far).
+    """
+
+    def __init__(self, path: str | PathLike[str], kw: dict):
+        self._path = path
+        self._kw = kw
+        self._run: GcodeRun | None = None
+        self.file = str(path)
+        self.context = OperationContext()
+
+    @property
+    def warnings(self) -> list[str]:
+        """Warnings so far (all of them after the last move)."""
+        return [] if self._run is None else self._run.warnings
+
+    @property
+    def n_lines(self) -> int:
+        """Lines of the program read so far (all of them after the last move)."""
+        return 0 if self._run is None else self._run.n_lines
+
+    @property
+    def errors(self) -> list[GcodeError]:
+        """Errors the run went on after (``max_errors`` of :func:`iter_moves`)."""
+        return [] if self._run is None else self._run.errors
+
+    def __iter__(self) -> Iterator[Move]:
+        """The moves in order (the file is open while the iteration runs)."""
+        for batch in self.batches():
+            yield from batch
+
+    def batches(self) -> Iterator[list[Move]]:
+        """The moves in order as the interpreter hands them on, in lists of about ``batch``
+        moves (:func:`iter_moves`); the context's marks are complete up to the last move
+        of the list just given. A consumer that takes lists saves a generator step per
+        move."""
+        name = self.file
+        try:
+            fh = open(self._path, encoding='utf-8-sig', newline=None)
+        except OSError as err:
+            msg = f'cannot read the program: {err.strerror or err}'
+            raise GcodeError(msg, file=name, line=0, column=0) from err
+        with fh:
+            self.context.reset()                  # the same object: callers hold it
+            self._run = GcodeRun(stream=fh, file=name, context=self.context, **self._kw)
+            try:
+                yield from self._run
+            except UnicodeDecodeError:
+                read_program(self._path, file=name)     # raises, naming line and column
+                raise
+
+
+def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
+               arc_tolerance_m: float | None = None, home: Vec3 | None = None,
+               tools: Mapping[int, object] | None = None,
+               dialect: str | Dialect | None = None,
+               search_path: Sequence[str | PathLike[str]] = (),
+               ignore_axes: Sequence[str] = (), batch: int = 4096,
+               max_errors: int = 0) -> MoveStream:
+    """Stream the moves of a program file in bounded memory.
+
+    Plain lines are read one at a time, so memory stays at ``batch`` moves however long
+    the program; from the first line that needs the front's reader (parameters, O-words,
+    ...) on, the rest of the text is read into memory.
+
+    Parameters
+    ----------
+    path
+        The program file.
+    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
+        As for :func:`parse_gcode`.
+    batch
+        Moves interpreted ahead of the consumer (at least 1).
+    max_errors
+        0: the first error is raised. ``N > 0`` (``check``): errors in lines are kept in
+        the stream's ``errors`` and the run goes on with the next line; the ``N``-th error
+        is raised (see :class:`~.run.GcodeRun`).
+
+    Returns
+    -------
+    MoveStream
+        Iterate over it for the moves; its ``warnings`` are complete at the end. Errors
+        (:class:`GcodeError`) are raised during the iteration, at the line concerned.
+    """
+    kw = dict(start=start, arc_tolerance_m=arc_tolerance_m, home=home, tools=tools,
+              dialect=dialect_by_name(dialect), search_path=search_path,
+              batch=max(1, int(batch)), ignore_axes=_axes(ignore_axes),
+              max_errors=max(0, int(max_errors)))
+    return MoveStream(path, kw)
+
+
+def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
+               arc_tolerance_m: float | None = None, home: Vec3 | None = None,
+               tools: Mapping[int, object] | None = None,
+               dialect: str | Dialect | None = None,
+               search_path: Sequence[str | PathLike[str]] = (),
+               ignore_axes: Sequence[str] = ()) -> Program:
+    """Read a program file (UTF-8, a BOM allowed) and parse it (see :func:`parse_gcode`).
+
+    Parameters
+    ----------
+    path
+        The program file; its path is used as ``file`` in messages and in the result.
+    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
+        As for :func:`parse_gcode`.
+
+    Returns
+    -------
+    Program
+        The parsed program.
+
+    Raises
+    ------
+    GcodeError
+        Also when the file cannot be read (line 0, column 0, chained from the ``OSError``),
+        is too large, or is not UTF-8 text (the message gives the line of the bad byte).
+    """
+    name = str(path)
+    text = read_program(path, file=name)
+    return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
+                       home=home, tools=tools, dialect=dialect, search_path=search_path,
+                       ignore_axes=ignore_axes)
+
+
+def _axes(letters: Sequence[str]) -> tuple[str, ...]:
+    """Upper-case axis letters for ``ignore_axes``, checked."""
+    out = tuple(str(a).strip().upper() for a in letters)
+    for a in out:
+        if a not in IGNORABLE_AXES:
+            shown = a[:60]
+            msg = f'cannot ignore axis {shown!r}: only A, B, C, U, V, W can be ignored'
+            raise ConfigError(msg, key='ignore_axes')
+    return out

@@ -1,0 +1,228 @@
+"""The G-code part of a machine config: dialect, tool table and axis travel limits.
+
+A machine file may hold (all optional)::
+
+    gcode:
+      dialect: linuxcnc            # default G-code dialect (``--dialect`` overrides it)
+      tools:                       # tool table: T number -> radius and length offset
+        1: {radius_m: 0.003, length_m: 0.0452}
+        2: {radius_m: 0.0, length_m: 0.06}
+    axes:
+      X:
+        travel_m: [-0.2, 0.3]     # travel limits in machine coordinates [m]
+
+``radius_m`` is what cutter radius compensation G41/G42 D.. offsets the path by (LinuxCNC's
+tool table holds the diameter: half of it); ``length_m`` is the tool length offset G43 H..
+applies to Z. A tool the program asks for that the table lacks is an error of the program,
+not of the config.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, Mapping
+
+from ..configcheck import check_choice, check_float, check_mapping, is_finite_number
+from ..errors import ConfigError, describe, shorten
+
+__all__ = ['ToolSpec', 'GcodeSettings', 'DIALECTS', 'MAX_TOOLS', 'MAX_TOOL_NUMBER',
+           'gcode_from_dict', 'gcode_to_dict', 'travel_from_value', 'parse_tool_option',
+           'with_tools']
+
+DIALECTS = ('linuxcnc', 'fanuc', 'haas', 'grbl', 'mach3')
+"""Dialect names a config may choose (the profiles live in ``gcode/dialect.py``)."""
+MAX_TOOLS = 10_000
+"""Entries a tool table may hold (a config is read whole; this bounds it)."""
+MAX_TOOL_NUMBER = 99_999
+_TRAVEL_LIMIT_M = 1.0e3
+
+
+@dataclass(frozen=True)
+class ToolSpec:
+    """One tool of the tool table.
+
+    Attributes
+    ----------
+    radius_m
+        Cutter radius [m] used by G41/G42 (``>= 0``).
+    length_m
+        Tool length offset [m] applied to Z by G43 (may be negative).
+    """
+
+    radius_m: float = 0.0
+    length_m: float = 0.0
+
+
+def _empty_tools() -> Mapping[int, ToolSpec]:
+    return MappingProxyType({})
+
+
+@dataclass(frozen=True)
+class GcodeSettings:
+    """The ``gcode:`` section of a machine config.
+
+    Attributes
+    ----------
+    dialect
+        Default dialect of the programs run on this machine (one of :data:`DIALECTS`).
+    tools
+        Read-only mapping ``{T number: ToolSpec}``; ``machine.gcode.tools[1].radius_m``.
+    """
+
+    dialect: str = 'linuxcnc'
+    tools: Mapping[int, ToolSpec] = field(default_factory=_empty_tools)
+
+    def tool(self, number: int) -> ToolSpec | None:
+        """Return tool ``number`` of the table, or ``None`` if the table lacks it."""
+        return self.tools.get(number)
+
+
+def _tool_number(name: Any, *, file: str) -> int:
+    # YAML reads `1:` as an int; JSON-like files may quote it
+    number = name
+    if isinstance(name, str) and name.strip().isdigit() and len(name.strip()) <= 6:
+        number = int(name.strip())
+    if isinstance(number, bool) or not isinstance(number, int) \
+            or not 1 <= number <= MAX_TOOL_NUMBER:
+        msg = f'expected a tool number 1 ... {MAX_TOOL_NUMBER} as key, got {describe(name)}'
+        raise ConfigError(msg, file=file, key='gcode.tools')
+    return number
+
+
+def _tools(value: Any, *, file: str) -> Mapping[int, ToolSpec]:
+    if value is None:
+        return _empty_tools()
+    table = check_mapping(value, file=file, key='gcode.tools', allowed=None)
+    if len(table) > MAX_TOOLS:
+        msg = f'expected at most {MAX_TOOLS} tools, got {len(table)}'
+        raise ConfigError(msg, file=file, key='gcode.tools')
+    out: dict[int, ToolSpec] = {}
+    for name, entry in table.items():
+        number = _tool_number(name, file=file)
+        key = f'gcode.tools.{number}'
+        if number in out:
+            msg = f'tool {number} is given twice'
+            raise ConfigError(msg, file=file, key=key)
+        entry = check_mapping(entry, file=file, key=key, allowed=('radius_m', 'length_m'))
+        out[number] = ToolSpec(
+            radius_m=check_float(entry, 'radius_m', file=file, key=key, default=0.0,
+                                 minimum=0.0, strict=False, maximum=1.0),
+            length_m=check_float(entry, 'length_m', file=file, key=key, default=0.0,
+                                 minimum=-10.0, strict=False, maximum=10.0))
+    return MappingProxyType(dict(sorted(out.items())))
+
+
+def gcode_from_dict(value: Any, *, file: str) -> GcodeSettings:
+    """Build and validate the ``gcode:`` section (``None``: the defaults).
+
+    Parameters
+    ----------
+    value
+        The section as read from YAML.
+    file
+        Where it came from, for error messages.
+
+    Returns
+    -------
+    GcodeSettings
+        The validated settings.
+
+    Raises
+    ------
+    ConfigError
+        Unknown key, unknown dialect, bad tool number or value; names the dotted key.
+    """
+    if value is None:
+        return GcodeSettings()
+    d = check_mapping(value, file=file, key='gcode', allowed=('dialect', 'tools'))
+    return GcodeSettings(
+        dialect=check_choice(d, 'dialect', DIALECTS, file=file, key='gcode',
+                             default='linuxcnc'),
+        tools=_tools(d.get('tools'), file=file))
+
+
+def gcode_to_dict(settings: GcodeSettings) -> dict[str, Any] | None:
+    """Return the YAML form of ``settings``, or ``None`` when all are defaults."""
+    if settings == GcodeSettings():
+        return None
+    out: dict[str, Any] = {'dialect': settings.dialect}
+    if settings.tools:
+        out['tools'] = {n: {'radius_m': t.radius_m, 'length_m': t.length_m}
+                        for n, t in settings.tools.items()}
+    return out
+
+
+def travel_from_value(value: Any, *, file: str, key: str) -> tuple[float, float] | None:
+    """Validate an axis's ``travel_m: [min, max]`` [m] (``None`` when absent).
+
+    Raises
+    ------
+    ConfigError
+        Not a list of two finite numbers within +-1000 m with ``min < max``.
+    """
+    if value is None:
+        return None
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        msg = f'expected a list [min, max] of two numbers [m], got {describe(value)}'
+        raise ConfigError(msg, file=file, key=key)
+    low, high = (_travel_end(v, file=file, key=f'{key}[{i}]') for i, v in enumerate(value))
+    if not low < high:
+        msg = f'expected min < max, got [{low:g}, {high:g}]'
+        raise ConfigError(msg, file=file, key=key)
+    return (low, high)
+
+
+def _travel_end(v: Any, *, file: str, key: str) -> float:
+    if not is_finite_number(v) or abs(v) > _TRAVEL_LIMIT_M:
+        msg = f'expected a finite number within +-{_TRAVEL_LIMIT_M:g} m, got {describe(v)}'
+        raise ConfigError(msg, file=file, key=key)
+    return float(v)
+
+
+def parse_tool_option(text: str) -> tuple[int, ToolSpec]:
+    """Read a command-line tool ``T:RADIUS_MM[:LENGTH_MM]`` (``3:2.5:45.2``).
+
+    Parameters
+    ----------
+    text
+        The option's value.
+
+    Returns
+    -------
+    tuple
+        The tool number and its :class:`ToolSpec` (SI units).
+
+    Raises
+    ------
+    ValueError
+        With a message naming what is wrong (the value is quoted cut to 60 characters).
+    """
+    parts = text.split(':')
+    shown = shorten(text)
+    if len(parts) not in (2, 3):
+        msg = f'expected T:RADIUS_MM or T:RADIUS_MM:LENGTH_MM, got {shown!r}'
+        raise ValueError(msg)
+    number = parts[0].strip()
+    if not number.isdigit() or len(number) > 6 or not 1 <= int(number) <= MAX_TOOL_NUMBER:
+        msg = f'tool number must be 1 ... {MAX_TOOL_NUMBER}, got {shorten(parts[0])!r}'
+        raise ValueError(msg)
+    values = []
+    for part, low, high in zip(parts[1:], (0.0, -1.0e4), (1.0e3, 1.0e4)):
+        try:
+            v = float(part)
+        except ValueError:
+            msg = f'expected a number of millimetres, got {shorten(part)!r} in {shown!r}'
+            raise ValueError(msg) from None
+        if not low <= v <= high:  # also refuses nan and inf
+            msg = f'expected {low:g} ... {high:g} mm, got {shorten(part)!r} in {shown!r}'
+            raise ValueError(msg)
+        values.append(v / 1000.0)
+    return int(number), ToolSpec(*values)
+
+
+def with_tools(settings: GcodeSettings, tools: Mapping[int, ToolSpec]) -> GcodeSettings:
+    """Return ``settings`` with ``tools`` added to (or replacing entries of) its table."""
+    table = dict(settings.tools)
+    table.update(tools)
+    return GcodeSettings(dialect=settings.dialect,
+                         tools=MappingProxyType(dict(sorted(table.items()))))

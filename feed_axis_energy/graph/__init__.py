@@ -1,0 +1,17 @@
+"""Pure helpers of the node graph (no rclpy): what the nodes compute between messages.
+
+Batching, flow control and pacing (:mod:`.flow`), the setpoint source (:mod:`.source`), the
+end-of-program marker (:mod:`.end`) and the plot topics from the graph's streams
+(:mod:`.plots`).
+"""
+from .end import EndTracker, ProgramEnd, restamp_end_marker
+from .flow import (FlowWindow, header_stamp_ns, NS_PER_S, pacing_delay_s, recording_gaps,
+                   seconds_to_ns, StreamingPower)
+from .plots import GraphPlotter, PLOT_SOURCES
+from .source import SetpointSource
+
+__all__ = [
+    'EndTracker', 'FlowWindow', 'GraphPlotter', 'header_stamp_ns', 'NS_PER_S', 'pacing_delay_s',
+    'PLOT_SOURCES', 'ProgramEnd', 'recording_gaps', 'restamp_end_marker', 'seconds_to_ns',
+    'SetpointSource', 'StreamingPower',
+]

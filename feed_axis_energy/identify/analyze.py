@@ -1,0 +1,483 @@
+"""Residual analysis: which catalog effect is the declared model missing, and what it is worth.
+
+:func:`analyze_campaign`:
+
+1. *Baseline*: :func:`.measured.compare.compare_campaign` (simulation, offset, interval
+   averaging, Table-1 metrics); the residual of each run is measured minus aligned simulated
+   power per measured axis.
+2. *Candidates*: for every catalog effect and measured axis, the effect's basis is computed
+   on the 1 kHz simulated state of each run and aligned onto the measured stamps with the
+   run's offset and window (:func:`.measured.align.align_simulated`, the same instrument
+   model). Shape parameters (Stribeck speed, warm-up time constant, spacing of the
+   position-friction bumps) get a grid of variants; a single shape parameter is refined by
+   a bounded 1-D search. Every linear parameter is fitted within its physical bounds.
+3. *Selection* (:mod:`.selection`): forward selection scored by held-out error
+   (leave-one-run-out, or the manifest's calibrate/validate roles) together with BIC.
+4. *Honesty* (:mod:`.consistency`): a selected effect must be consistent across runs (its
+   per-run refit may not explain much more than the pooled one: ``heterogeneity`` below
+   ``max_heterogeneity``); an inconsistent one is removed, selection is redone without it
+   (at most ``max_rounds`` times; reaching the cap is a stated verdict) and the structure is
+   reported in ``unexplained``; every candidate ends with a fate and a reason. The final
+   residual is tested for structure against velocity, position, acceleration and time and
+   in its spectrum (:mod:`.diagnostics`). Loss functions and declared effects used outside
+   their calibrated range are listed in ``warnings``.
+5. *Before/after*: Table-1 metrics on held-out runs; each run's *after* adds the effects
+   fitted without it (its fold), at the baseline offset.
+
+Uncertainties of linear parameters: jackknife over runs (leave one run out). Shape
+parameters are found by a profile search and carry no uncertainty (``None``).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
+import math
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from ..effects import EFFECTS, EffectState, get_effect
+from ..physics import state_from_simulation
+from ..machine import load_machine, Machine, machine_warnings, observed_range, RangeUse
+from ..errors import ConfigError
+from ..measured import (align_simulated, Campaign, compare_campaign, load_run, MotionCache,
+                        offset_dict, RunComparison, simulate_declared, stamp_shift)
+from .alternatives import check_alternatives
+from .ambiguity import find_groups, found_text
+from .consistency import heterogeneity, label, mark_groups, select_consistent
+from .diagnostics import diagnose_runs, noise_sigma
+from .realign import augmented_outcome, machine_with, realigned_runs
+from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
+                      RunOutcome, STATE_NAMES)
+from .drivecorr import common_measures, correction_bounds, declared_values, describe_correction
+from .selection import at_bounds, Block, Design, loro_folds, solve_normal
+
+POSITION_DIVISIONS = (15, 10, 6, 3)
+"""Candidate resolutions of ``position_friction``: bump spacing = travelled span / n."""
+
+__all__ = ['analyze_campaign']
+
+
+# ----------------------------------------------------------------------------- run data
+
+@dataclass
+class _Run:
+    cmp: RunComparison
+    state: EffectState
+    sim_index: list[int | None]     # measured axis j -> column of the simulation or None
+    residual: np.ndarray            # (m, k_meas)
+    states: dict[str, np.ndarray]   # name -> (m, k_meas) on the stamps
+
+    def aligned(self, cols: np.ndarray) -> np.ndarray:
+        """Align 1 kHz columns ``(n, c)`` onto the measured stamps: ``(m, c)``."""
+        return align_simulated(self.state.t, cols, self.cmp.t,
+                               offset_s=self.cmp.offset_used_s, window_s=self.cmp.window_s,
+                               stamp=self.cmp.stamp)
+
+
+def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
+             machine: Machine) -> list[_Run]:
+    cache = MotionCache(machine)
+    out = []
+    for r in cmp_runs:
+        spec = campaign.run(r.name)
+        measured = load_run(spec)
+        sim, _ = simulate_declared(spec, measured, machine, cache)
+        state = state_from_simulation(sim)
+        idx = [state.axes.index(a) if a in state.axes else None for a in r.axes]
+        n = state.t.shape[0]
+        cols = []
+        for j in idx:
+            for arr in (state.velocity_m_s, state.position_m, state.acceleration_m_s2):
+                cols.append(arr[:, j] if j is not None else np.zeros(n))
+        run = _Run(cmp=r, state=state, sim_index=idx,
+                   residual=r.power_meas_w - r.power_sim_w, states={})
+        on = run.aligned(np.column_stack(cols))
+        k = len(idx)
+        # simulated time at the centre of each sample's window
+        mid = r.t - r.offset_used_s + stamp_shift(r.window_s, r.stamp) - 0.5 * r.window_s
+        run.states = {'velocity': on[:, 0::3], 'position': on[:, 1::3],
+                      'acceleration': on[:, 2::3],
+                      'time': np.repeat(mid[:, None], k, axis=1)}
+        out.append(run)
+    return out
+
+
+def _columns(run: _Run, effect_id: str, axis_j: int, shape: Mapping[str, float]) -> np.ndarray:
+    """Aligned basis of one effect on measured axis ``axis_j``, flattened: ``(m*k, p)``."""
+    effect = get_effect(effect_id)
+    p = len(effect.linear_params())
+    m, k = run.residual.shape
+    out = np.zeros((m, k, p))
+    j = run.sim_index[axis_j]
+    if j is not None:
+        basis = effect.basis(run.state, dict(shape))[:, j, :]
+        out[:, axis_j, :] = run.aligned(basis)
+    return out.reshape(m * k, p)
+
+
+def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
+                points: int) -> list[dict[str, float]]:
+    effect = get_effect(effect_id)
+    shapes = [p for p in effect.params if not p.linear]
+    if not shapes:
+        return [{}]
+    if effect_id == 'position_friction':
+        # bumps from the lowest travelled position; the spacing (the resolution) is one of
+        # a few candidates, chosen by the held-out error like any other variant
+        pos = [r.states['position'][:, axis_j] for r in runs]
+        lo = min(float(np.min(x)) for x in pos if x.size) if any(x.size for x in pos) else 0.0
+        hi = max(float(np.max(x)) for x in pos if x.size) if any(x.size for x in pos) else 0.0
+        span = hi - lo if hi > lo else 0.4
+        return [{'x0_m': lo, 'spacing_m': span / n} for n in POSITION_DIVISIONS]
+    if len(shapes) > 1:
+        return [{p.name: p.default for p in shapes}]
+    par = shapes[0]
+    grid = list(np.geomspace(max(par.low, 1e-12), par.high, points))
+    if par.default > par.high:
+        grid.append(par.default)    # thermal_drift: the linear limit (tau = 1e9 s)
+    return [{par.name: float(v)} for v in np.unique(grid)]
+
+
+def _block(runs: Sequence[_Run], effect_id: str, axis_j: int, shape: Mapping[str, float]):
+    """Names, per-run columns and physical bounds of one candidate.
+
+    Columns that are zero, or whose largest value is below 1 % of the strongest column of
+    the block *in the same unit* (the far tail of a position bump), are left out: they
+    carry no information, and a fit on them would give huge, meaningless coefficients.
+    Columns in different units are not compared: ``iron``'s ``|omega|`` column is about
+    ``1/omega`` of its ``omega²`` column and carries half of the effect.
+    """
+    effect = get_effect(effect_id)
+    cols = [_columns(r, effect_id, axis_j, shape) for r in runs]
+    p = len(effect.linear_params())
+    peak = np.array([max((float(np.max(np.abs(c[:, i]))) if c.shape[0] else 0.0)
+                         for c in cols) for i in range(p)]) if cols else np.zeros(p)
+    units = [next(q.unit for q in effect.params if q.name == n)
+             for n in effect.linear_params()]
+    top = {u: max(float(peak[i]) for i in range(p) if units[i] == u) for u in set(units)}
+    used = [i for i in range(p) if peak[i] > 0.0 and peak[i] >= 0.01 * top[units[i]]]
+    lo, hi = effect.linear_bounds()
+    names = tuple(effect.linear_params()[i] for i in used)
+    return names, [c[:, used] for c in cols], (lo[used], hi[used])
+
+
+def _folds(runs: Sequence[_Run], holdout: str, file: str) -> list[tuple[list[int], list[int]]]:
+    if holdout == 'loro':
+        if len(runs) < 2:
+            msg = (f'holdout "loro" (leave one run out) needs at least 2 runs, got '
+                   f'{len(runs)}; add runs to the manifest')
+            raise ConfigError(msg, file=file, key='runs')
+        return loro_folds(len(runs))
+    if holdout == 'roles':
+        train = [i for i, r in enumerate(runs) if r.cmp.role == 'calibrate']
+        test = [i for i, r in enumerate(runs) if r.cmp.role == 'validate']
+        if not train or not test:
+            msg = ('holdout "roles" needs runs with role calibrate and runs with role '
+                   'validate in the manifest')
+            raise ConfigError(msg, file=file, key='role')
+        return [(train, test)]
+    msg = f'holdout must be one of {", ".join(HOLDOUTS)}, got {holdout!r}'
+    raise ConfigError(msg, file=file, key='holdout')
+
+
+# ----------------------------------------------------------------------------- fitting
+
+def _sse_with(design: Design, cols: list[int], extra: Sequence[np.ndarray],
+              bounds: tuple[np.ndarray, np.ndarray]) -> float:
+    """In-sample SSE of ``cols`` plus extra per-run columns (bounded), pooled over runs."""
+    g_parts, b_parts = [], []
+    for r, c in enumerate(extra):
+        x = np.hstack([design.x[r][:, cols], c])
+        g_parts.append(x.T @ x)
+        b_parts.append(x.T @ design.y[r])
+    g, b = sum(g_parts), sum(b_parts)
+    theta = solve_normal(g, b, np.concatenate([design.lower[cols], bounds[0]]),
+                         np.concatenate([design.upper[cols], bounds[1]]))
+    return float(design.yy.sum() - 2.0 * theta @ b + theta @ g @ theta)
+
+
+def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
+                  others: list[int]) -> Block:
+    """1-D bounded search of a block's single shape parameter around its grid value."""
+    effect = get_effect(block.key[0])
+    shapes = [p for p in effect.params if not p.linear]
+    if len(shapes) != 1:
+        return block
+    par = shapes[0]
+    axis_j = _axis_index(runs, block.key[1])
+    grid = sorted(float(b.shape[par.name]) for b in design.blocks if b.key == block.key)
+    value = float(block.shape[par.name])
+    i = grid.index(value)
+    lo = grid[i - 1] if i > 0 else max(par.low, value / 2.0)
+    hi = grid[i + 1] if i + 1 < len(grid) else min(par.high, value * 2.0)
+    if not hi > lo:
+        return block
+
+    used = [effect.linear_params().index(n) for n in block.names]
+    bounds = (design.lower[list(block.cols)], design.upper[list(block.cols)])
+
+    def columns(value: float) -> list[np.ndarray]:
+        return [_columns(r, block.key[0], axis_j, {par.name: value})[:, used] for r in runs]
+
+    def cost(log_v: float) -> float:
+        return _sse_with(design, others, columns(math.exp(log_v)), bounds)
+
+    res = minimize_scalar(cost, bounds=(math.log(lo), math.log(hi)), method='bounded',
+                          options={'xatol': 1e-3, 'maxiter': 30})
+    best = math.exp(float(res.x))
+    if not float(res.fun) < _sse_with(design, others, [design.x[r][:, list(block.cols)]
+                                                       for r in range(design.runs)], bounds):
+        return block
+    return design.add_block(block.key, {par.name: best}, block.names, columns(best),
+                            bounds=bounds)
+
+
+def _axis_index(runs: Sequence[_Run], axis: str) -> int:
+    return list(runs[0].cmp.axes).index(axis)
+
+
+# ----------------------------------------------------------------------------- main
+
+def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
+                     runs: Sequence[str] | None = None,
+                     options: AnalyzeOptions = AnalyzeOptions(),
+                     progress: Callable[[float], None] | None = None) -> AnalysisResult:
+    """Find the catalog effects the declared model misses; before/after on held-out runs.
+
+    Parameters
+    ----------
+    campaign
+        From :func:`.measured.manifest.load_campaign`.
+    machine
+        The declared model; default: the manifest's machine config.
+    runs
+        Names of the runs to use (default: all).
+    options
+        See :class:`AnalyzeOptions`.
+    progress
+        Called with the finished fraction (0..1).
+
+    Returns
+    -------
+    AnalysisResult
+        Effects, unexplained structure, diagnostics, before/after metrics.
+
+    Raises
+    ------
+    ConfigError, DataError, GcodeError, PlanningError
+        Unusable inputs (never for a poor fit or for finding nothing).
+    """
+    machine_file = ''
+    if machine is None:
+        machine = load_machine(campaign.machine)
+        machine_file = str(campaign.machine)
+    ids = tuple(EFFECTS) if options.effects is None else tuple(options.effects)
+    for effect_id in ids:
+        get_effect(effect_id)
+
+    def report(x: float) -> None:
+        if progress is not None:
+            progress(x)
+
+    cmp = compare_campaign(campaign, machine=machine, runs=runs,
+                           progress=lambda f: report(0.4 * f))
+    # copper and iron as corrections of declared drives (motor-terminal meters, .drivecorr)
+    measures = common_measures(campaign.run(r.name).instrument.measures for r in cmp.runs)
+    data = _prepare(campaign, cmp.runs, machine)
+    axes = cmp.runs[0].axes
+    if any(r.cmp.axes != axes for r in data):
+        msg = 'analyze needs the same measured axes in every run'
+        raise ConfigError(msg, file=str(campaign.file), key='axes')
+    folds = _folds(data, options.holdout, str(campaign.file))
+    report(0.5)
+
+    design = Design([r.residual.reshape(-1) for r in data])
+    for effect_id in ids:
+        for j, axis in enumerate(axes):
+            for shape in _shape_grid(effect_id, data, j, options.shape_grid_points):
+                names, cols, bounds = _block(data, effect_id, j, shape)
+                bounds = correction_bounds(names, bounds, declared_values(
+                    machine, axis, effect_id, measures))
+                if names:
+                    design.add_block((effect_id, axis), shape, names, cols, bounds=bounds)
+    report(0.7)
+
+    sigmas = {a: noise_sigma([r.residual[:, j] for r in data]) for j, a in enumerate(axes)}
+    n_total = float(design.n.sum())
+    sse0 = float(design.yy.sum())
+    noise_ss = sum(sigmas[a] ** 2 * sum(r.residual.shape[0] for r in data) for a in axes)
+    structured0 = max(sse0 - noise_ss, 0.0)
+    # one noise variance for the whole design (axes pooled by their sample counts)
+    sigma2 = noise_ss / n_total if n_total > 0 else math.nan
+
+    chosen = select_consistent(
+        design, folds, options, keys=[(e, a) for e in ids for a in axes],
+        structured0=structured0, noise_ss=noise_ss, sigma2=sigma2,
+        refine=lambda block, others: _refine_shape(design, data, block, others))
+    blocks, steps, rejected = list(chosen.blocks), chosen.steps, list(chosen.rejected)
+    fates = chosen.fates
+    alt = check_alternatives(design, blocks, [(r.state, r.sim_index, r.aligned) for r in data],
+                             axes=axes)
+    if alt is not None:
+        # something outside the catalog fits as well: no catalog effect is claimed
+        rejected.append(alt)
+        claimed = {b.key for b in blocks}
+        fates = tuple(replace(f, fate='not_claimed', reason=alt['message'])
+                      if (f.effect, f.axis) in claimed else f for f in fates)
+        blocks = []
+    report(0.85)
+
+    cols = [c for b in blocks for c in b.cols]
+    all_runs = list(range(design.runs))
+    theta = design.fit(cols, all_runs)
+    jack = np.array([design.fit(cols, [q for q in all_runs if q != r]) for r in all_runs])
+    if len(all_runs) > 1 and cols:
+        se = np.sqrt((len(all_runs) - 1) / len(all_runs)
+                     * np.sum((jack - jack.mean(axis=0)) ** 2, axis=0))
+    else:
+        se = np.full(len(cols), math.nan)
+    mse_full = design.heldout_mse(cols, folds)
+    sse_full = design.total_sse(cols)
+
+    # per-effect figures
+    fitted: list[FittedEffect] = []
+    pos = 0
+    for i, block in enumerate(blocks):
+        effect = get_effect(block.key[0])
+        params = []
+        bound = at_bounds(theta[pos:pos + len(block.cols)], design.lower[list(block.cols)],
+                          design.upper[list(block.cols)])
+        for name, on in zip(block.names, bound):
+            unit = next(p.unit for p in effect.params if p.name == name)
+            params.append(ParamEstimate(name, float(theta[pos]), unit,
+                                        float(se[pos]) if math.isfinite(se[pos]) else None,
+                                        'jackknife over runs', at_bound=on))
+            pos += 1
+        for name, value in block.shape.items():
+            unit = next(p.unit for p in effect.params if p.name == name)
+            params.append(ParamEstimate(name, float(value), unit, None, 'profile search'))
+        without = [c for k, b in enumerate(blocks) if k != i for c in b.cols]
+        drop = design.total_sse(without) - sse_full
+        mse_wo = design.heldout_mse(without, folds)
+        gain = float(np.mean([mse_wo[r] - mse_full[r] for r in mse_full]))
+        rel = float(np.mean([(mse_wo[r] - mse_full[r]) / mse_wo[r] for r in mse_full
+                             if mse_wo[r] > 0.0]))
+        aliases = []
+        seen = set()
+        for other in design.blocks:
+            if other.key in seen or other.key in {b.key for b in blocks}:
+                continue
+            alt = design.heldout_mse(without + list(other.cols), folds)
+            alt_mean = float(np.mean(list(alt.values())))
+            full_mean = float(np.mean(list(mse_full.values())))
+            wo_mean = float(np.mean(list(mse_wo.values())))
+            if alt_mean <= full_mean + 0.1 * (wo_mean - full_mean):
+                aliases.append(label(other.key))
+                seen.add(other.key)
+        corrects = declared_values(machine, block.key[1], block.key[0], measures) is not None
+        fitted.append(FittedEffect(
+            id=block.key[0], axis=block.key[1], params=tuple(params),
+            correction=describe_correction(machine, block.key[0], block.key[1],
+                                           {p.name: p.value for p in params})
+            if corrects else None,
+            share_of_residual=drop / sse0 if sse0 > 0 else 0.0,
+            share_of_structured=min(max(drop / structured0, 0.0), 1.0) if structured0 > 0
+            else 0.0,
+            heldout_gain_w2=gain, heldout_gain_rel=rel,
+            heterogeneity=heterogeneity(design, blocks, i, sigma2)[0],
+            aliases=tuple(aliases)))
+
+    # selected effects whose power other candidates reproduce within the noise: one finding
+    periods = [float(np.median(np.diff(r.cmp.t))) if r.cmp.t.size > 1 else 0.0 for r in data]
+    groups = find_groups(design, blocks, theta, sigma2=sigma2,
+                         keys=[(e, a) for e in ids for a in axes], periods_s=periods, axes=axes)
+
+    # in-sample residual after (diagnostics, at the baseline offset); the before/after
+    # figures are fresh comparisons with the effects declared, offsets estimated anew
+    # (:mod:`.realign`)
+    names = [r.cmp.name for r in data]
+    full_machine = (machine_with(machine, blocks, theta, measures=measures) if options.realign
+                    else machine)
+    augmented = realigned_runs(campaign, full_machine, names,
+                               baseline=cmp.runs if full_machine is machine else ())
+    after_cmp = dict(enumerate(augmented))
+    for train, test in folds if options.realign else ():
+        fold_machine = machine_with(machine, blocks, design.fit(cols, train),
+                                    measures=measures)
+        base = cmp.runs if fold_machine is machine else ()
+        after_cmp.update(zip(test, realigned_runs(campaign, fold_machine,
+                                                  [names[r] for r in test], baseline=base)))
+    held = {r for _, test in folds for r in test}
+    outcomes = []
+    residual_after = []
+    for r, run in enumerate(data):
+        m, k = run.residual.shape
+        insample = design.predict(cols, theta, r).reshape(m, k)
+        residual_after.append(run.residual - insample)
+        c, a = run.cmp, after_cmp[r]
+        outcomes.append(RunOutcome(
+            name=c.name, load_kg=c.load_kg, role=c.role, heldout=r in held, before=c.metrics,
+            after=a.metrics, t=c.t, meas_w=c.total_meas_w, sim_w=c.total_sim_w,
+            after_w=a.total_sim_w, residual_before_w=run.residual,
+            residual_after_w=residual_after[-1], states=run.states,
+            offset_before=offset_dict(c.offset, used_s=c.offset_used_s),
+            offset_after=offset_dict(a.offset, used_s=a.offset_used_s)))
+
+    diag_before, spectra_before = diagnose_runs(data, [r.residual for r in data], sigmas,
+                                                names=STATE_NAMES)
+    diag_after, spectra_after = diagnose_runs(data, residual_after, sigmas, names=STATE_NAMES)
+    spectra = {a: (spectra_before[a][0], spectra_before[a][1], spectra_after[a][1])
+               for a in axes}
+    unexplained = list(rejected)
+    for d in diag_after:
+        if d.structured:
+            unexplained.append({'diagnostic': d.name, 'axis': d.axis, 'effect': None,
+                                'statistic': d.statistic, 'message': d.message})
+    explained = (min(max(1.0 - (sse_full - noise_ss) / structured0, 0.0), 1.0)
+                 if structured0 > 0 else math.nan)
+    uses = {axis: [RangeUse(run=r.cmp.name, load_kg=r.cmp.load_kg,
+                            speed_m_s=np.abs(r.states['velocity'][:, j]),
+                            accel_m_s2=r.states['acceleration'][:, j],
+                            position_m=r.states['position'][:, j]) for r in data]
+            for j, axis in enumerate(axes)}
+    warnings = machine_warnings(machine, uses)
+    status, message = _verdict(fitted, unexplained, steps, data, folds, explained, groups)
+    if chosen.cap_reached:
+        message += (f'; the consistency loop reached its cap of {options.max_rounds} rounds '
+                    '(kept the effects consistent in its last round; see candidates)')
+    report(1.0)
+    return AnalysisResult(
+        status=status, message=message, campaign=cmp.campaign, manifest=cmp.manifest,
+        machine=machine, machine_file=machine_file, holdout=options.holdout, axes=axes,
+        noise_sigma_w=sigmas, runs=tuple(outcomes), effects=tuple(fitted),
+        unexplained=tuple(unexplained), diagnostics_before=tuple(diag_before),
+        diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra,
+        augmented=tuple(augmented_outcome(c) for c in augmented),
+        alignment_warnings=tuple(cmp.warnings),
+        candidates=mark_groups(fates, groups), warnings=tuple(warnings),
+        ambiguous=tuple(groups),
+        calibrated={a: observed_range(u) for a, u in uses.items()}, rounds=chosen.rounds,
+        cap_reached=chosen.cap_reached)
+
+
+def _verdict(fitted, unexplained, steps, data, folds, explained,
+             groups=()) -> tuple[str, str]:
+    n_test = len({r for _, test in folds for r in test})
+    names = found_text(fitted, groups)
+    share = (f' ({100 * explained:.0f} % of the structured residual explained)'
+             if math.isfinite(explained) else '')
+    if n_test < 2:
+        return 'too_few_runs', ('fewer than 2 held-out runs: no effect can be shown to '
+                                'improve held-out error')
+    if fitted and unexplained:
+        return 'partial', (f'added {names}{share}; structure remains that no catalog effect '
+                           f'explains: {"; ".join(u["diagnostic"] for u in unexplained)}')
+    if fitted:
+        return 'effects', f'added {names}{share}; no structure left beyond the noise'
+    if unexplained:
+        return 'unexplained', ('the residual has structure ('
+                               + '; '.join(u['diagnostic'] for u in unexplained)
+                               + ') that no catalog effect explains consistently')
+    last = steps[-1].reason if steps else 'no candidate'
+    return 'clean', f'no effect added ({last}); no structure beyond the noise'

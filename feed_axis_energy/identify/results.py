@@ -1,0 +1,319 @@
+"""What :func:`.analyze.analyze_campaign` returns: options, fitted effects with their
+uncertainties, per-run before/after outcomes and the whole result (``to_dict`` gives the
+JSON of ``docs/analyze.md``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from ..machine import CalibratedRange, DeclaredEffect, Machine
+from ..effects import get_effect
+from ..measured import group_metrics, json_clean, Metrics
+from .ambiguity import AmbiguousGroup
+from .consistency import Fate
+from .diagnostics import Diagnostic
+from .drivecorr import fold_corrections
+from .selection import Step
+
+__all__ = ['AnalyzeOptions', 'AnalysisResult', 'FittedEffect', 'ParamEstimate', 'RunOutcome',
+           'HOLDOUTS', 'STATE_NAMES']
+
+HOLDOUTS = ('loro', 'roles')
+STATE_NAMES = ('velocity', 'position', 'acceleration', 'time')
+
+
+@dataclass(frozen=True)
+class AnalyzeOptions:
+    """Settings of :func:`analyze_campaign`.
+
+    Attributes
+    ----------
+    holdout
+        ``'loro'`` (leave one run out) or ``'roles'`` (fit on ``calibrate`` runs, score on
+        ``validate`` runs of the manifest).
+    effects
+        Catalog ids to consider (default: all).
+    se_factor, min_gain
+        Acceptance: mean relative held-out gain above ``se_factor`` standard errors and
+        above ``min_gain`` (see :func:`.selection.forward_select`).
+    max_effects
+        Most effects added.
+    max_heterogeneity, heterogeneity_alpha
+        An effect is inconsistent across runs when per-run refits add more than
+        ``max_heterogeneity`` of what it explains and that improvement is significant
+        against the noise (chi-square probability below ``heterogeneity_alpha``).
+    min_share
+        Smallest share of the structured baseline residual an effect must explain to stay
+        (pruning after the forward pass; see :func:`_prune`).
+    min_explained
+        The selected effects together must explain at least this share of the structured
+        baseline residual; otherwise none is claimed (the structure is reported instead).
+    shape_grid_points
+        Grid size of each shape parameter before the refinement.
+    max_rounds
+        Cap of the consistency loop (selection redone without inconsistent effects); when
+        reached, the effects consistent in the last round are kept and the result says so.
+    realign
+        ``False`` skips the re-aligned before/after comparisons (:mod:`.realign`): *after*
+        and ``augmented`` are then the baseline comparison, unchanged. The findings are the
+        same; for studies that need only them (``bench/detection_power.py``), a third less
+        work.
+    """
+
+    holdout: str = 'loro'
+    effects: tuple[str, ...] | None = None
+    se_factor: float = 2.0
+    min_gain: float = 0.01
+    max_effects: int = 4
+    max_heterogeneity: float = 0.05
+    heterogeneity_alpha: float = 1e-3
+    min_share: float = 0.01
+    min_explained: float = 0.5
+    shape_grid_points: int = 8
+    max_rounds: int = 6
+    realign: bool = True
+
+
+@dataclass(frozen=True)
+class ParamEstimate:
+    """A fitted effect parameter: value, unit and standard uncertainty (``None``: none).
+
+    ``at_bound`` is ``'lower'`` or ``'upper'`` when the bounded fit put the value on that
+    physical bound (the data would push it further: an impossible value, not a finding).
+    """
+
+    name: str
+    value: float
+    unit: str
+    uncertainty: float | None
+    method: str
+    at_bound: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict."""
+        return {'name': self.name, 'value': self.value, 'unit': self.unit,
+                'uncertainty': self.uncertainty, 'method': self.method,
+                'at_bound': self.at_bound}
+
+
+@dataclass(frozen=True)
+class FittedEffect:
+    """A selected effect.
+
+    Attributes
+    ----------
+    id, axis
+        Catalog id and measured axis.
+    params
+        Linear parameters (jackknife uncertainty) then shape parameters.
+    share_of_residual
+        Drop in the in-sample residual sum of squares when the effect is added last,
+        relative to the baseline residual sum of squares.
+    share_of_structured
+        The same relative to the structured part of the baseline residual
+        (``SSE - N sigma²``), clipped to [0, 1].
+    heldout_gain_w2, heldout_gain_rel
+        Mean over held-out runs of ``mse(without it) - mse(with it)`` [W²] and of the same
+        relative to ``mse(without it)``.
+    heterogeneity
+        Share of its explained variance per-run refits would add (0: same on every run).
+    aliases
+        Candidates that fit nearly as well in its place (``id@axis``).
+    correction
+        When the effect corrects a declared drive (:mod:`.drivecorr`): the declared value,
+        the change (the fitted parameters) and the corrected value, else ``None``.
+    """
+
+    id: str
+    axis: str
+    params: tuple[ParamEstimate, ...]
+    share_of_residual: float
+    share_of_structured: float
+    heldout_gain_w2: float
+    heldout_gain_rel: float
+    heterogeneity: float
+    aliases: tuple[str, ...] = ()
+    correction: dict[str, Any] | None = None
+
+    def values(self) -> dict[str, float]:
+        """Parameter values by name."""
+        return {p.name: p.value for p in self.params}
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict (keys in docs/analyze.md)."""
+        return {'id': self.id, 'axis': self.axis,
+                'parameters': [p.to_dict() for p in self.params],
+                'share_of_residual': self.share_of_residual,
+                'share_of_structured_residual': self.share_of_structured,
+                'heldout_gain_w2': self.heldout_gain_w2,
+                'heldout_gain_rel': self.heldout_gain_rel,
+                'heterogeneity': self.heterogeneity,
+                'aliases': list(self.aliases)} | (
+                    {} if self.correction is None else {'correction': self.correction})
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """One run before and after (series on the measured stamps, sums of measured axes).
+
+    ``heldout`` is ``False`` for ``calibrate`` runs with ``holdout='roles'``: their
+    ``after`` is in-sample and they are left out of the overall before/after.
+    ``offset_before`` / ``offset_after``: the offset estimates (``compare --json``'s
+    ``offset`` objects) of the baseline and of the re-aligned *after* comparison.
+    """
+
+    name: str
+    load_kg: float
+    role: str | None
+    heldout: bool
+    before: Metrics
+    after: Metrics
+    t: np.ndarray = field(repr=False)
+    meas_w: np.ndarray = field(repr=False)
+    sim_w: np.ndarray = field(repr=False)
+    after_w: np.ndarray = field(repr=False)
+    residual_before_w: np.ndarray = field(repr=False)
+    residual_after_w: np.ndarray = field(repr=False)
+    states: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+    offset_before: dict[str, Any] | None = None
+    offset_after: dict[str, Any] | None = None
+
+
+@dataclass(frozen=True)
+class AnalysisResult:
+    """Outcome of :func:`analyze_campaign`; a poor fit or no finding is a result.
+
+    Attributes
+    ----------
+    status
+        ``'effects'`` (effects found, no structure left), ``'partial'`` (effects found,
+        structure left), ``'unexplained'`` (structure, no catalog effect explains it),
+        ``'clean'`` (no effect, no structure), ``'too_few_runs'``.
+    message
+        One sentence.
+    alignment_warnings
+        The baseline comparison's offset and instrument warnings (``compare``'s).
+    candidates
+        The fate of every candidate ``(effect, axis)`` (:class:`.consistency.Fate`).
+    warnings
+        Loss functions applied outside the speeds/loads they were calibrated on
+        (:func:`..calibrated.range_warnings`).
+    calibrated
+        Axis -> the steady speeds, loads and positions of the campaign: written with each
+        added effect into the augmented machine (``calibrated``).
+    rounds, cap_reached
+        Rounds of the consistency loop and whether its cap was reached.
+    ambiguous
+        Findings the data cannot attribute to one effect (:mod:`.ambiguity`): selected
+        effects whose power other candidates reproduce within the noise, with their forms.
+    """
+
+    status: str
+    message: str
+    campaign: str
+    manifest: str
+    machine: Machine
+    machine_file: str
+    holdout: str
+    axes: tuple[str, ...]
+    noise_sigma_w: dict[str, float]
+    runs: tuple[RunOutcome, ...]
+    effects: tuple[FittedEffect, ...]
+    unexplained: tuple[dict[str, Any], ...]
+    diagnostics_before: tuple[Diagnostic, ...]
+    diagnostics_after: tuple[Diagnostic, ...]
+    steps: tuple[Step, ...]
+    spectra: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
+        repr=False, default_factory=dict)
+    augmented: tuple[dict[str, Any], ...] = ()
+    alignment_warnings: tuple[str, ...] = ()
+    candidates: tuple[Fate, ...] = ()
+    warnings: tuple[str, ...] = ()
+    calibrated: dict[str, CalibratedRange | None] = field(default_factory=dict)
+    rounds: int = 0
+    cap_reached: bool = False
+    ambiguous: tuple[AmbiguousGroup, ...] = ()
+
+    @property
+    def heldout_runs(self) -> tuple[RunOutcome, ...]:
+        """Runs scored by a fit without them."""
+        return tuple(r for r in self.runs if r.heldout)
+
+    @property
+    def before(self) -> Metrics:
+        """Pooled baseline metrics of the held-out runs."""
+        return group_metrics([r.before for r in self.heldout_runs])
+
+    @property
+    def after(self) -> Metrics:
+        """Pooled held-out metrics with the selected effects."""
+        return group_metrics([r.after for r in self.heldout_runs])
+
+    def by_load(self) -> list[tuple[float, Metrics, Metrics]]:
+        """``[(load_kg, before, after), ...]`` of held-out runs, by increasing load."""
+        loads = sorted({r.load_kg for r in self.heldout_runs})
+        return [(load, group_metrics([r.before for r in self.heldout_runs
+                                      if r.load_kg == load]),
+                 group_metrics([r.after for r in self.heldout_runs if r.load_kg == load]))
+                for load in loads]
+
+    def augmented_machine(self) -> Machine:
+        """The declared machine plus the selected effects with their fitted parameters.
+
+        Effects that describe the comparison rather than the machine (``time_offset``: how
+        the two records line up, which ``compare`` estimates anew for every run) are left out.
+        """
+        added = tuple(DeclaredEffect(id=e.id, axis=e.axis,
+                                     params=tuple((p.name, float(p.value)) for p in e.params),
+                                     calibrated=self.calibrated.get(e.axis))
+                      for e in self.effects
+                      if get_effect(e.id).machine_property and e.correction is None)
+        # corrections of a declared drive change its data-sheet values (.drivecorr)
+        machine = fold_corrections(self.machine, [(e.id, e.axis, e.values())
+                                                  for e in self.effects
+                                                  if e.correction is not None])
+        return replace(machine, effects=machine.effects + added)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able summary (keys in docs/analyze.md); NaN becomes ``None``."""
+        def metrics(which: str) -> dict[str, Any]:
+            held = self.heldout_runs
+            return {
+                'total': (self.before if which == 'before' else self.after).to_dict(),
+                'loads': [{'load_kg': load, 'metrics': (b if which == 'before' else a).to_dict()}
+                          for load, b, a in self.by_load()],
+                'runs': [{'name': r.name, 'load_kg': r.load_kg, 'role': r.role,
+                          'metrics': getattr(r, which).to_dict(),
+                          'offset': getattr(r, f'offset_{which}')} for r in held],
+            }
+        return json_clean({
+            'campaign': self.campaign,
+            'manifest': self.manifest,
+            'machine': self.machine.name,
+            'machine_file': self.machine_file,
+            'holdout': self.holdout,
+            'status': self.status,
+            'message': self.message,
+            'noise_sigma_w': self.noise_sigma_w,
+            'before': metrics('before'),
+            'after': metrics('after'),
+            'effects': [e.to_dict() for e in self.effects],
+            'ambiguous': [g.to_dict() for g in self.ambiguous],
+            'augmented': list(self.augmented),
+            'alignment_warnings': list(self.alignment_warnings),
+            'unexplained': [dict(u) for u in self.unexplained],
+            'diagnostics': {'before': [d.to_dict() for d in self.diagnostics_before],
+                            'after': [d.to_dict() for d in self.diagnostics_after]},
+            'selection': [{'effect': s.key[0], 'axis': s.key[1],
+                           'shape': {k: float(v) for k, v in s.shape.items()},
+                           'heldout_gain_rel': s.mean_gain, 'heldout_gain_se': s.se_gain,
+                           'bic_before': s.bic_before, 'bic_after': s.bic_after,
+                           'accepted': s.accepted, 'reason': s.reason}
+                          for s in self.steps],
+            'candidates': [f.to_dict() for f in self.candidates],
+            'consistency': {'rounds': self.rounds, 'cap_reached': self.cap_reached},
+            'warnings': list(self.warnings),
+        })

@@ -1,0 +1,26 @@
+"""Measured runs: campaign manifests, CSV and bag runs, alignment, metrics, comparison.
+
+Typical use::
+
+    campaign = load_campaign('config/campaigns/umich_mill.yaml')
+    run = load_run(campaign.run('exp01'))
+    result = compare_campaign(campaign, machine=machine)
+"""
+from .align import align_simulated, estimate_offset, interval_average, OffsetResult, stamp_shift
+from .campaign import Campaign, ColumnSpec, RowFilter, RunSpec
+from .compare import (compare_campaign, compare_one_run, DEFAULT_MAX_LAG_S, MotionCache,
+                      simulate_declared)
+from .comparison import CampaignComparison, json_clean, offset_dict, RunComparison
+from .csvload import load_run
+from .importer import import_campaign
+from .manifest import campaign_from_dict, load_campaign
+from .metrics import group_metrics, Metrics, table1_metrics
+from .run import GAP_FACTOR, MeasuredRun
+
+__all__ = [
+    'align_simulated', 'Campaign', 'campaign_from_dict', 'CampaignComparison', 'ColumnSpec',
+    'compare_campaign', 'compare_one_run', 'DEFAULT_MAX_LAG_S', 'estimate_offset', 'GAP_FACTOR',
+    'group_metrics', 'import_campaign', 'interval_average', 'json_clean', 'load_campaign',
+    'load_run', 'MeasuredRun', 'Metrics', 'MotionCache', 'offset_dict', 'OffsetResult',
+    'RowFilter', 'RunComparison', 'RunSpec', 'simulate_declared', 'stamp_shift', 'table1_metrics',
+]

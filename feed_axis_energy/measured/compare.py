@@ -1,0 +1,315 @@
+"""Compare a campaign of measured runs with the simulation: alignment, Table-1 metrics, groups.
+
+For every run: load the measured data (:func:`.csvload.load_run`); build the motion from the
+run's NC program (planned with the machine's limits) or from the data's own commanded or
+actual positions; simulate with the run's load; estimate how much later the measured record
+is than the simulated one (:func:`.align.estimate_offset`, on the summed power of the
+measured axes); average the simulated power over each measuring interval
+(:func:`.align.align_simulated`, the instrument model, never point samples) and compute the
+Table-1 metrics (:func:`.metrics.table1_metrics`) per measured axis and for their sum.
+Runs are pooled by load (:func:`.metrics.group_metrics`), as the paper's Table 1 does.
+
+Offset policy: the estimate is used unless its status is ``'weak'`` (peak correlation below
+``min_correlation`` or a constant signal), in which case the run is compared at offset 0 and
+the status and message are carried into the result. A poor match is a result, not an error.
+
+"total" means the sum over the axes that have a measured power column; simulated axes
+without a measured counterpart (e.g. a Z axis without a power column) are left out of it.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError, DataError
+from ..gcode import load_gcode
+from ..machine import load_machine, Machine
+from ..plan import Motion, motion_from_samples, plan
+from ..sim import simulate_motion, SimulationResult
+from ..physics import relative_sd_pct
+from .align import align_simulated, estimate_offset, OffsetResult
+from .csvload import load_run
+from .run import MeasuredRun
+from .campaign import Campaign, default_instrument, RunSpec
+from .comparison import CampaignComparison, GroupComparison, RunComparison
+from .instrument import check_instrument
+from .motiondata import reconstruct_motion
+from .states import residual_by_state, state_labels
+from .metrics import group_metrics, table1_metrics
+
+__all__ = ['DEFAULT_MAX_LAG_S', 'compare_campaign', 'compare_run']
+
+DEFAULT_MAX_LAG_S = 5.0
+"""Largest time offset searched by default, in either direction [s]."""
+
+
+class MotionCache:
+    """Plans each NC program once; runs that share a program differ only in load."""
+
+    def __init__(self, machine: Machine):
+        self.machine = machine
+        self._plans: dict[Path, Motion] = {}
+
+    def program_motion(self, path: Path) -> Motion:
+        if path not in self._plans:
+            program = load_gcode(path, **self.machine.gcode_keywords())
+            self._plans[path] = plan(program, self.machine.limits(),
+                                     options=self.machine.planner.options())
+        return self._plans[path]
+
+
+def simulate_declared(spec: RunSpec, run: MeasuredRun, machine: Machine,
+                      cache: MotionCache) -> tuple[SimulationResult, str]:
+    if spec.motion_program is not None:
+        motion = cache.program_motion(spec.motion_program)
+        source = str(spec.motion_program)
+    else:
+        kind = spec.motion_from_data or 'commanded'
+        # Measured velocity/acceleration columns, where mapped, beat differentiated positions.
+        vel, acc = run.derivatives(kind)
+        where = f'{run.file} ({kind} positions)'
+        rate = machine.planner.rate_hz
+        if spec.motion_reconstruct == 'pulses' and float(np.median(np.diff(run.t))) > 1.5 / rate:
+            # coarse samples: accelerations between the stamps from positions and velocities
+            motion = reconstruct_motion(run.t, run.positions(kind), axes=run.axes,
+                                        rate_hz=rate, vel=vel, acc=acc, source=where)
+        else:
+            motion = motion_from_samples(run.t, run.positions(kind), axes=run.axes,
+                                         source=where, vel=vel, acc=acc)
+        source = f'data:{kind}'
+    return simulate_motion(motion, machine, load_kg=spec.load_kg), source
+
+
+def _sim_columns(spec: RunSpec, sim: SimulationResult, machine: Machine) -> np.ndarray:
+    """Simulated power of the run's measured axes, ``(m, k)``; axes the motion lacks are 0.
+
+    What the meter measures (``instrument.measures``): the shaft power after the braking rule,
+    or the electrical power of the declared drives at the motor terminals or the drive's
+    supply side (``docs/electrical.md``).
+    """
+    p = sim.power
+    measures = spec.instrument.measures
+    source = p.power_w
+    if measures != 'shaft':
+        if p.electrical is None:
+            msg = (f'the meter measures {measures} power, but machine {machine.name!r} '
+                   'declares no motors and drives (axes.<A>.drive, docs/electrical.md)')
+            raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.instrument.measures')
+        source = p.electrical.motor_w if measures == 'motor' else p.electrical.supply_w
+    cols = []
+    for axis in spec.power_axes:
+        if axis in p.axes:
+            cols.append(source[:, p.axes.index(axis)])
+        elif axis in machine.axis_names:
+            # An axis that never moves has omega = 0, hence zero actual power (eq. 1).
+            cols.append(np.zeros(p.t.shape[0]))
+        else:
+            msg = (f'measured axis {axis!r} is not an axis of machine {machine.name!r} '
+                   f'{machine.axis_names}')
+            raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.axes.{axis}')
+    return np.column_stack(cols)
+
+
+def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_MAX_LAG_S,
+                window_s: float | None = None, offset_s: float | None = None,
+                min_correlation: float = 0.5, floor_fraction: float = 0.05,
+                stamp: str | None = None) -> RunComparison:
+    """Compare one measured run with its simulation.
+
+    Parameters
+    ----------
+    spec
+        The run (from a campaign manifest).
+    machine
+        The machine model.
+    max_lag_s
+        Largest offset searched, in either direction [s].
+    window_s
+        Measuring interval [s] (0: point samples); default: the run's instrument
+        (declared in the manifest, else :func:`.campaign.default_instrument`).
+    offset_s
+        Compare at this offset instead of estimating one (status ``'fixed'``).
+    stamp
+        Where the meter stamps its window; default: the run's instrument.
+    min_correlation
+        Below this peak correlation the estimate is ``'weak'`` and offset 0 is used.
+    floor_fraction
+        Floor of the percentual error, as a fraction of the run's peak measured power.
+
+    Returns
+    -------
+    RunComparison
+        Offset, metrics and the aligned series.
+
+    Raises
+    ------
+    DataError, ConfigError, GcodeError, PlanningError
+        Unreadable data, program or a run that does not fit the machine (never for a poor
+        match).
+    """
+    return compare_one_run(spec, machine, MotionCache(machine), max_lag_s=max_lag_s,
+                           window_s=window_s, offset_s=offset_s, min_correlation=min_correlation,
+                           floor_fraction=floor_fraction, stamp=stamp)
+
+
+def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_lag_s: float,
+                    window_s: float | None, offset_s: float | None, min_correlation: float,
+                    floor_fraction: float, stamp: str | None = None,
+                    check_meter: bool = True) -> RunComparison:
+    run = load_run(spec)
+    sim, source = simulate_declared(spec, run, machine, cache)
+    sim_w = _sim_columns(spec, sim, machine)
+    meter = (spec.instrument if spec.instrument.declared
+             else default_instrument(spec.motion_from_data))
+    period = float(np.median(np.diff(run.t)))
+    window = meter.window_for(period) if window_s is None else float(window_s)
+    stamp = meter.stamp if stamp is None else stamp
+    if window_s is not None or stamp != meter.stamp:
+        meter = replace(meter, window_s=window, stamp=stamp, declared=True)
+    if not np.isfinite(sim_w).all():
+        sample = int(np.flatnonzero(~np.isfinite(sim_w).all(axis=1))[0]) + 1
+        msg = (f'the simulation of this run overflowed (simulated power sample {sample} is '
+               'not finite); check the run\'s kinematics and the machine config')
+        raise DataError(msg, file=run.file)
+    if offset_s is None:
+        try:
+            found = estimate_offset(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
+                                    max_lag_s=max_lag_s, window_s=window, stamp=stamp,
+                                    min_correlation=min_correlation)
+        except DataError as err:
+            msg = f'the time offset cannot be estimated: {err.reason}'
+            raise DataError(msg, file=run.file, column=err.column) from err
+        used = 0.0 if found.status == 'weak' else found.offset_s
+        if found.status == 'weak':
+            found = replace(found, message=f'{found.message}; compared at offset 0')
+    else:
+        used = float(offset_s)
+        found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')
+    try:
+        aligned = align_simulated(sim.power.t, sim_w, run.t, offset_s=used, window_s=window,
+                                  stamp=stamp)
+        fits = ()
+        if check_meter and offset_s is None and found.status != 'weak':
+            fits = check_instrument(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
+                                    offset_s=used, window_s=window, stamp=stamp,
+                                    same_clock=spec.motion_program is None)
+    except DataError as err:
+        # align names its arrays only; the run's file is the place the user can act on
+        msg = f'simulated power cannot be aligned: {err.reason}'
+        raise DataError(msg, file=run.file, column=err.column) from err
+    meas = run.power_w
+    where = {'file': run.file, 'rows': run.extra.get('rows'), 'floor_fraction': floor_fraction}
+    total = table1_metrics(run.t, meas.sum(axis=1), aligned.sum(axis=1),
+                           columns=('time', 'measured total power', 'simulated total power'),
+                           **where)
+    per_axis = {a: table1_metrics(run.t, meas[:, j], aligned[:, j],
+                                  columns=('time', f'measured {a} power',
+                                           f'simulated {a} power'), **where)
+                for j, a in enumerate(spec.power_axes)}
+    labels = state_labels(sim.motion.t, sim.motion.vel, run.t - used,
+                          period_s=period)
+    states = residual_by_state(labels, meas.sum(axis=1) - aligned.sum(axis=1))
+    return RunComparison(
+        name=spec.name, role=spec.role, load_kg=spec.load_kg, data_file=run.file,
+        motion_source=source, axes=spec.power_axes, window_s=window, offset=found,
+        offset_used_s=used, metrics=total, axis_metrics=per_axis, t=run.t,
+        power_meas_w=meas, power_sim_w=aligned,
+        sim_duration_s=float(sim.power.t[-1] - sim.power.t[0]),
+        excluded_rows=int(run.extra.get('excluded_rows', 0)), stamp=stamp,
+        instrument=meter.describe(period), meter_fits=fits, states=states,
+        energy_sd_pct=relative_sd_pct(sim, spec.power_axes),
+    )
+
+
+def _groups(runs: Sequence[RunComparison]) -> tuple[GroupComparison, ...]:
+    by_load: dict[float, list[RunComparison]] = {}
+    for r in runs:
+        by_load.setdefault(r.load_kg, []).append(r)
+    out = []
+    for load in sorted(by_load):
+        members = by_load[load]
+        shared = [a for a in members[0].axes if all(a in m.axes for m in members)]
+        out.append(GroupComparison(
+            load_kg=load, runs=tuple(m.name for m in members),
+            metrics=group_metrics([m.metrics for m in members]),
+            axis_metrics={a: group_metrics([m.axis_metrics[a] for m in members])
+                          for a in shared}))
+    return tuple(out)
+
+
+def compare_campaign(campaign: Campaign, *, machine: Machine | None = None,
+                     runs: Sequence[str] | None = None, max_lag_s: float = DEFAULT_MAX_LAG_S,
+                     window_s: float | None = None, min_correlation: float = 0.5,
+                     floor_fraction: float = 0.05, stamp: str | None = None,
+                     progress: Callable[[float], None] | None = None) -> CampaignComparison:
+    """Compare every (or the named) run of a campaign with the simulation.
+
+    Parameters
+    ----------
+    campaign
+        From :func:`.manifest.load_campaign`.
+    machine
+        The machine model; default: the manifest's machine config.
+    runs
+        Names of the runs to compare, in this order; default: all, in manifest order.
+    max_lag_s
+        Largest time offset searched, in either direction [s].
+    window_s
+        Measuring interval [s] (0: point samples); default: each run's instrument.
+    stamp
+        Where the meter stamps its window; default: each run's instrument.
+    min_correlation
+        Peak correlation below which an offset estimate is ``'weak'`` (then offset 0).
+    floor_fraction
+        Floor of the percentual error, as a fraction of each run's peak measured power.
+    progress
+        Called with the finished fraction (0..1) after every run.
+
+    Returns
+    -------
+    CampaignComparison
+        Per-run results and per-load groups.
+
+    Raises
+    ------
+    ConfigError
+        Unknown run names (naming the known ones), a bad machine config or a run whose
+        axes the machine lacks.
+    DataError, GcodeError, PlanningError
+        Unusable data or programs.
+    """
+    if not (math.isfinite(max_lag_s) and max_lag_s >= 0.0):
+        msg = f'max_lag_s must be a finite number >= 0, got {max_lag_s!r}'
+        raise ConfigError(msg, file=str(campaign.file), key='max_lag_s')
+    if runs is None:
+        specs = list(campaign.runs)
+    else:
+        known = [r.name for r in campaign.runs]
+        missing = [n for n in runs if n not in known]
+        if missing:
+            msg = f'no run named {missing[0]!r}; runs are {", ".join(known)}'
+            raise ConfigError(msg, file=str(campaign.file), key='runs')
+        specs = [campaign.run(n) for n in runs]
+        if not specs:
+            raise ConfigError('no runs selected', file=str(campaign.file), key='runs')
+    machine_file = ''
+    if machine is None:
+        machine = load_machine(campaign.machine)
+        machine_file = str(campaign.machine)
+    cache = MotionCache(machine)
+    results = []
+    for i, spec in enumerate(specs):
+        results.append(compare_one_run(spec, machine, cache, max_lag_s=max_lag_s,
+                                       window_s=window_s,
+                                       offset_s=None, min_correlation=min_correlation,
+                                       floor_fraction=floor_fraction, stamp=stamp))
+        if progress is not None:
+            progress((i + 1) / len(specs))
+    return CampaignComparison(
+        campaign=campaign.name, manifest=str(campaign.file), machine=machine.name,
+        machine_file=machine_file, max_lag_s=float(max_lag_s), runs=tuple(results),
+        groups=_groups(results))

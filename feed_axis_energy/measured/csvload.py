@@ -1,0 +1,174 @@
+"""Load one measured run from CSV into SI arrays, all or nothing.
+
+The file is read once with the :mod:`csv` module; rows matching the manifest's
+``rows.exclude_where`` filters are dropped first, then every mapped column is parsed, checked
+(numbers, finite, no empty cells) and converted to SI once. Time is either a column or the
+original row index times ``period_s``, so rows removed by a filter leave a visible gap.
+Errors are :class:`~feed_axis_energy.errors.DataError` naming file, column and the
+1-based data row as counted in the file (row 1 is the first line after the header).
+"""
+from __future__ import annotations
+
+import difflib
+from typing import Any
+
+import numpy as np
+
+from ..csvtable import column_values, MIN_STEP_S, read_csv_table
+from ..errors import DataError, shorten
+from ..units import check_si_values, to_si
+from .campaign import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, ColumnSpec, RowFilter, RunSpec
+from .run import check_duration, GAP_FACTOR, MeasuredRun
+
+__all__ = ['load_run']
+
+_FIELD = {
+    'position': 'position_m',
+    'velocity': 'velocity_m_s',
+    'acceleration': 'acceleration_m_s2',
+    'command_position': 'command_position_m',
+    'command_velocity': 'command_velocity_m_s',
+    'command_acceleration': 'command_acceleration_m_s2',
+}
+
+
+def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredRun:
+    """Read the run's CSV file, filter rows, validate and convert to SI.
+
+    Parameters
+    ----------
+    spec
+        The run from :func:`~feed_axis_energy.measured.manifest.load_campaign`.
+    min_duration_s
+        Reject runs shorter than this [s]; default ``spec.min_duration_s``.
+
+    Returns
+    -------
+    MeasuredRun
+        The run; nothing is returned half-loaded.
+
+    Raises
+    ------
+    DataError
+        Naming file, column and 1-based data row: missing column (with the closest header
+        name), non-numeric, empty, NaN or infinite cell, duplicate or decreasing time, a gap
+        longer than 1.5 median periods (unless ``spec.allow_gaps``), an empty file or one
+        with a header only, or a run shorter than ``min_duration_s``.
+    """
+    file = str(spec.data)
+    if spec.data_kind != 'csv':
+        # imported here: bagload builds on this module
+        from .bagload import load_run_from_bag
+        return load_run_from_bag(spec, min_duration_s=min_duration_s)
+    header, rows, numbers = read_csv_table(spec.data)
+    index = _column_index(header, spec, file)
+    # Position among data rows (blank lines skipped): the sample index when time = i * period.
+    sample = np.arange(len(rows))
+    keep = np.ones(len(rows), dtype=bool)
+    for filt in spec.exclude:
+        keep &= ~_matches(filt, rows, index[filt.column], numbers, file)
+    kept = [row for row, k in zip(rows, keep) if k]
+    numbers = numbers[keep]
+    sample = sample[keep]
+    excluded = len(rows) - len(kept)
+    if len(kept) < 2:
+        msg = (f'needs at least 2 data rows, has {len(kept)} '
+               f'({len(rows)} in the file, {excluded} excluded by the manifest filter)')
+        raise DataError(msg, file=file)
+
+    def column(cs: ColumnSpec, quantity: str) -> np.ndarray:
+        raw = column_values(kept, index[cs.column], numbers, file, cs.column)
+        return check_si_values(to_si(raw, cs.unit, quantity=quantity), file=file,
+                               column=cs.column, rows=numbers)
+
+    t = _time(spec, sample, numbers, file, column)
+    check_duration(t, spec, min_duration_s, file=file, after=' after filtering')
+
+    axes = spec.axis_names
+    power_axes = spec.power_axes
+    power = np.column_stack([column(spec.axes[a]['power'], 'power') for a in power_axes])
+    kin: dict[str, np.ndarray] = {}
+    for q in KINEMATIC_QUANTITIES:
+        if q in spec.axes[axes[0]]:
+            kin[_FIELD[q]] = np.column_stack(
+                [column(spec.axes[a][q], AXIS_QUANTITIES[q]) for a in axes])
+    extra: dict[str, Any] = {
+        'excluded_rows': excluded, 'rows': numbers, 't0_s': float(t[0]),
+    }
+    for q, key in (('current', 'current_a'), ('voltage', 'voltage_v')):
+        got = {a: column(cols[q], q) for a, cols in spec.axes.items() if q in cols}
+        if got:
+            extra[key] = got
+    return MeasuredRun(name=spec.name, file=file, t=t - t[0], axes=axes,
+                       power_axes=power_axes, power_w=power, load_kg=spec.load_kg,
+                       extra=extra, **kin)
+
+
+def _column_index(header: list[str], spec: RunSpec, file: str) -> dict[str, int]:
+    wanted = [cs.column for cols in spec.axes.values() for cs in cols.values()]
+    wanted += [f.column for f in spec.exclude]
+    if spec.time is not None:
+        wanted.append(spec.time.column)
+    index: dict[str, int] = {}
+    for name in wanted:
+        hits = [i for i, h in enumerate(header) if h == name]
+        if not hits:
+            lower = {h.lower(): h for h in header}
+            close = difflib.get_close_matches(name.lower(), list(lower), n=1, cutoff=0.5)
+            hint = f'; did you mean {shorten(lower[close[0]])!r}?' if close else ''
+            msg = f'no such column in the header{hint}'
+            raise DataError(msg, file=file, column=name)
+        if len(hits) > 1:
+            msg = f'the header has this column {len(hits)} times (fields {hits[0] + 1}, ' \
+                  f'{hits[1] + 1}); cannot tell which one is meant'
+            raise DataError(msg, file=file, column=name)
+        index[name] = hits[0]
+    return index
+
+
+def _matches(filt: RowFilter, rows: list[list[str]], j: int, numbers: np.ndarray,
+             file: str) -> np.ndarray:
+    if isinstance(filt.value, str):
+        text = np.array([row[j].strip() for row in rows], dtype=object)
+        eq = text == filt.value
+        return eq if filt.op == 'equal' else ~eq
+    values = column_values(rows, j, numbers, file, filt.column)
+    if filt.op == 'equal':
+        return values == filt.value
+    if filt.op == 'not_equal':
+        return values != filt.value
+    if filt.op == 'greater':
+        return values > filt.value
+    return values < filt.value
+
+
+def _time(spec: RunSpec, sample: np.ndarray, numbers: np.ndarray, file: str,
+          column: Any) -> np.ndarray:
+    if spec.time is not None:
+        name = spec.time.column
+        t = column(spec.time, 'time')
+    else:
+        name = '<row index>'
+        t = sample * float(spec.period_s)
+    dt = np.diff(t)
+    bad = np.flatnonzero(dt < 0.999 * MIN_STEP_S)  # 0.999: rounding of decimal times
+    if bad.size:
+        i = int(bad[0]) + 1
+        if dt[i - 1] == 0.0:
+            what = 'repeats the previous time'
+        elif dt[i - 1] < 0.0:
+            what = 'goes back in time'
+        else:
+            what = f'follows the previous time after only {dt[i - 1]:.3g} s'
+        msg = (f'{what} ({t[i - 1]:.9g} s then {t[i]:.9g} s); time must increase by at '
+               f'least {MIN_STEP_S:g} s (stamps are whole nanoseconds)')
+        raise DataError(msg, file=file, column=name, row=int(numbers[i]))
+    if not spec.allow_gaps:
+        median = float(np.median(dt))
+        gaps = np.flatnonzero(dt > GAP_FACTOR * median)
+        if gaps.size:
+            i = int(gaps[0]) + 1
+            msg = (f'gap of {dt[i - 1]:.6g} s before this row, more than {GAP_FACTOR:g} x the '
+                   f'median period {median:.6g} s (set allow_gaps: true to accept it)')
+            raise DataError(msg, file=file, column=name, row=int(numbers[i]))
+    return t

@@ -1,0 +1,20 @@
+"""The planner: canonical moves -> sampled axis motion.
+
+Segments and their path limits (:mod:`.segments`), look-ahead (:mod:`.lookahead`), jerk-limited
+or trapezoidal profiles (:mod:`.profiles`), the phase table and its sampling (:mod:`.phases`),
+standstill (:mod:`.standstill`). The entrance is the streaming planner :func:`iter_motion`
+(:mod:`.stream`, bounded chunks); :func:`plan` (:mod:`.trajectory`) plans a whole program at
+once. Its output is :class:`Motion` (:mod:`.motion`), also built from sampled positions
+(:mod:`.fromsamples`).
+"""
+from .fromsamples import motion_from_samples
+from .motion import Motion
+from .segments import line_speed_limits
+from .standstill import grid_interval_counts
+from .stream import DEFAULT_CHUNK_SAMPLES, estimate_plan, iter_motion
+from .trajectory import plan
+
+__all__ = [
+    'DEFAULT_CHUNK_SAMPLES', 'estimate_plan', 'grid_interval_counts', 'iter_motion',
+    'line_speed_limits', 'Motion', 'motion_from_samples', 'plan',
+]

@@ -1,0 +1,211 @@
+"""A rosbag2 directory (one MCAP file) written in whole blocks of messages: the fast writer.
+
+:class:`StreamBagWriter` writes what :class:`.bagio.BagWriter` writes through ``rosbags`` -
+the same topics, CDR bytes, ``metadata.yaml`` keys and custom data, read back by the same
+readers - but takes series as :class:`.cdr.MessageRows` blocks, so that a chunk of samples
+becomes one numpy array of message records (:mod:`.mcapstream`) instead of a Python call per
+message. Used for the simulation recordings (:mod:`.recording`).
+
+Output safety: the directory must not exist (not even as a dangling link) and is created by
+this class; the MCAP file is opened with ``O_EXCL | O_NOFOLLOW``; ``metadata.yaml`` is
+written last, through a temporary name, when the MCAP file is complete. On an exception
+inside the ``with`` block the directory is removed: a failed write leaves nothing.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+import shutil
+from typing import Sequence
+
+import numpy as np
+import yaml
+
+from .cdr import block_energy_cdr, joint_trajectory_rows, MessageRows
+from .bagio import DIAGNOSTIC_ARRAY, JOINT_TRAJECTORY, Series, TOPIC_BLOCK_ENERGY, typestore
+from .qos import qos_yaml, topic_qos
+from .crashsafe import create_bag_dir
+from .mcapstream import CHUNK_BYTES, McapStream, RECORD_HEAD
+
+__all__ = ['StreamBagWriter']
+
+_NS = 1_000_000_000
+_DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
+
+
+class StreamBagWriter:
+    """Write a rosbag2 directory with one MCAP file, block by block (context manager).
+
+    Parameters
+    ----------
+    path
+        Bag directory to create; it must not exist.
+    compression
+        MCAP chunk compression: ``'zstd'`` (default), ``'lz4'`` or ``'none'``.
+    chunk_bytes
+        Uncompressed size at which a chunk is closed.
+    background
+        Compress and write in a second thread (:class:`.mcapstream.McapStream`).
+    """
+
+    def __init__(self, path: str | Path, *, compression: str = 'zstd',
+                 chunk_bytes: int = CHUNK_BYTES, background: bool = False) -> None:
+        self.path = Path(path)
+        self.compression = compression
+        self.chunk_bytes = int(chunk_bytes)
+        self.background = bool(background)
+        self._types: dict[str, str] = {}
+        self._channels: dict[str, int] = {}
+        self._schemas: dict[str, int] = {}
+        self._custom: dict[str, str] = {}
+        self._fh = None
+        self._mcap: McapStream | None = None
+
+    def __enter__(self) -> 'StreamBagWriter':
+        create_bag_dir(self.path)
+        try:
+            name = self.path / f'{self.path.name}.mcap'
+            fd = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+            self._fh = os.fdopen(fd, 'wb', buffering=1 << 20)
+            self._mcap = McapStream(self._fh, compression=self.compression,
+                                    chunk_bytes=self.chunk_bytes, background=self.background)
+        except BaseException:
+            self._discard()
+            raise
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None:
+            self._discard()
+            return
+        try:
+            self._close()
+        except BaseException:
+            self._discard()
+            raise
+
+    def _discard(self) -> None:
+        if self._mcap is not None:
+            self._mcap.abort()                  # the writer thread stops before the removal
+        if self._fh is not None:
+            try:
+                self._fh.close()
+            except OSError:
+                pass
+            self._fh = None
+        shutil.rmtree(self.path, ignore_errors=True)
+
+    def channel(self, topic: str, msgtype: str) -> int:
+        """The MCAP channel of ``topic`` (declared on first use)."""
+        known = self._types.get(topic)
+        if known is not None:
+            if known != msgtype:
+                msg = f'topic {topic} has type {known}, not {msgtype}'
+                raise ValueError(msg)
+            return self._channels[topic]
+        if msgtype not in self._schemas:
+            text = typestore().generate_msgdef(msgtype, ros_version=2)[0]
+            self._schemas[msgtype] = self._mcap.add_schema(msgtype, 'ros2msg', text.encode())
+        self._types[topic] = msgtype
+        self._channels[topic] = self._mcap.add_channel(
+            topic, schema_id=self._schemas[msgtype],
+            metadata={'offered_qos_profiles': qos_yaml(topic_qos(topic))})
+        return self._channels[topic]
+
+    def close_chunk(self) -> None:
+        """End the open MCAP chunk (see :meth:`.mcapstream.McapStream.close_chunk`)."""
+        self._mcap.close_chunk()
+
+    @property
+    def lead(self) -> int:
+        """Spare bytes that :meth:`write_rows` needs before each message in its rows."""
+        return RECORD_HEAD
+
+    def write_rows(self, topic: str, block: MessageRows, *,
+                   msgtype: str = JOINT_TRAJECTORY) -> int:
+        """Write a block of same-sized messages (built with ``lead=self.lead``); return count."""
+        channel = self.channel(topic, msgtype)
+        self._mcap.add_block(channel, block.stamps, block.rows, start=block.start,
+                             length=block.length)
+        return int(block.rows.shape[0])
+
+    def write_raw(self, topic: str, msgtype: str, stamp_ns: int, data: bytes) -> None:
+        """Write one serialised (CDR) message at ``stamp_ns``."""
+        self._mcap.add_message(self.channel(topic, msgtype), stamp_ns, data)
+
+    def write_message(self, topic: str, msgtype: str, stamp_ns: int, message) -> None:
+        """Serialise one rosbags message object and write it at ``stamp_ns``."""
+        self.write_raw(topic, msgtype, stamp_ns, typestore().serialize_cdr(message, msgtype))
+
+    def write_series(self, topic: str, series: Series, *, batch: int = 100) -> int:
+        """Write a series as JointTrajectory messages of ``batch`` points; return the count.
+
+        The messages equal :func:`.bagio.series_to_messages`' (the last may be shorter).
+        """
+        t_ns = series.stamps_ns()           # the series' start (t0_ns) kept
+        if np.any(t_ns < 0):
+            msg = 'bag time series must not have negative times'
+            raise ValueError(msg)
+        values = [series.positions, series.velocities, series.accelerations, series.effort]
+        n = int(t_ns.shape[0])
+        full = (n // batch) * batch
+        count = 0
+        for lo, hi, points in ((0, full, batch), (full, n, n - full)):
+            if hi > lo:
+                block = joint_trajectory_rows(
+                    t_ns[lo:hi], tuple(series.names),
+                    [None if v is None else v[lo:hi] for v in values], points=points,
+                    lead=self.lead)
+                count += self.write_rows(topic, block)
+        return count
+
+    def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
+                           stamp_s: float = 0.0, stamp_ns: int | None = None,
+                           program: str = '') -> None:
+        """Write the per-block energy (:func:`.bagio.block_energy_cdr`) at ``stamp_ns``
+        (or ``stamp_s``)."""
+        for stamp, data in block_energy_cdr(blocks, stamp_s=stamp_s, stamp_ns=stamp_ns,
+                                            program=program):
+            self.write_raw(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY, stamp, bytes(data))
+
+    def set_custom_data(self, key: str, value: object) -> None:
+        """Store a JSON-serialisable value in the bag's metadata (``custom_data``)."""
+        self._custom[key] = json.dumps(value)
+
+    def metadata(self) -> dict:
+        """The ``metadata.yaml`` mapping (rosbag2 version 9) of what was written."""
+        mcap = self._mcap
+        start = mcap.t_min or 0
+        duration = (mcap.t_max or 0) - start
+        count = sum(mcap.counts.values())
+        store = typestore()
+        topics = [{'topic_metadata': {
+            'name': topic, 'type': msgtype, 'serialization_format': 'cdr',
+            'offered_qos_profiles': topic_qos(topic),
+            'type_description_hash': store.hash_rihs01(msgtype)},
+            'message_count': mcap.counts[self._channels[topic]]}
+            for topic, msgtype in self._types.items()]
+        name = f'{self.path.name}.mcap'
+        return {'rosbag2_bagfile_information': {
+            'version': 9, 'storage_identifier': 'mcap',
+            'duration': {'nanoseconds': duration},
+            'starting_time': {'nanoseconds_since_epoch': start},
+            'message_count': count, 'topics_with_message_count': topics,
+            'compression_format': '', 'compression_mode': '',
+            'relative_file_paths': [name],
+            'files': [{'path': name, 'starting_time': {'nanoseconds_since_epoch': start},
+                       'duration': {'nanoseconds': duration}, 'message_count': count}],
+            'custom_data': dict(self._custom) or None, 'ros_distro': 'rosbags'}}
+
+    def _close(self) -> None:
+        text = yaml.dump(self.metadata(), Dumper=_DUMPER, default_flow_style=False)
+        self._mcap.add_metadata('rosbag2', {'serialized_metadata': text})
+        self._mcap.finish()
+        self._fh.close()
+        self._fh = None
+        tmp = self.path / '.metadata.yaml.tmp'
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+        with os.fdopen(fd, 'w', encoding='utf-8') as fh:
+            fh.write(text)
+        os.replace(tmp, self.path / 'metadata.yaml')
