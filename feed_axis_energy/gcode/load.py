@@ -7,14 +7,15 @@ offending word (a subroutine file names itself). Semantics are LinuxCNC 2.9's (R
 checked against its interpreter; where controls differ a :mod:`dialect <.dialect>` profile
 applies (``linuxcnc`` by default; ``fanuc``, ``haas``, ``grbl``, ``mach3``).
 
-Layout (as LinuxCNC's rs274ngc): :mod:`.source` (bytes, line ends), :mod:`.lexer`,
-:mod:`.expr` and :mod:`.params` (words, expressions, parameters), :mod:`.flow` (O-words,
-Fanuc subprograms), :mod:`.interp` with :mod:`.interp_motion`, :mod:`.interp_modes`,
-:mod:`.interp_comp` (modal state), :mod:`.coords` (coordinate systems, tool length),
-:mod:`.cycles` and :mod:`.cutter` (canned cycles, cutter compensation), :mod:`.splines`
-(G5.x), :mod:`.canon` (the
-canonical moves and arc rules), :mod:`.run` (one pass: plain lines on a fast path, the rest
-through the front's reader).
+Layout (as LinuxCNC's rs274ngc): :mod:`.read` turns text into executed blocks
+(:mod:`.read.source`: bytes, line ends; :mod:`.read.lexer`, :mod:`.read.expr`,
+:mod:`.read.params`: words, expressions, parameters; :mod:`.read.flow`: O-words, Fanuc
+subprograms, Macro B); :mod:`.interp` holds the modal state (:mod:`.interp.interpreter` with
+:mod:`.interp.motion`, :mod:`.interp.modes`, :mod:`.interp.comp`, :mod:`.interp.frames`;
+:mod:`.interp.coords`: coordinate systems, tool length); :mod:`.expand` expands one block
+into primitives (:mod:`.expand.cycles`, :mod:`.expand.cutter`, :mod:`.expand.splines`);
+:mod:`.canon` holds the canonical moves and arc rules, :mod:`.run` one pass (plain lines on
+a fast path, the rest through the reader).
 
 Reading
 -------
@@ -25,7 +26,7 @@ Reading
   LinuxCNC's operators and functions; assignments take effect after their line. In the
   Macro B dialects (``fanuc``, ``haas``) Fanuc's read-only system variables: modal groups
   ``#4001``.. and positions ``#5001``.., ``#5021``.., ``#5041``.., ``#5081``..
-  (:mod:`.fanuc_vars`: given from the modal state, or refused by number).
+  (:mod:`.interp.sysvars`: given from the modal state, or refused by number).
 * O-word subroutines (in the program, or ``<name>.ngc`` next to it or on ``search_path``)
   and ``if/elseif/else``, ``while``, ``do``, ``repeat``, ``break/continue``; Fanuc
   ``O1234`` + ``M98 P.. L..`` / ``M99``. Loops stop with an error after 10^6 passes.
@@ -52,7 +53,7 @@ Motion (canonical moves, :mod:`.canon`)
   the path unchanged; what LinuxCNC refuses under compensation is refused.
 * G38.2..G38.5 probing runs to its end point (no contact simulated, one warning); G33.1
   rigid tapping goes in and back at K x S.
-* Splines (:mod:`.splines`, LinuxCNC 2.9's rules and messages): G5 cubic (``I J`` first
+* Splines (:mod:`.expand.splines`, LinuxCNC 2.9's rules and messages): G5 cubic (``I J`` first
   offset from the start, ``P Q`` second offset from the end; without I/J minus the previous
   P/Q) and G5.1 quadratic (``I J``), in G17 only, without Z; they leave the motion mode as
   it was. G5.2 NURBS: the start and one point per line (X Y together, weight P > 0, order
@@ -68,7 +69,7 @@ Modes and coordinates
 G17/G18/G19, G20/G21, G90/G91, G90.1/G91.1, G93/G94/G95 (F cleared on a switch; G95: F per
 spindle revolution times S), G61/G61.1/G64,
 G9; G54..G59.3, G10 L1/L2/L10/L11/L20, G92/G92.1/G92.2/G92.3, G52, G53, G28/G30 (+ .1),
-G43/G43.1/G43.2/G49 as LinuxCNC 2.9 (:mod:`.coords`); moves are in machine coordinates.
+G43/G43.1/G43.2/G49 as LinuxCNC 2.9 (:mod:`.interp.coords`); moves are in machine coordinates.
 S, T, M6, M61, M3..M9 are tracked where they matter (G84/G86 need a turning spindle, G41
 without D uses the loaded tool, or in the Fanuc/Haas dialects the D of an earlier line);
 harmless I/O M codes and the control's contouring modes per dialect are accepted.

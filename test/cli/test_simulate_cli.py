@@ -176,13 +176,13 @@ def test_simulate_report_of_a_trajectory_csv(tmp_path: Path) -> None:
 
 
 def test_a_failing_report_leaves_no_bag_behind(tmp_path: Path, monkeypatch, capsys) -> None:
-    import feed_axis_energy.report.sim_report as sim_report
+    import feed_axis_energy.report as report
     from feed_axis_energy.errors import OutputError
 
     def broken(*args, **kwargs):
         raise OutputError('no space left on device', path=str(tmp_path / 'r'))
 
-    monkeypatch.setattr(sim_report, 'write_sim_report', broken)
+    monkeypatch.setattr(report, 'write_sim_report', broken)   # as simulate imports it
     assert main(['simulate', str(PROGRAM), '--quiet', '--out', str(tmp_path / 'bag'),
                  '--report', str(tmp_path / 'r')]) == 1
     assert 'no space left' in capsys.readouterr().err

@@ -202,10 +202,10 @@ def test_rapid_override_uses_the_planners_speed_limit_per_axis():
 
 def test_rapid_override_has_no_rule_of_its_own(monkeypatch):
     # One source of truth: the override follows whatever the planner's rule says.
-    from feed_axis_energy.plan import segments
+    import feed_axis_energy.plan as plan
     lim = {'X': AxisLimits(0.6, 2.5, 50.0)}
     g0 = straight_move(MoveKind.RAPID, 3, (0.0, 0, 0), (0.1, 0, 0), math.inf, True, 0.1)
-    monkeypatch.setattr(segments, 'line_speed_limits', lambda u, vmax: np.float64(0.125))
+    monkeypatch.setattr(plan, 'line_speed_limits', lambda u, vmax: np.float64(0.125))
     (moved,) = override_moves([g0], rapid=0.5, limits=lim)
     assert moved.feed_m_s == 0.0625
 
