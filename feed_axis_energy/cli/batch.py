@@ -305,8 +305,7 @@ def _connect(address: str, *, timeout_s: float):
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     import json
-    from feed_axis_energy.cli.batchout import (check_csv_target, csv_text, print_table,
-                                               write_text_atomic)
+    from feed_axis_energy.cli.batchout import check_csv_target, csv_text, print_table, write_csv
     jobs = _jobs(args)
     if args.csv is not None:
         check_csv_target(args.csv, force=args.force)
@@ -321,7 +320,7 @@ def run(args: argparse.Namespace) -> int:
         print(f'[batch] {len(jobs)} jobs ({failed} failed) in '
               f'{time.monotonic() - progress.t0:.1f} s on {where}', file=sys.stderr)
     if args.csv is not None:
-        write_text_atomic(args.csv, csv_text(results), force=args.force)
+        write_csv(args.csv, csv_text(results), force=args.force)
     if args.json:
         doc = {'jobs': len(results), 'failed': failed,
                'results': [r.to_dict() for r in results]}
