@@ -15,6 +15,8 @@ from pathlib import Path
 import sys
 import time
 
+from feed_axis_energy.cli.common import add_quiet_option
+
 __all__ = ['add_parser', 'run']
 
 _HELP = 'what-if: energy against cycle time on variants of the machine and run'
@@ -74,7 +76,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'per program with the Pareto front, and the table)')
     p.add_argument('--force', action='store_true',
                    help='replace an existing --csv file or an earlier --report')
-    p.add_argument('--quiet', action='store_true', help='no progress indication')
+    add_quiet_option(p)
     p.set_defaults(run=run)
 
 
