@@ -338,7 +338,8 @@ def _sync_directory(directory: Path) -> None:
 
 
 def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
-                      force: bool = False, forceable: bool = True) -> Path:
+                      force: bool = False, forceable: bool = True,
+                      newline: str | None = None) -> Path:
     """Write ``text`` (UTF-8) to ``path`` through a temporary sibling and a rename.
 
     Without ``force`` the final step is a hard link, which fails if the target appeared in
@@ -358,6 +359,9 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
         Replace an existing file.
     forceable
         Whether the command has a ``--force`` (for the message).
+    newline
+        As for :func:`open`: ``''`` writes the line ends of ``text`` untranslated (CSV text
+        that carries its own); default: ``'\\n'`` becomes :data:`os.linesep`.
 
     Returns
     -------
@@ -375,7 +379,7 @@ def write_text_atomic(path: str | os.PathLike[str], text: str, *, option: str,
         _remove_empty(created)
         _reraise(err, path, option)
     try:
-        with os.fdopen(fd, 'w', encoding='utf-8') as fh:
+        with os.fdopen(fd, 'w', encoding='utf-8', newline=newline) as fh:
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())

@@ -10,7 +10,8 @@ import sys
 
 import yaml
 
-from feed_axis_energy.cli.common import format_table, metric_cells, METRIC_HEADER
+from feed_axis_energy.cli.common import (add_quiet_option, format_table, metric_cells,
+                                         METRIC_HEADER)
 from feed_axis_energy.cli.progress import Progress
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.identify import AnalysisResult, analyze_campaign, AnalyzeOptions, HOLDOUTS
@@ -50,7 +51,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="declared machine config (default: the manifest's machine)")
     p.add_argument('--holdout', choices=HOLDOUTS, default='loro',
                    help='held-out scheme: leave one run out (default) or the manifest roles')
-    p.add_argument('--quiet', action='store_true', help='no progress indication')
+    add_quiet_option(p)
     p.set_defaults(run=run)
 
 

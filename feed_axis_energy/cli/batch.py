@@ -16,6 +16,8 @@ import re
 import sys
 import time
 
+from feed_axis_energy.cli.common import add_quiet_option, non_negative_int
+
 __all__ = ['add_parser', 'run', 'parse_loads', 'check_address', 'add_executor_options',
            'check_executor_options']
 
@@ -42,21 +44,11 @@ def parse_loads(text: str) -> list[float]:
     return loads
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected a whole number, got {text[:60]!r}') from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f'expected a number >= 0, got {value}')
-    return value
-
-
 def add_executor_options(p: argparse.ArgumentParser) -> None:
     """``--jobs N | --scheduler ADDRESS`` and ``--connect-timeout`` (``batch``, ``sweep``);
     :func:`check_executor_options` checks them and :func:`execute_jobs` uses them."""
     where = p.add_mutually_exclusive_group()
-    where.add_argument('--jobs', type=_positive_int, default=1, metavar='N',
+    where.add_argument('--jobs', type=non_negative_int, default=1, metavar='N',
                        help='local worker processes (default 1: in this process; 0: one per '
                             'CPU core)')
     where.add_argument('--scheduler', metavar='ADDRESS',
@@ -114,12 +106,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--force', action='store_true',
                    help='replace an existing --csv file and existing recordings in --out '
                         '(bag directories only)')
-    p.add_argument('--top', type=_positive_int, default=0, metavar='N',
+    p.add_argument('--top', type=non_negative_int, default=0, metavar='N',
                    help='blocks with the most energy listed per job in --json (default 0)')
-    p.add_argument('--max-samples', type=_positive_int, default=0, metavar='N',
+    p.add_argument('--max-samples', type=non_negative_int, default=0, metavar='N',
                    help='a job needing more samples fails before it is simulated '
                         '(default 0: no limit)')
-    p.add_argument('--quiet', action='store_true', help='no progress indication')
+    add_quiet_option(p)
     p.set_defaults(run=run)
 
 
@@ -305,8 +297,7 @@ def _connect(address: str, *, timeout_s: float):
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     import json
-    from feed_axis_energy.cli.batchout import (check_csv_target, csv_text, print_table,
-                                               write_text_atomic)
+    from feed_axis_energy.cli.batchout import check_csv_target, csv_text, print_table, write_csv
     jobs = _jobs(args)
     if args.csv is not None:
         check_csv_target(args.csv, force=args.force)
@@ -321,7 +312,7 @@ def run(args: argparse.Namespace) -> int:
         print(f'[batch] {len(jobs)} jobs ({failed} failed) in '
               f'{time.monotonic() - progress.t0:.1f} s on {where}', file=sys.stderr)
     if args.csv is not None:
-        write_text_atomic(args.csv, csv_text(results), force=args.force)
+        write_csv(args.csv, csv_text(results), force=args.force)
     if args.json:
         doc = {'jobs': len(results), 'failed': failed,
                'results': [r.to_dict() for r in results]}

@@ -1,9 +1,8 @@
-"""Output of ``batch``: the text table, the CSV text and a safe CSV write.
+"""Output of ``batch``: the text table, the CSV text and the check of a ``--csv`` target.
 
-The CSV file is written to a hidden temporary sibling (``.<name>.tmp-<pid>``, created
-exclusively, never through a symbolic link), flushed, then linked into place (renamed with
-``--force``), so an existing file is never replaced without ``--force`` and nothing is left
-on failure.
+The CSV file itself is written with :func:`feed_axis_energy.outputs.write_text_atomic`
+(:func:`write_csv`): through a hidden temporary sibling, never through a symbolic link,
+an existing file replaced only with ``--force``, nothing left on failure.
 """
 from __future__ import annotations
 
@@ -15,8 +14,9 @@ from pathlib import Path
 from feed_axis_energy.cli.common import format_table
 from feed_axis_energy.sim import JobResult
 from feed_axis_energy.errors import ConfigError, shorten
+from feed_axis_energy.outputs import write_text_atomic
 
-__all__ = ['print_table', 'csv_text', 'check_csv_target', 'write_text_atomic',
+__all__ = ['print_table', 'csv_text', 'check_csv_target', 'write_csv',
            'rollup_cell', 'ROLLUP_COLUMNS']
 
 
@@ -161,49 +161,19 @@ def check_csv_target(path: Path, *, force: bool) -> None:
         raise ConfigError(msg, file='command line', key='csv')
 
 
-def write_text_atomic(path: Path, text: str, *, force: bool = False) -> None:
-    """Write ``text`` (UTF-8) to ``path`` through a temporary sibling; nothing left on failure.
+def write_csv(path: Path, text: str, *, force: bool = False) -> None:
+    """Write the CSV ``text`` to the ``--csv`` target ``path``, line ends untranslated.
 
-    Parameters
-    ----------
-    path
-        The file.
-    text
-        Its contents.
-    force
-        Replace an existing file (never a symbolic link or a directory).
+    :func:`check_csv_target` first (its directory must exist, not be a link), then
+    :func:`feed_axis_energy.outputs.write_text_atomic`.
 
     Raises
     ------
     ConfigError
-        As :func:`check_csv_target`, also when the file appeared while writing.
-    OSError
-        When the disk refuses (the temporary file is removed).
+        As :func:`check_csv_target`.
+    OutputError
+        The file appeared while writing (without ``force``), or the disk refused (nothing
+        is left).
     """
-    path = Path(path)
     check_csv_target(path, force=force)
-    tmp = path.parent / f'.{path.name}.tmp-{os.getpid()}'
-    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, 'O_NOFOLLOW', 0)
-    fd = os.open(tmp, flags, 0o644)
-    try:
-        with os.fdopen(fd, 'w', encoding='utf-8', newline='') as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        check_csv_target(path, force=force)
-        if force:
-            os.replace(tmp, path)
-        else:
-            try:
-                # a hard link fails if the name appeared meanwhile: nothing is replaced
-                os.link(tmp, path, follow_symlinks=False)
-            except FileExistsError:
-                msg = f'{shorten(str(path))!r} appeared while writing; not replaced'
-                raise ConfigError(msg, file='command line', key='csv') from None
-            os.unlink(tmp)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    write_text_atomic(path, text, option='--csv', force=force, newline='')

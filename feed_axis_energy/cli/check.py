@@ -26,21 +26,9 @@ def _max_dwell(text: str) -> float:
     return value
 
 
-def _tool(text: str) -> tuple:
-    from feed_axis_energy.gcode import parse_tool_option
-    try:
-        return parse_tool_option(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
-
-
-def _ignored_axes(text: str) -> tuple[str, ...]:
-    from feed_axis_energy.cli.common import axes_option   # the same rule as simulate's option
-    return axes_option(text)
-
-
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the subcommand."""
+    from feed_axis_energy.cli.common import add_quiet_option, add_tool_option, axes_option
     from feed_axis_energy.gcode import DEFAULT_MAX_DWELL_S, DIALECTS
     p = sub.add_parser(
         'check', help=HELP,
@@ -57,11 +45,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--machine', type=Path, metavar='YAML', default=None,
                    help='machine config: travel and velocity limits, tool table, G28 position, '
                         'default dialect (default: config/demonstrator.yaml)')
-    p.add_argument('--tool', type=_tool, action='append', default=[], metavar='T:R[:L]',
-                   help='tool T with radius R and length offset L in mm (default 0) for '
-                        'G41/G42 and G43, added to the machine config\'s gcode.tools or '
-                        'replacing its entry; repeat for more tools (e.g. --tool 1:3:45.2)')
-    p.add_argument('--ignore-axes', type=_ignored_axes, default=(), metavar='A,B',
+    add_tool_option(p)
+    p.add_argument('--ignore-axes', type=axes_option, default=(), metavar='A,B',
                    help='drop the words of these axes (A, B, C, U, V, W) with one warning '
                         'each; without it a program moving such an axis is an error')
     p.add_argument('--dialect', default=None, choices=DIALECTS,
@@ -71,7 +56,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         's)')
     p.add_argument('--json', action='store_true',
                    help='print one JSON object (keys in README) instead of the list')
-    p.add_argument('--quiet', action='store_true', help='no progress on stderr')
+    add_quiet_option(p, help_text='no progress on stderr')
     p.set_defaults(run=run)
 
 

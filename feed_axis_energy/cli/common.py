@@ -1,4 +1,9 @@
-"""Options and output shared by the subcommands."""
+"""Options and output shared by the subcommands.
+
+One rule per kind of option value (:func:`positive_int`, :func:`non_negative_int`, ...) and
+the option adders the subcommands share; the G-code and record parsers an option value needs
+are imported when it is checked.
+"""
 from __future__ import annotations
 
 import argparse
@@ -7,12 +12,14 @@ from dataclasses import replace
 import math
 from pathlib import Path
 
-from feed_axis_energy.errors import ConfigError
+from feed_axis_energy.errors import ConfigError, shorten
 from feed_axis_energy.machine import load_machine, Machine, PlannerOptions
-from feed_axis_energy.gcode import DIALECTS, parse_tool_option, with_tools
+from feed_axis_energy.gcode import DIALECTS, with_tools
 from feed_axis_energy.paths import default_machine
 
-__all__ = ['add_machine_options', 'load_machine_and_options', 'print_summary', 'cause_table',
+__all__ = ['positive_int', 'non_negative_int', 'positive_float', 'tool_option', 'axes_option',
+           'plot_rate_option', 'start_time_option', 'add_tool_option', 'add_quiet_option',
+           'add_machine_options', 'load_machine_and_options', 'print_summary', 'cause_table',
            'rollup_table',
            'program_text_lines', 'format_table', 'METRIC_HEADER', 'metric_cells',
            'program_keywords']
@@ -23,7 +30,43 @@ METRIC_HEADER = ['avg dP [W]', 'avg dP [%]', 'max dP [W]', 'max dP [%]', 'dE [J]
                  'RMSE [W]']
 
 
-def _tool(text: str) -> tuple:
+def positive_int(text: str) -> int:
+    """A whole number >= 1 (``--decimate``); a usage error otherwise."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {shorten(text)!r}')
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """A whole number >= 0, where 0 means "none" or "automatic" (``--jobs 0``: one per CPU
+    core; ``--top``, ``--max-samples``); a usage error otherwise."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a whole number, got {text[:60]!r}') from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f'expected a number >= 0, got {value}')
+    return value
+
+
+def positive_float(text: str) -> float:
+    """A finite number > 0 (``--export-rate-hz``); a usage error otherwise."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f'expected a number > 0, got {shorten(text)!r}')
+    return value
+
+
+def tool_option(text: str) -> tuple:
+    """``--tool T:R[:L]`` (:func:`feed_axis_energy.gcode.parse_tool_option`)."""
+    from feed_axis_energy.gcode import parse_tool_option
     try:
         return parse_tool_option(text)
     except ValueError as err:
@@ -31,6 +74,7 @@ def _tool(text: str) -> tuple:
 
 
 def axes_option(text: str) -> tuple[str, ...]:
+    """``--ignore-axes A,B``: letters among A, B, C, U, V, W separated by commas."""
     axes = tuple(a.strip().upper() for a in text.split(',') if a.strip())
     bad = [a for a in axes if a not in ('A', 'B', 'C', 'U', 'V', 'W')]
     if bad or not axes:
@@ -38,6 +82,42 @@ def axes_option(text: str) -> tuple[str, ...]:
         msg = f'expected axis letters among A,B,C,U,V,W separated by commas, got {shown!r}'
         raise argparse.ArgumentTypeError(msg)
     return axes
+
+
+def plot_rate_option(text: str) -> float:
+    """``--plot-rate-hz``: a finite number >= 0 (a usage error otherwise)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not math.isfinite(value) or value < 0:
+        msg = f'expected a number of hertz >= 0 (0: every sample), got {text[:60]!r}'
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def start_time_option(text: str) -> int:
+    """``--start-time``: ``now`` or ISO-8601 -> ns since the epoch (a usage error otherwise)."""
+    from feed_axis_energy.record import parse_start_time
+    try:
+        return parse_start_time(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def add_tool_option(p: argparse.ArgumentParser) -> None:
+    """``--tool T:R[:L]``, repeatable (``simulate`` and the commands sharing its machine
+    options, ``check``)."""
+    p.add_argument('--tool', type=tool_option, action='append', default=[], metavar='T:R[:L]',
+                   help='tool T with radius R and length offset L in mm (default 0) for '
+                        'G41/G42 and G43, added to the machine config\'s gcode.tools or '
+                        'replacing its entry; repeat for more tools (e.g. --tool 1:3:45.2)')
+
+
+def add_quiet_option(p: argparse.ArgumentParser, *,
+                     help_text: str = 'no progress indication') -> None:
+    """``--quiet``: no progress on stderr."""
+    p.add_argument('--quiet', action='store_true', help=help_text)
 
 
 def program_keywords(machine: Machine, args: argparse.Namespace) -> dict:
@@ -62,10 +142,7 @@ def add_machine_options(p: argparse.ArgumentParser) -> None:
                         'at most 1e6)')
     p.add_argument('--profile', choices=('jerk', 'trapezoid'), default=None,
                    help='velocity profile (default: machine config)')
-    p.add_argument('--tool', type=_tool, action='append', default=[], metavar='T:R[:L]',
-                   help='tool T with radius R and length offset L in mm (default 0) for '
-                        'G41/G42 and G43, added to the machine config\'s gcode.tools or '
-                        'replacing its entry; repeat for more tools (e.g. --tool 1:3:45.2)')
+    add_tool_option(p)
     p.add_argument('--dialect', choices=DIALECTS, default=None,
                    help='G-code dialect of the program (default: the machine config\'s '
                         'gcode.dialect, else linuxcnc; docs in gcode/dialect.py)')

@@ -7,7 +7,8 @@ import math
 from pathlib import Path
 import sys
 
-from feed_axis_energy.cli.common import format_table, metric_cells, METRIC_HEADER
+from feed_axis_energy.cli.common import (add_quiet_option, format_table, metric_cells,
+                                         METRIC_HEADER)
 from feed_axis_energy.cli.progress import Progress
 from feed_axis_energy.machine import load_machine, machine_warnings
 from feed_axis_energy.errors import ConfigError
@@ -51,7 +52,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--pct-floor', type=float, default=0.05, metavar='FRACTION',
                    help='percentual errors are taken only where |measured power| >= this '
                         "fraction of the run's peak |measured power| (default: 0.05)")
-    p.add_argument('--quiet', action='store_true', help='no progress indication')
+    add_quiet_option(p)
     p.set_defaults(run=run)
 
 

@@ -9,7 +9,7 @@ import argparse
 import json
 from pathlib import Path
 
-from feed_axis_energy.cli.common import format_table
+from feed_axis_energy.cli.common import add_quiet_option, format_table
 from feed_axis_energy.cli.progress import Progress
 from feed_axis_energy.gcode import load_gcode
 from feed_axis_energy.machine import load_machine
@@ -44,7 +44,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         '(or is empty); never a symbolic link or another directory')
     p.add_argument('--no-bags', action='store_true', help='do not write recordings')
     p.add_argument('--json', action='store_true', help='print the summaries as JSON')
-    p.add_argument('--quiet', action='store_true', help='no progress indication')
+    add_quiet_option(p)
     p.set_defaults(run=run)
 
 

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 import sys
 
-from feed_axis_energy.cli.common import format_table
+from feed_axis_energy.cli.common import add_quiet_option, format_table
 from feed_axis_energy.cli.progress import Progress
 from feed_axis_energy.measured import import_campaign, load_campaign
 
@@ -47,7 +47,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='file name of the manifest written into DIR (default: '
                         'campaign.yaml); a plain name, not a path, and no run name')
     p.add_argument('--json', action='store_true', help='print one JSON object')
-    p.add_argument('--quiet', action='store_true', help='no progress indication')
+    add_quiet_option(p)
     p.set_defaults(run=run)
 
 

@@ -29,6 +29,7 @@ import threading
 import time
 
 from feed_axis_energy import lifeline
+from feed_axis_energy.cli.common import plot_rate_option, start_time_option
 from feed_axis_energy.paths import config_dir, program_path
 
 __all__ = ['add_parser', 'run', 'node_command', 'params_yaml', 'write_params_file',
@@ -61,7 +62,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='display rate of the recording\'s plot topics (/plot/power, /plot/axes; '
                         '0: every sample; default: the recorder\'s plot_rate_hz, 20); needs '
                         '--record')
-    p.add_argument('--start-time', type=start_time_option, default=None, metavar='now|ISO-8601',
+    p.add_argument('--start-time', type=_start_time_text, default=None, metavar='now|ISO-8601',
                    help='stamp the recording in wall-clock time from this start (no offset: '
                         'UTC) instead of simulation time from 0; needs --record')
     p.add_argument('--domain-id', type=int, default=None, metavar='N',
@@ -73,16 +74,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def plot_rate_option(text: str) -> float:
-    """``--plot-rate-hz``: as ``simulate``'s (a usage error otherwise)."""
-    from feed_axis_energy.cli.simulate import plot_rate_option as check
-    return check(text)
-
-
-def start_time_option(text: str) -> str:
+def _start_time_text(text: str) -> str:
     """``--start-time``: checked as ``simulate``'s; the recorder gets the text itself."""
-    from feed_axis_energy.cli.simulate import start_time_option as check
-    check(text)
+    start_time_option(text)
     return text
 
 

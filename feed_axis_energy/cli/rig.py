@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from feed_axis_energy.cli.common import format_table
+from feed_axis_energy.cli.common import add_quiet_option, format_table
 from feed_axis_energy.effects import EFFECTS
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.cli.progress import Progress
@@ -68,7 +68,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--bags', action='store_true',
                    help='also write each run as a rosbag2/MCAP bag (/measured/power, '
                         '/measured/kinematics)')
-    p.add_argument('--quiet', action='store_true', help='no progress indication')
+    add_quiet_option(p)
     p.add_argument('--list-effects', action='store_true',
                    help='print the effect catalog and exit')
     p.set_defaults(run=run)

@@ -6,12 +6,12 @@ import contextlib
 import gc
 from itertools import chain
 import json
-import math
 import os
 import sys
 from pathlib import Path
 
-from feed_axis_energy.cli.common import add_machine_options
+from feed_axis_energy.cli.common import (add_machine_options, add_quiet_option, plot_rate_option,
+                                         positive_float, positive_int, start_time_option)
 from feed_axis_energy.cli.simulate_out import (check_cost, check_start, consumers, export_targets,
                                                Exports, report_trace, staged_out, write_report)
 from feed_axis_energy.errors import ConfigError, shorten
@@ -26,27 +26,6 @@ BLOCK_TEXT_CHARS = 60    # block text shown in top_blocks (cut with '...')
 # program's lines need at most this much, or when an export needs the per-block table
 BLOCK_BREAKDOWN_BYTES = 16 << 20
 GC_THRESHOLD = 20_000   # first-generation threshold of the collector while streaming
-
-
-def plot_rate_option(text: str) -> float:
-    """``--plot-rate-hz``: a finite number >= 0 (a usage error otherwise)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not math.isfinite(value) or value < 0:
-        msg = f'expected a number of hertz >= 0 (0: every sample), got {text[:60]!r}'
-        raise argparse.ArgumentTypeError(msg)
-    return value
-
-
-def start_time_option(text: str) -> int:
-    """``--start-time``: ``now`` or ISO-8601 -> ns since the epoch (a usage error otherwise)."""
-    from feed_axis_energy.record import parse_start_time
-    try:
-        return parse_start_time(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -86,9 +65,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--parquet', type=Path, metavar='DIR',
                    help='the same tables as --csv as Parquet files (needs pyarrow)')
     rate = p.add_mutually_exclusive_group()
-    rate.add_argument('--decimate', type=_positive_int, default=None, metavar='N',
+    rate.add_argument('--decimate', type=positive_int, default=None, metavar='N',
                       help='exported time series: every N-th sample (default 1: all)')
-    rate.add_argument('--export-rate-hz', type=_positive_float, default=None, metavar='HZ',
+    rate.add_argument('--export-rate-hz', type=positive_float, default=None, metavar='HZ',
                       help='exported time series: about HZ samples per second (every '
                            'round(rate/HZ)-th sample)')
     p.add_argument('--plot-rate-hz', type=plot_rate_option, default=DEFAULT_PLOT_RATE_HZ,
@@ -108,29 +87,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--max-samples', type=int, default=0, metavar='N',
                    help='refuse programs that need more than N samples (default 0: no limit); '
                         'the count is known from the plan before any sample is computed')
-    p.add_argument('--quiet', action='store_true', help='no progress indication')
+    add_quiet_option(p)
     p.set_defaults(run=run)
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {shorten(text)!r}')
-    return value
-
-
-def _positive_float(text: str) -> float:
-    import math
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > 0.0):
-        raise argparse.ArgumentTypeError(f'expected a number > 0, got {shorten(text)!r}')
-    return value
 
 
 def run(args: argparse.Namespace) -> int:

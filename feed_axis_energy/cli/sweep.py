@@ -15,6 +15,8 @@ from pathlib import Path
 import sys
 import time
 
+from feed_axis_energy.cli.common import add_quiet_option
+
 __all__ = ['add_parser', 'run']
 
 _HELP = 'what-if: energy against cycle time on variants of the machine and run'
@@ -74,7 +76,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'per program with the Pareto front, and the table)')
     p.add_argument('--force', action='store_true',
                    help='replace an existing --csv file or an earlier --report')
-    p.add_argument('--quiet', action='store_true', help='no progress indication')
+    add_quiet_option(p)
     p.set_defaults(run=run)
 
 
@@ -211,7 +213,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     import json
     from feed_axis_energy.cli.batch import execute_jobs, JobProgress
-    from feed_axis_energy.cli.batchout import check_csv_target, write_text_atomic
+    from feed_axis_energy.cli.batchout import check_csv_target, write_csv
     from feed_axis_energy.outputs import check_target
     from feed_axis_energy.sim import sweep_rows
     params, names, jobs, labels = _plan(args)
@@ -229,7 +231,7 @@ def run(args: argparse.Namespace) -> int:
         print(f'[sweep] {len(jobs)} runs ({failed} failed) in '
               f'{time.monotonic() - progress.t0:.1f} s on {where}', file=sys.stderr)
     if args.csv is not None:
-        write_text_atomic(args.csv, csv_text(rows, names), force=args.force)
+        write_csv(args.csv, csv_text(rows, names), force=args.force)
     if args.report is not None:
         from feed_axis_energy.report import write_sweep_report
         index = write_sweep_report(rows, names, args.report, force=args.force)

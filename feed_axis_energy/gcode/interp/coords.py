@@ -35,9 +35,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 import math
-from typing import NamedTuple, NoReturn
+from typing import NamedTuple
 
-from ...errors import GcodeError
+from .fail import Fail, raise_unplaced
 from .stored import G28_PARAM, ParamReadback
 from .tools import MAX_OFFSET_M, tool_spec, ToolTable
 from ..settings import ToolSpec
@@ -46,7 +46,6 @@ __all__ = ['Coords', 'LineEffect', 'ParamTable', 'COORD_G_CODES', 'SYSTEM_NAMES'
            'foreign_codes']
 
 Vec3 = tuple[float, float, float]
-Fail = Callable[[str, str], NoReturn]
 Value = Callable[[str], 'float | None']
 
 _AXES = ('X', 'Y', 'Z')
@@ -97,10 +96,6 @@ def foreign_codes(dialect: str, codes: Mapping[str, object],
 def system_param(system: int, axis: int = 0) -> int:
     """Number of the stored parameter of ``axis`` (0 = X) of coordinate system 1..9."""
     return 5201 + 20 * system + axis
-
-
-def _raise(message: str, letter: str) -> NoReturn:
-    raise GcodeError(message, file='<program>', line=0, column=0)
 
 
 # LinuxCNC 2.9's messages for what it refuses while cutter radius compensation is on.
@@ -202,7 +197,7 @@ class Coords(ToolTable, ParamReadback):
     # -- one line -------------------------------------------------------------------------
     def execute(self, codes: Mapping[str, object], value: Value, *, position: Vec3,
                 scale: float, motion: int | None, absolute: bool, comp_active: bool = False,
-                explicit_motion: bool = False, fail: Fail = _raise) -> LineEffect:
+                explicit_motion: bool = False, fail: Fail = raise_unplaced) -> LineEffect:
         """Execute the coordinate codes of one line, in LinuxCNC's order.
 
         Tool length (G43/G49) first, then the coordinate system (G54..), then the
@@ -343,12 +338,12 @@ class Coords(ToolTable, ParamReadback):
     def _system_rotation(self, system: int, fail: Fail | None) -> float:
         r = self.params.get(system_param(system, 9))
         if not abs(r) <= 1.0e6:
-            (fail or _raise)(f'rotation of {SYSTEM_NAMES[system - 1]} (#'
-                             f'{system_param(system, 9)}) is not a plausible angle', 'G')
+            (fail or raise_unplaced)(f'rotation of {SYSTEM_NAMES[system - 1]} (#'
+                                     f'{system_param(system, 9)}) is not a plausible angle', 'G')
         return r
 
     # -- G54 .. G59.3 ---------------------------------------------------------------------
-    def select_system(self, system: int, *, fail: Fail = _raise) -> None:
+    def select_system(self, system: int, *, fail: Fail = raise_unplaced) -> None:
         """G54..G59.3: make coordinate system ``system`` (1..9) active."""
         if system == self.system:
             return
@@ -359,7 +354,7 @@ class Coords(ToolTable, ParamReadback):
 
     # -- G10 ------------------------------------------------------------------------------
     def g10(self, l_word: float | None, p_word: float | None, values: Mapping[str, float],
-            position: Vec3, *, fail: Fail = _raise) -> None:
+            position: Vec3, *, fail: Fail = raise_unplaced) -> None:
         """G10 L1/L10/L11 (tool table) or L2/L20 (coordinate system) with the line's words.
 
         Parameters

@@ -7,18 +7,14 @@ values). Stored parameters hold millimetres; live values are in program units.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import NoReturn
-
-from ...errors import GcodeError
 from ..settings import ToolSpec
+from .fail import Fail, raise_unplaced
 from .tools import MAX_OFFSET_M
 
 __all__ = ['ParamReadback', 'G28_PARAM', 'G30_PARAM', 'PROBE_PARAM', 'TOOL_PARAM',
            'POSITION_PARAM', 'MAX_PASSES']
 
 Vec3 = tuple[float, float, float]
-Fail = Callable[[str, str], NoReturn]
 
 _MM = 1000.0
 # #<_coord_system> as LinuxCNC reports it (540 ... 593).
@@ -29,10 +25,6 @@ PROBE_PARAM = 5061      # G38 result X Y Z A B C U V W, then #5070 tripped
 TOOL_PARAM = 5400
 POSITION_PARAM = 5420
 MAX_PASSES = 9          # axes X Y Z A B C U V W of every parameter block
-
-
-def _raise(message: str, letter: str) -> NoReturn:
-    raise GcodeError(message, file='<program>', line=0, column=0)
 
 
 class ParamReadback:
@@ -46,7 +38,7 @@ class ParamReadback:
     __slots__ = ()
 
     # -- G28 / G30 ------------------------------------------------------------------------
-    def stored_home(self, code: str, *, fail: Fail = _raise) -> Vec3:
+    def stored_home(self, code: str, *, fail: Fail = raise_unplaced) -> Vec3:
         """The stored G28 or G30 position, machine coordinates [m]."""
         base = G28_PARAM if code == 'G28' else G30_PARAM
         self.home_used = True
@@ -57,7 +49,7 @@ class ParamReadback:
         return home
 
     def home_path(self, code: str, via: Vec3, named: tuple[bool, bool, bool], *,
-                  fail: Fail = _raise) -> list[Vec3]:
+                  fail: Fail = raise_unplaced) -> list[Vec3]:
         """G28/G30: the intermediate point and the end point, machine coordinates [m].
 
         Parameters

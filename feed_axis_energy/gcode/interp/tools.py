@@ -7,16 +7,14 @@ LinuxCNC; T0/H0 is "no tool" (length and radius 0).
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from typing import NoReturn
+from collections.abc import Mapping
 
-from ...errors import GcodeError
 from ..settings import MAX_TOOL_NUMBER, ToolSpec
+from .fail import Fail, raise_unplaced
 
 __all__ = ['ToolTable', 'tool_spec', 'MAX_OFFSET_M']
 
 Vec3 = tuple[float, float, float]
-Fail = Callable[[str, str], NoReturn]
 
 _AXES = ('X', 'Y', 'Z')
 _MM = 1000.0
@@ -25,10 +23,6 @@ MAX_OFFSET_M = 1.0e3
 an endless move or overflow to inf); :mod:`.coords` uses it for every offset."""
 G59_3_Z_PARAM = 5383
 """Z of coordinate system 9 (G59.3), the fixture G10 L11 measures against."""
-
-
-def _raise(message: str, letter: str) -> NoReturn:
-    raise GcodeError(message, file='<program>', line=0, column=0)
 
 
 def tool_spec(entry: object) -> ToolSpec:
@@ -104,7 +98,7 @@ class ToolTable:
         """M61 Q..: declare the loaded tool without a change."""
         self.selected_tool = self.loaded_tool = number
 
-    def tool(self, number: int | None, *, letter: str, fail: Fail = _raise) -> ToolSpec:
+    def tool(self, number: int | None, *, letter: str, fail: Fail = raise_unplaced) -> ToolSpec:
         """The table entry of tool ``number`` (``None``: the loaded tool); T0 = no tool.
 
         Raises through ``fail`` at ``letter`` when the table lacks the tool.
@@ -119,7 +113,7 @@ class ToolTable:
                  'machine config)', letter)
         return spec
 
-    def cutter_radius(self, d_word: float | None, *, fail: Fail = _raise) -> float:
+    def cutter_radius(self, d_word: float | None, *, fail: Fail = raise_unplaced) -> float:
         """Radius [m] for G41/G42 with the line's D word (absent: the loaded tool)."""
         number = None
         if d_word is not None:
@@ -129,7 +123,7 @@ class ToolTable:
         return self.tool(number, letter='D' if d_word is not None else 'G', fail=fail).radius_m
 
     def tool_length(self, code: str, h_word: float | None, values: Mapping[str, float], *,
-                    fail: Fail = _raise) -> None:
+                    fail: Fail = raise_unplaced) -> None:
         """G43 [H..] / G43.1 axes / G43.2 H.. or axes / G49."""
         tlo = list(self.tlo)
         if code == 'G49':
