@@ -2,6 +2,7 @@
 from dataclasses import replace
 from pathlib import Path
 
+import must_run
 import numpy as np
 import pytest
 
@@ -13,9 +14,9 @@ REPO = Path(__file__).resolve().parents[2]
 MANIFEST = REPO / 'config' / 'campaigns' / 'umich_mill.yaml'
 DATA = (REPO.parent / 'shared' / 'data' / 'umich-cnc-mill').resolve()
 
-pytestmark = pytest.mark.skipif(
-    not (DATA / 'experiment_01.csv').exists(),
-    reason=f'UMich CNC mill data not found at {DATA} (clone the repository next to shared/)')
+pytestmark = must_run.skipif(
+    'shared', not (DATA / 'experiment_01.csv').exists(),
+    f'UMich CNC mill data not found at {DATA} (clone the repository next to shared/)')
 
 # data rows per file (lines minus the header, counted with the csv module); the program
 # filter drops none of them in these experiments
