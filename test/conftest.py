@@ -5,11 +5,16 @@ fails at teardown if a table overflows its container, an image does not load or 
 scrolls sideways, at each width of :data:`report_browser.WIDTHS`. Without Chromium nothing is
 rendered here and ``test/report/test_browser.py`` skips with a message; ``FAE_BROWSER=0``
 turns the check off.
+
+Skips for a missing dependency (LinuxCNC, rclpy, Chromium, the shared data) go through
+``test/must_run.py``; with ``FAE_MUST_RUN`` set (``.ci/run``) the hooks below turn those of
+the listed dependencies into failures.
 """
 from __future__ import annotations
 
 import os
 
+import must_run
 import pytest
 from report_browser import chromium, problems
 
@@ -30,3 +35,24 @@ def _report_pages_render_in_a_browser(request):
             bad += problems(page)
     if bad:
         pytest.fail('report pages do not render well in Chromium:\n' + '\n'.join(bad))
+
+
+def pytest_configure(config):
+    try:
+        must_run.required()
+    except ValueError as exc:
+        raise pytest.UsageError(str(exc)) from None
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item, call):
+    report = yield
+    must_run.enforce(report)
+    return report
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_make_collect_report(collector):
+    report = yield
+    must_run.enforce(report)
+    return report

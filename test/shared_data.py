@@ -4,10 +4,12 @@ The shared data is not part of the repository: it lives in a directory ``shared`
 the clone (``<repository>/../shared``, as on CI), or wherever the environment variable
 ``FAE_SHARED`` points. The candidates, in order: ``$FAE_SHARED`` (when set and not empty),
 then ``<repository>/../shared``. A test that needs the data asks :func:`shared_path` for
-the file or folder inside it and skips with :func:`need_shared` (or a ``skipif`` on
-:data:`SKIP_REASON`) when no candidate holds it, so the suite passes without the data and
-says how to give it. Tests that load ``config/campaigns/umich_mill.yaml`` as it is need the
-data at ``../shared`` itself: the manifest names its files relative to itself.
+the file or folder inside it and skips with :func:`need_shared` (or a
+``must_run.skipif('shared', ...)`` mark quoting :data:`SKIP_REASON`) when no candidate holds
+it, so the suite passes without the data and says how to give it; with ``shared`` in
+``FAE_MUST_RUN`` (CI) those skips fail instead (``test/must_run.py``). Tests that load
+``config/campaigns/umich_mill.yaml`` as it is need the data at ``../shared`` itself: the
+manifest names its files relative to itself.
 
 Tests import it as ``from shared_data import ...`` (``test/`` is on ``sys.path`` through
 ``test/conftest.py``).
@@ -19,7 +21,7 @@ import importlib.util
 from pathlib import Path
 import sys
 
-import pytest
+import must_run
 
 __all__ = ['REPO', 'SKIP_REASON', 'shared_candidates', 'shared_path', 'need_shared']
 
@@ -70,6 +72,7 @@ def need_shared(*parts: str, needs: Iterable[str] = ()) -> Path:
     path = shared_path(*parts, needs=needs)
     if path is None:
         what = '/'.join(parts) or 'the shared directory'
-        pytest.skip(f'{what} not found in the shared data (set FAE_SHARED to the shared '
-                    'directory; default: ../shared beside the repository)')
+        must_run.skip('shared', f'{what} not found in the shared data (set FAE_SHARED to '
+                                'the shared directory; default: ../shared beside the '
+                                'repository)')
     return path

@@ -11,7 +11,6 @@ SOURCES = ['feed_axis_energy', 'test', 'bench', 'launch', 'setup.py']
 
 def test_flake8_plain() -> None:
     """flake8 with the ament settings from setup.cfg (line length 99)."""
-    pytest.importorskip('flake8')
     existing = [s for s in SOURCES if (ROOT / s).exists()]
     proc = subprocess.run([sys.executable, '-m', 'flake8', *existing], cwd=ROOT,
                           capture_output=True, text=True)

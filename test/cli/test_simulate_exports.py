@@ -5,6 +5,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pyarrow.parquet as pq
 import pytest
 
 from feed_axis_energy.cli import main
@@ -77,7 +78,6 @@ def test_csv_series_and_blocks_add_up(tmp_path, capsys):
 
 
 def test_decimated_and_parquet_equal_csv(tmp_path, capsys):
-    pq = pytest.importorskip('pyarrow.parquet')
     code, summary, _ = _simulate(tmp_path, capsys, '--csv', str(tmp_path / 'c'),
                                  '--parquet', str(tmp_path / 'p'), '--export-rate-hz', '100')
     assert code == 0
@@ -179,7 +179,6 @@ def test_rollups_table_adds_up_and_parquet_equals_csv(tmp_path, capsys):
     # the same rows as the summary's roll-ups, full precision
     assert groups['tool']['T1'][0] == next(it['energy_j'] for it in summary['rollups']['tool']
                                            if it['name'] == 'T1')
-    pq = pytest.importorskip('pyarrow.parquet')
     assert main(['simulate', str(prog), '--machine', str(MILL), '--quiet',
                  '--parquet', str(tmp_path / 'p')]) == 0
     assert 'rollups.parquet' in capsys.readouterr().out

@@ -19,8 +19,9 @@ import subprocess
 import sys
 import textwrap
 
+import must_run
 import pytest
-from shared_data import shared_path, SKIP_REASON
+from shared_data import SKIP_REASON
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -35,8 +36,8 @@ def _load_bench():
 
 corpus = _load_bench()
 CORPUS = corpus.find_corpus()
-needs_corpus = pytest.mark.skipif(CORPUS is None,
-                                  reason=f'shared corpus (corpus/gcode): {SKIP_REASON}')
+needs_corpus = must_run.skipif('shared', CORPUS is None,
+                               f'shared corpus (corpus/gcode): {SKIP_REASON}')
 
 ACCEPTANCE_FLOOR = 0.96
 """Share of the programs the reference accepts that we accept (issue 8 target: 0.95).
@@ -96,23 +97,11 @@ def test_report_names_every_refusal_with_its_place(report):
 # ----------------------------------------------------------------------------------------
 # live: our own small programs through the reference interpreter
 # ----------------------------------------------------------------------------------------
-def _oracle_script() -> Path | None:
-    return shared_path('tools', 'run_oracle.py')
+@pytest.fixture
+def oracle() -> Path:
+    """tools/run_oracle.py of the shared data, with LinuxCNC to run it (or skip)."""
+    return must_run.oracle_script()
 
-
-def _has_linuxcnc() -> bool:
-    if not Path('/usr/bin/python3').exists():
-        return False
-    proc = subprocess.run(['/usr/bin/python3', '-c', 'import gcode; gcode.parse'],
-                          capture_output=True, cwd='/', timeout=60)
-    return proc.returncode == 0
-
-
-ORACLE = _oracle_script()
-needs_reference = pytest.mark.skipif(
-    ORACLE is None or not _has_linuxcnc(),
-    reason='reference interpreter (linuxcnc-uspace, tools/run_oracle.py of the shared data: '
-    'set FAE_SHARED) not available')
 
 # One program per construct; each runs to M2 in LinuxCNC 2.9. Millimetres unless stated.
 LIVE_PROGRAMS = {
@@ -252,19 +241,18 @@ LIVE_PROGRAMS = {
 KNOWN_LIVE: dict[str, str] = {}
 
 
-def _oracle_one(path: Path) -> dict:
-    proc = subprocess.run([sys.executable, str(ORACLE), '--one', str(path)], cwd='/',
+def _oracle_one(oracle: Path, path: Path) -> dict:
+    proc = subprocess.run([sys.executable, str(oracle), '--one', str(path)], cwd='/',
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-@needs_reference
 @pytest.mark.parametrize('name', sorted(LIVE_PROGRAMS))
-def test_live_reference_agrees_on_each_construct(tmp_path, name):
+def test_live_reference_agrees_on_each_construct(oracle, tmp_path, name):
     path = tmp_path / f'{name}.ngc'
     path.write_text(textwrap.dedent(LIVE_PROGRAMS[name]).strip() + '\n')
-    ref = _oracle_one(path)
+    ref = _oracle_one(oracle, path)
     assert ref['status'] == 'ok', f'the fixture itself is wrong: {ref["error"]}'
     ours = corpus.run_ours(path, dialect='linuxcnc', search_path=[tmp_path])
     if name in KNOWN_LIVE:

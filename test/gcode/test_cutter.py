@@ -8,13 +8,13 @@ import random
 import re
 import subprocess
 
+import must_run
 import pytest
 
 from feed_axis_energy.errors import GcodeError
 from feed_axis_energy.gcode.expand.cutter import CutterComp, LEFT, RIGHT
 from feed_axis_energy.gcode.expand.cutter_corners import arc_sweep, find_turn
 from feed_axis_energy.gcode.program import Move, MoveKind
-from shared_data import shared_path
 
 MM = 1e-3
 ROOT = Path(__file__).resolve().parents[2]
@@ -350,17 +350,15 @@ print(json.dumps({'log': c.log, 'error': gcode.strerror(res) if res > gcode.MIN_
 '''
 
 
-def _reference(program: Path, diameters: dict[int, float]) -> dict | None:
-    tools = shared_path('tools', needs=('run_oracle.py',))
-    if tools is None or not Path('/usr/bin/python3').exists():
-        return None
+def _reference(program: Path, diameters: dict[int, float]) -> dict:
+    """The reference's canon log of ``program`` (skips without LinuxCNC or the oracle)."""
+    tools = must_run.oracle_script().parent
     script = program.with_suffix('.trace.py')
     script.write_text(_TRACE)
     run_ = subprocess.run(['/usr/bin/python3', str(script), str(tools), str(program),
                            json.dumps({str(k): v for k, v in diameters.items()})],
                           capture_output=True, text=True, timeout=120, cwd=program.parent)
-    if run_.returncode != 0 or not run_.stdout.strip():
-        return None                     # no LinuxCNC gcode module here
+    assert run_.returncode == 0 and run_.stdout.strip(), run_.stderr[-2000:]
     return json.loads(run_.stdout.strip().splitlines()[-1])
 
 
@@ -502,9 +500,6 @@ def test_agrees_with_the_reference_interpreter(name, tmp_path):
     prog = tmp_path / name
     prog.write_text(text)
     ref = _reference(prog, diameters)
-    if ref is None:
-        pytest.skip('LinuxCNC reference interpreter (linuxcnc-uspace) not installed, or '
-                    'tools/run_oracle.py not in the shared data (set FAE_SHARED)')
     ours, err = _ours(text, diameters)
     assert (err is None) == (ref['error'] is None), (err, ref['error'])
     if err is not None:

@@ -7,12 +7,12 @@ from pathlib import Path
 import re
 import subprocess
 
+import must_run
 import pytest
 
 from feed_axis_energy.errors import GcodeError
 from feed_axis_energy.gcode.expand.cycles import (CYCLE_CODES, CycleMemory, CycleSpec,
                                                   expand_cycle, PECK_BACKOFF_M, word_failer)
-from shared_data import shared_path
 
 MM = 1e-3
 ROOT = Path(__file__).resolve().parents[2]
@@ -240,15 +240,6 @@ def test_a_runaway_peck_count_is_refused_not_expanded():
 
 
 # -- agreement with LinuxCNC's interpreter, where it is installed -------------------------
-def _oracle() -> Path | None:
-    tool = shared_path('tools', 'run_oracle.py')
-    if tool is None or not Path('/usr/bin/python3').exists():
-        return None
-    ok = subprocess.run(['/usr/bin/python3', '-c', 'import gcode; gcode.parse'],
-                        capture_output=True, cwd='/')
-    return tool if ok.returncode == 0 else None
-
-
 def _drive(text: str) -> dict:
     """Run a cycle-only fixture (G0/G1, G17-19, G90/91, G98/99, cycles, F, M3-5) through
     expand_cycle, summarised as run_oracle.py does (mm)."""
@@ -344,10 +335,7 @@ M2
 
 @pytest.mark.parametrize('name', sorted(FIXTURES))
 def test_agrees_with_the_reference_interpreter(name, tmp_path):
-    tool = _oracle()
-    if tool is None:
-        pytest.skip('LinuxCNC reference interpreter (linuxcnc-uspace) not installed, or '
-                    'tools/run_oracle.py not in the shared data (set FAE_SHARED)')
+    tool = must_run.oracle_script()
     prog = tmp_path / name
     prog.write_text(FIXTURES[name])
     run = subprocess.run(['/usr/bin/python3', str(tool), '--one', str(prog)],

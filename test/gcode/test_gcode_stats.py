@@ -136,10 +136,7 @@ def test_sweep_rad_of_the_move_wins_over_the_derived_one():
     eps = 1e-9
     end = (math.cos(eps), math.sin(eps), 0.0)
     arc = _arc((1.0, 0.0, 0.0), end, (0.0, 0.0, 0.0), ccw=True)
-    try:
-        arc = Move(**{**arc.__dict__, 'sweep_rad': eps})
-    except TypeError:
-        pytest.skip('Move has no sweep_rad yet')
+    arc = Move(**{**arc.__dict__, 'sweep_rad': eps})
     assert arc_geometry(arc)[2] == eps
     assert arc_extremes(arc) == []
 

@@ -18,6 +18,7 @@ import subprocess
 import sys
 
 from hypothesis import given, settings, strategies as st
+import must_run
 import pytest
 
 from feed_axis_energy.errors import GcodeError
@@ -25,7 +26,6 @@ from feed_axis_energy.gcode.load import parse_gcode
 from feed_axis_energy.gcode.expand.splines import (ControlPoint, knot_vector, MAX_ORDER,
                                                    nurbs_point, nurbs_polyline)
 from feed_axis_energy.gcode.program import MoveKind
-from shared_data import shared_path
 
 MM = 1e-3
 ROOT = Path(__file__).resolve().parents[2]
@@ -336,18 +336,6 @@ def test_random_nurbs_stays_in_the_hull_and_ends_on_the_last_point(points, order
 
 
 # -- against the reference interpreter (where linuxcnc-uspace is installed) --------------------
-def _oracle_script() -> Path | None:
-    return shared_path('tools', 'run_oracle.py')
-
-
-def _has_reference() -> bool:
-    if _oracle_script() is None or not Path('/usr/bin/python3').exists():
-        return False
-    proc = subprocess.run(['/usr/bin/python3', '-c', 'import gcode; gcode.parse'],
-                          capture_output=True, cwd='/', timeout=60)
-    return proc.returncode == 0
-
-
 def _random_program(rng: random.Random) -> str:
     """G5, G5.1 and G5.2 curves mixed with G90/G91, G20/G21, rotated systems and G92."""
     def num(lo: float = -20.0, hi: float = 20.0) -> str:
@@ -376,9 +364,8 @@ def _random_program(rng: random.Random) -> str:
     return '\n'.join(out + ['G90 G0 Z10', 'M2']) + '\n'
 
 
-@pytest.mark.skipif(not _has_reference(), reason='reference interpreter (linuxcnc-uspace, '
-                    'tools/run_oracle.py of the shared data: set FAE_SHARED) not available')
 def test_random_spline_programs_agree_with_the_reference(tmp_path):
+    oracle = must_run.oracle_script()
     spec = importlib.util.spec_from_file_location('fae_bench_corpus_splines',
                                                   ROOT / 'bench' / 'corpus.py')
     corpus = importlib.util.module_from_spec(spec)
@@ -388,7 +375,7 @@ def test_random_spline_programs_agree_with_the_reference(tmp_path):
     for k in range(12):
         path = tmp_path / f'random{k}.ngc'
         path.write_text(_random_program(rng))
-        proc = subprocess.run([sys.executable, str(_oracle_script()), '--one', str(path)],
+        proc = subprocess.run([sys.executable, str(oracle), '--one', str(path)],
                               cwd='/', capture_output=True, text=True, timeout=300)
         ref = json.loads(proc.stdout.strip().splitlines()[-1])
         ours = corpus.run_ours(path, dialect='linuxcnc', search_path=[tmp_path])

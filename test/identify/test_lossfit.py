@@ -2,6 +2,7 @@
 import math
 from pathlib import Path
 
+import must_run
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
@@ -179,7 +180,7 @@ def test_options_are_checked():
         SteadyOptions(velocity='planned')
 
 
-@pytest.mark.skipif(not (UMICH / 'experiment_01.csv').is_file(), reason='UMich data absent')
+@must_run.skipif('shared', not (UMICH / 'experiment_01.csv').is_file(), 'UMich data absent')
 def test_umich_calibrate_runs_fit_with_finite_r2():
     campaign = load_campaign(ROOT / 'config' / 'campaigns' / 'umich_mill.yaml')
     runs = [load_run(s) for s in campaign.runs_with_role('calibrate')]

@@ -5,7 +5,7 @@ calibrate runs only (``fit-loss --method samples``) and motion from the actual k
 from dataclasses import replace
 from pathlib import Path
 
-import pytest
+import must_run
 
 from feed_axis_energy.identify.samplefit import fit_loss_samples, machine_with_sample_fits
 from feed_axis_energy.machine.file import load_machine
@@ -22,7 +22,7 @@ MANIFEST = ROOT / 'config' / 'campaigns' / 'umich_mill.yaml'
 DATA = shared_path('data', 'umich-cnc-mill', needs=('experiment_03.csv',))
 
 
-@pytest.mark.skipif(DATA is None, reason=f'UMich CNC mill data: {SKIP_REASON}')
+@must_run.skipif('shared', DATA is None, f'UMich CNC mill data: {SKIP_REASON}')
 def test_samples_fit_on_calibrate_runs_meets_the_validate_targets():
     campaign = load_campaign(MANIFEST, check_files=False)
     campaign = replace(campaign, runs=tuple(replace(r, data=DATA / r.data.name)

@@ -6,7 +6,7 @@ paper) on the runs with role ``calibrate`` and judged on the ``validate`` runs o
 """
 from pathlib import Path
 
-import pytest
+import must_run
 
 from feed_axis_energy.identify.lossfit import fit_loss, machine_with_losses
 from feed_axis_energy.machine.file import load_machine
@@ -20,8 +20,8 @@ MANIFEST = ROOT / 'config' / 'campaigns' / 'umich_mill.yaml'
 DATA = (ROOT.parent / 'shared' / 'data' / 'umich-cnc-mill').resolve()
 
 
-@pytest.mark.skipif(not (DATA / 'experiment_03.csv').exists(),
-                    reason=f'UMich CNC mill data not found at {DATA}')
+@must_run.skipif('shared', not (DATA / 'experiment_03.csv').exists(),
+                 f'UMich CNC mill data not found at {DATA}')
 def test_loss_fitted_on_calibrate_runs_improves_held_out_validate_runs():
     campaign = load_campaign(MANIFEST)
     guessed = load_machine(campaign.machine)

@@ -10,6 +10,7 @@ from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.machine.losses import PowerRegressionLoss
 from feed_axis_energy.machine.mass import carried_axes, moved_mass_kg
 from feed_axis_energy.machine.file import load_machine, machine_from_dict, machine_to_dict
+from feed_axis_energy.plan.trajectory import AxisLimits
 
 CONFIG = Path(__file__).resolve().parents[2] / 'config'
 
@@ -146,9 +147,8 @@ def test_file_errors(tmp_path):
 
 
 def test_limits_as_planner_type(mill):
-    trajectory = pytest.importorskip('feed_axis_energy.plan.trajectory')
     limits = mill.limits()
     assert list(limits) == ['X', 'Y', 'Z']
-    assert isinstance(limits['Z'], trajectory.AxisLimits)
+    assert isinstance(limits['Z'], AxisLimits)
     assert limits['Z'].velocity_m_s == mill.axis('Z').limits.velocity_m_s
     assert limits['Z'].jerk_m_s3 == mill.axis('Z').limits.jerk_m_s3

@@ -14,6 +14,7 @@ import json
 import math
 from pathlib import Path
 
+import must_run
 import numpy as np
 import pytest
 
@@ -347,8 +348,8 @@ UMICH = REPO / 'config' / 'campaigns' / 'umich_mill.yaml'
 UMICH_DATA = (REPO.parent / 'shared' / 'data' / 'umich-cnc-mill').resolve()
 
 
-@pytest.mark.skipif(not (UMICH_DATA / 'experiment_03.csv').exists(),
-                    reason=f'UMich CNC mill data not found at {UMICH_DATA}')
+@must_run.skipif('shared', not (UMICH_DATA / 'experiment_03.csv').exists(),
+                 f'UMich CNC mill data not found at {UMICH_DATA}')
 def test_umich_validate_runs_compare():
     c = load_campaign(UMICH)
     names = [r.name for r in c.runs_with_role('validate')]

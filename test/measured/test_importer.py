@@ -3,6 +3,7 @@ import copy
 import hashlib
 from pathlib import Path
 
+import must_run
 import numpy as np
 from numpy.testing import assert_allclose, assert_array_equal
 import pytest
@@ -175,7 +176,7 @@ def test_bag_run_errors(tmp_path, change, error, words):
         load_run(load_campaign(manifest).runs[0])
 
 
-@pytest.mark.skipif(not (UMICH / 'experiment_08.csv').is_file(), reason='UMich data absent')
+@must_run.skipif('shared', not (UMICH / 'experiment_08.csv').is_file(), 'UMich data absent')
 def test_umich_run_round_trip_and_sample_bags(tmp_path):
     campaign = load_campaign(ROOT / 'config' / 'campaigns' / 'umich_mill.yaml')
     result = import_campaign(campaign, tmp_path / 'out', runs=['exp08'], duration_s=20.0)

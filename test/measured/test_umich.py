@@ -2,9 +2,11 @@
 from dataclasses import replace
 from pathlib import Path
 
+import must_run
 import numpy as np
 import pytest
 
+from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.measured.manifest import load_campaign
 from feed_axis_energy.measured.csvload import load_run
 
@@ -12,9 +14,9 @@ REPO = Path(__file__).resolve().parents[2]
 MANIFEST = REPO / 'config' / 'campaigns' / 'umich_mill.yaml'
 DATA = (REPO.parent / 'shared' / 'data' / 'umich-cnc-mill').resolve()
 
-pytestmark = pytest.mark.skipif(
-    not (DATA / 'experiment_01.csv').exists(),
-    reason=f'UMich CNC mill data not found at {DATA} (clone the repository next to shared/)')
+pytestmark = must_run.skipif(
+    'shared', not (DATA / 'experiment_01.csv').exists(),
+    f'UMich CNC mill data not found at {DATA} (clone the repository next to shared/)')
 
 # data rows per file (lines minus the header, counted with the csv module); the program
 # filter drops none of them in these experiments
@@ -59,6 +61,5 @@ def test_program_filter_on_the_interleaved_experiment_02():
 
 
 def test_machine_config_loads():
-    machine = pytest.importorskip('feed_axis_energy.machine.file')
-    m = machine.load_machine(REPO / 'config' / 'umich_mill.yaml')
+    m = load_machine(REPO / 'config' / 'umich_mill.yaml')
     assert [a.name for a in m.axes] == ['X', 'Y', 'Z']

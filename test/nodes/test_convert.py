@@ -1,4 +1,5 @@
 """The numpy CDR codec against rosbags' serializer and rclpy's deserializer."""
+import must_run
 import numpy as np
 import pytest
 
@@ -6,7 +7,7 @@ from feed_axis_energy.record import bagio
 from feed_axis_energy.errors import DataError
 from feed_axis_energy.graph.end import ProgramEnd
 
-rclpy = pytest.importorskip('rclpy')
+rclpy = must_run.import_or_skip('rclpy', 'rclpy')
 from feed_axis_energy.nodes import convert  # noqa: E402
 from rclpy.serialization import deserialize_message  # noqa: E402
 from trajectory_msgs.msg import JointTrajectory  # noqa: E402

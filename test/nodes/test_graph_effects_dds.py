@@ -2,11 +2,11 @@
 import subprocess
 import sys
 
+import must_run
 import numpy as np
-import pytest
 import yaml
 
-pytest.importorskip('rclpy')
+must_run.import_or_skip('rclpy', 'rclpy')
 
 from feed_axis_energy.record import bagio  # noqa: E402
 from feed_axis_energy.gcode.load import load_gcode  # noqa: E402

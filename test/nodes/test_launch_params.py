@@ -9,6 +9,7 @@ import os
 import subprocess
 import sys
 
+import must_run
 import pytest
 import yaml
 
@@ -49,7 +50,7 @@ def test_params_file_is_new_and_private(tmp_path):
 
 @pytest.mark.ros
 def test_launch_with_hostile_paths(tmp_path, node_env, domain_id):
-    pytest.importorskip('rclpy')
+    must_run.import_or_skip('rclpy', 'rclpy')
     folder = tmp_path / 'run a #b: c \'d" e'
     folder.mkdir()
     # the first line alone would be a different program if the path were cut at ' #'
@@ -96,7 +97,7 @@ def test_stale_parameter_dirs_of_dead_launchers_removed(tmp_path, monkeypatch):
 
 def test_recording_options_reach_the_recorder(tmp_path, node_env, domain_id):
     """--start-time stamps the bag from that instant; --plot-rate-hz thins the plot topics."""
-    pytest.importorskip('rclpy')
+    must_run.import_or_skip('rclpy', 'rclpy')
     from feed_axis_energy.record import bagio
     program = tmp_path / 'p.nc'
     program.write_text('G21 G90 G94 G61\nG0 X0\nG1 X100 F3000\nG1 X0\n', encoding='utf-8')

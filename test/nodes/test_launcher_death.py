@@ -7,9 +7,10 @@ import sys
 import threading
 import time
 
+import must_run
 import pytest
 
-pytest.importorskip('rclpy')
+must_run.import_or_skip('rclpy', 'rclpy')
 
 from feed_axis_energy import lifeline  # noqa: E402
 from feed_axis_energy.record import bagio  # noqa: E402

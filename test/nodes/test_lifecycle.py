@@ -1,7 +1,8 @@
 """gcode_trajectory as a lifecycle node driven by hand (autostart off)."""
+import must_run
 import pytest
 
-rclpy = pytest.importorskip('rclpy')
+rclpy = must_run.import_or_skip('rclpy', 'rclpy')
 from conftest import child_only, IN_CHILD, run_module_in_child  # noqa: E402
 from rclpy.lifecycle import TransitionCallbackReturn  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402

@@ -2,9 +2,10 @@
 import subprocess
 import sys
 
+import must_run
 import pytest
 
-pytest.importorskip('rclpy')
+must_run.import_or_skip('rclpy', 'rclpy')
 
 
 @pytest.mark.parametrize('node, param', [

@@ -1,10 +1,11 @@
 """mcap_recorder in-process: reaching the end in the middle of a take loop closes cleanly."""
 import time
 
+import must_run
 import numpy as np
 import pytest
 
-rclpy = pytest.importorskip('rclpy')
+rclpy = must_run.import_or_skip('rclpy', 'rclpy')
 from conftest import child_only, IN_CHILD, run_module_in_child  # noqa: E402
 from rclpy.duration import Duration  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402

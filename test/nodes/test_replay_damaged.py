@@ -5,9 +5,10 @@ import shutil
 import subprocess
 import sys
 
+import must_run
 import pytest
 
-pytest.importorskip('rclpy')
+must_run.import_or_skip('rclpy', 'rclpy')
 
 _SPEC = importlib.util.spec_from_file_location(
     'hostile_inputs', Path(__file__).resolve().parents[1] / 'measured' /

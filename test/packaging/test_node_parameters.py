@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 
+import must_run
 import pytest
 
 from pkgscan import declared_parameters, graph_parameters, ROOT
@@ -28,7 +29,7 @@ def test_graph_yaml_lists_every_parameter(node):
     assert not unknown, f'config/graph.yaml sets parameters {node} does not declare: {unknown}'
 
 
-@pytest.mark.skipif(importlib.util.find_spec('rclpy') is None, reason='rclpy not installed')
+@must_run.skipif('rclpy', importlib.util.find_spec('rclpy') is None, 'rclpy not installed')
 @pytest.mark.parametrize('node', NODES)
 def test_help_lists_every_parameter(node):
     env = dict(os.environ)

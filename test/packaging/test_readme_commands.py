@@ -19,6 +19,7 @@ import shutil
 import subprocess
 import sys
 
+import must_run
 import pytest
 from shared_data import shared_path
 
@@ -106,8 +107,8 @@ def test_readme_command_block(workdir, lang, line, text, section):
         pytest.skip(f'README line {line}: {"; ".join(reasons)}')
     if '../shared' in text or 'campaigns/umich_mill' in text:
         if not (workdir.parent / 'shared').exists():
-            pytest.skip(f'README line {line}: the shared data is not beside the clone '
-                        '(set FAE_SHARED)')
+            must_run.skip('shared', f'README line {line}: the shared data is not beside the '
+                                    'clone (set FAE_SHARED)')
     if lang == 'sh':
         done = subprocess.run(['bash', '-e', '-o', 'pipefail', '-c', text], cwd=workdir,
                               env=_env(), capture_output=True, text=True, timeout=TIMEOUT_S)

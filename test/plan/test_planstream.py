@@ -3,6 +3,7 @@ import math
 from pathlib import Path
 import tracemalloc
 
+import must_run
 import numpy as np
 import pytest
 
@@ -171,7 +172,7 @@ def test_corpus_programs_equal_whole_plan():
     names = ['CauldronDevelopmentLLC__CAMotics/examples__locket__engrave.ngc']
     paths = [root / n for n in names if (root / n).is_file()]
     if not paths:
-        pytest.skip('corpus programs not found')
+        must_run.skip('shared', f'corpus programs not found in {root}: {names}')
     for path in paths:
         prog = load_gcode(path, home=machine.home_point())
         ref = plan(prog, machine.limits(), options=opts)

@@ -4,6 +4,7 @@ import math
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
+import ruckig
 
 from feed_axis_energy.plan.profiles import min_distance, plan_profiles, ramp, reach_speed
 
@@ -86,7 +87,6 @@ def test_short_move_lowers_the_peak():
     (0.4, 0.0, 0.0, 0.6), (0.4, 0.1, 0.05, 0.3), (0.002, 0.0, 0.0, 0.6), (0.05, 0.2, 0.0, 0.5),
 ])
 def test_duration_matches_ruckig(case):
-    ruckig = pytest.importorskip('ruckig')
     length, v0, v1, vmax = case
     inp = ruckig.InputParameter(1)
     inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [v0], [0.0]

@@ -7,12 +7,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
+import must_run
 from report_browser import check_page, chromium, problems
 
-pytestmark = pytest.mark.skipif(
-    chromium() is None, reason='Chromium not installed (Debian package chromium): report '
-                               'pages are not rendered in a browser')
+pytestmark = must_run.skipif(
+    'chromium', chromium() is None, 'Chromium not installed (Debian package chromium): report '
+                                    'pages are not rendered in a browser')
 
 _PNG = ('data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mNk'
         '+M9QDwADhgGAWjR9awAAAABJRU5ErkJggg==')

@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from feed_axis_energy.gcode.load import load_gcode, parse_gcode
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.plan.motion import Motion
 from feed_axis_energy.sim.simulate import simulate_motion, simulate_program, summarize
@@ -67,9 +68,7 @@ M30
 
 
 def test_simulate_program_conserves_energy(demo):
-    gcode = pytest.importorskip('feed_axis_energy.gcode.load')
-    pytest.importorskip('feed_axis_energy.plan.trajectory')
-    res = simulate_program(gcode.parse_gcode(PROGRAM, file='rt.nc'), demo, load_kg=17.336)
+    res = simulate_program(parse_gcode(PROGRAM, file='rt.nc'), demo, load_kg=17.336)
     p = res.power
     assert res.program == 'rt.nc' and p.axes == ('X',)
     assert np.max(np.abs(res.motion.vel)) == pytest.approx(0.1, rel=1e-6)
@@ -86,9 +85,7 @@ def test_simulate_program_conserves_energy(demo):
 
 @pytest.mark.parametrize('feed', [100, 300, 500])
 def test_paper_programs_plan_and_stay_within_bounds(demo, feed):
-    gcode = pytest.importorskip('feed_axis_energy.gcode.load')
-    pytest.importorskip('feed_axis_energy.plan.trajectory')
-    program = gcode.load_gcode(CONFIG / 'programs' / f'demonstrator_f{feed}.nc')
+    program = load_gcode(CONFIG / 'programs' / f'demonstrator_f{feed}.nc')
     res = simulate_program(program, demo)
     v = feed / 1000.0
     assert np.max(np.abs(res.motion.vel)) == pytest.approx(v, rel=1e-6)
@@ -104,10 +101,8 @@ def test_paper_programs_plan_and_stay_within_bounds(demo, feed):
 
 
 def test_three_axis_contour_runs():
-    gcode = pytest.importorskip('feed_axis_energy.gcode.load')
-    pytest.importorskip('feed_axis_energy.plan.trajectory')
     mill = load_machine(CONFIG / 'three_axis_mill.yaml')
-    res = simulate_program(gcode.load_gcode(CONFIG / 'programs' / 'three_axis_contour.nc'),
+    res = simulate_program(load_gcode(CONFIG / 'programs' / 'three_axis_contour.nc'),
                            mill, load_kg=30.0, options=mill.planner.options())
     s = summarize(res)
     assert set(s['energy_j']) == {'X', 'Y', 'Z', 'total'}
