@@ -140,17 +140,14 @@ def test_missing_file(tmp_path):
         load_run(spec)
 
 
-def test_five_thousand_rows_load_quickly(tmp_path):
-    import time
+def test_five_thousand_rows_load_exactly(tmp_path):
+    # Speed is a benchmark's business (bench/bench_compare.py prints it), not a timed test.
     n = 5000
     rng = np.random.default_rng(1)
     cols = rng.normal(size=(n, 12))
     header = 'P,X,' + ','.join(f'c{i}' for i in range(10))
     body = '\n'.join(','.join(f'{v:.6e}' for v in row) for row in cols)
     spec = _spec(tmp_path, header + '\n' + body + '\n')
-    start = time.perf_counter()
     run = load_run(spec)
-    elapsed = time.perf_counter() - start
     assert run.t.shape == (n,)
     assert_allclose(run.position_m[:, 0], cols[:, 1] * 1e-3, rtol=1e-6)
-    assert elapsed < 0.5     # generous for a shared 2-core machine; typically ~10 ms

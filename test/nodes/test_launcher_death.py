@@ -174,7 +174,19 @@ def test_stop_while_importing_is_quiet(tmp_path, node_env, sig):
     proc = subprocess.Popen([PY, '-m', 'feed_axis_energy.nodes.mcap_recorder', '--ros-args',
                              '-p', f'output:={tmp_path / "rec"}'], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    time.sleep(0.3)   # rclpy, numpy and rosbags take longer than this to import
+    # Signal once the child is inside its imports: numpy's extension is mapped (rclpy and
+    # rosbags follow it), polled rather than slept for, so a loaded machine cannot make the
+    # signal arrive before Python runs or after the node is up.
+    maps = Path(f'/proc/{proc.pid}/maps')
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline and proc.poll() is None:
+        try:
+            if '_multiarray_umath' in maps.read_text():
+                break
+        except OSError:
+            pass
+        time.sleep(0.002)
+    assert proc.poll() is None, 'the node ended before it was signalled'
     proc.send_signal(sig)
     out, _ = proc.communicate(timeout=30)
     assert 'Traceback' not in out, out
