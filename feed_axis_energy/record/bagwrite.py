@@ -9,6 +9,12 @@ blocks, so that a chunk of samples becomes one numpy array of message records
 (:meth:`StreamBagWriter.write_message`, :meth:`StreamBagWriter.write_raw`) and whole series
 (:meth:`StreamBagWriter.write_series`) go through the same blocks.
 
+The rosbag2 conventions of a bag live here once, for this writer and for the crash-safe one
+of the node graph (:class:`.crashsafe.ChunkedBagWriter`, which writes its files with the same
+:class:`.mcapstream.McapStream`): the bag directory (:func:`create_bag_dir`), a topic as an
+MCAP schema and channel (:func:`declare_topic`) and the ``metadata.yaml`` mapping
+(:func:`bag_information`).
+
 Output safety: the directory must not exist (not even as a dangling link) and is created by
 this class; the MCAP file is opened with ``O_EXCL | O_NOFOLLOW``; ``metadata.yaml`` is
 written last, through a temporary name, when the MCAP file is complete. On an exception
@@ -16,11 +22,12 @@ inside the ``with`` block the directory is removed: a failed write leaves nothin
 """
 from __future__ import annotations
 
+from functools import lru_cache
 import json
 import os
 from pathlib import Path
 import shutil
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 import yaml
@@ -28,13 +35,77 @@ import yaml
 from .cdr import block_energy_cdr, joint_trajectory_rows, MessageRows
 from .bagio import DIAGNOSTIC_ARRAY, JOINT_TRAJECTORY, Series, TOPIC_BLOCK_ENERGY, typestore
 from .qos import qos_yaml, topic_qos
-from .crashsafe import create_bag_dir
 from .mcapstream import CHUNK_BYTES, McapStream, RECORD_HEAD
 
-__all__ = ['StreamBagWriter']
+__all__ = ['StreamBagWriter', 'create_bag_dir', 'declare_topic', 'bag_information']
 
 _NS = 1_000_000_000
 _DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
+
+
+def create_bag_dir(path: str | Path) -> Path:
+    """Create the bag directory ``path``; refuse anything that exists there, links included.
+
+    Missing parent directories are created. Raises ``FileExistsError`` (an ``OSError``) when
+    ``path`` exists or is a symlink (even a dangling one), and ``OSError`` for the rest.
+    """
+    path = Path(path)
+    if os.path.lexists(path):
+        kind = 'a symlink' if path.is_symlink() else 'exists already'
+        msg = f'{path}: {kind}; choose a new output directory (nothing is overwritten)'
+        raise FileExistsError(msg)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        os.mkdir(path)   # atomic; fails on anything that appeared meanwhile, links included
+    except FileExistsError as err:
+        msg = f'{path}: exists already; choose a new output directory (nothing is overwritten)'
+        raise FileExistsError(msg) from err
+    return path
+
+
+@lru_cache(maxsize=64)
+def _msgdef(store, msgtype: str) -> bytes:
+    return store.generate_msgdef(msgtype, ros_version=2)[0].encode()
+
+
+def declare_topic(mcap: McapStream, schemas: dict[str, int], topic: str, msgtype: str, *,
+                  store=None) -> int:
+    """Declare ``topic`` on ``mcap`` as rosbag2 does; return its channel id.
+
+    A ``ros2msg`` schema per message type (its id kept in ``schemas``, added on first use)
+    and a ``cdr`` channel whose metadata holds the topic's offered QoS profiles
+    (:func:`.qos.topic_qos`). ``store``: the rosbags typestore of the message definitions
+    (default :func:`.bagio.typestore`).
+    """
+    if msgtype not in schemas:
+        schemas[msgtype] = mcap.add_schema(msgtype, 'ros2msg',
+                                           _msgdef(store or typestore(), msgtype))
+    return mcap.add_channel(topic, schema_id=schemas[msgtype],
+                            metadata={'offered_qos_profiles': qos_yaml(topic_qos(topic))})
+
+
+def bag_information(types: Mapping[str, str], counts: Mapping[str, int], *, start: int,
+                    end: int, custom: Mapping[str, str], store=None) -> dict:
+    """``rosbag2_bagfile_information`` (version 9, MCAP storage) but the two file lists.
+
+    ``types`` ``{topic: message type}`` in the order listed, ``counts`` messages per topic,
+    ``start`` and ``end`` the first and last log time [ns], ``custom`` the ``custom_data``
+    strings. The caller adds ``relative_file_paths`` and ``files``.
+    """
+    store = store or typestore()
+    topics = [{'topic_metadata': {
+        'name': topic, 'type': msgtype, 'serialization_format': 'cdr',
+        'offered_qos_profiles': topic_qos(topic),
+        'type_description_hash': store.hash_rihs01(msgtype)},
+        'message_count': counts.get(topic, 0)} for topic, msgtype in types.items()]
+    return {
+        'version': 9, 'storage_identifier': 'mcap',
+        'duration': {'nanoseconds': max(0, end - start)},
+        'starting_time': {'nanoseconds_since_epoch': start},
+        'message_count': sum(counts.get(topic, 0) for topic in types),
+        'topics_with_message_count': topics,
+        'compression_format': '', 'compression_mode': '',
+        'custom_data': dict(custom) or None, 'ros_distro': 'rosbags'}
 
 
 class StreamBagWriter:
@@ -108,13 +179,8 @@ class StreamBagWriter:
                 msg = f'topic {topic} has type {known}, not {msgtype}'
                 raise ValueError(msg)
             return self._channels[topic]
-        if msgtype not in self._schemas:
-            text = typestore().generate_msgdef(msgtype, ros_version=2)[0]
-            self._schemas[msgtype] = self._mcap.add_schema(msgtype, 'ros2msg', text.encode())
         self._types[topic] = msgtype
-        self._channels[topic] = self._mcap.add_channel(
-            topic, schema_id=self._schemas[msgtype],
-            metadata={'offered_qos_profiles': qos_yaml(topic_qos(topic))})
+        self._channels[topic] = declare_topic(self._mcap, self._schemas, topic, msgtype)
         return self._channels[topic]
 
     def close_chunk(self) -> None:
@@ -183,26 +249,15 @@ class StreamBagWriter:
         """The ``metadata.yaml`` mapping (rosbag2 version 9) of what was written."""
         mcap = self._mcap
         start = mcap.t_min or 0
-        duration = (mcap.t_max or 0) - start
-        count = sum(mcap.counts.values())
-        store = typestore()
-        topics = [{'topic_metadata': {
-            'name': topic, 'type': msgtype, 'serialization_format': 'cdr',
-            'offered_qos_profiles': topic_qos(topic),
-            'type_description_hash': store.hash_rihs01(msgtype)},
-            'message_count': mcap.counts[self._channels[topic]]}
-            for topic, msgtype in self._types.items()]
+        end = mcap.t_max or 0
+        counts = {topic: mcap.counts[channel] for topic, channel in self._channels.items()}
+        info = bag_information(self._types, counts, start=start, end=end, custom=self._custom)
         name = f'{self.path.name}.mcap'
-        return {'rosbag2_bagfile_information': {
-            'version': 9, 'storage_identifier': 'mcap',
-            'duration': {'nanoseconds': duration},
-            'starting_time': {'nanoseconds_since_epoch': start},
-            'message_count': count, 'topics_with_message_count': topics,
-            'compression_format': '', 'compression_mode': '',
-            'relative_file_paths': [name],
-            'files': [{'path': name, 'starting_time': {'nanoseconds_since_epoch': start},
-                       'duration': {'nanoseconds': duration}, 'message_count': count}],
-            'custom_data': dict(self._custom) or None, 'ros_distro': 'rosbags'}}
+        info['relative_file_paths'] = [name]
+        info['files'] = [{'path': name, 'starting_time': {'nanoseconds_since_epoch': start},
+                          'duration': {'nanoseconds': end - start},
+                          'message_count': info['message_count']}]
+        return {'rosbag2_bagfile_information': info}
 
     def _close(self) -> None:
         text = yaml.dump(self.metadata(), Dumper=_DUMPER, default_flow_style=False)
