@@ -147,7 +147,7 @@ def _write_csv(path: Path, run: RigRun, axes: tuple[str, ...]) -> None:
 
 
 def _write_bag(path: Path, run: RigRun, axes: tuple[str, ...]) -> None:
-    from ..record import bagio
+    from ..record import bagio, StreamBagWriter
     power = run.measured_w
     total = power.sum(axis=1)
     both = np.column_stack([power, total])
@@ -159,7 +159,7 @@ def _write_bag(path: Path, run: RigRun, axes: tuple[str, ...]) -> None:
     pos = np.column_stack([np.interp(sim_t, motion.t, motion.pos[:, j]) for j in range(len(axes))])
     vel = np.column_stack([np.interp(sim_t, motion.t, motion.vel[:, j]) for j in range(len(axes))])
     path.parent.mkdir(parents=True, exist_ok=True)
-    with bagio.BagWriter(path) as writer:
+    with StreamBagWriter(path) as writer:
         writer.write_series(bagio.TOPIC_MEASURED_POWER, bagio.Series(
             t=run.stamps_s, names=tuple(axes) + ('total',), positions=energy, velocities=both))
         writer.write_series(bagio.TOPIC_MEASURED_KINEMATICS, bagio.Series(

@@ -19,7 +19,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 import yaml
 
-from ..record import bagio
+from ..record import bagio, StreamBagWriter
 from ..physics import EnergyIntegrator
 from ..errors import ConfigError, DataError, OutputError, shorten
 from ..outputs import check_target, confined, Rollback, staged_directory, write_text_atomic
@@ -275,7 +275,7 @@ def write_run_bag(path: str | Path, run: MeasuredRun, *, metadata: dict[str, Any
     # The bag is named after its directory (the MCAP file too): staged_directory builds it
     # under its final name inside a hidden temporary directory.
     with staged_directory(path, option=option, forceable=False) as staged, \
-            bagio.BagWriter(staged) as writer:
+            StreamBagWriter(staged) as writer:
         for topic, series in run_series(run).items():
             messages += writer.write_series(topic, series, batch=batch)
         writer.set_custom_data(RUN_KEY, metadata)

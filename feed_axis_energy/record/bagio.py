@@ -1,10 +1,12 @@
-"""rosbag2 (MCAP storage) read and write through ``rosbags``: no rclpy needed.
+"""rosbag2 (MCAP storage) read through ``rosbags``: no rclpy needed; the series form of a topic.
 
 Time series are stored batched as ``trajectory_msgs/msg/JointTrajectory``: one message holds
 up to ``batch`` samples; ``header.stamp`` is the time of the batch's first sample and every
 point's ``time_from_start`` is relative to it. The bag's log time of a message equals its
 header stamp, so recordings compare by simulation time, never by wall-clock receive time.
-Topic names, field meanings and units are listed in ``docs/ARCHITECTURE.md`` and README.
+Bags are written by :class:`.bagwrite.StreamBagWriter` (the node graph's by
+:class:`.crashsafe.ChunkedBagWriter`). Topic names, field meanings and units are listed in
+``docs/ARCHITECTURE.md`` and README.
 """
 from __future__ import annotations
 
@@ -17,14 +19,10 @@ from pathlib import Path
 from typing import Iterable, Iterator, Sequence
 
 import numpy as np
-from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
-                                QosTime)
-from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StoragePlugin, Writer
+from rosbags.rosbag2 import Reader
 from rosbags.typesys import get_typestore, Stores
 
 from feed_axis_energy.record.bagcheck import check_trajectory, field_layout, guard
-from feed_axis_energy.record.qos import topic_qos
-from feed_axis_energy.record.cdr import block_energy_cdr, joint_trajectory_cdr
 from feed_axis_energy.errors import DataError, describe, shorten
 from feed_axis_energy.record.mcapcheck import check_mcap
 from feed_axis_energy.safeyaml import load_yaml_file
@@ -32,9 +30,9 @@ from feed_axis_energy.units import MAX_ABS_SI
 
 __all__ = ['TOPIC_SETPOINTS', 'TOPIC_AXIS_STATE', 'TOPIC_POWER', 'TOPIC_BLOCK_ENERGY',
            'TOPIC_MEASURED_POWER', 'TOPIC_MEASURED_KINEMATICS', 'JOINT_TRAJECTORY',
-           'DIAGNOSTIC_ARRAY', 'Series', 'BagWriter', 'read_series', 'read_block_energy',
+           'DIAGNOSTIC_ARRAY', 'Series', 'read_series', 'read_block_energy',
            'read_custom_data', 'bag_topics', 'typestore', 'series_to_messages',
-           'messages_to_series', 'read_metadata', 'read_raw_messages', 'BAG_COMPRESSIONS']
+           'messages_to_series', 'read_metadata', 'read_raw_messages']
 
 TOPIC_SETPOINTS = '/setpoints'
 TOPIC_AXIS_STATE = '/axis_state'
@@ -47,7 +45,6 @@ JOINT_TRAJECTORY = 'trajectory_msgs/msg/JointTrajectory'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 
 _NS = 1_000_000_000
-BAG_COMPRESSIONS = ('none', 'zstd')
 _TYPESTORE = None
 
 
@@ -170,102 +167,12 @@ def messages_to_series(messages: Iterable) -> Series:
     return Series(t=(t_ns - t0_ns) / _NS, names=names, t0_ns=t0_ns, **arrays)
 
 
-class BagWriter:
-    """Write a rosbag2 directory with MCAP storage (context manager).
-
-    Parameters
-    ----------
-    path
-        Bag directory to create; it must not exist yet.
-    compression
-        ``'none'`` (default) or ``'zstd'``: MCAP chunks compressed with zstd (about 8x
-        smaller for simulated series, about 2.5x slower to write).
-    """
-
-    def __init__(self, path: str | Path, *, compression: str = 'none'):
-        self.path = Path(path)
-        if self.path.exists():
-            msg = f'{self.path} exists already; choose a new output directory'
-            raise FileExistsError(msg)
-        if compression not in BAG_COMPRESSIONS:
-            msg = f'compression must be one of {", ".join(BAG_COMPRESSIONS)}, got {compression!r}'
-            raise ValueError(msg)
-        self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
-        if compression == 'zstd':
-            # MCAP chunk compression: read by rosbags, the mcap library and Foxglove
-            self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-        self._connections: dict[str, object] = {}
-
-    def __enter__(self) -> 'BagWriter':
-        self._writer.open()
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            self._writer.close()
-        else:
-            self._writer.abort()
-
-    def _connection(self, topic: str, msgtype: str):
-        if topic not in self._connections:
-            self._connections[topic] = self._writer.add_connection(
-                topic, msgtype, typestore=typestore(),
-                offered_qos_profiles=[_rosbags_qos(q) for q in topic_qos(topic)])
-        return self._connections[topic]
-
-    def write_message(self, topic: str, msgtype: str, stamp_ns: int, message) -> None:
-        """Serialize one rosbags message object and write it at ``stamp_ns``."""
-        conn = self._connection(topic, msgtype)
-        self._writer.write(conn, stamp_ns, typestore().serialize_cdr(message, msgtype))
-
-    def write_series(self, topic: str, series: Series, *, batch: int = 100) -> int:
-        """Write a time series as batched JointTrajectory messages; returns the message count.
-
-        The messages are those of :func:`series_to_messages`, serialised all at once by
-        :func:`.cdr.joint_trajectory_cdr` (same bytes, without a Python object per point).
-        """
-        t_ns = series.stamps_ns()
-        if np.any(t_ns < 0):
-            msg = 'bag time series must not have negative times'
-            raise ValueError(msg)
-        fields = [getattr(series, f) for f in ('positions', 'velocities', 'accelerations',
-                                               'effort')]
-        raw = joint_trajectory_cdr(t_ns, tuple(series.names), fields, batch=batch)
-        conn = self._connection(topic, JOINT_TRAJECTORY)
-        write = self._writer.write
-        for stamp, data in raw:
-            write(conn, stamp, data)
-        return len(raw)
-
-    def write_block_energy(self, blocks: Sequence[tuple[int, float, float]], *,
-                           stamp_s: float, program: str = '') -> None:
-        """Write the per-block energy summary as DiagnosticArrays (:func:`block_energy_cdr`)."""
-        conn = self._connection(TOPIC_BLOCK_ENERGY, DIAGNOSTIC_ARRAY)
-        for stamp, data in block_energy_cdr(blocks, stamp_s=stamp_s, program=program):
-            self._writer.write(conn, stamp, data)
-
-    def set_custom_data(self, key: str, value: object) -> None:
-        """Store a JSON-serialisable value in the bag's metadata (``custom_data``)."""
-        self._writer.set_custom_data(key, json.dumps(value))
-
-
 # ----------------------------------------------------------------------------- reading
 #
 # Everything read from a bag passes through here: the metadata is parsed by the bounded
 # YAML loader first, every rosbags call that touches file content is guarded, and every
 # decoded message is checked (type, array lengths, finite values) before it is used, so a
 # damaged bag ends in one DataError naming the bag, the topic and the message index.
-
-def _rosbags_qos(profile: dict) -> Qos:
-    """A :mod:`.bagqos` profile as rosbags' ``Qos``."""
-    def time(key: str) -> QosTime:
-        return QosTime(profile[key]['sec'], profile[key]['nsec'])
-    return Qos(QosHistory[profile['history'].upper()], profile['depth'],
-               QosReliability[profile['reliability'].upper()],
-               QosDurability[profile['durability'].upper()], time('deadline'), time('lifespan'),
-               QosLiveliness[profile['liveliness'].upper()], time('liveliness_lease_duration'),
-               profile['avoid_ros_namespace_conventions'])
-
 
 def read_metadata(path: str | Path) -> dict:
     """Return the parsed ``metadata.yaml`` of a bag directory (the bounded YAML loader).
@@ -483,7 +390,8 @@ def read_block_energy(path: str | Path) -> list[tuple[int, float, float]]:
 
 
 def read_custom_data(path: str | Path, key: str) -> object:
-    """Read a JSON value stored with :meth:`BagWriter.set_custom_data` (``None`` if absent).
+    """Read a JSON value stored with :meth:`.bagwrite.StreamBagWriter.set_custom_data`
+    (``None`` if absent).
 
     Raises
     ------

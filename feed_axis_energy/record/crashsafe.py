@@ -13,6 +13,14 @@ Layout (what :class:`ChunkedBagWriter` guarantees at every moment, SIGKILL inclu
   kill in between leaves a hidden ``.tmp`` file or an unlisted ``.mcap`` that readers ignore;
   the bag reads as of the previous flush.
 
+The files are written by the MCAP core of every bag, :class:`.mcapstream.McapStream`, with the
+rosbag2 conventions of :mod:`.bagwrite` (:func:`.bagwrite.declare_topic`,
+:func:`.bagwrite.bag_information`, :func:`.bagwrite.create_bag_dir`); what is this module's
+own is the file discipline above. It cannot be a mode of
+:class:`.bagwrite.StreamBagWriter`'s one growing file: ``rosbags`` opens an MCAP only through
+its footer and summary, which a file gets when it is finished, so a bag that must read at
+every moment needs every listed file finished, hence a new file per flush.
+
 So a kill loses exactly the messages buffered since the last flush; the recorder
 (:mod:`feed_axis_energy.nodes.mcap_recorder`) flushes by message count and by wall time, which
 bounds that loss (docs/nodes.md). Not covered: power loss or an OS crash (nothing is fsynced;
@@ -30,34 +38,14 @@ from pathlib import Path
 import shutil
 from typing import Mapping
 
-from mcap.writer import CompressionType, Writer as McapWriter
 import yaml
 
-from .qos import qos_yaml, topic_qos
+from .bagwrite import bag_information, create_bag_dir, declare_topic
+from .mcapstream import McapStream
 
-__all__ = ['ChunkedBagWriter', 'create_bag_dir']
+__all__ = ['ChunkedBagWriter']
 
 _DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
-
-
-def create_bag_dir(path: str | Path) -> Path:
-    """Create the bag directory ``path``; refuse anything that exists there, links included.
-
-    Missing parent directories are created. Raises ``FileExistsError`` (an ``OSError``) when
-    ``path`` exists or is a symlink (even a dangling one), and ``OSError`` for the rest.
-    """
-    path = Path(path)
-    if os.path.lexists(path):
-        kind = 'a symlink' if path.is_symlink() else 'exists already'
-        msg = f'{path}: {kind}; choose a new output directory (nothing is overwritten)'
-        raise FileExistsError(msg)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        os.mkdir(path)   # atomic; fails on anything that appeared meanwhile, links included
-    except FileExistsError as err:
-        msg = f'{path}: exists already; choose a new output directory (nothing is overwritten)'
-        raise FileExistsError(msg) from err
-    return path
 
 
 def _indent(text: str) -> str:
@@ -90,7 +78,6 @@ class ChunkedBagWriter:
         self._buffer: list[tuple[str, int, bytes]] = []
         self._files: list[dict] = []
         self._custom: dict[str, str] = {}
-        self._schemas: dict[str, bytes] = {}
         self._path_yaml: list[str] = []
         self._file_yaml: list[str] = []
         self.counts: dict[str, int] = {}
@@ -165,29 +152,15 @@ class ChunkedBagWriter:
         self._write_metadata(extra=buffer)
 
     def _write_mcap(self, fh, buffer: list[tuple[str, int, bytes]]) -> None:
-        """One complete MCAP file as rosbag2 writes it (profile ``ros2``, ``ros2msg`` schemas).
-
-        Written with the ``mcap`` library rather than a rosbags ``Writer`` per flush, which
-        spent ~0.1 s in YAML dumps of its own metadata (the recorder must stay responsive).
-        """
-        writer = McapWriter(fh, compression=CompressionType.NONE)
-        writer.start(profile='ros2', library='feed_axis_energy')
-        channels = {}
-        for topic, msgtype in sorted(self._types.items()):
-            if msgtype not in self._schemas:
-                self._schemas[msgtype] = self._typestore.generate_msgdef(
-                    msgtype, ros_version=2)[0].encode()
-            schema = writer.register_schema(name=msgtype, encoding='ros2msg',
-                                            data=self._schemas[msgtype])
-            channels[topic] = writer.register_channel(
-                topic=topic, message_encoding='cdr', schema_id=schema,
-                metadata={'offered_qos_profiles': qos_yaml(topic_qos(topic))})
-        seq = {}
+        """One complete MCAP file as rosbag2 writes it (profile ``ros2``, ``ros2msg`` schemas),
+        uncompressed, every declared topic a channel: :class:`.mcapstream.McapStream`."""
+        mcap = McapStream(fh, compression='none')
+        schemas: dict[str, int] = {}
+        channels = {topic: declare_topic(mcap, schemas, topic, msgtype, store=self._typestore)
+                    for topic, msgtype in sorted(self._types.items())}
         for topic, stamp, data in buffer:
-            seq[topic] = seq.get(topic, -1) + 1
-            writer.add_message(channels[topic], log_time=stamp, data=data, publish_time=stamp,
-                               sequence=seq[topic] % 2**32)
-        writer.finish()
+            mcap.add_message(channels[topic], stamp, data)
+        mcap.finish()
 
     def metadata(self, *, extra: list[tuple[str, int, bytes]] = ()) -> dict:
         """The ``metadata.yaml`` content for the files written so far.
@@ -208,22 +181,8 @@ class ChunkedBagWriter:
         start = min((f['starting_time']['nanoseconds_since_epoch'] for f in full), default=0)
         end = max((f['starting_time']['nanoseconds_since_epoch'] + f['duration']['nanoseconds']
                    for f in full), default=0)
-        topics = [{'topic_metadata': {
-            'name': topic, 'type': msgtype, 'serialization_format': 'cdr',
-            'offered_qos_profiles': topic_qos(topic),
-            'type_description_hash': self._typestore.hash_rihs01(msgtype)},
-            'message_count': counts.get(topic, 0)} for topic, msgtype in sorted(
-                self._types.items())]
-        return {
-            'version': 9, 'storage_identifier': 'mcap',
-            'duration': {'nanoseconds': max(0, end - start)},
-            'starting_time': {'nanoseconds_since_epoch': start},
-            'message_count': sum(f['message_count'] for f in self._files),
-            'topics_with_message_count': topics,
-            'compression_format': '', 'compression_mode': '',
-            'custom_data': dict(self._custom) or None,
-            'ros_distro': 'rosbags',
-        }
+        return bag_information(dict(sorted(self._types.items())), counts, start=start, end=end,
+                               custom=self._custom, store=self._typestore)
 
     def _write_metadata(self, *, extra: list[tuple[str, int, bytes]] = ()) -> None:
         # The per-file lists grow by one entry per flush: each entry is rendered once

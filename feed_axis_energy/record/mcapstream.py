@@ -180,7 +180,8 @@ class McapStream:
     def _reset_chunk(self) -> None:
         self._blocks: list[bytes] = []
         self._size = 0
-        self._index: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+        # per channel (stamps, offsets): arrays of a block, or lists of single messages
+        self._index: dict[int, list[tuple]] = {}
         self._start: int | None = None
         self._end = 0
 
@@ -236,16 +237,28 @@ class McapStream:
         self._append(channel, stamps, rows[:, c0:start + length].tobytes(), RECORD_HEAD + length)
 
     def add_message(self, channel: int, stamp: int, data: bytes) -> None:
-        """Append one message (for the few messages that are not series)."""
+        """Append one message (for messages that are not series: no numpy per message)."""
         stamp = int(stamp)
         if stamp < 0:
             msg = 'add_message: negative stamp'
             raise ValueError(msg)
         seq = self.counts[channel] % (1 << 32)
-        head = struct.pack('<BQHIQQ', _OP_MESSAGE, RECORD_HEAD - 9 + len(data), channel, seq,
-                           stamp, stamp)
-        self._append(channel, np.array([stamp], np.int64), head + bytes(data),
-                     RECORD_HEAD + len(data))
+        record = struct.pack('<BQHIQQ', _OP_MESSAGE, RECORD_HEAD - 9 + len(data), channel, seq,
+                             stamp, stamp) + bytes(data)
+        parts = self._index.setdefault(channel, [])
+        if not parts or not isinstance(parts[-1][0], list):
+            parts.append(([], []))          # single messages gather in lists
+        parts[-1][0].append(stamp)
+        parts[-1][1].append(self._size)
+        self._blocks.append(record)
+        self._size += len(record)
+        self._start = stamp if self._start is None else min(self._start, stamp)
+        self._end = max(self._end, stamp)
+        self.t_min = stamp if self.t_min is None else min(self.t_min, stamp)
+        self.t_max = stamp if self.t_max is None else max(self.t_max, stamp)
+        self.counts[channel] += 1
+        if self._size >= self.chunk_bytes:
+            self.close_chunk()
 
     def _append(self, channel: int, stamps: np.ndarray, records: bytes, size: int) -> None:
         m = stamps.shape[0]
@@ -274,9 +287,9 @@ class McapStream:
         indexes = []
         for channel in sorted(self._index):
             parts = self._index[channel]
-            pairs = np.empty((sum(p[0].shape[0] for p in parts), 2), '<u8')
-            pairs[:, 0] = np.concatenate([p[0] for p in parts])
-            pairs[:, 1] = np.concatenate([p[1] for p in parts])
+            pairs = np.empty((sum(len(p[0]) for p in parts), 2), '<u8')
+            pairs[:, 0] = np.concatenate([np.asarray(p[0], np.int64) for p in parts])
+            pairs[:, 1] = np.concatenate([np.asarray(p[1], np.int64) for p in parts])
             indexes.append((channel, pairs.tobytes()))
         self._do(self._write_chunk, data, indexes, self._start, self._end)
         self._reset_chunk()

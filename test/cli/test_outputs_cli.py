@@ -17,7 +17,7 @@ import pytest
 import yaml
 
 from feed_axis_energy.cli import main
-from feed_axis_energy.record import bagio
+from feed_axis_energy.record import bagio, StreamBagWriter
 from feed_axis_energy.interrupt import Terminated
 from feed_axis_energy.measured.manifest import load_campaign
 from feed_axis_energy.record.recording import SUMMARY_KEY
@@ -181,7 +181,7 @@ def test_import_failure_part_way_removes_every_bag_of_the_invocation(
         tmp_path, capsys, monkeypatch, failure, code, said) -> None:
     manifest = _campaign_with_names(tmp_path, ['one', 'two', 'three'])
     out = tmp_path / 'out'
-    real = bagio.BagWriter.write_series
+    real = StreamBagWriter.write_series
     calls = []
 
     def fails_in_the_second_bag(self, topic, series, *, batch=100):
@@ -190,12 +190,12 @@ def test_import_failure_part_way_removes_every_bag_of_the_invocation(
             raise failure
         return real(self, topic, series, batch=batch)
 
-    monkeypatch.setattr(bagio.BagWriter, 'write_series', fails_in_the_second_bag)
+    monkeypatch.setattr(StreamBagWriter, 'write_series', fails_in_the_second_bag)
     before = _snapshot(tmp_path)
     assert main(['import', str(manifest), '--out', str(out), '--quiet']) == code
     assert said in capsys.readouterr().err
     assert _snapshot(tmp_path) == before                # bag 'one' was removed again
-    monkeypatch.setattr(bagio.BagWriter, 'write_series', real)
+    monkeypatch.setattr(StreamBagWriter, 'write_series', real)
     assert main(['import', str(manifest), '--out', str(out), '--quiet']) == 0
     assert sorted(p.name for p in out.iterdir()) == ['campaign.yaml', 'one', 'three', 'two']
     runs = load_campaign(out / 'campaign.yaml').runs

@@ -9,7 +9,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 import pytest
 import yaml
 
-from feed_axis_energy.record import bagio
+from feed_axis_energy.record import bagio, StreamBagWriter
 from feed_axis_energy.errors import ConfigError, DataError, OutputError
 from feed_axis_energy.measured.manifest import load_campaign
 from feed_axis_energy.measured.csvload import load_run
@@ -128,7 +128,7 @@ def test_failure_while_writing_leaves_no_partial_bag(tmp_path, monkeypatch):
             raise OSError('disk full (simulated)')
         return 1
 
-    monkeypatch.setattr(bagio.BagWriter, 'write_series', broken)
+    monkeypatch.setattr(StreamBagWriter, 'write_series', broken)
     out = tmp_path / 'out'
     with pytest.raises(OutputError, match='disk full'):
         import_campaign(campaign, out, runs=['a'])

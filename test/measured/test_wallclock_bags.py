@@ -14,7 +14,7 @@ from numpy.testing import assert_array_equal
 from rosbags.rosbag2 import Reader
 
 from feed_axis_energy.cli import main
-from feed_axis_energy.record import bagio
+from feed_axis_energy.record import bagio, StreamBagWriter
 from feed_axis_energy.measured.manifest import load_campaign
 from feed_axis_energy.measured.csvload import load_run
 from feed_axis_energy.measured.importer import import_campaign
@@ -32,7 +32,7 @@ def wall_clock_copy(src: Path, dst: Path, start_ns: int, *, custom: bool = True)
     ts = bagio.typestore()
     time_cls = ts.types['builtin_interfaces/msg/Time']
     custom_data = bagio.read_metadata(src).get('custom_data') or {}
-    with Reader(src) as reader, bagio.BagWriter(dst) as writer:
+    with Reader(src) as reader, StreamBagWriter(dst) as writer:
         for conn, log_ns, raw in reader.messages():
             msg = ts.deserialize_cdr(raw, conn.msgtype)
             stamp = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec + start_ns

@@ -13,7 +13,7 @@ import pytest
 must_run.import_or_skip('rclpy', 'rclpy')
 
 from feed_axis_energy import lifeline  # noqa: E402
-from feed_axis_energy.record import bagio  # noqa: E402
+from feed_axis_energy.record import bagio, StreamBagWriter  # noqa: E402
 from feed_axis_energy.physics.energy import energy_by_line  # noqa: E402
 from feed_axis_energy.gcode.load import load_gcode  # noqa: E402
 from feed_axis_energy.graph.flow import header_stamp_ns, read_raw  # noqa: E402
@@ -93,7 +93,7 @@ def _measured_bag(path, n=3000, batch=10):
     t = np.arange(n) * 1e-3 + 1.0
     power = bagio.Series(t=t, names=('X', 'total'),
                          positions=np.column_stack((t, t)), velocities=np.ones((n, 2)))
-    with bagio.BagWriter(path) as w:
+    with StreamBagWriter(path) as w:
         w.write_series(bagio.TOPIC_MEASURED_POWER, power, batch=batch)
     return power
 
@@ -238,7 +238,7 @@ def test_replay_of_two_topics_into_recorder_exits_at_end(tmp_path, node_env, dom
                          velocities=np.ones((n_power, 2)))
     tk = t[:n_kin]
     kin = bagio.Series(t=tk, names=('X',), positions=tk[:, None], velocities=np.ones((n_kin, 1)))
-    with bagio.BagWriter(tmp_path / 'measured') as w:
+    with StreamBagWriter(tmp_path / 'measured') as w:
         w.write_series(bagio.TOPIC_MEASURED_POWER, power, batch=10)
         w.write_series(bagio.TOPIC_MEASURED_KINEMATICS, kin, batch=10)
     bag = _replay_into_recorder(tmp_path, node_env, ['measured/power', 'measured/kinematics'],

@@ -5,7 +5,7 @@ import numpy as np
 from numpy.testing import assert_allclose, assert_array_equal
 import pytest
 
-from feed_axis_energy.record import bagio
+from feed_axis_energy.record import bagio, StreamBagWriter
 from feed_axis_energy.errors import DataError
 
 
@@ -19,7 +19,7 @@ def _series(n: int, names=('X', 'total')) -> bagio.Series:
 @pytest.mark.parametrize('n,batch', [(1, 100), (250, 100), (300, 100), (7, 3)])
 def test_series_round_trip_is_exact(tmp_path: Path, n: int, batch: int) -> None:
     series = _series(n)
-    with bagio.BagWriter(tmp_path / 'bag') as writer:
+    with StreamBagWriter(tmp_path / 'bag') as writer:
         count = writer.write_series(bagio.TOPIC_POWER, series, batch=batch)
     assert count == -(-n // batch)
     back = bagio.read_series(tmp_path / 'bag', bagio.TOPIC_POWER)
@@ -37,7 +37,7 @@ def test_series_round_trip_is_exact(tmp_path: Path, n: int, batch: int) -> None:
 
 def test_block_energy_and_custom_data(tmp_path: Path) -> None:
     blocks = [(3, 12.5, 1.25), (4, -0.125, 0.5)]
-    with bagio.BagWriter(tmp_path / 'bag') as writer:
+    with StreamBagWriter(tmp_path / 'bag') as writer:
         writer.write_block_energy(blocks, stamp_s=2.0, program='p.nc')
         writer.set_custom_data('feed_axis_energy/summary', {'energy_j': 1.5})
     assert bagio.read_block_energy(tmp_path / 'bag') == blocks
@@ -48,13 +48,15 @@ def test_block_energy_and_custom_data(tmp_path: Path) -> None:
 def test_existing_directory_is_not_overwritten(tmp_path: Path) -> None:
     (tmp_path / 'bag').mkdir()
     with pytest.raises(FileExistsError, match='exists already'):
-        bagio.BagWriter(tmp_path / 'bag')
+        with StreamBagWriter(tmp_path / 'bag'):
+            pass
+    assert list((tmp_path / 'bag').iterdir()) == []
 
 
 def test_missing_topic_and_non_bag_are_clear_errors(tmp_path: Path) -> None:
     with pytest.raises(DataError, match='not a rosbag2 directory'):
         bagio.read_series(tmp_path, bagio.TOPIC_POWER)
-    with bagio.BagWriter(tmp_path / 'bag') as writer:
+    with StreamBagWriter(tmp_path / 'bag') as writer:
         writer.write_series(bagio.TOPIC_POWER, _series(5))
     with pytest.raises(DataError, match="topic '/setpoints' not in bag"):
         bagio.read_series(tmp_path / 'bag', bagio.TOPIC_SETPOINTS)
@@ -62,7 +64,7 @@ def test_missing_topic_and_non_bag_are_clear_errors(tmp_path: Path) -> None:
 
 def test_text_as_message_count_in_metadata_is_a_clear_error(tmp_path: Path) -> None:
     # found by test_hostile_properties: a ValueError of int() escaped bag_topics
-    with bagio.BagWriter(tmp_path / 'bag') as writer:
+    with StreamBagWriter(tmp_path / 'bag') as writer:
         writer.write_series(bagio.TOPIC_POWER, _series(5))
     meta = tmp_path / 'bag' / 'metadata.yaml'
     text = meta.read_text()
@@ -74,7 +76,7 @@ def test_text_as_message_count_in_metadata_is_a_clear_error(tmp_path: Path) -> N
 
 def test_mcap_file_is_readable_by_plain_mcap_reader(tmp_path: Path) -> None:
     from mcap.reader import make_reader
-    with bagio.BagWriter(tmp_path / 'bag') as writer:
+    with StreamBagWriter(tmp_path / 'bag') as writer:
         writer.write_series(bagio.TOPIC_POWER, _series(250), batch=100)
     (mcap_file,) = (tmp_path / 'bag').glob('*.mcap')
     with open(mcap_file, 'rb') as f:
@@ -91,7 +93,7 @@ def _write_stamped(path: Path, t_ns: np.ndarray, values: np.ndarray) -> None:
     """A /power topic whose messages carry exactly the integer stamps ``t_ns``."""
     from feed_axis_energy.record.cdr import joint_trajectory_cdr
     ts = bagio.typestore()
-    with bagio.BagWriter(path) as writer:
+    with StreamBagWriter(path) as writer:
         for stamp, raw in joint_trajectory_cdr(t_ns, ('X', 'total'), [values, None, None, None],
                                                batch=100):
             message = ts.deserialize_cdr(raw, bagio.JOINT_TRAJECTORY)
@@ -118,7 +120,7 @@ def test_series_with_a_start_writes_its_stamps(tmp_path: Path) -> None:
     series = _series(150)
     start = bagio.Series(t=series.t, names=series.names, positions=series.positions,
                          velocities=series.velocities, t0_ns=WALL_START_NS)
-    with bagio.BagWriter(tmp_path / 'bag') as writer:
+    with StreamBagWriter(tmp_path / 'bag') as writer:
         writer.write_series(bagio.TOPIC_POWER, start, batch=100)
     back = bagio.read_series(tmp_path / 'bag', bagio.TOPIC_POWER)
     assert_array_equal(back.stamps_ns(), WALL_START_NS + np.rint(series.t * 1e9).astype(np.int64))

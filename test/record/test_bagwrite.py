@@ -1,18 +1,24 @@
-"""The block writer (mcapstream, bagwrite, SimulationBagWriter): what rosbags would have written.
+"""The bag writer (mcapstream, bagwrite, SimulationBagWriter): what rosbags would have written.
 
 Round trips through every reader we promise (our bagio readers, rosbags' AnyReader, the mcap
 library with CRC checks), the same messages and metadata as rosbags' own Writer, chunk
 boundaries anywhere, and nothing left on failure.
 """
+import json
 from pathlib import Path
 
 from mcap.reader import make_reader
 import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
+from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
+                                QosTime)
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 
 from feed_axis_energy.record import bagio
 from feed_axis_energy.record.bagwrite import StreamBagWriter
+from feed_axis_energy.record.cdr import block_energy_cdr, joint_trajectory_cdr
+from feed_axis_energy.record.qos import topic_qos
 from feed_axis_energy.gcode.load import load_gcode
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.record.recording import SimulationBagWriter, simulation_series
@@ -21,6 +27,57 @@ from feed_axis_energy.sim.simulate import simulate_program
 
 REPO = Path(__file__).resolve().parents[2]
 SERIES_TOPICS = (bagio.TOPIC_SETPOINTS, bagio.TOPIC_AXIS_STATE, bagio.TOPIC_POWER)
+
+
+def _rosbags_qos(profile: dict) -> Qos:
+    """A :mod:`.qos` profile as rosbags' ``Qos``."""
+    def time(key: str) -> QosTime:
+        return QosTime(profile[key]['sec'], profile[key]['nsec'])
+    return Qos(QosHistory[profile['history'].upper()], profile['depth'],
+               QosReliability[profile['reliability'].upper()],
+               QosDurability[profile['durability'].upper()], time('deadline'), time('lifespan'),
+               QosLiveliness[profile['liveliness'].upper()], time('liveliness_lease_duration'),
+               profile['avoid_ros_namespace_conventions'])
+
+
+class RosbagsWriter:
+    """The reference: rosbags' own ``Writer`` (MCAP storage) with the same API as ours."""
+
+    def __init__(self, path: Path, *, compression: str = 'none') -> None:
+        self._writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+        if compression == 'zstd':
+            self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        self._conns: dict[str, object] = {}
+
+    def __enter__(self) -> 'RosbagsWriter':
+        self._writer.open()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._writer.close()
+
+    def _conn(self, topic: str, msgtype: str):
+        if topic not in self._conns:
+            self._conns[topic] = self._writer.add_connection(
+                topic, msgtype, typestore=bagio.typestore(),
+                offered_qos_profiles=[_rosbags_qos(q) for q in topic_qos(topic)])
+        return self._conns[topic]
+
+    def write_series(self, topic: str, series: bagio.Series, *, batch: int = 100) -> int:
+        fields = [series.positions, series.velocities, series.accelerations, series.effort]
+        raw = joint_trajectory_cdr(series.stamps_ns(), series.names, fields, batch=batch)
+        conn = self._conn(topic, bagio.JOINT_TRAJECTORY)
+        for stamp, data in raw:
+            self._writer.write(conn, stamp, data)
+        return len(raw)
+
+    def write_block_energy(self, blocks, *, stamp_s: float, program: str = '') -> None:
+        conn = self._conn(bagio.TOPIC_BLOCK_ENERGY, bagio.DIAGNOSTIC_ARRAY)
+        for stamp, data in block_energy_cdr(blocks, stamp_s=stamp_s, program=program):
+            self._writer.write(conn, stamp, data)
+
+    def set_custom_data(self, key: str, value: object) -> None:
+        self._writer.set_custom_data(key, json.dumps(value))
 
 
 def _mcap_messages(bag: Path) -> list[tuple[str, int, int, bytes]]:
@@ -132,10 +189,12 @@ def test_same_messages_and_metadata_as_rosbags_writer(tmp_path):
                           velocities=rng.normal(size=(1234, 2)))
     blocks = [(3, 1.5, 0.25), (7, -2.0, 1e-3)]
     outs = {}
-    for name, cls in (('rosbags', bagio.BagWriter), ('mine', StreamBagWriter)):
+    for name, cls in (('rosbags', RosbagsWriter), ('mine', StreamBagWriter)):
         out = outs[name] = tmp_path / name
         with cls(out, compression='zstd') as writer:
             assert writer.write_series('/s', series, batch=100) == 13
+            empty = bagio.Series(t=np.zeros(0), names=('X',), positions=np.zeros((0, 1)))
+            assert writer.write_series('/empty', empty) == 0      # listed, no messages
             writer.write_block_energy(blocks, stamp_s=2.5, program='p.nc')
             writer.set_custom_data('k', {'a': [1, 2.5]})
     ref, got = (_mcap_messages(outs[n]) for n in ('rosbags', 'mine'))
@@ -146,6 +205,8 @@ def test_same_messages_and_metadata_as_rosbags_writer(tmp_path):
         info.pop('relative_file_paths')
         info['files'][0].pop('path')
     assert meta['mine'] == meta['rosbags']
+    assert [t['message_count'] for t in meta['mine']['topics_with_message_count']] == [
+        13, 0, 1]
     # the channels' metadata (offered QoS profiles as YAML text) too
     channels = {}
     for name, out in outs.items():
@@ -241,7 +302,7 @@ def test_write_series_keeps_a_wall_clock_start(tmp_path):
     t0 = 1_790_000_000_123_456_789
     t = np.arange(250) * 1e-3
     series = bagio.Series(t=t, names=('X',), positions=np.sin(t)[:, None], t0_ns=t0)
-    for name, cls in (('rosbags', bagio.BagWriter), ('mine', StreamBagWriter)):
+    for name, cls in (('rosbags', RosbagsWriter), ('mine', StreamBagWriter)):
         out = tmp_path / name
         with cls(out, compression='none') as writer:
             writer.write_series('/s', series, batch=100)

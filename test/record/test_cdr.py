@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from feed_axis_energy.record import bagio
+from feed_axis_energy.record import bagio, StreamBagWriter
 from feed_axis_energy.record.cdr import (BLOCK_ENERGY_PER_MESSAGE, block_energy_cdr_array,
                                          diagnostic_array_cdr, joint_trajectory_cdr)
 
@@ -46,7 +46,7 @@ def test_diagnostic_array_bytes_equal_rosbags_serializer(n):
 def test_block_energy_of_many_lines_splits_and_reads_back(tmp_path):
     n = 2 * BLOCK_ENERGY_PER_MESSAGE + 1
     blocks = [(i + 1, 0.5 * i - 7.0, 1e-3 * i) for i in range(n)]
-    with bagio.BagWriter(tmp_path / 'b') as writer:
+    with StreamBagWriter(tmp_path / 'b') as writer:
         writer.write_block_energy(blocks, stamp_s=12.5, program='p.nc')
     assert bagio.bag_topics(tmp_path / 'b')[bagio.TOPIC_BLOCK_ENERGY][1] == 3
     assert bagio.read_block_energy(tmp_path / 'b') == blocks

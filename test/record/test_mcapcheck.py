@@ -5,7 +5,7 @@ import struct
 import numpy as np
 import pytest
 
-from feed_axis_energy.record import bagio
+from feed_axis_energy.record import bagio, StreamBagWriter
 from feed_axis_energy.errors import DataError
 from feed_axis_energy.record.mcapcheck import check_mcap, MAX_CHUNK_BYTES
 
@@ -16,7 +16,7 @@ MAGIC = b'\x89MCAP0\r\n'
 def bag(tmp_path: Path) -> Path:
     t = np.arange(50) * 0.01
     series = bagio.Series(t=t, names=('X', 'total'), velocities=np.ones((50, 2)))
-    with bagio.BagWriter(tmp_path / 'bag') as writer:
+    with StreamBagWriter(tmp_path / 'bag') as writer:
         writer.write_series('/power', series, batch=10)
     return tmp_path / 'bag'
 
