@@ -38,7 +38,7 @@ RATE_HZ = 2000.0          # truth sample rate: 0.5 ms, finer than the planner's 
 
 @dataclass(frozen=True)
 class AxisData:
-    """The numbers of one axis, read from a machine file (not through ``core.machine``)."""
+    """The numbers of one axis, read from a machine file (not through our loader)."""
 
     table_kg: float
     lead_m: float

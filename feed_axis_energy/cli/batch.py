@@ -1,7 +1,7 @@
 """``feed-axis-energy batch``: a campaign of programs x machines x loads, in parallel.
 
 Each job is one ``simulate`` run, with a recording under ``--out DIR`` if asked
-(:func:`.core.batch.run_job`; each worker writes its own jobs' bags); the jobs
+(:func:`feed_axis_energy.sim.batch.run_job`; each worker writes its own jobs' bags); the jobs
 run in this process (``--jobs 1``), in local worker processes (``--jobs N``,
 ``concurrent.futures.ProcessPoolExecutor``) or on a Dask cluster (``--scheduler ADDRESS``,
 ``distributed.Client(ADDRESS).get_executor()``), with identical results. A job that fails

@@ -1,7 +1,7 @@
 """``axis_dynamics``: ``setpoints`` -> ``axis_state`` batch by batch with the core dynamics.
 
 Each setpoints batch becomes one axis_state batch with the same header stamp and sample
-times (layout: :func:`core.recording.axis_state_series`).
+times (layout: :func:`feed_axis_energy.record.recording.axis_state_series`).
 """
 from __future__ import annotations
 

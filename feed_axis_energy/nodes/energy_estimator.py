@@ -1,8 +1,9 @@
 """``energy_estimator``: ``axis_state`` -> ``power`` and, at program end, ``block_energy``.
 
-Power and cumulative energy come from :class:`core.graph.StreamingPower` (the core's braking
-rule and :class:`core.energy.EnergyIntegrator`), so they equal the offline result. The
-``power`` stamps double as flow-control acknowledgements for ``gcode_trajectory``.
+Power and cumulative energy come from :class:`feed_axis_energy.graph.flow.StreamingPower`
+(the braking rule and :class:`feed_axis_energy.physics.energy.EnergyIntegrator`), so they
+equal the offline result. The ``power`` stamps double as flow-control acknowledgements for
+``gcode_trajectory``.
 """
 from __future__ import annotations
 

@@ -6,7 +6,8 @@ time), never the receive time. The subscriptions are not handed to the executor:
 every ready subscription with repeated ``take_message`` calls, so a message costs one take
 and one list append instead of an executor dispatch and a Python callback. Messages are
 flushed as complete MCAP files with a refreshed ``metadata.yaml``
-(:class:`core.graph_bag.ChunkedBagWriter`; the bag is readable from start-up) after
+(:class:`feed_axis_energy.record.crashsafe.ChunkedBagWriter`; the bag is readable from
+start-up) after
 ``chunk_messages`` messages and once ``chunk_period_s`` has passed (checked on every poll), so
 SIGKILL loses only what was taken in the last ``chunk_period_s`` + 0.1 s, fewer than
 ``chunk_messages`` + ``ack_every`` messages (docs/nodes.md). Topics are stored under their logical
@@ -258,7 +259,7 @@ class McapRecorder(Node):
         self._check_end()
 
     def _plot(self, topic: str, stamp: int, data: bytes) -> None:
-        """Write the plot-topic messages this batch completes (core.plotgraph)."""
+        """Write the plot-topic messages this batch completes (feed_axis_energy.graph.plots)."""
         if topic in PLOT_SOURCES:
             batch = convert.decode_trajectory(data)
             out = self.plotter.add(topic, batch.t_ns, batch.names, batch.fields)

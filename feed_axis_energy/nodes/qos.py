@@ -3,7 +3,8 @@
 * Streams (``setpoints``, ``axis_state``, ``power``, ``measured/*``, acknowledgements):
   reliable, keep last ``depth``, transient local. No sample is lost because the producer never
   has more than ``flow_window`` batches in flight (< ``depth``), see
-  :class:`core.graph.FlowWindow`. Transient local because discovery is not symmetric: a reader
+  :class:`feed_axis_energy.graph.flow.FlowWindow`. Transient local because discovery is not
+  symmetric: a reader
   can see its writer matched while the writer has not matched the reader yet, and a batch
   sent in between was never delivered to a volatile reader (the recorder then waited for it
   forever, 1 of 40 fast runs); the writer's history (at most ``flow_window`` unacknowledged

@@ -1,7 +1,8 @@
 """compare_campaign on synthetic campaigns whose truth is known, and on the UMich data.
 
 The synthetic "measured" data are made with the core's own simulation, then passed through an
-instrument written out here independently of core.measured.align: a known time shift, the mean
+instrument written out here independently of feed_axis_energy.measured.align: a known time
+shift, the mean
 over a 50 ms window ending at each stamp (exact trapezoid over the 1 kHz samples), a gain and
 Gaussian noise, written as CSV in kW, mm and mm/min with a millisecond clock.
 

@@ -82,7 +82,7 @@ def _write(root: Path, measures: str | None, *, drives_in_config: bool = True,
 
 
 def _hand_losses_j(root: Path) -> float:
-    """Copper + iron energy of the truth, from torque and speed (not from core.electrical)."""
+    """Copper + iron energy of the truth, from torque and speed (not from our electrical model)."""
     sim = simulate_program(load_gcode(root / 'part.nc'), load_machine(root / 'truth.yaml'))
     dyn = sim.dynamics
     w0 = 3000.0 * 2.0 * math.pi / 60.0

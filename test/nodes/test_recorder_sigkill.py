@@ -112,7 +112,8 @@ def test_sigkill_loses_at_most_the_documented_bound(tmp_path, node_env, domain_i
                                               kill_after_s=rng.uniform(lo, hi))
         everything = read_rosbags(bag)
         assert sorted(everything) == sorted(read_mcap(bag))
-        # the recorded stream; the plot topic the recorder adds (core.plotgraph) is checked
+        # the recorded stream; the plot topic the recorder adds (feed_axis_energy.graph.plots)
+        # is checked
         # by the graph tests
         got = [m for m in everything if m[0] == '/power']
         assert got == [m for m in read_mcap(bag) if m[0] == '/power']
