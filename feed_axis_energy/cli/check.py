@@ -1,4 +1,8 @@
-"""``feed-axis-energy check``: every problem of every program, without simulating it."""
+"""``feed-axis-energy check``: every problem of every program, without simulating it.
+
+The shell: options, output and exit code; the checking is
+:func:`feed_axis_energy.gcode.program_problems`.
+"""
 from __future__ import annotations
 
 import argparse
@@ -9,8 +13,7 @@ from pathlib import Path
 import sys
 from typing import Any
 
-__all__ = ['add_parser', 'run', 'program_problems', 'warning_texts', 'sanity_checker',
-           'checked_warning_texts']
+__all__ = ['add_parser', 'run']
 
 HELP = 'list the errors and warnings of NC programs on a machine (no simulation)'
 
@@ -60,124 +63,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def _limits(machine: Any, max_dwell_s: float):
-    from feed_axis_energy.gcode import CheckLimits
-    travel = {}
-    velocity = {}
-    for axis in machine.axes:
-        t = getattr(axis, 'travel_m', None)
-        if t is not None:
-            travel[axis.name] = (float(t[0]), float(t[1]))
-        velocity[axis.name] = float(axis.limits.velocity_m_s)
-    return CheckLimits(travel_m=travel, velocity_m_s=velocity, max_dwell_s=max_dwell_s)
-
-
 def _parse_keywords(machine: Any, args: argparse.Namespace) -> dict[str, Any]:
     """Keywords for ``load_gcode``: tools, G28 position, dialect, axes to ignore."""
     from feed_axis_energy.cli.common import program_keywords
     kw = program_keywords(machine, args)
     kw['dialect'] = args.dialect if args.dialect is not None else machine.gcode.dialect
     return kw
-
-
-def program_problems(path: Path, *, machine: Any, keywords: dict[str, Any],
-                     max_dwell_s: float) -> tuple[list[Any], Any]:
-    """Parse one program and check its moves.
-
-    Parameters
-    ----------
-    path
-        The program file.
-    machine
-        The :class:`~feed_axis_energy.machine.file.Machine`.
-    keywords
-        Keywords for ``load_gcode`` (tools, G28 position, dialect).
-    max_dwell_s
-        Dwell threshold [s].
-
-    Returns
-    -------
-    tuple
-        The problems (:class:`~feed_axis_energy.gcode.check.Problem`: the error if
-        any, the parser's warnings, the sanity warnings with the source text of their
-        line) and the :class:`~feed_axis_energy.gcode.stats.ProgramStats` (``None``
-        when the program is refused).
-    """
-    from feed_axis_energy.errors import GcodeError
-    from feed_axis_energy.gcode import (iter_moves, MAX_ERRORS, MoveChecker, problem_from_error,
-                                        problems_from_warnings)
-    name = str(path)
-    # Streamed: a program of any length is checked in bounded memory. An error in a line is
-    # kept and checking goes on with the next line (up to MAX_ERRORS).
-    stream = iter_moves(path, **keywords, max_errors=MAX_ERRORS)
-    checker = MoveChecker(file=name, limits=_limits(machine, max_dwell_s))
-    errors: list[Any] = []
-    try:
-        checker.add_all(stream)     # the moves before a fatal error are checked too
-    except GcodeError as err:
-        errors.append(err)
-    errors = stream.errors + errors
-    # The parser's warnings and those of the moves of the lines that parsed, before and
-    # after an error, are problems of the program too.
-    sanity = checker.problems()
-    if errors:      # lines were dropped: "never moves" would say nothing about the program
-        sanity = [p for p in sanity if p.kind != 'no-motion']
-    problems = problems_from_warnings(stream.warnings, file=name) + sanity
-    problems += [problem_from_error(err) for err in errors]
-    # In line order (a file-level warning, line 0, first), as a reader goes through the file.
-    ordered = sorted(_with_text(problems, path), key=lambda p: p.line)
-    return ordered, None if errors else checker.result()
-
-
-def _with_text(problems: list[Any], path: Path) -> list[Any]:
-    """Fill in the source text of the lines the problems name (one streaming pass)."""
-    from feed_axis_energy.errors import shorten
-    name = str(path)
-    wanted = {p.line for p in problems if p.line > 0 and not p.text and p.file == name}
-    if not wanted:
-        return problems
-    texts: dict[int, str] = {}
-    try:
-        with open(path, 'rb') as fh:
-            for n, raw in enumerate(fh, 1):
-                if n in wanted:
-                    texts[n] = shorten(raw.decode('utf-8', 'replace').strip())
-                    if len(texts) == len(wanted):
-                        break
-    except OSError:
-        return problems
-    return [replace(p, text=texts.get(p.line, p.text)) if p.file == name else p
-            for p in problems]
-
-
-def warning_texts(path: Path, program: Any, machine: Any) -> list[str]:
-    """The parser's and the sanity checks' warnings of a parsed program, as text lines."""
-    checker = sanity_checker(path, machine)
-    for move in program.moves:
-        checker.add(move)
-    return checked_warning_texts(path, program.warnings, checker)
-
-
-def sanity_checker(path: Path, machine: Any) -> Any:
-    """A :class:`~feed_axis_energy.gcode.check.MoveChecker` with ``check``'s default
-    limits on ``machine``: feed it moves (``add``, ``add_many``), e.g. while they stream."""
-    from feed_axis_energy.gcode import DEFAULT_MAX_DWELL_S, MoveChecker
-    return MoveChecker(file=str(path), limits=_limits(machine, DEFAULT_MAX_DWELL_S))
-
-
-def checked_warning_texts(path: Path, parser_warnings: list[str], checker: Any) -> list[str]:
-    """The parser's warnings and those of a fed :func:`sanity_checker`, as text lines in line
-    order. Used by ``simulate`` for its ``warnings`` (JSON) and its stderr lines."""
-    from feed_axis_energy.gcode import problems_from_warnings
-    problems = problems_from_warnings(parser_warnings, file=str(path))
-    sanity = checker.problems()
-    return [_warning_line(p) for p in sorted(problems + sanity, key=lambda p: p.line)]
-
-
-def _warning_line(p: Any) -> str:
-    where = f'{p.file}:{p.line}' if p.line else p.file
-    near = f' near {p.text!r}' if p.text else ''
-    return f'{where}: {p.message}{near}'
 
 
 def _stats_dict(s: Any) -> dict[str, Any] | None:
@@ -193,6 +84,7 @@ def _stats_dict(s: Any) -> dict[str, Any] | None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
+    from feed_axis_energy.gcode import program_problems
     from feed_axis_energy.machine import load_machine
     from feed_axis_energy.paths import default_machine
     machine = load_machine(args.machine if args.machine is not None else default_machine())

@@ -172,9 +172,8 @@ class _Moves:
 
     def __init__(self, args: argparse.Namespace, machine, *, check: bool,
                  progress=None, n_lines: int = 0) -> None:
-        from feed_axis_energy.cli.check import sanity_checker
         from feed_axis_energy.cli.common import program_keywords
-        from feed_axis_energy.gcode import iter_moves
+        from feed_axis_energy.gcode import iter_moves, sanity_checker
         self.stream = iter_moves(args.program, **program_keywords(machine, args))
         self.file = self.stream.file
         self.checker = sanity_checker(args.program, machine) if check else None
@@ -204,7 +203,7 @@ class _Moves:
     def warnings(self, args: argparse.Namespace) -> list[str]:
         """Print the parser's and ``check``'s warnings on stderr (after the pass); return
         them."""
-        from feed_axis_energy.cli.check import checked_warning_texts
+        from feed_axis_energy.gcode import checked_warning_texts
         texts = checked_warning_texts(args.program, self.stream.warnings, self.checker)
         for text in texts:
             print(f'warning: {text}', file=sys.stderr)
@@ -303,7 +302,7 @@ def _run_stream_gc(args, machine, options, progress, *, trace=None,
 
 def _warn(args, program, machine) -> list[str]:
     """Print the parser's and ``check``'s sanity warnings on stderr; return them."""
-    from feed_axis_energy.cli.check import warning_texts
+    from feed_axis_energy.gcode import warning_texts
     texts = warning_texts(args.program, program, machine)
     for text in texts:
         print(f'warning: {text}', file=sys.stderr)

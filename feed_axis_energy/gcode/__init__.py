@@ -8,8 +8,9 @@ of a program (:mod:`.check`, :mod:`.stats`). The one way out is the canonical :c
 (:mod:`.program`): :func:`iter_moves` streams them, :func:`load_gcode` collects a
 :class:`Program`. ``docs/gcode-design.md`` maps each G-code feature to its module.
 """
-from .check import (CheckLimits, DEFAULT_MAX_DWELL_S, MAX_ERRORS, MoveChecker, problem_from_error,
-                    problems_from_warnings)
+from .check import (check_limits, checked_warning_texts, CheckLimits, DEFAULT_MAX_DWELL_S,
+                    MAX_ERRORS, MoveChecker, problem_from_error, problems_from_warnings,
+                    program_problems, sanity_checker, warning_texts)
 from .dialect import Dialect, dialect_by_name
 from .load import DEFAULT_ARC_TOLERANCE_M, iter_moves, load_gcode, MoveStream, parse_gcode
 from .program import Move, MoveKind, Program, PROGRAM_AXES
@@ -17,9 +18,10 @@ from .settings import (DIALECTS, gcode_from_dict, gcode_to_dict, GcodeSettings, 
                        ToolSpec, travel_from_value, with_tools)
 
 __all__ = [
-    'CheckLimits', 'DEFAULT_ARC_TOLERANCE_M', 'DEFAULT_MAX_DWELL_S', 'Dialect', 'dialect_by_name',
-    'DIALECTS', 'gcode_from_dict', 'gcode_to_dict', 'GcodeSettings', 'iter_moves', 'load_gcode',
-    'MAX_ERRORS', 'Move', 'MoveChecker', 'MoveKind', 'MoveStream', 'parse_gcode',
-    'parse_tool_option', 'problem_from_error', 'problems_from_warnings', 'Program', 'PROGRAM_AXES',
-    'ToolSpec', 'travel_from_value', 'with_tools',
+    'check_limits', 'checked_warning_texts', 'CheckLimits', 'DEFAULT_ARC_TOLERANCE_M',
+    'DEFAULT_MAX_DWELL_S', 'Dialect', 'dialect_by_name', 'DIALECTS', 'gcode_from_dict',
+    'gcode_to_dict', 'GcodeSettings', 'iter_moves', 'load_gcode', 'MAX_ERRORS', 'Move',
+    'MoveChecker', 'MoveKind', 'MoveStream', 'parse_gcode', 'parse_tool_option',
+    'problem_from_error', 'problems_from_warnings', 'Program', 'PROGRAM_AXES', 'program_problems',
+    'sanity_checker', 'ToolSpec', 'travel_from_value', 'warning_texts', 'with_tools',
 ]

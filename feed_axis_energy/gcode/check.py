@@ -20,20 +20,24 @@ the first line concerned:
   listed;
 * ``no-motion``: a program that never moves the tool.
 
-Pure: no I/O; the command ``feed-axis-energy check`` (``cli/check.py``) is the shell.
+The checks are pure; :func:`program_problems` reads a program file (streamed) and checks it
+on a machine, :func:`sanity_checker` and :func:`checked_warning_texts` serve ``simulate``.
+The command ``feed-axis-energy check`` (``cli/check.py``) is the shell.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import chain
 import math
 from operator import attrgetter
+from pathlib import Path
 import re
-from typing import Callable, Iterable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from ..errors import GcodeError, shorten
+from .load import iter_moves
 from .stats import arc_extremes, arc_geometry, MoveStats, ProgramStats
 from .program import Move, MoveKind, PROGRAM_AXES
 
@@ -44,7 +48,9 @@ _START = attrgetter('start')
 _END = attrgetter('end')
 
 __all__ = ['Problem', 'CheckLimits', 'MoveChecker', 'check_moves', 'problem_from_error',
-           'problems_from_warnings', 'DEFAULT_MAX_DWELL_S', 'MAX_LISTED_DWELLS', 'MAX_ERRORS']
+           'problems_from_warnings', 'DEFAULT_MAX_DWELL_S', 'MAX_LISTED_DWELLS', 'MAX_ERRORS',
+           'check_limits', 'program_problems', 'warning_texts', 'sanity_checker',
+           'checked_warning_texts']
 
 MAX_ERRORS = 100
 """Errors listed per program at most: checking goes on after each line with an error, and
@@ -423,3 +429,113 @@ def check_moves(moves: Iterable[Move], *, file: str, limits: CheckLimits,
     checker = MoveChecker(file=file, limits=limits, line_text=line_text)
     checker.add_all(moves)
     return checker.problems(), checker.result()
+
+
+# -- a program file on a machine (the checks of the command ``check``) --------------------
+def check_limits(machine: Any, max_dwell_s: float = DEFAULT_MAX_DWELL_S) -> CheckLimits:
+    """The :class:`CheckLimits` of ``machine`` (a :class:`~feed_axis_energy.machine.Machine`:
+    its axes' ``travel_m`` and ``limits.velocity_m_s``) with the dwell threshold [s]."""
+    travel = {}
+    velocity = {}
+    for axis in machine.axes:
+        t = getattr(axis, 'travel_m', None)
+        if t is not None:
+            travel[axis.name] = (float(t[0]), float(t[1]))
+        velocity[axis.name] = float(axis.limits.velocity_m_s)
+    return CheckLimits(travel_m=travel, velocity_m_s=velocity, max_dwell_s=max_dwell_s)
+
+
+def program_problems(path: Path, *, machine: Any, keywords: dict[str, Any],
+                     max_dwell_s: float) -> tuple[list[Problem], ProgramStats | None]:
+    """Parse one program and check its moves.
+
+    Parameters
+    ----------
+    path
+        The program file.
+    machine
+        The :class:`~feed_axis_energy.machine.Machine` (see :func:`check_limits`).
+    keywords
+        Keywords for :func:`~feed_axis_energy.gcode.iter_moves` (tools, G28 position,
+        dialect, axes to ignore).
+    max_dwell_s
+        Dwell threshold [s].
+
+    Returns
+    -------
+    tuple
+        The problems (:class:`Problem`: the errors if any, the parser's warnings, the
+        sanity warnings, with the source text of their line) in line order, and the
+        :class:`~feed_axis_energy.gcode.stats.ProgramStats` (``None`` when the program is
+        refused).
+    """
+    name = str(path)
+    # Streamed: a program of any length is checked in bounded memory. An error in a line is
+    # kept and checking goes on with the next line (up to MAX_ERRORS).
+    stream = iter_moves(path, **keywords, max_errors=MAX_ERRORS)
+    checker = MoveChecker(file=name, limits=check_limits(machine, max_dwell_s))
+    errors: list[GcodeError] = []
+    try:
+        checker.add_all(stream)     # the moves before a fatal error are checked too
+    except GcodeError as err:
+        errors.append(err)
+    errors = stream.errors + errors
+    # The parser's warnings and those of the moves of the lines that parsed, before and
+    # after an error, are problems of the program too.
+    sanity = checker.problems()
+    if errors:      # lines were dropped: "never moves" would say nothing about the program
+        sanity = [p for p in sanity if p.kind != 'no-motion']
+    problems = problems_from_warnings(stream.warnings, file=name) + sanity
+    problems += [problem_from_error(err) for err in errors]
+    # In line order (a file-level warning, line 0, first), as a reader goes through the file.
+    ordered = sorted(_with_text(problems, path), key=lambda p: p.line)
+    return ordered, None if errors else checker.result()
+
+
+def _with_text(problems: list[Problem], path: Path) -> list[Problem]:
+    """Fill in the source text of the lines the problems name (one streaming pass)."""
+    name = str(path)
+    wanted = {p.line for p in problems if p.line > 0 and not p.text and p.file == name}
+    if not wanted:
+        return problems
+    texts: dict[int, str] = {}
+    try:
+        with open(path, 'rb') as fh:
+            for n, raw in enumerate(fh, 1):
+                if n in wanted:
+                    texts[n] = shorten(raw.decode('utf-8', 'replace').strip())
+                    if len(texts) == len(wanted):
+                        break
+    except OSError:
+        return problems
+    return [replace(p, text=texts.get(p.line, p.text)) if p.file == name else p
+            for p in problems]
+
+
+def warning_texts(path: Path, program: Any, machine: Any) -> list[str]:
+    """The parser's and the sanity checks' warnings of a parsed program, as text lines."""
+    checker = sanity_checker(path, machine)
+    for move in program.moves:
+        checker.add(move)
+    return checked_warning_texts(path, program.warnings, checker)
+
+
+def sanity_checker(path: Path, machine: Any) -> MoveChecker:
+    """A :class:`MoveChecker` with ``check``'s default limits on ``machine``: feed it moves
+    (``add``, ``add_many``), e.g. while they stream."""
+    return MoveChecker(file=str(path), limits=check_limits(machine, DEFAULT_MAX_DWELL_S))
+
+
+def checked_warning_texts(path: Path, parser_warnings: list[str],
+                          checker: MoveChecker) -> list[str]:
+    """The parser's warnings and those of a fed :func:`sanity_checker`, as text lines in line
+    order. Used by ``simulate`` for its ``warnings`` (JSON) and its stderr lines."""
+    problems = problems_from_warnings(parser_warnings, file=str(path))
+    sanity = checker.problems()
+    return [_warning_line(p) for p in sorted(problems + sanity, key=lambda p: p.line)]
+
+
+def _warning_line(p: Problem) -> str:
+    where = f'{p.file}:{p.line}' if p.line else p.file
+    near = f' near {p.text!r}' if p.text else ''
+    return f'{where}: {p.message}{near}'

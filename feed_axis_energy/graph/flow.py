@@ -23,9 +23,9 @@ from ..machine import Machine
 from ..plan import Motion
 from ..sim import declared_effects_power_w
 
-__all__ = ['NS_PER_S', 'seconds_to_ns', 'ns_to_seconds', 'batch_bounds', 'FlowWindow',
-           'pacing_delay_s', 'block_starts', 'lines_at', 'StreamingPower', 'header_stamp_ns',
-           'latency_stats', 'read_raw', 'recording_gaps']
+__all__ = ['NS_PER_S', 'seconds_to_ns', 'batch_bounds', 'FlowWindow', 'pacing_delay_s',
+           'block_starts', 'lines_at', 'StreamingPower', 'header_stamp_ns', 'latency_stats',
+           'read_raw', 'recording_gaps']
 
 NS_PER_S = 1_000_000_000
 
@@ -33,11 +33,6 @@ NS_PER_S = 1_000_000_000
 def seconds_to_ns(t_s: np.ndarray) -> np.ndarray:
     """Round float seconds to integer nanoseconds (the rounding :mod:`.bagio` uses)."""
     return np.rint(np.asarray(t_s, dtype=np.float64) * NS_PER_S).astype(np.int64)
-
-
-def ns_to_seconds(t_ns: np.ndarray) -> np.ndarray:
-    """Integer nanoseconds to float seconds (the inverse :mod:`.bagio` uses)."""
-    return np.asarray(t_ns, dtype=np.int64) / NS_PER_S
 
 
 def batch_bounds(n: int, batch: int) -> list[tuple[int, int]]:

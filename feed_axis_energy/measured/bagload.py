@@ -36,7 +36,7 @@ from ..record import bagio
 from ..errors import ConfigError, DataError, describe, shorten
 from ..units import check_si_values, si_unit_of
 from .campaign import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, RunSpec
-from .run import check_duration, GAP_FACTOR, MeasuredRun
+from .run import check_duration, check_gaps, MeasuredRun
 
 __all__ = [
     'TOPIC_MEASURED_COMMAND', 'TOPIC_MEASURED_ELECTRICAL', 'RUN_KEY', 'QUANTITY_TOPIC',
@@ -246,11 +246,4 @@ def _check_time(t: np.ndarray, spec: RunSpec, file: str) -> None:
         i = int(bad[0]) + 1
         msg = f'time does not increase at sample {i + 1} ({t[i - 1]:.9g} s then {t[i]:.9g} s)'
         raise DataError(msg, file=file, column=bagio.TOPIC_MEASURED_POWER, row=i + 1)
-    if not spec.allow_gaps:
-        median = float(np.median(dt))
-        gaps = np.flatnonzero(dt > GAP_FACTOR * median)
-        if gaps.size:
-            i = int(gaps[0]) + 1
-            msg = (f'gap of {dt[i - 1]:.6g} s before sample {i + 1}, more than {GAP_FACTOR:g} x '
-                   f'the median period {median:.6g} s (set allow_gaps: true to accept it)')
-            raise DataError(msg, file=file, column=bagio.TOPIC_MEASURED_POWER, row=i + 1)
+    check_gaps(t, spec, file=file, column=bagio.TOPIC_MEASURED_POWER)

@@ -6,6 +6,8 @@ The file is read once with the :mod:`csv` module; rows matching the manifest's
 original row index times ``period_s``, so rows removed by a filter leave a visible gap.
 Errors are :class:`~feed_axis_energy.errors.DataError` naming file, column and the
 1-based data row as counted in the file (row 1 is the first line after the header).
+:func:`load_run` is also the entry for a run whose data is a measured-run bag
+(:mod:`.bagload`); the gap and duration checks of both are in :mod:`.run`.
 """
 from __future__ import annotations
 
@@ -18,7 +20,8 @@ from ..csvtable import column_values, MIN_STEP_S, read_csv_table
 from ..errors import DataError, shorten
 from ..units import check_si_values, to_si
 from .campaign import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, ColumnSpec, RowFilter, RunSpec
-from .run import check_duration, GAP_FACTOR, MeasuredRun
+from .bagload import load_run_from_bag
+from .run import check_duration, check_gaps, MeasuredRun
 
 __all__ = ['load_run']
 
@@ -33,7 +36,10 @@ _FIELD = {
 
 
 def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredRun:
-    """Read the run's CSV file, filter rows, validate and convert to SI.
+    """Load a manifest run: the one entry for CSV and bag runs.
+
+    A CSV file is read here (rows filtered, values checked and converted to SI); a
+    measured-run bag directory goes to :func:`.bagload.load_run_from_bag`.
 
     Parameters
     ----------
@@ -52,13 +58,12 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
     DataError
         Naming file, column and 1-based data row: missing column (with the closest header
         name), non-numeric, empty, NaN or infinite cell, duplicate or decreasing time, a gap
-        longer than 1.5 median periods (unless ``spec.allow_gaps``), an empty file or one
-        with a header only, or a run shorter than ``min_duration_s``.
+        longer than :data:`.run.GAP_FACTOR` median periods (unless ``spec.allow_gaps``), an
+        empty file or one with a header only, or a run shorter than ``min_duration_s``. A bag
+        run: as :func:`.bagload.load_run_from_bag` (also a :class:`ConfigError`).
     """
     file = str(spec.data)
     if spec.data_kind != 'csv':
-        # imported here: bagload builds on this module
-        from .bagload import load_run_from_bag
         return load_run_from_bag(spec, min_duration_s=min_duration_s)
     header, rows, numbers = read_csv_table(spec.data)
     index = _column_index(header, spec, file)
@@ -163,12 +168,5 @@ def _time(spec: RunSpec, sample: np.ndarray, numbers: np.ndarray, file: str,
         msg = (f'{what} ({t[i - 1]:.9g} s then {t[i]:.9g} s); time must increase by at '
                f'least {MIN_STEP_S:g} s (stamps are whole nanoseconds)')
         raise DataError(msg, file=file, column=name, row=int(numbers[i]))
-    if not spec.allow_gaps:
-        median = float(np.median(dt))
-        gaps = np.flatnonzero(dt > GAP_FACTOR * median)
-        if gaps.size:
-            i = int(gaps[0]) + 1
-            msg = (f'gap of {dt[i - 1]:.6g} s before this row, more than {GAP_FACTOR:g} x the '
-                   f'median period {median:.6g} s (set allow_gaps: true to accept it)')
-            raise DataError(msg, file=file, column=name, row=int(numbers[i]))
+    check_gaps(t, spec, file=file, column=name, rows=numbers)
     return t

@@ -22,6 +22,14 @@ change, hence the kinetic-energy change ``m (v1^2 - v0^2) / 2`` of the inertia p
 sampled one; and a transient inside an interval appears as a pulse at its centre, which an
 averaging meter sees. Velocities come from the data's velocity columns (else central
 differences of the positions); without acceleration columns ``a_i = 0``.
+
+How it differs from :func:`feed_axis_energy.plan.motion_from_samples`: that one takes samples
+as they are (their time base, derivatives by finite differences) and is the way in for any
+sampled motion (trajectory CSV, ``motion.reconstruct: samples``); this one makes new samples
+at the simulation rate from a model of what happens between coarse stamps, a choice about
+measured records and the meter that reads them (``motion.reconstruct: pulses``, used by
+:mod:`.compare` when the data are coarser than the simulation rate), so it lives with the
+measured runs. It checks its input through ``motion_from_samples``.
 """
 from __future__ import annotations
 
@@ -69,7 +77,7 @@ def reconstruct_motion(t: np.ndarray, pos: np.ndarray, *, axes: tuple[str, ...],
     Raises
     ------
     DataError
-        Malformed samples (as :func:`.motion_samples.motion_from_samples`), a bad rate, or a
+        Malformed samples (as :func:`~feed_axis_energy.plan.motion_from_samples`), a bad rate, or a
         reconstruction larger than :data:`MAX_RECONSTRUCTED_SAMPLES` (estimated first).
     """
     # validation (shapes, finite values, increasing time) as for samples taken as they are

@@ -10,11 +10,10 @@ import numpy as np
 from ..errors import DataError, shorten
 from .campaign import RunSpec
 
-__all__ = ['GAP_FACTOR', 'MeasuredRun', 'check_duration']
+__all__ = ['GAP_FACTOR', 'MeasuredRun', 'check_duration', 'check_gaps']
 
 GAP_FACTOR = 1.5
 """A time step longer than this many median periods is a gap."""
-"""Shortest time step accepted [s]: bags and topics stamp in whole nanoseconds."""
 
 
 @dataclass(frozen=True)
@@ -113,3 +112,25 @@ def check_duration(t: np.ndarray, spec: RunSpec, min_duration_s: float | None, *
     if duration < limit:
         msg = f'run lasts {duration:.6g} s{after}, shorter than the minimum {limit:g} s'
         raise DataError(msg, file=file)
+
+
+def check_gaps(t: np.ndarray, spec: RunSpec, *, file: str, column: str,
+               rows: np.ndarray | None = None) -> None:
+    """Raise :class:`DataError` at the first gap, unless ``spec.allow_gaps``.
+
+    A gap is a time step longer than :data:`GAP_FACTOR` median periods of the increasing
+    times ``t`` [s]. The error names ``column`` (the time column, or the topic) and the
+    sample after the gap as ``row``: ``rows[i]`` (the CSV data row of each sample), or the
+    1-based sample number when ``rows`` is ``None``.
+    """
+    if spec.allow_gaps:
+        return
+    dt = np.diff(t)
+    median = float(np.median(dt))
+    gaps = np.flatnonzero(dt > GAP_FACTOR * median)
+    if gaps.size:
+        i = int(gaps[0]) + 1
+        msg = (f'gap of {dt[i - 1]:.6g} s before this row, more than {GAP_FACTOR:g} x the '
+               f'median period {median:.6g} s (set allow_gaps: true to accept it)')
+        raise DataError(msg, file=file, column=column,
+                        row=i + 1 if rows is None else int(rows[i]))

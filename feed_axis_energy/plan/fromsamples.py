@@ -1,6 +1,14 @@
 """Motion from a measured or commanded trajectory: positions sampled in time (and, where the
 data have them, velocities and accelerations) turned into a :class:`.motion.Motion` the
 dynamics take, as the planner's output is for an NC program.
+
+The samples are taken as they are: the motion keeps their time base, nothing is resampled or
+interpolated, and a derivative the data lack is a finite difference (optionally smoothed) of
+the samples. This is the checked way in for any sampled motion: a trajectory CSV
+(``sim/trajcsv.py``), a measured run with ``motion.reconstruct: samples``. It differs from
+``measured/motiondata.py`` (:func:`~feed_axis_energy.measured.motiondata.reconstruct_motion`),
+which resamples coarse measured records onto the simulation rate with a model of the motion
+between the stamps, and validates its samples through this function.
 """
 from __future__ import annotations
 

@@ -23,8 +23,8 @@ from feed_axis_energy.record.recplot import RecordingPlots
 from feed_axis_energy.record.thinning import STANDSTILL_PERIOD_S, StandstillThinner
 from feed_axis_energy.record.starttime import check_end, MAX_STAMP_NS
 
-__all__ = ['setpoint_series', 'axis_state_series', 'power_series', 'simulation_series',
-           'write_simulation_bag', 'SimulationBagWriter', 'SUMMARY_KEY', 'screw_joint']
+__all__ = ['axis_state_series', 'simulation_series', 'write_simulation_bag',
+           'SimulationBagWriter', 'SUMMARY_KEY', 'screw_joint']
 
 SUMMARY_KEY = 'feed_axis_energy/summary'
 
@@ -79,19 +79,9 @@ def _series(t: np.ndarray, columns: Columns) -> bagio.Series:
     return bagio.Series(t, names, *joined)
 
 
-def setpoint_series(motion: Motion) -> bagio.Series:
-    """:func:`setpoint_columns` as one :class:`.bagio.Series`."""
-    return _series(motion.t, setpoint_columns(motion))
-
-
 def axis_state_series(motion: Motion, dyn) -> bagio.Series:
     """:func:`axis_state_columns` as one :class:`.bagio.Series`."""
     return _series(motion.t, axis_state_columns(motion, dyn))
-
-
-def power_series(power) -> bagio.Series:
-    """:func:`power_columns` as one :class:`.bagio.Series`."""
-    return _series(power.t, power_columns(power))
 
 
 def simulation_series(result) -> dict[str, bagio.Series]:

@@ -176,6 +176,24 @@ def test_bag_run_errors(tmp_path, change, error, words):
         load_run(load_campaign(manifest).runs[0])
 
 
+def test_a_gap_is_refused_alike_in_csv_and_bag_runs(tmp_path):
+    from dataclasses import replace
+    campaign = load_campaign(FIXTURES / 'campaign.yaml')    # run a: a filter leaves a gap
+    bags = load_campaign(import_campaign(campaign, tmp_path / 'out', runs=['a']).manifest)
+    errors = []
+    for spec in (campaign.run('a'), bags.run('a')):
+        with pytest.raises(DataError) as info:
+            load_run(replace(spec, allow_gaps=False))
+        errors.append(info.value)
+    csv_err, bag_err = errors
+    assert csv_err.reason == bag_err.reason
+    assert csv_err.reason.startswith('gap of 0.2 s before this row, more than 1.5 x')
+    assert bag_err.column == bagio.TOPIC_MEASURED_POWER
+    # the CSV names the data row in the file, the bag the sample; the same sample
+    rows = load_run(bags.run('a')).extra['rows']
+    assert csv_err.row == rows[bag_err.row - 1]
+
+
 @must_run.skipif('shared', not (UMICH / 'experiment_08.csv').is_file(), 'UMich data absent')
 def test_umich_run_round_trip_and_sample_bags(tmp_path):
     campaign = load_campaign(ROOT / 'config' / 'campaigns' / 'umich_mill.yaml')
