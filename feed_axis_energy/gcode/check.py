@@ -32,7 +32,7 @@ import math
 from operator import attrgetter
 from pathlib import Path
 import re
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any, Callable, cast, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -285,7 +285,8 @@ class MoveChecker:
         with np.errstate(invalid='ignore', divide='ignore'):
             v = np.where(usable[:, None], feed[:, None] * np.abs(d) / length[:, None], 0.0)
         v_hit = v > fast
-        lo_any, hi_any, v_any = (h.any(axis=0).tolist() for h in (lo_hit, hi_hit, v_hit))
+        lo_any, hi_any, v_any = (cast('list[bool]', h.any(axis=0).tolist())
+                                 for h in (lo_hit, hi_hit, v_hit))
         for i, name, _travel, _vmax in self._axes:
             if lo_any[i]:
                 self._note_many(self.travel, (name, 'min'), line, lo[:, i], lo_hit[:, i],

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Iterable, Sequence
+from typing import cast, Iterable, Sequence
 
 import numpy as np
 
@@ -94,7 +94,7 @@ def arc_geometry(move: Move) -> tuple[tuple[int, int, int], float, float, float,
         full circle, plus ``turns`` extra revolutions).
     """
     a, b, n = _PLANE_AXES[move.plane]
-    c = move.center
+    c = cast(Vec3, move.center)   # an arc move always has its centre
     sa, sb = move.start[a] - c[a], move.start[b] - c[b]
     ea, eb = move.end[a] - c[a], move.end[b] - c[b]
     theta0 = math.atan2(sb, sa)
@@ -128,7 +128,7 @@ def arc_extremes(move: Move) -> list[Vec3]:
     if sweep == 0.0:
         return []
     lo, hi = (theta0, theta0 + sweep) if sweep > 0 else (theta0 + sweep, theta0)
-    c = move.center
+    c = cast(Vec3, move.center)   # an arc move always has its centre
     out: list[Vec3] = []
     # One revolution holds all four extremes: more turns only repeat them.
     k = math.ceil(lo / _HALF_PI)
@@ -159,7 +159,7 @@ class MoveStats:
     """
 
     def __init__(self, start: Vec3 = (0.0, 0.0, 0.0)) -> None:
-        self.start = tuple(float(v) for v in start)
+        self.start = cast(Vec3, tuple(float(v) for v in start))
         self.position: Vec3 = self.start
         self.counts = {k: 0 for k in MoveKind}
         self.feed_length_m = 0.0
@@ -169,7 +169,9 @@ class MoveStats:
         self.hi: list[float] | None = None
 
     def _grow(self, p: Vec3) -> None:
-        lo, hi = self.lo, self.hi
+        lo: list[float]
+        hi: list[float]
+        lo, hi = self.lo, self.hi  # type: ignore[assignment]  # add() sets the box first
         for i in range(3):
             v = p[i]
             if v < lo[i]:
@@ -237,7 +239,7 @@ class MoveStats:
         low = np.minimum(start.min(axis=0), end.min(axis=0)).tolist()
         high = np.maximum(start.max(axis=0), end.max(axis=0)).tolist()
         self.lo = [min(a, b) for a, b in zip(self.lo, low)]
-        self.hi = [max(a, b) for a, b in zip(self.hi, high)]
+        self.hi = [max(a, b) for a, b in zip(cast('list[float]', self.hi), high)]
         self.position = moves[-1].end
 
     def result(self) -> ProgramStats:
@@ -254,9 +256,9 @@ class MoveStats:
             n_arcs=c[MoveKind.ARC_CW] + c[MoveKind.ARC_CCW], n_dwells=c[MoveKind.DWELL],
             n_stops=c[MoveKind.STOP], feed_length_m=self.feed_length_m,
             traverse_length_m=self.traverse_length_m, dwell_s=self.dwell_s,
-            final_position=tuple(self.position),
-            bbox_min=None if self.lo is None else tuple(self.lo),
-            bbox_max=None if self.hi is None else tuple(self.hi))
+            final_position=cast(Vec3, tuple(self.position)),
+            bbox_min=None if self.lo is None else cast(Vec3, tuple(self.lo)),
+            bbox_max=None if self.hi is None else cast(Vec3, tuple(self.hi)))
 
 
 def summarize(moves: Iterable[Move], *, start: Vec3 = (0.0, 0.0, 0.0)) -> ProgramStats:

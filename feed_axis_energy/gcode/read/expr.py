@@ -174,14 +174,14 @@ class Reader:
         """Read a literal number (sign, digits and at most one point)."""
         start = self.pos
         m = _NUMBER_SPAN.match(self.s, start)
-        text = m.group(0)
+        text = m.group(0)  # type: ignore[union-attr]  # the span may be empty: always a match
         if not _NUMBER.fullmatch(text):
             if not text:
                 if start >= len(self.s):
                     raise self.error('expected a number at the end of the line', start)
                 raise self.error(f'expected a number, found {self.s[start]!r}', start)
             raise self.error(f'bad number {shorten(text, limit=20)!r}', start)
-        self.pos = m.end()
+        self.pos = m.end()  # type: ignore[union-attr]  # (as above)
         v = float(text)
         if not math.isfinite(v):
             raise self.error(f'number with {len(text)} characters is too large', start)

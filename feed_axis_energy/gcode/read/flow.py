@@ -344,6 +344,7 @@ class BlockReader(FanucCalls):
         hit = self.subs.get(label)
         if hit is not None:
             return hit
+        f: ProgramFile | None
         for f in (fr.file, self.main):
             kind_idx = f.definitions().get(label)
             if kind_idx is not None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from array import array
 from bisect import bisect_left
 import re
+from typing import cast
 
 from .expr import compact, Reader
 from .lexer import blank_comments
@@ -86,7 +87,7 @@ class ProgramFile:
     def n_lines(self) -> int:
         """Number of lines."""
         self.offset(0)
-        return len(self.starts)
+        return len(cast(array, self.starts))    # offset() has built it
 
     # -- the O-line index ------------------------------------------------------------------
     def o_lines(self) -> list[int]:
