@@ -53,9 +53,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import replace
 import math
-from typing import NamedTuple
+from typing import NamedTuple, TYPE_CHECKING
 
 from ..program import make_move, MoveKind
+
+if TYPE_CHECKING:
+    from ..interp.state import InterpreterState
+else:
+    InterpreterState = object     # the declarations are for the type checker only
 
 __all__ = ['ControlPoint', 'NurbsState', 'SplineMixin', 'knot_vector', 'nurbs_point',
            'nurbs_polyline',
@@ -216,14 +221,14 @@ class _Curve:
         return (sx / sw, sy / sw)
 
 
-class SplineMixin:
+class SplineMixin(InterpreterState):
     """G5, G5.1, G5.2 and G5.3 for :class:`~.interp.Interpreter` (uses its ``pos``,
     ``target``, ``feed``, ``fail``, ``emit``, ``nurbs`` state)."""
 
     __slots__ = ()
 
     # -- words --------------------------------------------------------------------------
-    def spline_words(self, d: dict[str, str], mode: int, dwell: bool) -> None:
+    def spline_words(self, d: dict[str, str | float], mode: int, dwell: bool) -> None:
         """Refuse the words a spline line does not use (LinuxCNC's word checks)."""
         if dwell:
             self.fail(f'G4 and {_NAMES[mode]} on one line would share the P word', 'G',
@@ -262,7 +267,7 @@ class SplineMixin:
                   value=code / 10)
 
     # -- G5 / G5.1 ----------------------------------------------------------------------
-    def spline(self, d: dict[str, str], mode: int, g9: bool) -> None:
+    def spline(self, d: dict[str, str | float], mode: int, g9: bool) -> None:
         """A line in a spline motion mode: G5/G5.1 (issued now) or a G5.2 point."""
         if mode == 52:
             self.nurbs_point(d)
@@ -316,7 +321,7 @@ class SplineMixin:
         # LinuxCNC's convert_spline leaves the motion mode as it was.
         self.motion = state.before
 
-    def spline_checks(self, d: dict[str, str], name: str, code: float) -> None:
+    def spline_checks(self, d: dict[str, str | float], name: str, code: float) -> None:
         """LinuxCNC's checks of G5/G5.1 before their geometry: no cutter compensation, a
         feed rate, the XY plane."""
         # Right after G40 (the exit still pending) the first feed is the exit move, as the
@@ -334,7 +339,7 @@ class SplineMixin:
         if self.series:
             self.end_series()
 
-    def spline_offset(self, d: dict[str, str], la: str, lb: str) -> tuple[float, float]:
+    def spline_offset(self, d: dict[str, str | float], la: str, lb: str) -> tuple[float, float]:
         """A control-point offset [m] from two words (turned with a rotated system)."""
         a = self.num(la, d[la]) * self.scale
         b = self.num(lb, d[lb]) * self.scale
@@ -347,7 +352,7 @@ class SplineMixin:
         return a, b
 
     # -- G5.2 / G5.3 --------------------------------------------------------------------
-    def nurbs_point(self, d: dict[str, str]) -> None:
+    def nurbs_point(self, d: dict[str, str | float]) -> None:
         """A G5.2 line: collect its control point (or the first point's weight, the
         order); nothing moves until G5.3."""
         state = self.nurbs
@@ -408,14 +413,14 @@ class SplineMixin:
             self.warnings.append(f'{self.file}:{self.lineno}: Z words on G5.2 control points '
                                  'are ignored (as LinuxCNC ignores them)')
 
-    def nurbs_fail(self, msg: str, d: dict[str, str]):
+    def nurbs_fail(self, msg: str, d: dict[str, str | float]):
         """Fail at the G5.2 word of the line, else at its first axis word, else at P/L."""
         if self.nurbs.motion_line == self.lineno:
             self.fail(msg, 'G', value=5.2)
         letter = next(c for c in 'XYZPL' if c in d)
         self.fail(msg, letter)
 
-    def nurbs_end(self, d: dict[str, str]) -> None:
+    def nurbs_end(self, d: dict[str, str | float]) -> None:
         """G5.3: issue the NURBS collected since G5.2; no motion mode is left in force."""
         state = self.nurbs
         before = state.before if state.motion_line == self.lineno else self.motion
@@ -438,7 +443,7 @@ class SplineMixin:
         state.before = None
 
     # -- output -------------------------------------------------------------------------
-    def spline_feeds(self, points: list[ControlPoint], order: int, d: dict[str, str],
+    def spline_feeds(self, points: list[ControlPoint], order: int, d: dict[str, str | float],
                      g9: bool) -> None:
         """Emit the straight feeds of a NURBS (at the current Z) and move there."""
         path = nurbs_polyline(points, order)

@@ -48,7 +48,9 @@ G_CODES: dict[int, tuple[str, object]] = {
 
 # The motion G words as written on most lines (G0..G3, G00..G03): number text -> mode, so
 # that the common line needs no G_CODES lookup.
-MOTION_TEXT: dict[str, int] = {t: int(t) for t in ('0', '00', '1', '01', '2', '02', '3', '03')}
+# (keyed by str | float: a block of the front's reader carries values, never found here)
+MOTION_TEXT: dict[str | float, int] = {t: int(t)
+                                       for t in ('0', '00', '1', '01', '2', '02', '3', '03')}
 
 # Codes we know and refuse, with the reason shown to the user.
 G_UNSUPPORTED: dict[int, str] = {

@@ -8,11 +8,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 import math
+from typing import cast, NoReturn, TYPE_CHECKING
 
 from .codes import COMP_FORBIDDEN
 from ..expand.cutter import LEFT, RIGHT
 from ..expand.cycles import CycleSpec, expand_cycle
 from ..program import Move, MoveKind
+
+if TYPE_CHECKING:
+    from .state import InterpreterState
+else:
+    InterpreterState = object     # the declarations are for the type checker only
 
 __all__ = ['CompMixin']
 
@@ -21,7 +27,7 @@ _INF = float('inf')
 _CYCLE_LENGTH_WORDS = ('X', 'Y', 'Z', 'R', 'I', 'J', 'K', 'Q')
 
 
-class CompMixin:
+class CompMixin(InterpreterState):
     """Canned cycles, cutter compensation and the move output of the interpreter."""
 
     __slots__ = ()
@@ -62,14 +68,14 @@ class CompMixin:
         self.cycle_memory = self.cycle_memory.end_series()
         self.series = False
 
-    def select_tool(self, text: str) -> None:
+    def select_tool(self, text: str | float) -> None:
         """T word: select a tool (it is loaded by M6)."""
         t = self.num('T', text)
         if t != int(t) or t < 0:
             self.fail('T (tool number) must be a whole number >= 0', 'T')
         self.tool_selected = int(t)
 
-    def before_motion(self, d: dict[str, str]) -> None:
+    def before_motion(self, d: dict[str, str | float]) -> None:
         """Work that LinuxCNC does after the modes and before the motion: M6, G40/G41/G42,
         G5.3."""
         if self.tool_change:
@@ -100,14 +106,14 @@ class CompMixin:
         if self.nurbs.end_line == self.lineno:
             self.nurbs_end(d)           # G5.3 (LinuxCNC's modal group 0, after G40..G42)
 
-    def d_number(self, text: str) -> int:
+    def d_number(self, text: str | float) -> int:
         """The tool number of a D word (for G41/G42)."""
         t = self.num('D', text)
         if t != int(t) or t < 0:
             self.fail('D (tool number for G41/G42) must be a whole number >= 0', 'D')
         return int(t)
 
-    def comp_radius(self, d: dict[str, str], code: int) -> float:
+    def comp_radius(self, d: dict[str, str | float], code: int) -> float:
         """Tool radius [m] for G41/G42 (tool table via D, the D of an earlier line in the
         Fanuc/Haas dialects, or the loaded tool), G41.1/G42.1."""
         if code > 100:
@@ -133,7 +139,7 @@ class CompMixin:
                       letter, value=None if letter == 'D' else code)
         return _tool_radius(self.tools[number])
 
-    def cycle(self, d: dict[str, str], code: int) -> None:
+    def cycle(self, d: dict[str, str | float], code: int) -> None:
         """Expand a canned-cycle line (cycles.py) into moves."""
         s = self.scale
         num = self.num
@@ -156,7 +162,7 @@ class CompMixin:
         line = self.lineno
         pos = self.pos
         emit = self.emit
-        feed = self.feed
+        feed = cast(float, self.feed)      # expand_cycle refuses a cycle without a feed
         for prim in res.primitives:
             kind = prim[0]
             if kind == 'rapid' or kind == 'feed':
@@ -175,7 +181,7 @@ class CompMixin:
         self.cycle_memory = res.memory
         self.series = True
 
-    def cycle_fail(self, msg: str, letter: str):
+    def cycle_fail(self, msg: str, letter: str) -> NoReturn:
         """Fail at a word of a cycle line (``G`` means the cycle's own G word)."""
         if letter == 'G' and self.motion is not None:
             self.fail(msg, 'G', value=float(self.motion))

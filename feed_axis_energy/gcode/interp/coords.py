@@ -172,7 +172,7 @@ class Coords(ToolTable, ParamReadback):
                  'cos', 'sin', 'selected_tool',
                  'loaded_tool', 'home_used')
 
-    def __init__(self, *, tools: Mapping[int, ToolSpec] | None = None,
+    def __init__(self, *, tools: Mapping[int, object] | None = None,
                  home_m: Vec3 | None = None, params: object | None = None):
         self.params = ParamTable() if params is None else params
         self.tools: dict[int, ToolSpec] = {int(t): tool_spec(e)

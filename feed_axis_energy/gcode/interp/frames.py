@@ -8,11 +8,17 @@ them through :class:`~.coords.Coords` (:meth:`CoordsMixin.apply_coords`); the li
 from __future__ import annotations
 
 import math
+from typing import cast, NoReturn, TYPE_CHECKING
 
 from .coords import foreign_codes
 from .tools import MAX_OFFSET_M
 from .sysvars import fanuc_system_value
 from ..program import Move, MoveKind
+
+if TYPE_CHECKING:
+    from .state import InterpreterState, Vec3
+else:
+    InterpreterState = object     # the declarations are for the type checker only
 
 __all__ = ['CoordsMixin']
 
@@ -20,7 +26,7 @@ _INF = float('inf')
 _AXIS_LETTERS = ('X', 'Y', 'Z')
 
 
-class CoordsMixin:
+class CoordsMixin(InterpreterState):
     """Coordinate-system codes and values for :class:`~.interp.Interpreter`."""
 
     __slots__ = ()
@@ -30,7 +36,7 @@ class CoordsMixin:
         they are refused in a rotated coordinate system, where this is no translation)."""
         if self.rotated:
             self.fail('canned cycles in a rotated coordinate system (G10 L2 R) are not '
-                      'supported', 'G', value=float(self.motion))
+                      'supported', 'G', value=float(cast(int, self.motion)))
         return self.coords.offset
 
     def coord_codes(self, group: str, arg: object, code: int) -> None:
@@ -43,7 +49,7 @@ class CoordsMixin:
         if arg in ('G43', 'G43.2'):
             self.g43_lineno = self.lineno       # its H word is legal here
 
-    def apply_coords(self, d: dict[str, str], explicit_motion: bool = False) -> bool:
+    def apply_coords(self, d: dict[str, str | float], explicit_motion: bool = False) -> bool:
         """Run the line's coordinate codes; True if they used the axis words (or moved)."""
         todo = self.coord_todo
         self.coord_todo = {}
@@ -54,12 +60,12 @@ class CoordsMixin:
         def value(letter: str) -> float | None:
             return self.num(letter, d[letter]) if letter in d else None
 
-        def fail(msg: str, letter: str):
+        def fail(msg: str, letter: str) -> NoReturn:
             if letter != 'G':
                 self.fail(msg, letter)
             code = next(todo['_code_' + g] for g in ('nonmodal', 'tool_length', 'coord')
                         if '_code_' + g in todo)
-            self.fail(msg, 'G', value=code / 10)
+            self.fail(msg, 'G', value=cast(int, code) / 10)
 
         control, foreign = foreign_codes(self.dialect.name, todo, value)
         for code in foreign:
@@ -82,7 +88,7 @@ class CoordsMixin:
             self.machine_words(d)
         return effect.axes_used
 
-    def machine_words(self, d: dict[str, str]) -> None:
+    def machine_words(self, d: dict[str, str | float]) -> None:
         """G53: this line's axis words are machine coordinates; give them as program ones
         (in a rotated system X and Y both, since each depends on the other)."""
         s = self.scale
@@ -97,12 +103,12 @@ class CoordsMixin:
                 end[i] = v
         if self.rotated and (given[0] or given[1]):
             given[0] = given[1] = True
-        program = self.coords.to_program(tuple(end))
+        program = self.coords.to_program(cast('Vec3', tuple(end)))
         for i, letter in enumerate(_AXIS_LETTERS):
             if given[i]:
                 d[letter] = program[i] / s
 
-    def rotated_target(self, d: dict[str, str]) -> tuple[float, float, float]:
+    def rotated_target(self, d: dict[str, str | float]) -> tuple[float, float, float]:
         """:meth:`target` in a rotated coordinate system: the point is turned as a whole; on
         an arc line the I/J words become machine-frame offsets (G17 only)."""
         coords = self.coords
@@ -116,12 +122,12 @@ class CoordsMixin:
             if self.plane != 17:
                 self.fail(f'G{self.plane} arcs in a rotated coordinate system (G10 L2 R) '
                           'are not supported', next(c for c in 'IJK' if c in d))
-            i = self.num('I', d['I']) if 'I' in d else 0.0
+            i = self.num('I', d['I']) if 'I' in d else 0.0  # type: ignore[assignment]  # (a new i)
             j = self.num('J', d['J']) if 'J' in d else 0.0
             d['I'], d['J'] = coords.rotate(i, j)
-        return coords.to_machine(tuple(prog))
+        return coords.to_machine(cast('Vec3', tuple(prog)))
 
-    def home_return(self, d: dict[str, str], code: str) -> None:
+    def home_return(self, d: dict[str, str | float], code: str) -> None:
         """G28/G30: rapid to the intermediate point, then the named axes (all without axis
         words) to the stored position; both rapids stop at their end."""
         if self.home is None and code == 'G28' and not self.coords.home_used:
@@ -130,7 +136,7 @@ class CoordsMixin:
                                  'machine config has no home_m')
         if self.series:
             self.end_series()
-        named = tuple(letter in d for letter in _AXIS_LETTERS)
+        named = cast('tuple[bool, bool, bool]', tuple(letter in d for letter in _AXIS_LETTERS))
         path = self.coords.home_path(code, self.target(d), named,
                                      fail=lambda msg, letter: self.fail(msg, 'G', value=float(
                                          code[1:])))

@@ -11,7 +11,8 @@ which runs it without a word dictionary and allocates little more than its
 """
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any, cast, NoReturn, TYPE_CHECKING
 
 from ..canon import CENTER_ARC_RADIUS_TOLERANCE_MM
 from .codes import ALLOWED_LETTERS, COMP_FORBIDDEN, MOTION_TEXT, SPLINE_MOTIONS
@@ -27,6 +28,9 @@ from ..read.lexer import blank_comments, locate_word
 from ..expand.splines import NurbsState, SplineMixin
 from ...errors import GcodeError
 from ..program import Move
+
+if TYPE_CHECKING:
+    from .state import Lines, Vec3
 
 __all__ = ['Interpreter']
 
@@ -76,7 +80,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
 
     def __init__(self, file: str, start: tuple[float, float, float],
                  arc_tolerance_m: float | None,
-                 *, lines: list[str] | None, home: tuple[float, float, float] | None = None,
+                 *, lines: Lines | None, home: tuple[float, float, float] | None = None,
                  tools: Mapping[int, object] | None = None, dialect: Dialect | None = None,
                  params: object | None = None, ignore_axes: Iterable[str] = ()):
         self.file = file
@@ -101,9 +105,9 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         self.lineno = 0
         self.lines = lines
         self.ended = False
-        self.g_cache: dict[str, tuple[str, object, int]] = {}
+        self.g_cache: dict[str | float, tuple[str, Any, int]] = {}
         self.g43_lineno = -1                # line of the last G43 (its H word is legal there)
-        self.home = None if home is None else tuple(float(v) for v in home)
+        self.home = None if home is None else cast('Vec3', tuple(float(v) for v in home))
         self.coords = Coords(tools=tools, home_m=self.home, params=params)
         self.frame = self.coords.offset     # machine - program for absolute axis words
         self.rotated = False                # G10 L2 R: target() turns the whole point
@@ -137,11 +141,12 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         self.nurbs = NurbsState()           # G5.x control points and modes (splines.py)
 
     # -- errors ---------------------------------------------------------------------------
-    def fail(self, msg: str, letter: str, *, value: float | None = None, nth: int = 0):
+    def fail(self, msg: str, letter: str, *, value: float | None = None,
+             nth: int = 0) -> NoReturn:
         """Raise a :class:`GcodeError` at the word ``letter`` (``value``, ``nth``) of the line."""
         src = self.src
         if src is None:
-            file, line, raw = self.file, self.lineno, self.lines[self.lineno - 1]
+            file, line, raw = self.file, self.lineno, cast('Lines', self.lines)[self.lineno - 1]
         else:           # a block of the front's reader (perhaps in a subroutine file)
             file, line, raw = src.file, src.line, src.text
         code = blank_comments(raw, file=file, line=line)
@@ -164,26 +169,30 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         self.comp_code = None
         self.coord_todo = {}
 
-    def num(self, letter: str, text: str) -> float:
+    def num(self, letter: str, text: str | float) -> float:
         """Value of a word; blanks inside the number are ignored (LinuxCNC rule)."""
         try:
             return float(text)
         except ValueError:
             pass
         try:
-            return float(''.join(text.split()))
+            # a value (float) never fails float(): only a text gets here
+            return float(''.join(text.split()))  # type: ignore[union-attr]
         except ValueError:
-            self.fail(f'{letter}{"".join(text.split())} is not a number', letter)
+            self.fail(
+                f'{letter}{"".join(text.split())} is not a number',  # type: ignore[union-attr]
+                letter)
 
-    def first_axis(self, d: dict[str, str]) -> str:
+    def first_axis(self, d: dict[str, str | float]) -> str:
         """First axis letter present on the line, else ``G`` (for error places: a full circle
         may be written without axis words)."""
         return next((a for a in _AXIS_LETTERS if a in d), 'G')
 
     # -- one line -------------------------------------------------------------------------
-    def line(self, words: list[tuple[str, str]]) -> None:
+    def line(self, words: Sequence[tuple[str, str | float]]) -> None:
         """Interpret the ``(letter, number text)`` words of one line (letters upper case)."""
         d = dict(words)
+        ml: Any             # the M word, then the M words, then the stop actions
         dwell = g9 = g64 = False
         if len(d) == len(words):
             g = d.pop('G', None)
@@ -247,8 +256,8 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         if ml:
             self.stop(ml)
 
-    def check_extras(self, d: dict[str, str], is_arc: bool, has_axes: bool, dwell: bool,
-                     g64: bool, explicit: bool = False) -> bool:
+    def check_extras(self, d: dict[str, str | float], is_arc: bool, has_axes: bool, dwell: bool,
+                     g64: bool, explicit: bool = False) -> bool | None:
         """Words other than axes/F/N/S: run the dwell, refuse words nothing uses
         (``explicit``: the line has a motion G word).
 
@@ -276,7 +285,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
                 self.fail('D word with no G41/G42 (or G41.1/G42.1) to use it', 'D')
             self.d_selected = self.d_number(d['D'])     # Fanuc/Haas: for the next G41/G42
         if self.coord_line == self.lineno and self.coord_todo.get('nonmodal') == 'G10':
-            return              # coords.py checks G10's L, P and R words
+            return None         # coords.py checks G10's L, P and R words
         if self.motion in SPLINE_MOTIONS and (has_axes or explicit):
             self.spline_words(d, self.motion, dwell)
             return False        # splines.py checks the spline's words

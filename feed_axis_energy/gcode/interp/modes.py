@@ -4,7 +4,9 @@ A mixin of :class:`~.interp.Interpreter` (split off along this seam to keep modu
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
+from typing import Any, cast, NoReturn, TYPE_CHECKING
 
 from .codes import ALLOWED_LETTERS, G_CODES, G_UNSUPPORTED, M_CODES, UNSUPPORTED_LETTERS
 from ..dialect import CONTROL_MODE_CODES
@@ -12,17 +14,22 @@ from ..read.lexer import blank_comments, locate_word
 from ...errors import GcodeError
 from ..program import Move, MoveKind
 
+if TYPE_CHECKING:
+    from .state import InterpreterState, Lines
+else:
+    InterpreterState = object     # the declarations are for the type checker only
+
 __all__ = ['ModesMixin']
 
 _SPINDLE = {'cw': 1, 'ccw': -1, 'off': 0}
 
 
-class ModesMixin:
+class ModesMixin(InterpreterState):
     """F, G4, M codes and the G-code table lookup for :class:`~.interp.Interpreter`."""
 
     __slots__ = ()
 
-    def set_feed(self, text: str) -> None:
+    def set_feed(self, text: str | float) -> None:
         """Read F: m/s under G94 (in the units now in force), 1/min under G93; under G95 F
         is per spindle revolution and the feed follows the spindle speed S."""
         f = self.num('F', text)
@@ -35,7 +42,7 @@ class ModesMixin:
         # Under G93 the raw number (1/min) is kept; it is used only on this line.
         self.feed = f if self.inverse_time else f * self.scale / 60.0
 
-    def dwell(self, d: dict[str, str]) -> None:
+    def dwell(self, d: dict[str, str | float]) -> None:
         """Emit the G4 dwell of P (the dialect's unit; see :mod:`.dialect`)."""
         if 'P' not in d:
             self.fail('G4 dwell needs a P word (seconds)', 'G', value=4.0)
@@ -48,7 +55,7 @@ class ModesMixin:
         self.emit(Move(kind=MoveKind.DWELL, line=self.lineno, start=p, end=p,
                        dwell_s=seconds))
 
-    def dwell_x(self, d: dict[str, str]) -> None:
+    def dwell_x(self, d: dict[str, str | float]) -> None:
         """Fanuc ``G4 X``: the dwell in seconds (X is then no axis word)."""
         x = self.num('X', d.pop('X'))
         if 'P' in d:
@@ -58,7 +65,7 @@ class ModesMixin:
     def word_has_point(self, letter: str) -> bool:
         """True if the line's ``letter`` word was written with a decimal point."""
         src = self.src
-        raw = self.lines[self.lineno - 1] if src is None else src.text
+        raw = cast('Lines', self.lines)[self.lineno - 1] if src is None else src.text
         code = blank_comments(raw, file=self.file, line=self.lineno)
         return '.' in locate_word(code, letter)[1]
 
@@ -114,7 +121,7 @@ class ModesMixin:
             if action == 'end':
                 self.ended = True
 
-    def unknown_letter(self, d: dict[str, str]) -> None:
+    def unknown_letter(self, d: dict[str, str | float]) -> None:
         """Words off the common path: polar ``@``/``^`` (made X/Y), axes the user chose to
         ignore (dropped, one warning each); fail at any other letter the interpreter does
         not accept."""
@@ -136,12 +143,12 @@ class ModesMixin:
                           f'be simulated; --ignore-axes {letter} drops its words', letter)
             self.fail(f'unknown word letter {letter!r}', letter)
 
-    def fail_at_char(self, msg: str, char: str):
+    def fail_at_char(self, msg: str, char: str) -> NoReturn:
         """Fail at the first ``char`` of the line outside comments (for ``@`` and ``^``,
         which are no letters for the lexer's word finder)."""
         src = self.src
         if src is None:
-            file, line, raw = self.file, self.lineno, self.lines[self.lineno - 1]
+            file, line, raw = self.file, self.lineno, cast('Lines', self.lines)[self.lineno - 1]
         else:
             file, line, raw = src.file, src.line, src.text
         code = blank_comments(raw, file=file, line=line)
@@ -149,7 +156,7 @@ class ModesMixin:
         raise GcodeError(msg, file=file, line=line, column=max(col, 1),
                          text=code[max(col - 1, 0):][:20].strip())
 
-    def polar(self, d: dict[str, str]) -> None:
+    def polar(self, d: dict[str, str | float]) -> None:
         """LinuxCNC's polar words in the XY plane: ``@`` distance, ``^`` angle [degrees]
         from the program origin (G90), or added to the current point's (G91)."""
         if 'X' in d or 'Y' in d:
@@ -177,11 +184,11 @@ class ModesMixin:
         d['X'] = px
         d['Y'] = py
 
-    def split_repeated(self, words: list[tuple[str, str]],
-                       d: dict[str, str]) -> tuple[list[str], list[str]]:
+    def split_repeated(self, words: Sequence[tuple[str, str | float]],
+                       d: dict[str, str | float]) -> tuple[list[str | float], list[str | float]]:
         """G and M words of a line with several of them; other letters must not repeat."""
-        gl: list[str] = []
-        ml: list[str] = []
+        gl: list[str | float] = []
+        ml: list[str | float] = []
         seen: set[str] = set()
         for letter, text in words:
             if letter == 'G':
@@ -208,7 +215,7 @@ class ModesMixin:
                 'control smooths and accelerates; it is not modelled (the planner uses the '
                 'machine config\'s limits) and its words are ignored')
 
-    def g_lookup(self, text: str) -> tuple[str, object, int]:
+    def g_lookup(self, text: str | float) -> tuple[str, Any, int]:
         """(group, argument, 10 x code) of a G word, or fail naming why it is refused."""
         value = self.num('G', text)
         code = round(value * 10.0)

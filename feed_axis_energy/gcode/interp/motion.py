@@ -15,11 +15,17 @@ whatever it cannot finish exactly as ``line`` would); both build the move with
 from __future__ import annotations
 
 import math
+from typing import cast, NoReturn, overload, TYPE_CHECKING
 
 from ..canon import (centre_tolerance_m, FULL_TURN_EPS_RAD, radius_error, RADIUS_TOLERANCE_MM,
                      radius_tolerance_m)
 from .codes import MOTION_TEXT
 from ..program import arc_move, Move, MoveKind, straight_move
+
+if TYPE_CHECKING:
+    from .state import InterpreterState, Vec3
+else:
+    InterpreterState = object     # the declarations are for the type checker only
 
 __all__ = ['MotionMixin']
 
@@ -37,7 +43,7 @@ _TWO_PI = 2.0 * math.pi
 _R_MIN = RADIUS_TOLERANCE_MM * 1e-3
 
 
-class MotionMixin:
+class MotionMixin(InterpreterState):
     """G0/G1, G2/G3 and feeds for :class:`~.interp.Interpreter`."""
 
     __slots__ = ()
@@ -151,14 +157,14 @@ class MotionMixin:
             px, py, pz = new
         return (px, py, pz)
 
-    def target(self, d: dict[str, str]) -> tuple[float, float, float]:
+    def target(self, d: dict[str, str | float]) -> tuple[float, float, float]:
         """End point [m] of a move from the axis words of the line."""
         if self.rotated:
             return self.rotated_target(d)
         get = d.get
         return self.point(get('X'), get('Y'), get('Z'))
 
-    def centre_from_offsets(self, d: dict[str, str], start: tuple[float, float, float],
+    def centre_from_offsets(self, d: dict[str, str | float], start: tuple[float, float, float],
                             a: int, b: int, n: int) -> tuple[float, float]:
         """In-plane centre [m] from I/J/K (incremental under G91.1, absolute under G90.1)."""
         normal = _CENTRE_LETTERS[n]
@@ -211,6 +217,14 @@ class MotionMixin:
         else:
             self.moves.append(m)
         self.pos = end
+
+    @overload
+    def arc_from(self, start: Vec3, end: Vec3, ca: float, cb: float, turn: int,
+                 feed: float | None, g9: bool, explicit: bool, d: dict) -> Move: ...
+
+    @overload
+    def arc_from(self, start: Vec3, end: Vec3, ca: float, cb: float, turn: int,
+                 feed: float | None, g9: bool, explicit: bool, d: None) -> Move | None: ...
 
     def arc_from(self, start: tuple[float, float, float], end: tuple[float, float, float],
                  ca: float, cb: float, turn: int, feed: float | None, g9: bool,
@@ -328,7 +342,7 @@ class MotionMixin:
         side = (1.0 if ccw else -1.0) * (1.0 if r > 0.0 else -1.0) * h / chord
         return (start[a] + 0.5 * da - side * db, start[b] + 0.5 * db + side * da)
 
-    def feed_for(self, d: dict[str, str], length: float, explicit: bool) -> float:
+    def feed_for(self, d: dict[str, str | float], length: float, explicit: bool) -> float:
         """Path feed [m/s] of a feed move of ``length`` metres on this line."""
         feed = self.feed
         if self.feed_per_rev is not None:
@@ -340,7 +354,7 @@ class MotionMixin:
                                  explicit, d)
             if feed == 0.0:
                 self.fail('F0 in G93: the move would never finish', 'F')
-            return length * feed / 60.0
+            return length * cast(float, feed) / 60.0     # set_feed gave it with the F word
         if feed == 0.0 and 'F' in d:
             self.fail('feed rate is zero', 'F')
         if 'no feed' not in self.warned:
@@ -350,13 +364,13 @@ class MotionMixin:
                                  'refuses this; its preview accepts it)')
         return _INF
 
-    def fail_motion(self, msg: str, explicit: bool, d: dict[str, str]):
+    def fail_motion(self, msg: str, explicit: bool, d: dict[str, str | float]) -> NoReturn:
         """Fail at the word that asked for this line's motion (its G word or first axis)."""
         if explicit:
-            self.fail(msg, 'G', value=float(self.motion))
+            self.fail(msg, 'G', value=float(cast(int, self.motion)))
         self.fail(msg, self.first_axis(d))
 
-    def straight(self, d: dict[str, str], mode: int, g9: bool, explicit: bool) -> None:
+    def straight(self, d: dict[str, str | float], mode: int, g9: bool, explicit: bool) -> None:
         """Emit a G0/G1 move (also of zero length: LinuxCNC issues it, the planner drops
         it)."""
         start = self.pos
@@ -367,6 +381,14 @@ class MotionMixin:
         else:
             self.moves.append(m)
         self.pos = end
+
+    @overload
+    def straight_from(self, start: Vec3, end: Vec3, mode: int, feed: float | None, g9: bool,
+                      explicit: bool, d: dict) -> Move: ...
+
+    @overload
+    def straight_from(self, start: Vec3, end: Vec3, mode: int, feed: float | None, g9: bool,
+                      explicit: bool, d: None) -> Move | None: ...
 
     def straight_from(self, start: tuple[float, float, float],
                       end: tuple[float, float, float], mode: int, feed: float | None,
@@ -384,7 +406,7 @@ class MotionMixin:
         return straight_move(_MOTION_KIND[mode], self.lineno, start, end, feed,
                              self.exact or g9, length)
 
-    def stand_still(self, d: dict[str, str], mode: int, g9: bool) -> None:
+    def stand_still(self, d: dict[str, str | float], mode: int, g9: bool) -> None:
         """G0/G1 without axis words: LinuxCNC issues a move to where the tool is (a G1
         without any feed rate is let pass without one)."""
         if mode == 1 and (self.feed is None or self.inverse_time):
@@ -393,7 +415,7 @@ class MotionMixin:
             self.end_series()
         self.straight(d, mode, g9, True)
 
-    def normal_centre_word(self, letter: str, text: str) -> None:
+    def normal_centre_word(self, letter: str, text: str | float) -> None:
         """A centre word along the plane normal (K in G17): LinuxCNC refuses it; other
         dialects ignore a zero one (FreeCAD writes K0) with one warning."""
         if self.num(letter, text) != 0.0 or self.dialect.normal_centre_zero == 'error':
