@@ -35,12 +35,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 import math
-from typing import NamedTuple
+from typing import Any, cast, NamedTuple, TYPE_CHECKING
 
 from .fail import Fail, raise_unplaced
 from .stored import G28_PARAM, ParamReadback
 from .tools import MAX_OFFSET_M, tool_spec, ToolTable
 from ..settings import ToolSpec
+
+if TYPE_CHECKING:
+    from .state import ParamStore
 
 __all__ = ['Coords', 'LineEffect', 'ParamTable', 'COORD_G_CODES', 'SYSTEM_NAMES', 'system_param',
            'foreign_codes']
@@ -77,7 +80,7 @@ _FOREIGN = {
 }
 
 
-def foreign_codes(dialect: str, codes: Mapping[str, object],
+def foreign_codes(dialect: str, codes: Mapping[str, Any],
                   value: Callable[[str], 'float | None']) -> tuple[str, list[str]]:
     """The codes of a line (as :meth:`Coords.execute` takes them) that ``dialect``'s
     control does not have: ``(control name, [code, ...])``; empty for the others."""
@@ -173,7 +176,7 @@ class Coords(ToolTable, ParamReadback):
                  'loaded_tool', 'home_used')
 
     def __init__(self, *, tools: Mapping[int, object] | None = None,
-                 home_m: Vec3 | None = None, params: object | None = None):
+                 home_m: Vec3 | None = None, params: ParamStore | None = None):
         self.params = ParamTable() if params is None else params
         self.tools: dict[int, ToolSpec] = {int(t): tool_spec(e)
                                            for t, e in (tools or {}).items()}
@@ -195,7 +198,7 @@ class Coords(ToolTable, ParamReadback):
         self._load_system(1)
 
     # -- one line -------------------------------------------------------------------------
-    def execute(self, codes: Mapping[str, object], value: Value, *, position: Vec3,
+    def execute(self, codes: Mapping[str, Any], value: Value, *, position: Vec3,
                 scale: float, motion: int | None, absolute: bool, comp_active: bool = False,
                 explicit_motion: bool = False, fail: Fail = raise_unplaced) -> LineEffect:
         """Execute the coordinate codes of one line, in LinuxCNC's order.
@@ -246,6 +249,7 @@ class Coords(ToolTable, ParamReadback):
                     fail(f'{a} value ({shown}) is not a plausible offset (at most '
                          f'{MAX_OFFSET_M:g} m)', a)
         if comp_active:
+            refused: Any
             for refused in (codes.get('tool_length'), code):
                 key = _COMP_KEY.get(refused, refused)
                 if key in _COMP_MESSAGES and not (
@@ -331,7 +335,7 @@ class Coords(ToolTable, ParamReadback):
 
     def _load_system(self, system: int) -> None:
         get = self.params.get
-        self.g5x = tuple(get(system_param(system, i)) / _MM for i in range(3))
+        self.g5x = cast(Vec3, tuple(get(system_param(system, i)) / _MM for i in range(3)))
         self._set_rotation(self._system_rotation(system, None))
         self._update()
 
@@ -417,7 +421,7 @@ class Coords(ToolTable, ParamReadback):
         for i in range(3):
             self.params.set(system_param(system, i), origin[i] * _MM)
         if system == self.system:
-            self.g5x = tuple(origin)
+            self.g5x = cast(Vec3, tuple(origin))
             self._set_rotation(rotation)
             self._update()
 
@@ -470,5 +474,5 @@ class Coords(ToolTable, ParamReadback):
             g92 = [self.params.get(G92_PARAM + i) / _MM for i in range(3)]
         else:
             raise ValueError(f'not a G92 code: {code!r}')
-        self.g92 = tuple(g92)
+        self.g92 = cast(Vec3, tuple(g92))
         self._update()

@@ -30,7 +30,7 @@ from ...errors import GcodeError
 from ..program import Move
 
 if TYPE_CHECKING:
-    from .state import Lines, Vec3
+    from .state import Lines, ParamStore, Vec3
 
 __all__ = ['Interpreter']
 
@@ -82,7 +82,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
                  arc_tolerance_m: float | None,
                  *, lines: Lines | None, home: tuple[float, float, float] | None = None,
                  tools: Mapping[int, object] | None = None, dialect: Dialect | None = None,
-                 params: object | None = None, ignore_axes: Iterable[str] = ()):
+                 params: ParamStore | None = None, ignore_axes: Iterable[str] = ()):
         self.file = file
         self.arc_tol = None if arc_tolerance_m is None else float(arc_tolerance_m)
         # radius differences below this pass every arc check (interp_motion)

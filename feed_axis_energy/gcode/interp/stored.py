@@ -7,9 +7,16 @@ values). Stored parameters hold millimetres; live values are in program units.
 """
 from __future__ import annotations
 
+from typing import cast, TYPE_CHECKING
+
 from ..settings import ToolSpec
 from .fail import Fail, raise_unplaced
 from .tools import MAX_OFFSET_M
+
+if TYPE_CHECKING:
+    from .state import CoordsState
+else:
+    CoordsState = object        # the declarations are for the type checker only
 
 __all__ = ['ParamReadback', 'G28_PARAM', 'G30_PARAM', 'PROBE_PARAM', 'TOOL_PARAM',
            'POSITION_PARAM', 'MAX_PASSES']
@@ -27,7 +34,7 @@ POSITION_PARAM = 5420
 MAX_PASSES = 9          # axes X Y Z A B C U V W of every parameter block
 
 
-class ParamReadback:
+class ParamReadback(CoordsState):
     """Stored homes, probe result and read-only parameters of :class:`.coords.Coords` (a mixin:
     the state lives there).
 
@@ -42,7 +49,7 @@ class ParamReadback:
         """The stored G28 or G30 position, machine coordinates [m]."""
         base = G28_PARAM if code == 'G28' else G30_PARAM
         self.home_used = True
-        home = tuple(self.params.get(base + i) / _MM for i in range(3))
+        home = cast(Vec3, tuple(self.params.get(base + i) / _MM for i in range(3)))
         if not all(abs(v) <= MAX_OFFSET_M for v in home):
             fail(f'the stored {code} position (#{base}..#{base + 2}) is more than '
                  f'{MAX_OFFSET_M:g} m from the machine origin', 'G')
@@ -66,7 +73,7 @@ class ParamReadback:
         home = self.stored_home(code, fail=fail)
         if not any(named):
             named = (True, True, True)
-        end = tuple(home[i] if named[i] else via[i] for i in range(3))
+        end = cast(Vec3, tuple(home[i] if named[i] else via[i] for i in range(3)))
         return [via, end]
 
     def save_home(self, code: str, position: Vec3) -> None:

@@ -8,9 +8,15 @@ LinuxCNC; T0/H0 is "no tool" (length and radius 0).
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import cast, TYPE_CHECKING
 
 from ..settings import MAX_TOOL_NUMBER, ToolSpec
 from .fail import Fail, raise_unplaced
+
+if TYPE_CHECKING:
+    from .state import CoordsState
+else:
+    CoordsState = object        # the declarations are for the type checker only
 
 __all__ = ['ToolTable', 'tool_spec', 'MAX_OFFSET_M']
 
@@ -41,11 +47,11 @@ def tool_spec(entry: object) -> ToolSpec:
     if hasattr(entry, 'radius_m'):
         return ToolSpec(radius_m=float(entry.radius_m),
                         length_m=float(getattr(entry, 'length_m', 0.0)))
-    radius, length = entry
+    radius, length = cast('tuple[float, float]', entry)     # a pair (or the error)
     return ToolSpec(radius_m=float(radius), length_m=float(length))
 
 
-class ToolTable:
+class ToolTable(CoordsState):
     """Tool table methods of :class:`.coords.Coords` (a mixin: the state lives there).
 
     Uses ``tools`` ({T: ToolSpec}), ``tlo``, ``selected_tool``, ``loaded_tool``, ``g5x``,
@@ -149,5 +155,5 @@ class ToolTable:
                     tlo[i] = values[axis] + (tlo[i] if code == 'G43.2' else 0.0)
         else:
             raise ValueError(f'not a tool length code: {code!r}')
-        self.tlo = tuple(tlo)
+        self.tlo = cast(Vec3, tuple(tlo))
         self._update()
