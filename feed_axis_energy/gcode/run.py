@@ -12,9 +12,9 @@ twice and memory is bounded by the batch size (plus the program text itself).
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Generator, Iterator, Mapping, Sequence
 from os import PathLike
-from typing import TextIO
+from typing import cast, TextIO, TYPE_CHECKING
 
 from .context import OperationContext
 from .dialect import Dialect
@@ -25,6 +25,9 @@ from .read.lexer import blank_comments, CONTOUR_RE, LINE_RE, WORD_RE
 from .read.params import Parameters
 from ..errors import GcodeError
 from .program import Move
+
+if TYPE_CHECKING:
+    from .interp.state import Lines
 
 __all__ = ['GcodeRun']
 
@@ -95,9 +98,9 @@ class GcodeRun:
                 lines.pop()
             self.source: Iterator[str] = iter(lines)
             self.stream = None
-            ref_lines: object = lines
+            ref_lines: Lines = lines
         else:
-            self.source = _file_lines(stream)
+            self.source = _file_lines(cast(TextIO, stream))     # given when text is not
             self.stream = stream
             ref_lines = self.recent
         self.n_lines = 0
@@ -179,7 +182,7 @@ class GcodeRun:
         return self.emitted + len(self.interp.moves)
 
     def _tool_loaded(self, tool: int) -> None:
-        self.context.set_tool(tool, self._ordinal())
+        cast(OperationContext, self.context).set_tool(tool, self._ordinal())  # on_tool: set
 
     def _comment_lines(self, lines: list[str], lo: int, hi: int) -> None:
         """Note the operation names of the comment-only lines ``lo`` .. ``hi - 1``
@@ -192,7 +195,7 @@ class GcodeRun:
                 except GcodeError:
                     continue
                 if not code.strip():
-                    self.context.comment(raw, self._ordinal())
+                    cast(OperationContext, self.context).comment(raw, self._ordinal())
 
     def _rest(self) -> str:
         """The text after the lines read so far."""
@@ -200,7 +203,7 @@ class GcodeRun:
             return self.stream.read()
         return '\n'.join(self.source)
 
-    def _plain(self) -> Iterator[list[Move]]:
+    def _plain(self) -> Generator[list[Move], None, tuple[int, str] | None]:
         """The fast path; returns the first line (1-based number, raw text) it cannot take,
         or ``None`` when the program ended."""
         p = self.interp
@@ -272,7 +275,7 @@ class GcodeRun:
             self.n_lines += _warn_trailing(p, self.source, end_at)
         return None
 
-    def _blocks(self, first: tuple[int, str]) -> Iterator[list[Move]]:
+    def _blocks(self, first: tuple[int, str]) -> Generator[list[Move], None, list[str]]:
         """The front's reader from line ``first`` on; returns its warnings."""
         p = self.interp
         file = self.file
