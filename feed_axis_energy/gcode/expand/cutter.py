@@ -30,7 +30,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import fields
 import math
-from typing import NoReturn
+from typing import Any, cast, NoReturn
 
 from .cutter_corners import arc_sweep, find_turn
 from .cutter_moves import CompMoves, QueuedArc, QueuedLine
@@ -247,24 +247,24 @@ class CutterComp(CompMoves):
 
     def _exit(self, move: Move) -> None:
         """The first motion after G40: straight from the compensated to the programmed point."""
-        length = math.dist(self.tool, move.end)
+        length = math.dist(cast(Vec3, self.tool), move.end)    # feed() has set it
         self.exit_pending = False
         if length > 0.0:
             self._out.append(_replace(move, start=self.tool, length_m=length))
             self.tool = move.end
 
     def _emit_line(self, kind: MoveKind, src: Move, end: Vec3) -> None:
-        length = math.dist(self.tool, end)
+        length = math.dist(cast(Vec3, self.tool), end)         # feed() has set it
         if length == 0.0:
             return
-        self._out.append(Move(kind=kind, line=src.line, start=self.tool, end=end,
+        self._out.append(Move(kind=kind, line=src.line, start=cast(Vec3, self.tool), end=end,
                               feed_m_s=src.feed_m_s, exact_stop=src.exact_stop,
                               length_m=length))
         self.tool = end
 
     def _emit_arc(self, src: Move, end_uvw: list[float], centre: tuple[float, float],
                   turn: int) -> None:
-        start = self.tool
+        start = cast(Vec3, self.tool)                           # feed() has set it
         su, sv, sw = self._uvw(start)
         eu, ev, ew = end_uvw
         cu, cv = centre
@@ -277,7 +277,7 @@ class CutterComp(CompMoves):
         if length == 0.0:
             return
         end = self._xyz(eu, ev, ew)
-        extra = {'sweep_rad': sweep} if _HAS_SWEEP else {}
+        extra: dict[str, Any] = {'sweep_rad': sweep} if _HAS_SWEEP else {}
         self._out.append(Move(
             kind=MoveKind.ARC_CCW if turn > 0 else MoveKind.ARC_CW, line=src.line,
             start=start, end=end, feed_m_s=src.feed_m_s,
