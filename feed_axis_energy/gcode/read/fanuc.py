@@ -9,7 +9,7 @@ pass with a warning (LinuxCNC restarts it for ever; its preview runs one pass). 
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, TYPE_CHECKING
 
 from . import control
 from .control import Frame, goto
@@ -17,6 +17,12 @@ from .expr import Reader
 from .lexer import blank_comments, locate_word
 from .macrob import find_sequence, g65_arguments
 from ...errors import GcodeError
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from .params import Parameters
+    from .progfile import ProgramFile
 
 __all__ = ['FanucCalls', 'fanuc_m', 'END', 'SWITCH', 'MAX_CALL_DEPTH']
 
@@ -29,6 +35,16 @@ END = object()      # the program ends here
 
 class FanucCalls:
     """``M98``/``M99``/``M97``/``G65`` handling, mixed into the block reader."""
+
+    # what this mixin uses of the block reader (flow.BlockReader); declarations only
+    macro: bool
+    warnings: list[str]
+    frames: list[Frame]
+    params: Parameters
+    main: ProgramFile
+    _apply: Callable[[list], None]
+    _call: Callable[..., Any]
+    _leave: Callable[[Frame], Any]
 
     def _fanuc(self, fr: Frame, r: Reader, words: list[tuple[str, float]],
                assigns: list, lineno: int) -> Any:
