@@ -10,10 +10,55 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+from typing import cast, NoReturn, TYPE_CHECKING
 
 from .cutter_corners import (arc_then_arc, arc_then_line, CornerError, find_turn, line_then_arc,
                              tool_inside)
 from ..program import Move, MoveKind
+
+if TYPE_CHECKING:
+    from abc import abstractmethod
+
+    Vec3 = tuple[float, float, float]
+
+    class CutterState:
+        """What :class:`CompMoves` uses of :class:`.cutter.CutterComp` (declarations for the
+        type checker; at run time the mixin's base is ``object``)."""
+
+        left: bool
+        radius: float
+        first: bool
+        prog: list[float]
+        cur: list[float]
+        queue: list[QueuedLine | QueuedArc | Move]
+
+        @abstractmethod
+        def _raise(self, message: str, letter: str) -> NoReturn: ...
+
+        @abstractmethod
+        def _uvw(self, p: tuple[float, float, float]) -> list[float]: ...
+
+        @abstractmethod
+        def _xyz(self, u: float, v: float, w: float) -> tuple[float, float, float]: ...
+
+        @abstractmethod
+        def _emit_line(self, kind: MoveKind, src: Move,
+                       end: tuple[float, float, float]) -> None: ...
+
+        @abstractmethod
+        def _emit_arc(self, src: Move, end_uvw: list[float], centre: tuple[float, float],
+                      turn: int) -> None: ...
+
+        @abstractmethod
+        def _set_endpoint(self, u: float, v: float) -> None: ...
+
+        @abstractmethod
+        def _dequeue(self) -> None: ...
+
+        @abstractmethod
+        def _flush_at(self, u: float, v: float) -> None: ...
+else:
+    CutterState = object        # the declarations are for the type checker only
 
 __all__ = ['CompMoves', 'QueuedLine', 'QueuedArc', 'CORNER_TOLERANCE_RAD']
 
@@ -43,7 +88,7 @@ class QueuedArc:
     original: float             # programmed sweep [rad] (0: never checked)
 
 
-class CompMoves:
+class CompMoves(CutterState):
     """Entry, straight and arc moves of :class:`.cutter.CutterComp` (a mixin)."""
 
     __slots__ = ()
@@ -135,7 +180,7 @@ class CompMoves:
         r = self.radius
         cx, cy, _ = self.cur
         ex, ey, ez = self._uvw(move.end)
-        ccx, ccy, _ = self._uvw(move.center)
+        ccx, ccy, _ = self._uvw(cast('Vec3', move.center))     # an arc has its centre
         turn = self._turn(move)
         if math.hypot(ex - cx, ey - cy) <= r:
             self._raise('Radius of cutter compensation entry arc is not greater than the '
@@ -170,7 +215,7 @@ class CompMoves:
         opx, opy, _ = self.prog
         cx, cy, cz = self.cur
         ex, ey, ez = self._uvw(move.end)
-        ccx, ccy, _ = self._uvw(move.center)
+        ccx, ccy, _ = self._uvw(cast('Vec3', move.center))     # an arc has its centre
         turn = self._turn(move)
         ccw = turn > 0
         arc_r = math.hypot(ccx - ex, ccy - ey)
