@@ -1,6 +1,6 @@
 """Validation helpers for configuration mappings read from YAML.
 
-Shared by :mod:`.machine` and :mod:`.machine_gcode`; each raises
+Shared by :mod:`.machine` and :mod:`feed_axis_energy.gcode.settings`; each raises
 :class:`~.errors.ConfigError` naming the file and the dotted key.
 """
 from __future__ import annotations

@@ -283,7 +283,7 @@ def _run_stream_gc(args, machine, options, progress, *, trace=None,
                                     rate_hz=options.rate_hz,
                                     plot_rate_hz=args.plot_rate_hz,
                                     start_ns=args.start_time or 0) as writer:
-            # chunk_gaps: the writer takes the left-out dwell samples as they are (recthin)
+            # chunk_gaps: the writer takes the left-out dwell samples as they are (record.thinning)
             summary, blocks = simulate_stream(moves, machine,
                                               on_chunk=consumers(writer, trace, export,
                                                                  options.rate_hz),

@@ -369,7 +369,7 @@ class MoveChecker:
         return out
 
     def result(self) -> ProgramStats:
-        """Summary of the moves checked (:class:`~.gcode_stats.ProgramStats`)."""
+        """Summary of the moves checked (:class:`~.stats.ProgramStats`)."""
         return self.stats.result()
 
 
@@ -425,7 +425,7 @@ def check_moves(moves: Iterable[Move], *, file: str, limits: CheckLimits,
     Returns
     -------
     tuple
-        The warnings and the program's :class:`~.gcode_stats.ProgramStats`.
+        The warnings and the program's :class:`~.stats.ProgramStats`.
     """
     checker = MoveChecker(file=file, limits=limits, line_text=line_text)
     checker.add_all(moves)

@@ -18,7 +18,7 @@ dialect        G4 P          G4 X         ``K0`` on a G17 arc  M98/M99      Macr
 (1) Fanuc Custom Macro B: ``WHILE``/``DO``/``END``, ``IF``/``GOTO``/``THEN``, ``G65``
 macro calls (and Haas ``M97`` local subprograms), read by the front (:mod:`.flow`), and
 the read-only system variables ``#4001..#4130`` and ``#5001..#5083`` from the modal state
-(:mod:`.fanuc_vars`; in LinuxCNC they are ordinary parameters).
+(:mod:`feed_axis_energy.gcode.interp.sysvars`; in LinuxCNC they are ordinary parameters).
 
 * G4 P: LinuxCNC, grbl and Mach3 (its default configuration) read seconds. Fanuc (Series
   0i/30i: ``G04 P`` in milliseconds without a decimal point, ``G04 X`` in seconds) reads

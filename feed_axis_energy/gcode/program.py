@@ -64,7 +64,7 @@ class Move:
     tap_return
         True for the way back of a G33.1 rigid tap. RS274NGC issues the way in and back as
         one canonical call (``RIGID_TAP``); the planner runs both moves, the program's
-        summary (:mod:`.gcode_stats`) counts the pair once, as the reference does.
+        summary (:mod:`.stats`) counts the pair once, as the reference does.
     """
 
     kind: MoveKind

@@ -123,7 +123,7 @@ class GcodeRun:
         if context is not None:
             self.interp.on_tool = self._tool_loaded
         if self.dialect.fanuc_macro:
-            self.params.read_only = FANUC_READ_ONLY     # #4001.., #5001..: fanuc_vars
+            self.params.read_only = FANUC_READ_ONLY     # #4001.., #5001..: gcode.interp.sysvars
 
     @property
     def warnings(self) -> list[str]:

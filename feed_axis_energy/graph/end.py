@@ -3,7 +3,7 @@
 :class:`ProgramEnd` is what the marker says (batches per stream, first and last stamp),
 :class:`EndTracker` knows when a consumer has seen every stream up to it, and
 :func:`restamp_end_marker` moves a serialized marker to wall-clock time with the recording
-(``start_time``). Split from :mod:`.graph`, which re-exports these names.
+(``start_time``).
 """
 from __future__ import annotations
 

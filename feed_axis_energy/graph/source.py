@@ -1,7 +1,7 @@
 """The setpoint source of the node graph: a program's planned samples as batches, streamed.
 
 ``gcode_trajectory`` publishes the planned motion in messages of ``batch`` samples. Here the
-samples come from the streaming planner (:func:`.planstream.iter_motion` over
+samples come from the streaming planner (:func:`feed_axis_energy.plan.stream.iter_motion` over
 :func:`.gcode.iter_moves`), the same code ``simulate`` runs, so the node holds one planner
 chunk and one batch at a time, never every sample of a program.
 

@@ -1,8 +1,8 @@
 """Virtual test rig: "measured" campaigns made from a truth model, for testing the analysis.
 
 The truth model and the instrument that records it (one run, in memory) are in
-:mod:`.rig_truth`, whose names are re-exported here; this module builds campaigns of such
-runs (one per feed and load) and writes them to disk.
+:mod:`.rigtruth`; this module builds campaigns of such runs (one per feed and load) and
+writes them to disk.
 
 Output directory (:func:`make_campaign`)::
 
@@ -34,7 +34,6 @@ from ..effects import get_effect
 from ..errors import ConfigError
 from ..machine import load_machine
 from ..outputs import marked_or_empty, staged_directory
-# the truth and the instrument: importable from here as before
 from .rigtruth import EffectSpec, Instrument, OUTSIDE_KINDS, RigRun, simulate_run
 
 __all__ = ['PAPER_LOADS_KG', 'PAPER_FEEDS_MM_S', 'CLOCK_START_MS', 'RigConfig', 'paper_scenario',

@@ -17,7 +17,7 @@ after. The instrument then
 * adds Gaussian noise (``noise_w``, independent per axis and sample);
 * quantises to ``quantum_w``.
 
-:mod:`.rig` writes campaigns of such runs to disk and re-exports every name of this module.
+:mod:`.rig` writes campaigns of such runs to disk.
 """
 from __future__ import annotations
 

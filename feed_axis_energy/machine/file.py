@@ -1,7 +1,6 @@
 """Machine model: ball-screw feed axes as frozen dataclasses, loaded and validated from YAML.
 
-The dataclasses themselves are in :mod:`.machine_spec` (re-exported here); this module reads
-and writes them.
+The dataclasses themselves are in :mod:`.spec`; this module reads and writes them.
 
 A machine file looks like (see ``config/demonstrator.yaml``)::
 
@@ -25,14 +24,14 @@ A machine file looks like (see ``config/demonstrator.yaml``)::
       tools: {1: {radius_m: 0.003, length_m: 0.045}}
 
 Each axis may declare its motor and drive (``drive:``) and the machine its cabinet standby
-and meter point (``supply:``), from data-sheet values (:mod:`.drive_model`,
+and meter point (``supply:``), from data-sheet values (:mod:`.drives`,
 ``docs/electrical.md``).
 
 Each axis may also give ``travel_m: [min, max]``, its travel in machine coordinates [m],
 and ``loss_calibrated: {feed_mm_s: [low, high], load_kg: [low, high]}``, the speeds and loads
 its loss function was fitted on (written by ``fit-loss``; :mod:`.calibrated`), and
 ``loss_covariance: {params, units, matrix}``, the covariance of the loss parameters
-(written by ``fit-loss``; :mod:`.losscov`; simulations then give the energy's uncertainty).
+(written by ``fit-loss``; :mod:`.covariance`; simulations then give the energy's uncertainty).
 
 ``effects`` lists effects of the catalog (:mod:`.effects`, ``docs/effects.md``) that the
 model declares in addition to the loss function, usually written by ``feed-axis-energy
@@ -57,7 +56,6 @@ from .covariance import covariance_from_value
 from .losses import loss_from_dict
 from .declared import effects_from_value, effects_to_list
 from ..gcode import gcode_from_dict, gcode_to_dict, travel_from_value
-# the dataclasses live in machine_spec, the masses in mass; importable from here as before
 from .spec import (AXIS_NAMES, AxisSpec, BRAKING_MODES, InertiaSpec, LimitSpec, Machine,
                    PlannerSettings, PROFILES, ScrewSpec, STEEL_DENSITY_KG_M3)
 from ..safeyaml import load_yaml_file

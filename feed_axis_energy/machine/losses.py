@@ -11,7 +11,7 @@ against the direction of movement". Each model here is one frozen dataclass with
   never negative.
 * ``to_dict() -> dict``: the YAML form, ``{'model': <registry name>, ...params}``;
 * ``param_units() -> dict``: the unit of every parameter, as a covariance of the parameters
-  in a machine config (``loss_covariance``, :mod:`.losscov`) must state them;
+  in a machine config (``loss_covariance``, :mod:`.covariance`) must state them;
 * ``power_gradient_w(v_m_s, *, normal_force_n=0.0) -> dict``: the derivative of the loss
   power with respect to every parameter, ``d power_w / d param`` [W per unit of the
   parameter] (:mod:`.uncertainty` propagates the parameters' covariance to the energy).

@@ -1,7 +1,7 @@
 """Machine model: ball-screw feed axes as frozen dataclasses (the values, not the file).
 
-:mod:`.machine` reads and writes them as YAML, validating every value on the way in, and
-re-exports every name of this module; import from there.
+:mod:`.file` reads and writes them as YAML, validating every value on the way in; other
+packages import them from :mod:`feed_axis_energy.machine`.
 """
 from __future__ import annotations
 
@@ -126,7 +126,7 @@ class AxisSpec:
     loss_calibrated
         Speeds and loads the loss function was fitted on, or ``None`` (not recorded).
     drive
-        Motor and drive from data-sheet values (:mod:`.drive_model`), or ``None``.
+        Motor and drive from data-sheet values (:mod:`.drives`), or ``None``.
     loss_covariance
         Covariance of the loss parameters, or ``None`` (not known).
     """
@@ -181,9 +181,9 @@ class Machine:
         coordinates: the initial ``#5161..#5163`` of a program run (empty: 0, as in
         LinuxCNC's fresh parameter file).
     gcode
-        Dialect and tool table of the G-code front end (:mod:`.machine_gcode`).
+        Dialect and tool table of the G-code front end (:mod:`feed_axis_energy.gcode.settings`).
     supply
-        Cabinet standby and the meter's point (:mod:`.drive_model`), or ``None``.
+        Cabinet standby and the meter's point (:mod:`.drives`), or ``None``.
     """
 
     name: str

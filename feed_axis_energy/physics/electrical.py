@@ -1,7 +1,7 @@
 """Electrical power of the feed axes from the declared motor and drive (``docs/electrical.md``).
 
 Per axis and sample, from the shaft power ``M·omega`` of :mod:`.dynamics` and the data-sheet
-values of :mod:`.drive_model`:
+values of :mod:`feed_axis_energy.machine.drives`:
 
 * motor terminals (between converter and motor, where the paper measured):
   ``P_motor = M·omega + P_cu + P_fe`` with copper ``P_cu = k_cu·M²`` (``k_cu = factor·R/kt²``)

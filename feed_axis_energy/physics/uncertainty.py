@@ -1,9 +1,9 @@
 """The energy's uncertainty from the loss function's: the covariance propagated, chunk by chunk.
 
 A machine config may give, per axis, the covariance ``C`` of the loss parameters
-``theta`` (``loss_covariance``, :mod:`.losscov`; ``fit-loss`` writes it). The energy ``E``
-the axis draws over a program depends on ``theta`` through the loss force; its standard
-uncertainty is ``u(E) = sqrt(g' C g)`` with the gradient ``g = dE/dtheta`` (the delta
+``theta`` (``loss_covariance``, :mod:`feed_axis_energy.machine.covariance`; ``fit-loss``
+writes it). The energy ``E`` the axis draws over a program depends on ``theta`` through the
+loss force; its standard uncertainty is ``u(E) = sqrt(g' C g)`` with the gradient ``g = dE/dtheta`` (the delta
 method). ``g`` is accumulated while the program is simulated, from the samples of each chunk
 (``(p,)`` numbers per axis; no per-program array):
 

@@ -1,6 +1,6 @@
 """Sample chunks of the streaming planner: rows written in place, window by window.
 
-:func:`.planstream.iter_motion` evaluates the grid samples of each committed window
+:func:`.stream.iter_motion` evaluates the grid samples of each committed window
 (:class:`WindowSampler`) straight into the rows of a preallocated chunk (:class:`Chunk`,
 column-major per-axis arrays, no concatenation), in the order a :class:`GridCursor` walks
 them; the cursor skips the interior of standstill phases, which become ``Motion.gaps``

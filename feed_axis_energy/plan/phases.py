@@ -5,8 +5,8 @@ groups' profiles into one table of phases, :func:`sample_phases` evaluates it at
 maps the path length to axis motion per block (lines here, arcs and helices in
 :func:`_sample_arcs`), :func:`junction_times` times the block junctions and
 :func:`corner_steps` puts the corners' velocity steps into the samples. Used by
-:func:`.trajectory.plan`, the streaming planner (:mod:`.planstream`) and its window sampler
-(:mod:`.samplechunk`).
+:func:`.trajectory.plan`, the streaming planner (:mod:`.stream`) and its window sampler
+(:mod:`.chunks`).
 """
 from __future__ import annotations
 

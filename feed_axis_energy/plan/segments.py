@@ -5,7 +5,7 @@ turns moves into segments (lines, arcs/helices, rests; empty moves dropped, cont
 checked), :func:`segment_geometry` gives each its length, tangents and arc parameters,
 :func:`path_limits` its path speed, acceleration and jerk limits, and
 :func:`junction_speeds` the speed caps at the junctions. Used by :func:`.trajectory.plan`
-and the streaming planner (:mod:`.planstream`).
+and the streaming planner (:mod:`.stream`).
 """
 from __future__ import annotations
 

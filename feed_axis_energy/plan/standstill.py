@@ -3,7 +3,7 @@
 A phase of the plan with zero speed, acceleration and jerk (a dwell ``G4``, the rest group of
 a stop) keeps every axis at one position: all its samples have the same position, zero
 velocity and acceleration and one source line, so dynamics and power are the same at each of
-them. :func:`.planstream.iter_motion` (with ``compact_min_samples``) samples the first and
+them. :func:`.stream.iter_motion` (with ``compact_min_samples``) samples the first and
 the last samples of such a phase and leaves the ones between out (``Motion.gaps``). Every
 later stage integrates by the trapezoid rule between neighbouring rows; across a gap both
 rows have the same power ``P``, so the trapezoid is ``P * t`` over the gap, which is the sum
@@ -66,7 +66,7 @@ def standstill_runs(phases: tuple[np.ndarray, ...], *, rate_hz: float, lo: int, 
     Parameters
     ----------
     phases
-        The phase table of a planned window (:func:`.phasesample._phase_table`).
+        The phase table of a planned window (:func:`.phases._phase_table`).
     rate_hz
         Sample rate [Hz].
     lo, hi

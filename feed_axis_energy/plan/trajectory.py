@@ -61,7 +61,7 @@ Method
 
 Where the steps live: 1 to 3 up to the look-ahead (segments, geometry, path limits,
 junction caps) in :mod:`.segments`, the look-ahead in :mod:`.lookahead`, the profiles in
-:mod:`.profiles`, 5 and 6 (phase table, sampling, corner steps) in :mod:`.phasesample`;
+:mod:`.profiles`, 5 and 6 (phase table, sampling, corner steps) in :mod:`.phases`;
 :func:`plan` here runs them in order over the whole program.
 
 Sampling conventions: ``Motion.acc`` integrates to ``Motion.vel`` by the trapezoid rule,
@@ -94,8 +94,7 @@ from ..errors import PlanningError
 from ..machine import AxisLimits, PlannerOptions
 from .lookahead import group_blocks, look_ahead, through_acceleration
 from .motion import Motion
-# the planner's steps live in segments (input) and phasesample (output); the helpers that
-# other modules imported from here stay importable from here
+# the planner's steps live in segments (input) and phases (output), shared with stream
 from .phases import BlockLocator, corner_steps, junction_times, phase_table, sample_phases
 from .profiles import plan_profiles
 from ..gcode import Program, PROGRAM_AXES

@@ -400,8 +400,9 @@ def block_energy_cdr(blocks: Sequence[tuple[int, float, float]], *, stamp_s: flo
     (:func:`.bagio.read_block_energy` joins them), laid out with numpy
     (:func:`block_energy_cdr_array`), so a program of a million lines costs a few
     megabytes at a time, not a million message objects. ``blocks`` may be a
-    :class:`.simstream.LineEnergy` (its arrays are used directly). ``stamp_ns``, when
-    given, replaces ``stamp_s`` (a wall-clock stamp does not fit a float to the nanosecond).
+    :class:`feed_axis_energy.physics.breakdown.LineEnergy` (its arrays are used directly).
+    ``stamp_ns``, when given, replaces ``stamp_s`` (a wall-clock stamp does not fit a float to
+    the nanosecond).
     """
     stamp = int(round(stamp_s * _NS)) if stamp_ns is None else int(stamp_ns)
     columns = getattr(blocks, 'lines', None) is not None

@@ -136,7 +136,7 @@ class SimulationBagWriter:
         ``'zstd'``, ``'lz4'`` or ``'none'`` (MCAP chunk compression, :mod:`.mcapstream`).
     standstill_period_s
         During a standstill keep the first and last sample and one per this period
-        (:mod:`.recthin`); ``None`` records every sample.
+        (:mod:`.thinning`); ``None`` records every sample.
     rate_hz
         Sample rate of the grid: needed for chunks with left-out samples (``Motion.gaps``).
     background
@@ -261,7 +261,7 @@ class SimulationBagWriter:
         return plots
 
     def _thinned(self, chunk, t: np.ndarray, columns: dict) -> tuple[np.ndarray, dict]:
-        """The chunk's samples the recording keeps (:mod:`.recthin`), as times and columns."""
+        """The chunk's samples the recording keeps (:mod:`.thinning`), as times and columns."""
         compared = _compared(chunk)
         still = np.ones(t.shape[0], bool)
         for j, a in enumerate(compared):

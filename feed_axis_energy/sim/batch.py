@@ -3,7 +3,7 @@
 A job (:class:`BatchJob`) is plain, picklable data: paths as text and numbers, never a
 machine object, so that it crosses process and host boundaries unchanged. :func:`run_job` is
 a top-level function that loads the machine and the program itself and runs one
-:func:`.simstream.simulate_stream` (or the whole-record path for trajectory CSVs and
+:func:`.stream.simulate_stream` (or the whole-record path for trajectory CSVs and
 declared effects that need the whole record, as ``simulate`` does). A job that fails (a
 program the parser or planner refuses, a missing file) returns a :class:`JobResult` with the
 error instead of raising, so one bad program does not end a campaign.

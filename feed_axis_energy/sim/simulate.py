@@ -296,7 +296,7 @@ def line_table(result: SimulationResult) -> LineEnergy:
     Returns
     -------
     LineEnergy
-        As :meth:`.simstream.SummaryAccumulator.block_energy` with ``block_breakdown``.
+        As :meth:`.stream.SummaryAccumulator.block_energy` with ``block_breakdown``.
     """
     from ..physics import BreakdownAccumulator
     p = result.power

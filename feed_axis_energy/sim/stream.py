@@ -3,9 +3,9 @@
 Every stage of :func:`.simulate.simulate_program` is per sample except the energy integral,
 which :class:`.energy.EnergyIntegrator` continues across chunks with the same bits; the
 summary (:func:`.simulate.summarize`) is accumulated by :class:`SummaryAccumulator`. Memory is
-one chunk of samples (:data:`.planstream.DEFAULT_CHUNK_SAMPLES`) plus one entry per source
-line, whatever the program's length. The interior of a dwell is not computed sample by
-sample (:mod:`.standstill`, ``Motion.gaps``): every stage integrates across the gap by the
+one chunk of samples (:data:`feed_axis_energy.plan.stream.DEFAULT_CHUNK_SAMPLES`) plus one
+entry per source line, whatever the program's length. The interior of a dwell is not computed
+sample by sample (:mod:`.standstill`, ``Motion.gaps``): every stage integrates across the gap by the
 trapezoid rule with the same power at both ends, which is the sum over its samples.
 """
 from __future__ import annotations
@@ -58,7 +58,7 @@ def iter_simulation(motions: Iterable[Motion], machine: Machine, *, load_kg: flo
     Parameters
     ----------
     motions
-        Consecutive motion chunks (:func:`.planstream.iter_motion`).
+        Consecutive motion chunks (:func:`feed_axis_energy.plan.stream.iter_motion`).
     machine
         The machine model (braking rule, declared sample-local effects).
     load_kg
@@ -232,7 +232,8 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
     total_moves
         Number of moves if known (progress).
     duration_s
-        Program duration if known (progress by time, see :func:`.planstream.iter_motion`).
+        Program duration if known (progress by time, see
+        :func:`feed_axis_energy.plan.stream.iter_motion`).
     on_chunk
         Called with every chunk's :class:`.simulate.SimulationResult` (e.g. a bag writer), at
         the full rate (:func:`expand_gaps`) unless ``chunk_gaps``.

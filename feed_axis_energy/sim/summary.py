@@ -1,6 +1,6 @@
 """The summary of a streamed simulation (:func:`.simulate.summarize`'s values), chunk by chunk.
 
-Split from :mod:`.simstream`, which feeds it: energy per axis and source line, peaks, the
+Split from :mod:`.stream`, which feeds it: energy per axis and source line, peaks, the
 median sample interval, the breakdown by cause, the electrical side and the energy's
 uncertainty, each accumulated per chunk so memory does not grow with the program.
 """

@@ -150,7 +150,7 @@ def test_simulate_tool_option_adds_to_the_table(tmp_path, capsys):
 
 
 def test_config_dialect_names_are_the_registry_of_the_gcode_package():
-    # machine_gcode keeps its own tuple (gcode/settings must not import gcode)
+    # gcode.settings keeps its own tuple (gcode/settings must not import gcode)
     from feed_axis_energy.gcode.dialect import DIALECTS as REGISTRY
     from feed_axis_energy.gcode.settings import DIALECTS
     assert set(DIALECTS) == set(REGISTRY)

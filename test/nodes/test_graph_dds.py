@@ -40,7 +40,7 @@ def _node(name, params, env, **kw):
 
 def test_launch_recording_equals_offline_simulation(tmp_path, short_program, node_env,
                                                     domain_id):
-    bag = tmp_path / 'graph_bag'
+    bag = tmp_path / 'record.crashsafe'
     out = subprocess.run(
         [PY, '-m', 'feed_axis_energy', 'launch', '--program', str(short_program),
          '--record', str(bag), '--domain-id', str(domain_id), '--load-kg', '5',

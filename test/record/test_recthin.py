@@ -1,4 +1,4 @@
-"""What a recording holds during a standstill: first, last and one sample per second (recthin).
+"""What a recording holds during a standstill: first, last and one sample per second.
 
 Checked against the full-rate recording of the same simulation: the thinned bag is a subset
 of its samples with equal values, every left-out sample lies inside a standstill and is

@@ -149,7 +149,7 @@ class CoordsMixin(InterpreterState):
     def system_value(self, key: int | str) -> float | None:
         """Live coordinate values for ``Parameters.provider`` (``#5420..#5428``, ``#5400``,
         ``#5401..#5410``, ``#<_x>``.., ``#<_abs_x>``.., ``#<_coord_system>``, tool numbers;
-        in Macro B dialects Fanuc's ``#4001..``, ``#5001..``: :mod:`.fanuc_vars`);
+        in Macro B dialects Fanuc's ``#4001..``, ``#5001..``: :mod:`.sysvars`);
         ``None`` for any other key."""
         if self.dialect.fanuc_macro and isinstance(key, int) and 4000 < key < 5100:
             value = fanuc_system_value(self, key)

@@ -3,11 +3,11 @@
 The dialect is documented in :mod:`.gcode`. :class:`Interpreter` keeps the whole modal state;
 :meth:`Interpreter.line` runs a line's words, handling the common case (one motion G word,
 axis, centre, F and N words) inline and anything rarer in small helpers. The plain-line fast
-path (:mod:`.run`) first offers the usual CAM line to ``contour_line`` (:mod:`.interp_motion`),
+path (:mod:`.run`) first offers the usual CAM line to ``contour_line`` (:mod:`.motion`),
 which runs it without a word dictionary and allocates little more than its
-:class:`~.program.Move`. The rooms of the rest: motion (:mod:`.interp_motion`), splines
-(:mod:`.splines`), cutter compensation (:mod:`.interp_comp`), modes and M codes
-(:mod:`.interp_modes`), coordinate systems (:mod:`.interp_coords`).
+:class:`~.program.Move`. The rooms of the rest: motion (:mod:`.motion`), splines
+(:mod:`.splines`), cutter compensation (:mod:`.comp`), modes and M codes
+(:mod:`.modes`), coordinate systems (:mod:`.frames`).
 """
 from __future__ import annotations
 
@@ -85,7 +85,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
                  params: ParamStore | None = None, ignore_axes: Iterable[str] = ()):
         self.file = file
         self.arc_tol = None if arc_tolerance_m is None else float(arc_tolerance_m)
-        # radius differences below this pass every arc check (interp_motion)
+        # radius differences below this pass every arc check (motion)
         self.arc_quick = CENTER_ARC_RADIUS_TOLERANCE_MM * 1e-3
         if self.arc_tol is not None:
             self.arc_quick = min(self.arc_quick, self.arc_tol)
