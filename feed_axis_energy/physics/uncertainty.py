@@ -3,9 +3,9 @@
 A machine config may give, per axis, the covariance ``C`` of the loss parameters
 ``theta`` (``loss_covariance``, :mod:`feed_axis_energy.machine.covariance`; ``fit-loss``
 writes it). The energy ``E`` the axis draws over a program depends on ``theta`` through the
-loss force; its standard uncertainty is ``u(E) = sqrt(g' C g)`` with the gradient ``g = dE/dtheta`` (the delta
-method). ``g`` is accumulated while the program is simulated, from the samples of each chunk
-(``(p,)`` numbers per axis; no per-program array):
+loss force; its standard uncertainty is ``u(E) = sqrt(g' C g)`` with the gradient
+``g = dE/dtheta`` (the delta method). ``g`` is accumulated while the program is simulated,
+from the samples of each chunk (``(p,)`` numbers per axis; no per-program array):
 
 * the drawn power is ``M·omega`` (after the braking rule) and ``theta`` enters ``M`` only
   through the loss force, so ``dP/dtheta = w·dP_loss/dtheta`` with ``P_loss = F_loss·v``

@@ -5,8 +5,8 @@ which :class:`.energy.EnergyIntegrator` continues across chunks with the same bi
 summary (:func:`.simulate.summarize`) is accumulated by :class:`SummaryAccumulator`. Memory is
 one chunk of samples (:data:`feed_axis_energy.plan.stream.DEFAULT_CHUNK_SAMPLES`) plus one
 entry per source line, whatever the program's length. The interior of a dwell is not computed
-sample by sample (:mod:`.standstill`, ``Motion.gaps``): every stage integrates across the gap by the
-trapezoid rule with the same power at both ends, which is the sum over its samples.
+sample by sample (:mod:`.standstill`, ``Motion.gaps``): every stage integrates across the gap by
+the trapezoid rule with the same power at both ends, which is the sum over its samples.
 """
 from __future__ import annotations
 

@@ -23,7 +23,8 @@ import pytest
 
 from feed_axis_energy.errors import GcodeError
 from feed_axis_energy.gcode.load import parse_gcode
-from feed_axis_energy.gcode.expand.splines import (ControlPoint, knot_vector, MAX_ORDER,
+from feed_axis_energy.gcode.expand.nurbs import ControlPoint
+from feed_axis_energy.gcode.expand.splines import (knot_vector, MAX_ORDER,
                                                    nurbs_point, nurbs_polyline)
 from feed_axis_energy.gcode.program import MoveKind
 

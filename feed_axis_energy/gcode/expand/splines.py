@@ -53,16 +53,17 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import replace
 import math
-from typing import NamedTuple, TYPE_CHECKING
+from typing import TYPE_CHECKING
 
 from ..program import make_move, MoveKind
+from .nurbs import ControlPoint
 
 if TYPE_CHECKING:
     from ..interp.state import InterpreterState
 else:
     InterpreterState = object     # the declarations are for the type checker only
 
-__all__ = ['ControlPoint', 'NurbsState', 'SplineMixin', 'knot_vector', 'nurbs_point',
+__all__ = ['SplineMixin', 'knot_vector', 'nurbs_point',
            'nurbs_polyline',
            'SAMPLES_PER_POINT', 'MAX_CONTROL_POINTS', 'MAX_ORDER', 'SPLINE_WORDS']
 
@@ -78,44 +79,6 @@ MAX_ORDER = 16
 # Words each spline code uses besides X/Y/F (others are errors, as in LinuxCNC).
 SPLINE_WORDS = {50: 'IJPQ', 51: 'IJ', 52: 'PL'}
 _NAMES = {50: 'G5', 51: 'G5.1', 52: 'G5.2', 53: 'G5.3'}
-
-
-class ControlPoint(NamedTuple):
-    """A NURBS control point: machine X, Y [m] and its weight."""
-
-    x: float
-    y: float
-    w: float
-
-
-class NurbsState:
-    """The spline memory of the interpreter (LinuxCNC's one list of control points).
-
-    Attributes
-    ----------
-    points
-        Control points collected by G5.2 lines (machine coordinates [m]).
-    order
-        NURBS order of the curve being collected (3, or the last L above 3).
-    first_line
-        Line of the G5.2 that started ``points`` (for warnings).
-    before
-        Motion mode in force before the line with a spline G code (``motion_line``).
-    motion_line
-        Line whose G words included G5, G5.1 or G5.2.
-    end_line
-        Line with G5.3 (run after the line's modes, before its motion).
-    """
-
-    __slots__ = ('points', 'order', 'first_line', 'before', 'motion_line', 'end_line')
-
-    def __init__(self) -> None:
-        self.points: list[ControlPoint] = []
-        self.order = 3
-        self.first_line = 0
-        self.before: int | None = None
-        self.motion_line = -1
-        self.end_line = -1
 
 
 def knot_vector(n_points: int, order: int) -> list[float]:

@@ -43,7 +43,7 @@ from .tools import MAX_OFFSET_M, tool_spec, ToolTable
 from ..settings import ToolSpec
 
 if TYPE_CHECKING:
-    from .state import ParamStore
+    from .coordstate import ParamStore
 
 __all__ = ['Coords', 'LineEffect', 'ParamTable', 'COORD_G_CODES', 'SYSTEM_NAMES', 'system_param',
            'foreign_codes']

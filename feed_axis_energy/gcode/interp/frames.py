@@ -16,7 +16,8 @@ from .sysvars import fanuc_system_value
 from ..program import Move, MoveKind
 
 if TYPE_CHECKING:
-    from .state import InterpreterState, Vec3
+    from .coordstate import Vec3
+    from .state import InterpreterState
 else:
     InterpreterState = object     # the declarations are for the type checker only
 

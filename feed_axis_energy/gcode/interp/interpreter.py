@@ -25,12 +25,14 @@ from .frames import CoordsMixin
 from .modes import ModesMixin
 from .motion import MotionMixin
 from ..read.lexer import blank_comments, locate_word
-from ..expand.splines import NurbsState, SplineMixin
+from ..expand.nurbs import NurbsState
+from ..expand.splines import SplineMixin
 from ...errors import GcodeError
 from ..program import Move
 
 if TYPE_CHECKING:
-    from .state import Lines, ParamStore, Vec3
+    from .coordstate import ParamStore, Vec3
+    from .state import Lines
 
 __all__ = ['Interpreter']
 

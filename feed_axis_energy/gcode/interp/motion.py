@@ -23,7 +23,8 @@ from .codes import MOTION_TEXT
 from ..program import arc_move, Move, MoveKind, straight_move
 
 if TYPE_CHECKING:
-    from .state import InterpreterState, Vec3
+    from .coordstate import Vec3
+    from .state import InterpreterState
 else:
     InterpreterState = object     # the declarations are for the type checker only
 

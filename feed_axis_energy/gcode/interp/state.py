@@ -17,15 +17,14 @@ from typing import Any, NoReturn, Protocol
 from ..dialect import Dialect
 from ..expand.cutter import CutterComp
 from ..expand.cycles import CycleMemory
-from ..expand.splines import NurbsState
+from ..expand.nurbs import NurbsState
 from ..program import Move
 from ..read.block import Block
 from ..settings import ToolSpec
+from .coordstate import Vec3
 from .coords import Coords
 
-__all__ = ['CoordsState', 'InterpreterState', 'Lines', 'ParamStore', 'Vec3']
-
-Vec3 = tuple[float, float, float]
+__all__ = ['InterpreterState', 'Lines']
 
 
 class Lines(Protocol):
@@ -135,36 +134,3 @@ class InterpreterState:
 
     @abstractmethod
     def nurbs_end(self, d: dict[str, str | float]) -> None: ...
-
-
-class ParamStore(Protocol):
-    """The numbered parameters: ``Parameters`` of the front's reader, or ``ParamTable``."""
-
-    def get(self, n: int, /) -> float: ...
-
-    def set(self, n: int, value: float, /) -> None: ...
-
-
-class CoordsState:
-    """The state of :class:`~.coords.Coords` its mixins (:mod:`.tools`, :mod:`.stored`) use,
-    and the methods they call on it (a plain class, as :class:`InterpreterState`)."""
-
-    params: ParamStore
-    tools: dict[int, ToolSpec]
-    system: int
-    g5x: Vec3
-    g92: Vec3
-    tlo: Vec3
-    offset: Vec3
-    rotation_deg: float
-    cos: float
-    sin: float
-    selected_tool: int
-    loaded_tool: int
-    home_used: bool
-
-    @abstractmethod
-    def _update(self) -> None: ...
-
-    @abstractmethod
-    def to_program(self, machine: Vec3) -> Vec3: ...

@@ -14,7 +14,7 @@ from .fail import Fail, raise_unplaced
 from .tools import MAX_OFFSET_M
 
 if TYPE_CHECKING:
-    from .state import CoordsState
+    from .coordstate import CoordsState
 else:
     CoordsState = object        # the declarations are for the type checker only
 

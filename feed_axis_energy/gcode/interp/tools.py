@@ -14,7 +14,7 @@ from ..settings import MAX_TOOL_NUMBER, ToolSpec
 from .fail import Fail, raise_unplaced
 
 if TYPE_CHECKING:
-    from .state import CoordsState
+    from .coordstate import CoordsState
 else:
     CoordsState = object        # the declarations are for the type checker only
 
