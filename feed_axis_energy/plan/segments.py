@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from itertools import chain
 import math
+from typing import cast
 
 import numpy as np
 
@@ -63,7 +64,7 @@ class Collector:
     def add(self, mv: Move) -> None:
         """Take one move."""
         if self.first_start is None:
-            self.first_start = tuple(mv.start)
+            self.first_start = cast('tuple[float, float, float]', tuple(mv.start))
         k = int(mv.kind)
         stop = self.stop
         if k == _DWELL or k == _STOP:
@@ -174,9 +175,9 @@ def segment_geometry(seg: SegmentTable, file: str) -> SegmentGeometry:
         try:
             perm[arcs] = [PLANE_AXES[x.plane] for x in mv]
         except KeyError as err:
-            bad = next(x for x in mv if x.plane not in PLANE_AXES)
-            msg = f'arc plane must be 17, 18 or 19, got {bad.plane!r}'
-            raise PlanningError(msg, file=file, line=bad.line) from err
+            bad_move = next(x for x in mv if x.plane not in PLANE_AXES)
+            msg = f'arc plane must be 17, 18 or 19, got {bad_move.plane!r}'
+            raise PlanningError(msg, file=file, line=bad_move.line) from err
         centre[arcs] = [x.center for x in mv]
         ccw = np.array([int(x.kind) == _ARC_CCW for x in mv])
         turns = np.array([max(int(x.turns), 0) for x in mv], dtype=float)
