@@ -9,6 +9,7 @@ and the streaming planner (:mod:`.planstream`).
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import chain
 import math
@@ -222,7 +223,8 @@ def segment_geometry(seg: SegmentTable, file: str) -> SegmentGeometry:
                            theta0=theta0, sweep=sweep, r0=r0, kr=kr, kc=kc, r_min=r_min)
 
 
-def line_speed_limits(u: np.ndarray, axis_vmax: np.ndarray) -> np.ndarray:
+def line_speed_limits(u: np.ndarray | Sequence[float],
+                      axis_vmax: np.ndarray | Sequence[float]) -> np.ndarray:
     """Path speed [m/s] of straight moves at which the first axis reaches its speed limit.
 
     ``min_k vmax_k / |u_k|`` over the program axes; an axis that does not move sets no limit.
