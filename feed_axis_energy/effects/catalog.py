@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 import math
-from typing import ClassVar
+from typing import ClassVar, TypeVar
 
 import numpy as np
 
@@ -245,10 +245,12 @@ def _short(value: object) -> str:
     return text if len(text) <= 60 else text[:57] + '...'
 
 
-EFFECTS: dict[str, type] = {}
+EFFECTS: dict[str, type[Effect]] = {}
+
+_EffectT = TypeVar('_EffectT', bound=type[Effect])
 
 
-def register_effect(cls: type) -> type:
+def register_effect(cls: _EffectT) -> _EffectT:
     """Class decorator: add ``cls`` to :data:`EFFECTS` under ``cls.id``."""
     if not cls.id or cls.id in EFFECTS:
         msg = f'effect id {cls.id!r} is empty or registered twice'

@@ -12,7 +12,7 @@ from collections import deque
 import math
 from pathlib import Path
 import struct
-from typing import Sequence
+from typing import cast, Sequence
 
 import numpy as np
 
@@ -250,7 +250,8 @@ class StreamingPower:
             self._add_lines(t, total)
 
     def _add_lines(self, t: np.ndarray, total: np.ndarray) -> None:
-        line = lines_at(seconds_to_ns(t), *self._table)
+        # called only once the table is set (set_lines, or a batch after it)
+        line = lines_at(seconds_to_ns(t), *cast('tuple[np.ndarray, np.ndarray]', self._table))
         if self._prev is not None:          # the interval from the previous batch's last sample
             t0, p0 = self._prev
             t = np.concatenate(([t0], t))

@@ -8,7 +8,7 @@ decimator per stream. Pure: arrays in, serialized messages out.
 """
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from typing import cast, Mapping, Sequence
 
 import numpy as np
 
@@ -64,6 +64,7 @@ class GraphPlotter:
             msg = (f'joint names {shorten(", ".join(names), limit=60)} differ from the first '
                    f'batch\'s; no plot samples from this batch')
             raise DataError(msg, file='<graph>', topic=topic)
+        need: tuple[str, ...]
         if topic == 'power':
             need = ('positions', 'velocities')
             k = len(names)
@@ -82,10 +83,10 @@ class GraphPlotter:
             else:
                 self._names[topic] = names[:k]
                 dec.keys = list(range(2 * k, 3 * k))          # the torque columns
-        if topic == 'power':
-            values = np.hstack([fields[f] for f in need])
+        if topic == 'power':           # the casts: none of them is None (checked above)
+            values = np.hstack([cast(np.ndarray, fields[f]) for f in need])
         else:
-            values = np.hstack([fields[f][:, k:] for f in need])
+            values = np.hstack([cast(np.ndarray, fields[f])[:, k:] for f in need])
         t, kept = dec.push(np.asarray(t_ns, np.int64), values)
         return self._messages(topic, t, kept)
 

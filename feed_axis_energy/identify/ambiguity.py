@@ -32,7 +32,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 import itertools
 import math
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from scipy import stats
@@ -195,7 +195,7 @@ class _Data:
 
     def __init__(self, design: Design, gram: np.ndarray, cols_s: list[int],
                  theta: np.ndarray) -> None:
-        self.xy = sum(design.xy[r] for r in range(design.runs))
+        self.xy = cast(np.ndarray, sum(design.xy[r] for r in range(design.runs)))
         self.yy = float(design.yy.sum())
         g = gram[np.ix_(cols_s, cols_s)]
         self.sse_s = float(self.yy - 2.0 * theta @ self.xy[cols_s] + theta @ g @ theta)
@@ -230,7 +230,7 @@ def _best_forms(gram, target, target_ss, design: Design, rest: list[int],
             best[other.key] = (score, other)
     order = sorted(best, key=lambda k: list(keys).index(k) if k in keys else len(keys))
     alone = [k for k in order if best[k][0] <= limit_ss]
-    combos = [(k,) for k in alone]
+    combos: list[tuple[tuple[str, str], ...]] = [(k,) for k in alone]
     if max_size >= 2:
         combos += list(itertools.combinations([k for k in order if k not in alone], 2))
     out = []
@@ -299,7 +299,7 @@ def find_groups(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
     blocks = list(blocks)
     if not blocks or not (math.isfinite(sigma2) and sigma2 > 0.0):
         return []
-    gram = sum(design.gram[r] for r in range(design.runs))
+    gram = cast(np.ndarray, sum(design.gram[r] for r in range(design.runs)))
     cols_s = [c for b in blocks for c in b.cols]
     target = gram[:, cols_s] @ theta
     target_ss = float(theta @ gram[np.ix_(cols_s, cols_s)] @ theta)

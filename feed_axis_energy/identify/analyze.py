@@ -368,8 +368,8 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         for other in design.blocks:
             if other.key in seen or other.key in {b.key for b in blocks}:
                 continue
-            alt = design.heldout_mse(without + list(other.cols), folds)
-            alt_mean = float(np.mean(list(alt.values())))
+            alt_mse = design.heldout_mse(without + list(other.cols), folds)
+            alt_mean = float(np.mean(list(alt_mse.values())))
             full_mean = float(np.mean(list(mse_full.values())))
             wo_mean = float(np.mean(list(mse_wo.values())))
             if alt_mean <= full_mean + 0.1 * (wo_mean - full_mean):

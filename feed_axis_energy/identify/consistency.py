@@ -303,8 +303,8 @@ def _fates(keys, design: Design, blocks, steps: Sequence[Step], stop: str,
     for key in keys:
         n, gain, se = scored.get(key, (0, math.nan, math.nan))
         if key in kept:
-            step = next((s for s in steps if s.key == key), None)
-            why = step.reason if step is not None else 'kept'
+            kept_step = next((s for s in steps if s.key == key), None)
+            why = kept_step.reason if kept_step is not None else 'kept'
             out.append(Fate(key[0], key[1], 'accepted', f'round {n}: {why}', gain, se))
         elif key in fate:
             f = fate[key]

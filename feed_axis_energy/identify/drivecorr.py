@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -79,7 +79,8 @@ def fold_corrections(machine: Machine,
     changed = False
     for effect_id, axis, change in corrections:
         spec = axes[axis]
-        axes[axis] = replace(spec, drive=_corrected_drive(spec.drive, effect_id, change))
+        drive = cast(DriveSpec, spec.drive)     # a correction is made for a drive only
+        axes[axis] = replace(spec, drive=_corrected_drive(drive, effect_id, change))
         changed = True
     if not changed:
         return machine
@@ -90,7 +91,7 @@ def describe_correction(machine: Machine, effect_id: str, axis: str,
                         change: Mapping[str, float]) -> dict[str, Any]:
     """``{'declared', 'change', 'corrected'}`` of the parameters, and for ``copper`` the
     winding resistance ``resistance_ohm: {'declared', 'corrected'}`` [ohm] (``kt`` kept)."""
-    drive = machine.axis(axis).drive
+    drive = cast(DriveSpec, machine.axis(axis).drive)   # a correction is made for a drive only
     declared = declared_values(machine, axis, effect_id, 'motor') or {}
     out: dict[str, Any] = {
         'declared': dict(declared),

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 import math
-from typing import Any, Sequence
+from typing import Any, cast, Sequence
 
 import numpy as np
 
@@ -110,7 +110,9 @@ class LossFit:
         if not self.ok:
             msg = f'axis {self.axis}: no usable fit ({self.status}: {self.message})'
             raise ValueError(msg)
-        return PowerRegressionLoss(a=float(self.a), b=float(self.b), x_unit='mm/s',
+        # the casts: an ok fit has both values
+        return PowerRegressionLoss(a=float(cast(float, self.a)), b=float(cast(float, self.b)),
+                                   x_unit='mm/s',
                                    y_unit='W/(mm/s)')
 
     def covariance(self) -> LossCovariance | None:
@@ -121,7 +123,7 @@ class LossFit:
         """
         if not self.ok or self.cov_ln_a_b is None:
             return None
-        a = float(self.a)
+        a = float(cast(float, self.a))
         (c00, c01), (_, c11) = self.cov_ln_a_b
         units = self.loss().param_units()
         return LossCovariance.of(('a', 'b'), (units['a'], units['b']),
@@ -129,6 +131,7 @@ class LossFit:
 
     def to_dict(self, *, segments: bool = True) -> dict[str, Any]:
         """Plain-type form (for JSON); ``segments=False`` leaves the segment list out."""
+        out: dict[str, Any]
         out = {'axis': self.axis, 'status': self.status, 'message': self.message,
                'a': self.a, 'b': self.b, 'x_unit': 'mm/s', 'y_unit': 'W/(mm/s)',
                'r2_log': self.r2_log, 'r2_space': 'log-log (ln y vs ln x)',

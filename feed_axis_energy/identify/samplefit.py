@@ -31,7 +31,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 import math
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from scipy.optimize import lsq_linear
@@ -151,8 +151,9 @@ class SampleFit:
         if not self.ok:
             msg = f'axis {self.axis}: no usable fit ({self.status}: {self.message})'
             raise ValueError(msg)
-        return CoulombViscousLoss(coulomb_n=float(self.coulomb_n),
-                                  viscous_n_s_m=float(self.viscous_n_s_m))
+        # the casts: an ok fit has both values
+        return CoulombViscousLoss(coulomb_n=float(cast(float, self.coulomb_n)),
+                                  viscous_n_s_m=float(cast(float, self.viscous_n_s_m)))
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-type form (for JSON); keys carry units."""
@@ -269,10 +270,10 @@ def _fit_axis(cols: _Columns, *, axis: str, machine: Machine,
     res = p - model
     ss_tot = float(np.sum((p - p.mean()) ** 2))
     r2 = 1.0 - float(res @ res) / ss_tot if ss_tot > 0.0 else 0.0
-    se = [None, None, None]
+    se: list[float | None] = [None, None, None]
     cov_loss = None
     if cov is not None:
-        diag = [math.sqrt(max(float(c), 0.0)) for c in np.diag(cov)]
+        diag: list[float | None] = [math.sqrt(max(float(c), 0.0)) for c in np.diag(cov)]
         se = diag if fit_inertia else [None, *diag]
         j = 1 if fit_inertia else 0
         block = np.asarray(cov, dtype=float)[j:j + 2, j:j + 2]
@@ -373,6 +374,7 @@ def machine_with_sample_fits(machine: Machine, fits: dict[str, SampleFit]) -> Ma
         if f is not None and f.ok:
             a = replace(a, loss=f.loss(), loss_calibrated=f.calibrated,
                         loss_covariance=f.covariance(),
-                        inertias=replace(a.inertias, motor_kg_m2=float(f.motor_kg_m2)))
+                        inertias=replace(a.inertias,
+                                         motor_kg_m2=float(cast(float, f.motor_kg_m2))))
         axes.append(a)
     return replace(machine, axes=tuple(axes))

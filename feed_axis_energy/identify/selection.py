@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 import math
+from typing import cast
 
 import numpy as np
 from scipy.optimize import lsq_linear
@@ -119,7 +120,8 @@ class Design:
 
     def add_block(self, key: tuple[str, str], shape: Mapping[str, float],
                   names: Sequence[str], columns: Sequence[np.ndarray], *,
-                  bounds: tuple[Sequence[float], Sequence[float]] | None = None) -> Block:
+                  bounds: tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray]
+                  | None = None) -> Block:
         """Add one candidate's columns (``columns[r]`` of shape ``(n_r, p)``) to every run.
 
         ``bounds`` are the physical ``(lower, upper)`` bounds of its ``p`` parameters
@@ -158,8 +160,8 @@ class Design:
         if not cols:
             return np.zeros(0)
         idx = np.ix_(cols, cols)
-        g = sum(self.gram[r][idx] for r in runs)
-        b = sum(self.xy[r][cols] for r in runs)
+        g = cast(np.ndarray, sum(self.gram[r][idx] for r in runs))     # runs is not empty
+        b = cast(np.ndarray, sum(self.xy[r][cols] for r in runs))
         # A column (almost) absent from these runs, though present in others (a position
         # bump the training runs barely touch), is not fitted here: unit-norm scaling would
         # blow its coefficient up to meaningless sizes. Its value stays 0 (inside every

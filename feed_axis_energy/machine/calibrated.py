@@ -163,10 +163,10 @@ def range_warnings(ranges: Mapping[str, CalibratedRange | None],
                        'outside): extrapolated')
         if rng.position_m is not None:
             lo_m, hi_m = rng.position_m
-            pos = [np.asarray(u.position_m, dtype=float)[
+            pos_parts = [np.asarray(u.position_m, dtype=float)[
                 np.abs(np.asarray(u.speed_m_s)) >= min_speed_m_s]
                 for u in uses[axis] if u.position_m is not None]
-            pos = np.concatenate(pos) if pos else np.zeros(0)
+            pos = np.concatenate(pos_parts) if pos_parts else np.zeros(0)
             # a quarter of a millimetre: the sampling of a position range is not exact
             off = (pos < lo_m - 2.5e-4) | (pos > hi_m + 2.5e-4)
             if pos.size and np.any(off):
@@ -177,10 +177,10 @@ def range_warnings(ranges: Mapping[str, CalibratedRange | None],
                            'extrapolated')
         if rng.load_kg is not None:
             lo_kg, hi_kg = rng.load_kg
-            off = sorted({u.load_kg for u in uses[axis]
-                          if not lo_kg - 1e-9 <= u.load_kg <= hi_kg + 1e-9})
-            if off:
-                shown = ', '.join(f'{v:g}' for v in off)
+            off_kg = sorted({u.load_kg for u in uses[axis]
+                             if not lo_kg - 1e-9 <= u.load_kg <= hi_kg + 1e-9})
+            if off_kg:
+                shown = ', '.join(f'{v:g}' for v in off_kg)
                 out.append(f'axis {axis}: {what} calibrated at loads {lo_kg:g}-{hi_kg:g} kg is '
                            f'used at {shown} kg: extrapolated')
     return out

@@ -146,8 +146,9 @@ def _iron(value: Any, *, file: str, key: str) -> IronSpec:
         w0 = rpm * 2.0 * math.pi / 60.0
         return IronSpec(k_h_w_s_rad=(1.0 - share) * p0 / w0,
                         k_e_w_s2_rad2=share * p0 / (w0 * w0), no_load=(p0, rpm, share))
-    return IronSpec(*(check_float(d, n, file=file, key=key, default=0.0, minimum=0.0,
-                                  strict=False, maximum=_BIG) for n in coeffs))
+    k_h, k_e = (check_float(d, n, file=file, key=key, default=0.0, minimum=0.0,
+                            strict=False, maximum=_BIG) for n in coeffs)
+    return IronSpec(k_h, k_e)
 
 
 def drive_from_value(value: Any, *, file: str, key: str) -> DriveSpec | None:

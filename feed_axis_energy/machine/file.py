@@ -293,7 +293,7 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
             axes[a.name]['drive'] = drive_to_dict(a.drive)
         if a.loss_covariance is not None:
             axes[a.name]['loss_covariance'] = a.loss_covariance.to_dict()
-    out = {
+    out: dict[str, Any] = {
         'name': machine.name,
         'braking': machine.braking,
         'load_axis': machine.load_axis,

@@ -24,7 +24,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 import math
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 
@@ -62,10 +62,21 @@ class LossModel(Protocol):
         """``d power_w / d param`` for every parameter [W per unit of the parameter]."""
 
 
-LOSS_MODELS: dict[str, type] = {}
+class _LossModelClass(Protocol):
+    """A registered loss model class: its ``model`` name and its ``from_dict`` constructor."""
+
+    model: str
+
+    def from_dict(self, d: Mapping[str, Any], *, file: str, key: str) -> LossModel:
+        """An instance from the YAML form (see :func:`loss_from_dict`)."""
 
 
-def register_loss(cls: type) -> type:
+LOSS_MODELS: dict[str, _LossModelClass] = {}
+
+_LossClassT = TypeVar('_LossClassT', bound=_LossModelClass)
+
+
+def register_loss(cls: _LossClassT) -> _LossClassT:
     """Class decorator: add ``cls`` to :data:`LOSS_MODELS` under ``cls.model``."""
     LOSS_MODELS[cls.model] = cls
     return cls

@@ -149,8 +149,8 @@ def load_run_from_bag(spec: RunSpec, *, min_duration_s: float | None = None) -> 
         cols = []
         for joint in joints:
             if joint not in s.names:
-                joints = shorten(', '.join(s.names), limit=200)
-                msg = f'no joint {shorten(joint)!r} (joints: {joints})'
+                names = shorten(', '.join(s.names), limit=200)
+                msg = f'no joint {shorten(joint)!r} (joints: {names})'
                 raise DataError(msg, file=file, column=topic)
             cols.append(arr[:, s.names.index(joint)])
         out = np.column_stack(cols).astype(np.float64)

@@ -22,6 +22,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -36,7 +37,7 @@ from .csvload import load_run
 from .run import MeasuredRun
 from .campaign import Campaign, default_instrument, RunSpec
 from .comparison import CampaignComparison, GroupComparison, RunComparison
-from .instrument import check_instrument
+from .instrument import check_instrument, MeterFit
 from .motiondata import reconstruct_motion
 from .states import residual_by_state, state_labels
 from .metrics import group_metrics, table1_metrics
@@ -192,7 +193,7 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
     try:
         aligned = align_simulated(sim.power.t, sim_w, run.t, offset_s=used, window_s=window,
                                   stamp=stamp)
-        fits = ()
+        fits: tuple[MeterFit, ...] = ()
         if check_meter and offset_s is None and found.status != 'weak':
             fits = check_instrument(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
                                     offset_s=used, window_s=window, stamp=stamp,
@@ -202,7 +203,8 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         msg = f'simulated power cannot be aligned: {err.reason}'
         raise DataError(msg, file=run.file, column=err.column) from err
     meas = run.power_w
-    where = {'file': run.file, 'rows': run.extra.get('rows'), 'floor_fraction': floor_fraction}
+    where: dict[str, Any] = {'file': run.file, 'rows': run.extra.get('rows'),
+                             'floor_fraction': floor_fraction}
     total = table1_metrics(run.t, meas.sum(axis=1), aligned.sum(axis=1),
                            columns=('time', 'measured total power', 'simulated total power'),
                            **where)

@@ -12,7 +12,7 @@ Errors are :class:`~feed_axis_energy.errors.DataError` naming file, column and t
 from __future__ import annotations
 
 import difflib
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -154,7 +154,7 @@ def _time(spec: RunSpec, sample: np.ndarray, numbers: np.ndarray, file: str,
         t = column(spec.time, 'time')
     else:
         name = '<row index>'
-        t = sample * float(spec.period_s)
+        t = sample * float(cast(float, spec.period_s))      # a spec without time has one
     dt = np.diff(t)
     bad = np.flatnonzero(dt < 0.999 * MIN_STEP_S)  # 0.999: rounding of decimal times
     if bad.size:

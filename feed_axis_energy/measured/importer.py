@@ -104,7 +104,7 @@ def excerpt_run(run: MeasuredRun, *, start_s: float = 0.0,
                f'{int(keep.sum())} samples (the run lasts {run.t[-1]:.6g} s); need at least 2')
         raise DataError(msg, file=run.file)
     first = int(np.flatnonzero(keep)[0])
-    arrays = {}
+    arrays: dict[str, Any] = {}
     for name in ('position_m', 'velocity_m_s', 'acceleration_m_s2', 'command_position_m',
                  'command_velocity_m_s', 'command_acceleration_m_s2'):
         arr = getattr(run, name)
@@ -222,10 +222,12 @@ def run_metadata(run: MeasuredRun, spec: RunSpec, *,
                           'si_unit': si_unit_of(cs.unit, quantity=AXIS_QUANTITIES[q])}
                       for q, cs in cols.items()}
                for axis, cols in spec.axes.items()}
+    time: dict[str, Any]
     if spec.time is not None:
         time = {'column': spec.time.column, 'unit': spec.time.unit}
     else:
         time = {'period_s': spec.period_s}
+    motion: dict[str, Any]
     if spec.motion_program is not None:
         motion = {'program': str(spec.motion_program)}
     else:

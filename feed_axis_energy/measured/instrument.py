@@ -27,6 +27,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 import math
+from typing import cast
 
 import numpy as np
 
@@ -172,11 +173,12 @@ def instrument_verdict(fits: Sequence[Sequence[MeterFit]], *, margin: float = 0.
         return None
     ms = {k: v[0] / v[1] for k, v in pooled.items()
           if v[1] == pooled['declared'][1]}   # only meters fitted on every run
-    best = min(ms, key=ms.get)
+    best = min(ms, key=ms.__getitem__)
     if best == 'declared' or ms[best] >= (1.0 - margin) * ms['declared']:
         return None
     name = _name(*meters[best], bool(same_clock))
-    how = (f'offsets within {1e3 * reach:.3g} ms of the data\'s own stamps, since the motion '
+    reach_s = cast(float, reach)        # set with same_clock, by the same fit
+    how = (f'offsets within {1e3 * reach_s:.3g} ms of the data\'s own stamps, since the motion '
            'comes from the same records' if same_clock else 'offsets refitted')
     return (f'instrument model: {name} fit better than {describe} (residual RMS '
             f'{math.sqrt(ms[best]):.3g} W against {math.sqrt(ms["declared"]):.3g} W, {how}, '

@@ -11,15 +11,16 @@ from .dynamics import AxisDynamics, compute_dynamics
 from .effectstate import effect_state, state_from_simulation
 from .electrical import (add_block_electrical, electrical_power, ElectricalAccumulator,
                          with_electrical)
-from .energy import (apply_braking, compute_power, energy_by_line, EnergyIntegrator,
-                     power_with_total, PowerResult)
+from .energy import (apply_braking, compute_power, ElectricalPower, energy_by_line,
+                     EnergyIntegrator, power_with_total, PowerResult)
 from .uncertainty import (add_uncertainty, relative_sd_pct, two_digits, UNCERTAINTY_KEY,
                           uncertainty_words, UncertaintyAccumulator)
 
 __all__ = [
     'add_block_electrical', 'add_breakdown', 'add_uncertainty', 'apply_braking', 'AxisDynamics',
     'BreakdownAccumulator', 'cause_names', 'cause_powers', 'compute_dynamics', 'compute_power',
-    'effect_state', 'electrical_power', 'ElectricalAccumulator', 'energy_by_line',
+    'effect_state', 'electrical_power', 'ElectricalAccumulator', 'ElectricalPower',
+    'energy_by_line',
     'EnergyIntegrator', 'LineEnergy', 'power_with_total', 'PowerResult', 'relative_sd_pct',
     'state_from_simulation', 'two_digits', 'UNCERTAINTY_KEY', 'uncertainty_words',
     'UncertaintyAccumulator', 'with_electrical',

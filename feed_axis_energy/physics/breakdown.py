@@ -30,6 +30,7 @@ block and in total.
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
+from typing import cast
 
 import numpy as np
 
@@ -262,6 +263,7 @@ class BreakdownAccumulator:
         elif c != self.energy.shape[0] or tuple(dyn.axes) != self.axes:
             msg = 'BreakdownAccumulator: a chunk with other axes or effects than the first'
             raise ValueError(msg)
+        gross = cast(np.ndarray, self.gross)        # set with self.energy (above)
         dt = np.diff(t)
         # trapezoid sum as one weighted sum over the samples: w_i = (dt_{i-1} + dt_i) / 2
         w = np.zeros(m)
@@ -271,8 +273,9 @@ class BreakdownAccumulator:
         d0 = 0.0 if first else float(t[0] - self._t_last)
         if not first:
             w[0] += 0.5 * d0
-            self.energy += 0.5 * d0 * self._last
-            self.gross[self._signed] += 0.5 * d0 * np.maximum(self._last[self._signed], 0.0)
+            prev = cast(np.ndarray, self._last)     # not the first chunk: its last row
+            self.energy += 0.5 * d0 * prev
+            gross[self._signed] += 0.5 * d0 * np.maximum(prev[self._signed], 0.0)
         if not self.per_line:
             self._last = self._add_sums(dyn, np.asarray(mechanical_w), braking,
                                         list(effects) + list(extra), burned, w)
@@ -287,7 +290,7 @@ class BreakdownAccumulator:
             self.energy[ci, j] += np.einsum('i,i', row, w)
             if ci in signed:
                 positive = np.maximum(row, 0.0, out=self._work('positive', (1, m))[0])
-                self.gross[ci, j] += np.einsum('i,i', positive, w)
+                gross[ci, j] += np.einsum('i,i', positive, w)
             last[ci, j] = row[-1]
         self._add_lines(rows, k, c, dyn.line, dt, d0, first, m)
         self._last = last
@@ -303,7 +306,8 @@ class BreakdownAccumulator:
         the sums over :func:`cause_rows` to rounding. Returns the last sample's power per
         cause."""
         m = w.shape[0]
-        energy, gross = self.energy, self.gross
+        # the casts: add() sets both before it calls this
+        energy, gross = cast(np.ndarray, self.energy), cast(np.ndarray, self.gross)
         c, k = energy.shape
         last = np.zeros((c, k))
         tmp = self._work('positive', (1, m))[0]
@@ -382,8 +386,9 @@ class BreakdownAccumulator:
         if first:
             cols, steps, ends = cols[:, 1:], dt, np.asarray(line[1:], dtype=np.int64)
         else:
-            cols[:k, 0] = self._last.sum(axis=0)
-            cols[k:, 0] = self._last[live].sum(axis=1)
+            prev = cast(np.ndarray, self._last)     # not the first chunk: its last row
+            cols[:k, 0] = prev.sum(axis=0)
+            cols[k:, 0] = prev[live].sum(axis=1)
             steps = np.empty(m)
             steps[0] = d0
             steps[1:] = dt
@@ -428,9 +433,9 @@ class BreakdownAccumulator:
             return {}
         if gross:
             # one-signed causes: gross = net (>= 0) or 0 (<= 0, gravity_lower)
-            values = np.maximum(self.energy, 0.0)
+            values = np.maximum(values, 0.0)
             values[3] = 0.0
-            values[self._signed] = self.gross[self._signed]
+            values[self._signed] = cast(np.ndarray, self.gross)[self._signed]   # set with energy
         out: dict[str, dict[str, float]] = {}
         for i, cause in enumerate(self.causes):
             row = {a: float(values[i, j]) for j, a in enumerate(self.axes)}

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -142,13 +142,14 @@ class _Trapezoid:
         if self.energy is None:
             self.energy = np.zeros(k)
             self.peak = np.full(k + 1, -np.inf)
+        peak = cast(np.ndarray, self.peak)          # set with self.energy (above)
         # one weighted sum over the samples (w_i = (dt_{i-1} + dt_i) / 2): no temporaries
         dt = np.diff(t)
         w = np.zeros(t.shape[0])
         w[:-1] += 0.5 * dt
         w[1:] += 0.5 * dt
         if self._last is not None:
-            d0 = float(t[0]) - self._t_last
+            d0 = float(t[0]) - cast(float, self._t_last)     # set with self._last
             w[0] += 0.5 * d0
             self.energy += 0.5 * d0 * self._last
         # column by column: reductions across a narrow array are slow in numpy
@@ -156,10 +157,10 @@ class _Trapezoid:
         for j in range(k):
             column = power[:, j]
             self.energy[j] += np.einsum('i,i', w, column)
-            self.peak[j] = max(self.peak[j], float(column.max()))
+            peak[j] = max(peak[j], float(column.max()))
             if j:
                 total += column
-        self.peak[k] = max(self.peak[k], float(total.max()) + offset)
+        peak[k] = max(peak[k], float(total.max()) + offset)
         self._last = power[-1].copy()
         self._t_last = float(t[-1])
 
@@ -230,7 +231,7 @@ class ElectricalAccumulator:
         """Time from the first to the last sample [s]."""
         if self._t_first is None:
             return 0.0
-        return self._t_last - self._t_first
+        return cast(float, self._t_last) - self._t_first     # set with self._t_first
 
     def summary(self) -> dict[str, Any]:
         """The summary's ``electrical`` object (``docs/electrical.md``); ``{}`` before any
@@ -247,8 +248,11 @@ class ElectricalAccumulator:
             out['total'] = float(values.sum() + (extra or 0.0))
             return out
 
+        # the casts: the supply and returned sums take every chunk the motor sums take
+        supply_peak = cast(np.ndarray, self._supply.peak)
+        returned = cast(np.ndarray, self._returned.energy)
         motor = per_axis(self._motor.energy)
-        supply = per_axis(self._supply.energy, cabinet_j)
+        supply = per_axis(cast(np.ndarray, self._supply.energy), cabinet_j)
         by_cause = self.causes.by_cause()
         for cause, row in by_cause.items():
             total = row.pop('total')
@@ -260,10 +264,10 @@ class ElectricalAccumulator:
             'energy_j': motor if self.measured_at == 'motor' else supply,
             'motor_energy_j': motor,
             'supply_energy_j': supply,
-            'motor_peak_power_w': _peaks(self._motor.peak, axes),
-            'supply_peak_power_w': _peaks(self._supply.peak, axes),
+            'motor_peak_power_w': _peaks(cast(np.ndarray, self._motor.peak), axes),
+            'supply_peak_power_w': _peaks(supply_peak, axes),
             'cabinet_standby_w': self.cabinet_w,
-            'returned_j': float(self._returned.energy.sum()),
+            'returned_j': float(returned.sum()),
             'causes': list(self.causes.causes),
             'energy_by_cause_j': by_cause,
         }

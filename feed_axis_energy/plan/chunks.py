@@ -82,7 +82,7 @@ class Chunk:
                     self.vel[count:n].copy(), self.acc[count:n].copy(),
                     self.line[count:n].copy(), self.index[count:n].copy())
         later = [(row - count, first, c) for row, first, c in self.gaps if row >= count]
-        self.__init__(self.k, self.capacity)
+        Chunk.__init__(self, self.k, self.capacity)
         if rest is not None and rest[0].size:
             m = rest[0].size
             self.t[:m], self.pos[:m], self.vel[:m], self.acc[:m], self.line[:m] = rest[:5]

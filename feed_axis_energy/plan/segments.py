@@ -9,9 +9,11 @@ and the streaming planner (:mod:`.stream`).
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import chain
 import math
+from typing import cast
 
 import numpy as np
 
@@ -63,7 +65,7 @@ class Collector:
     def add(self, mv: Move) -> None:
         """Take one move."""
         if self.first_start is None:
-            self.first_start = tuple(mv.start)
+            self.first_start = cast('tuple[float, float, float]', tuple(mv.start))
         k = int(mv.kind)
         stop = self.stop
         if k == _DWELL or k == _STOP:
@@ -174,9 +176,9 @@ def segment_geometry(seg: SegmentTable, file: str) -> SegmentGeometry:
         try:
             perm[arcs] = [PLANE_AXES[x.plane] for x in mv]
         except KeyError as err:
-            bad = next(x for x in mv if x.plane not in PLANE_AXES)
-            msg = f'arc plane must be 17, 18 or 19, got {bad.plane!r}'
-            raise PlanningError(msg, file=file, line=bad.line) from err
+            bad_move = next(x for x in mv if x.plane not in PLANE_AXES)
+            msg = f'arc plane must be 17, 18 or 19, got {bad_move.plane!r}'
+            raise PlanningError(msg, file=file, line=bad_move.line) from err
         centre[arcs] = [x.center for x in mv]
         ccw = np.array([int(x.kind) == _ARC_CCW for x in mv])
         turns = np.array([max(int(x.turns), 0) for x in mv], dtype=float)
@@ -221,7 +223,8 @@ def segment_geometry(seg: SegmentTable, file: str) -> SegmentGeometry:
                            theta0=theta0, sweep=sweep, r0=r0, kr=kr, kc=kc, r_min=r_min)
 
 
-def line_speed_limits(u: np.ndarray, axis_vmax: np.ndarray) -> np.ndarray:
+def line_speed_limits(u: np.ndarray | Sequence[float],
+                      axis_vmax: np.ndarray | Sequence[float]) -> np.ndarray:
     """Path speed [m/s] of straight moves at which the first axis reaches its speed limit.
 
     ``min_k vmax_k / |u_k|`` over the program axes; an axis that does not move sets no limit.

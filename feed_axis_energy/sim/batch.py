@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterable
 import concurrent.futures as cf
 from dataclasses import dataclass, field, replace
 import math
-from typing import Any
+from typing import Any, cast
 
 from ..errors import ConfigError, FeedAxisError, PlanningError, shorten
 
@@ -362,7 +362,7 @@ def run_batch(jobs: Iterable[BatchJob], *, executor: cf.Executor | None = None,
         for i, job in enumerate(jobs):
             results[i] = run_job(job)
             if progress is not None:
-                progress(i + 1, total, results[i])
+                progress(i + 1, total, cast(JobResult, results[i]))     # set just above
         return results  # type: ignore[return-value]
     pending = {executor.submit(run_job, job): i for i, job in enumerate(jobs)}
     try:
@@ -373,7 +373,7 @@ def run_batch(jobs: Iterable[BatchJob], *, executor: cf.Executor | None = None,
             except Exception as err:  # noqa: B902 - a worker died or the executor failed
                 results[i] = _failed(jobs[i], err, kind='WorkerError')
             if progress is not None:
-                progress(done, total, results[i])
+                progress(done, total, cast(JobResult, results[i]))      # set just above
     except BaseException:
         for future in pending:
             future.cancel()

@@ -30,7 +30,7 @@ from collections.abc import Iterator, Sequence
 import csv
 import io
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -91,7 +91,7 @@ class TableWriter:
         self.ints = set(int_columns)
         self.rows = 0
         self._fh = None
-        self._pq = None
+        self._pq: Any = None
         if fmt == 'csv':
             self._fh = open(self.path, 'x', encoding='utf-8', newline='')
             csv.writer(self._fh).writerow(self.columns)
@@ -333,8 +333,9 @@ def write_blocks(directories: dict[str, Path], blocks: LineEnergy, *, program: P
             for j, c in enumerate(blocks.causes):
                 data[f'{c} energy [J]'] = blocks.by_cause_j[lo:hi, j]
             if electrical:
-                data['motor energy [J]'] = blocks.motor_j[lo:hi]
-                data['supply energy [J]'] = blocks.supply_j[lo:hi]
+                # the casts: a table with an electrical side has both
+                data['motor energy [J]'] = cast(np.ndarray, blocks.motor_j)[lo:hi]
+                data['supply energy [J]'] = cast(np.ndarray, blocks.supply_j)[lo:hi]
             for w in writers:
                 w.write(data)
     finally:

@@ -18,7 +18,7 @@ from bisect import bisect_right
 from collections.abc import Iterable, Iterator, Sequence
 from itertools import chain, islice
 from operator import attrgetter
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -166,7 +166,8 @@ class RollupAccumulator:
             self.electrical = np.zeros((self.energy.shape[0], 2))
         steps = 0.5 * (power[1:] + power[:-1]) * np.diff(t)[:, None]
         if not first:
-            head = 0.5 * (power[:1] + self._prev_elec) * (float(t[0]) - t0)
+            prev = cast(np.ndarray, self._prev_elec)    # not the first chunk: its last row
+            head = 0.5 * (power[:1] + prev) * (float(t[0]) - t0)
             steps = np.concatenate((head, steps))
         self._prev_elec = power[-1:].copy()
         return steps
@@ -185,7 +186,7 @@ class RollupAccumulator:
             self.axis_time = np.zeros(len(self.axes))
             t0, e0, v0 = float(t[0]), float(p.total_energy_j[0]), vel[0]
         else:
-            t0, e0, v0 = self._prev
+            t0, e0, v0 = cast('tuple[float, float, np.ndarray]', self._prev)   # not first
         self._prev = (float(t[-1]), float(p.total_energy_j[-1]), vel[-1].copy())
         steps = self._electrical_steps(chunk, t, t0, first)
         if m == 1 and first:
@@ -203,8 +204,8 @@ class RollupAccumulator:
             self._grow(self._ctx + 1)
             self.energy[self._ctx] += float(p.total_energy_j[-1]) - e0
             self.duration[self._ctx] += float(t[-1]) - t0
-            if steps is not None:
-                self.electrical[self._ctx] += steps.sum(axis=0)
+            if steps is not None:       # the cast: _electrical_steps set it
+                cast(np.ndarray, self.electrical)[self._ctx] += steps.sum(axis=0)
             return
         total = p.total_w
         dt = np.diff(t) if first else np.diff(t, prepend=t0)
@@ -223,9 +224,10 @@ class RollupAccumulator:
         self._grow(int(ctxs.max()) + 1)
         np.add.at(self.energy, ctxs, e)
         np.add.at(self.duration, ctxs, d)
-        if steps is not None:
+        if steps is not None:           # the cast: _electrical_steps set it
             for c in range(2):
-                np.add.at(self.electrical[:, c], ctxs, np.add.reduceat(steps[:, c], starts))
+                np.add.at(cast(np.ndarray, self.electrical)[:, c], ctxs,
+                          np.add.reduceat(steps[:, c], starts))
 
     def _axis_time(self, t: np.ndarray, vel: np.ndarray, t0: float, v0: np.ndarray,
                    first: bool) -> None:
@@ -240,7 +242,7 @@ class RollupAccumulator:
             still = float(np.sum(t[idx + 1] - t[idx])) if idx.size else 0.0
             if not first and not (mj[0] or v0[j] != 0.0):
                 still += float(t[0]) - t0
-            self.axis_time[j] += span - still
+            cast(np.ndarray, self.axis_time)[j] += span - still     # set by the first chunk
 
     # -- results ----------------------------------------------------------------------------
     def rollups(self, energy_j: dict[str, float],

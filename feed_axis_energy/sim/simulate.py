@@ -8,13 +8,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from ..physics import (add_block_electrical, AxisDynamics, compute_dynamics, compute_power,
-                       ElectricalAccumulator, energy_by_line, EnergyIntegrator, LineEnergy,
-                       PowerResult, with_electrical)
+                       ElectricalAccumulator, ElectricalPower, energy_by_line, EnergyIntegrator,
+                       LineEnergy, PowerResult, with_electrical)
 from ..machine import Machine, PlannerOptions
 from ..plan import Motion, plan
 from ..gcode import Program
@@ -280,7 +280,9 @@ def _electrical_lines(result: SimulationResult, *, per_line: bool = True) -> Ele
     """The electrical side of a whole result (with the energy of every source line)."""
     p = result.power
     electrical = ElectricalAccumulator(per_line=per_line)
-    electrical.add(result.dynamics, p.mechanical_w, p.electrical, braking=p.braking,
+    # the cast: called only for a result with an electrical side
+    electrical.add(result.dynamics, p.mechanical_w, cast(ElectricalPower, p.electrical),
+                   braking=p.braking,
                    effects=p.effect_power_w)
     return electrical
 
@@ -309,7 +311,9 @@ def line_table(result: SimulationResult) -> LineEnergy:
     duration = np.array([r[2] for r in rows])
     motor = supply = None
     if p.electrical is not None:
-        motor, supply = _electrical_lines(result).lines_energy(lines, duration)
+        # per_line and one chunk taken: not None
+        motor, supply = cast('tuple[np.ndarray, np.ndarray]',
+                             _electrical_lines(result).lines_energy(lines, duration))
     return LineEnergy(lines, np.array([r[1] for r in rows]), duration,
                       axes=tuple(p.axes), causes=causes.causes, by_axis_j=by_axis,
                       by_cause_j=by_cause, motor_j=motor, supply_j=supply)

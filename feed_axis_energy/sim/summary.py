@@ -7,7 +7,7 @@ uncertainty, each accumulated per chunk so memory does not grow with the program
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -219,10 +219,12 @@ class SummaryAccumulator:
         n = self.n
         rate = rate_from_interval(self._median_dt()) if n >= 2 else 0.0
         axes = self.axes
-        energy = {a: float(self.energy[j]) if n else 0.0 for j, a in enumerate(axes)}
-        energy['total'] = float(self.energy[-1]) if n else 0.0
-        peak = {a: float(self.peak[j]) if n else 0.0 for j, a in enumerate(axes)}
-        peak['total'] = float(self.peak[-1]) if n else 0.0
+        # the casts: both are set once a sample is taken (n > 0)
+        energy_a, peak_a = cast(np.ndarray, self.energy), cast(np.ndarray, self.peak)
+        energy = {a: float(energy_a[j]) if n else 0.0 for j, a in enumerate(axes)}
+        energy['total'] = float(energy_a[-1]) if n else 0.0
+        peak = {a: float(peak_a[j]) if n else 0.0 for j, a in enumerate(axes)}
+        peak['total'] = float(peak_a[-1]) if n else 0.0
         blocks = self.top_blocks(top_blocks)
         summary = add_breakdown({
             'program': program,

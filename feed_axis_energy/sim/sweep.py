@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import functools
 import itertools
 import math
-from typing import Any
+from typing import Any, cast
 
 from ..errors import ConfigError, shorten
 
@@ -109,7 +109,7 @@ def _range(text: str, *, spec: str) -> tuple[float, ...]:
     if len(parts) != 3 or any(v is None or not math.isfinite(v) for v in nums):
         msg = f'a range is START:STOP:N with numbers, got {shorten(spec)!r}'
         raise ConfigError(msg, file=_WHERE, key='vary')
-    start, stop, count = nums
+    start, stop, count = cast('list[float]', nums)      # none is None (above)
     if count != int(count) or not 2 <= count <= MAX_VALUES:
         msg = (f'the N of START:STOP:N must be a whole number of 2 to {MAX_VALUES}, got '
                f'{shorten(parts[2])!r} in {shorten(spec)!r}')
