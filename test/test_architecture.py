@@ -176,6 +176,14 @@ _PATH = re.compile(r'(?<![\w/])feed_axis_energy/(?:[\w]+/)*(?:[\w]+\.py|[\w]+/)'
 _DOTTED = re.compile(r'(?<![\w/])feed_axis_energy(?:\.[A-Za-z_]\w*)+')
 
 
+# A short path in backticks (`plan/stream.py`) names a file of the package or the repository.
+_SHORT = re.compile(r'`((?:\w+/)+\w+\.py)`')
+
+
+def _short_paths(text: str) -> set[str]:
+    return {p for p in _SHORT.findall(text) if not p.startswith('shared/')}
+
+
 def _named_paths(text: str) -> set[str]:
     return set(_PATH.findall(text)) | {d for d in _DOTTED.findall(text) if not d.endswith('.py')}
 
@@ -209,11 +217,15 @@ def test_the_doc_path_check_finds_a_missing_module() -> None:
     assert _named_paths('see `feed_axis_energy/plan/`, share/feed_axis_energy/x/ and '
                         'feed_axis_energy.launch.py') == {'feed_axis_energy/plan/'}
     assert not _exists('feed_axis_energy.plan.stream.no_such_name')
+    assert _short_paths('in `plan/stream.py` and `shared/tools/x.py`') == {'plan/stream.py'}
 
 
-@pytest.mark.parametrize('doc', ['README.md', *sorted(p.relative_to(ROOT).as_posix()
-                                                      for p in (ROOT / 'docs').glob('*.md'))])
+@pytest.mark.parametrize('doc', ['README.md', 'bench/README.md', 'bags/README.md',
+                                 *sorted(p.relative_to(ROOT).as_posix()
+                                         for p in (ROOT / 'docs').glob('*.md'))])
 def test_every_module_path_named_in_the_docs_exists(doc: str) -> None:
-    refs = _named_paths((ROOT / doc).read_text(encoding='utf-8'))
-    missing = sorted(r for r in refs if not _exists(r))
+    text = (ROOT / doc).read_text(encoding='utf-8')
+    missing = sorted(r for r in _named_paths(text) if not _exists(r))
+    missing += sorted(p for p in _short_paths(text)
+                      if not (ROOT / p).is_file() and not (PACKAGE / p).is_file())
     assert missing == []
