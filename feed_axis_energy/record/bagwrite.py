@@ -37,7 +37,8 @@ from .bagio import DIAGNOSTIC_ARRAY, JOINT_TRAJECTORY, Series, TOPIC_BLOCK_ENERG
 from .qos import qos_yaml, topic_qos
 from .mcapstream import CHUNK_BYTES, McapStream, RECORD_HEAD
 
-__all__ = ['StreamBagWriter', 'create_bag_dir', 'declare_topic', 'bag_information']
+__all__ = ['StreamBagWriter', 'create_bag_dir', 'declare_topic', 'bag_information',
+           'replace_metadata']
 
 _NS = 1_000_000_000
 _DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
@@ -106,6 +107,22 @@ def bag_information(types: Mapping[str, str], counts: Mapping[str, int], *, star
         'topics_with_message_count': topics,
         'compression_format': '', 'compression_mode': '',
         'custom_data': dict(custom) or None, 'ros_distro': 'rosbags'}
+
+
+def replace_metadata(path: Path, text: str) -> None:
+    """Write ``metadata.yaml`` of the bag directory ``path`` atomically.
+
+    The text goes to ``.metadata.yaml.tmp`` (a stale one, left by a killed writer, is removed
+    first; created exclusively, never through a link) and is renamed over ``metadata.yaml``,
+    so a reader sees the old or the new file, never a part.
+    """
+    tmp = path / '.metadata.yaml.tmp'
+    if os.path.lexists(tmp):
+        tmp.unlink()
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+    with os.fdopen(fd, 'w', encoding='utf-8') as fh:
+        fh.write(text)
+    os.replace(tmp, path / 'metadata.yaml')
 
 
 class StreamBagWriter:
@@ -265,8 +282,4 @@ class StreamBagWriter:
         self._mcap.finish()
         self._fh.close()
         self._fh = None
-        tmp = self.path / '.metadata.yaml.tmp'
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
-        with os.fdopen(fd, 'w', encoding='utf-8') as fh:
-            fh.write(text)
-        os.replace(tmp, self.path / 'metadata.yaml')
+        replace_metadata(self.path, text)

@@ -15,7 +15,8 @@ Layout (what :class:`ChunkedBagWriter` guarantees at every moment, SIGKILL inclu
 
 The files are written by the MCAP core of every bag, :class:`.mcapstream.McapStream`, with the
 rosbag2 conventions of :mod:`.bagwrite` (:func:`.bagwrite.declare_topic`,
-:func:`.bagwrite.bag_information`, :func:`.bagwrite.create_bag_dir`); what is this module's
+:func:`.bagwrite.bag_information`, :func:`.bagwrite.create_bag_dir`,
+:func:`.bagwrite.replace_metadata`); what is this module's
 own is the file discipline above. It cannot be a mode of
 :class:`.bagwrite.StreamBagWriter`'s one growing file: ``rosbags`` opens an MCAP only through
 its footer and summary, which a file gets when it is finished, so a bag that must read at
@@ -40,7 +41,7 @@ from typing import Mapping
 
 import yaml
 
-from .bagwrite import bag_information, create_bag_dir, declare_topic
+from .bagwrite import bag_information, create_bag_dir, declare_topic, replace_metadata
 from .mcapstream import McapStream
 
 __all__ = ['ChunkedBagWriter']
@@ -196,13 +197,7 @@ class ChunkedBagWriter:
             yaml.dump({'rosbag2_bagfile_information': self._head(extra)}, Dumper=_DUMPER,
                       default_flow_style=False),
             '  relative_file_paths:\n', *self._path_yaml, '  files:\n', *self._file_yaml])
-        tmp = self.path / '.metadata.yaml.tmp'
-        if os.path.lexists(tmp):
-            tmp.unlink()
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
-        with os.fdopen(fd, 'w', encoding='utf-8') as fh:
-            fh.write(text)
-        os.replace(tmp, self.path / 'metadata.yaml')
+        replace_metadata(self.path, text)
 
     def close(self) -> None:
         """Flush what is left and refresh the metadata (custom data); idempotent."""
