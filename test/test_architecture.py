@@ -17,6 +17,7 @@ import shutil
 import subprocess
 import sys
 
+from package_imports import from_target, module_files
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -24,33 +25,13 @@ PACKAGE = ROOT / 'feed_axis_energy'
 MAX_MODULES_PER_FOLDER = 15
 
 
-def _modules(root: Path) -> dict[str, Path]:
-    out = {}
-    for path in root.rglob('*.py'):
-        parts = list(path.relative_to(root.parent).with_suffix('').parts)
-        if parts[-1] == '__init__':
-            parts = parts[:-1]
-        out['.'.join(parts)] = path
-    return out
-
-
-def _target(module: str, path: Path, node: ast.ImportFrom) -> str:
-    if not node.level:
-        return node.module or ''
-    base = module.split('.')
-    if path.name != '__init__.py':
-        base = base[:-1]
-    base = base[:len(base) - (node.level - 1)]
-    return '.'.join(base + ([node.module] if node.module else []))
-
-
 def _imports(root: Path):
     """(importer, its file, line, target module, imported name) of every ``from`` import."""
-    for module, path in sorted(_modules(root).items()):
+    for module, path in sorted(module_files(root).items()):
         tree = ast.parse(path.read_text(encoding='utf-8'))
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom):
-                target = _target(module, path, node)
+                target = from_target(module, path, node)
                 for alias in node.names:
                     yield module, path, node.lineno, target, alias.name
 
@@ -85,7 +66,7 @@ def _public_names(package: str) -> set[str]:
 
 def border_crossings(root: Path) -> list[str]:
     """Imports from another package that bypass its ``__init__`` or take an unlisted name."""
-    modules = _modules(root)
+    modules = module_files(root)
     bad = []
     for importer, path, line, target, name in _imports(root):
         if not target.startswith(root.name + '.'):

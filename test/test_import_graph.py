@@ -9,34 +9,17 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+from package_imports import from_target, module_files
+
 PACKAGE = Path(__file__).resolve().parents[1] / 'feed_axis_energy'
 
 
-def _module_names(root: Path) -> dict[str, tuple[Path, bool]]:
-    """Dotted module name -> (file, is a package ``__init__``)."""
-    out = {}
-    for path in root.rglob('*.py'):
-        parts = list(path.relative_to(root.parent).with_suffix('').parts)
-        is_pkg = parts[-1] == '__init__'
-        if is_pkg:
-            parts = parts[:-1]
-        out['.'.join(parts)] = (path, is_pkg)
-    return out
-
-
-def _targets(module: str, is_pkg: bool, node: ast.AST) -> list[str]:
+def _targets(module: str, path: Path, node: ast.AST) -> list[str]:
     """Modules an import statement may load (the module and ``module.name`` per name)."""
     if isinstance(node, ast.Import):
         return [alias.name for alias in node.names]
     assert isinstance(node, ast.ImportFrom)
-    if node.level:
-        base = module.split('.')
-        if not is_pkg:
-            base = base[:-1]
-        base = base[:len(base) - (node.level - 1)]
-        target = '.'.join(base + ([node.module] if node.module else []))
-    else:
-        target = node.module or ''
+    target = from_target(module, path, node)
     # ``from . import x`` loads the submodule x (its package is the importer's own).
     out = [target] if node.module else []
     out += [f'{target}.{alias.name}' for alias in node.names]
@@ -45,14 +28,14 @@ def _targets(module: str, is_pkg: bool, node: ast.AST) -> list[str]:
 
 def import_graph(root: Path) -> dict[str, set[str]]:
     """Module -> the package modules it imports."""
-    modules = _module_names(root)
+    modules = module_files(root)
     graph: dict[str, set[str]] = {}
-    for name, (path, is_pkg) in modules.items():
+    for name, path in modules.items():
         tree = ast.parse(path.read_text(encoding='utf-8'))
         deps = set()
         for node in ast.walk(tree):
             if isinstance(node, (ast.Import, ast.ImportFrom)):
-                deps.update(t for t in _targets(name, is_pkg, node)
+                deps.update(t for t in _targets(name, path, node)
                             if t in modules and t != name)
         graph[name] = deps
     return graph
