@@ -7,6 +7,13 @@ also catches a parent that died before the child armed the signal. When the laun
 even by SIGKILL, the kernel sends every node SIGTERM, and the nodes shut down as on Ctrl-C
 (the recorder writes its last chunk).
 
+A node whose orderly stop does not end (a call that blocks in a DDS library, a close that
+hangs) must still not outlive the launcher: :func:`watch_parent` gives it a bounded grace
+after the parent has gone, then dumps every thread's Python stack to stderr and ends the
+process (:func:`faulthandler.dump_traceback_later`, whose watchdog is a C thread that needs
+no interpreter lock). What a recorder loses then is what it had not flushed: its bag stays
+readable (:mod:`feed_axis_energy.record.crashsafe`).
+
 The signal is tied to the *thread* that forked the child: the launcher starts its children
 from its main thread, which lives as long as the launcher. Elsewhere than Linux these
 functions do nothing and return ``False``.
@@ -14,14 +21,16 @@ functions do nothing and return ``False``.
 from __future__ import annotations
 
 import ctypes
+import faulthandler
 import os
 from pathlib import Path
 import signal
 import sys
+import threading
 from typing import Callable
 
 __all__ = ['ENV', 'PR_SET_PDEATHSIG', 'set_parent_death_signal', 'preexec', 'arm_from_env',
-           'parent_gone', 'child_processes', 'alive']
+           'parent_gone', 'watch_parent', 'EXIT_GRACE_S', 'child_processes', 'alive']
 
 ENV = 'FAE_PARENT_PID'
 PR_SET_PDEATHSIG = 1   # <linux/prctl.h>
@@ -83,6 +92,40 @@ def parent_gone() -> bool:
     """True if :data:`ENV` names a parent that is no longer this process's parent."""
     text = os.environ.get(ENV, '')
     return text.isdigit() and os.getppid() != int(text)
+
+
+EXIT_GRACE_S = 1.0
+"""How long a node may take to stop after its launcher has gone [s], then it is ended: the
+test of the launcher's death allows 2 s (test/nodes/test_launcher_death.py)."""
+
+
+def watch_parent(*, grace_s: float = EXIT_GRACE_S, poll_s: float = 0.05,
+                 parent_pid: int | None = None) -> threading.Thread | None:
+    """End this process ``grace_s`` after its parent has gone, whatever it is doing then.
+
+    A daemon thread compares the parent pid every ``poll_s``; once the parent differs
+    (``parent_pid``, by default :data:`ENV`'s), it arms
+    :func:`faulthandler.dump_traceback_later` with ``exit=True``: if the process still runs
+    ``grace_s`` later, every thread's stack goes to stderr and the process exits with code 1.
+    An orderly stop (the parent-death SIGTERM) normally ends the process well before.
+    Returns the thread, or ``None`` when there is no parent to watch (:data:`ENV` unset).
+    """
+    if parent_pid is None:
+        text = os.environ.get(ENV, '')
+        if not text.isdigit():
+            return None
+        parent_pid = int(text)
+    expected = parent_pid
+
+    def _watch() -> None:
+        stop = threading.Event()
+        while os.getppid() == expected:
+            stop.wait(poll_s)
+        faulthandler.dump_traceback_later(grace_s, exit=True)
+
+    thread = threading.Thread(target=_watch, name='parent-watch', daemon=True)
+    thread.start()
+    return thread
 
 
 # -- watching from outside (tests, bench/fault_injection.py): who outlives the launcher ------

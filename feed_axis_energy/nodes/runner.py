@@ -181,10 +181,14 @@ def run(factory: Callable[[], object], args: list[str] | None, *, name: str) -> 
     stop: list[int] = []
     previous = {sig: signal.signal(sig, lambda signum, frame: stop.append(signum))
                 for sig in (signal.SIGINT, signal.SIGTERM)}
-    if lifeline.arm_from_env() is False:
+    armed = lifeline.arm_from_env()
+    if armed is False:
         # The launcher died before this node armed its parent-death signal: do not run on
         # as an orphan (the node still starts and closes, so a recorder leaves a valid bag).
         stop.append(signal.SIGTERM)
+    elif armed:
+        # however the stop goes, the node ends at most EXIT_GRACE_S after its launcher
+        lifeline.watch_parent()
     try:
         code = _spin(factory, name=name, stop=stop)
     finally:

@@ -34,13 +34,21 @@ def _wait_for_power(bag, samples=100, timeout=30.0):
 
 
 def _state(pid):
-    """Scheduler state and kernel wait channel of a process (what a survivor was doing)."""
+    """Scheduler state and kernel wait channel of each thread of a process (what a survivor
+    was doing: which thread waits where)."""
+    threads = []
     try:
-        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
-        wchan = Path(f'/proc/{pid}/wchan').read_text().strip() or '-'
+        for task in sorted(Path(f'/proc/{pid}/task').iterdir(), key=lambda p: int(p.name)):
+            try:
+                name = (task / 'comm').read_text().strip()
+                state = (task / 'stat').read_text().rsplit(')', 1)[1].split()[0]
+                wchan = (task / 'wchan').read_text().strip() or '-'
+            except OSError:
+                continue
+            threads.append(f'{name} {state} {wchan}')
     except OSError:
         return 'gone'
-    return f'state {state}, wchan {wchan}'
+    return 'threads: ' + '; '.join(threads)
 
 
 def _start_launcher(tmp_path, node_env, domain_id, *, record):
@@ -192,3 +200,46 @@ def test_stop_while_importing_is_quiet(tmp_path, node_env, sig):
     assert 'Traceback' not in out, out
     assert proc.returncode == 128 + sig
     assert not (tmp_path / 'rec').exists()
+
+
+def test_watch_parent_ends_a_child_that_ignores_its_stop(tmp_path):
+    """A child whose orderly stop never comes (SIGTERM ignored, the main thread asleep in a
+    call) is still ended ``grace_s`` after its parent has gone, with its stack on stderr."""
+    pid_file = tmp_path / 'grandchild.pid'
+    err_file = tmp_path / 'grandchild.err'
+    grandchild_code = (
+        'import signal, time\n'
+        'from feed_axis_energy import lifeline\n'
+        'signal.signal(signal.SIGTERM, signal.SIG_IGN)\n'
+        'lifeline.watch_parent(grace_s=0.5)\n'
+        'time.sleep(60)\n')
+    middle = subprocess.Popen([PY, '-c', (
+        'import os, subprocess, sys, time\n'
+        f'err = open({str(err_file)!r}, "w")\n'
+        f'p = subprocess.Popen([sys.executable, "-c", {grandchild_code!r}], stderr=err,\n'
+        '                      env={**os.environ, "FAE_PARENT_PID": str(os.getpid())})\n'
+        f'open({str(pid_file)!r}, "w").write(str(p.pid))\n'
+        'time.sleep(60)\n')], env={**os.environ, 'PYTHONPATH': str(Path(
+            __file__).resolve().parents[2])})
+    grandchild = None
+    try:
+        deadline = time.monotonic() + 20
+        while not pid_file.exists() or not pid_file.read_text():
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        grandchild = int(pid_file.read_text())
+        time.sleep(1.0)   # the grandchild is past its imports and asleep
+        assert lifeline.alive(grandchild)
+        middle.kill()
+        middle.wait()
+        t_gone = time.monotonic()
+        while lifeline.alive(grandchild) and time.monotonic() - t_gone < 5.0:
+            time.sleep(0.02)
+        took = time.monotonic() - t_gone
+        assert not lifeline.alive(grandchild)
+    finally:
+        middle.kill()
+        if grandchild is not None and lifeline.alive(grandchild):
+            os.kill(grandchild, signal.SIGKILL)
+    assert 0.4 <= took < 2.0, took   # not before the grace, not long after it
+    assert 'time.sleep' in err_file.read_text() or 'line 5' in err_file.read_text()
