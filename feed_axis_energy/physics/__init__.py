@@ -3,7 +3,8 @@
 Rigid-body dynamics with the loss function (:mod:`.dynamics`), actual power (paper eq. 1) and
 energy (eq. 2) with the braking rule (:mod:`.energy`), the electrical side of motor, drive and
 supply (:mod:`.electrical`), energy by cause (:mod:`.breakdown`), the energy's uncertainty
-(:mod:`.uncertainty`) and the state the effect catalog computes from (:mod:`.effectstate`).
+(:mod:`.uncertainty`), the state the effect catalog computes from (:mod:`.effectstate`) and the
+force an axis holds at standstill after it stops (:mod:`.standstill`).
 Pure numpy on arrays ``(n_samples, n_axes)``; no files.
 """
 from .breakdown import add_breakdown, BreakdownAccumulator, cause_names, cause_powers, LineEnergy
@@ -13,6 +14,7 @@ from .electrical import (add_block_electrical, electrical_power, ElectricalAccum
                          with_electrical)
 from .energy import (apply_braking, compute_power, ElectricalPower, energy_by_line,
                      EnergyIntegrator, power_with_total, PowerResult)
+from .standstill import holding_force, HoldState, last_direction, REST_SPEED_M_S
 from .uncertainty import (add_uncertainty, relative_sd_pct, two_digits, UNCERTAINTY_KEY,
                           uncertainty_words, UncertaintyAccumulator)
 
@@ -21,7 +23,8 @@ __all__ = [
     'BreakdownAccumulator', 'cause_names', 'cause_powers', 'compute_dynamics', 'compute_power',
     'effect_state', 'electrical_power', 'ElectricalAccumulator', 'ElectricalPower',
     'energy_by_line',
-    'EnergyIntegrator', 'LineEnergy', 'power_with_total', 'PowerResult', 'relative_sd_pct',
+    'EnergyIntegrator', 'holding_force', 'HoldState', 'last_direction', 'LineEnergy',
+    'power_with_total', 'REST_SPEED_M_S', 'PowerResult', 'relative_sd_pct',
     'state_from_simulation', 'two_digits', 'UNCERTAINTY_KEY', 'uncertainty_words',
     'UncertaintyAccumulator', 'with_electrical',
 ]
