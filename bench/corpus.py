@@ -5,6 +5,7 @@ Run by hand from the repository root after ``scripts/test`` made the venv::
     PYTHONPATH=. .venv/bin/python bench/corpus.py [--corpus DIR] [--plan] [--json]
                                                   [--locate auto|yes|no]
                                                   [--mem-lines N] [--skip-largest K]
+                                                  [--no-tool-table]
 
 For every program of ``programs.csv`` it parses the program in-process, the way the
 reference run (``shared/tools/run_oracle.py``) set the interpreter up:
@@ -13,7 +14,15 @@ reference run (``shared/tools/run_oracle.py``) set the interpreter up:
   names, lower-cased (the corpus flattens ``a/b/face.ngc`` to ``a__b__face.ngc``), linked
   into a temporary directory that is searched first, then the corpus folder itself;
 * a tool table with tools 1..999 of zero radius and zero length, G28/G30 positions 0 (the
-  reference's empty parameter file), start at the machine origin.
+  reference's empty parameter file), start at the machine origin;
+* a feed move with no F set is let pass (``allow_no_feed``): the reference is LinuxCNC's
+  preview module (``gcodemodule.cc``), whose feed rate at the start is 1, not 0 as on the
+  control, which refuses such a move. The programs accepted only so are counted and listed
+  ("only as a preview"): without ``--allow-no-feed`` our commands refuse them as the control.
+
+``--no-tool-table`` parses without the tool table instead (a planner's machine config): the
+tools a program uses then run with length and radius 0 and a warning each, and the summary
+counts the accepted programs that had such a tool.
 
 Acceptance is counted with the program's own dialect (``programs.csv``; what a user of that
 control would choose); agreement with the reference is checked on the programs both accept,
@@ -213,6 +222,8 @@ class OurResult:
     warnings: int = 0
     seconds: float = 0.0
     plan: str = ''                    # '', 'ok <duration>', or the planning error
+    preview_only: str = ''            # the no-feed warning of a program accepted only so
+    missing_tools: int = 0            # tools the table lacked (each run with length 0)
 
 
 class _Timeout(Exception):
@@ -223,14 +234,18 @@ def _on_alarm(signum: int, frame: Any) -> None:
     raise _Timeout
 
 
-def _parse_keywords(dialect: str | None, search_path: list[Path]) -> dict[str, Any]:
-    """Keywords for ``load_gcode`` that set it up as the reference was (those it accepts)."""
+def _parse_keywords(dialect: str | None, search_path: list[Path], *,
+                    tool_table: bool = True) -> dict[str, Any]:
+    """Keywords for ``load_gcode`` that set it up as the reference was (those it accepts);
+    ``tool_table=False``: no tool table (``--no-tool-table``: a planner's machine config)."""
     params = inspect.signature(load_gcode).parameters
     kw: dict[str, Any] = {}
     if 'home' in params:
         kw['home'] = (0.0, 0.0, 0.0)
-    if 'tools' in params:
+    if 'tools' in params and tool_table:
         kw['tools'] = {t: (0.0, 0.0) for t in range(1, ORACLE_TOOLS + 1)}
+    if 'allow_no_feed' in params:
+        kw['allow_no_feed'] = True          # the preview's feed rate 1 at the start
     if dialect is not None and 'dialect' in params:
         kw['dialect'] = dialect
     for name in ('search_path', 'subroutine_path'):
@@ -251,7 +266,8 @@ def known_dialects() -> tuple[str, ...]:
 
 def run_ours(path: Path, *, dialect: str | None, search_path: list[Path],
              timeout_s: float = DEFAULT_TIMEOUT_S,
-             planner: Callable[[Any], str] | None = None) -> OurResult:
+             planner: Callable[[Any], str] | None = None,
+             tool_table: bool = True) -> OurResult:
     """Parse one program in-process and summarize its moves.
 
     Parameters
@@ -266,6 +282,8 @@ def run_ours(path: Path, *, dialect: str | None, search_path: list[Path],
         Wall-clock limit (a runaway program gives status ``timeout``).
     planner
         Optional: called with the parsed program, returns ``'ok ...'`` or the error.
+    tool_table
+        Give the reference's tool table (tools 1..999 of zero size); ``False``: none.
 
     Returns
     -------
@@ -273,7 +291,7 @@ def run_ours(path: Path, *, dialect: str | None, search_path: list[Path],
         Status ``ok``, ``error`` (a :class:`GcodeError`: message, line, column),
         ``traceback`` (any other exception: the last lines of its traceback) or ``timeout``.
     """
-    kw = _parse_keywords(dialect, search_path)
+    kw = _parse_keywords(dialect, search_path, tool_table=tool_table)
     use_alarm = hasattr(signal, 'setitimer') and timeout_s > 0
     t0 = time.perf_counter()
     if use_alarm:
@@ -283,6 +301,8 @@ def run_ours(path: Path, *, dialect: str | None, search_path: list[Path],
         program = load_gcode(path, **kw)
         stats = summarize(program.moves)
         res = OurResult('ok', stats=stats, warnings=len(program.warnings))
+        res.preview_only = next((w for w in program.warnings if '--allow-no-feed' in w), '')
+        res.missing_tools = sum(1 for w in program.warnings if 'is not in the tool table' in w)
         if planner is not None:
             res.plan = planner(program)
     except _Timeout:
@@ -560,7 +580,8 @@ def _dialect_for(entry: Entry, known: tuple[str, ...]) -> str | None:
 
 def evaluate(corpus: Path, *, plan: bool = False, skip_largest: int = 0,
              timeout_s: float = DEFAULT_TIMEOUT_S,
-             progress: Callable[[str], None] | None = None) -> Report:
+             progress: Callable[[str], None] | None = None,
+             tool_table: bool = True) -> Report:
     """Run our front end over the corpus and compare with the reference.
 
     Parameters
@@ -575,6 +596,9 @@ def evaluate(corpus: Path, *, plan: bool = False, skip_largest: int = 0,
         Wall-clock limit per program.
     progress
         Called with one line per program.
+    tool_table
+        As :func:`run_ours` (``False``: how programs fare on a config without a tool
+        table; the programs using a tool are then counted with the missing-tool warning).
 
     Returns
     -------
@@ -601,7 +625,7 @@ def evaluate(corpus: Path, *, plan: bool = False, skip_largest: int = 0,
             search = [links.for_folder(path.parent), path.parent]
             own = _dialect_for(e, known)
             r = run_ours(path, dialect=own, search_path=search, timeout_s=timeout_s,
-                         planner=planner)
+                         planner=planner, tool_table=tool_table)
             r.error = links.real_names(r.error)
             accept[e.file] = r
             if e.reference_accepts:
@@ -609,13 +633,13 @@ def evaluate(corpus: Path, *, plan: bool = False, skip_largest: int = 0,
                     ra = r
                 else:
                     ra = run_ours(path, dialect=REFERENCE_DIALECT, search_path=search,
-                                  timeout_s=timeout_s)
+                                  timeout_s=timeout_s, tool_table=tool_table)
                 agree[e.file] = ra
                 if ra.status == 'ok':
                     found = compare(e.file, ra, e.oracle)
                     disagreements += found
                     if found:
-                        quirks = _explain(e, path, search, timeout_s)
+                        quirks = _explain(e, path, search, timeout_s, tool_table)
                         if quirks:
                             explained[e.file] = quirks
             if progress is not None:
@@ -627,13 +651,14 @@ def evaluate(corpus: Path, *, plan: bool = False, skip_largest: int = 0,
                   seconds=time.perf_counter() - t0, planned=plan, explained=explained)
 
 
-def _explain(entry: Entry, path: Path, search: list[Path],
-             timeout_s: float) -> tuple[str, ...] | None:
+def _explain(entry: Entry, path: Path, search: list[Path], timeout_s: float,
+             tool_table: bool = True) -> tuple[str, ...] | None:
     """The reference quirks under which a disagreeing program agrees (None: no model does)."""
     dialect = REFERENCE_DIALECT if REFERENCE_DIALECT in known_dialects() else None
 
     def run() -> OurResult:
-        return run_ours(path, dialect=dialect, search_path=search, timeout_s=timeout_s)
+        return run_ours(path, dialect=dialect, search_path=search, timeout_s=timeout_s,
+                        tool_table=tool_table)
     return oracle_quirks.explain(
         run, lambda r: r.status == 'ok' and not compare(entry.file, r, entry.oracle))
 
@@ -668,7 +693,12 @@ def summary(report: Report) -> dict[str, Any]:
     # The target counts programs "on a machine with the axes they use": ours have X, Y, Z.
     linear = [e for e in report.entries if e.reference_accepts and not e.rotary]
     both_linear = sum(1 for e in linear if report.accept[e.file].status == 'ok')
+    preview = [e for e in report.entries if e.reference_accepts
+               and report.accept[e.file].status == 'ok' and report.accept[e.file].preview_only]
+    tooled = [e for e in report.entries if e.reference_accepts
+              and report.accept[e.file].status == 'ok' and report.accept[e.file].missing_tools]
     return dict(programs=total['programs'], reference_accepts=ref, we_accept=total['ours'],
+                preview_only=len(preview), missing_tools=len(tooled),
                 we_accept_of_reference=total['both'], acceptance_of_reference=rate,
                 reference_accepts_xyz=len(linear), we_accept_of_reference_xyz=both_linear,
                 acceptance_of_reference_xyz=both_linear / len(linear) if linear else 0.0,
@@ -701,6 +731,13 @@ def format_report(report: Report) -> str:
         if not msg.startswith(e.file):
             msg = f'{e.file}: {msg}'    # the error lies in a subroutine file it calls
         out.append(f'  [{e.dialect}] {_one_line(msg)}')
+    preview = [(e, report.accept[e.file]) for e in report.entries if e.reference_accepts
+               and report.accept[e.file].status == 'ok' and report.accept[e.file].preview_only]
+    out.append('')
+    out.append(f'accepted only as a preview (a feed move with no F set: the reference\'s '
+               f'preview starts at F1, the control refuses; --allow-no-feed): {len(preview)}')
+    for e, r in preview:
+        out.append(f'  [{e.dialect}] {_one_line(r.preview_only.replace(prefix, ""))}')
     out.append('')
     out.append(f'disagreements on programs both accept: {len(report.disagreements)} in '
                f'{len(report.disagreeing_files())} programs')
@@ -738,7 +775,9 @@ def format_report(report: Report) -> str:
                f'{s["we_accept_of_reference_xyz"]}/{s["reference_accepts_xyz"]} = '
                f'{100 * s["acceptance_of_reference_xyz"]:.1f} % of those without rotary-axis '
                f'motion (target >= {100 * TARGET_ACCEPTANCE:.0f} %), all programs '
-               f'{s["we_accept"]}/{s["programs"]}; tracebacks {s["tracebacks"]} (target 0); '
+               f'{s["we_accept"]}/{s["programs"]}, {s["preview_only"]} of the accepted only '
+               f'as a preview (--allow-no-feed), {s["missing_tools"]} with tools the table '
+               f'lacks (length and radius 0); tracebacks {s["tracebacks"]} (target 0); '
                f'disagreements {s["disagreements"]} in {s["disagreeing_programs"]} programs, '
                f'{s["explained_programs"]} of them reproduced by reference quirks, '
                f'{s["unexplained_programs"]} unexplained (target 0); {s["seconds"]:.1f} s')
@@ -758,6 +797,8 @@ def report_json(report: Report) -> dict[str, Any]:
                                  seconds=round(r.seconds, 4))
         if r.plan:
             d['plan'] = r.plan
+        if r.preview_only:
+            d['preview_only'] = r.preview_only
         return d
     return dict(
         corpus=report.corpus, skipped=report.skipped, summary=summary(report),
@@ -906,6 +947,10 @@ def main(argv: list[str] | None = None) -> int:
                          'print the first differing move and its line (needs '
                          'linuxcnc-uspace; auto, the default: when it is installed and at '
                          f'most {MAX_AUTO_LOCATE} programs disagree)')
+    ap.add_argument('--no-tool-table', action='store_true',
+                    help='parse without a tool table (the reference had tools 1..999 of zero '
+                         'size): tools the programs use run with length and radius 0 and a '
+                         'warning; counted as "missing tools" in the summary')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     args = ap.parse_args(argv)
     if args.mem_lines < 0 or args.skip_largest < 0 or not args.timeout > 0:
@@ -921,7 +966,8 @@ def main(argv: list[str] | None = None) -> int:
             print(msg, file=sys.stderr, flush=True)
 
     report = evaluate(corpus, plan=args.plan, skip_largest=args.skip_largest,
-                      timeout_s=args.timeout, progress=progress)
+                      timeout_s=args.timeout, progress=progress,
+                      tool_table=not args.no_tool_table)
     bad = report.disagreeing_files()
     if args.locate == 'yes' or (args.locate == 'auto' and 0 < len(bad) <= MAX_AUTO_LOCATE
                                 and reference_available()):

@@ -31,7 +31,8 @@ def _max_dwell(text: str) -> float:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the subcommand."""
-    from feed_axis_energy.cli.common import add_quiet_option, add_tool_option, axes_option
+    from feed_axis_energy.cli.common import (add_program_options, add_quiet_option,
+                                             add_tool_option, axes_option)
     from feed_axis_energy.gcode import DEFAULT_MAX_DWELL_S, DIALECTS
     p = sub.add_parser(
         'check', help=HELP,
@@ -49,6 +50,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='machine config: travel and velocity limits, tool table, G28 position, '
                         'default dialect (default: config/demonstrator.yaml)')
     add_tool_option(p)
+    add_program_options(p)
     p.add_argument('--ignore-axes', type=axes_option, default=(), metavar='A,B',
                    help='drop the words of these axes (A, B, C, U, V, W) with one warning '
                         'each; without it a program moving such an axis is an error')
@@ -91,6 +93,8 @@ def run(args: argparse.Namespace) -> int:
     if args.tool:
         from feed_axis_energy.gcode import with_tools
         machine = replace(machine, gcode=with_tools(machine.gcode, dict(args.tool)))
+    from feed_axis_energy.cli.common import apply_program_options
+    machine = apply_program_options(machine, args)
     keywords = _parse_keywords(machine, args)
     results = []
     n = len(args.programs)

@@ -5,21 +5,36 @@ the rules below, each copied from the control named in its profile. Choose one w
 ``--dialect`` (``simulate``), ``gcode.dialect`` in the machine config, or
 ``parse_gcode(dialect=...)``; the default is ``linuxcnc``.
 
-=============  ============  ===========  ===================  ===========  =============
-dialect        G4 P          G4 X         ``K0`` on a G17 arc  M98/M99      Macro B (1)
-=============  ============  ===========  ===================  ===========  =============
-``linuxcnc``   seconds       (axis word)  error (as LinuxCNC)  yes          no
-``fanuc``      milliseconds  seconds      ignored, warning     yes          yes
-``haas``       see below     (axis word)  ignored, warning     yes          yes (+ M97)
-``grbl``       seconds       (axis word)  ignored, warning     no           no
-``mach3``      seconds       (axis word)  ignored, warning     yes          no
-=============  ============  ===========  ===================  ===========  =============
+============  ============  ===========  ================  =======  ===========  ===========
+dialect       G4 P          G4 X         ``K0``, G17 arc   M98/M99  Macro B (1)  M100-M199
+============  ============  ===========  ================  =======  ===========  ===========
+``linuxcnc``  seconds       (axis word)  error (LinuxCNC)  yes      no           warning (2)
+``fanuc``     milliseconds  seconds      ignored, warning  yes      yes          error
+``haas``      see below     (axis word)  ignored, warning  yes      yes (+ M97)  error
+``grbl``      seconds       (axis word)  ignored, warning  no       no           error
+``mach3``     seconds       (axis word)  ignored, warning  yes      no           error
+============  ============  ===========  ================  =======  ===========  ===========
 
 (1) Fanuc Custom Macro B: ``WHILE``/``DO``/``END``, ``IF``/``GOTO``/``THEN``, ``G65``
 macro calls (and Haas ``M97`` local subprograms), read by the front (:mod:`.flow`), and
 the read-only system variables ``#4001..#4130`` and ``#5001..#5083`` from the modal state
 (:mod:`feed_axis_energy.gcode.interp.sysvars`; in LinuxCNC they are ordinary parameters).
 
+(2) User M codes: LinuxCNC runs the executable ``M100``..``M199`` of its ``USER_M_PATH``
+with the line's P and Q as its two arguments and waits for it to end; such a program moves
+no axis through the interpreter, so the code is accepted as no motion, with one warning per
+code (its run time is not counted). The other controls give these numbers other meanings,
+which may move the axes, so there they are errors naming the dialect: Fanuc calls a custom
+macro for an M code registered in its parameters (6080-6089), Mach3 runs the VB macro
+``Mnnn.m1s``, which may command motion, Haas has its own M100+ machine functions
+(probe arm, tailstock, spindle speed variation) and grbl knows no M code above M56.
+
+* No feed rate: a G1/G2/G3 (or a G5 spline) in G94 with no F since the start is refused
+  in every dialect (LinuxCNC "Cannot do G1 with zero feed rate", Fanuc alarm PS0011, grbl
+  error 22), naming the line and column; ``allow_no_feed`` (``--allow-no-feed``,
+  ``gcode.allow_no_feed``) previews it at the machine's axis limits with one warning, as
+  LinuxCNC's preview does (it starts with a feed rate of 1). An F0 in force is refused
+  always (the preview refuses it too); G93 needs F on every feed line, G95 an F and an S.
 * G4 P: LinuxCNC, grbl and Mach3 (its default configuration) read seconds. Fanuc (Series
   0i/30i: ``G04 P`` in milliseconds without a decimal point, ``G04 X`` in seconds) reads
   milliseconds; Haas mills read ``P`` with a decimal point as seconds and without one as
@@ -56,7 +71,11 @@ from dataclasses import dataclass
 
 from ..errors import ConfigError
 
-__all__ = ['Dialect', 'DIALECTS', 'dialect_by_name', 'DEFAULT_DIALECT', 'CONTROL_MODE_CODES']
+__all__ = ['Dialect', 'DIALECTS', 'dialect_by_name', 'DEFAULT_DIALECT', 'CONTROL_MODE_CODES',
+           'USER_M_CODES']
+
+USER_M_CODES = (100, 199)
+"""First and last user M code (LinuxCNC's ``M100``-``M199``; :attr:`Dialect.user_m`)."""
 
 # 10 x G code -> what it selects on the control (see the module docstring).
 CONTROL_MODE_CODES: dict[int, str] = {
@@ -105,6 +124,9 @@ class Dialect:
     modal_d
         A ``D`` word on any line selects the cutter radius offset that later G41/G42 use
         (Fanuc, Haas: ``T11 D11 M06``); LinuxCNC allows D only with G41/G42.
+    user_m
+        M100-M199 are the user's own M codes (LinuxCNC runs an external program): accepted
+        as no motion with one warning per code, their P and Q words its arguments.
     """
 
     name: str
@@ -118,11 +140,12 @@ class Dialect:
     g5_splines: bool = False
     control_modes: frozenset[int] = frozenset()
     modal_d: bool = False
+    user_m: bool = False
 
 
 DIALECTS: dict[str, Dialect] = {
     'linuxcnc': Dialect('linuxcnc', 'LinuxCNC 2.9 (RS274NGC)', normal_centre_zero='error',
-                        g5_splines=True),
+                        g5_splines=True, user_m=True),
     'fanuc': Dialect('fanuc', 'Fanuc Series 0i-MF / 30i (milling)', dwell_p='milliseconds',
                      dwell_x_seconds=True, harmless_m=_LINUXCNC_M | _FANUC_M,
                      fanuc_macro=True, control_modes=frozenset({50, 51, 80}), modal_d=True),

@@ -149,6 +149,15 @@ def arc_extremes(move: Move) -> list[Vec3]:
     return out
 
 
+def _length(start: Vec3, end: Vec3) -> float:
+    """Length [m] of a straight move, computed as :meth:`MoveStats.add_straight` computes it
+    with numpy (squares added in axis order, then the root), so both give the same bits."""
+    dx = end[0] - start[0]
+    dy = end[1] - start[1]
+    dz = end[2] - start[2]
+    return math.sqrt((dx * dx + dy * dy) + dz * dz)
+
+
 class MoveStats:
     """Accumulate :class:`ProgramStats` over a stream of moves.
 
@@ -200,9 +209,9 @@ class MoveStats:
             self.hi = list(self.position)
         self._grow(move.start)
         if kind == MoveKind.RAPID:
-            self.traverse_length_m += math.dist(move.start, move.end)
+            self.traverse_length_m += _length(move.start, move.end)
         elif kind == MoveKind.LINEAR:
-            self.feed_length_m += math.dist(move.start, move.end)
+            self.feed_length_m += _length(move.start, move.end)
         else:
             self.feed_length_m += move.length_m
             for p in arc_extremes(move):
@@ -229,8 +238,9 @@ class MoveStats:
         self.counts[MoveKind.RAPID] += n_rapid
         self.counts[MoveKind.LINEAR] += len(moves) - n_rapid
         d = end - start
-        dist = np.sqrt(np.einsum('ij,ij->i', d, d))
-        # added one by one as add() does (sum() adds in order)
+        # the length as add() computes it, bit for bit (_length: squares added in axis
+        # order, one rounding each), added one by one as add() does (sum() adds in order)
+        dist = np.sqrt((d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) + d[:, 2] * d[:, 2])
         self.traverse_length_m = sum(dist[rapid].tolist(), self.traverse_length_m)
         self.feed_length_m = sum(dist[~rapid].tolist(), self.feed_length_m)
         if self.lo is None:

@@ -210,12 +210,14 @@ class Machine:
 
     def gcode_keywords(self) -> dict[str, Any]:
         """Keywords for :func:`.gcode.load_gcode` from this machine: G28 position, tool
-        table and dialect.
+        table, dialect, subroutine path, ``strict_tools`` and ``allow_no_feed``.
 
         ``load_gcode(path, **machine.gcode_keywords())`` runs a program on this machine.
         """
-        return {'home': self.home_point(), 'tools': self.gcode.tools,
-                'dialect': self.gcode.dialect}
+        g = self.gcode
+        return {'home': self.home_point(), 'tools': g.tools, 'dialect': g.dialect,
+                'search_path': g.subroutine_path, 'strict_tools': g.strict_tools,
+                'allow_no_feed': g.allow_no_feed}
 
     @property
     def axis_names(self) -> tuple[str, ...]:

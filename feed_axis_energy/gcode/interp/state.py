@@ -73,7 +73,8 @@ class InterpreterState:
     comp_code: int | None
     pending_lineno: int
     tool_change: bool
-    tools: dict[int, ToolSpec] | None
+    tools: dict[int, ToolSpec]
+    allow_no_feed: bool
     tool_selected: int
     tool_loaded: int
     on_tool: Callable[[int], None] | None
@@ -82,6 +83,7 @@ class InterpreterState:
     dialect: Dialect
     src: Block | None
     io_lineno: int
+    user_m_lineno: int
     warned: set[str]
     ignore_axes: frozenset[str]
     rpm: float
@@ -100,6 +102,9 @@ class InterpreterState:
 
     @abstractmethod
     def first_axis(self, d: dict[str, str | float]) -> str: ...
+
+    @abstractmethod
+    def missing_tool(self, number: int) -> None: ...
 
     # comp.py
     @abstractmethod
