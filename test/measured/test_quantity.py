@@ -273,3 +273,14 @@ def test_compare_table_shows_the_quantity_with_units(tmp_path, capsys):
     assert 'current per axis' in text and 'RMSE [A]' in text and 'bias [A]' in text
     assert 'kt [N·m/A]' in text
     assert 'anti-correlated' in text and 'instrument.invert: [X]' in text
+
+
+def test_compare_report_shows_the_trace_in_its_unit(tmp_path, capsys):
+    manifest, _ = write_drive_campaign(tmp_path, rate_hz=100.0, noise=0.02, flip=('Y',))
+    report = tmp_path / 'rep'
+    assert main(['compare', str(manifest), '--quiet', '--report', str(report)]) == 0
+    html = (report / 'index.html').read_text(encoding='utf-8')
+    # the trace plot comes before the three power plots, and the table is in A
+    assert html.count('<img src="data:image/png;base64,') == 4
+    assert 'torque-producing motor current [A]' in html and 'N·m/A' in html
+    assert 'Time-shift and sign warnings' in html and 'instrument.invert: [Y]' in html
