@@ -189,3 +189,11 @@ def test_fit_loss_steady_refuses_a_drive_trace(tmp_path, capsys):
     manifest, _ = write_fit_campaign(tmp_path)
     assert main(['fit-loss', str(manifest)]) == 1
     assert '--method samples' in capsys.readouterr().err
+
+
+def test_analyze_refuses_a_drive_trace_by_name(tmp_path, capsys):
+    manifest, _ = write_fit_campaign(tmp_path)
+    assert main(['analyze', str(manifest), '--quiet']) == 1
+    err = capsys.readouterr().err
+    assert 'runs[0].instrument.measures' in err and 'power traces only' in err
+    assert 'Traceback' not in err
