@@ -48,6 +48,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='replace an existing --out-machine file (never through a symbolic '
                         'link)')
     p.add_argument('--json', action='store_true', help='print one JSON object')
+    p.add_argument('--fit-kt', action='store_true',
+                   help='with --method samples on a current trace: fit the torque constants '
+                        'even where the manifest or the machine config declares them (a '
+                        'fitted kt is written into axes.<A>.drive.kt_nm_a with --out-machine)')
     p.add_argument('--method', choices=('steady', 'samples'), default='steady',
                    help='steady (default): the paper\'s power regression on steady segments; '
                         'samples: Coulomb + viscous loss and the motor inertia fitted to every '
@@ -107,6 +111,11 @@ def run(args: argparse.Namespace) -> int:
         if axis not in machine.axis_names:
             print(f'error: machine {machine.name!r} has no axis {axis!r}', file=sys.stderr)
             return 1
+    if args.fit_kt and (args.method != 'samples'
+                        or any(s.instrument.measures != 'current' for s in specs)):
+        print('error: --fit-kt fits torque constants with --method samples on runs whose '
+              'instrument measures current', file=sys.stderr)
+        return 1
     if args.method == 'samples':
         return _run_samples(args, runs, specs, machine, machine_path, axes)
     drive = sorted({s.instrument.measures for s in specs
@@ -204,8 +213,11 @@ def _run_samples(args: argparse.Namespace, runs: list, specs: list, machine,
     options = SampleFitOptions(min_speed_m_s=args.min_speed, accel_m_s2=args.max_accel)
     measures = sorted({s.instrument.measures for s in specs})
     if len(measures) == 1 and not quantity_of(measures[0]).is_power:
+        gains = _gains(specs, machine, measures[0])
+        if args.fit_kt:
+            gains = {a: None for a in gains}
         fits = fit_drive_samples(runs, machine=machine, measures=measures[0],
-                                 gains=_gains(specs, machine, measures[0]), axes=axes,
+                                 gains=gains, axes=axes,
                                  velocity=velocity, invert=[s.instrument.invert for s in specs],
                                  options=options)
         show = (lambda: _print_drive(fits, specs, velocity, machine))

@@ -197,3 +197,30 @@ def test_analyze_refuses_a_drive_trace_by_name(tmp_path, capsys):
     err = capsys.readouterr().err
     assert 'runs[0].instrument.measures' in err and 'power traces only' in err
     assert 'Traceback' not in err
+
+
+def test_fit_kt_replaces_a_wrong_declared_torque_constant(tmp_path, capsys):
+    manifest, _ = write_fit_campaign(tmp_path)
+    doc = yaml.safe_load(manifest.read_text(encoding='utf-8'))
+    doc['runs'][0]['instrument']['kt_nm_a'] = {a: 1.3 * kt for a, kt in KT.items()}
+    manifest.write_text(yaml.safe_dump(doc), encoding='utf-8')
+    assert main(['fit-loss', str(manifest), '--method', 'samples', '--json']) == 0
+    declared = json.loads(capsys.readouterr().out)['fits']
+    assert declared['X']['torque_per_unit'] == pytest.approx(1.3 * KT['X'])
+    assert not declared['X']['torque_per_unit_fitted']
+    # horizontal X: a wrong kt is absorbed (friction and inertia come out 1.3 times too
+    # large, the residual stays); vertical Y: gravity pins the scale, the residual shows it
+    assert declared['X']['coulomb_n'] == pytest.approx(1.3 * LOSS['X'][0], rel=0.05)
+    assert declared['Y']['rmse'] > 5 * 0.01
+    assert main(['fit-loss', str(manifest), '--method', 'samples', '--fit-kt', '--json']) == 0
+    fitted = json.loads(capsys.readouterr().out)['fits']
+    for axis in ('X', 'Y'):
+        assert fitted[axis]['torque_per_unit'] == pytest.approx(KT[axis], rel=0.02)
+        assert fitted[axis]['coulomb_n'] == pytest.approx(LOSS[axis][0], rel=0.05)
+        assert fitted[axis]['rmse'] == pytest.approx(0.01, rel=0.1)
+
+
+def test_fit_kt_needs_samples_and_current(tmp_path, capsys):
+    manifest, _ = write_fit_campaign(tmp_path, measures='torque')
+    assert main(['fit-loss', str(manifest), '--method', 'samples', '--fit-kt']) == 1
+    assert '--fit-kt fits torque constants' in capsys.readouterr().err
