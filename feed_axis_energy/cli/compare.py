@@ -29,7 +29,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     'of the measured record by cross-correlation, average the simulated power '
                     'over each measuring interval and print the paper\'s Table-1 metrics '
                     '(average/maximum differential [W] and percentual [%] error), the energy '
-                    'error and the RMSE per run and per load. See docs/compare.md.')
+                    'error and the RMSE per run and per load. A drive trace (instrument.measures: '
+                    'current, torque or force) is compared with the motor torque / kt, '
+                    '1 or lead/2pi, with RMSE, bias and R2 per axis in its unit and the Table-1 '
+                    'rows of I*kt*omega in W. See docs/compare.md.')
     p.add_argument('manifest', type=Path, metavar='MANIFEST', help='campaign manifest (YAML)')
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the tables (keys in docs/compare.md)')

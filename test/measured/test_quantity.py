@@ -284,3 +284,14 @@ def test_compare_report_shows_the_trace_in_its_unit(tmp_path, capsys):
     assert html.count('<img src="data:image/png;base64,') == 4
     assert 'torque-producing motor current [A]' in html and 'N·m/A' in html
     assert 'Time-shift and sign warnings' in html and 'instrument.invert: [Y]' in html
+
+
+@pytest.mark.parametrize('measures', ['current', 'force'])
+def test_import_refuses_a_drive_trace_naming_the_run(tmp_path, capsys, measures):
+    manifest, _ = write_drive_campaign(tmp_path, measures=measures, rate_hz=100.0)
+    out = tmp_path / 'bags'
+    assert main(['import', str(manifest), '--out', str(out), '--quiet']) == 1
+    err = capsys.readouterr().err
+    assert 'runs[0].axes' in err and 'compare such a run from its CSV file' in err
+    assert 'Traceback' not in err
+    assert not out.exists() or not any(out.iterdir())
