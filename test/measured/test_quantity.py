@@ -295,3 +295,22 @@ def test_import_refuses_a_drive_trace_naming_the_run(tmp_path, capsys, measures)
     assert 'runs[0].axes' in err and 'compare such a run from its CSV file' in err
     assert 'Traceback' not in err
     assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.parametrize('lead_m', [0.005, 0.04])
+def test_force_of_a_linear_stand_is_the_axis_force_whatever_the_lead(tmp_path, lead_m):
+    # a stand without rotating parts (inertias 0, efficiency 1): M·2·pi/lead is the force
+    # m·a + m·g·sin(incl) + F_loss of the dynamics, and the lead cancels
+    from feed_axis_energy.machine.file import machine_from_dict, machine_to_dict
+    from feed_axis_energy.measured.quantity import predicted_signal, torque_per_unit
+    _, _, machine, _ = _truth(tmp_path, incl=30.0)
+    d = machine_to_dict(machine)
+    for axis in d['axes'].values():
+        axis['screw']['lead_m'] = lead_m
+        axis['inertias'] = {'motor_kg_m2': 0.0, 'coupling_kg_m2': 0.0, 'screw_kg_m2': 0.0}
+    stand = machine_from_dict(d, file='<stand>')
+    sim = simulate_program(load_gcode(tmp_path / 'program.nc'), stand)
+    gains = torque_per_unit('force', stand, ('X', 'Y'))
+    force = predicted_signal('force', sim, stand, ('X', 'Y'), gains=gains)
+    np.testing.assert_allclose(force, sim.dynamics.force_n, rtol=1e-9, atol=1e-9)
+    assert np.abs(force[:, 1]).max() > 8.0 * 9.80665 * 0.5 * 0.99     # gravity on Y at 30°
