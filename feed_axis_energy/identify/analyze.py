@@ -41,7 +41,8 @@ from ..physics import state_from_simulation
 from ..machine import load_machine, Machine, machine_warnings, observed_range, RangeUse
 from ..errors import ConfigError
 from ..measured import (align_simulated, Campaign, CampaignComparison, compare_campaign,
-                        load_run, MotionCache, offset_dict, RunComparison, simulate_declared,
+                        load_run, MotionCache, offset_dict, quantity_of, RunComparison,
+                        simulate_declared,
                         stamp_shift)
 from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
@@ -277,6 +278,15 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     ids = tuple(EFFECTS) if options.effects is None else tuple(options.effects)
     for effect_id in ids:
         get_effect(effect_id)
+    selected = campaign.runs if runs is None else [r for r in campaign.runs if r.name in runs]
+    for spec in selected:
+        if not quantity_of(spec.instrument.measures).is_power:
+            # the catalog's effects are powers; their current, torque or force forms are not
+            # written yet
+            msg = (f'run {spec.name!r} measures {spec.instrument.measures}: analyze selects '
+                   'effects on power traces only; compare and fit-loss --method samples work '
+                   'on drive traces')
+            raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.instrument.measures')
 
     def report(x: float) -> None:
         if progress is not None:
