@@ -2,7 +2,7 @@
 
 Truth = declared machine + catalog effects (``--effects``) [+ an effect outside the catalog];
 the instrument averages over 50 ms, adds noise, quantises and starts at an unknown offset.
-See :mod:`feed_axis_energy.identify.rig` for the file layout.
+See :mod:`feed_axis_energy.identify.rig.campaign` for the file layout.
 """
 from __future__ import annotations
 

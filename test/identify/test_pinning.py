@@ -13,7 +13,7 @@ import pytest
 
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.identify import analyze_campaign, make_campaign, parse_effects, RigConfig
-from feed_axis_energy.identify.rigtruth import Instrument
+from feed_axis_energy.identify.rig import Instrument
 from feed_axis_energy.measured import compare_campaign, load_campaign
 
 ROOT = Path(__file__).resolve().parents[2]

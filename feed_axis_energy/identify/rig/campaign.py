@@ -1,7 +1,7 @@
 """Virtual test rig: "measured" campaigns made from a truth model, for testing the analysis.
 
 The truth model and the instrument that records it (one run, in memory) are in
-:mod:`.rigtruth`; this module builds campaigns of such runs (one per feed and load) and
+:mod:`.truth`; this module builds campaigns of such runs (one per feed and load) and
 writes them to disk.
 
 Output directory (:func:`make_campaign`)::
@@ -30,11 +30,11 @@ from typing import Any, Callable
 import numpy as np
 import yaml
 
-from ..effects import get_effect
-from ..errors import ConfigError
-from ..machine import load_machine
-from ..outputs import marked_or_empty, staged_directory
-from .rigtruth import EffectSpec, Instrument, OUTSIDE_KINDS, RigRun, simulate_run
+from ...effects import get_effect
+from ...errors import ConfigError
+from ...machine import load_machine
+from ...outputs import marked_or_empty, staged_directory
+from .truth import EffectSpec, Instrument, OUTSIDE_KINDS, RigRun, simulate_run
 
 __all__ = ['PAPER_LOADS_KG', 'PAPER_FEEDS_MM_S', 'CLOCK_START_MS', 'RigConfig', 'paper_scenario',
            'stroke_program', 'make_campaign']
@@ -175,7 +175,7 @@ def _write_csv(path: Path, run: RigRun, axes: tuple[str, ...]) -> None:
 
 
 def _write_bag(path: Path, run: RigRun, axes: tuple[str, ...]) -> None:
-    from ..record import bagio, StreamBagWriter
+    from ...record import bagio, StreamBagWriter
     power = run.measured_w
     total = power.sum(axis=1)
     both = np.column_stack([power, total])
