@@ -13,12 +13,28 @@ dialect        G4 P          G4 X         ``K0`` on a G17 arc  M98/M99      Macr
 ``haas``       see below     (axis word)  ignored, warning     yes          yes (+ M97)
 ``grbl``       seconds       (axis word)  ignored, warning     no           no
 ``mach3``      seconds       (axis word)  ignored, warning     yes          no
+``sinumerik``  (2)           (axis word)  ignored, warning     no (2)       no (2)
 =============  ============  ===========  ===================  ===========  =============
 
 (1) Fanuc Custom Macro B: ``WHILE``/``DO``/``END``, ``IF``/``GOTO``/``THEN``, ``G65``
 macro calls (and Haas ``M97`` local subprograms), read by the front (:mod:`.flow`), and
 the read-only system variables ``#4001..#4130`` and ``#5001..#5083`` from the modal state
 (:mod:`feed_axis_energy.gcode.interp.sysvars`; in LinuxCNC they are ordinary parameters).
+
+(2) Sinumerik (840D sl, milling) is Siemens' own NC language, read by its own front
+(:mod:`feed_axis_energy.gcode.siemens`: ``G4 F`` seconds / ``G4 S`` spindle revolutions,
+subprograms by name, ``R`` parameters and ``DEF`` variables, ``IF``/``GOTOF``/``WHILE``/
+``FOR``/``REPEAT``/``LOOP``, frames ``TRANS``/``ROT``/``SCALE``/``MIRROR`` (+ ``A..``),
+``G54``-``G57``/``G505``-``G599``, ``G70``/``G71``/``G700``/``G710``, polar ``G110``-``G112``
+``AP=``/``RP=``, ``CR=``/``CIP``/``CT`` arcs, ``AC()``/``IC()``, drilling cycles
+``CYCLE81``/``82``/``83``/``85``/``89`` with ``MCALL`` and ``HOLES1``/``HOLES2``), which hands
+each block on to the interpreter as RS274NGC words in machine coordinates. Chosen with
+``--dialect sinumerik`` or from the file: a ``.MPF``/``.SPF`` name, a ``%_N_NAME_MPF``
+header or ``G710``/``G700`` among the first lines select it where the dialect would
+otherwise be ``linuxcnc`` (the default), with one warning saying why. Cycles that cannot be
+simulated (pockets, ``CYCLE800`` swivelling, thread cycles, ...) are refused by name.
+Harmless M codes add clamping M10/M11 and gear stages M40-M45; ``M17`` returns from a
+subprogram.
 
 * G4 P: LinuxCNC, grbl and Mach3 (its default configuration) read seconds. Fanuc (Series
   0i/30i: ``G04 P`` in milliseconds without a decimal point, ``G04 X`` in seconds) reads
@@ -73,6 +89,9 @@ _FANUC_M = frozenset({10, 11, 12, 13, 16, 17, 19, 21, 22, 23, 24, 25, 26, 27, 28
                       56, 57, 58, 59, 62, 63, 64, 65, 66, 67, 68, 69, 73, 74, 75, 76, 83,
                       84, 82, 86, 88, 89})
 
+# Sinumerik machine M codes without axis motion: clamping (M10/M11), gear stages (M40-M45).
+_SIEMENS_M = frozenset({10, 11, 40, 41, 42, 43, 44, 45})
+
 
 @dataclass(frozen=True)
 class Dialect:
@@ -105,6 +124,9 @@ class Dialect:
     modal_d
         A ``D`` word on any line selects the cutter radius offset that later G41/G42 use
         (Fanuc, Haas: ``T11 D11 M06``); LinuxCNC allows D only with G41/G42.
+    siemens
+        The program is in Siemens' NC language, read by its own front
+        (:mod:`feed_axis_energy.gcode.siemens`), which hands RS274NGC words on.
     """
 
     name: str
@@ -118,6 +140,7 @@ class Dialect:
     g5_splines: bool = False
     control_modes: frozenset[int] = frozenset()
     modal_d: bool = False
+    siemens: bool = False
 
 
 DIALECTS: dict[str, Dialect] = {
@@ -132,6 +155,9 @@ DIALECTS: dict[str, Dialect] = {
     'grbl': Dialect('grbl', 'grbl 1.1', fanuc_subprograms=False),
     'mach3': Dialect('mach3', 'Mach3 Mill (default configuration)',
                      harmless_m=_LINUXCNC_M | {40, 41}),
+    'sinumerik': Dialect('sinumerik', 'Siemens Sinumerik 840D sl (milling)',
+                         harmless_m=_LINUXCNC_M | _SIEMENS_M, fanuc_subprograms=False,
+                         siemens=True),
 }
 DEFAULT_DIALECT = DIALECTS['linuxcnc']
 
