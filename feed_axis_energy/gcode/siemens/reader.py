@@ -53,10 +53,12 @@ from ...errors import GcodeError, shorten
 
 __all__ = ['SiemensReader', 'read_siemens_blocks', 'decode_siemens', 'read_siemens_program',
            'MAX_CALL_DEPTH',
-           'MAX_EXECUTED_LINES']
+           'MAX_EXECUTED_LINES', 'MAX_LOOP_PASSES']
 
 MAX_CALL_DEPTH = 16
 """Program levels (calls nested) before a call is refused as a recursion without end."""
+MAX_LOOP_PASSES = 1_000_000
+"""Passes of one loop (or jumps back from one line) before the run is stopped."""
 MAX_EXECUTED_LINES = 50_000_000
 """Lines executed in one run (each loop pass counts again) before it is stopped."""
 
@@ -132,7 +134,7 @@ class _Level:
     """One program level: a running (sub)program or a section repeat."""
 
     __slots__ = ('file', 'pc', 'local', 'types', 'kind', 'name', 'main_line', 'entry',
-                 'repeats', 'stop', 'for_vars', 'passes', 'args')
+                 'repeats', 'stop', 'for_vars', 'passes', 'args', 'modal')
 
     def __init__(self, file: SiemensFile, pc: int, *, kind: str, name: str = '',
                  main_line: int | None = None, repeats: int = 1, stop: int = -1,
@@ -150,6 +152,7 @@ class _Level:
         self.for_vars: dict[int, tuple[str, float]] = {}
         self.passes: dict[int, int] = {}
         self.args: list[Any] = []
+        self.modal = False          # entered by MCALL: its own moves call nothing
 
 
 def read_siemens_blocks(text: str, *, file: str = '<string>',
@@ -319,8 +322,8 @@ class SiemensReader:
     # -- control flow ----------------------------------------------------------------------
     def _count_pass(self, lv: _Level, idx: int, s: Scanner) -> None:
         n = lv.passes.get(idx, 0) + 1
-        if n > 1_000_000:
-            s.fail('loop ran more than 1000000 times (no end?)', 0)
+        if n > MAX_LOOP_PASSES:
+            s.fail(f'loop ran more than {MAX_LOOP_PASSES} times (no end?)', 0)
         lv.passes[idx] = n
 
     def _st_if(self, lv: _Level, idx: int, s: Scanner) -> list[Words]:
@@ -491,6 +494,7 @@ class SiemensReader:
             s.expression()
             s.expect(']')
         while True:
+            s.skip()
             at = s.pos
             name = s.ident()
             if not name:
@@ -742,7 +746,11 @@ class SiemensReader:
         """The modal call after a block that moved."""
         assert self.mcall is not None
         name, args, at = self.mcall
-        return self._call(lv, name, args, s, at)
+        depth = len(self.frames)
+        out = self._call(lv, name, args, s, at)
+        if len(self.frames) > depth:
+            self.frames[-1].modal = True
+        return out
 
     def _pattern(self, name: str, args: list[Any], s: Scanner) -> list[Words]:
         g = self.geo
@@ -877,7 +885,8 @@ class SiemensReader:
             return out
         out = self.geo.block(words, s)
         if self.mcall is not None and any(o[:1] and o[0][0] == 'G' and o[0][1] <= 3
-                                          and len(o) > 1 for o in out):
+                                          and len(o) > 1 for o in out) and not any(
+                                              x.modal for x in self.frames):
             out += self._modal_call(lv, s)
         return out
 

@@ -1,0 +1,108 @@
+"""Bad Sinumerik input: our error type naming file, line, column and the text; refusals of
+what cannot be simulated, each place listed by ``check``."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+import subprocess
+import sys
+
+import pytest
+
+from feed_axis_energy.errors import GcodeError
+from feed_axis_energy.gcode import iter_moves, parse_gcode
+from feed_axis_energy.gcode.siemens import reader
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def refused(text: str, **kw) -> GcodeError:
+    with pytest.raises(GcodeError) as info:
+        parse_gcode(text, dialect='sinumerik', file='P.MPF', **kw)
+    return info.value
+
+
+@pytest.mark.parametrize('text, line, column, message, near', [
+    ('G0 X0\nFOOBAR X1\n', 2, 1, "unknown keyword or address 'FOOBAR'", 'FOOBAR'),
+    ('G0 X0\nFOOBAR\n', 2, 1, "unknown keyword or subprogram 'FOOBAR'", 'FOOBAR'),
+    ('R1=1\nIF R1==1\nG1 X1\n', 2, 1, 'IF without ENDIF', 'IF'),
+    ('G1 X1\n  ENDIF\n', 2, 3, 'ENDIF without a matching IF', 'ENDIF'),
+    ('WHILE R1<2\nR1=R1+1\nENDFOR\n', 3, 1, 'ENDFOR without a matching FOR', 'ENDFOR'),
+    ('G0 X0\nGOTOF NOWHERE\nNOWHERE_B:\n', 2, 7, 'no label NOWHERE after this line',
+     'NOWHERE'),
+    ('BACK:\nIF R1==0 GOTOF BACK\n', 2, 16, 'no label BACK after this line', 'BACK'),
+    ('TRANS X=ABC\n', 1, 9, "unknown variable 'ABC'", 'ABC'),
+    ('ROT Z"45"\n', 1, 6, 'expected a number', '"45"'),
+    ('G0 X0 Y0\nPOCKET3(100,0,2,-10,69,45,6,53,53,28,4)\n', 2, 1,
+     'cycle POCKET3 cannot be simulated', 'POCKET3'),
+    ('G0 X0\nN20 CYCLE800(1,"TC1",0,57,0,0,0,30,0,0,0,0,0,-1)\n', 2, 5,
+     'cycle CYCLE800 cannot be simulated', 'CYCLE800'),
+    ('G1 X10 ANG=30 F100\n', 1, 8, 'ANG= (contour definition', 'ANG=30'),
+    ('G1 X=$AA_IW[X]\n', 1, 6, 'system variable $AA_IW is not simulated', '$AA_IW'),
+    ('G0 X0\nG2 X10 Y10 CR=2 F100\n', 2, 12, 'CR=2 is shorter than half the chord', 'CR=2'),
+    ('DEF REAL X\n', 1, 10, 'X is an address or keyword', 'X'),
+    ('R1=1/0\n', 1, 5, 'division by zero', '/0'),
+    ('AROT X30\nG2 X10 Y0 CR=5 F100\n', 2, 4, 'rotates it out of the working plane', 'X10'),
+    ('G0 X0\nCYCLE81(10, 0, 2, 5)\n', 2, 1, 'final depth (5) is not below', 'CYCLE81'),
+    ('G0 X0\nCYCLE81(100,0,1,1.5,,0,10,1,11)\n', 2, 1, 'parameter 7 (10.0) is not simulated',
+     'CYCLE81'),
+])
+def test_bad_input_names_the_place(text, line, column, message, near):
+    err = refused(text)
+    assert err.file == 'P.MPF'
+    assert (err.line, err.column) == (line, column), str(err)
+    assert message in err.reason, str(err)
+    assert err.text.startswith(near), str(err)
+
+
+def test_recursive_subprogram_is_bounded(tmp_path: Path):
+    (tmp_path / 'AGAIN.SPF').write_text('G91 G1 X1 F100\nAGAIN\nM17\n')
+    main = tmp_path / 'MAIN.MPF'
+    main.write_text('G1 X0 F100\nAGAIN\nM30\n')
+    with pytest.raises(GcodeError, match='16 levels deep') as info:
+        list(iter_moves(main))
+    assert info.value.file.endswith('AGAIN.SPF') and info.value.line == 2
+
+
+def test_missing_subprogram_file_names_the_directory(tmp_path: Path):
+    main = tmp_path / 'MAIN.MPF'
+    main.write_text('G1 X0 F100\nL200\nM30\n')
+    with pytest.raises(GcodeError, match=r"subprogram 'L200'.*L200\.SPF") as info:
+        list(iter_moves(main))
+    assert (info.value.line, info.value.column) == (2, 1)
+
+
+def test_proc_with_too_many_arguments(tmp_path: Path):
+    (tmp_path / 'TWO.SPF').write_text('PROC TWO(REAL A_1, REAL B_1)\nG1 X=A_1 Y=B_1\nRET\n')
+    main = tmp_path / 'MAIN.MPF'
+    main.write_text('F100\nTWO(1, 2, 3)\nM30\n')
+    with pytest.raises(GcodeError, match='takes 2 arguments, got 3'):
+        list(iter_moves(main))
+
+
+def test_endless_loop_stops_with_an_error(monkeypatch):
+    monkeypatch.setattr(reader, 'MAX_LOOP_PASSES', 1000)    # the limit, not its size
+    with pytest.raises(GcodeError, match='more than 1000 times') as info:
+        parse_gcode('LOOP\nR1=R1+1\nENDLOOP\n', dialect='sinumerik')
+    assert info.value.line == 3
+
+
+def test_check_lists_every_refused_place(tmp_path: Path):
+    prog = tmp_path / 'REFUSE.MPF'
+    prog.write_text('G0 X0 Y0 Z10\n'
+                    'POCKET4(100,0,2,-16,27,53,53,2.5)\n'       # line 2
+                    'G1 X10 F100\n'
+                    'CYCLE800(1,"TC1",0,57)\n'                   # line 4
+                    'LAB: SLOT1(1,2,3)\n'                        # line 5
+                    'REPEATB LAB P2\n'                           # the same place again
+                    'G1 X20 RND=2\n'                             # line 7
+                    'M30\n')
+    out = subprocess.run([sys.executable, '-m', 'feed_axis_energy', 'check', '--json',
+                          '--quiet', str(prog)], capture_output=True, text=True, cwd=REPO,
+                         timeout=120)
+    assert out.returncode == 1, out.stderr
+    doc = json.loads(out.stdout)
+    errors = doc['programs'][0]['errors']
+    assert [(e['line'], e['column']) for e in errors] == [(2, 1), (4, 1), (5, 6), (7, 8)]
+    assert 'POCKET4' in errors[0]['message'] and 'CYCLE800' in errors[1]['message']
+    assert 'Traceback' not in out.stderr
