@@ -557,8 +557,10 @@ class SiemensReader:
             s.fail(f'cycle {name} cannot be simulated (it is not one of the drilling cycles '
                    f'{", ".join(sorted(DRILLING))} or the patterns HOLES1/HOLES2)', at)
         where = ', '.join(str(d) for d in self.dirs) or 'no directory (a program from text)'
+        if file_name:
+            s.fail(f'subprogram file {file_name!r} not found (looked in {where})', at)
         s.fail(f'unknown keyword or subprogram {name!r} (no PROC {name} and no file '
-               f'{(file_name or name + ".SPF")} in {where})', at)
+               f'{name}.SPF in {where})', at)
 
     def _arguments(self, s: Scanner) -> list[Any]:
         args: list[Any] = []
