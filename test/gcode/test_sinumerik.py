@@ -332,3 +332,18 @@ def test_named_tools_and_machine_words_pass():
                'G0 X1\nGROUP_END(0,0)\nM30\n')
     assert ends(prog) == [(1, 0, 0)]
     assert any('FRAESER_10St' in w for w in prog.warnings)
+
+
+def test_proc_save_restores_frame_units_and_plane(tmp_path: Path):
+    (tmp_path / 'SHIFTED.SPF').write_text('PROC SHIFTED SAVE\nTRANS X100\nG91 G18\n'
+                                          'G1 X1\nRET\n')
+    (tmp_path / 'PLAIN.SPF').write_text('PROC PLAIN\nTRANS X100\nRET\n')
+    main = tmp_path / 'M.MPF'
+    main.write_text('G17 G90 G1 X0 Y0 Z0 F100\nSHIFTED\nG1 X5\nG2 X15 Y0 CR=5\n'
+                    'PLAIN\nG1 X5\nM30\n')
+    prog = load_gcode(main)
+    # in SHIFTED: G91 X1 from program X=-100 (machine 0) -> machine 1; after its return the
+    # frame, G90 and G17 are back: X5 is machine 5, the arc is in XY; PLAIN keeps its frame:
+    # X5 -> machine 105
+    assert [p[0] for p in ends(prog)] == [0.0, 1.0, 5.0, 15.0, 105.0]
+    assert prog.moves[3].plane == 17

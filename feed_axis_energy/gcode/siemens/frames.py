@@ -109,6 +109,10 @@ class Frame:
         self.matrix = _mul(self.matrix, matrix)
         self._inv = None
 
+    def forget_inverse(self) -> None:
+        """After the matrix was set from outside: compute the inverse again when needed."""
+        self._inv = None
+
     def to_machine(self, p: Vec3, *, suppress: bool = False) -> Vec3:
         """Machine coordinates [mm] of program point ``p`` (``suppress``: G53/SUPA)."""
         if suppress:

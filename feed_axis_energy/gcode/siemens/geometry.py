@@ -82,6 +82,24 @@ class Geometry:
         self.comp = 40
         self.offsets: dict[int, Vec3] = {}  # settable work offsets given [mm]
 
+    # -- PROC ... SAVE ---------------------------------------------------------------------
+    def snapshot(self) -> tuple[object, ...]:
+        """The modal state a ``PROC ... SAVE`` subprogram restores on return: frames, work
+        offset, units, G90/G91, plane, motion mode, pole."""
+        f = self.frame
+        return (f.matrix, f.shift, f.offset, self.unit, self.feed_inch, self.absolute,
+                self.plane, self.motion, self.pole, self.ap, self.rp)
+
+    def restore(self, saved: tuple[object, ...]) -> Words:
+        """Restore :meth:`snapshot`; the interpreter words that follow (the plane)."""
+        f = self.frame
+        plane = self.plane
+        (matrix, shift, offset, self.unit, self.feed_inch, self.absolute, self.plane,
+         self.motion, self.pole, self.ap, self.rp) = saved     # type: ignore[assignment]
+        f.matrix, f.shift, f.offset = matrix, shift, offset    # type: ignore[assignment]
+        f.forget_inverse()
+        return [] if plane == self.plane else [('G', float(self.plane))]
+
     # -- positions -------------------------------------------------------------------------
     def program_position(self, *, suppress: bool = False) -> Vec3:
         """The current position in program coordinates [mm]."""

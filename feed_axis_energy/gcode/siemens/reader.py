@@ -65,6 +65,9 @@ MAX_EXECUTED_LINES = 50_000_000
 _CYCLE_RE = re.compile(r'(CYCLE\d+|POCKET\d*|SLOT\d*|LONGHOLE|HOLES\d|E_[A-Z_]+|F_[A-Z_]+|'
                        r'CONTPRON|CONTDCON)$')
 _NAME_RE = re.compile(r'[A-Z_][A-Z0-9_]*$')
+_NUMBER = r'[-+]?(?:\d+\.?\d*|\.\d+)'
+_PLAIN_RE = re.compile(r' *(?:N\d+ *)?((?:[ABCDFGHIJKMSTXYZUVW] *' + _NUMBER + r' *)+)')
+_PLAIN_WORD_RE = re.compile(r'([A-Z]) *(' + _NUMBER + ')')
 _FILE_RE = re.compile(r'[^/\\\x00]+$')
 _ADDRESS = frozenset('ABCDFGHIJKMPSTXYZUVW')
 _EQ_ADDRESSES = frozenset({'CR', 'AP', 'RP', 'I1', 'J1', 'K1', 'TURN', 'RPL'})
@@ -134,7 +137,7 @@ class _Level:
     """One program level: a running (sub)program or a section repeat."""
 
     __slots__ = ('file', 'pc', 'local', 'types', 'kind', 'name', 'main_line', 'entry',
-                 'repeats', 'stop', 'for_vars', 'passes', 'args', 'modal')
+                 'repeats', 'stop', 'for_vars', 'passes', 'args', 'modal', 'saved')
 
     def __init__(self, file: SiemensFile, pc: int, *, kind: str, name: str = '',
                  main_line: int | None = None, repeats: int = 1, stop: int = -1,
@@ -153,6 +156,7 @@ class _Level:
         self.passes: dict[int, int] = {}
         self.args: list[Any] = []
         self.modal = False          # entered by MCALL: its own moves call nothing
+        self.saved: tuple[object, ...] | None = None   # PROC ... SAVE: the state to restore
 
 
 def read_siemens_blocks(text: str, *, file: str = '<string>',
@@ -212,6 +216,7 @@ class SiemensReader:
         self.executed = 0
         self._warned: set[str] = set()
         self._reported: set[tuple[str, int, int, str]] = set()
+        self._after: list[Words] = []       # blocks a return hands on (PROC ... SAVE)
         self._place = (file, 0)
 
     # -- helpers ---------------------------------------------------------------------------
@@ -278,6 +283,7 @@ class SiemensReader:
                 if lv.kind == 'main':
                     return
                 self._return()
+                yield from self._restored(f.name, len(f.lines), lv.main_line)
                 continue
             idx = lv.pc
             lv.pc += 1
@@ -290,6 +296,14 @@ class SiemensReader:
             text = re.sub(r'[()"=,]', ' ', code)
             for words in self._line(lv, idx, raw, code):
                 yield Block(idx + 1, words, f.name, text, main_line)
+            if self._after:
+                yield from self._restored(f.name, idx + 1, main_line)
+
+    def _restored(self, name: str, line: int, main_line: int | None) -> Iterator[Block]:
+        """The blocks a return handed on (the plane a ``PROC ... SAVE`` restores)."""
+        for words in self._after:
+            yield Block(line, words, name, '', main_line or line)
+        self._after = []
 
     def _line(self, lv: _Level, idx: int, raw: str, code: str) -> list[Words]:
         self.executed += 1
@@ -298,6 +312,16 @@ class SiemensReader:
             msg = (f'more than {MAX_EXECUTED_LINES} lines executed: a loop or subprogram '
                    'that never ends?')
             raise GcodeError(msg, file=f.name, line=idx + 1, column=1, text=shorten(raw.strip()))
+        plain = _PLAIN_RE.fullmatch(code)
+        if plain is not None:              # address words with plain numbers: the usual line
+            s = Scanner(code, raw, file=f.name, line=idx + 1, lookup=self._lookup)
+            try:
+                words = [Word(m.group(1), float(m.group(2)), '', m.start())
+                         for m in _PLAIN_WORD_RE.finditer(code, plain.start(1))]
+                return self._block(lv, words, s)
+            except GcodeError as err:
+                self._report(err)
+                return []
         at, skip, _, _ = line_head(code)
         if code.lstrip().startswith('%'):
             if idx > lv.entry and lv.kind != 'repeat' and '_N_' in code:
@@ -647,6 +671,12 @@ class SiemensReader:
                     p.fail(f'array parameter {pname}[...] is not supported')
                 params.append((pname, _TYPES[kind]))
                 p.take(',')
+        while not p.at_end():
+            attribute = p.ident()
+            if not attribute:
+                break
+            if attribute == 'SAVE' and new.saved is None:
+                new.saved = self.geo.snapshot()
         if len(args) > len(params):
             s.fail(f'{new.name} takes {len(params)} argument{"s" if len(params) != 1 else ""},'
                    f' got {len(args)}', at)
@@ -688,6 +718,10 @@ class SiemensReader:
             self._bind(lv, f, start if lv.entry > 0 else -1, args, s, 0)
             return
         self.frames.pop()
+        if lv.saved is not None:
+            words = self.geo.restore(lv.saved)
+            if words:
+                self._after.append(words)
 
     def _st_ret(self, lv: _Level, idx: int, s: Scanner) -> list[Words]:
         s.ident()
@@ -873,7 +907,11 @@ class SiemensReader:
             repeats = self._repeat_count(s)
             self._end(s)
             return self._call(lv, call, args, s, at, repeats=repeats)
-        words = self._words(s)
+        return self._block(lv, self._words(s), s)
+
+    def _block(self, lv: _Level, words: list[Word], s: Scanner) -> list[Words]:
+        """The interpreter blocks of a block's words (the end of a subprogram, the modal
+        call after a move)."""
         if not words:
             return []
         ends = [w for w in words if w.name == 'M' and w.value in _END_M]

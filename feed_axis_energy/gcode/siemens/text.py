@@ -24,6 +24,7 @@ MAX_MAGNITUDE = 1.0e12
 """Largest magnitude of a value in an expression (as the RS274NGC front's bound)."""
 
 _UPPER = {c: c - 32 for c in range(ord('a'), ord('z') + 1)}
+_UPPER_TAB = {**_UPPER, ord('\t'): ord(' ')}
 _IDENT_START = frozenset('ABCDEFGHIJKLMNOPQRSTUVWXYZ_')
 _IDENT = frozenset('ABCDEFGHIJKLMNOPQRSTUVWXYZ_0123456789')
 _DIGITS = frozenset('0123456789')
@@ -32,6 +33,8 @@ _DIGITS = frozenset('0123456789')
 def code_part(raw: str) -> str:
     """The code of a line: the ``;`` comment cut off (a ``;`` inside a string stays), ASCII
     letters upper-cased outside strings, tabs made blanks; columns unchanged."""
+    if '"' not in raw:
+        return raw.split(';', 1)[0].translate(_UPPER_TAB)
     out = []
     in_string = False
     for ch in raw:
