@@ -83,8 +83,8 @@ def test_settable_offset_is_zero_with_a_warning():
 # -- units, absolute/incremental --------------------------------------------------------------
 def test_ac_ic_g90_g91():
     prog = run('G90 G1 X10 F100\nG1 X=IC(5)\nG91 G1 X5\nG1 X=AC(1)\nG1 Y2\nG90 Y1\nM30\n')
-    assert [p[:2] for p in ends(prog)] == [(10.0, 0.0), (15.0, 0.0), (20.0, 0.0),
-                                          (1.0, 0.0), (1.0, 2.0), (1.0, 1.0)]
+    assert [p[:2] for p in ends(prog)] == [
+        (10.0, 0.0), (15.0, 0.0), (20.0, 0.0), (1.0, 0.0), (1.0, 2.0), (1.0, 1.0)]
 
 
 def test_g700_converts_feed_g70_only_lengths():

@@ -8,7 +8,6 @@ prediction", KIT wbk, DOI 10.5445/IR/1000157789, CC BY-NC-ND 4.0 -- read unmodif
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import must_run
 import pytest
@@ -115,8 +114,8 @@ def test_corpus_przyklad_is_accepted():
     # the first line of each refused construct (each is refused at every place: counted
     # below); Zadanie also calls a subprogram file that is not in the corpus (EXTCALL "Zgrubne
     # ogolne.spf")
-    ('FinitoFinale__Zadanie.MPF', ({'Zgrubne ogolne.spf': 74, 'ANG=': 181, 'RND=': 184, 'POCKET4': 232,
-                                    'POCKET3': 258, 'HOLES1': 286, 'HOLES2': 292,
+    ('FinitoFinale__Zadanie.MPF', ({'Zgrubne ogolne.spf': 74, 'ANG=': 181, 'RND=': 184,
+                                    'POCKET4': 232, 'POCKET3': 258, 'HOLES1': 286, 'HOLES2': 292,
                                     'CYCLE801': 297, 'CYCLE840': 389}, 21)),
     ('Zad2__PRZYKLAD.nc', ({'ANG=': 183, 'RND=': 186, 'POCKET4': 242, 'POCKET3': 268,
                             'HOLES1': 296, 'HOLES2': 302, 'CYCLE801': 307, 'CYCLE840': 399},
