@@ -5,7 +5,10 @@
 simulated exactly raises :class:`~..errors.GcodeError` naming ``file:line:column`` and the
 offending word (a subroutine file names itself). Semantics are LinuxCNC 2.9's (RS274NGC),
 checked against its interpreter; where controls differ a :mod:`dialect <.dialect>` profile
-applies (``linuxcnc`` by default; ``fanuc``, ``haas``, ``grbl``, ``mach3``).
+applies (``linuxcnc`` by default; ``fanuc``, ``haas``, ``grbl``, ``mach3``). Programs in
+Siemens' own language (``sinumerik``, also chosen from a ``.MPF``/``.SPF`` file, a
+``%_N_NAME_MPF`` header or ``G710``/``G700`` where the dialect would be ``linuxcnc``) are
+read by their own front, :mod:`.siemens`, which hands the same interpreter RS274NGC words.
 
 Layout (as LinuxCNC's rs274ngc): :mod:`.read` turns text into executed blocks
 (:mod:`.read.source`: bytes, line ends; :mod:`.read.lexer`, :mod:`.read.expr`,
