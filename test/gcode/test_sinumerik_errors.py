@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+import random
 import subprocess
 import sys
 
@@ -106,3 +107,41 @@ def test_check_lists_every_refused_place(tmp_path: Path):
     assert [(e['line'], e['column']) for e in errors] == [(2, 1), (4, 1), (5, 6), (7, 8)]
     assert 'POCKET4' in errors[0]['message'] and 'CYCLE800' in errors[1]['message']
     assert 'Traceback' not in out.stderr
+
+
+@pytest.mark.parametrize('text, message', [
+    ('R1=' + '(' * 500 + '1' + ')' * 500 + '\n', 'nested more than 32 deep'),
+    ('R1=' + '-' * 500 + '1\n', 'nested more than 32 deep'),
+    ('GOTOF INBODY\nFOR R1=1 TO 3\nINBODY:\nENDFOR\n', 'ENDFOR reached without its FOR'),
+    ('R1=1EX400\n', 'out of range'),
+    ('G4 F-1\n', 'negative dwell'),
+])
+def test_limits_of_the_reader(text, message):
+    assert message in refused(text).reason
+
+
+# Token soup: random lines of Sinumerik words, keywords and operators. Whatever they make, the
+# answer is a program or a GcodeError, never another exception.
+_TOKENS = [
+    'G0', 'G1', 'G2', 'G3', 'G4', 'G17', 'G18', 'G90', 'G91', 'G110', 'G111', 'G112', 'G53',
+    'G57', 'G505', 'G70', 'G700', 'G41', 'G40', 'X10', 'Y-5', 'Z=R1', 'X=AC(3)', 'Y=IC(-2)',
+    'I5', 'J=AC(2)', 'CR=5', 'CR=-3', 'AP=30', 'RP=4', 'CIP', 'I1=3', 'J1=4', 'CT', 'TURN=1',
+    'F100', 'F=R2*3', 'S1000', 'M3', 'M30', 'M17', 'R1=', 'R2=', '5', '(', '(R1+2)', ')', '*',
+    '-', '/', 'DIV', '==', 'IF', 'ELSE', 'ENDIF', 'WHILE', 'ENDWHILE', 'FOR', 'TO', 'ENDFOR',
+    'REPEAT', 'UNTIL', 'LOOP', 'ENDLOOP', 'GOTOF', 'GOTOB', 'LBL', 'LBL:', 'DEF', 'REAL',
+    'VAR1', 'VAR1=', 'TRANS', 'ATRANS', 'ROT', 'AROT', 'SCALE', 'MIRROR', 'RPL=45', 'SUPA',
+    'L100', 'P2', 'CALL', '"SUB"', 'MCALL', 'CYCLE81(10,0,1,-5)', 'HOLES1(0,0,0,5,5,3)',
+    'CYCLE83(10,0,1,-20,,-5,,1,0,0,1,1)', 'POCKET3(1)', 'MSG("x")', 'T="A"', 'D1', ',', ';c',
+    '$AA', 'SQRT(', '1EX400', '.', 'N10', '/', '%', 'RET', 'PROC', 'B0']
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_token_soup_gives_a_program_or_our_error(seed):
+    rng = random.Random(seed)
+    for _ in range(150):
+        text = '\n'.join(' '.join(rng.choice(_TOKENS) for _ in range(rng.randint(1, 6)))
+                         for _ in range(rng.randint(1, 12))) + '\n'
+        try:
+            parse_gcode(text, dialect='sinumerik', ignore_axes=['B'])
+        except GcodeError:
+            pass

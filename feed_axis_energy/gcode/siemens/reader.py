@@ -417,6 +417,9 @@ class SiemensReader:
         s.ident()
         self._end(s)
         head = lv.file.partners[idx]
+        if head not in lv.for_vars:
+            s.fail(f'ENDFOR reached without its FOR of line {head + 1} having run (a jump '
+                   'into the loop?)', 0)
         name, last = lv.for_vars[head]
         value = self._lookup(name)
         assert value is not None

@@ -18,10 +18,12 @@ from typing import Callable, NoReturn
 
 from ...errors import GcodeError, shorten
 
-__all__ = ['Scanner', 'code_part', 'MAX_MAGNITUDE', 'FUNCTIONS']
+__all__ = ['Scanner', 'code_part', 'MAX_MAGNITUDE', 'MAX_NESTING', 'FUNCTIONS']
 
 MAX_MAGNITUDE = 1.0e12
 """Largest magnitude of a value in an expression (as the RS274NGC front's bound)."""
+MAX_NESTING = 32
+"""Parentheses, function calls and signs nested in one expression (a bound of the reader)."""
 
 _UPPER = {c: c - 32 for c in range(ord('a'), ord('z') + 1)}
 _UPPER_TAB = {**_UPPER, ord('\t'): ord(' ')}
@@ -108,7 +110,7 @@ class Scanner:
         Value of a variable name (upper case) or ``None`` if there is none by that name.
     """
 
-    __slots__ = ('code', 'raw', 'file', 'line', 'pos', 'lookup')
+    __slots__ = ('code', 'raw', 'file', 'line', 'pos', 'lookup', 'depth')
 
     def __init__(self, code: str, raw: str, *, file: str, line: int,
                  lookup: Callable[[str], float | None]):
@@ -118,6 +120,7 @@ class Scanner:
         self.line = line
         self.pos = 0
         self.lookup = lookup
+        self.depth = 0
 
     # -- places and errors -----------------------------------------------------------------
     def error(self, msg: str, at: int | None = None) -> GcodeError:
@@ -311,6 +314,15 @@ class Scanner:
         return float(ia ^ ib)
 
     def _unary(self) -> float:
+        self.depth += 1
+        try:
+            if self.depth > MAX_NESTING:
+                self.fail(f'expression nested more than {MAX_NESTING} deep')
+            return self._signed()
+        finally:
+            self.depth -= 1
+
+    def _signed(self) -> float:
         if self.take('-'):
             return -self._unary()
         if self.take('+'):
