@@ -145,3 +145,18 @@ def test_token_soup_gives_a_program_or_our_error(seed):
             parse_gcode(text, dialect='sinumerik', ignore_axes=['B'])
         except GcodeError:
             pass
+
+
+def test_check_with_dialect_option_on_a_plain_name(tmp_path: Path):
+    prog = tmp_path / 'part.nc'           # nothing in the name or text says Sinumerik
+    prog.write_text('G0 X0 Y0 Z5\nN10 CYCLE800(1,"TC1",0,57)\nG1 X=AC(10) F100\n'
+                    'N20 POCKET4(1,2)\nM30\n')
+    cmd = [sys.executable, '-m', 'feed_axis_energy', 'check', '--json', '--quiet', str(prog)]
+    plain = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO, timeout=120)
+    siemens = subprocess.run(cmd + ['--dialect', 'sinumerik'], capture_output=True, text=True,
+                             cwd=REPO, timeout=120)
+    assert plain.returncode == siemens.returncode == 1
+    errors = json.loads(siemens.stdout)['programs'][0]['errors']
+    assert [(e['line'], e['column'], e['text'].split('(')[0]) for e in errors] == [
+        (2, 5, 'CYCLE800'), (4, 5, 'POCKET4')]
+    assert 'Traceback' not in siemens.stderr + plain.stderr

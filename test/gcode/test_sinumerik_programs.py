@@ -8,6 +8,9 @@ prediction", KIT wbk, DOI 10.5445/IR/1000157789, CC BY-NC-ND 4.0 -- read unmodif
 from __future__ import annotations
 
 import math
+from pathlib import Path
+import subprocess
+import sys
 
 import must_run
 import pytest
@@ -138,3 +141,15 @@ def test_corpus_programs_refused_by_name_at_every_place(name, refusals):
     # HOLES1 and HOLES2 once (their REPEATB repeats name the same place once)
     assert len(stream.errors) == n_places
     assert len({(e.line, e.column) for e in stream.errors}) == n_places
+
+
+@needs_kit
+def test_readme_simulate_command_on_a_kit_program():
+    repo = Path(__file__).resolve().parents[2]
+    out = subprocess.run([sys.executable, '-m', 'feed_axis_energy', 'simulate',
+                          str(KIT / 'DMC_60H/V_S235JR_VALIDATION.MPF'), '--machine',
+                          str(repo / 'config/three_axis_mill.yaml'), '--ignore-axes', 'B'],
+                         capture_output=True, text=True, cwd=repo, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert 'read in the sinumerik dialect' in out.stderr
+    assert 'energy [J]' in out.stdout
