@@ -347,3 +347,9 @@ def test_proc_save_restores_frame_units_and_plane(tmp_path: Path):
     # X5 -> machine 105
     assert [p[0] for p in ends(prog)] == [0.0, 1.0, 5.0, 15.0, 105.0]
     assert prog.moves[3].plane == 17
+
+
+def test_g1_is_the_initial_motion_mode():
+    # Siemens' default setting of G group 1 is G1 (the list of G functions, "Def.")
+    prog = run('F100\nX10\nM30\n')
+    assert [m.kind for m in prog.moves][:1] == [MoveKind.LINEAR]

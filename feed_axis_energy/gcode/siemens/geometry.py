@@ -72,7 +72,7 @@ class Geometry:
         self.feed_inch = False              # G700: F in inch/min
         self.absolute = True                # G90
         self.plane = 17
-        self.motion = 0                     # G0: Siemens' usual initial setting
+        self.motion = 1                     # G1: Siemens' default (MD GCODE_RESET_VALUES)
         self.pole: tuple[float, float] = (0.0, 0.0)
         self.ap = 0.0                       # last polar angle [deg] and radius [mm]
         self.rp = 0.0
