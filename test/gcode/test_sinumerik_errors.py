@@ -160,3 +160,11 @@ def test_check_with_dialect_option_on_a_plain_name(tmp_path: Path):
     assert [(e['line'], e['column'], e['text'].split('(')[0]) for e in errors] == [
         (2, 5, 'CYCLE800'), (4, 5, 'POCKET4')]
     assert 'Traceback' not in siemens.stderr + plain.stderr
+
+
+def test_loop_limit_is_per_run_of_a_loop(monkeypatch):
+    monkeypatch.setattr(reader, 'MAX_LOOP_PASSES', 50)
+    # an inner WHILE of 40 passes run 30 times: 1200 passes in all, each run within 50
+    prog = parse_gcode('FOR R1=1 TO 30\nR2=0\nWHILE R2<40\nR2=R2+1\nENDWHILE\nENDFOR\n'
+                       'G1 X=R1+R2 F100\nM30\n', dialect='sinumerik')
+    assert prog.moves[0].end[0] == pytest.approx(0.071)     # R1 ends at 31, R2 at 40

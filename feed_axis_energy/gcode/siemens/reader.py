@@ -380,6 +380,7 @@ class SiemensReader:
         self._end(s)
         if not cond:
             lv.pc = lv.file.partners[idx] + 1
+            lv.passes.pop(idx, None)        # the limit is per run of the loop
         else:
             self._count_pass(lv, idx, s)
         return []
@@ -427,6 +428,8 @@ class SiemensReader:
         if value + 1.0 <= last:
             self._count_pass(lv, idx, s)
             lv.pc = head + 1
+        else:
+            lv.passes.pop(idx, None)
         return []
 
     def _st_repeat(self, lv: _Level, idx: int, s: Scanner) -> list[Words]:
@@ -478,6 +481,8 @@ class SiemensReader:
         if not cond:
             self._count_pass(lv, idx, s)
             lv.pc = lv.file.partners[idx] + 1
+        else:
+            lv.passes.pop(idx, None)
         return []
 
     def _st_goto(self, lv: _Level, idx: int, s: Scanner) -> list[Words]:
@@ -501,7 +506,8 @@ class SiemensReader:
             where = {'F': 'after', 'B': 'before'}.get(direction, 'in')
             s.fail(f'{word} {label}: no label {label} {where} this line in '
                    f'{Path(lv.file.name).name}', at)
-        self._count_pass(lv, idx, s)
+        if target <= idx:
+            self._count_pass(lv, idx, s)    # only a jump back can loop
         lv.pc = target
         return []
 
