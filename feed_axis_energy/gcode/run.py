@@ -9,6 +9,10 @@ anything to diagnose) the rest of the program goes to the front's reader
 (:func:`.flow.read_blocks`) with the same interpreter and parameter table: the lines
 already run are blanked for it, so its line numbers stay those of the file. Nothing is read
 twice and memory is bounded by the batch size (plus the program text itself).
+
+A program in the ``sinumerik`` dialect goes to the Siemens front
+(:func:`.siemens.read_siemens_blocks`) from its first line: its blocks are the same
+:class:`~.read.block.Block` s, in machine coordinates, for the same interpreter.
 """
 from __future__ import annotations
 
