@@ -353,3 +353,22 @@ def test_g1_is_the_initial_motion_mode():
     # Siemens' default setting of G group 1 is G1 (the list of G functions, "Def.")
     prog = run('F100\nX10\nM30\n')
     assert [m.kind for m in prog.moves][:1] == [MoveKind.LINEAR]
+
+
+def test_turn_gives_extra_full_turns_of_a_helix():
+    # a full circle of radius 5 (I5 from (0,0): centre (5,0)) with TURN=2: three turns, Z
+    # falling 3 mm; the path is sqrt((3 * 2 pi 5)^2 + 3^2)
+    prog = run('G0 X0 Y0 Z0\nG3 X0 Y0 Z-3 I5 TURN=2 F100\nM30\n')
+    arc = prog.moves[1]
+    assert arc.turns == 2
+    assert arc.length_m / MM == pytest.approx(math.hypot(3 * 2 * math.pi * 5, 3))
+
+
+def test_cr_arc_in_the_zx_plane():
+    # G18: the arc runs in Z-X; from (0,0,0) to X10 Z0 with radius 5 over the top (Z+ side
+    # for G2 seen from +Y): centre (5, 0, 0), a half circle of length 5 pi
+    prog = run('G18 G0 X0 Y0 Z0\nG2 X10 Z0 CR=5 F100\nM30\n')
+    arc = prog.moves[1]
+    assert arc.plane == 18 and arc.kind == MoveKind.ARC_CW
+    assert centre_mm(arc) == pytest.approx((5.0, 0.0, 0.0))
+    assert arc.length_m / MM == pytest.approx(5 * math.pi)
