@@ -43,6 +43,8 @@ def refused(text: str, **kw) -> GcodeError:
     ('G0 X0\nG2 X10 Y10 CR=2 F100\n', 2, 12, 'CR=2 is shorter than half the chord', 'CR=2'),
     ('DEF REAL X\n', 1, 10, 'X is an address or keyword', 'X'),
     ('R1=1/0\n', 1, 5, 'division by zero', '/0'),
+    ('G0 X0\n$P_UIFR[1]=CTRANS(X,10)\n', 2, 1, 'system variable $P_UIFR is not simulated',
+     '$P_UIFR'),
     ('AROT X30\nG2 X10 Y0 CR=5 F100\n', 2, 4, 'rotates it out of the working plane', 'X10'),
     ('G0 X0\nCYCLE81(10, 0, 2, 5)\n', 2, 1, 'final depth (5) is not below', 'CYCLE81'),
     ('G0 X0\nCYCLE81(100,0,1,1.5,,0,10,1,11)\n', 2, 1, 'parameter 7 (10.0) is not simulated',

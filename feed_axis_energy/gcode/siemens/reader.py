@@ -828,8 +828,12 @@ class SiemensReader:
         """The addresses of a block; assignments run as they come."""
         out: list[Word] = []
         while not s.at_end():
-            at = s.pos
             ch = s.peek()
+            at = s.pos
+            if ch == '$':
+                s.pos += 1
+                s.fail(f'system variable ${s.ident()} is not simulated (its value lives in the '
+                       'control: machine data, settable frames, tool data)', at)
             name = s.ident()
             if not name:
                 s.fail(f'unexpected {ch!r}', at)
