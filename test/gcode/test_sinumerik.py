@@ -195,8 +195,12 @@ def test_cycle83_chip_removal_steps():
 def test_cycle83_chip_breaking_backs_off_1mm():
     prog = run('G0 X0 Y0 Z40\nF100\nCYCLE83(30, 0, 2, -10, , -4, , 0, 0, 0, 1, 0)\nM30\n')
     z = [p[2] for p in ends(prog)][1:]
-    # DAM 0: equal steps of 6 mm: -4, then back off to -3, on to -10 (clipped), retract
+    # DAM 0: equal steps of 6 mm: -4, then back off to -3 at the feed, on to -10 (clipped),
+    # retract in rapid
     assert z == pytest.approx([2, -4, -3, -10, 30])
+    kinds = [m.kind for m in prog.moves if m.kind != MoveKind.STOP][1:]
+    assert kinds == [MoveKind.RAPID, MoveKind.LINEAR, MoveKind.LINEAR, MoveKind.LINEAR,
+                     MoveKind.RAPID]
 
 
 def test_mcall_runs_the_cycle_after_each_move_until_cancelled():

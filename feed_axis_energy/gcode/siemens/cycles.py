@@ -12,12 +12,12 @@ the program's coordinates, the frame in force applies):
   drilling in steps. The first step ends at ``FDEP`` (or ``RFP - FDPR``), each further step
   is the one before less ``DAM`` but not less than ``DAM`` (``DAM = 0``: equal steps), the
   last one ends at the depth. The first step runs at ``FRF`` times the feed (``FRF = 0``: 1).
-  ``VARI = 0`` (chip breaking): after each step the drill backs off 1 mm in rapid and goes
-  on. ``VARI = 1`` (chip removal): after each step ``G0`` to ``RFP + SDIS``, a dwell of
-  ``DTS`` seconds, ``G0`` back to the step's end less the anticipation distance (0.6 mm up
-  to 30 mm of depth, else depth / 50, at most 7 mm, as the manual's cycle computes it),
-  then feed on. ``DTB`` seconds of dwell at the end of every step; ``G0`` to ``RTP`` at the
-  end.
+  ``VARI = 0`` (chip breaking): after each step the drill backs off 1 mm at the feed
+  (G1) and goes on. ``VARI = 1`` (chip removal): after each step ``G0`` to
+  ``RFP + SDIS``, a dwell of ``DTS`` seconds, ``G0`` back to the step's end less the
+  anticipation distance (0.6 mm up to 30 mm of depth, else depth / 50, at most 7 mm, as
+  the manual's cycle computes it), then feed on. ``DTB`` seconds of dwell at the end of
+  every step; ``G0`` to ``RTP`` at the end.
 * ``CYCLE85(RTP, RFP, SDIS, DP, DPR, DTB, FFR, RFF)``: boring: in at ``FFR``, a dwell of
   ``DTB`` s, out to ``RFP + SDIS`` at ``RFF``, ``G0`` to ``RTP``.
 * ``CYCLE89(RTP, RFP, SDIS, DP, DPR, DTB)``: boring: in and out at the feed, with a dwell.
@@ -166,7 +166,7 @@ def _deep_hole(p: list[float], start: float, depth: float, g: Geometry, s: Scann
         if k == len(levels) - 1:
             break
         if vari == 0:
-            out.append(g.move_words(0, at(level + CHIP_BREAK_MM / g.unit)))
+            out.append(g.move_words(1, at(level + CHIP_BREAK_MM / g.unit)))
         else:
             out.append(g.move_words(0, at(start)))
             out += _dwell(g, dts, s)
