@@ -170,3 +170,13 @@ def test_loop_limit_is_per_run_of_a_loop(monkeypatch):
     prog = parse_gcode('FOR R1=1 TO 30\nR2=0\nWHILE R2<40\nR2=R2+1\nENDWHILE\nENDFOR\n'
                        'G1 X=R1+R2 F100\nM30\n', dialect='sinumerik')
     assert prog.moves[0].end[0] == pytest.approx(0.071)     # R1 ends at 31, R2 at 40
+
+
+def test_var_parameters_are_refused(tmp_path: Path):
+    (tmp_path / 'BYREF.SPF').write_text('PROC BYREF(VAR REAL OUT_1)\nOUT_1=5\nRET\n')
+    main = tmp_path / 'MAIN.MPF'
+    main.write_text('DEF REAL HERE\nBYREF(HERE)\nG1 X=HERE F100\nM30\n')
+    with pytest.raises(GcodeError, match='VAR parameters .call by reference. of BYREF') as info:
+        list(iter_moves(main))
+    assert info.value.file.endswith('BYREF.SPF') and (info.value.line, info.value.column) == (
+        1, 12)

@@ -18,11 +18,12 @@ programs use it):
   repeats ``REPEAT label [label] [P=n]`` and ``REPEATB label [P=n]``.
 * Subprograms by name: ``L100``, ``NAME`` alone, ``NAME(args)``, ``CALL "NAME"``,
   ``EXTCALL "NAME"``, with ``P=n`` / ``Pn`` repeats; ``PROC NAME(REAL A, INT B)`` binds the
-  arguments by value (missing ones are 0); ``RET``, ``M17``, ``M2``/``M30`` or the end of
-  the file return. Found as a ``PROC`` or ``%_N_NAME_SPF`` section of a file already read,
-  else as ``NAME.SPF`` (``.spf``, ``.MPF``, ``.mpf``; the name as written, in upper and in
-  lower case) beside the main program, then in the ``search_path`` directories. Calls nest
-  at most :data:`MAX_CALL_DEPTH` deep (the control's limit of program levels).
+  arguments by value (missing ones are 0; ``VAR`` parameters, by reference, are
+  refused); ``RET``, ``M17``, ``M2``/``M30`` or the end of the file return. Found as a
+  ``PROC`` or ``%_N_NAME_SPF`` section of a file already read, else as ``NAME.SPF``
+  (``.spf``, ``.MPF``, ``.mpf``; the name as written, in upper and in lower case) beside
+  the main program, then in the ``search_path`` directories. Calls nest at most
+  :data:`MAX_CALL_DEPTH` deep (the control's limit of program levels).
 * ``MCALL NAME(args)`` calls ``NAME`` after every later block that moves, until ``MCALL``
   alone; drilling cycles and ``HOLES1``/``HOLES2`` (:mod:`.cycles`).
 * Accepted without effect on the path: ``MSG()``, ``STOPRE``, ``GROUP_BEGIN()``/
@@ -667,7 +668,10 @@ class SiemensReader:
             while not p.take(')'):
                 kind = p.ident()
                 if kind == 'VAR':
-                    kind = p.ident()
+                    # by reference: the subprogram may write the caller's variable, which
+                    # taking the value would silently lose
+                    p.fail(f'VAR parameters (call by reference) of {new.name} are not '
+                           'simulated', p.pos - 3)
                 if kind not in _TYPES:
                     p.fail(f'parameter type {kind or "?"} (REAL, INT, BOOL, CHAR, STRING)')
                 if kind == 'STRING' and p.take('['):
