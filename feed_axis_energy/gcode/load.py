@@ -5,7 +5,10 @@
 simulated exactly raises :class:`~..errors.GcodeError` naming ``file:line:column`` and the
 offending word (a subroutine file names itself). Semantics are LinuxCNC 2.9's (RS274NGC),
 checked against its interpreter; where controls differ a :mod:`dialect <.dialect>` profile
-applies (``linuxcnc`` by default; ``fanuc``, ``haas``, ``grbl``, ``mach3``).
+applies (``linuxcnc`` by default; ``fanuc``, ``haas``, ``grbl``, ``mach3``). Programs in
+Siemens' own language (``sinumerik``, also chosen from a ``.MPF``/``.SPF`` file, a
+``%_N_NAME_MPF`` header or ``G710``/``G700`` where the dialect would be ``linuxcnc``) are
+read by their own front, :mod:`.siemens`, which hands the same interpreter RS274NGC words.
 
 Layout (as LinuxCNC's rs274ngc): :mod:`.read` turns text into executed blocks
 (:mod:`.read.source`: bytes, line ends; :mod:`.read.lexer`, :mod:`.read.expr`,
@@ -99,6 +102,7 @@ from .context import OperationContext
 from .dialect import Dialect, dialect_by_name
 from .run import GcodeRun
 from .read.source import read_program
+from .siemens import decode_siemens, read_siemens_program, siemens_evidence
 from ..errors import ConfigError, GcodeError, shorten_path
 from .program import Move, Program
 
@@ -171,10 +175,13 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
         For an unknown dialect name, an axis that cannot be ignored or a ``search_path``
         entry that is not a directory.
     """
+    chosen, note = _file_dialect(dialect_by_name(dialect), file, text[:8192])
     run = GcodeRun(text, file=file, start=start, arc_tolerance_m=arc_tolerance_m, home=home,
-                   tools=tools, dialect=dialect_by_name(dialect),
+                   tools=tools, dialect=chosen,
                    search_path=_directories(search_path), ignore_axes=_axes(ignore_axes),
                    strict_tools=bool(strict_tools), allow_no_feed=bool(allow_no_feed))
+    if note:
+        run.interp.warnings.insert(0, note)
     # The parse allocates one Move per block and frees nothing: cyclic garbage collection
     # passes over the growing list find nothing and cost ~15 % of the time, so they are
     # paused for the duration (and resumed even when the program is refused).
@@ -207,9 +214,10 @@ class MoveStream:
         its marks are complete up to the moves handed on so far).
     """
 
-    def __init__(self, path: str | PathLike[str], kw: dict):
+    def __init__(self, path: str | PathLike[str], kw: dict, note: str = ''):
         self._path = path
         self._kw = kw
+        self._note = note             # why the dialect was chosen from the file, if it was
         self._run: GcodeRun | None = None
         self.file = str(path)
         self.context = OperationContext()
@@ -240,6 +248,14 @@ class MoveStream:
         of the list just given. A consumer that takes lists saves a generator step per
         move."""
         name = self.file
+        if self._kw['dialect'].siemens:     # read whole (Latin-1 allowed), as subprograms
+            text = read_siemens_program(self._path, file=name)
+            self.context.reset()
+            self._run = GcodeRun(text, file=name, context=self.context, **self._kw)
+            if self._note:
+                self._run.interp.warnings.insert(0, self._note)
+            yield from self._run
+            return
         try:
             fh = open(self._path, encoding='utf-8-sig', newline=None)
         except OSError as err:
@@ -289,12 +305,13 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
         Iterate over it for the moves; its ``warnings`` are complete at the end. Errors
         (:class:`GcodeError`) are raised during the iteration, at the line concerned.
     """
+    chosen, note = _file_dialect(dialect_by_name(dialect), str(path), _head(path))
     kw = dict(start=start, arc_tolerance_m=arc_tolerance_m, home=home, tools=tools,
-              dialect=dialect_by_name(dialect), search_path=_directories(search_path),
+              dialect=chosen, search_path=_directories(search_path),
               batch=max(1, int(batch)), ignore_axes=_axes(ignore_axes),
               max_errors=max(0, int(max_errors)), strict_tools=bool(strict_tools),
               allow_no_feed=bool(allow_no_feed))
-    return MoveStream(path, kw)
+    return MoveStream(path, kw, note)
 
 
 def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
@@ -326,7 +343,11 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
         is too large, or is not UTF-8 text (the message gives the line of the bad byte).
     """
     name = str(path)
-    text = read_program(path, file=name)
+    chosen, _ = _file_dialect(dialect_by_name(dialect), name, _head(path))
+    if chosen.siemens:
+        text = read_siemens_program(path, file=name)
+    else:
+        text = read_program(path, file=name)
     return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
                        home=home, tools=tools, dialect=dialect, search_path=search_path,
                        ignore_axes=ignore_axes, strict_tools=strict_tools,
@@ -346,6 +367,32 @@ def _directories(paths: Sequence[str | PathLike[str]]) -> tuple[str, ...]:
             raise ConfigError(msg, key='search_path')
         out.append(text)
     return tuple(out)
+
+
+def _head(path: str | PathLike[str]) -> str:
+    """The first lines of a program file (for :func:`_file_dialect`; '' if unreadable:
+    reading it later reports the problem)."""
+    try:
+        with open(path, 'rb') as fh:
+            data = fh.read(8192)
+    except OSError:
+        return ''
+    return decode_siemens(data)
+
+
+def _file_dialect(dialect: Dialect, file: str, head: str) -> tuple[Dialect, str]:
+    """The dialect a program is read in, and a warning if the file chose it: a program
+    marked as Sinumerik (:func:`~.siemens.siemens_evidence`) is read as such where the
+    dialect would be the default, ``linuxcnc`` (whose interpreter refuses such a program
+    at its first Siemens word)."""
+    if dialect.name != 'linuxcnc':
+        return dialect, ''
+    why = siemens_evidence(file, head)
+    if why is None:
+        return dialect, ''
+    note = (f'{file}:1: read in the sinumerik dialect, chosen from {why} '
+            '(--dialect names another)')
+    return dialect_by_name('sinumerik'), note
 
 
 def _axes(letters: Sequence[str]) -> tuple[str, ...]:

@@ -41,7 +41,7 @@ __all__ = ['ToolSpec', 'GcodeSettings', 'DIALECTS', 'MAX_TOOLS', 'MAX_TOOL_NUMBE
            'MAX_SUBROUTINE_DIRS', 'gcode_from_dict', 'gcode_to_dict', 'travel_from_value',
            'parse_tool_option', 'with_tools', 'check_subroutine_dir', 'with_program_options']
 
-DIALECTS = ('linuxcnc', 'fanuc', 'haas', 'grbl', 'mach3')
+DIALECTS = ('linuxcnc', 'fanuc', 'haas', 'grbl', 'mach3', 'sinumerik')
 """Dialect names a config may choose (the profiles live in ``gcode/dialect.py``)."""
 MAX_TOOLS = 10_000
 """Entries a tool table may hold (a config is read whole; this bounds it)."""
