@@ -116,6 +116,11 @@ class SampleFit:
     gain, gain_se, gain_fitted
         A drive trace: torque per unit of the trace [N·m per unit] (``kt`` [N·m/A] for
         current), its standard error, and whether it was fitted (else declared).
+    standstill_hold_n, n_rest, rest_rmse
+        A drive trace: the force the drive holds after a stop, in the last direction of
+        motion [N] (:mod:`feed_axis_energy.physics.standstill`; ``None`` when too few
+        samples rest after a move), the resting samples it was fitted on, and their
+        residual RMS in the trace's unit.
     """
 
     axis: str
@@ -141,6 +146,9 @@ class SampleFit:
     gain: float | None = None
     gain_se: float | None = None
     gain_fitted: bool = False
+    standstill_hold_n: float | None = None
+    n_rest: int = 0
+    rest_rmse: float | None = None
 
     @property
     def ok(self) -> bool:
@@ -183,7 +191,9 @@ class SampleFit:
                 'cov_loss': None if self.cov_loss is None else [list(r) for r in self.cov_loss],
                 'measures': self.measures, 'unit': self.unit, 'rmse': self.rmse,
                 'torque_per_unit': self.gain, 'torque_per_unit_se': self.gain_se,
-                'torque_per_unit_fitted': self.gain_fitted}
+                'torque_per_unit_fitted': self.gain_fitted,
+                'standstill_hold_n': self.standstill_hold_n, 'n_rest': self.n_rest,
+                'rest_rmse': self.rest_rmse}
 
 
 @dataclass
@@ -394,6 +404,8 @@ def machine_with_sample_fits(machine: Machine, fits: dict[str, SampleFit]) -> Ma
                         loss_covariance=f.covariance(),
                         inertias=replace(a.inertias,
                                          motor_kg_m2=float(cast(float, f.motor_kg_m2))))
+            if f.standstill_hold_n is not None:
+                a = replace(a, standstill_hold_n=float(f.standstill_hold_n))
             if f.gain_fitted and f.measures == 'current' and a.drive is not None:
                 # a fitted torque constant replaces the data sheet's
                 a = replace(a, drive=replace(a.drive, kt_nm_a=float(cast(float, f.gain))))

@@ -25,7 +25,11 @@ inertias and ``m`` the configured moved mass. Fitted, bounded at zero:
 The drive direction of every sample comes from the previous estimate (a few rounds; one
 when ``eta = 1``). The braking rule does not enter: a current or torque is what it is
 whether the drive returns the braking energy or burns it. Standstill samples (slower than
-``min_speed_m_s``) are left out: static friction takes any value up to ``F_c`` there.
+``min_speed_m_s``) are left out of that fit: static friction takes any value up to ``F_c``
+there. From them (at least :data:`REST_GUARD_S` from any motion) the force the drive holds
+after a stop is fitted: ``q·g = r·m·g0·sin(incl)/eta + h·r·d`` with ``d`` the direction of the
+last move and ``h >= 0`` (:mod:`feed_axis_energy.physics.standstill`); ``fit-loss
+--out-machine`` writes it as ``axes.<A>.standstill_hold_n``.
 
 Before fitting, the trace is correlated with the configured model's torque: a trace that
 runs against it (correlation below :data:`~feed_axis_energy.measured.quantity.ANTI_CORRELATION`)
@@ -43,6 +47,7 @@ from scipy.optimize import lsq_linear
 from ..errors import ConfigError, DataError
 from ..machine import CalibratedRange, Machine, moved_mass_kg
 from ..measured import MeasuredRun, measured_signal, quantity_of
+from ..physics import last_direction
 from ..units import GRAVITY_M_S2
 from .samplefit import SampleFit, SampleFitOptions
 from .steady import kinematics, VELOCITY_SOURCES
@@ -52,6 +57,8 @@ __all__ = ['fit_drive_samples', 'WRONG_SIGN']
 WRONG_SIGN = -0.3
 """Correlation of trace and configured model below which the trace has the wrong sign."""
 _MAX_ROUNDS = 20
+REST_GUARD_S = 0.02
+"""A resting sample for the standstill hold is this far from any moving sample [s]."""
 _MM_PER_M = 1000.0
 
 
@@ -60,6 +67,7 @@ def _collect(runs: Sequence[MeasuredRun], axis: str, machine: Machine, measures:
              options: SampleFitOptions) -> tuple[np.ndarray, ...] | None:
     column = quantity_of(measures).run_field
     vs, accs, qs, masses, loads = [], [], [], [], []
+    dirs, q_rest, m_rest = [], [], []
     for run, source, inv in zip(runs, velocity, invert):
         if axis not in run.extra.get(column, {}) or axis not in run.axes:
             continue
@@ -68,15 +76,27 @@ def _collect(runs: Sequence[MeasuredRun], axis: str, machine: Machine, measures:
         v, a = vel[:, j], acc[:, j]
         q = measured_signal(run, measures=measures, axes=[axis], invert=inv)[:, 0]
         keep = np.abs(v) >= options.min_speed_m_s
+        mass = moved_mass_kg(machine, axis, run.load_kg)
         vs.append(v[keep])
         accs.append(a[keep])
         qs.append(q[keep])
-        masses.append(np.full(int(keep.sum()), moved_mass_kg(machine, axis, run.load_kg)))
+        masses.append(np.full(int(keep.sum()), mass))
         loads.append(run.load_kg)
+        # resting samples after a move, with the direction of that move (physics/standstill)
+        d = last_direction(v, rest_speed=options.min_speed_m_s)[:, 0]
+        # at rest for REST_GUARD_S on both sides: the last creep of a stop is still friction
+        dt = float(np.median(np.diff(run.t))) if run.t.size > 1 else 1.0
+        guard = max(1, int(round(REST_GUARD_S / dt)))
+        near = np.convolve(keep.astype(float), np.ones(2 * guard + 1), mode='same') > 0.0
+        rest = ~near & (d != 0.0) & (np.abs(a) <= options.accel_m_s2)
+        dirs.append(d[rest])
+        q_rest.append(q[rest])
+        m_rest.append(np.full(int(rest.sum()), mass))
     if not loads:
         return None
     return (np.concatenate(vs), np.concatenate(accs), np.concatenate(qs),
-            np.concatenate(masses), np.array(loads))
+            np.concatenate(masses), np.array(loads), np.concatenate(dirs),
+            np.concatenate(q_rest), np.concatenate(m_rest))
 
 
 def _lsq(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -98,7 +118,7 @@ def _se(cov: np.ndarray | None, i: int) -> float | None:
 
 def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, measures: str,
               gain: float | None, options: SampleFitOptions) -> SampleFit:
-    v, a, q, mass, loads = cols
+    v, a, q, mass, loads, d_rest, q_rest, m_rest = cols
     qty = quantity_of(measures)
     spec = machine.axis(axis)
     n = v.size
@@ -214,6 +234,11 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
                f'{options.accel_m_s2:g} m/s^2, need {options.min_accel_samples})')
     msg = (f'{n} moving samples ({n_accel} accelerating), {how}; RMS residual '
            f'{rmse:.3g} {qty.unit}, R^2 = {r2:.4f}')
+    hold, rest_rmse = _standstill_hold(d_rest, q_rest, m_rest, spec=spec,
+                                       gain=float(fitted_gain), options=options)
+    if hold is not None:
+        msg += (f'; after a stop the drive holds {hold:.3g} N in the last direction of motion '
+                f'({d_rest.size} resting samples, RMS residual {rest_rmse:.3g} {qty.unit})')
     return SampleFit(
         axis=axis, status='ok', message=msg, coulomb_n=coulomb, viscous_n_s_m=viscous,
         motor_kg_m2=inertia, motor_se=se['motor'], coulomb_se=se['coulomb'],
@@ -221,7 +246,27 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
         effective_mass_kg=float(np.mean(mass) + (inertia + rest) / r ** 2), rmse_w=None,
         r2=r2, n_samples=n, n_accel=n_accel, calibrated=calibrated, cov_loss=cov_loss,
         measures=measures, rmse=rmse, unit=qty.unit, gain=float(fitted_gain),
-        gain_se=se['gain'], gain_fitted=gain is None)
+        gain_se=se['gain'], gain_fitted=gain is None, standstill_hold_n=hold,
+        n_rest=int(d_rest.size) if hold is not None else 0, rest_rmse=rest_rmse)
+
+
+def _standstill_hold(d: np.ndarray, q: np.ndarray, mass: np.ndarray, *, spec, gain: float,
+                     options: SampleFitOptions) -> tuple[float | None, float | None]:
+    """The force held at rest after a move [N] (``>= 0``, in the last direction ``d``) and
+    the resting samples' residual RMS, from ``q·g = M_weight + h·d·r`` at rest; ``(None,
+    None)`` with fewer than ``min_samples`` such samples or no move in either direction."""
+    if d.size < options.min_samples:
+        return None, None
+    eta = spec.screw.efficiency
+    r = spec.screw.lead_m / (2.0 * math.pi)
+    weight = mass * GRAVITY_M_S2 * math.sin(math.radians(spec.inclination_deg))
+    # holding the weight: the motor drives the nut (as the dynamics take it at rest)
+    y = q * gain - r * weight / eta
+    x = (d * r)[:, None]
+    coef, _ = _lsq(x, y)
+    hold = float(coef[0])
+    res = q - (r * weight / eta + hold * d * r) / gain
+    return hold, math.sqrt(float(res @ res) / res.size)
 
 
 def fit_drive_samples(runs: Sequence[MeasuredRun], *, machine: Machine, measures: str,

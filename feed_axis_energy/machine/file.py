@@ -115,7 +115,8 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         msg = f'unknown axis name {shorten(str(name))!r}; expected one of {", ".join(AXIS_NAMES)}'
         raise ConfigError(msg, file=file, key=key)
     allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
-               'loss', 'travel_m', 'loss_calibrated', 'loss_covariance', 'drive')
+               'loss', 'travel_m', 'loss_calibrated', 'loss_covariance', 'drive',
+               'standstill_hold_n')
     d = _mapping(d, file=file, key=key, allowed=allowed)
     for part in ('screw', 'inertias', 'limits', 'loss'):
         if part not in d:
@@ -138,7 +139,9 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
                                               key=f'{key}.loss_calibrated'),
         loss_covariance=covariance_from_value(d.get('loss_covariance'), loss=loss, file=file,
                                               key=f'{key}.loss_covariance'),
-        drive=drive_from_value(d.get('drive'), file=file, key=f'{key}.drive'))
+        drive=drive_from_value(d.get('drive'), file=file, key=f'{key}.drive'),
+        standstill_hold_n=_float(d, 'standstill_hold_n', file=file, key=key, default=0.0,
+                                 minimum=0.0, strict=False, maximum=1.0e6))
 
 
 def _check_stacking(axes: tuple[AxisSpec, ...], *, file: str) -> None:
@@ -287,6 +290,8 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
         }
         if a.travel_m is not None:
             axes[a.name]['travel_m'] = [float(v) for v in a.travel_m]
+        if a.standstill_hold_n:
+            axes[a.name]['standstill_hold_n'] = float(a.standstill_hold_n)
         if a.loss_calibrated is not None:
             axes[a.name]['loss_calibrated'] = a.loss_calibrated.to_dict()
         if a.drive is not None:

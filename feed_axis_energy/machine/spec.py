@@ -129,6 +129,10 @@ class AxisSpec:
         Motor and drive from data-sheet values (:mod:`.drives`), or ``None``.
     loss_covariance
         Covariance of the loss parameters, or ``None`` (not known).
+    standstill_hold_n
+        Force the drive keeps holding after a stop, in the last direction of motion [N]
+        (:mod:`feed_axis_energy.physics.standstill`): friction kept by the position loop.
+        Seen only in current, torque and force traces (no power at rest); 0: none.
     """
 
     name: str
@@ -143,6 +147,7 @@ class AxisSpec:
     loss_calibrated: CalibratedRange | None = None
     loss_covariance: LossCovariance | None = None
     drive: DriveSpec | None = None
+    standstill_hold_n: float = 0.0
 
     @property
     def screw_inertia_kg_m2(self) -> float:

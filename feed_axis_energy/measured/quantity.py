@@ -29,7 +29,9 @@ whatever lead the machine file gives; a real screw adds the rotor's inertia as e
 mass, as a force computed from the motor's output does. A holding torque (a vertical axis at
 rest) is part of ``M``: the prediction is not zero at standstill. Declared effects, which the
 catalog gives as powers, enter the prediction as ``P_effect/omega`` while the axis moves and
-not at all at rest.
+not at all at rest. At rest the prediction adds the force the drive keeps holding after a stop,
+in the last direction of motion (``axes.<A>.standstill_hold_n``,
+:mod:`feed_axis_energy.physics.standstill`), which ``fit-loss --method samples`` fits.
 """
 from __future__ import annotations
 
@@ -41,6 +43,7 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 
 from ..errors import ConfigError, DataError
+from ..physics import holding_force
 
 if TYPE_CHECKING:       # types only: the manifest reader imports this module, not the simulation
     from ..machine import Machine
@@ -306,6 +309,11 @@ def predicted_signal(measures: str, sim: SimulationResult, machine: Machine,
         extra = _effects_torque(sim, j)
         if extra is not None:
             torque += extra
+        hold = machine.axis(axis).standstill_hold_n
+        if hold > 0.0:
+            # the force the drive keeps after a stop (physics/standstill.py), at the screw
+            torque += (holding_force(dyn.velocity_m_s[:, j], hold)[:, 0]
+                       * float(dyn.lead_m[j]) / (2.0 * math.pi))
         cols.append(torque / float(g))       # type: ignore[arg-type]  # checked above
     return np.column_stack(cols) if cols else np.zeros((m, 0))
 
