@@ -74,6 +74,7 @@ from feed_axis_energy.gcode.stats import ProgramStats, summarize  # noqa: E402
 __all__ = ['find_corpus', 'load_corpus', 'run_ours', 'compare', 'evaluate', 'format_report',
            'report_json', 'memory_figure', 'Entry', 'OurResult', 'Disagreement', 'Report']
 
+ROTARY_WORDS = ('A', 'B', 'C')
 ACCEPTED = ('ok', 'ok_m2_appended')
 """Reference statuses that mean the reference interpreter ran the program to its end."""
 REFERENCE_DIALECT = 'linuxcnc'
@@ -82,6 +83,8 @@ REL_LENGTH_TOL = 1e-6
 ABS_LENGTH_TOL_MM = 1e-4    # the reference rounds lengths to 4 decimals
 POSITION_TOL_MM = 1e-3      # 1 um
 DWELL_TOL_S = 1e-4
+ROTARY_TOL_DEG = 1e-3      # the reference rounds rotary travel to 4 decimals
+NOMINAL_TOL_S = 1.5e-3      # and the nominal feed time to 3 decimals
 ORACLE_TOOLS = 999          # tools T1..T999, zero radius and length (run_oracle.py)
 DEFAULT_TIMEOUT_S = 60.0
 MAX_AUTO_LOCATE = 30        # --locate auto: programs traced move by move at most
@@ -237,6 +240,12 @@ def _parse_keywords(dialect: str | None, search_path: list[Path]) -> dict[str, A
         if name in params:
             kw[name] = [str(p) for p in search_path]
             break
+    if 'rotary_axes' in params:
+        # the reference's interpreter has all nine axes: A, B, C turn (as on a machine
+        # config that declares them, config/five_axis_mill.yaml), U, V, W are dropped (no
+        # figure of the reference counts them)
+        kw['rotary_axes'] = ROTARY_WORDS
+        kw['ignore_axes'] = ('U', 'V', 'W')
     return kw
 
 
@@ -342,6 +351,24 @@ def _close(ours: float, ref: float, *, rel: float, absolute: float) -> bool:
     return abs(ours - ref) <= max(rel * abs(ref), absolute)
 
 
+def _compare_rotary(file: str, s: Any, ref: dict[str, Any]) -> list[Disagreement]:
+    """Rotary travel and moves, and the nominal feed time where the reference has it."""
+    out: list[Disagreement] = []
+    if s.n_rotary_moves != ref.get('n_rotary_moves', 0):
+        out.append(Disagreement(file, 'n_rotary_moves', s.n_rotary_moves,
+                                ref.get('n_rotary_moves')))
+    if not _close(s.rotary_travel_deg, float(ref.get('rotary_travel_deg', 0.0)),
+                  rel=REL_LENGTH_TOL, absolute=ROTARY_TOL_DEG):
+        out.append(Disagreement(file, 'rotary_travel_deg', f'{s.rotary_travel_deg:.4f}',
+                                ref.get('rotary_travel_deg')))
+    nominal = ref.get('nominal_feed_time_s')
+    if nominal is not None and not _close(s.nominal_feed_time_s, float(nominal),
+                                          rel=REL_LENGTH_TOL, absolute=NOMINAL_TOL_S):
+        out.append(Disagreement(file, 'nominal_feed_time_s', f'{s.nominal_feed_time_s:.3f}',
+                                nominal))
+    return out
+
+
 def compare(file: str, ours: OurResult, ref: dict[str, Any]) -> list[Disagreement]:
     """Compare our summary of a program with the reference's.
 
@@ -381,6 +408,8 @@ def compare(file: str, ours: OurResult, ref: dict[str, Any]) -> list[Disagreemen
     fin = [v * 1e3 for v in s.final_position]
     if not _near(fin, ref.get('final_position')):
         out.append(Disagreement(file, 'final_position', _fmt(fin), ref.get('final_position')))
+    if hasattr(s, 'rotary_travel_deg'):
+        out += _compare_rotary(file, s, ref)
     box = ref.get('bbox_mm')
     if s.bbox_min is None or box is None:
         if not (s.bbox_min is None and box is None):

@@ -94,7 +94,7 @@ from .dialect import Dialect, dialect_by_name
 from .run import GcodeRun
 from .read.source import read_program
 from ..errors import ConfigError, GcodeError
-from .program import Move, Program
+from .program import Move, Program, ROTARY_AXES
 
 __all__ = ['parse_gcode', 'load_gcode', 'iter_moves', 'MoveStream', 'DEFAULT_ARC_TOLERANCE_M']
 
@@ -110,7 +110,7 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
                 tools: Mapping[int, object] | None = None,
                 dialect: str | Dialect | None = None,
                 search_path: Sequence[str | PathLike[str]] = (),
-                ignore_axes: Sequence[str] = ()) -> Program:
+                ignore_axes: Sequence[str] = (), rotary_axes: Sequence[str] = ()) -> Program:
     """Parse an NC program into moves in SI units.
 
     Parameters
@@ -141,6 +141,9 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
     ignore_axes
         Axis letters among A, B, C, U, V, W whose words are dropped (one warning each);
         otherwise such a word is an error naming its line.
+    rotary_axes
+        Rotary axis letters among A, B, C that the machine has: their words turn them
+        (:mod:`.interp.rotary`; the moves carry ``rot_start``/``rot_end``).
 
     Returns
     -------
@@ -156,7 +159,7 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
     """
     run = GcodeRun(text, file=file, start=start, arc_tolerance_m=arc_tolerance_m, home=home,
                    tools=tools, dialect=dialect_by_name(dialect), search_path=search_path,
-                   ignore_axes=_axes(ignore_axes))
+                   ignore_axes=_axes(ignore_axes), rotary_axes=rotary_letters(rotary_axes))
     # The parse allocates one Move per block and frees nothing: cyclic garbage collection
     # passes over the growing list find nothing and cost ~15 % of the time, so they are
     # paused for the duration (and resumed even when the program is refused).
@@ -243,7 +246,7 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                dialect: str | Dialect | None = None,
                search_path: Sequence[str | PathLike[str]] = (),
                ignore_axes: Sequence[str] = (), batch: int = 4096,
-               max_errors: int = 0) -> MoveStream:
+               max_errors: int = 0, rotary_axes: Sequence[str] = ()) -> MoveStream:
     """Stream the moves of a program file in bounded memory.
 
     Plain lines are read one at a time, so memory stays at ``batch`` moves however long
@@ -254,7 +257,7 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     ----------
     path
         The program file.
-    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
+    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes, rotary_axes
         As for :func:`parse_gcode`.
     batch
         Moves interpreted ahead of the consumer (at least 1).
@@ -272,7 +275,7 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     kw = dict(start=start, arc_tolerance_m=arc_tolerance_m, home=home, tools=tools,
               dialect=dialect_by_name(dialect), search_path=search_path,
               batch=max(1, int(batch)), ignore_axes=_axes(ignore_axes),
-              max_errors=max(0, int(max_errors)))
+              max_errors=max(0, int(max_errors)), rotary_axes=rotary_letters(rotary_axes))
     return MoveStream(path, kw)
 
 
@@ -281,14 +284,14 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                tools: Mapping[int, object] | None = None,
                dialect: str | Dialect | None = None,
                search_path: Sequence[str | PathLike[str]] = (),
-               ignore_axes: Sequence[str] = ()) -> Program:
+               ignore_axes: Sequence[str] = (), rotary_axes: Sequence[str] = ()) -> Program:
     """Read a program file (UTF-8, a BOM allowed) and parse it (see :func:`parse_gcode`).
 
     Parameters
     ----------
     path
         The program file; its path is used as ``file`` in messages and in the result.
-    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
+    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes, rotary_axes
         As for :func:`parse_gcode`.
 
     Returns
@@ -306,7 +309,17 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     text = read_program(path, file=name)
     return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
                        home=home, tools=tools, dialect=dialect, search_path=search_path,
-                       ignore_axes=ignore_axes)
+                       ignore_axes=ignore_axes, rotary_axes=rotary_axes)
+
+
+def rotary_letters(letters: Sequence[str]) -> tuple[str, ...]:
+    """Upper-case rotary axis letters for ``rotary_axes``, checked."""
+    out = tuple(str(a).strip().upper() for a in letters)
+    for a in out:
+        if a not in ROTARY_AXES:
+            msg = f'not a rotary axis: {a[:60]!r} (expected A, B or C)'
+            raise ConfigError(msg, key='rotary_axes')
+    return out
 
 
 def _axes(letters: Sequence[str]) -> tuple[str, ...]:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import math
 from pathlib import Path
 import subprocess
 import sys
@@ -300,6 +301,27 @@ def test_no_tool_length_model_leaves_g43_1_out_of_positions():
     assert modelled[1:] == [('RAPID', (1, 0, 0), (1, 0, 3)), ('RAPID', (1, 0, 3), (2, 0, 8))]
 
 
+def test_rotary_feed_in_inches_model_slows_pure_rotary_moves_in_g21():
+    from feed_axis_energy.gcode.load import parse_gcode
+    text = 'G21 G94 G1 F600 B90\nG1 X10 B180\n'
+    plain = parse_gcode(text, rotary_axes=('B',)).moves
+    with quirk_models.quirks(('rotary-feed-in-inches',)):
+        modelled = parse_gcode(text, rotary_axes=('B',)).moves
+    # 600 deg/min = 10 deg/s; the model divides only the pure rotary move's rate by 25.4
+    assert math.isclose(plain[0].feed_m_s, math.radians(10.0))
+    assert math.isclose(modelled[0].feed_m_s, math.radians(10.0) / 25.4)
+    assert modelled[1].feed_m_s == plain[1].feed_m_s == 0.01
+
+
+def test_first_units_model_reads_an_earlier_feed_in_the_first_units():
+    from feed_axis_energy.gcode.load import parse_gcode
+    text = 'F250\nG20 G1 X1\n'
+    assert math.isclose(parse_gcode(text).moves[0].feed_m_s, 0.25 / 60.0)
+    with quirk_models.quirks(('first-units',)):
+        modelled = parse_gcode(text).moves
+    assert math.isclose(modelled[0].feed_m_s, 250 * 0.0254 / 60.0)
+
+
 def test_explain_names_no_quirk_when_none_reproduces():
     calls = []
 
@@ -307,7 +329,7 @@ def test_explain_names_no_quirk_when_none_reproduces():
         calls.append(1)
         return 'result'
     assert quirk_models.explain(run, lambda r: False) is None
-    assert len(calls) == 3          # each quirk alone, then both
+    assert len(calls) == 2 ** len(quirk_models.QUIRKS) - 1     # every non-empty set
     assert quirk_models.explain(run, lambda r: True) == ('stale-after-arc',)
     with pytest.raises(ValueError, match='unknown quirk'):
         with quirk_models.quirks(('no-such-quirk',)):
