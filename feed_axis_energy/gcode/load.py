@@ -76,7 +76,9 @@ harmless I/O M codes and the control's contouring modes per dialect are accepted
 
 Refused with a clear message
 ----------------------------
-Axes A/B/C/U/V/W (or dropped with ``ignore_axes``/``--ignore-axes``, one warning each),
+Axes U/V/W and the rotary axes A/B/C a machine does not declare (``rotary_axes``: those
+turn, :mod:`.interp.rotary`; or dropped with ``ignore_axes``/``--ignore-axes``, one warning
+each), rotary words in a canned cycle or under cutter compensation,
 G5.2 without a positive weight on its first point, G5.2 under G93 or cutter compensation
 (G5/G5.1 under compensation as LinuxCNC), G33 spindle-synchronised motion, G7 lathe mode,
 G17.1-G19.1 UVW planes, unknown G and M codes, words nothing uses.

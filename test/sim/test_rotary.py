@@ -122,3 +122,37 @@ def test_load_inertia_comes_from_the_machine_file_load_kg_from_the_option():
     assert full.power.energy_j[-1, jc] > none.power.energy_j[-1, jc]
     assert full.dynamics.mass_kg[jx] == pytest.approx(50.0 + 30.0 + 20.0)
     assert full.dynamics.mass_kg[jc] == pytest.approx(J_T + J_L)
+
+
+# the corpus's small rotary programs on the shipped 4- and 5-axis configs (the big
+# rotation.ngc is planned only: 5.4 h of machine time)
+CORPUS_RUNS = [('nc_files__b-index.ngc', 'five_axis_mill.yaml', ()),
+               ('nc_files__cone.ngc', 'five_axis_mill.yaml', ('W',)),
+               ('nc_files__daisy.ngc', 'four_axis_mill.yaml', ())]
+
+
+@pytest.mark.parametrize('name, config, ignore', CORPUS_RUNS)
+def test_corpus_rotary_programs_simulate_on_the_shipped_configs(name, config, ignore):
+    from shared_data import need_shared
+    from feed_axis_energy.machine import load_machine
+    from feed_axis_energy.paths import config_dir
+    from feed_axis_energy.gcode import load_gcode
+    from feed_axis_energy.gcode.stats import summarize as stats_of
+    path = need_shared('corpus', 'gcode', 'LinuxCNC__linuxcnc', name)
+    machine = load_machine(config_dir() / config)
+    program = load_gcode(path, ignore_axes=ignore, **machine.gcode_keywords())
+    stats = stats_of(program.moves)
+    result = simulate_program(program, machine)
+    motion = result.motion
+    # the motion goes where the moves go, and takes at least their nominal feed time
+    for j, axis in enumerate(motion.axes):
+        if axis in machine.rotary_axes:
+            travel = np.sum(np.abs(np.diff(motion.pos[:, j])))
+            k = 'ABC'.index(axis)
+            moved = sum(abs(m.rot_end[k] - m.rot_start[k]) for m in program.moves
+                        if m.rot_end is not None)
+            # a rotary reversal passed at speed happens within one cycle, between samples
+            assert travel == pytest.approx(moved, rel=1e-4)
+            assert (result.power.energy_j[-1, j] > 0.0) == (moved > 0.0)
+    assert motion.t[-1] >= stats.nominal_feed_time_s
+    assert np.all(np.isfinite(result.power.power_w))
