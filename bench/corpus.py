@@ -21,8 +21,11 @@ parsed with the ``linuxcnc`` dialect (the reference's own semantics: ``G4 P`` in
 Compared (with ``gcode/stats.py``, which counts as the reference does): numbers of
 feed moves, traverses, arcs and dwells; feed and traverse path length (relative 1e-6, at
 least 1e-4 mm: the reference rounds to 4 decimals); total dwell; final position and bounding
-box (1 um). ``--plan`` also plans every accepted program on ``config/three_axis_mill.yaml``
-(per block, no samples) and checks that the duration is finite and not negative.
+box (1 um); rotary travel, rotary moves and the nominal feed time (A, B, C declared as the
+reference's interpreter has them, U, V, W dropped). ``--plan`` also plans every accepted
+program on ``config/three_axis_mill.yaml`` with the rotary axes of
+``config/four_axis_mill.yaml`` (A) and ``config/five_axis_mill.yaml`` (B, C) (per block, no
+samples) and checks that the duration is finite and not negative.
 
 Prints acceptance per dialect (ours vs the reference), every refusal of a program the
 reference accepts (file:line:column and our message), every disagreement (program, figure,
@@ -315,6 +318,11 @@ def make_planner(machine_path: Path) -> Callable[[Any], str]:
     from feed_axis_energy.plan.stream import estimate_plan
     machine = load_machine(machine_path)
     limits = machine.limits()
+    # the rotary axes the parse declares (ROTARY_WORDS) plan with the shipped 4- and 5-axis
+    # configs' limits: A from four_axis_mill.yaml, B and C from five_axis_mill.yaml
+    for config in ('four_axis_mill.yaml', 'five_axis_mill.yaml'):
+        extra = load_machine(ROOT / 'config' / config).limits()
+        limits.update({a: extra[a] for a in ROTARY_WORDS if a in extra and a not in limits})
     options = machine.planner.options()
 
     def plan(program: Any) -> str:
