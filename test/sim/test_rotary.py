@@ -156,3 +156,28 @@ def test_corpus_rotary_programs_simulate_on_the_shipped_configs(name, config, ig
             assert (result.power.energy_j[-1, j] > 0.0) == (moved > 0.0)
     assert motion.t[-1] >= stats.nominal_feed_time_s
     assert np.all(np.isfinite(result.power.power_w))
+
+
+def test_streamed_motion_equals_the_whole_record_plan():
+    from feed_axis_energy.machine import load_machine
+    from feed_axis_energy.paths import config_dir
+    from feed_axis_energy.plan import plan
+    from feed_axis_energy.plan.stream import concat_motion, iter_motion
+    machine = load_machine(config_dir() / 'five_axis_mill.yaml')
+    text = ('G21 G94 G64\nG1 X5 F3000\nG1 X10 Y3 C30\nG2 X20 Y3 I5 J0 B10 C60\nG1 B-20 F3600\n'
+            'G1 X25 C0 F3000\nG93 G1 X30 B0 F60\nG94 G0 X0 Y0 C0\nM2\n')
+    program = parse_gcode(text, **machine.gcode_keywords())
+    options = machine.planner.options()
+    whole = plan(program, machine.limits(), options=options)
+    streamed = concat_motion(iter_motion(program.moves, machine.limits(), options=options,
+                                         file='p', chunk_samples=97, window_blocks=2))
+    assert streamed.axes == whole.axes == ('X', 'Y', 'Z', 'B', 'C')
+    np.testing.assert_array_equal(streamed.t, whole.t)
+    for a, b in ((streamed.pos, whole.pos), (streamed.vel, whole.vel),
+                 (streamed.acc, whole.acc)):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
+    assert whole.pos[-1, 3] == pytest.approx(0.0, abs=1e-12)
+    # the B and C limits hold (sampled acceleration within a cycle's corner step)
+    for j, name in ((3, 'B'), (4, 'C')):
+        lim = machine.axis(name).limits
+        assert np.max(np.abs(whole.vel[:, j])) <= lim.velocity_m_s * (1 + 1e-9)
