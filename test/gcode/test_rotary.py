@@ -101,3 +101,10 @@ def test_rotary_words_where_they_cannot_be_simulated_are_refused(text, column):
     with pytest.raises(GcodeError, match='rotary axis word') as info:
         parse_gcode(text, rotary_axes=('B',))
     assert info.value.column == column
+
+
+def test_live_position_parameters_give_the_rotary_positions():
+    text = 'G21 G0 A4\nG92 A1\n#1=#5423\n#2=#<_a>\n#3=#<_abs_a>\nG0 X#1 Y#2 Z#3\n'
+    last = parse_gcode(text, rotary_axes=('A',)).moves[-1]
+    # program A reads 1 after G92 A1 at machine 4
+    assert last.end == pytest.approx((0.001, 0.001, 0.004))

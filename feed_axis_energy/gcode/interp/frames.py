@@ -176,6 +176,10 @@ class CoordsMixin(InterpreterState):
             value = fanuc_system_value(self, key)
             if value is not None:
                 return value
+        if self.rotary is not None:
+            value = self.rotary.system_value(key, self.coord)
+            if value is not None:
+                return value
         coords = self.coords
         coords.selected_tool = self.tool_selected
         coords.loaded_tool = self.tool_loaded

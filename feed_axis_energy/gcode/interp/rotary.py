@@ -23,9 +23,11 @@ The rules are LinuxCNC 2.9's (rs274ngc ``convert_straight``, ``inverse_time_rate
   fresh parameter file, #5164..#5166 and #5184..#5186); with axis words only the named
   axes go through the intermediate point to the stored position.
 
-Not handled (refused with the line, never skipped): rotary words in a canned cycle, a spline,
-probing or rigid tapping, and while cutter radius compensation is on; reading the rotary
-positions back through parameters (#5163..#5166, #5420..#5425) gives nothing.
+The live position parameters ``#5423..#5425`` and ``#<_a>``.. (``#<_abs_a>``..) give the
+rotary positions. Not handled (refused with the line, never skipped): rotary words in a
+canned cycle, a spline, probing or rigid tapping, and while cutter radius compensation is on.
+The stored rotary parameters (work offsets #5224.., G28 #5164..) are not written: reading
+them gives what the parameter table holds (0), not the rotary offset in force.
 """
 from __future__ import annotations
 
@@ -181,6 +183,23 @@ class RotaryAxes:
             self.g92 = list(self.saved_g92)
         if code in ('G10', 'G92', 'G52'):
             self.words = {}
+
+    def system_value(self, key: int | str, system: int) -> float | None:
+        """The rotary part of the live position parameters: ``#5423..#5425`` and
+        ``#<_a>``, ``#<_b>``, ``#<_c>`` (program coordinates [deg]), ``#<_abs_a>``..
+        (machine); ``None`` for any other key."""
+        if isinstance(key, int):
+            if 5423 <= key <= 5425:
+                i = key - 5423
+                return self.pos[i] - self.offset(system)[i]
+            return None
+        name = key.lower().lstrip('_')
+        absolute = name.startswith('abs_')
+        letter = name[4:] if absolute else name
+        if letter not in ('a', 'b', 'c'):
+            return None
+        i = 'abc'.index(letter)
+        return self.pos[i] if absolute else self.pos[i] - self.offset(system)[i]
 
     def home(self, lineno: int, named_xyz: bool, *, system: int,
              absolute: bool) -> list[list[float]]:
