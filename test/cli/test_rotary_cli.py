@@ -30,7 +30,7 @@ def _simulate(tmp_path, capsys, machine, *extra):
 
 def test_rotary_axes_appear_in_json_csv_and_bag(tmp_path, capsys):
     code, summary, _ = _simulate(tmp_path, capsys, FIVE, '--csv', str(tmp_path / 'c'),
-                                 '--out', str(tmp_path / 'bag'))
+                                 '--out', str(tmp_path / 'bag'), '--report', str(tmp_path / 'r'))
     assert code == 0
     for key in ('energy_j', 'peak_power_w'):
         assert list(summary[key]) == ['X', 'Y', 'Z', 'B', 'C', 'total']
@@ -52,6 +52,9 @@ def test_rotary_axes_appear_in_json_csv_and_bag(tmp_path, capsys):
     assert series.names == ('X', 'Y', 'Z', 'B', 'C')
     # B reaches 30 degrees between two 5 ms samples (it rests there only at one instant)
     assert math.isclose(np.max(series.positions[:, 3]), math.radians(30.0), abs_tol=1e-6)
+    # the report's travel table gives a rotary axis in degrees, a linear one in mm
+    html = (tmp_path / 'r' / 'index.html').read_text(encoding='utf-8')
+    assert '<td class="num">90.000 °</td>' in html and '<td class="num">20.0 mm</td>' in html
     power = bagio.read_series(tmp_path / 'bag', bagio.TOPIC_POWER)
     assert power.names == ('X', 'Y', 'Z', 'B', 'C', 'total')
     assert math.isclose(power.positions[-1, 4], summary['energy_j']['C'], rel_tol=1e-9)
