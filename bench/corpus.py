@@ -30,8 +30,11 @@ parsed with the ``linuxcnc`` dialect (the reference's own semantics: ``G4 P`` in
 Compared (with ``gcode/stats.py``, which counts as the reference does): numbers of
 feed moves, traverses, arcs and dwells; feed and traverse path length (relative 1e-6, at
 least 1e-4 mm: the reference rounds to 4 decimals); total dwell; final position and bounding
-box (1 um). ``--plan`` also plans every accepted program on ``config/three_axis_mill.yaml``
-(per block, no samples) and checks that the duration is finite and not negative.
+box (1 um); rotary travel, rotary moves and the nominal feed time (A, B, C declared as the
+reference's interpreter has them, U, V, W dropped). ``--plan`` also plans every accepted
+program on ``config/three_axis_mill.yaml`` with the rotary axes of
+``config/four_axis_mill.yaml`` (A) and ``config/five_axis_mill.yaml`` (B, C) (per block, no
+samples) and checks that the duration is finite and not negative.
 
 Prints acceptance per dialect (ours vs the reference), every refusal of a program the
 reference accepts (file:line:column and our message), every disagreement (program, figure,
@@ -83,6 +86,7 @@ from feed_axis_energy.gcode.stats import ProgramStats, summarize  # noqa: E402
 __all__ = ['find_corpus', 'load_corpus', 'run_ours', 'compare', 'evaluate', 'format_report',
            'report_json', 'memory_figure', 'Entry', 'OurResult', 'Disagreement', 'Report']
 
+ROTARY_WORDS = ('A', 'B', 'C')
 ACCEPTED = ('ok', 'ok_m2_appended')
 """Reference statuses that mean the reference interpreter ran the program to its end."""
 REFERENCE_DIALECT = 'linuxcnc'
@@ -91,6 +95,8 @@ REL_LENGTH_TOL = 1e-6
 ABS_LENGTH_TOL_MM = 1e-4    # the reference rounds lengths to 4 decimals
 POSITION_TOL_MM = 1e-3      # 1 um
 DWELL_TOL_S = 1e-4
+ROTARY_TOL_DEG = 1e-3      # the reference rounds rotary travel to 4 decimals
+NOMINAL_TOL_S = 1.5e-3      # and the nominal feed time to 3 decimals
 ORACLE_TOOLS = 999          # tools T1..T999, zero radius and length (run_oracle.py)
 DEFAULT_TIMEOUT_S = 60.0
 MAX_AUTO_LOCATE = 30        # --locate auto: programs traced move by move at most
@@ -252,6 +258,12 @@ def _parse_keywords(dialect: str | None, search_path: list[Path], *,
         if name in params:
             kw[name] = [str(p) for p in search_path]
             break
+    if 'rotary_axes' in params:
+        # the reference's interpreter has all nine axes: A, B, C turn (as on a machine
+        # config that declares them, config/five_axis_mill.yaml), U, V, W are dropped (no
+        # figure of the reference counts them)
+        kw['rotary_axes'] = ROTARY_WORDS
+        kw['ignore_axes'] = ('U', 'V', 'W')
     return kw
 
 
@@ -326,6 +338,11 @@ def make_planner(machine_path: Path) -> Callable[[Any], str]:
     from feed_axis_energy.plan.stream import estimate_plan
     machine = load_machine(machine_path)
     limits = machine.limits()
+    # the rotary axes the parse declares (ROTARY_WORDS) plan with the shipped 4- and 5-axis
+    # configs' limits: A from four_axis_mill.yaml, B and C from five_axis_mill.yaml
+    for config in ('four_axis_mill.yaml', 'five_axis_mill.yaml'):
+        extra = load_machine(ROOT / 'config' / config).limits()
+        limits.update({a: extra[a] for a in ROTARY_WORDS if a in extra and a not in limits})
     options = machine.planner.options()
 
     def plan(program: Any) -> str:
@@ -360,6 +377,24 @@ class Disagreement:
 
 def _close(ours: float, ref: float, *, rel: float, absolute: float) -> bool:
     return abs(ours - ref) <= max(rel * abs(ref), absolute)
+
+
+def _compare_rotary(file: str, s: Any, ref: dict[str, Any]) -> list[Disagreement]:
+    """Rotary travel and moves, and the nominal feed time where the reference has it."""
+    out: list[Disagreement] = []
+    if s.n_rotary_moves != ref.get('n_rotary_moves', 0):
+        out.append(Disagreement(file, 'n_rotary_moves', s.n_rotary_moves,
+                                ref.get('n_rotary_moves')))
+    if not _close(s.rotary_travel_deg, float(ref.get('rotary_travel_deg', 0.0)),
+                  rel=REL_LENGTH_TOL, absolute=ROTARY_TOL_DEG):
+        out.append(Disagreement(file, 'rotary_travel_deg', f'{s.rotary_travel_deg:.4f}',
+                                ref.get('rotary_travel_deg')))
+    nominal = ref.get('nominal_feed_time_s')
+    if nominal is not None and not _close(s.nominal_feed_time_s, float(nominal),
+                                          rel=REL_LENGTH_TOL, absolute=NOMINAL_TOL_S):
+        out.append(Disagreement(file, 'nominal_feed_time_s', f'{s.nominal_feed_time_s:.3f}',
+                                nominal))
+    return out
 
 
 def compare(file: str, ours: OurResult, ref: dict[str, Any]) -> list[Disagreement]:
@@ -401,6 +436,8 @@ def compare(file: str, ours: OurResult, ref: dict[str, Any]) -> list[Disagreemen
     fin = [v * 1e3 for v in s.final_position]
     if not _near(fin, ref.get('final_position')):
         out.append(Disagreement(file, 'final_position', _fmt(fin), ref.get('final_position')))
+    if hasattr(s, 'rotary_travel_deg'):
+        out += _compare_rotary(file, s, ref)
     box = ref.get('bbox_mm')
     if s.bbox_min is None or box is None:
         if not (s.bbox_min is None and box is None):

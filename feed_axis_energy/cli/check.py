@@ -131,7 +131,9 @@ def _program_line(path: Path, problems: list[Any], stats: Any) -> str:
     head = f'{path}: {"refused" if errs else "ok"}, {warns} warning{"s" if warns != 1 else ""}'
     if stats is None:
         return head
+    rotary = (f', rotary travel {stats.rotary_travel_deg:.3f} deg in {stats.n_rotary_moves} '
+              'moves' if stats.n_rotary_moves else '')
     return (f'{head}; {stats.n_feed_moves} feed moves, {stats.n_arcs} arcs, '
             f'{stats.n_traverses} traverses, {stats.n_dwells} dwells; feed path '
             f'{stats.feed_length_m * 1e3:.3f} mm, traverse path '
-            f'{stats.traverse_length_m * 1e3:.3f} mm, dwell {stats.dwell_s:.3f} s')
+            f'{stats.traverse_length_m * 1e3:.3f} mm, dwell {stats.dwell_s:.3f} s{rotary}')

@@ -84,7 +84,9 @@ the ``linuxcnc`` dialect the user M codes M100-M199 (no motion, one warning per 
 
 Refused with a clear message
 ----------------------------
-Axes A/B/C/U/V/W (or dropped with ``ignore_axes``/``--ignore-axes``, one warning each),
+Axes U/V/W and the rotary axes A/B/C a machine does not declare (``rotary_axes``: those
+turn, :mod:`.interp.rotary`; or dropped with ``ignore_axes``/``--ignore-axes``, one warning
+each), rotary words in a canned cycle or under cutter compensation,
 G5.2 without a positive weight on its first point, G5.2 under G93 or cutter compensation
 (G5/G5.1 under compensation as LinuxCNC), G33 spindle-synchronised motion, G7 lathe mode,
 G17.1-G19.1 UVW planes, unknown G and M codes, words nothing uses.
@@ -104,7 +106,7 @@ from .run import GcodeRun
 from .read.source import read_program
 from .siemens import decode_siemens, read_siemens_program, siemens_evidence
 from ..errors import ConfigError, GcodeError, shorten_path
-from .program import Move, Program
+from .program import Move, Program, ROTARY_AXES
 
 __all__ = ['parse_gcode', 'load_gcode', 'iter_moves', 'MoveStream', 'DEFAULT_ARC_TOLERANCE_M']
 
@@ -121,7 +123,7 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
                 dialect: str | Dialect | None = None,
                 search_path: Sequence[str | PathLike[str]] = (),
                 ignore_axes: Sequence[str] = (), strict_tools: bool = False,
-                allow_no_feed: bool = False) -> Program:
+                allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()) -> Program:
     """Parse an NC program into moves in SI units.
 
     Parameters
@@ -161,6 +163,9 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
         A feed move in G94 with no F set since the start runs at the machine's axis limits
         with one warning (LinuxCNC's preview); otherwise it is an error naming its line and
         column, as on the control.
+    rotary_axes
+        Rotary axis letters among A, B, C that the machine has: their words turn them
+        (:mod:`.interp.rotary`; the moves carry ``rot_start``/``rot_end``).
 
     Returns
     -------
@@ -179,7 +184,8 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
     run = GcodeRun(text, file=file, start=start, arc_tolerance_m=arc_tolerance_m, home=home,
                    tools=tools, dialect=chosen,
                    search_path=_directories(search_path), ignore_axes=_axes(ignore_axes),
-                   strict_tools=bool(strict_tools), allow_no_feed=bool(allow_no_feed))
+                   strict_tools=bool(strict_tools), allow_no_feed=bool(allow_no_feed),
+                   rotary_axes=rotary_letters(rotary_axes))
     if note:
         run.interp.warnings.insert(0, note)
     # The parse allocates one Move per block and frees nothing: cyclic garbage collection
@@ -278,7 +284,7 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                search_path: Sequence[str | PathLike[str]] = (),
                ignore_axes: Sequence[str] = (), batch: int = 4096,
                max_errors: int = 0, strict_tools: bool = False,
-               allow_no_feed: bool = False) -> MoveStream:
+               allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()) -> MoveStream:
     """Stream the moves of a program file in bounded memory.
 
     Plain lines are read one at a time, so memory stays at ``batch`` moves however long
@@ -290,7 +296,7 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     path
         The program file.
     start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes, strict_tools
-    allow_no_feed
+    allow_no_feed, rotary_axes
         As for :func:`parse_gcode`.
     batch
         Moves interpreted ahead of the consumer (at least 1).
@@ -310,7 +316,7 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
               dialect=chosen, search_path=_directories(search_path),
               batch=max(1, int(batch)), ignore_axes=_axes(ignore_axes),
               max_errors=max(0, int(max_errors)), strict_tools=bool(strict_tools),
-              allow_no_feed=bool(allow_no_feed))
+              allow_no_feed=bool(allow_no_feed), rotary_axes=rotary_letters(rotary_axes))
     return MoveStream(path, kw, note)
 
 
@@ -320,7 +326,7 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                dialect: str | Dialect | None = None,
                search_path: Sequence[str | PathLike[str]] = (),
                ignore_axes: Sequence[str] = (), strict_tools: bool = False,
-               allow_no_feed: bool = False) -> Program:
+               allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()) -> Program:
     """Read a program file (UTF-8, a BOM allowed) and parse it (see :func:`parse_gcode`).
 
     Parameters
@@ -328,7 +334,7 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     path
         The program file; its path is used as ``file`` in messages and in the result.
     start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes, strict_tools
-    allow_no_feed
+    allow_no_feed, rotary_axes
         As for :func:`parse_gcode`.
 
     Returns
@@ -351,7 +357,7 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
                        home=home, tools=tools, dialect=dialect, search_path=search_path,
                        ignore_axes=ignore_axes, strict_tools=strict_tools,
-                       allow_no_feed=allow_no_feed)
+                       allow_no_feed=allow_no_feed, rotary_axes=rotary_axes)
 
 
 def _directories(paths: Sequence[str | PathLike[str]]) -> tuple[str, ...]:
@@ -393,6 +399,16 @@ def _file_dialect(dialect: Dialect, file: str, head: str) -> tuple[Dialect, str]
     note = (f'{file}:1: read in the sinumerik dialect, chosen from {why} '
             '(--dialect names another)')
     return dialect_by_name('sinumerik'), note
+
+
+def rotary_letters(letters: Sequence[str]) -> tuple[str, ...]:
+    """Upper-case rotary axis letters for ``rotary_axes``, checked."""
+    out = tuple(str(a).strip().upper() for a in letters)
+    for a in out:
+        if a not in ROTARY_AXES:
+            msg = f'not a rotary axis: {a[:60]!r} (expected A, B or C)'
+            raise ConfigError(msg, key='rotary_axes')
+    return out
 
 
 def _axes(letters: Sequence[str]) -> tuple[str, ...]:

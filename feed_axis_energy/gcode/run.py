@@ -63,7 +63,7 @@ class GcodeRun:
         A text file opened with universal newlines, read line by line (bounded memory on
         the fast path; the front's reader gets the rest of the text if it is needed).
     file, start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
-    strict_tools, allow_no_feed
+    strict_tools, allow_no_feed, rotary_axes
         As for :func:`~.parse_gcode` (``dialect`` already a :class:`Dialect`, the axes
         checked).
     batch
@@ -95,7 +95,7 @@ class GcodeRun:
                  search_path: Sequence[str | PathLike[str]] = (), batch: int | None = None,
                  ignore_axes: Sequence[str] = (), max_errors: int = 0,
                  context: OperationContext | None = None, strict_tools: bool = False,
-                 allow_no_feed: bool = False):
+                 allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()):
         self.recent = _Recent()
         if text is not None:
             if '\r' in text:
@@ -123,7 +123,7 @@ class GcodeRun:
         self.interp = Interpreter(file, start, arc_tolerance_m, lines=ref_lines, home=home,
                                   tools=tools, dialect=dialect, params=self.params,
                                   ignore_axes=ignore_axes, strict_tools=strict_tools,
-                                  allow_no_feed=allow_no_feed)
+                                  allow_no_feed=allow_no_feed, rotary_axes=rotary_axes)
         self.params.provider = self.interp.system_value
         self.context = context
         self.emitted = 0                             # moves handed on so far

@@ -24,6 +24,7 @@ from .comp import CompMixin
 from .frames import CoordsMixin
 from .modes import ModesMixin
 from .motion import MotionMixin
+from .rotary import RotaryAxes
 from ..read.lexer import blank_comments, locate_word
 from ..expand.nurbs import NurbsState
 from ..expand.splines import SplineMixin
@@ -73,6 +74,9 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         The parameter table shared with the front's reader (``None``: a private one).
     ignore_axes
         Axis letters (A, B, C, U, V, W) whose words are dropped with one warning each.
+    rotary_axes
+        Rotary axis letters (among A, B, C) the machine has: their words move them
+        (:mod:`.rotary`); other rotary words are refused (or ignored).
     """
 
     __slots__ = ('file', 'arc_tol', 'pos', 'motion', 'plane', 'scale', 'absolute',
@@ -84,14 +88,15 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
                  'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
                  'warned', 'ignore_axes', 'rpm', 'polar_line', 'polar_inc',
                  'arc_quick', 'nurbs', 'd_selected', 'feed_per_rev', 'on_tool',
-                 'allow_no_feed', 'user_m_lineno')
+                 'allow_no_feed', 'user_m_lineno', 'rotary')
 
     def __init__(self, file: str, start: tuple[float, float, float],
                  arc_tolerance_m: float | None,
                  *, lines: Lines | None, home: tuple[float, float, float] | None = None,
                  tools: Mapping[int, object] | None = None, dialect: Dialect | None = None,
                  params: ParamStore | None = None, ignore_axes: Iterable[str] = (),
-                 strict_tools: bool = False, allow_no_feed: bool = False):
+                 strict_tools: bool = False, allow_no_feed: bool = False,
+                 rotary_axes: Iterable[str] = ()):
         self.file = file
         self.arc_tol = None if arc_tolerance_m is None else float(arc_tolerance_m)
         # radius differences below this pass every arc check (motion)
@@ -152,6 +157,8 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         self.polar_inc = (0.0, 0.0)
         self.d_selected: int | None = None  # Fanuc/Haas: D chosen on an earlier line
         self.nurbs = NurbsState()           # G5.x control points and modes (splines.py)
+        rotary = frozenset(rotary_axes)     # rotary axes of the machine (rotary.py)
+        self.rotary = RotaryAxes(rotary) if rotary else None
 
     # -- errors ---------------------------------------------------------------------------
     def fail(self, msg: str, letter: str, *, value: float | None = None,
@@ -183,6 +190,8 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         self.user_m_lineno = -1
         self.polar_line = -1
         self.nurbs.motion_line = self.nurbs.end_line = -1
+        if self.rotary is not None:
+            self.rotary.line = self.rotary.g53_line = -1
 
     def abandon_line(self) -> None:
         """After an error in a line that the run goes on from (``GcodeRun(max_errors=...)``):
@@ -211,6 +220,23 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         """First axis letter present on the line, else ``G`` (for error places: a full circle
         may be written without axis words)."""
         return next((a for a in _AXIS_LETTERS if a in d), 'G')
+
+    def refuse_rotary(self, what: str) -> None:
+        """Fail at the line's first rotary word if it has one (``what`` cannot take it)."""
+        rot = self.rotary
+        if rot is not None and rot.pending(self.lineno):
+            self.fail(f'a rotary axis word in {what} is not supported', rot.first_letter())
+
+    def rotary_move(self, m: Move) -> Move:
+        """``m`` with the rotary axes turning to the line's rotary words (if any); cutter
+        radius compensation cannot take them."""
+        rot = self.rotary
+        if rot is None or not rot.pending(self.lineno):
+            return m
+        if self.comp.active:
+            self.refuse_rotary('cutter radius compensation (G41/G42)')
+        return rot.move(m, rot.target(self.lineno, self.coord, self.absolute),
+                        inverse_time=self.inverse_time, feed=self.feed, scale=self.scale)
 
     # -- one line -------------------------------------------------------------------------
     def line(self, words: Sequence[tuple[str, str | float]]) -> None:
@@ -246,6 +272,8 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
             self.dwell_x(d)
         mode = self.motion
         has_axes = 'X' in d or 'Y' in d or 'Z' in d
+        if self.rotary is not None and not has_axes:
+            has_axes = self.rotary.pending(self.lineno)
         is_arc = mode == 2 or mode == 3
         if dwell or g64 or not d.keys() <= (_ARC_WORDS if is_arc and has_axes
                                             else _STRAIGHT_WORDS):
@@ -260,6 +288,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
                 self.fail('axis words but no motion mode (G0/G1/G2/G3) is active',
                           self.first_axis(d))
             if mode > 3:
+                self.refuse_rotary('a canned cycle, spline, probe or tap')
                 if mode < 60:
                     self.spline(d, mode, g9)
                 elif mode < 100:

@@ -148,6 +148,10 @@ class ModesMixin(InterpreterState):
         for letter in list(d):
             if letter in ALLOWED_LETTERS:
                 continue
+            if self.rotary is not None and letter in self.rotary.axes:
+                self.rotary.word(letter, self.num(letter, d.pop(letter)), self.lineno,
+                                 self.fail)
+                continue
             if letter in self.ignore_axes:
                 del d[letter]
                 if letter not in self.warned:

@@ -213,6 +213,8 @@ class MotionMixin(InterpreterState):
                 # The checking (and absolute-centre) path.
                 ca, cb = self.centre_from_offsets(d, start, a, b, n)
         m = self.arc_from(start, end, ca, cb, turn, self.feed, g9, explicit, d)
+        if self.rotary is not None:
+            m = self.rotary_move(m)
         if self.routing:
             self.route(m)
         else:
@@ -389,6 +391,8 @@ class MotionMixin(InterpreterState):
         start = self.pos
         end = self.target(d)
         m = self.straight_from(start, end, mode, self.feed, g9, explicit, d)
+        if self.rotary is not None:
+            m = self.rotary_move(m)
         if self.routing:
             self.route(m)
         else:

@@ -23,6 +23,7 @@ from ..read.block import Block
 from ..settings import ToolSpec
 from .coordstate import Vec3
 from .coords import Coords
+from .rotary import RotaryAxes
 
 __all__ = ['InterpreterState', 'Lines']
 
@@ -91,6 +92,7 @@ class InterpreterState:
     polar_inc: tuple[float, float]
     d_selected: int | None
     nurbs: NurbsState
+    rotary: RotaryAxes | None
 
     # interpreter.py
     @abstractmethod
@@ -105,6 +107,12 @@ class InterpreterState:
 
     @abstractmethod
     def missing_tool(self, number: int) -> None: ...
+
+    @abstractmethod
+    def refuse_rotary(self, what: str) -> None: ...
+
+    @abstractmethod
+    def rotary_move(self, m: Move) -> Move: ...
 
     # comp.py
     @abstractmethod
