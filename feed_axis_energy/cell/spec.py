@@ -20,6 +20,7 @@ request reaches the planner unchecked:
 """
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, field
 import hashlib
 import math
@@ -303,8 +304,15 @@ def parse_job_request(request: Any, limits: JobLimits) -> JobSpec:
                    machine=Path(machine), overrides=overrides)
 
 
+_MACHINES: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+_MACHINES_KEPT = 8
+
+
 def job_machine(spec: JobSpec) -> Any:
-    """The job's machine: its YAML with the overrides applied, validated (cached per process).
+    """The job's machine: its YAML with the overrides applied, validated.
+
+    Kept per process for the last 8 (file, size, modification time, overrides): the graph's
+    nodes ask for it on every batch; an edited file is read again.
 
     Raises
     ------
@@ -314,11 +322,26 @@ def job_machine(spec: JobSpec) -> Any:
     """
     from ..machine import load_machine
     from ..sim import variant_machine
+    field_ = 'overrides' if spec.overrides else 'machine'
+    try:
+        st = os.stat(spec.machine)
+    except OSError as err:
+        msg = f'{shorten_path(str(spec.machine))}: {err.strerror or "cannot be read"}'
+        raise JobError(msg, field='machine', job_id=spec.job_id) from None
+    key = (str(spec.machine), st.st_size, st.st_mtime_ns, spec.overrides)
+    machine = _MACHINES.get(key)
+    if machine is not None:
+        _MACHINES.move_to_end(key)
+        return machine
     try:
         if not spec.overrides:
-            return load_machine(spec.machine)
-        return variant_machine(str(spec.machine),
-                               tuple((k, v, False) for k, v in spec.overrides))
+            machine = load_machine(spec.machine)
+        else:
+            machine = variant_machine(str(spec.machine),
+                                      tuple((k, v, False) for k, v in spec.overrides))
     except FeedAxisError as err:
-        field_ = 'overrides' if spec.overrides else 'machine'
         raise JobError(str(err), field=field_, job_id=spec.job_id) from None
+    _MACHINES[key] = machine
+    while len(_MACHINES) > _MACHINES_KEPT:
+        _MACHINES.popitem(last=False)
+    return machine

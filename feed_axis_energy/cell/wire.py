@@ -3,7 +3,8 @@
 ``job/command`` carries one JSON object per message (docs/nodes.md, "Jobs"):
 ``{"command": "start", "request_id": "...", "job_id": ..., "program": ..., "load_kg": ...,
 "machine": ..., "overrides": {...}}`` or ``{"command": "abort", "request_id": "...",
-"job_id": ...}``. :func:`parse_command` bounds and checks the text before anything reads
+"job_id": ...}`` or ``{"command": "result", "request_id": "...", "job_id": ...}`` (the reply
+carries the kept result). :func:`parse_command` bounds and checks the text before anything reads
 it (size, UTF-8, JSON, nesting, the command word); what goes out is written by
 :func:`dumps` (no NaN or infinity: they are not JSON and a result holds none).
 """
@@ -18,7 +19,7 @@ from ..errors import describe, JobError
 __all__ = ['COMMANDS', 'Command', 'MAX_COMMAND_BYTES', 'dumps', 'parse_command', 'reply']
 
 MAX_COMMAND_BYTES = 16 * 1024
-COMMANDS = ('start', 'abort')
+COMMANDS = ('start', 'abort', 'result')
 _MAX_DEPTH = 4
 
 

@@ -105,7 +105,7 @@ def test_commands_parse_into_word_request_id_and_body():
     ('{', 'not JSON'),
     ('[1, 2]', 'a JSON object'),
     ('"start"', 'a JSON object'),
-    ('{"command": "launch"}', 'must be one of start, abort'),
+    ('{"command": "launch"}', 'must be one of start, abort, result'),
     ('{"job_id": "j"}', 'must be one of'),
     ('{"command": "start", "load_kg": NaN}', 'not a number JSON allows'),
     ('{"command": "start", "load_kg": Infinity}', 'not a number JSON allows'),
