@@ -5,14 +5,15 @@ end-of-program marker (:mod:`.end`), the plot topics from the graph's streams
 (:mod:`.plots`) and the job a stream message belongs to (:mod:`.jobs`).
 """
 from .end import EndTracker, ProgramEnd, restamp_end_marker
-from .flow import (FlowWindow, header_stamp_ns, NS_PER_S, pacing_delay_s, recording_gaps,
-                   seconds_to_ns, StreamingPower)
-from .jobs import header_frame_id, JobRouter, parse_state_text
+from .flow import (FlowWindow, header_stamp_ns, lines_at, NS_PER_S, pacing_delay_s,
+                   recording_gaps, seconds_to_ns, StreamingPower)
+from .jobs import header_frame_id, JobRouter, live_payload, LIVE_CLOCKS, parse_state_text
 from .plots import GraphPlotter, PLOT_SOURCES
 from .source import SetpointSource
 
 __all__ = [
     'EndTracker', 'FlowWindow', 'GraphPlotter', 'header_frame_id', 'header_stamp_ns',
-    'JobRouter', 'NS_PER_S', 'pacing_delay_s', 'parse_state_text', 'PLOT_SOURCES', 'ProgramEnd',
+    'JobRouter', 'lines_at', 'live_payload', 'LIVE_CLOCKS', 'NS_PER_S', 'pacing_delay_s',
+    'parse_state_text', 'PLOT_SOURCES', 'ProgramEnd',
     'recording_gaps', 'restamp_end_marker', 'seconds_to_ns', 'SetpointSource', 'StreamingPower',
 ]

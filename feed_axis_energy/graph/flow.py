@@ -190,6 +190,7 @@ class StreamingPower:
                             else None)
         self.last_electrical: ElectricalPower | None = None
         self._peak: np.ndarray | None = None
+        self._last_power = np.zeros(len(self.axes) + 1)
         self._regenerated = 0.0
         self._neg_last: float | None = None
         self._t_first: float | None = None
@@ -222,6 +223,11 @@ class StreamingPower:
     def energy_j(self) -> np.ndarray:
         """Cumulative energy so far [J]: per axis, then the total (``k + 1`` values)."""
         return self._energy_last.copy()
+
+    @property
+    def last_power_w(self) -> np.ndarray:
+        """Power of the newest sample [W]: per axis, then the total (zeros before any)."""
+        return self._last_power.copy()
 
     @property
     def peak_w(self) -> np.ndarray:
@@ -286,6 +292,7 @@ class StreamingPower:
                 self._electrical.add(dyn, mechanical, elec, braking=self.braking)
             self.last_electrical = elec
         if t.shape[0]:
+            self._last_power = both[-1].copy()
             self._track_peak_and_braking(t, mechanical, both)
             self._n += t.shape[0]
             self._energy_last = energy[-1].copy()

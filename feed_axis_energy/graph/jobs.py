@@ -6,7 +6,9 @@ from the serialized message without decoding the rest. A node downstream of
 ``gcode_trajectory`` needs the job's spec (machine, load) before it can compute; the spec
 comes on the latched ``job/state`` topic, which DDS may deliver after the job's first
 batches (no order between topics): :class:`JobRouter` holds those batches, bounded, until the
-spec arrives, and remembers the specs of the last few jobs.
+spec arrives, and remembers the specs of the last few jobs. :func:`live_payload` is one
+message of the live stream ``job/live`` (power, energy so far and the electrical side, with a
+wall-clock stamp in real-time mode).
 """
 from __future__ import annotations
 
@@ -15,10 +17,15 @@ import json
 import struct
 from typing import Any, Generic, TypeVar
 
+import numpy as np
+
 from ..cell import JobSpec
 from ..errors import DataError, FeedAxisError
+from .flow import StreamingPower
 
-__all__ = ['header_frame_id', 'JobRouter', 'parse_state_text']
+__all__ = ['header_frame_id', 'JobRouter', 'live_payload', 'LIVE_CLOCKS', 'parse_state_text']
+
+LIVE_CLOCKS = ('simulation', 'wall')
 
 _U32 = struct.Struct('<I')
 _MAX_FRAME_ID = 256
@@ -115,3 +122,58 @@ class JobRouter(Generic[Item]):
     def held(self) -> int:
         """Messages waiting for their job's spec."""
         return len(self._held)
+
+
+def _named(names: list[str], values: np.ndarray) -> dict[str, float]:
+    return {n: float(v) for n, v in zip(names, values)}
+
+
+def live_payload(power: StreamingPower, *, job_id: str, stamp_ns: int, clock: str,
+                 line: int | None = None) -> dict[str, Any]:
+    """One ``job/live`` message after a batch (docs/nodes.md, "Jobs": the keys).
+
+    Parameters
+    ----------
+    power
+        The job's integrator, after :meth:`StreamingPower.update` of the batch.
+    job_id
+        The job ('' for a graph on one program).
+    stamp_ns
+        Time of the batch's last sample: simulation time, or wall-clock time in real-time
+        mode (``clock``).
+    clock
+        ``'simulation'`` or ``'wall'``.
+    line
+        Source line of the batch's last sample, when the line table is known.
+
+    Returns
+    -------
+    dict
+        ``power_w`` (the last sample's power after the braking rule per axis and ``total``
+        [W]), ``energy_j`` (so far [J]); with declared drives ``electrical``: the last
+        sample's ``motor_w`` and ``supply_w`` (per axis, ``total``; the supply with
+        ``cabinet``) [W] and ``motor_energy_j``, ``supply_energy_j``, ``returned_j`` so far [J].
+    """
+    if clock not in LIVE_CLOCKS:
+        msg = f'clock must be one of {LIVE_CLOCKS}, got {clock!r}'
+        raise ValueError(msg)
+    names = list(power.axes) + ['total']
+    last = power.last_power_w
+    out: dict[str, Any] = {
+        'job_id': job_id, 'stamp_ns': int(stamp_ns), 'clock': clock,
+        'time_s': float(power.last_time_s or 0.0), 'samples': power.n_samples,
+        'line': line, 'power_w': _named(names, last), 'energy_j': _named(names, power.energy_j),
+        'electrical': None}
+    elec = power.last_electrical
+    summary = power.electrical_summary()
+    if elec is not None and summary:
+        motor = elec.motor_w[-1]
+        supply = elec.supply_w[-1]
+        out['electrical'] = {
+            'motor_w': {**_named(list(power.axes), motor), 'total': float(motor.sum())},
+            'supply_w': {**_named(list(power.axes), supply), 'cabinet': elec.cabinet_w,
+                         'total': float(supply.sum() + elec.cabinet_w)},
+            'motor_energy_j': summary['motor_energy_j'],
+            'supply_energy_j': summary['supply_energy_j'],
+            'returned_j': summary['returned_j']}
+    return out

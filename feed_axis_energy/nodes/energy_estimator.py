@@ -29,12 +29,13 @@ from trajectory_msgs.msg import JointTrajectory
 from feed_axis_energy.cell import dumps, ELECTRICAL_KEYS, EnergyReport, job_machine, JobSpec
 from feed_axis_energy.record import bagio, recording
 from feed_axis_energy.errors import FeedAxisError
-from feed_axis_energy.graph import (EndTracker, header_frame_id, JobRouter, parse_state_text,
-                                    seconds_to_ns, StreamingPower)
+from feed_axis_energy.graph import (EndTracker, header_frame_id, JobRouter, lines_at,
+                                    live_payload, LIVE_CLOCKS, parse_state_text, seconds_to_ns,
+                                    StreamingPower)
 from feed_axis_energy.machine import load_machine
 from feed_axis_energy.plan import Motion
 from feed_axis_energy.nodes import convert
-from feed_axis_energy.nodes.qos import latched_qos, report_qos, stream_qos
+from feed_axis_energy.nodes.qos import command_qos, latched_qos, report_qos, stream_qos
 from feed_axis_energy.nodes.runner import (check_mass, declare, guard_parameters, LiveParameter,
                                            run, StartupError, steady_timer)
 from feed_axis_energy.paths import default_machine
@@ -51,6 +52,7 @@ class _Run:
         self.lines = None
         self.tracker = EndTracker(['axis_state'])
         self.published = False
+        self.wall_anchor_ns: int | None = None     # wall-clock ns of simulation time 0
 
 
 class EnergyEstimator(Node):
@@ -67,6 +69,12 @@ class EnergyEstimator(Node):
         if not self.load_kg >= 0.0:
             msg = f'parameter load_kg must be >= 0, got {self.load_kg}'
             raise StartupError(msg)
+        self.live_clock = declare(self, 'live_clock', 'simulation',
+                                  'stamps of job/live: simulation (time from 0) or wall '
+                                  '(wall-clock time; the launcher sets it in realtime mode)')
+        if self.live_clock not in LIVE_CLOCKS:
+            msg = f'parameter live_clock must be one of {LIVE_CLOCKS}, got {self.live_clock!r}'
+            raise StartupError(msg)
         self.machine = load_machine(path or default_machine())
         self.current_run = _Run('')
         self.finished: deque[str] = deque(maxlen=64)     # jobs reported: late messages ignored
@@ -75,6 +83,7 @@ class EnergyEstimator(Node):
         self.pub_power = self.create_publisher(JointTrajectory, 'power', stream_qos())
         self.pub_blocks = self.create_publisher(DiagnosticArray, 'block_energy', latched_qos())
         self.pub_report = self.create_publisher(String, 'job/energy', report_qos())
+        self.pub_live = self.create_publisher(String, 'job/live', command_qos())
         self.create_subscription(JointTrajectory, 'axis_state', self._on_state, stream_qos(),
                                  raw=True)
         self.create_subscription(JointTrajectory, 'program/lines', self._on_lines,
@@ -170,7 +179,31 @@ class EnergyEstimator(Node):
             return
         self.pub_power.publish(cdr)
         run_.tracker.seen('axis_state', batch.stamp_ns)
+        if self.pub_live.get_subscription_count():
+            self._publish_live(run_, batch.stamp_ns)
         self._maybe_finish(run_)
+
+    def _publish_live(self, run_: _Run, first_ns: int) -> None:
+        """One ``job/live`` message for the batch just integrated (only while subscribed)."""
+        power = run_.power
+        last_ns = int(seconds_to_ns(power.last_time_s))
+        stamp = last_ns
+        if self.live_clock == 'wall':
+            # real time: a batch is sent when the wall clock reaches its first sample, so
+            # the job's first batch anchors simulation time 0 to the wall clock
+            if run_.wall_anchor_ns is None:
+                run_.wall_anchor_ns = time.time_ns() - first_ns
+            stamp = run_.wall_anchor_ns + last_ns
+        line = None
+        if run_.lines is not None:
+            line = int(lines_at(np.array([last_ns]), *run_.lines)[0])
+        try:
+            text = dumps(live_payload(power, job_id=run_.job_id, stamp_ns=stamp,
+                                      clock=self.live_clock, line=line))
+        except ValueError as err:       # a NaN would not be JSON: never sent
+            self.get_logger().error(f'job/live not sent: {err}')
+            return
+        self.pub_live.publish(String(data=text))
 
     def _on_lines(self, data: bytes) -> None:
         try:

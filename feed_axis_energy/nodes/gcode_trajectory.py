@@ -18,6 +18,7 @@ itself is :class:`feed_axis_energy.cell.JobBoard` (no ROS in it).
 from __future__ import annotations
 
 from dataclasses import replace
+import json
 from pathlib import Path
 import sys
 import time
@@ -264,6 +265,12 @@ class GcodeTrajectory(LifecycleNode):
         except (FeedAxisError, OSError) as err:
             self._finish_job(JobResult.build(spec, None, status='failed', message=str(err)))
             return
+        except Exception as err:     # a callback never raises: the job fails, the node stays
+            self.get_logger().error(f'job {spec.job_id}: planning failed unexpectedly: '
+                                    f'{type(err).__name__}: {err}')
+            self._finish_job(JobResult.build(spec, None, status='failed',
+                                             message=f'{type(err).__name__}: {err}'))
+            return
         self._source, self.survey = source, survey
         self._job, self._job_id, self._aborted = spec, spec.job_id, False
         self._batches = self._pending = None
@@ -281,7 +288,6 @@ class GcodeTrajectory(LifecycleNode):
         self._pump()
 
     def _on_energy(self, msg: String) -> None:
-        import json
         try:
             report = EnergyReport.from_dict(json.loads(msg.data))
         except (ValueError, FeedAxisError) as err:

@@ -68,3 +68,30 @@ def test_a_machine_without_drives_has_no_electrical_side():
     assert stream.regenerated_j == pytest.approx(2.0)      # -(-2 W) * 1 s
     # regenerative braking: the drawn power is the signed -2 W, and the largest of it is that
     assert stream.peak_w.tolist() == [-2.0, -2.0]
+
+
+def test_live_payload_holds_the_last_sample_and_the_energy_so_far():
+    import json
+    from feed_axis_energy.graph import live_payload
+    machine = load_machine(config_dir() / 'three_axis_mill_drives.yaml')
+    result = simulate_program(parse_gcode(PROGRAM, file='p.nc'), machine, load_kg=20.0)
+    summary = summarize(result)
+    stream = _stream(result, machine, 3, 20.0)
+    d = live_payload(stream, job_id='j', stamp_ns=123, clock='wall', line=4)
+    json.dumps(d, allow_nan=False)
+    assert (d['job_id'], d['stamp_ns'], d['clock'], d['line']) == ('j', 123, 'wall', 4)
+    assert d['samples'] == summary['samples']
+    p = result.power
+    assert d['power_w']['X'] == p.power_w[-1, 0] and d['power_w']['total'] == p.total_w[-1]
+    assert_allclose(d['energy_j']['total'], summary['energy_j']['total'], rtol=1e-12)
+    e = d['electrical']
+    elec = p.electrical
+    assert e['motor_w']['Z'] == elec.motor_w[-1, 2]
+    assert e['supply_w']['cabinet'] == elec.cabinet_w > 0
+    assert_allclose(e['supply_w']['total'], elec.supply_w[-1].sum() + elec.cabinet_w)
+    assert_allclose(e['supply_energy_j']['total'],
+                    summary['electrical']['supply_energy_j']['total'], rtol=1e-9)
+    plain = _stream(result, load_machine(config_dir() / 'three_axis_mill.yaml'), 3, 20.0)
+    assert live_payload(plain, job_id='', stamp_ns=0, clock='simulation')['electrical'] is None
+    with pytest.raises(ValueError, match='clock'):
+        live_payload(plain, job_id='', stamp_ns=0, clock='utc')

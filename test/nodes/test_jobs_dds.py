@@ -17,14 +17,6 @@ XYZ = 'G21 G90 G94 G61\nG1 X120 Y40 Z-20 F6000\nG4 P0.1\nG1 X0 Y0 Z0 F9000\n'
 LONG = 'G21 G90 G94 G61\n' + 'G1 X100 F3000\nG1 X0 F3000\n' * 15
 
 
-def _start(name, params, env):
-    cmd = [PY, '-m', f'feed_axis_energy.nodes.{name}', '--ros-args']
-    for k, v in params.items():
-        cmd += ['-p', f'{k}:={v}']
-    return subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True)
-
-
 def _offline(program, env, *args):
     out = subprocess.run([PY, '-m', 'feed_axis_energy', 'simulate', str(program), '--json',
                           *args], env=env, capture_output=True, text=True, timeout=120)
@@ -54,7 +46,13 @@ class _Client:
         self.node.create_subscription(String, 'job/result', self._on_result, latched_qos())
         self.node.create_subscription(JointTrajectory, 'setpoints', self._on_setpoints,
                                       stream_qos(), raw=True)
+        self.node.create_subscription(String, 'job/live', self._on_live, command_qos())
         self.setpoint_samples = {}
+        self.live = {}
+
+    def _on_live(self, msg):
+        d = json.loads(msg.data)
+        self.live.setdefault(d['job_id'], []).append(d)
 
     def _on_reply(self, msg):
         d = json.loads(msg.data)
@@ -96,17 +94,21 @@ class _Client:
 
 
 @child_only
-def test_two_jobs_an_refused_start_and_an_abort_in_one_graph(tmp_path, node_env, context):
+def test_two_jobs_a_refused_start_and_an_abort_in_one_graph_launch(tmp_path, node_env,
+                                                                   domain_id, context):
     root = tmp_path / 'programs'
     root.mkdir()
     (root / 'short.nc').write_text(SHORT)
     (root / 'xyz.nc').write_text(XYZ)
     (root / 'long.nc').write_text(LONG)
     (tmp_path / 'secret.nc').write_text(SHORT)
-    procs = [_start('gcode_trajectory', {'program_root': str(root), 'machine_root': 'shipped',
-                                         'stall_timeout_s': 20.0}, node_env),
-             _start('axis_dynamics', {}, node_env),
-             _start('energy_estimator', {}, node_env)]
+    # one graph launch for all jobs: the launcher's job mode
+    launcher = subprocess.Popen(
+        [PY, '-m', 'feed_axis_energy', 'launch', '--program-root', str(root),
+         '--machine-root', str(_shipped('.')), '--domain-id', str(domain_id),
+         '--timeout', '200'], env=node_env, stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT, text=True)
+    procs = [launcher]
     client = _Client(context)
     try:
         client.spin_until(lambda: client.states and client.states[-1]['state'] == 'idle', 30,
@@ -115,6 +117,14 @@ def test_two_jobs_an_refused_start_and_an_abort_in_one_graph(tmp_path, node_env,
         bad = client.command('r0', command='start', job_id='j0', program='../secret.nc')
         assert not bad['accepted'] and bad['field'] == 'program' and '".."' in bad['message']
         assert bad['state'] == 'idle'
+
+        # text that is not a command is answered (request_id '') and changes nothing
+        client.pub.publish(client.String(data='{"command": "start", "load_kg": NaN'))
+        client.spin_until(lambda: '' in client.replies, 30, 'reply to garbage')
+        assert not client.replies['']['accepted'] and client.replies['']['field'] == 'request'
+        nan = client.command('rn', command='start', job_id='jn', program='short.nc',
+                             load_kg=1e30)
+        assert not nan['accepted'] and nan['field'] == 'load_kg', nan
 
         # job 1: the default machine, 5 kg
         r1 = client.command('r1', command='start', job_id='j1', program='short.nc',
@@ -155,9 +165,12 @@ def test_two_jobs_an_refused_start_and_an_abort_in_one_graph(tmp_path, node_env,
                 proc.kill()
                 out, _ = proc.communicate(timeout=5)
             outs.append(out)
-            print(f'--- {proc.args[2]} (exit {proc.returncode}) ---\n{out or ""}')
+            print(f'--- launch (exit {proc.returncode}) ---\n{out or ""}')
     for out in outs:
         assert 'Traceback' not in out, out
+    assert launcher.returncode == 130, outs[0]        # stopped by SIGINT, as documented
+    assert 'stopped by SIGINT; all nodes shut down' in outs[0]
+    assert outs[0].count('[energy_estimator]') >= 3   # the same estimator for every job
 
     states = [(s['job_id'], s['state']) for s in client.states]
     for job, final in (('j1', 'ended'), ('j2', 'ended'), ('j3', 'aborted')):
@@ -192,6 +205,20 @@ def test_two_jobs_an_refused_start_and_an_abort_in_one_graph(tmp_path, node_env,
     assert res2['electrical']['returned_j'] == pytest.approx(
         ref2['electrical']['returned_j'], rel=1e-9, abs=1e-9)
 
+    # the live stream: simulation-time stamps in fast mode; its last message per job holds
+    # the result's energies (the electrical side included where the machine has drives)
+    for res in (res1, res2, res3):
+        live = client.live[res['job_id']]
+        assert all(m['clock'] == 'simulation' for m in live)
+        assert [m['samples'] for m in live] == sorted(m['samples'] for m in live)
+        assert live[-1]['samples'] == res['samples']
+        assert live[-1]['energy_j'] == res['energy_j']
+        assert live[-1]['stamp_ns'] == round(live[-1]['time_s'] * 1e9)
+    assert client.live['j1'][-1]['electrical'] is None
+    last2 = client.live['j2'][-1]['electrical']
+    assert last2['supply_energy_j'] == res2['electrical']['supply_energy_j']
+    assert set(last2['motor_w']) == {'X', 'Y', 'Z', 'total'}
+
     # the abort: the stream stopped where the abort found it, nothing lost, nothing after
     assert res3['status'] == 'aborted' and res3['lost_samples'] == 0, res3
     full = _offline(root / 'long.nc', node_env)
@@ -200,6 +227,43 @@ def test_two_jobs_an_refused_start_and_an_abort_in_one_graph(tmp_path, node_env,
     assert f"after {res3['samples']} of" in res3['message']
     assert 0 < res3['energy_j']['total'] < full['energy_j']['total']
     assert 'j4' not in client.setpoint_samples and 'j0' not in client.setpoint_samples
+
+
+@child_only
+def test_live_stream_is_stamped_in_wall_clock_time_in_realtime_mode(tmp_path, node_env,
+                                                                    domain_id, context):
+    root = tmp_path / 'programs'
+    root.mkdir()
+    (root / 'xyz.nc').write_text(XYZ)
+    launcher = subprocess.Popen(
+        [PY, '-m', 'feed_axis_energy', 'launch', '--program-root', str(root),
+         '--machine', str(_shipped('three_axis_mill_drives.yaml')), '--mode', 'realtime',
+         '--domain-id', str(domain_id), '--timeout', '120'], env=node_env,
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    client = _Client(context)
+    try:
+        r = client.command('r1', command='start', job_id='rt1', program='xyz.nc', load_kg=3)
+        assert r['accepted'], r
+        t_start_ns = time.time_ns()
+        res = client.result('rt1', timeout_s=60)
+        t_end_ns = time.time_ns()
+    finally:
+        client.close()
+        launcher.send_signal(2)
+        out, _ = launcher.communicate(timeout=20)
+        print(out)
+    assert res['status'] == 'ended' and res['lost_samples'] == 0, res
+    live = client.live['rt1']
+    assert all(m['clock'] == 'wall' for m in live) and len(live) >= 20
+    stamps = [m['stamp_ns'] for m in live]
+    # wall-clock stamps within the run (not 1970), spaced as the samples are
+    assert t_start_ns - 1e9 < stamps[0] and stamps[-1] < t_end_ns + 1e9
+    spacing = [b - a for a, b in zip(stamps, stamps[1:])]
+    sim = [round((b['time_s'] - a['time_s']) * 1e9) for a, b in zip(live, live[1:])]
+    assert max(abs(x - y) for x, y in zip(spacing, sim)) <= 1
+    assert live[-1]['electrical']['supply_energy_j'] == res['electrical']['supply_energy_j']
+    # real time: the job took about as long as its program
+    assert (t_end_ns - t_start_ns) / 1e9 > 0.9 * res['duration_s']
 
 
 def _shipped(name):
