@@ -100,6 +100,10 @@ class EnergyEstimator(Node):
         """The current run's integrator."""
         return self.current_run.power
 
+    @power.setter
+    def power(self, value: StreamingPower | None) -> None:
+        self.current_run.power = value
+
     @property
     def published(self) -> bool:
         """Whether the current run's ``block_energy`` is out."""

@@ -356,6 +356,8 @@ class GcodeTrajectory(LifecycleNode):
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Forget the plan and the publishers."""
+        if self.board is not None and self._job is not None:
+            self._fail_job('gcode_trajectory was cleaned up (lifecycle) during the job')
         jobs = ('pub_state', 'pub_result', 'pub_reply') if self.board is not None else ()
         for name in ('pub_setpoints', 'pub_lines', 'pub_end', 'pub_clock') + jobs:
             self.destroy_publisher(getattr(self, name))
