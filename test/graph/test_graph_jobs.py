@@ -3,6 +3,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import must_run
 import pytest
 
 from feed_axis_energy.cell import JobSpec
@@ -25,7 +26,7 @@ def test_frame_id_is_read_from_the_serialized_header(frame_id):
 
 
 def test_the_graph_encoder_and_the_reader_agree():
-    pytest.importorskip('rclpy')
+    must_run.import_or_skip('rclpy', 'rclpy')
     from feed_axis_energy.nodes import convert
     data = convert.encode_trajectory(5, np.array([0, 1000]), ['X'],
                                      {'positions': np.zeros((2, 1))}, frame_id='abc')

@@ -14,7 +14,7 @@ from feed_axis_energy.measured.align import interval_average
 from feed_axis_energy.measured.manifest import load_campaign
 from feed_axis_energy.measured.csvload import load_run
 from feed_axis_energy.identify.rig import (EffectSpec, Instrument, instrument_record,
-                                                parse_effects)
+                                           parse_effects)
 from feed_axis_energy.identify.rig import make_campaign, paper_scenario, RigConfig, stroke_program
 from feed_axis_energy.sim.simulate import simulate_program
 

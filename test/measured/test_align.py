@@ -189,7 +189,7 @@ def test_rig_runs_with_random_offsets_over_stroke_cycles_are_aligned():
     from feed_axis_energy.gcode.load import parse_gcode
     from feed_axis_energy.machine.file import load_machine
     from feed_axis_energy.identify.rig import (EffectSpec, instrument_record, Instrument,
-                                                    simulate_run)
+                                               simulate_run)
     from feed_axis_energy.identify.rig import stroke_program
     from feed_axis_energy.sim.simulate import simulate_program
     from feed_axis_energy.paths import config_dir
