@@ -1,8 +1,9 @@
 """Fixtures of the bridge tests: free loopback ports from this suite's ranges, programs.
 
-OPC UA servers take ports from ``FAE_OPCUA_PORTS`` (default 48400-48499), MQTT brokers
-from ``FAE_MQTT_PORTS`` (default 18830-18899): ranges so that people testing on one machine
-do not collide.
+OPC UA servers take ports from ``FAE_OPCUA_PORTS`` (default 48400-48489), MQTT brokers from
+``FAE_MQTT_PORTS`` (default 18830-18889): ranges so that people testing on one machine do not
+collide (``bench/bench_bridges.py`` uses 48490-48499 and 18890-18899). A port is free when
+probed; asyncua binds it seconds later, after building its address space.
 """
 from __future__ import annotations
 
@@ -36,12 +37,12 @@ def free_port(name: str, default: str) -> int:
 
 def opcua_port() -> int:
     """A free port for an OPC UA server."""
-    return free_port('FAE_OPCUA_PORTS', '48400-48499')
+    return free_port('FAE_OPCUA_PORTS', '48400-48489')
 
 
 def mqtt_port() -> int:
     """A free port for an MQTT broker."""
-    return free_port('FAE_MQTT_PORTS', '18830-18899')
+    return free_port('FAE_MQTT_PORTS', '18830-18889')
 
 
 @pytest.fixture
