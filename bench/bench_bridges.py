@@ -5,7 +5,7 @@
 
 This process runs the job service's test double (``test/bridge/fake_service.py``: one live
 sample per ``1/rate`` s, each stamped with the wall clock when it is emitted), the OPC UA
-server (``OpcUaBridge``, its own thread and event loop) and the MQTT bridge, with mosquitto
+server (``OpcUaThread``: its own thread and event loop) and the MQTT bridge, with mosquitto
 (or amqtt) on a loopback port. A child process holds the clients: N asyncua clients, each
 subscribed to ``Energy/Total/AcActivePowerTotal`` (sampling interval 0, publishing interval
 ``--publish-ms``), and one paho subscriber of ``<base>/power``. Each client's latency is its
@@ -25,7 +25,6 @@ from pathlib import Path
 import socket
 import sys
 import tempfile
-import threading
 import time
 from typing import Any
 
@@ -39,7 +38,7 @@ from brokers import amqtt_broker, mosquitto, mosquitto_binary  # noqa: E402
 from fake_service import FakeJobService  # noqa: E402
 
 from feed_axis_energy.bridge import (MqttBridge, MqttSettings, NAMESPACE_URI,  # noqa: E402
-                                     OpcUaBridge, OpcUaSettings, TopicTree)
+                                     OpcUaSettings, OpcUaThread, TopicTree)
 
 
 def _free_port(low: int, high: int) -> int:
@@ -128,11 +127,9 @@ def _stats(values: list[float]) -> str:
 def _round(n: int, args: argparse.Namespace, mqtt_port: int, programs: Path) -> None:
     samples = int(args.seconds * args.rate_hz)
     service = FakeJobService(programs, samples=samples, period_s=1.0 / args.rate_hz)
-    loop = asyncio.new_event_loop()
-    thread = threading.Thread(target=loop.run_forever, name='opcua', daemon=True)
-    thread.start()
-    bridge = OpcUaBridge(service, OpcUaSettings(port=_free_port(48490, 48499)))
-    asyncio.run_coroutine_threadsafe(bridge.start(), loop).result(120)
+    server = OpcUaThread(service, OpcUaSettings(port=_free_port(48490, 48499)))
+    server.start()
+    bridge = server.bridge
     tree = TopicTree(machine='bench')
     ctx = mp.get_context('spawn')
     ready, stop = ctx.Event(), ctx.Event()
@@ -155,9 +152,7 @@ def _round(n: int, args: argparse.Namespace, mqtt_port: int, programs: Path) -> 
             got = recv.recv()
             child.join(60)
     finally:
-        asyncio.run_coroutine_threadsafe(bridge.stop(), loop).result(60)
-        loop.call_soon_threadsafe(loop.stop)
-        thread.join(10)
+        server.stop()
     sent = service.result('bench')['samples']
     opcua = [x for lat in got['opcua'] for x in lat]
     per = [len(lat) for lat in got['opcua']]

@@ -20,6 +20,7 @@ import time
 from typing import Any, Callable, Collection
 
 from ..errors import describe, RequestError, shorten
+from .logbound import BoundedLog
 
 __all__ = ['DROP_REASONS', 'MAX_PAYLOAD_BYTES', 'MeasuredInput', 'MeasuredSample',
            'parse_measured', 'QUANTITIES']
@@ -178,6 +179,7 @@ class MeasuredInput:
         """Messages dropped, by reason."""
         self.last_error = ''
         """The message of the last drop."""
+        self._log = BoundedLog(_log)
 
     @property
     def dropped(self) -> int:
@@ -194,10 +196,9 @@ class MeasuredInput:
         return True
 
     def _drop(self, code: str, message: str) -> None:
-        count = self.drops[code] = self.drops[code] + 1
+        self.drops[code] += 1
         self.last_error = message
-        if count & (count - 1) == 0:    # 1st, 2nd, 4th, 8th ... of a kind: bounded logging
-            _log.warning('measured data dropped (%s, %d so far): %s', code, count, message)
+        self._log.log(logging.WARNING, code, f'measured data dropped: {message}')
 
     def handle(self, axis: str | None, topic: str, payload: bytes) -> MeasuredSample | None:
         """Check one message and hand it on; returns the sample, or None when dropped."""

@@ -12,13 +12,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import logging
+import math
 import threading
 import time
 from typing import Any, Callable, Mapping
 
 import paho.mqtt.client as paho
 
-from ..errors import FeedAxisError, RequestError
+from ..errors import ConfigError, describe, FeedAxisError, RequestError
+from .logbound import BoundedLog
 from .measured import MeasuredInput, MeasuredSample
 from .service import FINAL_STATES, JobService, LiveSample, ServiceEvent, StateChange
 from .topics import (power_payload, result_payload, state_payload, status_payload,
@@ -64,6 +66,21 @@ class MqttSettings:
     max_rate_hz: float = 2000.0
     axes: tuple[str, ...] = ()
 
+    def __post_init__(self) -> None:
+        if isinstance(self.port, bool) or not isinstance(self.port, int) \
+                or not 1 <= self.port <= 65535:
+            raise ConfigError(f'expected a TCP port 1...65535, got {describe(self.port)}',
+                              file='<mqtt>', key='port')
+        for key in ('keepalive_s', 'max_queued'):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ConfigError(f'expected a positive integer, got {describe(value)}',
+                                  file='<mqtt>', key=key)
+        if isinstance(self.max_rate_hz, bool) or not isinstance(self.max_rate_hz, (int, float)) \
+                or not math.isfinite(self.max_rate_hz) or self.max_rate_hz <= 0:
+            raise ConfigError(f'expected a positive finite number, got '
+                              f'{describe(self.max_rate_hz)}', file='<mqtt>', key='max_rate_hz')
+
 
 class MqttBridge:
     """Publishes a job service on MQTT and hands measured drive data to a callback.
@@ -94,6 +111,7 @@ class MqttBridge:
         """Messages handed to paho (QoS 0 ones may still be lost on the way)."""
         self.publish_failures = 0
         """Messages paho refused (queue full, not connected for QoS 0)."""
+        self._log = BoundedLog(_log)
         self._connected = threading.Event()
         self._connect_error = ''
         self._unsubscribe: Callable[[], None] | None = None
@@ -199,7 +217,7 @@ class MqttBridge:
             info = self._client.publish(topic, payload, qos=qos, retain=retain)
         except (ValueError, RuntimeError) as exc:
             self.publish_failures += 1
-            _log.warning('cannot publish on %s: %s', topic, exc)
+            self._log.log(logging.WARNING, 'publish', f'cannot publish on {topic}: {exc}')
             return
         if info.rc == paho.MQTT_ERR_SUCCESS:
             self.published += 1
@@ -222,13 +240,17 @@ class MqttBridge:
             return
         result: Mapping[str, Any] | None
         result = self.service.last_result() if job_id is None else self.service.result(job_id)
+        if result is None and job_id is not None:
+            # a service that keeps no history still has its last result
+            last = self.service.last_result()
+            result = last if last is not None and last.get('job_id') == job_id else None
         if result is None:
             return
         try:
             payload = result_payload(result, stamp_ns=time.time_ns())
         except RequestError as exc:
             self.publish_failures += 1
-            _log.error('the result is not published: %s', exc)
+            self._log.log(logging.ERROR, 'result', f'the result is not published: {exc}')
             return
         self._publish(self.topics.job_result, payload, qos=1, retain=True)
 
@@ -243,4 +265,5 @@ class MqttBridge:
                     self._publish_result(event.job_id)
                 self._publish_state(event)
         except Exception:
-            _log.exception('cannot publish a job service event on MQTT')
+            self._log.log(logging.ERROR, 'event', 'cannot publish a job service event on MQTT',
+                          exc_info=True)

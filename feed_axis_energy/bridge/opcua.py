@@ -27,17 +27,20 @@ import datetime
 import json
 import logging
 import math
+import threading
 from typing import Any, Callable, Mapping, Sequence
 
 from asyncua import Node, Server, ua
 
-from ..errors import describe, FeedAxisError, RequestError
+from ..errors import ConfigError, describe, FeedAxisError, RequestError
+from .logbound import BoundedLog
 from .requests import check_job_id, check_load_kg, check_program, MAX_LOAD_KG
 from .security import OpcUaSecurity, PasswordUsers, security_plan
 from .service import (AxisPower, FINAL_STATES, JobService, LiveSample, result_summary,
                       ServiceEvent, StateChange)
 
 __all__ = ['BROWSE_PATHS', 'J_PER_WH', 'NAMESPACE_URI', 'OpcUaBridge', 'OpcUaSettings',
+           'OpcUaThread',
            'ENERGY_NAMES', 'unece_unit_id', 'UNECE_NAMESPACE', 'UNITS']
 
 _log = logging.getLogger(__name__)
@@ -88,6 +91,12 @@ def _eu(symbol: str) -> ua.EUInformation:
                             Description=ua.LocalizedText(name))
 
 
+def _check_port(port: object, file: str) -> None:
+    if isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535:
+        raise ConfigError(f'expected a TCP port 1...65535, got {describe(port)}', file=file,
+                          key='port')
+
+
 def _stamp(stamp_ns: int | None = None) -> ua.DateTime:
     if stamp_ns is None:
         return ua.DateTime.now(datetime.timezone.utc)
@@ -121,6 +130,19 @@ class OpcUaSettings:
     poll_s: float = 0.1
     call_timeout_s: float = 10.0
     queue_size: int = 4096
+
+    def __post_init__(self) -> None:
+        _check_port(self.port, '<opcua>')
+        for key in ('max_load_kg', 'poll_s', 'call_timeout_s'):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value <= 0:
+                raise ConfigError(f'expected a positive finite number, got {describe(value)}',
+                                  file='<opcua>', key=key)
+        if isinstance(self.queue_size, bool) or not isinstance(self.queue_size, int) \
+                or self.queue_size < 1:
+            raise ConfigError(f'expected a positive integer, got {describe(self.queue_size)}',
+                              file='<opcua>', key='queue_size')
 
     @property
     def endpoint(self) -> str:
@@ -169,6 +191,7 @@ class OpcUaBridge:
         self._shown: dict[str, Any] = {}
         self._axes: tuple[str, ...] = ()
         self.idx = 0
+        self._log = BoundedLog(_log)
 
     @property
     def endpoint(self) -> str:
@@ -230,6 +253,8 @@ class OpcUaBridge:
             except asyncio.CancelledError:
                 pass
         self._tasks = []
+        self._loop = None
+        self._queue = None
         if self._server is not None:
             server, self._server = self._server, None
             await server.stop()
@@ -338,7 +363,8 @@ class OpcUaBridge:
             return self._refuse(f'{request}: the job service did not answer within '
                                 f'{self.settings.call_timeout_s:g} s')
         except Exception as exc:   # the service's failure must not end the server
-            _log.exception('%s failed in the job service', request)
+            self._log.log(logging.ERROR, request, f'{request} failed in the job service',
+                          exc_info=True)
             return self._refuse(f'{request}: the job service failed: {exc}')
         if not accepted:
             self.refused_calls += 1
@@ -401,7 +427,8 @@ class OpcUaBridge:
             return not_found(f'{request}: the result of job {job_id!r} cannot be shown as '
                              f'JSON: {exc}')
         except Exception as exc:   # the service's failure must not end the server
-            _log.exception('%s failed in the job service', request)
+            self._log.log(logging.ERROR, request, f'{request} failed in the job service',
+                          exc_info=True)
             return not_found(f'{request}: the job service failed: {exc}')
         return [_variant(True, ua.VariantType.Boolean), _variant(text, S), _variant('', S)]
 
@@ -435,15 +462,17 @@ class OpcUaBridge:
                 elif isinstance(event, StateChange):
                     await self._refresh(event.stamp_ns)
             except Exception:   # one bad event must not stop the live values
-                _log.exception('cannot show a job service event on OPC UA')
+                self._log.log(logging.ERROR, 'event', 'cannot show a job service event on '
+                              'OPC UA', exc_info=True)
 
     async def _poll(self) -> None:
         while True:
             await asyncio.sleep(self.settings.poll_s)
             try:
                 await self._refresh()
-            except Exception:
-                _log.exception('cannot read the job service state')
+            except Exception:   # a service that fails on every poll must not flood the log
+                self._log.log(logging.ERROR, 'poll', 'cannot read the job service state',
+                              exc_info=True)
 
     async def _write(self, path: str, value: Any, vtype: ua.VariantType,
                      stamp: ua.DateTime, *, always: bool = False) -> None:
@@ -494,9 +523,8 @@ class OpcUaBridge:
         try:
             summary = result_summary(last)
         except RequestError as exc:
-            if self._shown.get('bad result') != str(exc):
-                self._shown['bad result'] = str(exc)
-                _log.error('the last result is not shown: %s (%s)', exc, describe(last))
+            self._log.log(logging.ERROR, 'result', f'the last result is not shown: {exc} '
+                          f'({describe(last)})')
             return
         if summary.status not in FINAL_STATES:
             return
@@ -523,3 +551,69 @@ async def _trust_list(paths: Sequence[Any]) -> Callable[..., Any]:
             raise ServiceError(ua.StatusCodes.BadCertificateUntrusted)
 
     return validate
+
+
+class OpcUaThread:
+    """An :class:`OpcUaBridge` in a thread of its own with its own event loop.
+
+    For a caller without asyncio (an rclpy node, a test): :meth:`start` returns when the
+    server listens, :meth:`stop` when it has closed every session and the thread has ended.
+
+    Parameters
+    ----------
+    service, settings
+        As for :class:`OpcUaBridge`.
+    start_timeout_s
+        Longest wait for the server to build its address space and listen [s].
+    """
+
+    def __init__(self, service: JobService, settings: OpcUaSettings | None = None, *,
+                 start_timeout_s: float = 120.0):
+        self.bridge = OpcUaBridge(service, settings)
+        self._timeout = start_timeout_s
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+
+    def __enter__(self) -> OpcUaThread:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    @property
+    def endpoint(self) -> str:
+        """The endpoint URL clients connect to."""
+        return self.bridge.endpoint
+
+    def start(self) -> None:
+        """Start the thread and the server in it; raises what :meth:`OpcUaBridge.start` does."""
+        loop = asyncio.new_event_loop()
+        thread = threading.Thread(target=loop.run_forever, name='opcua-bridge', daemon=True)
+        thread.start()
+        self._loop, self._thread = loop, thread
+        future = asyncio.run_coroutine_threadsafe(self.bridge.start(), loop)
+        try:
+            future.result(self._timeout)
+        except BaseException:
+            self._end_loop()
+            raise
+
+    def stop(self) -> None:
+        """Stop the server, then the loop and its thread (the service keeps running)."""
+        if self._loop is None:
+            return
+        try:
+            asyncio.run_coroutine_threadsafe(self.bridge.stop(), self._loop).result(60)
+        finally:
+            self._end_loop()
+
+    def _end_loop(self) -> None:
+        loop, thread = self._loop, self._thread
+        self._loop = self._thread = None
+        if loop is None or thread is None:
+            return
+        loop.call_soon_threadsafe(loop.stop)
+        thread.join(30)
+        if not thread.is_alive():
+            loop.close()

@@ -104,3 +104,16 @@ def test_the_rate_limit_admits_a_second_of_burst_then_the_rate() -> None:
     now[0] = 10.0
     assert gate.handle('X', 't/X', b'x' * (MAX_PAYLOAD_BYTES + 1)) is None
     assert gate.drops['too_large'] == 1
+
+
+def test_the_bounded_log_writes_powers_of_two(caplog) -> None:
+    import logging
+
+    from feed_axis_energy.bridge.logbound import BoundedLog
+    log = BoundedLog(logging.getLogger('fae-test-bounded'))
+    with caplog.at_level(logging.WARNING, logger='fae-test-bounded'):
+        for _ in range(1000):
+            log.log(logging.WARNING, 'same', 'it failed again')
+    assert log.counts == {'same': 1000}
+    assert [r.getMessage() for r in caplog.records][-1] == 'it failed again (same, 512 so far)'
+    assert len(caplog.records) == 10     # 1, 2, 4, ..., 512

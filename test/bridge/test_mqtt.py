@@ -85,6 +85,20 @@ class Listener:
                     return data, retained
         pytest.fail(f'nothing (wanted) on {topic} within {timeout} s')
 
+    def collect(self, topics: set[str], timeout: float = 10.0) -> dict[str, tuple[Any, bool]]:
+        """The first message on each of ``topics`` (decoded, retained flag)."""
+        found: dict[str, tuple[Any, bool]] = {}
+        end = time.monotonic() + timeout
+        while not topics <= set(found) and time.monotonic() < end:
+            try:
+                topic, payload, retained, _ = self.messages.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            found.setdefault(topic, (json.loads(payload), retained))
+        missing = topics - set(found)
+        assert not missing, f'nothing on {sorted(missing)} within {timeout} s'
+        return found
+
     def close(self) -> None:
         self.client.disconnect()
         self.client.loop_stop()
@@ -154,18 +168,11 @@ def test_a_job_is_published_on_the_documented_topics_and_keys(any_broker, progra
         # a late subscriber finds state, result and status (offline now) retained
         late = Listener(port, f'{tree.base}/#')
         try:
-            found = {}
-            end = time.monotonic() + 10
-            while len(found) < 3 and time.monotonic() < end:
-                try:
-                    topic, payload, retained, _ = late.messages.get(timeout=0.2)
-                except queue.Empty:
-                    continue
-                assert retained, f'{topic} arrived not retained at a late subscriber'
-                found[topic] = json.loads(payload)
-            assert found[tree.job_state]['state'] == 'ended'
-            assert found[tree.job_result]['job_id'] == 'job-1'
-            assert found[tree.status]['online'] is False
+            found = late.collect({tree.job_state, tree.job_result, tree.status})
+            assert all(retained for _, retained in found.values()), found
+            assert found[tree.job_state][0]['state'] == 'ended'
+            assert found[tree.job_result][0]['job_id'] == 'job-1'
+            assert found[tree.status][0]['online'] is False
         finally:
             late.close()
     finally:
@@ -292,3 +299,41 @@ def test_a_service_event_that_cannot_be_json_is_not_published(broker, program_ro
         assert service.start_job('ok', 'a.ngc', 0.0)[0]
         service.wait()
         assert _wait(lambda: bridge.published >= 4)
+
+
+def test_the_bridge_comes_back_after_the_broker_restarts(tmp_path, program_root):
+    """mosquitto stopped and started again on the same port: paho reconnects, the bridge
+    says online again and republishes state and result (the restarted broker kept nothing)."""
+    if mosquitto_binary() is None:
+        must_run.skip('mosquitto', 'mosquitto is not installed (apt-get install mosquitto)')
+    port = mqtt_port()
+    service = FakeJobService(program_root, samples=3)
+    tree = TopicTree(machine='m6')
+    with mosquitto(tmp_path / 'first', port):
+        bridge = MqttBridge(service, MqttSettings(port=port, topics=tree, keepalive_s=2))
+        bridge.start()
+        assert service.start_job('before', 'a.ngc', 0.0)[0]
+        service.wait()
+    try:
+        assert _wait(lambda: not bridge.connected, 10)
+        with mosquitto(tmp_path / 'second', port):
+            assert _wait(lambda: bridge.connected, 30), 'paho did not reconnect'
+            late = Listener(port, f'{tree.base}/#')
+            try:
+                found = late.collect({tree.job_result, tree.job_state, tree.status})
+                assert found[tree.job_result] == (found[tree.job_result][0], True)
+                assert found[tree.job_result][0]['job_id'] == 'before'
+                assert found[tree.job_state][0]['state'] == 'ended'
+                assert found[tree.status][0]['online'] is True
+            finally:
+                late.close()
+    finally:
+        bridge.stop()
+
+
+def test_bad_settings_are_config_errors() -> None:
+    from feed_axis_energy.errors import ConfigError
+    for key, value in (('port', 0), ('max_queued', 0), ('max_rate_hz', math.inf),
+                       ('keepalive_s', 1.5)):
+        with pytest.raises(ConfigError, match=f'<mqtt>: {key}: expected'):
+            MqttSettings(**{key: value})

@@ -24,7 +24,7 @@ import pytest
 
 from feed_axis_energy.bridge import (BROWSE_PATHS, ENERGY_NAMES, J_PER_WH, LiveSample,
                                      NAMESPACE_URI, OpcUaBridge, OpcUaSecurity, OpcUaSettings,
-                                     UNECE_NAMESPACE)
+                                     OpcUaThread, UNECE_NAMESPACE)
 from feed_axis_energy.errors import ConfigError
 
 
@@ -99,19 +99,11 @@ def shared_server(tmp_path_factory) -> Any:
     """One OPC UA server on loopback for the module: ``(bridge, switchable service)``."""
     root = tmp_path_factory.mktemp('idle')
     service = Switchable(FakeJobService(root))
-    loop = asyncio.new_event_loop()
-    thread = threading.Thread(target=loop.run_forever, name='opcua-test-server', daemon=True)
-    thread.start()
-    bridge = OpcUaBridge(service, OpcUaSettings(port=opcua_port(), poll_s=0.05,  # type: ignore
-                                                call_timeout_s=1.0))
-    asyncio.run_coroutine_threadsafe(bridge.start(), loop).result(120)
-    try:
-        yield bridge, service
-    finally:
-        asyncio.run_coroutine_threadsafe(bridge.stop(), loop).result(60)
-        loop.call_soon_threadsafe(loop.stop)
-        thread.join(10)
-        loop.close()
+    settings = OpcUaSettings(port=opcua_port(), poll_s=0.05, call_timeout_s=1.0, queue_size=64)
+    with OpcUaThread(service, settings) as server:     # type: ignore[arg-type]
+        yield server.bridge, service
+    assert not any(t.name == 'opcua-bridge' for t in threading.enumerate()), \
+        'the server thread outlived stop()'
 
 
 @pytest.fixture
@@ -481,3 +473,39 @@ def test_an_untrusted_client_certificate_is_refused(program_root, tmp_path) -> N
                 assert await _read(anonymous, 'Jobs/State') == 'idle'
 
     run(main(), timeout=120)
+
+
+def test_a_flood_of_live_samples_is_dropped_and_counted_not_queued(served, program_root):
+    """5000 samples while the server's loop is stalled (a service whose state() takes 0.2 s):
+    the queue (64 events here) stays bounded, the excess is counted, and the job's end and
+    result still show."""
+    service = FakeJobService(program_root, samples=5000, period_s=0.0)
+    state = service.state
+
+    def slow_state() -> str:
+        time.sleep(0.2)
+        return state()
+
+    bridge = served(service)
+    dropped = bridge.dropped_events
+    service.state = slow_state      # type: ignore[method-assign]
+
+    async def main() -> None:
+        async with Client(bridge.endpoint) as client:
+            assert (await _call(client, 'Jobs/StartJob', 'flood', 'a.ngc', 0.0))[0] is True
+            assert await _until(lambda: _is(client, 'Results/LastJob/JobId', 'flood'), 60)
+            assert await _until(lambda: _is(client, 'Jobs/State', 'ended'))
+            assert await _read(client, 'Results/LastJob/EnergyJ') == \
+                service.result('flood')['energy_j']
+
+    run(main(), timeout=120)
+    print(f'dropped {bridge.dropped_events - dropped} of 5000 samples')
+    assert bridge.dropped_events > dropped
+
+
+@pytest.mark.parametrize('key,value', [('port', 0), ('port', 70000), ('port', True),
+                                       ('queue_size', 0), ('poll_s', math.nan),
+                                       ('max_load_kg', -1.0), ('call_timeout_s', 'x')])
+def test_bad_settings_are_config_errors(key: str, value: Any) -> None:
+    with pytest.raises(ConfigError, match=f'<opcua>: {key}: expected'):
+        OpcUaSettings(**{key: value})
