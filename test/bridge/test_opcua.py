@@ -288,6 +288,10 @@ def test_hostile_calls_are_refused_by_the_bridge_and_never_reach_the_service(
             assert (found, text) == (False, '') and 'expected text' in message
             assert service.calls == []
             assert bridge.refused_calls == refused + len(BAD_CALLS) + 2
+            # values are the server's to write: a client's write is refused
+            for path, value in (('Jobs/State', 'ended'), ('Results/LastJob/EnergyJ', 1.0)):
+                with pytest.raises(ua.UaStatusCodeError):
+                    await (await _child(client, path)).write_value(value)
             # and the server is still there and answers
             assert await _idle(client)
 
