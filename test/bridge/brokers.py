@@ -2,8 +2,9 @@
 
 ``mosquitto`` (Debian package) is the real broker the tests want; it runs with a
 configuration written to the test's temporary folder (one loopback listener, anonymous, no
-persistence, log to a file there). ``amqtt`` is the in-process fallback where mosquitto is
-missing: its broker runs in an asyncio loop of its own thread.
+persistence, log to a file there, ``set_tcp_nodelay`` as docs/cell.md advises). ``amqtt``
+is the in-process fallback where mosquitto is missing: its broker runs in an asyncio loop
+of its own thread.
 """
 from __future__ import annotations
 
@@ -49,7 +50,7 @@ def mosquitto(tmp: Path, port: int) -> Iterator[str]:
     log = tmp / 'mosquitto.log'
     conf.write_text(f'listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n'
                     f'log_dest file {log}\nlog_type error\nlog_type warning\n'
-                    'max_queued_messages 100000\n')
+                    'max_queued_messages 100000\nset_tcp_nodelay true\n')
     log.touch()
     log.chmod(0o666)   # as root mosquitto drops to its own user before opening the log
     tmp.chmod(0o755)
