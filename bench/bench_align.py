@@ -23,7 +23,7 @@ import numpy as np
 from feed_axis_energy.gcode.load import parse_gcode
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.measured.align import estimate_offset
-from feed_axis_energy.identify.rigtruth import (instrument_record, Instrument, OUTSIDE_KINDS,
+from feed_axis_energy.identify.rig import (instrument_record, Instrument, OUTSIDE_KINDS,
                                                 parse_effects, simulate_run)
 from feed_axis_energy.identify.rig import PAPER_FEEDS_MM_S, PAPER_LOADS_KG, stroke_program
 from feed_axis_energy.sim.simulate import simulate_program

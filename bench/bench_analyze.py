@@ -15,7 +15,7 @@ import time
 
 from feed_axis_energy.identify.analyze import analyze_campaign
 from feed_axis_energy.measured.manifest import load_campaign
-from feed_axis_energy.identify.rigtruth import EffectSpec, Instrument
+from feed_axis_energy.identify.rig import EffectSpec, Instrument
 from feed_axis_energy.identify.rig import (make_campaign, PAPER_FEEDS_MM_S, PAPER_LOADS_KG,
                                            RigConfig)
 from feed_axis_energy.paths import config_dir

@@ -5,6 +5,7 @@ Run by hand from the repository root after ``scripts/test`` made the venv::
     PYTHONPATH=. .venv/bin/python bench/corpus.py [--corpus DIR] [--plan] [--json]
                                                   [--locate auto|yes|no]
                                                   [--mem-lines N] [--skip-largest K]
+                                                  [--no-tool-table]
 
 For every program of ``programs.csv`` it parses the program in-process, the way the
 reference run (``shared/tools/run_oracle.py``) set the interpreter up:
@@ -13,7 +14,15 @@ reference run (``shared/tools/run_oracle.py``) set the interpreter up:
   names, lower-cased (the corpus flattens ``a/b/face.ngc`` to ``a__b__face.ngc``), linked
   into a temporary directory that is searched first, then the corpus folder itself;
 * a tool table with tools 1..999 of zero radius and zero length, G28/G30 positions 0 (the
-  reference's empty parameter file), start at the machine origin.
+  reference's empty parameter file), start at the machine origin;
+* a feed move with no F set is let pass (``allow_no_feed``): the reference is LinuxCNC's
+  preview module (``gcodemodule.cc``), whose feed rate at the start is 1, not 0 as on the
+  control, which refuses such a move. The programs accepted only so are counted and listed
+  ("only as a preview"): without ``--allow-no-feed`` our commands refuse them as the control.
+
+``--no-tool-table`` parses without the tool table instead (a planner's machine config): the
+tools a program uses then run with length and radius 0 and a warning each, and the summary
+counts the accepted programs that had such a tool.
 
 Acceptance is counted with the program's own dialect (``programs.csv``; what a user of that
 control would choose); agreement with the reference is checked on the programs both accept,
@@ -21,8 +30,11 @@ parsed with the ``linuxcnc`` dialect (the reference's own semantics: ``G4 P`` in
 Compared (with ``gcode/stats.py``, which counts as the reference does): numbers of
 feed moves, traverses, arcs and dwells; feed and traverse path length (relative 1e-6, at
 least 1e-4 mm: the reference rounds to 4 decimals); total dwell; final position and bounding
-box (1 um). ``--plan`` also plans every accepted program on ``config/three_axis_mill.yaml``
-(per block, no samples) and checks that the duration is finite and not negative.
+box (1 um); rotary travel, rotary moves and the nominal feed time (A, B, C declared as the
+reference's interpreter has them, U, V, W dropped). ``--plan`` also plans every accepted
+program on ``config/three_axis_mill.yaml`` with the rotary axes of
+``config/four_axis_mill.yaml`` (A) and ``config/five_axis_mill.yaml`` (B, C) (per block, no
+samples) and checks that the duration is finite and not negative.
 
 Prints acceptance per dialect (ours vs the reference), every refusal of a program the
 reference accepts (file:line:column and our message), every disagreement (program, figure,
@@ -74,6 +86,7 @@ from feed_axis_energy.gcode.stats import ProgramStats, summarize  # noqa: E402
 __all__ = ['find_corpus', 'load_corpus', 'run_ours', 'compare', 'evaluate', 'format_report',
            'report_json', 'memory_figure', 'Entry', 'OurResult', 'Disagreement', 'Report']
 
+ROTARY_WORDS = ('A', 'B', 'C')
 ACCEPTED = ('ok', 'ok_m2_appended')
 """Reference statuses that mean the reference interpreter ran the program to its end."""
 REFERENCE_DIALECT = 'linuxcnc'
@@ -82,6 +95,8 @@ REL_LENGTH_TOL = 1e-6
 ABS_LENGTH_TOL_MM = 1e-4    # the reference rounds lengths to 4 decimals
 POSITION_TOL_MM = 1e-3      # 1 um
 DWELL_TOL_S = 1e-4
+ROTARY_TOL_DEG = 1e-3      # the reference rounds rotary travel to 4 decimals
+NOMINAL_TOL_S = 1.5e-3      # and the nominal feed time to 3 decimals
 ORACLE_TOOLS = 999          # tools T1..T999, zero radius and length (run_oracle.py)
 DEFAULT_TIMEOUT_S = 60.0
 MAX_AUTO_LOCATE = 30        # --locate auto: programs traced move by move at most
@@ -213,6 +228,8 @@ class OurResult:
     warnings: int = 0
     seconds: float = 0.0
     plan: str = ''                    # '', 'ok <duration>', or the planning error
+    preview_only: str = ''            # the no-feed warning of a program accepted only so
+    missing_tools: int = 0            # tools the table lacked (each run with length 0)
 
 
 class _Timeout(Exception):
@@ -223,20 +240,30 @@ def _on_alarm(signum: int, frame: Any) -> None:
     raise _Timeout
 
 
-def _parse_keywords(dialect: str | None, search_path: list[Path]) -> dict[str, Any]:
-    """Keywords for ``load_gcode`` that set it up as the reference was (those it accepts)."""
+def _parse_keywords(dialect: str | None, search_path: list[Path], *,
+                    tool_table: bool = True) -> dict[str, Any]:
+    """Keywords for ``load_gcode`` that set it up as the reference was (those it accepts);
+    ``tool_table=False``: no tool table (``--no-tool-table``: a planner's machine config)."""
     params = inspect.signature(load_gcode).parameters
     kw: dict[str, Any] = {}
     if 'home' in params:
         kw['home'] = (0.0, 0.0, 0.0)
-    if 'tools' in params:
+    if 'tools' in params and tool_table:
         kw['tools'] = {t: (0.0, 0.0) for t in range(1, ORACLE_TOOLS + 1)}
+    if 'allow_no_feed' in params:
+        kw['allow_no_feed'] = True          # the preview's feed rate 1 at the start
     if dialect is not None and 'dialect' in params:
         kw['dialect'] = dialect
     for name in ('search_path', 'subroutine_path'):
         if name in params:
             kw[name] = [str(p) for p in search_path]
             break
+    if 'rotary_axes' in params:
+        # the reference's interpreter has all nine axes: A, B, C turn (as on a machine
+        # config that declares them, config/five_axis_mill.yaml), U, V, W are dropped (no
+        # figure of the reference counts them)
+        kw['rotary_axes'] = ROTARY_WORDS
+        kw['ignore_axes'] = ('U', 'V', 'W')
     return kw
 
 
@@ -251,7 +278,8 @@ def known_dialects() -> tuple[str, ...]:
 
 def run_ours(path: Path, *, dialect: str | None, search_path: list[Path],
              timeout_s: float = DEFAULT_TIMEOUT_S,
-             planner: Callable[[Any], str] | None = None) -> OurResult:
+             planner: Callable[[Any], str] | None = None,
+             tool_table: bool = True) -> OurResult:
     """Parse one program in-process and summarize its moves.
 
     Parameters
@@ -266,6 +294,8 @@ def run_ours(path: Path, *, dialect: str | None, search_path: list[Path],
         Wall-clock limit (a runaway program gives status ``timeout``).
     planner
         Optional: called with the parsed program, returns ``'ok ...'`` or the error.
+    tool_table
+        Give the reference's tool table (tools 1..999 of zero size); ``False``: none.
 
     Returns
     -------
@@ -273,7 +303,7 @@ def run_ours(path: Path, *, dialect: str | None, search_path: list[Path],
         Status ``ok``, ``error`` (a :class:`GcodeError`: message, line, column),
         ``traceback`` (any other exception: the last lines of its traceback) or ``timeout``.
     """
-    kw = _parse_keywords(dialect, search_path)
+    kw = _parse_keywords(dialect, search_path, tool_table=tool_table)
     use_alarm = hasattr(signal, 'setitimer') and timeout_s > 0
     t0 = time.perf_counter()
     if use_alarm:
@@ -283,6 +313,8 @@ def run_ours(path: Path, *, dialect: str | None, search_path: list[Path],
         program = load_gcode(path, **kw)
         stats = summarize(program.moves)
         res = OurResult('ok', stats=stats, warnings=len(program.warnings))
+        res.preview_only = next((w for w in program.warnings if '--allow-no-feed' in w), '')
+        res.missing_tools = sum(1 for w in program.warnings if 'is not in the tool table' in w)
         if planner is not None:
             res.plan = planner(program)
     except _Timeout:
@@ -306,6 +338,11 @@ def make_planner(machine_path: Path) -> Callable[[Any], str]:
     from feed_axis_energy.plan.stream import estimate_plan
     machine = load_machine(machine_path)
     limits = machine.limits()
+    # the rotary axes the parse declares (ROTARY_WORDS) plan with the shipped 4- and 5-axis
+    # configs' limits: A from four_axis_mill.yaml, B and C from five_axis_mill.yaml
+    for config in ('four_axis_mill.yaml', 'five_axis_mill.yaml'):
+        extra = load_machine(ROOT / 'config' / config).limits()
+        limits.update({a: extra[a] for a in ROTARY_WORDS if a in extra and a not in limits})
     options = machine.planner.options()
 
     def plan(program: Any) -> str:
@@ -340,6 +377,24 @@ class Disagreement:
 
 def _close(ours: float, ref: float, *, rel: float, absolute: float) -> bool:
     return abs(ours - ref) <= max(rel * abs(ref), absolute)
+
+
+def _compare_rotary(file: str, s: Any, ref: dict[str, Any]) -> list[Disagreement]:
+    """Rotary travel and moves, and the nominal feed time where the reference has it."""
+    out: list[Disagreement] = []
+    if s.n_rotary_moves != ref.get('n_rotary_moves', 0):
+        out.append(Disagreement(file, 'n_rotary_moves', s.n_rotary_moves,
+                                ref.get('n_rotary_moves')))
+    if not _close(s.rotary_travel_deg, float(ref.get('rotary_travel_deg', 0.0)),
+                  rel=REL_LENGTH_TOL, absolute=ROTARY_TOL_DEG):
+        out.append(Disagreement(file, 'rotary_travel_deg', f'{s.rotary_travel_deg:.4f}',
+                                ref.get('rotary_travel_deg')))
+    nominal = ref.get('nominal_feed_time_s')
+    if nominal is not None and not _close(s.nominal_feed_time_s, float(nominal),
+                                          rel=REL_LENGTH_TOL, absolute=NOMINAL_TOL_S):
+        out.append(Disagreement(file, 'nominal_feed_time_s', f'{s.nominal_feed_time_s:.3f}',
+                                nominal))
+    return out
 
 
 def compare(file: str, ours: OurResult, ref: dict[str, Any]) -> list[Disagreement]:
@@ -381,6 +436,8 @@ def compare(file: str, ours: OurResult, ref: dict[str, Any]) -> list[Disagreemen
     fin = [v * 1e3 for v in s.final_position]
     if not _near(fin, ref.get('final_position')):
         out.append(Disagreement(file, 'final_position', _fmt(fin), ref.get('final_position')))
+    if hasattr(s, 'rotary_travel_deg'):
+        out += _compare_rotary(file, s, ref)
     box = ref.get('bbox_mm')
     if s.bbox_min is None or box is None:
         if not (s.bbox_min is None and box is None):
@@ -560,7 +617,8 @@ def _dialect_for(entry: Entry, known: tuple[str, ...]) -> str | None:
 
 def evaluate(corpus: Path, *, plan: bool = False, skip_largest: int = 0,
              timeout_s: float = DEFAULT_TIMEOUT_S,
-             progress: Callable[[str], None] | None = None) -> Report:
+             progress: Callable[[str], None] | None = None,
+             tool_table: bool = True) -> Report:
     """Run our front end over the corpus and compare with the reference.
 
     Parameters
@@ -575,6 +633,9 @@ def evaluate(corpus: Path, *, plan: bool = False, skip_largest: int = 0,
         Wall-clock limit per program.
     progress
         Called with one line per program.
+    tool_table
+        As :func:`run_ours` (``False``: how programs fare on a config without a tool
+        table; the programs using a tool are then counted with the missing-tool warning).
 
     Returns
     -------
@@ -601,7 +662,7 @@ def evaluate(corpus: Path, *, plan: bool = False, skip_largest: int = 0,
             search = [links.for_folder(path.parent), path.parent]
             own = _dialect_for(e, known)
             r = run_ours(path, dialect=own, search_path=search, timeout_s=timeout_s,
-                         planner=planner)
+                         planner=planner, tool_table=tool_table)
             r.error = links.real_names(r.error)
             accept[e.file] = r
             if e.reference_accepts:
@@ -609,13 +670,13 @@ def evaluate(corpus: Path, *, plan: bool = False, skip_largest: int = 0,
                     ra = r
                 else:
                     ra = run_ours(path, dialect=REFERENCE_DIALECT, search_path=search,
-                                  timeout_s=timeout_s)
+                                  timeout_s=timeout_s, tool_table=tool_table)
                 agree[e.file] = ra
                 if ra.status == 'ok':
                     found = compare(e.file, ra, e.oracle)
                     disagreements += found
                     if found:
-                        quirks = _explain(e, path, search, timeout_s)
+                        quirks = _explain(e, path, search, timeout_s, tool_table)
                         if quirks:
                             explained[e.file] = quirks
             if progress is not None:
@@ -627,13 +688,14 @@ def evaluate(corpus: Path, *, plan: bool = False, skip_largest: int = 0,
                   seconds=time.perf_counter() - t0, planned=plan, explained=explained)
 
 
-def _explain(entry: Entry, path: Path, search: list[Path],
-             timeout_s: float) -> tuple[str, ...] | None:
+def _explain(entry: Entry, path: Path, search: list[Path], timeout_s: float,
+             tool_table: bool = True) -> tuple[str, ...] | None:
     """The reference quirks under which a disagreeing program agrees (None: no model does)."""
     dialect = REFERENCE_DIALECT if REFERENCE_DIALECT in known_dialects() else None
 
     def run() -> OurResult:
-        return run_ours(path, dialect=dialect, search_path=search, timeout_s=timeout_s)
+        return run_ours(path, dialect=dialect, search_path=search, timeout_s=timeout_s,
+                        tool_table=tool_table)
     return oracle_quirks.explain(
         run, lambda r: r.status == 'ok' and not compare(entry.file, r, entry.oracle))
 
@@ -668,7 +730,12 @@ def summary(report: Report) -> dict[str, Any]:
     # The target counts programs "on a machine with the axes they use": ours have X, Y, Z.
     linear = [e for e in report.entries if e.reference_accepts and not e.rotary]
     both_linear = sum(1 for e in linear if report.accept[e.file].status == 'ok')
+    preview = [e for e in report.entries if e.reference_accepts
+               and report.accept[e.file].status == 'ok' and report.accept[e.file].preview_only]
+    tooled = [e for e in report.entries if e.reference_accepts
+              and report.accept[e.file].status == 'ok' and report.accept[e.file].missing_tools]
     return dict(programs=total['programs'], reference_accepts=ref, we_accept=total['ours'],
+                preview_only=len(preview), missing_tools=len(tooled),
                 we_accept_of_reference=total['both'], acceptance_of_reference=rate,
                 reference_accepts_xyz=len(linear), we_accept_of_reference_xyz=both_linear,
                 acceptance_of_reference_xyz=both_linear / len(linear) if linear else 0.0,
@@ -701,6 +768,13 @@ def format_report(report: Report) -> str:
         if not msg.startswith(e.file):
             msg = f'{e.file}: {msg}'    # the error lies in a subroutine file it calls
         out.append(f'  [{e.dialect}] {_one_line(msg)}')
+    preview = [(e, report.accept[e.file]) for e in report.entries if e.reference_accepts
+               and report.accept[e.file].status == 'ok' and report.accept[e.file].preview_only]
+    out.append('')
+    out.append(f'accepted only as a preview (a feed move with no F set: the reference\'s '
+               f'preview starts at F1, the control refuses; --allow-no-feed): {len(preview)}')
+    for e, r in preview:
+        out.append(f'  [{e.dialect}] {_one_line(r.preview_only.replace(prefix, ""))}')
     out.append('')
     out.append(f'disagreements on programs both accept: {len(report.disagreements)} in '
                f'{len(report.disagreeing_files())} programs')
@@ -738,7 +812,9 @@ def format_report(report: Report) -> str:
                f'{s["we_accept_of_reference_xyz"]}/{s["reference_accepts_xyz"]} = '
                f'{100 * s["acceptance_of_reference_xyz"]:.1f} % of those without rotary-axis '
                f'motion (target >= {100 * TARGET_ACCEPTANCE:.0f} %), all programs '
-               f'{s["we_accept"]}/{s["programs"]}; tracebacks {s["tracebacks"]} (target 0); '
+               f'{s["we_accept"]}/{s["programs"]}, {s["preview_only"]} of the accepted only '
+               f'as a preview (--allow-no-feed), {s["missing_tools"]} with tools the table '
+               f'lacks (length and radius 0); tracebacks {s["tracebacks"]} (target 0); '
                f'disagreements {s["disagreements"]} in {s["disagreeing_programs"]} programs, '
                f'{s["explained_programs"]} of them reproduced by reference quirks, '
                f'{s["unexplained_programs"]} unexplained (target 0); {s["seconds"]:.1f} s')
@@ -758,6 +834,8 @@ def report_json(report: Report) -> dict[str, Any]:
                                  seconds=round(r.seconds, 4))
         if r.plan:
             d['plan'] = r.plan
+        if r.preview_only:
+            d['preview_only'] = r.preview_only
         return d
     return dict(
         corpus=report.corpus, skipped=report.skipped, summary=summary(report),
@@ -906,6 +984,10 @@ def main(argv: list[str] | None = None) -> int:
                          'print the first differing move and its line (needs '
                          'linuxcnc-uspace; auto, the default: when it is installed and at '
                          f'most {MAX_AUTO_LOCATE} programs disagree)')
+    ap.add_argument('--no-tool-table', action='store_true',
+                    help='parse without a tool table (the reference had tools 1..999 of zero '
+                         'size): tools the programs use run with length and radius 0 and a '
+                         'warning; counted as "missing tools" in the summary')
     ap.add_argument('--quiet', action='store_true', help='no progress on stderr')
     args = ap.parse_args(argv)
     if args.mem_lines < 0 or args.skip_largest < 0 or not args.timeout > 0:
@@ -921,7 +1003,8 @@ def main(argv: list[str] | None = None) -> int:
             print(msg, file=sys.stderr, flush=True)
 
     report = evaluate(corpus, plan=args.plan, skip_largest=args.skip_largest,
-                      timeout_s=args.timeout, progress=progress)
+                      timeout_s=args.timeout, progress=progress,
+                      tool_table=not args.no_tool_table)
     bad = report.disagreeing_files()
     if args.locate == 'yes' or (args.locate == 'auto' and 0 < len(bad) <= MAX_AUTO_LOCATE
                                 and reference_available()):

@@ -4,7 +4,7 @@
 [--effects ID,...] [--sizes S,...] [--seeds N] [--noise-w W]``
 
 For every catalog effect that describes the machine (all but ``time_offset``), a campaign of
-the virtual rig (``identify/rig.py``) is made with the effect's example parameters scaled so that
+the virtual rig (``identify/rig/``) is made with the effect's example parameters scaled so that
 the RMS of its extra power over every simulated sample of the campaign is ``size`` times the
 noise level, and ``analyze`` runs on it with default options, once per seed. Campaigns:
 
@@ -48,7 +48,7 @@ from feed_axis_energy.identify.analyze import analyze_campaign
 from feed_axis_energy.identify.results import AnalyzeOptions
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.measured.manifest import load_campaign
-from feed_axis_energy.identify.rigtruth import EffectSpec, Instrument
+from feed_axis_energy.identify.rig import EffectSpec, Instrument
 from feed_axis_energy.identify.rig import (make_campaign, PAPER_FEEDS_MM_S, PAPER_LOADS_KG,
                                            RigConfig, stroke_program)
 from feed_axis_energy.sim.simulate import simulate_program

@@ -2,7 +2,7 @@
 
 ``shared/corpus/gcode/oracle.json`` comes from LinuxCNC 2.9's interpreter driven through its
 preview module (the Python ``gcode`` module that AXIS uses) by ``shared/tools/run_oracle.py``.
-Two behaviours of that set-up are not what a machine does, and a program that meets them
+Three behaviours of that set-up are not what a machine does, and a program that meets them
 disagrees with us for a reason that is not ours:
 
 ``stale-after-arc``
@@ -19,6 +19,17 @@ disagrees with us for a reason that is not ours:
     holds for its tool table of zero lengths but not for ``G43.1``/``G43.2`` offsets given in
     the program. Model: every move's end point is shifted by minus the tool length offset in
     force when the move is issued (each move starts where the previous shifted one ended).
+``rotary-feed-in-inches``
+    The preview module hands the canon feed rates in inches per minute (it converts a G21
+    program's F from mm/min), and ``run_oracle.py`` divides a pure rotary move's degrees by
+    that number: in a G21 program its nominal time of such a move is 25.4 times what F
+    degrees per minute gives (LinuxCNC runs it at F degrees per minute). Model: our pure
+    rotary feed moves in G21 run at F / 25.4 degrees per minute.
+``first-units``
+    ``run_oracle.py`` starts the interpreter in the units of the program's first G20/G21,
+    so an F given before that code is read in those units (we start in G21, as LinuxCNC's
+    default configuration does). Model: at the first G20/G21 the feed in force is
+    re-read in the new units.
 
 :func:`explain` re-runs a disagreeing program with each model (alone, then both) and returns
 the models under which every figure agrees with the reference. A disagreement no model
@@ -43,6 +54,10 @@ QUIRKS = {
                        "of a later arc (gcodemodule.cc ARC_FEED: 'XXX: set _pos_*')",
     'no-tool-length': 'run_oracle.py leaves G43.1/G43.2 tool length offsets out of its '
                       'machine positions',
+    'rotary-feed-in-inches': 'run_oracle.py times a pure rotary move of a G21 program with '
+                             'the F the preview converted to inch/min (25.4 times too long)',
+    'first-units': 'run_oracle.py starts in the units of the program\'s first G20/G21, so an '
+                   'earlier F is read in those units',
 }
 
 _STRAIGHT = (MoveKind.RAPID, MoveKind.LINEAR)
@@ -72,6 +87,30 @@ def quirks(names: tuple[str, ...]) -> Iterator[None]:
                         break
             saved['before_motion'](self, d)
         Interpreter.before_motion = before_motion
+    if 'rotary-feed-in-inches' in names:
+        saved['rotary_move'] = Interpreter.rotary_move
+
+        def rotary_move(self: Interpreter, m: Move) -> Move:
+            out = saved['rotary_move'](self, m)
+            if (out.rot_end is not None and out.kind == MoveKind.LINEAR
+                    and out.start == out.end and self.scale == 0.001
+                    and not self.inverse_time):
+                out = dataclasses.replace(out, feed_m_s=out.feed_m_s / 25.4)
+            return out
+        Interpreter.rotary_move = rotary_move
+    if 'first-units' in names:
+        saved['g_words'] = Interpreter.g_words
+        seen_units: set[int] = set()
+
+        def g_words(self: Interpreter, gl: Any) -> Any:
+            before = self.scale
+            out = saved['g_words'](self, gl)
+            if id(self) not in seen_units and any(str(g) in ('20', '21') for g in gl):
+                seen_units.add(id(self))
+                if self.scale != before and self.feed is not None and not self.inverse_time:
+                    self.feed = self.feed / before * self.scale
+            return out
+        Interpreter.g_words = g_words
     # The harness measures every move from where its previous move ended (its own record,
     # which follows arcs): chain our moves the same way, shifted by the tool length offset
     # under 'no-tool-length'. Without a quirk this changes nothing (our moves are chained).
@@ -124,7 +163,8 @@ def explain(run: Callable[[], Any], agrees: Callable[[Any], bool]) -> tuple[str,
     Returns
     -------
     tuple of str or None
-        The quirk names (one, else both), or ``None`` when no model reproduces the reference.
+        The quirk names (the smallest set that agrees), or ``None`` when no model
+        reproduces the reference.
     """
     for k in range(1, len(QUIRKS) + 1):
         for names in combinations(QUIRKS, k):

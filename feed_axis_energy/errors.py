@@ -5,7 +5,8 @@ import os
 from typing import Any
 
 __all__ = ['FeedAxisError', 'GcodeError', 'ConfigError', 'DataError', 'PlanningError',
-           'OutputError', 'RequestError', 'describe', 'shorten', 'shorten_path', 'SHOWN_CHARS']
+           'OutputError', 'JobError', 'RequestError', 'describe', 'shorten', 'shorten_path',
+           'SHOWN_CHARS']
 
 SHOWN_CHARS = 60
 """Quoted input in an error message is cut to about this many characters."""
@@ -183,6 +184,28 @@ class OutputError(FeedAxisError):
         self.reason = message
         where = ' '.join(p for p in (option, self.path) if p)
         super().__init__(f'{where}: {message}' if where else message)
+
+
+class JobError(FeedAxisError):
+    """A job request refused, or a job command that is not legal in the current state.
+
+    Parameters
+    ----------
+    message
+        What is wrong and what was expected.
+    field
+        The request field at fault (``job_id``, ``program``, ``load_kg``, ``machine``,
+        ``overrides``, ``request``) or ``state`` for a command the job state does not allow.
+    job_id
+        The job the request named (shown cut to about 60 characters; may be empty).
+    """
+
+    def __init__(self, message: str, *, field: str, job_id: str = ''):
+        self.field = field
+        self.job_id = job_id
+        self.reason = message
+        who = f'job {shorten(job_id)!r}: ' if job_id else ''
+        super().__init__(f'{who}{field}: {message}')
 
 
 class RequestError(FeedAxisError):

@@ -13,11 +13,24 @@ from numpy.typing import ArrayLike
 from .errors import ConfigError, DataError, shorten
 
 __all__ = ['GRAVITY_M_S2', 'QUANTITIES', 'MAX_ABS_SI', 'check_si_values', 'known_units',
-           'quantity_of', 'rate_from_interval', 'si_unit_of', 'to_si']
+           'quantity_of', 'rate_from_interval', 'si_unit_of', 'to_si', 'ROTARY_AXIS_LETTERS',
+           'axis_units']
 
 _INCH_M = 0.0254
 
 GRAVITY_M_S2 = 9.80665   # standard gravity [m/s^2] (CGPM 1901)
+ROTARY_AXIS_LETTERS = ('A', 'B', 'C')
+"""Axis names that are rotary (positions in rad): machine/rotary.py."""
+
+
+def axis_units(axis: str) -> tuple[str, str, str]:
+    """SI units of an axis's position, velocity and acceleration: ``('m', 'm/s', 'm/s^2')``
+    for a linear axis, ``('rad', 'rad/s', 'rad/s^2')`` for a rotary one (A, B, C)."""
+    if axis in ROTARY_AXIS_LETTERS:
+        return 'rad', 'rad/s', 'rad/s^2'
+    return 'm', 'm/s', 'm/s^2'
+
+
 MAX_ABS_SI = 1.0e12
 """Largest magnitude a measured value may have in SI (1 TW, 10^12 m, m/s, A, V, s).
 

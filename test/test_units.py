@@ -4,7 +4,8 @@ from numpy.testing import assert_allclose
 import pytest
 
 from feed_axis_energy.errors import ConfigError
-from feed_axis_energy.units import known_units, quantity_of, rate_from_interval, si_unit_of, to_si
+from feed_axis_energy.units import (axis_units, known_units, quantity_of, rate_from_interval,
+                                    si_unit_of, to_si)
 
 
 @pytest.mark.parametrize('value, unit, expected, si', [
@@ -86,3 +87,8 @@ def test_rate_from_interval_keeps_a_rate_that_is_not_round():
     t1, t0 = 28800.001, 28800.0
     assert rate_from_interval(t1 - t0) == pytest.approx(1000.0, rel=1e-8)
     assert rate_from_interval(0.001 + 1e-16) == 1000.0
+
+
+def test_axis_units_rotary_axes_in_rad():
+    assert axis_units('X') == ('m', 'm/s', 'm/s^2')
+    assert axis_units('C') == ('rad', 'rad/s', 'rad/s^2')

@@ -16,7 +16,8 @@ import re
 import sys
 import time
 
-from feed_axis_energy.cli.common import add_quiet_option, non_negative_int
+from feed_axis_energy.cli.common import (add_program_options, add_quiet_option, non_negative_int,
+                                         program_options)
 
 __all__ = ['add_parser', 'run', 'parse_loads', 'check_address', 'add_executor_options',
            'check_executor_options']
@@ -111,6 +112,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--max-samples', type=non_negative_int, default=0, metavar='N',
                    help='a job needing more samples fails before it is simulated '
                         '(default 0: no limit)')
+    add_program_options(p)
     add_quiet_option(p)
     p.set_defaults(run=run)
 
@@ -153,7 +155,8 @@ def _jobs(args: argparse.Namespace) -> list:
         load_machine(path)
     return make_jobs(programs, machines, loads, rate_hz=rate, profile=profile,
                      top_blocks=args.top, max_samples=args.max_samples, out_dir=args.out,
-                     force=args.force, compression=args.compression)
+                     force=args.force, compression=args.compression,
+                     **program_options(args))
 
 
 def _check_out(args: argparse.Namespace, jobs: list) -> list[Path]:

@@ -31,7 +31,8 @@ def _max_dwell(text: str) -> float:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the subcommand."""
-    from feed_axis_energy.cli.common import add_quiet_option, add_tool_option, axes_option
+    from feed_axis_energy.cli.common import (add_program_options, add_quiet_option,
+                                             add_tool_option, axes_option)
     from feed_axis_energy.gcode import DEFAULT_MAX_DWELL_S, DIALECTS
     p = sub.add_parser(
         'check', help=HELP,
@@ -49,6 +50,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='machine config: travel and velocity limits, tool table, G28 position, '
                         'default dialect (default: config/demonstrator.yaml)')
     add_tool_option(p)
+    add_program_options(p)
     p.add_argument('--ignore-axes', type=axes_option, default=(), metavar='A,B',
                    help='drop the words of these axes (A, B, C, U, V, W) with one warning '
                         'each; without it a program moving such an axis is an error')
@@ -91,6 +93,8 @@ def run(args: argparse.Namespace) -> int:
     if args.tool:
         from feed_axis_energy.gcode import with_tools
         machine = replace(machine, gcode=with_tools(machine.gcode, dict(args.tool)))
+    from feed_axis_energy.cli.common import apply_program_options
+    machine = apply_program_options(machine, args)
     keywords = _parse_keywords(machine, args)
     results = []
     n = len(args.programs)
@@ -127,7 +131,9 @@ def _program_line(path: Path, problems: list[Any], stats: Any) -> str:
     head = f'{path}: {"refused" if errs else "ok"}, {warns} warning{"s" if warns != 1 else ""}'
     if stats is None:
         return head
+    rotary = (f', rotary travel {stats.rotary_travel_deg:.3f} deg in {stats.n_rotary_moves} '
+              'moves' if stats.n_rotary_moves else '')
     return (f'{head}; {stats.n_feed_moves} feed moves, {stats.n_arcs} arcs, '
             f'{stats.n_traverses} traverses, {stats.n_dwells} dwells; feed path '
             f'{stats.feed_length_m * 1e3:.3f} mm, traverse path '
-            f'{stats.traverse_length_m * 1e3:.3f} mm, dwell {stats.dwell_s:.3f} s')
+            f'{stats.traverse_length_m * 1e3:.3f} mm, dwell {stats.dwell_s:.3f} s{rotary}')

@@ -22,7 +22,8 @@ __all__ = ['positive_int', 'non_negative_int', 'positive_float', 'tool_option', 
            'add_machine_options', 'load_machine_and_options', 'print_summary', 'cause_table',
            'rollup_table',
            'program_text_lines', 'format_table', 'METRIC_HEADER', 'metric_cells',
-           'program_keywords']
+           'program_keywords', 'add_program_options', 'program_options',
+           'apply_program_options']
 
 # Column heads of the paper's Table-1 metrics plus energy error and RMSE, as printed by the
 # commands that compare measured and simulated power (compare, analyze).
@@ -114,6 +115,54 @@ def add_tool_option(p: argparse.ArgumentParser) -> None:
                         'replacing its entry; repeat for more tools (e.g. --tool 1:3:45.2)')
 
 
+def add_program_options(p: argparse.ArgumentParser) -> None:
+    """``--strict-tools``, ``--allow-no-feed`` and ``--subroutine-path DIR`` (repeatable): how
+    programs are read (``simulate``, ``check``, ``sweep``, ``batch``); each adds to the
+    machine config's ``gcode`` settings of the same name."""
+    p.add_argument('--strict-tools', action='store_true',
+                   help='refuse a program using a tool the tool table lacks (the error names '
+                        'file:line:column), as LinuxCNC with its table; default: such a tool '
+                        'runs with length and radius 0, one warning per tool (machine config '
+                        'gcode.strict_tools)')
+    p.add_argument('--allow-no-feed', action='store_true',
+                   help='preview a feed move with no F set at the machine\'s axis limits, with '
+                        'one warning, as LinuxCNC\'s preview does; default: an error naming '
+                        'file:line:column, as the control gives (machine config '
+                        'gcode.allow_no_feed)')
+    p.add_argument('--subroutine-path', action='append', default=[], metavar='DIR',
+                   help='directory searched for subroutine files (o<name> call -> name.ngc) '
+                        'after the program\'s own folder and the machine config\'s '
+                        'gcode.subroutine_path, as LinuxCNC\'s SUBROUTINE_PATH; repeat for '
+                        'more, searched in order')
+
+
+def program_options(args: argparse.Namespace) -> dict:
+    """The values of :func:`add_program_options`' options, the directories checked.
+
+    Returns
+    -------
+    dict
+        ``strict_tools``, ``allow_no_feed`` and ``subroutine_path`` (absolute directories).
+
+    Raises
+    ------
+    ConfigError
+        A ``--subroutine-path`` that is not an existing directory (naming the option).
+    """
+    from feed_axis_energy.gcode import check_subroutine_dir
+    dirs = tuple(check_subroutine_dir(d, where='--subroutine-path', file='command line')
+                 for d in getattr(args, 'subroutine_path', None) or ())
+    return {'strict_tools': bool(getattr(args, 'strict_tools', False)),
+            'allow_no_feed': bool(getattr(args, 'allow_no_feed', False)),
+            'subroutine_path': dirs}
+
+
+def apply_program_options(machine: Machine, args: argparse.Namespace) -> Machine:
+    """``machine`` with the command line's program options added to its ``gcode``."""
+    from feed_axis_energy.gcode import with_program_options
+    return replace(machine, gcode=with_program_options(machine.gcode, **program_options(args)))
+
+
 def add_quiet_option(p: argparse.ArgumentParser, *,
                      help_text: str = 'no progress indication') -> None:
     """``--quiet``: no progress on stderr."""
@@ -130,8 +179,8 @@ def program_keywords(machine: Machine, args: argparse.Namespace) -> dict:
 
 
 def add_machine_options(p: argparse.ArgumentParser) -> None:
-    """Add ``--machine``, ``--load-kg``, ``--rate-hz``, ``--profile``, ``--tool``,
-    ``--dialect`` and ``--ignore-axes``."""
+    """Add ``--machine``, ``--load-kg``, ``--rate-hz``, ``--profile``, ``--tool``, the
+    program options (:func:`add_program_options`), ``--dialect`` and ``--ignore-axes``."""
     p.add_argument('--machine', type=Path, metavar='YAML', default=None,
                    help='machine config (default: the paper\'s demonstrator, '
                         'config/demonstrator.yaml)')
@@ -143,6 +192,7 @@ def add_machine_options(p: argparse.ArgumentParser) -> None:
     p.add_argument('--profile', choices=('jerk', 'trapezoid'), default=None,
                    help='velocity profile (default: machine config)')
     add_tool_option(p)
+    add_program_options(p)
     p.add_argument('--dialect', choices=DIALECTS, default=None,
                    help='G-code dialect of the program (default: the machine config\'s '
                         'gcode.dialect, else linuxcnc; docs in gcode/dialect.py)')
@@ -171,7 +221,7 @@ def load_machine_and_options(args: argparse.Namespace) -> tuple[Machine, Planner
         machine = replace(machine, gcode=with_tools(machine.gcode, dict(args.tool)))
     if getattr(args, 'dialect', None) is not None:
         machine = replace(machine, gcode=replace(machine.gcode, dialect=args.dialect))
-    return machine, options
+    return apply_program_options(machine, args), options
 
 
 def program_text_lines(path: Path, lines: Iterable[int]) -> dict[int, str]:

@@ -14,7 +14,7 @@ from feed_axis_energy.machine import load_machine, machine_warnings
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.identify import range_uses
 from feed_axis_energy.measured import (CampaignComparison, compare_campaign, DEFAULT_MAX_LAG_S,
-                                       load_campaign, load_run)
+                                       load_campaign, load_run, quantity_of)
 from feed_axis_energy.outputs import check_target, marked_or_empty, REPORT_MARKER
 
 __all__ = ['add_parser', 'run']
@@ -29,7 +29,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     'of the measured record by cross-correlation, average the simulated power '
                     'over each measuring interval and print the paper\'s Table-1 metrics '
                     '(average/maximum differential [W] and percentual [%] error), the energy '
-                    'error and the RMSE per run and per load. See docs/compare.md.')
+                    'error and the RMSE per run and per load. A drive trace (instrument.measures: '
+                    'current, torque or force) is compared with the motor torque / kt, '
+                    '1 or lead/2pi, with RMSE, bias and R2 per axis in its unit and the Table-1 '
+                    'rows of I*kt*omega in W. See docs/compare.md.')
     p.add_argument('manifest', type=Path, metavar='MANIFEST', help='campaign manifest (YAML)')
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the tables (keys in docs/compare.md)')
@@ -92,6 +95,7 @@ def _print_tables(cmp: CampaignComparison) -> None:
     if spread:
         print('energy uncertainty from the loss functions (one standard uncertainty of the '
               f'simulated energy, loss_covariance): {", ".join(spread)}')
+    _print_quantity(cmp)
     print()
     rows = [[f'{g.load_kg:g}', str(len(g.runs))] + metric_cells(g.metrics) for g in cmp.groups]
     print('per load (runs pooled):')
@@ -103,6 +107,35 @@ def _print_tables(cmp: CampaignComparison) -> None:
         print('offset and instrument warnings (compared anyway):')
         for w in cmp.warnings:
             print(f'  {w}')
+
+
+def _print_quantity(cmp: CampaignComparison) -> None:
+    """Drive traces (current, torque, force): per run and axis, in the trace's unit."""
+    drive = [r for r in cmp.runs if not quantity_of(r.measures).is_power]
+    if not drive:
+        return
+    for measures in dict.fromkeys(r.measures for r in drive):
+        qty = quantity_of(measures)
+        u = qty.unit
+        gain = {'current': 'kt [N·m/A]', 'torque': 'g [N·m/N·m]', 'force': 'lead/2pi [m]'}
+        rows = []
+        for r in drive:
+            if r.measures != measures:
+                continue
+            for a, m in r.signal_metrics.items():
+                g = (r.torque_per_unit or {}).get(a, math.nan)
+                rows.append([r.name, a, f'{m.rms_meas:.4g}', f'{m.rmse:.4g}', f'{m.bias:+.4g}',
+                             f'{m.max_abs_error:.4g}', _num(m.r2, '.4f'),
+                             _num(m.correlation, '+.3f'), f'{g:.4g}'])
+        print()
+        print(f'{measures} per axis ({qty.words}; d = measured - simulated, bias = mean of '
+              f'simulated - measured; the table above is in W via {qty.symbol}*g*omega):')
+        print(format_table(['run', 'axis', f'RMS meas. [{u}]', f'RMSE [{u}]', f'bias [{u}]',
+                            f'max |d| [{u}]', 'R2', 'r', gain[measures]], rows))
+
+
+def _num(value: float, fmt: str) -> str:
+    return format(value, fmt) if math.isfinite(value) else '-'
 
 
 def _print_states(cmp: CampaignComparison) -> None:

@@ -10,11 +10,13 @@ import yaml
 
 from feed_axis_energy.cli.common import format_table
 from feed_axis_energy.cli.import_run import split_names
-from feed_axis_energy.identify import (fit_loss, fit_loss_samples, machine_with_losses,
+from feed_axis_energy.identify import (fit_drive_samples, fit_loss, fit_loss_samples,
+                                       machine_with_losses,
                                        machine_with_sample_fits, range_uses, SampleFitOptions,
                                        SteadyOptions, VELOCITY_SOURCES)
 from feed_axis_energy.machine import load_machine, machine_to_dict, range_warnings
-from feed_axis_energy.measured import load_campaign, load_run
+from feed_axis_energy.errors import ConfigError
+from feed_axis_energy.measured import load_campaign, load_run, quantity_of, torque_per_unit
 from feed_axis_energy.outputs import check_target, write_text_atomic
 
 __all__ = ['add_parser', 'run']
@@ -46,6 +48,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='replace an existing --out-machine file (never through a symbolic '
                         'link)')
     p.add_argument('--json', action='store_true', help='print one JSON object')
+    p.add_argument('--fit-kt', action='store_true',
+                   help='with --method samples on a current trace: fit the torque constants '
+                        'even where the manifest or the machine config declares them (a '
+                        'fitted kt is written into axes.<A>.drive.kt_nm_a with --out-machine)')
     p.add_argument('--method', choices=('steady', 'samples'), default='steady',
                    help='steady (default): the paper\'s power regression on steady segments; '
                         'samples: Coulomb + viscous loss and the motor inertia fitted to every '
@@ -105,8 +111,19 @@ def run(args: argparse.Namespace) -> int:
         if axis not in machine.axis_names:
             print(f'error: machine {machine.name!r} has no axis {axis!r}', file=sys.stderr)
             return 1
+    if args.fit_kt and (args.method != 'samples'
+                        or any(s.instrument.measures != 'current' for s in specs)):
+        print('error: --fit-kt fits torque constants with --method samples on runs whose '
+              'instrument measures current', file=sys.stderr)
+        return 1
     if args.method == 'samples':
         return _run_samples(args, runs, specs, machine, machine_path, axes)
+    drive = sorted({s.instrument.measures for s in specs
+                    if not quantity_of(s.instrument.measures).is_power})
+    if drive:
+        print(f'error: the runs measure {", ".join(drive)}; --method steady fits power: fit a '
+              'drive trace with --method samples', file=sys.stderr)
+        return 1
     fits = fit_loss(runs, machine=machine, axes=axes, options=options)
     loaded = [r.name for r in runs if r.load_kg > 0]
     if not fits:
@@ -194,10 +211,27 @@ def _run_samples(args: argparse.Namespace, runs: list, specs: list, machine,
     velocity = [s.motion_from_data or 'auto' if args.velocity == 'auto' else args.velocity
                 for s in specs]
     options = SampleFitOptions(min_speed_m_s=args.min_speed, accel_m_s2=args.max_accel)
-    fits = fit_loss_samples(runs, machine=machine, axes=axes, velocity=velocity,
-                            options=options)
+    measures = sorted({s.instrument.measures for s in specs})
+    if len(measures) == 1 and not quantity_of(measures[0]).is_power:
+        gains = _gains(specs, machine, measures[0])
+        if args.fit_kt:
+            gains = {a: None for a in gains}
+        fits = fit_drive_samples(runs, machine=machine, measures=measures[0],
+                                 gains=gains, axes=axes,
+                                 velocity=velocity, invert=[s.instrument.invert for s in specs],
+                                 options=options)
+        show = (lambda: _print_drive(fits, specs, velocity, machine))
+    elif any(not quantity_of(m).is_power for m in measures):
+        msg = (f'the runs measure different quantities ({", ".join(measures)}); fit runs of '
+               'one quantity at a time (--runs)')
+        raise ConfigError(msg, file=str(args.manifest), key='instrument.measures')
+    else:
+        fits = fit_loss_samples(runs, machine=machine, axes=axes, velocity=velocity,
+                                options=options)
+        show = (lambda: _print_samples(fits, specs, velocity))
     if not fits:
-        print('error: no run has power for an axis of the machine', file=sys.stderr)
+        print(f'error: no run has {"power" if len(measures) != 1 else measures[0]} for an '
+              'axis of the machine', file=sys.stderr)
         return 1
     uses = {}
     for run, source in zip(runs, velocity):
@@ -210,8 +244,53 @@ def _run_samples(args: argparse.Namespace, runs: list, specs: list, machine,
     return _finish(args, fits, specs, machine_path, warnings,
                    fitted=lambda: machine_with_sample_fits(machine, fits),
                    what='loss functions and inertias (fit-loss --method samples)',
-                   show=lambda: _print_samples(fits, specs, velocity),
-                   head={'method': 'samples'}, more={'velocity': velocity})
+                   show=show, head={'method': 'samples', 'measures': measures[0]},
+                   more={'velocity': velocity})
+
+
+def _gains(specs: list, machine, measures: str) -> dict[str, float | None]:
+    """Torque per unit of the trace per axis; ``None`` where a torque constant is fitted."""
+    out: dict[str, float | None] = {}
+    for spec in specs:
+        axes = spec.measured_axes
+        gains = torque_per_unit(measures, machine, axes, declared_kt=spec.instrument.kt_by_axis,
+                                manifest=spec.manifest, key=spec.key, required=False)
+        for axis, g in zip(axes, gains):
+            if axis in out and out[axis] != g:
+                msg = (f'axis {axis}: the runs declare different torque constants '
+                       f'({out[axis]} and {g} N·m/A)')
+                raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.instrument.kt_nm_a')
+            out[axis] = g
+    return out
+
+
+def _print_drive(fits: dict, specs: list, velocity: list[str], machine) -> None:
+    kinds = ', '.join(f'{s.name} ({v})' for s, v in zip(specs, velocity))
+    print(f'runs (kinematics): {kinds}')
+    num = (lambda v, fmt: '-' if v is None else format(v, fmt))
+    first = next(iter(fits.values()))
+    qty = quantity_of(first.measures)
+    gain = {'current': 'kt [N·m/A]', 'torque': 'g [-]', 'force': 'lead/2pi [m]'}[qty.name]
+    rows = []
+    for axis, f in fits.items():
+        how = '-' if f.gain is None else ('fitted' if f.gain_fitted else 'declared')
+        rows.append([axis, f.status, num(f.gain, '.4g'), num(f.gain_se, '.2g'), how,
+                     num(f.coulomb_n, '.4g'), num(f.coulomb_se, '.2g'),
+                     num(f.viscous_n_s_m, '.4g'), num(f.viscous_se, '.2g'),
+                     num(f.motor_kg_m2, '.4g'), num(f.effective_mass_kg, '.4g'),
+                     num(f.rmse, '.3g'), num(f.r2, '.4f'), str(f.n_samples)])
+    print(format_table(['axis', 'status', gain, '+-', '', 'coulomb [N]', '+-',
+                        'viscous [N s/m]', '+-', 'motor [kg m2]', 'eff. mass [kg]',
+                        f'RMS [{qty.unit}]', 'R2', 'samples'], rows))
+    print(f'{qty.symbol} = (J*alpha + k*r*(m*a + m*g*sin(incl) + coulomb*sgn(v) + viscous*v)) / g '
+          'per moving sample (r = lead/2pi, alpha = a/r, k = 1/eta driving, eta back-driven; '
+          f'{qty.words}); +-: standard errors')
+    for axis, f in fits.items():
+        print(f'axis {axis}: {f.message}')
+        if f.ok and f.gain_fitted and machine.axis(axis).drive is None:
+            print(f'axis {axis}: kt = {f.gain:.4g} N·m/A fitted; the machine config has no '
+                  f'drive block to hold it: declare instrument.kt_nm_a: {{{axis}: '
+                  f'{f.gain:.4g}}} in the manifest')
 
 
 def _print_samples(fits: dict, specs: list, velocity: list[str]) -> None:

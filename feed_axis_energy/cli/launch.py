@@ -71,6 +71,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='node parameter file (default: config/graph.yaml)')
     p.add_argument('--timeout', type=float, default=None, metavar='S',
                    help='give up (exit 1) after this many seconds')
+    p.add_argument('--program-root', type=Path, default=None, metavar='DIR',
+                   help='run jobs instead of one program: the graph stays up and takes '
+                        'start/abort/result commands on job/command for programs inside DIR '
+                        '(docs/nodes.md, Jobs) until Ctrl-C; excludes --program and --record')
+    p.add_argument('--machine-root', type=Path, default=None, metavar='DIR',
+                   help='with --program-root: a job may name a machine YAML inside DIR '
+                        '(default: jobs run on --machine)')
     p.set_defaults(run=run)
 
 
@@ -175,8 +182,16 @@ def graph_parameters(args: argparse.Namespace) -> dict[str, dict[str, object]]:
         'gcode_trajectory': {**machine, 'program': str(Path(program).resolve()),
                              'mode': args.mode, 'ack_recorder': args.record is not None},
         'axis_dynamics': {**machine, 'load_kg': float(args.load_kg)},
-        'energy_estimator': {**machine, 'load_kg': float(args.load_kg), 'exit_at_end': True},
+        'energy_estimator': {**machine, 'load_kg': float(args.load_kg), 'exit_at_end': True,
+                             'live_clock': 'wall' if args.mode == 'realtime' else 'simulation'},
     }
+    root = getattr(args, 'program_root', None)
+    if root is not None:
+        # jobs: no program of its own, nothing finishes; each job brings its load
+        params['gcode_trajectory'].update(program='', program_root=str(root.resolve()))
+        if getattr(args, 'machine_root', None) is not None:
+            params['gcode_trajectory']['machine_root'] = str(args.machine_root.resolve())
+        params['energy_estimator']['exit_at_end'] = False
     if args.record is not None:
         params['mcap_recorder'] = {'output': str(args.record.resolve()), 'exit_at_end': True}
         if getattr(args, 'plot_rate_hz', None) is not None:
@@ -281,7 +296,7 @@ class Supervisor:
                 return 'failed', f'{name} exited before the program finished'
             finished.append(name)
             self._finished_at.setdefault(name, time.monotonic())
-        if len(finished) == len(self.finishers):
+        if self.finishers and len(finished) == len(self.finishers):
             return 'done', None
         if finished and time.monotonic() - min(
                 self._finished_at.values()) > self.FINISH_GRACE_S:
@@ -379,6 +394,17 @@ def run(args: argparse.Namespace) -> int:
         print('error: --plot-rate-hz and --start-time apply to the recording; give --record',
               file=sys.stderr)
         return 2
+    if args.program_root is not None:
+        if args.program is not None or args.record is not None:
+            print('error: --program-root runs jobs; it excludes --program and --record (the '
+                  'recorder does not record jobs yet)', file=sys.stderr)
+            return 2
+        if not args.program_root.is_dir():
+            print(f'error: --program-root {args.program_root}: not a directory', file=sys.stderr)
+            return 2
+    elif args.machine_root is not None:
+        print('error: --machine-root applies to jobs; give --program-root', file=sys.stderr)
+        return 2
     if not math.isfinite(args.load_kg) or args.load_kg < 0:
         print(f'error: --load-kg must be a finite mass >= 0 kg, got {args.load_kg}',
               file=sys.stderr)
@@ -389,6 +415,8 @@ def run(args: argparse.Namespace) -> int:
     if args.domain_id is not None:
         env['ROS_DOMAIN_ID'] = str(args.domain_id)
     finishers = {'energy_estimator'} | ({'mcap_recorder'} if args.record is not None else set())
+    if args.program_root is not None:
+        finishers = set()      # a job graph runs until it is stopped
     # the options' parameter file lives in a private directory (mode 0700) for this run only
     remove_stale_parameter_dirs()
     private = Path(tempfile.mkdtemp(prefix=f'{_PRIVATE_PREFIX}{os.getpid()}-'))

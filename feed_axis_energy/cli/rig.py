@@ -2,7 +2,7 @@
 
 Truth = declared machine + catalog effects (``--effects``) [+ an effect outside the catalog];
 the instrument averages over 50 ms, adds noise, quantises and starts at an unknown offset.
-See :mod:`feed_axis_energy.identify.rig` for the file layout.
+See :mod:`feed_axis_energy.identify.rig.campaign` for the file layout.
 """
 from __future__ import annotations
 
@@ -63,6 +63,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    choices=tuple(OUTSIDE_KINDS), metavar='KIND',
                    help='add an effect that is NOT in the catalog: periodic (20 W at 3.7 Hz, '
                         'the default) or position_step (25 W beyond 250 mm while moving)')
+    p.add_argument('--record-window', default=None, metavar='LATE,EARLY',
+                   help='the meter started LATE s after the record and stopped EARLY s before '
+                        'its end, so records can miss the program\'s start and end '
+                        '(default: 0,0, the whole record)')
     p.add_argument('--cycles', type=int, default=3, metavar='N',
                    help='back-and-forth strokes per run (default: 3)')
     p.add_argument('--bags', action='store_true',
@@ -116,6 +120,10 @@ def run(args: argparse.Namespace) -> int:
     if args.cycles < 1:
         raise ConfigError(f'--cycles must be >= 1, got {args.cycles}', file='command line',
                           key='cycles')
+    window = _numbers(args.record_window, 'record-window') if args.record_window else (0.0, 0.0)
+    if len(window) != 2:
+        raise ConfigError(f'expected LATE,EARLY, got {args.record_window}',
+                          file='command line', key='record-window')
     instrument = Instrument(window_s=args.period_s, period_s=args.period_s,
                             noise_w=args.noise_w, quantum_w=args.quantum_w,
                             gain_drift_per_s=drift[0],
@@ -124,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
     config = RigConfig(machine=machine, loads_kg=loads, feeds_mm_s=feeds, effects=effects,
                        instrument=instrument, seed=args.seed, offset_s=args.offset_s,
                        outside=args.outside_catalog, cycles=args.cycles,
-                       bags=args.bags)
+                       bags=args.bags, record_window_s=(window[0], window[1]))
     progress = Progress('rig', enabled=not args.quiet)
     manifest = make_campaign(args.out, config, progress=progress, force=args.force)
     progress.done()

@@ -35,6 +35,7 @@ def _parts(text: str) -> float:
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the subcommand."""
     from feed_axis_energy.cli.batch import add_executor_options
+    from feed_axis_energy.cli.common import add_program_options
     from feed_axis_energy.sim import ALIASES
     aliases = ', '.join(f'{k} ({v})' for k, v in ALIASES.items())
     p = sub.add_parser(
@@ -66,6 +67,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         '(default 1)')
     p.add_argument('--rate-hz', type=float, default=None, metavar='HZ',
                    help='sampling rate [Hz] (default: the machine config\'s)')
+    add_program_options(p)
     add_executor_options(p)
     p.add_argument('--json', action='store_true',
                    help='print one JSON object instead of the table')
@@ -88,7 +90,9 @@ def _plan(args: argparse.Namespace):
     from feed_axis_energy.errors import ConfigError
     from feed_axis_energy.machine import machine_to_dict
     from feed_axis_energy.paths import default_machine
+    from feed_axis_energy.cli.common import program_options
     check_executor_options(args)
+    reading = program_options(args)
     if not 0.0 <= args.load_kg <= 1.0e6:
         msg = f'--load-kg must be 0 to 1e6 kg, got {args.load_kg}'
         raise ConfigError(msg, file='command line', key='load-kg')
@@ -132,7 +136,7 @@ def _plan(args: argparse.Namespace):
                                  machine=machine_file, machine_path=machine_path,
                                  load_kg=run['load_kg'], rate_hz=args.rate_hz,
                                  overrides=overrides, feed_override=run['feed_override'],
-                                 rapid_override=run['rapid_override']))
+                                 rapid_override=run['rapid_override'], **reading))
             labels.append((shown, values))
     return params, names, jobs, labels
 

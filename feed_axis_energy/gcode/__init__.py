@@ -13,15 +13,18 @@ from .check import (check_limits, checked_warning_texts, CheckLimits, DEFAULT_MA
                     program_problems, sanity_checker, warning_texts)
 from .dialect import Dialect, dialect_by_name
 from .load import DEFAULT_ARC_TOLERANCE_M, iter_moves, load_gcode, MoveStream, parse_gcode
-from .program import Move, MoveKind, Program, PROGRAM_AXES
-from .settings import (DIALECTS, gcode_from_dict, gcode_to_dict, GcodeSettings, parse_tool_option,
-                       ToolSpec, travel_from_value, with_tools)
+from .program import Move, MoveKind, Program, PROGRAM_AXES, ROTARY_AXES
+from .settings import (check_subroutine_dir, DIALECTS, gcode_from_dict, gcode_to_dict,
+                       GcodeSettings, MAX_SUBROUTINE_DIRS, parse_tool_option, ToolSpec,
+                       travel_from_value, with_program_options, with_tools)
 
 __all__ = [
-    'check_limits', 'checked_warning_texts', 'CheckLimits', 'DEFAULT_ARC_TOLERANCE_M',
-    'DEFAULT_MAX_DWELL_S', 'Dialect', 'dialect_by_name', 'DIALECTS', 'gcode_from_dict',
-    'gcode_to_dict', 'GcodeSettings', 'iter_moves', 'load_gcode', 'MAX_ERRORS', 'Move',
-    'MoveChecker', 'MoveKind', 'MoveStream', 'parse_gcode', 'parse_tool_option',
-    'problem_from_error', 'problems_from_warnings', 'Program', 'PROGRAM_AXES', 'program_problems',
-    'sanity_checker', 'ToolSpec', 'travel_from_value', 'warning_texts', 'with_tools',
+    'check_limits', 'check_subroutine_dir', 'checked_warning_texts', 'CheckLimits',
+    'DEFAULT_ARC_TOLERANCE_M', 'DEFAULT_MAX_DWELL_S', 'Dialect', 'dialect_by_name', 'DIALECTS',
+    'gcode_from_dict', 'gcode_to_dict', 'GcodeSettings', 'iter_moves', 'load_gcode',
+    'MAX_ERRORS', 'MAX_SUBROUTINE_DIRS', 'Move', 'MoveChecker', 'MoveKind', 'MoveStream',
+    'parse_gcode', 'parse_tool_option', 'problem_from_error', 'problems_from_warnings',
+    'Program', 'PROGRAM_AXES', 'program_problems', 'ROTARY_AXES', 'sanity_checker',
+    'ToolSpec',
+    'travel_from_value', 'warning_texts', 'with_program_options', 'with_tools',
 ]

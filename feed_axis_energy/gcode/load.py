@@ -5,7 +5,10 @@
 simulated exactly raises :class:`~..errors.GcodeError` naming ``file:line:column`` and the
 offending word (a subroutine file names itself). Semantics are LinuxCNC 2.9's (RS274NGC),
 checked against its interpreter; where controls differ a :mod:`dialect <.dialect>` profile
-applies (``linuxcnc`` by default; ``fanuc``, ``haas``, ``grbl``, ``mach3``).
+applies (``linuxcnc`` by default; ``fanuc``, ``haas``, ``grbl``, ``mach3``). Programs in
+Siemens' own language (``sinumerik``, also chosen from a ``.MPF``/``.SPF`` file, a
+``%_N_NAME_MPF`` header or ``G710``/``G700`` where the dialect would be ``linuxcnc``) are
+read by their own front, :mod:`.siemens`, which hands the same interpreter RS274NGC words.
 
 Layout (as LinuxCNC's rs274ngc): :mod:`.read` turns text into executed blocks
 (:mod:`.read.source`: bytes, line ends; :mod:`.read.lexer`, :mod:`.read.expr`,
@@ -27,7 +30,8 @@ Reading
   Macro B dialects (``fanuc``, ``haas``) Fanuc's read-only system variables: modal groups
   ``#4001``.. and positions ``#5001``.., ``#5021``.., ``#5041``.., ``#5081``..
   (:mod:`.interp.sysvars`: given from the modal state, or refused by number).
-* O-word subroutines (in the program, or ``<name>.ngc`` next to it or on ``search_path``)
+* O-word subroutines (in the program, or ``<name>.ngc`` next to it or on ``search_path``,
+  LinuxCNC's ``SUBROUTINE_PATH``)
   and ``if/elseif/else``, ``while``, ``do``, ``repeat``, ``break/continue``; Fanuc
   ``O1234`` + ``M98 P.. L..`` / ``M99``. Loops stop with an error after 10^6 passes.
 * Non-finite or absurd numbers (beyond 1e12 program units) are errors.
@@ -42,15 +46,18 @@ Motion (canonical moves, :mod:`.canon`)
   an end angle within 1e-12 rad of the start is a full turn, anything else the short way
   the arc runs.
 * An explicit G0/G1 without axis words, and any zero-length move, is issued with length 0
-  (as LinuxCNC; the planner drops it). A feed move with no F in force runs at the
-  machine's limits with one warning (LinuxCNC's preview accepts it).
+  (as LinuxCNC; the planner drops it). A feed move with no F set is an error, as on the
+  control; ``allow_no_feed`` runs it at the machine's limits with one warning (LinuxCNC's
+  preview accepts it); an F0 in force is always an error.
 * Polar words ``@`` (distance) and ``^`` (angle, degrees) in the XY plane, from the origin
   under G90 or added to the current point's under G91.
 * Canned cycles G73, G81..G89 with G98/G99 (start-up G99) and L repeats, sticky R/Z/P/Q
   words, G80; the cycle is the motion mode. Cutter radius compensation G41/G42 (D = tool
   number, or the tool in the spindle), G41.1/G42.1 (D = diameter), G40, in G17/G18; the
   radius comes from the machine's ``gcode.tools`` (``tools=``); tool 0 or radius 0 leaves
-  the path unchanged; what LinuxCNC refuses under compensation is refused.
+  the path unchanged; what LinuxCNC refuses under compensation is refused. A tool the table
+  lacks has length and radius 0 (one warning per tool), or is an error with
+  ``strict_tools`` (:mod:`.interp.tools`).
 * G38.2..G38.5 probing runs to its end point (no contact simulated, one warning); G33.1
   rigid tapping goes in and back at K x S.
 * Splines (:mod:`.expand.splines`, LinuxCNC 2.9's rules and messages): G5 cubic (``I J`` first
@@ -72,11 +79,14 @@ G9; G54..G59.3, G10 L1/L2/L10/L11/L20, G92/G92.1/G92.2/G92.3, G52, G53, G28/G30 
 G43/G43.1/G43.2/G49 as LinuxCNC 2.9 (:mod:`.interp.coords`); moves are in machine coordinates.
 S, T, M6, M61, M3..M9 are tracked where they matter (G84/G86 need a turning spindle, G41
 without D uses the loaded tool, or in the Fanuc/Haas dialects the D of an earlier line);
-harmless I/O M codes and the control's contouring modes per dialect are accepted.
+harmless I/O M codes and the control's contouring modes per dialect are accepted, and in
+the ``linuxcnc`` dialect the user M codes M100-M199 (no motion, one warning per code).
 
 Refused with a clear message
 ----------------------------
-Axes A/B/C/U/V/W (or dropped with ``ignore_axes``/``--ignore-axes``, one warning each),
+Axes U/V/W and the rotary axes A/B/C a machine does not declare (``rotary_axes``: those
+turn, :mod:`.interp.rotary`; or dropped with ``ignore_axes``/``--ignore-axes``, one warning
+each), rotary words in a canned cycle or under cutter compensation,
 G5.2 without a positive weight on its first point, G5.2 under G93 or cutter compensation
 (G5/G5.1 under compensation as LinuxCNC), G33 spindle-synchronised motion, G7 lathe mode,
 G17.1-G19.1 UVW planes, unknown G and M codes, words nothing uses.
@@ -85,6 +95,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping, Sequence
 import gc
+import os
 from os import PathLike
 
 from .canon import CENTER_ARC_RADIUS_TOLERANCE_MM
@@ -93,8 +104,9 @@ from .context import OperationContext
 from .dialect import Dialect, dialect_by_name
 from .run import GcodeRun
 from .read.source import read_program
-from ..errors import ConfigError, GcodeError
-from .program import Move, Program
+from .siemens import decode_siemens, read_siemens_program, siemens_evidence
+from ..errors import ConfigError, GcodeError, shorten_path
+from .program import Move, Program, ROTARY_AXES
 
 __all__ = ['parse_gcode', 'load_gcode', 'iter_moves', 'MoveStream', 'DEFAULT_ARC_TOLERANCE_M']
 
@@ -110,7 +122,8 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
                 tools: Mapping[int, object] | None = None,
                 dialect: str | Dialect | None = None,
                 search_path: Sequence[str | PathLike[str]] = (),
-                ignore_axes: Sequence[str] = ()) -> Program:
+                ignore_axes: Sequence[str] = (), strict_tools: bool = False,
+                allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()) -> Program:
     """Parse an NC program into moves in SI units.
 
     Parameters
@@ -130,17 +143,29 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
         The G28 position [m] in machine coordinates (a machine's ``home_m``); without it
         #5161..#5163 are 0 as in LinuxCNC's fresh parameter file.
     tools
-        Tool table: tool number -> ``ToolSpec`` (or ``(radius_m, length_m)``, or a radius).
-        Without it G41/G42 work only with tool 0 (radius 0, the path unchanged) or
-        G41.1/G42.1, and G43 H only with H0.
+        Tool table: tool number -> ``ToolSpec`` (or ``(radius_m, length_m)``, or a radius);
+        ``None``: an empty table. A tool it lacks runs with length and radius 0 and one
+        warning per tool number, unless ``strict_tools``.
     dialect
         A :class:`Dialect` or its name (``linuxcnc``, ``fanuc``, ``haas``, ``grbl``,
         ``mach3``); ``None``: ``linuxcnc``.
     search_path
-        Directories searched for subroutine files (``o<name> call``) after the program's.
+        Directories searched for subroutine files (``o<name> call``) after the program's
+        own (LinuxCNC's ``SUBROUTINE_PATH``; ``--subroutine-path``,
+        ``gcode.subroutine_path``); each must be an existing directory.
     ignore_axes
         Axis letters among A, B, C, U, V, W whose words are dropped (one warning each);
         otherwise such a word is an error naming its line.
+    strict_tools
+        A tool the table lacks is an error at the word naming it (T, H, D, G10's P, M61's
+        Q; G43 or G41/G42 without H/D for the loaded tool), as in LinuxCNC with its table.
+    allow_no_feed
+        A feed move in G94 with no F set since the start runs at the machine's axis limits
+        with one warning (LinuxCNC's preview); otherwise it is an error naming its line and
+        column, as on the control.
+    rotary_axes
+        Rotary axis letters among A, B, C that the machine has: their words turn them
+        (:mod:`.interp.rotary`; the moves carry ``rot_start``/``rot_end``).
 
     Returns
     -------
@@ -152,11 +177,17 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
     GcodeError
         For anything that cannot be simulated exactly; names file, line, column and word.
     ConfigError
-        For an unknown dialect name or an axis that cannot be ignored.
+        For an unknown dialect name, an axis that cannot be ignored or a ``search_path``
+        entry that is not a directory.
     """
+    chosen, note = _file_dialect(dialect_by_name(dialect), file, text[:8192])
     run = GcodeRun(text, file=file, start=start, arc_tolerance_m=arc_tolerance_m, home=home,
-                   tools=tools, dialect=dialect_by_name(dialect), search_path=search_path,
-                   ignore_axes=_axes(ignore_axes))
+                   tools=tools, dialect=chosen,
+                   search_path=_directories(search_path), ignore_axes=_axes(ignore_axes),
+                   strict_tools=bool(strict_tools), allow_no_feed=bool(allow_no_feed),
+                   rotary_axes=rotary_letters(rotary_axes))
+    if note:
+        run.interp.warnings.insert(0, note)
     # The parse allocates one Move per block and frees nothing: cyclic garbage collection
     # passes over the growing list find nothing and cost ~15 % of the time, so they are
     # paused for the duration (and resumed even when the program is refused).
@@ -189,9 +220,10 @@ class MoveStream:
         its marks are complete up to the moves handed on so far).
     """
 
-    def __init__(self, path: str | PathLike[str], kw: dict):
+    def __init__(self, path: str | PathLike[str], kw: dict, note: str = ''):
         self._path = path
         self._kw = kw
+        self._note = note             # why the dialect was chosen from the file, if it was
         self._run: GcodeRun | None = None
         self.file = str(path)
         self.context = OperationContext()
@@ -222,6 +254,14 @@ class MoveStream:
         of the list just given. A consumer that takes lists saves a generator step per
         move."""
         name = self.file
+        if self._kw['dialect'].siemens:     # read whole (Latin-1 allowed), as subprograms
+            text = read_siemens_program(self._path, file=name)
+            self.context.reset()
+            self._run = GcodeRun(text, file=name, context=self.context, **self._kw)
+            if self._note:
+                self._run.interp.warnings.insert(0, self._note)
+            yield from self._run
+            return
         try:
             fh = open(self._path, encoding='utf-8-sig', newline=None)
         except OSError as err:
@@ -243,7 +283,8 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                dialect: str | Dialect | None = None,
                search_path: Sequence[str | PathLike[str]] = (),
                ignore_axes: Sequence[str] = (), batch: int = 4096,
-               max_errors: int = 0) -> MoveStream:
+               max_errors: int = 0, strict_tools: bool = False,
+               allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()) -> MoveStream:
     """Stream the moves of a program file in bounded memory.
 
     Plain lines are read one at a time, so memory stays at ``batch`` moves however long
@@ -254,7 +295,8 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     ----------
     path
         The program file.
-    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
+    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes, strict_tools
+    allow_no_feed, rotary_axes
         As for :func:`parse_gcode`.
     batch
         Moves interpreted ahead of the consumer (at least 1).
@@ -269,11 +311,13 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
         Iterate over it for the moves; its ``warnings`` are complete at the end. Errors
         (:class:`GcodeError`) are raised during the iteration, at the line concerned.
     """
+    chosen, note = _file_dialect(dialect_by_name(dialect), str(path), _head(path))
     kw = dict(start=start, arc_tolerance_m=arc_tolerance_m, home=home, tools=tools,
-              dialect=dialect_by_name(dialect), search_path=search_path,
+              dialect=chosen, search_path=_directories(search_path),
               batch=max(1, int(batch)), ignore_axes=_axes(ignore_axes),
-              max_errors=max(0, int(max_errors)))
-    return MoveStream(path, kw)
+              max_errors=max(0, int(max_errors)), strict_tools=bool(strict_tools),
+              allow_no_feed=bool(allow_no_feed), rotary_axes=rotary_letters(rotary_axes))
+    return MoveStream(path, kw, note)
 
 
 def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
@@ -281,14 +325,16 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                tools: Mapping[int, object] | None = None,
                dialect: str | Dialect | None = None,
                search_path: Sequence[str | PathLike[str]] = (),
-               ignore_axes: Sequence[str] = ()) -> Program:
+               ignore_axes: Sequence[str] = (), strict_tools: bool = False,
+               allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()) -> Program:
     """Read a program file (UTF-8, a BOM allowed) and parse it (see :func:`parse_gcode`).
 
     Parameters
     ----------
     path
         The program file; its path is used as ``file`` in messages and in the result.
-    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
+    start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes, strict_tools
+    allow_no_feed, rotary_axes
         As for :func:`parse_gcode`.
 
     Returns
@@ -303,10 +349,66 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
         is too large, or is not UTF-8 text (the message gives the line of the bad byte).
     """
     name = str(path)
-    text = read_program(path, file=name)
+    chosen, _ = _file_dialect(dialect_by_name(dialect), name, _head(path))
+    if chosen.siemens:
+        text = read_siemens_program(path, file=name)
+    else:
+        text = read_program(path, file=name)
     return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
                        home=home, tools=tools, dialect=dialect, search_path=search_path,
-                       ignore_axes=ignore_axes)
+                       ignore_axes=ignore_axes, strict_tools=strict_tools,
+                       allow_no_feed=allow_no_feed, rotary_axes=rotary_axes)
+
+
+def _directories(paths: Sequence[str | PathLike[str]]) -> tuple[str, ...]:
+    """The ``search_path`` entries, each checked to be an existing directory."""
+    if isinstance(paths, (str, PathLike)):
+        paths = (paths,)            # one directory, not its characters
+    out = []
+    for entry in paths:
+        text = os.fspath(entry)
+        if not os.path.isdir(text):
+            what = 'does not exist' if not os.path.exists(text) else 'is not a directory'
+            msg = f'subroutine directory {shorten_path(text)!r} {what}'
+            raise ConfigError(msg, key='search_path')
+        out.append(text)
+    return tuple(out)
+
+
+def _head(path: str | PathLike[str]) -> str:
+    """The first lines of a program file (for :func:`_file_dialect`; '' if unreadable:
+    reading it later reports the problem)."""
+    try:
+        with open(path, 'rb') as fh:
+            data = fh.read(8192)
+    except OSError:
+        return ''
+    return decode_siemens(data)
+
+
+def _file_dialect(dialect: Dialect, file: str, head: str) -> tuple[Dialect, str]:
+    """The dialect a program is read in, and a warning if the file chose it: a program
+    marked as Sinumerik (:func:`~.siemens.siemens_evidence`) is read as such where the
+    dialect would be the default, ``linuxcnc`` (whose interpreter refuses such a program
+    at its first Siemens word)."""
+    if dialect.name != 'linuxcnc':
+        return dialect, ''
+    why = siemens_evidence(file, head)
+    if why is None:
+        return dialect, ''
+    note = (f'{file}:1: read in the sinumerik dialect, chosen from {why} '
+            '(--dialect names another)')
+    return dialect_by_name('sinumerik'), note
+
+
+def rotary_letters(letters: Sequence[str]) -> tuple[str, ...]:
+    """Upper-case rotary axis letters for ``rotary_axes``, checked."""
+    out = tuple(str(a).strip().upper() for a in letters)
+    for a in out:
+        if a not in ROTARY_AXES:
+            msg = f'not a rotary axis: {a[:60]!r} (expected A, B or C)'
+            raise ConfigError(msg, key='rotary_axes')
+    return out
 
 
 def _axes(letters: Sequence[str]) -> tuple[str, ...]:

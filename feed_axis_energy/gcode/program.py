@@ -8,10 +8,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import IntEnum
 
-__all__ = ['MoveKind', 'Move', 'Program', 'PROGRAM_AXES', 'make_move', 'straight_move',
-           'arc_move']
+__all__ = ['MoveKind', 'Move', 'Program', 'PROGRAM_AXES', 'ROTARY_AXES', 'make_move',
+           'straight_move', 'arc_move']
 
 PROGRAM_AXES = ('X', 'Y', 'Z')
+ROTARY_AXES = ('A', 'B', 'C')
 
 Vec3 = tuple[float, float, float]
 
@@ -65,6 +66,13 @@ class Move:
         True for the way back of a G33.1 rigid tap. RS274NGC issues the way in and back as
         one canonical call (``RIGID_TAP``); the planner runs both moves, the program's
         summary (:mod:`.stats`) counts the pair once, as the reference does.
+    rot_start, rot_end
+        Rotary axis positions ``(A, B, C)`` [rad, machine coordinates] before and after the
+        move, for a move on which a rotary axis turns (the machine declares it, see
+        :mod:`.interp.rotary`); ``None`` (the default): no rotary axis turns during the move.
+        They turn linearly with the path: with the XYZ length when the move has one (the
+        feed is the XYZ path speed), otherwise the move is a pure rotary one and
+        ``feed_m_s`` is the angular speed [rad/s] along ``|rot_end - rot_start|``.
     """
 
     kind: MoveKind
@@ -80,6 +88,8 @@ class Move:
     length_m: float = 0.0
     sweep_rad: float | None = None
     tap_return: bool = False
+    rot_start: Vec3 | None = None
+    rot_end: Vec3 | None = None
 
 
 _NEW = object.__new__
@@ -117,7 +127,8 @@ def straight_move(kind: MoveKind, line: int, start: Vec3, end: Vec3, feed_m_s: f
     _SET(m, '__dict__', {'kind': kind, 'line': line, 'start': start, 'end': end,
                          'feed_m_s': feed_m_s, 'exact_stop': exact_stop, 'center': None,
                          'plane': _PLANE, 'turns': 0, 'dwell_s': _DWELL,
-                         'length_m': length_m, 'sweep_rad': None, 'tap_return': False})
+                         'length_m': length_m, 'sweep_rad': None, 'tap_return': False,
+                         'rot_start': None, 'rot_end': None})
     return m
 
 
@@ -129,7 +140,8 @@ def arc_move(kind: MoveKind, line: int, start: Vec3, end: Vec3, feed_m_s: float,
     _SET(m, '__dict__', {'kind': kind, 'line': line, 'start': start, 'end': end,
                          'feed_m_s': feed_m_s, 'exact_stop': exact_stop, 'center': center,
                          'plane': plane, 'turns': turns, 'dwell_s': _DWELL,
-                         'length_m': length_m, 'sweep_rad': sweep_rad, 'tap_return': False})
+                         'length_m': length_m, 'sweep_rad': sweep_rad, 'tap_return': False,
+                         'rot_start': None, 'rot_end': None})
     return m
 
 

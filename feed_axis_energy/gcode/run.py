@@ -9,17 +9,22 @@ anything to diagnose) the rest of the program goes to the front's reader
 (:func:`.flow.read_blocks`) with the same interpreter and parameter table: the lines
 already run are blanked for it, so its line numbers stay those of the file. Nothing is read
 twice and memory is bounded by the batch size (plus the program text itself).
+
+A program in the ``sinumerik`` dialect goes to the Siemens front
+(:func:`.siemens.read_siemens_blocks`) from its first line: its blocks are the same
+:class:`~.read.block.Block` s, in machine coordinates, for the same interpreter.
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Generator, Iterator, Mapping, Sequence
 from os import PathLike
-from typing import cast, TextIO, TYPE_CHECKING
+from typing import Any, cast, TextIO, TYPE_CHECKING
 
 from .context import OperationContext
 from .dialect import Dialect
 from .interp.sysvars import READ_ONLY as FANUC_READ_ONLY
 from .read.flow import read_blocks
+from .siemens import read_siemens_blocks
 from .interp.interpreter import Interpreter
 from .read.lexer import blank_comments, CONTOUR_RE, LINE_RE, WORD_RE
 from .read.params import Parameters
@@ -58,6 +63,7 @@ class GcodeRun:
         A text file opened with universal newlines, read line by line (bounded memory on
         the fast path; the front's reader gets the rest of the text if it is needed).
     file, start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes
+    strict_tools, allow_no_feed, rotary_axes
         As for :func:`~.parse_gcode` (``dialect`` already a :class:`Dialect`, the axes
         checked).
     batch
@@ -88,7 +94,8 @@ class GcodeRun:
                  tools: Mapping[int, object] | None, dialect: Dialect,
                  search_path: Sequence[str | PathLike[str]] = (), batch: int | None = None,
                  ignore_axes: Sequence[str] = (), max_errors: int = 0,
-                 context: OperationContext | None = None):
+                 context: OperationContext | None = None, strict_tools: bool = False,
+                 allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()):
         self.recent = _Recent()
         if text is not None:
             if '\r' in text:
@@ -115,7 +122,8 @@ class GcodeRun:
         self.params = Parameters()
         self.interp = Interpreter(file, start, arc_tolerance_m, lines=ref_lines, home=home,
                                   tools=tools, dialect=dialect, params=self.params,
-                                  ignore_axes=ignore_axes)
+                                  ignore_axes=ignore_axes, strict_tools=strict_tools,
+                                  allow_no_feed=allow_no_feed, rotary_axes=rotary_axes)
         self.params.provider = self.interp.system_value
         self.context = context
         self.emitted = 0                             # moves handed on so far
@@ -159,7 +167,10 @@ class GcodeRun:
     def __iter__(self) -> Iterator[list[Move]]:
         """Run the program; yield the moves in batches."""
         p = self.interp
-        first = yield from self._plain()
+        if self.dialect.siemens:        # Siemens' language: all of it through its front
+            first: tuple[int, str] | None = (1, next(self.source, ''))
+        else:
+            first = yield from self._plain()
         reader_warnings: list[str] = []
         if first is not None:
             reader_warnings = yield from self._blocks(first)
@@ -287,8 +298,14 @@ class GcodeRun:
             lines.pop()
         self.n_lines = len(lines)
         p.lines = lines
-        reader = read_blocks(text, file=file, params=self.params, dialect=self.dialect,
-                             search_path=self.search_path)
+        siemens = self.dialect.siemens
+        reader: Any
+        if siemens:
+            reader = read_siemens_blocks(text, file=file, search_path=self.search_path,
+                                         start_mm=_mm(p.pos))
+        else:
+            reader = read_blocks(text, file=file, params=self.params, dialect=self.dialect,
+                                 search_path=self.search_path)
         self._reader_warnings = reader.warnings
         if self.max_errors:
             reader.on_error = self._keep
@@ -301,8 +318,11 @@ class GcodeRun:
         for block in reader:
             if context is not None:
                 fr = frames[-1] if frames else None
-                sub = '' if fr is None or fr.kind == 'main' else (
-                    f'o<{fr.name}>' if fr.kind == 'sub' else f'O{fr.name}')
+                if siemens:
+                    sub = next((x.name for x in reversed(frames) if x.kind == 'sub'), '')
+                else:
+                    sub = '' if fr is None or fr.kind == 'main' else (
+                        f'o<{fr.name}>' if fr.kind == 'sub' else f'O{fr.name}')
                 if sub != context.subroutine:
                     context.set_subroutine(sub, self._ordinal())
                 if block.file == file:
@@ -324,6 +344,11 @@ class GcodeRun:
         if end_at:
             _warn_trailing(p, iter(lines[end_at:]), end_at)
         return list(reader.warnings)
+
+
+def _mm(pos_m: Vec3) -> Vec3:
+    """A position [m] in millimetres (the Sinumerik front works in mm)."""
+    return (pos_m[0] * 1e3, pos_m[1] * 1e3, pos_m[2] * 1e3)
 
 
 def _file_lines(stream: TextIO) -> Iterator[str]:

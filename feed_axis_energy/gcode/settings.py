@@ -1,4 +1,5 @@
-"""The G-code part of a machine config: dialect, tool table and axis travel limits.
+"""The G-code part of a machine config: dialect, tool table, how programs are read, and axis
+travel limits.
 
 A machine file may hold (all optional)::
 
@@ -7,29 +8,40 @@ A machine file may hold (all optional)::
       tools:                       # tool table: T number -> radius and length offset
         1: {radius_m: 0.003, length_m: 0.0452}
         2: {radius_m: 0.0, length_m: 0.06}
+      strict_tools: false          # true: a tool the table lacks is an error (--strict-tools)
+      allow_no_feed: false         # true: G1 with no F previews at the axis limits
+      subroutine_path: [subs, /srv/nc/lib]   # searched after the program's folder
     axes:
       X:
         travel_m: [-0.2, 0.3]     # travel limits in machine coordinates [m]
 
 ``radius_m`` is what cutter radius compensation G41/G42 D.. offsets the path by (LinuxCNC's
 tool table holds the diameter: half of it); ``length_m`` is the tool length offset G43 H..
-applies to Z. A tool the program asks for that the table lacks is an error of the program,
-not of the config.
+applies to Z. A tool the program asks for that the table lacks runs with length and radius 0
+and one warning per tool number (a process planner rarely has the machine's table), or is an
+error of the program with ``strict_tools: true`` (``--strict-tools`` turns it on too).
+``allow_no_feed: true`` (``--allow-no-feed``) lets a feed move with no F set run at the axis
+limits with a warning, as LinuxCNC's preview does; the control refuses it (the default).
+``subroutine_path`` lists directories searched for ``o<name> call`` files after the
+program's own, as LinuxCNC's ``[RS274NGC] SUBROUTINE_PATH`` (``--subroutine-path`` adds
+more after them); a relative one is taken from the machine file's folder, and each must be
+an existing directory.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+import os
 from types import MappingProxyType
 from typing import Any, Mapping
 
 from ..configcheck import check_choice, check_float, check_mapping, is_finite_number
-from ..errors import ConfigError, describe, shorten
+from ..errors import ConfigError, describe, shorten, shorten_path
 
 __all__ = ['ToolSpec', 'GcodeSettings', 'DIALECTS', 'MAX_TOOLS', 'MAX_TOOL_NUMBER',
-           'gcode_from_dict', 'gcode_to_dict', 'travel_from_value', 'parse_tool_option',
-           'with_tools']
+           'MAX_SUBROUTINE_DIRS', 'gcode_from_dict', 'gcode_to_dict', 'travel_from_value',
+           'parse_tool_option', 'with_tools', 'check_subroutine_dir', 'with_program_options']
 
-DIALECTS = ('linuxcnc', 'fanuc', 'haas', 'grbl', 'mach3')
+DIALECTS = ('linuxcnc', 'fanuc', 'haas', 'grbl', 'mach3', 'sinumerik')
 """Dialect names a config may choose (the profiles live in ``gcode/dialect.py``)."""
 MAX_TOOLS = 10_000
 """Entries a tool table may hold (a config is read whole; this bounds it)."""
@@ -67,10 +79,19 @@ class GcodeSettings:
         Default dialect of the programs run on this machine (one of :data:`DIALECTS`).
     tools
         Read-only mapping ``{T number: ToolSpec}``; ``machine.gcode.tools[1].radius_m``.
+    strict_tools
+        A tool the table lacks is an error (else length and radius 0, one warning).
+    allow_no_feed
+        A feed move with no F set previews at the axis limits (else it is an error).
+    subroutine_path
+        Directories searched for subroutine files after the program's own.
     """
 
     dialect: str = 'linuxcnc'
     tools: Mapping[int, ToolSpec] = field(default_factory=_empty_tools)
+    strict_tools: bool = False
+    allow_no_feed: bool = False
+    subroutine_path: tuple[str, ...] = ()
 
     def tool(self, number: int) -> ToolSpec | None:
         """Return tool ``number`` of the table, or ``None`` if the table lacks it."""
@@ -134,11 +155,72 @@ def gcode_from_dict(value: Any, *, file: str) -> GcodeSettings:
     """
     if value is None:
         return GcodeSettings()
-    d = check_mapping(value, file=file, key='gcode', allowed=('dialect', 'tools'))
+    d = check_mapping(value, file=file, key='gcode',
+                      allowed=('dialect', 'tools', 'strict_tools', 'allow_no_feed',
+                               'subroutine_path'))
     return GcodeSettings(
         dialect=check_choice(d, 'dialect', DIALECTS, file=file, key='gcode',
                              default='linuxcnc'),
-        tools=_tools(d.get('tools'), file=file))
+        tools=_tools(d.get('tools'), file=file),
+        strict_tools=bool(check_choice(d, 'strict_tools', (False, True), file=file,
+                                       key='gcode', default=False)),
+        allow_no_feed=bool(check_choice(d, 'allow_no_feed', (False, True), file=file,
+                                        key='gcode', default=False)),
+        subroutine_path=_subroutine_path(d.get('subroutine_path'), file=file))
+
+
+MAX_SUBROUTINE_DIRS = 64
+"""Entries ``gcode.subroutine_path`` and ``--subroutine-path`` may hold together."""
+
+
+def check_subroutine_dir(text: str, *, where: str, file: str, base: str | None = None) -> str:
+    """One subroutine directory, made absolute (``base``: the folder a relative one is in).
+
+    Parameters
+    ----------
+    text
+        The directory as the user wrote it.
+    where
+        The key or option that named it, for the message (``gcode.subroutine_path[0]``,
+        ``--subroutine-path``).
+    file
+        The config file, or ``'command line'``.
+    base
+        Folder of a relative ``text`` (``None``: the working directory).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``where``, when the directory does not exist or is not a directory.
+    """
+    if not isinstance(text, str) or not text.strip():
+        msg = f'expected a directory name, got {describe(text)}'
+        raise ConfigError(msg, file=file, key=where)
+    path = os.path.expanduser(text)
+    if base is not None and not os.path.isabs(path):
+        path = os.path.join(base, path)
+    path = os.path.abspath(path)
+    if not os.path.isdir(path):
+        what = 'does not exist' if not os.path.exists(path) else 'is not a directory'
+        msg = f'subroutine directory {shorten_path(path)!r} {what}'
+        raise ConfigError(msg, file=file, key=where)
+    return path
+
+
+def _subroutine_path(value: Any, *, file: str) -> tuple[str, ...]:
+    if value is None:
+        return ()
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, (list, tuple)):
+        msg = f'expected a list of directories, got {describe(value)}'
+        raise ConfigError(msg, file=file, key='gcode.subroutine_path')
+    if len(value) > MAX_SUBROUTINE_DIRS:
+        msg = f'expected at most {MAX_SUBROUTINE_DIRS} directories, got {len(value)}'
+        raise ConfigError(msg, file=file, key='gcode.subroutine_path')
+    base = os.path.dirname(os.path.abspath(file)) if not file.startswith('<') else None
+    return tuple(check_subroutine_dir(v, where=f'gcode.subroutine_path[{i}]', file=file,
+                                      base=base) for i, v in enumerate(value))
 
 
 def gcode_to_dict(settings: GcodeSettings) -> dict[str, Any] | None:
@@ -149,6 +231,12 @@ def gcode_to_dict(settings: GcodeSettings) -> dict[str, Any] | None:
     if settings.tools:
         out['tools'] = {n: {'radius_m': t.radius_m, 'length_m': t.length_m}
                         for n, t in settings.tools.items()}
+    if settings.strict_tools:
+        out['strict_tools'] = True
+    if settings.allow_no_feed:
+        out['allow_no_feed'] = True
+    if settings.subroutine_path:
+        out['subroutine_path'] = list(settings.subroutine_path)
     return out
 
 
@@ -224,5 +312,27 @@ def with_tools(settings: GcodeSettings, tools: Mapping[int, ToolSpec]) -> GcodeS
     """Return ``settings`` with ``tools`` added to (or replacing entries of) its table."""
     table = dict(settings.tools)
     table.update(tools)
-    return GcodeSettings(dialect=settings.dialect,
-                         tools=MappingProxyType(dict(sorted(table.items()))))
+    return replace(settings, tools=MappingProxyType(dict(sorted(table.items()))))
+
+
+def with_program_options(settings: GcodeSettings, *, strict_tools: bool = False,
+                         allow_no_feed: bool = False,
+                         subroutine_path: tuple[str, ...] = ()) -> GcodeSettings:
+    """Return ``settings`` with the command line's program options on top.
+
+    ``strict_tools`` and ``allow_no_feed`` turn the config's setting on (never off);
+    ``subroutine_path`` (directories already checked, :func:`check_subroutine_dir`) is
+    searched after the config's ``gcode.subroutine_path``.
+
+    Raises
+    ------
+    ConfigError
+        More than :data:`MAX_SUBROUTINE_DIRS` directories in all.
+    """
+    dirs = tuple(settings.subroutine_path) + tuple(str(d) for d in subroutine_path)
+    if len(dirs) > MAX_SUBROUTINE_DIRS:
+        msg = f'expected at most {MAX_SUBROUTINE_DIRS} subroutine directories, got {len(dirs)}'
+        raise ConfigError(msg, file='command line', key='subroutine-path')
+    return replace(settings, strict_tools=settings.strict_tools or bool(strict_tools),
+                   allow_no_feed=settings.allow_no_feed or bool(allow_no_feed),
+                   subroutine_path=dirs)

@@ -13,7 +13,12 @@ two can be compared:
 * the bounding box holds the start point and every point the tool visits, an arc by its
   exact axis-aligned extremes (the angles that are multiples of 90 degrees within its
   sweep, the radius interpolated linearly along the sweep for a spiral);
-* the final position is the end of the last move (the start point without moves).
+* the final position is the end of the last move (the start point without moves);
+* rotary travel is ``|dA| + |dB| + |dC|`` in degrees over all moves, a rotary move one that
+  turns a rotary axis (``Move.rot_end``);
+* the nominal feed time is the sum of length / feed over feed moves and arcs, without
+  acceleration or rapids: the XYZ length, or the rotary angle of a pure rotary move (its feed
+  is then an angular speed); a move without a feed rate (``inf``) adds nothing.
 
 Positions are the moves' own (machine coordinates, metres). The module is pure and
 streaming: :class:`MoveStats` takes moves one at a time and keeps a fixed amount of state.
@@ -56,6 +61,10 @@ class ProgramStats:
     bbox_min, bbox_max
         Corners of the axis-aligned box of every visited point [m]; ``None`` when the
         program never moves (dwells and stops do not count as moves).
+    rotary_travel_deg, n_rotary_moves
+        Sum of ``|dA| + |dB| + |dC|`` [deg] and number of moves that turn a rotary axis.
+    nominal_feed_time_s
+        Sum of length / feed over feed moves and arcs [s] (module docstring).
     """
 
     n_feed_moves: int
@@ -69,6 +78,9 @@ class ProgramStats:
     final_position: Vec3
     bbox_min: Vec3 | None
     bbox_max: Vec3 | None
+    rotary_travel_deg: float = 0.0
+    n_rotary_moves: int = 0
+    nominal_feed_time_s: float = 0.0
 
     @property
     def n_motions(self) -> int:
@@ -149,6 +161,15 @@ def arc_extremes(move: Move) -> list[Vec3]:
     return out
 
 
+def _length(start: Vec3, end: Vec3) -> float:
+    """Length [m] of a straight move, computed as :meth:`MoveStats.add_straight` computes it
+    with numpy (squares added in axis order, then the root), so both give the same bits."""
+    dx = end[0] - start[0]
+    dy = end[1] - start[1]
+    dz = end[2] - start[2]
+    return math.sqrt((dx * dx + dy * dy) + dz * dz)
+
+
 class MoveStats:
     """Accumulate :class:`ProgramStats` over a stream of moves.
 
@@ -167,6 +188,21 @@ class MoveStats:
         self.dwell_s = 0.0
         self.lo: list[float] | None = None
         self.hi: list[float] | None = None
+        self.rotary_rad = 0.0
+        self.n_rotary = 0
+        self.nominal_s = 0.0
+
+    def _timed(self, move: Move, length: float) -> None:
+        """Rotary travel and nominal time of a feed move or arc of XYZ ``length`` [m]."""
+        rs, re_ = move.rot_start, move.rot_end
+        if rs is not None and re_ is not None and rs != re_:
+            self.n_rotary += 1
+            self.rotary_rad += abs(re_[0] - rs[0]) + abs(re_[1] - rs[1]) + abs(re_[2] - rs[2])
+            if length < 1e-12 and move.kind != MoveKind.RAPID:
+                length = math.dist(rs, re_)
+        feed = move.feed_m_s
+        if move.kind != MoveKind.RAPID and 0.0 < feed < math.inf:
+            self.nominal_s += length / feed
 
     def _grow(self, p: Vec3) -> None:
         lo: list[float]
@@ -200,13 +236,17 @@ class MoveStats:
             self.hi = list(self.position)
         self._grow(move.start)
         if kind == MoveKind.RAPID:
-            self.traverse_length_m += math.dist(move.start, move.end)
+            length = _length(move.start, move.end)
+            self.traverse_length_m += length
         elif kind == MoveKind.LINEAR:
-            self.feed_length_m += math.dist(move.start, move.end)
+            length = _length(move.start, move.end)
+            self.feed_length_m += length
         else:
-            self.feed_length_m += move.length_m
+            length = move.length_m
+            self.feed_length_m += length
             for p in arc_extremes(move):
                 self._grow(p)
+        self._timed(move, length)
         self._grow(move.end)
         self.position = move.end
 
@@ -229,10 +269,13 @@ class MoveStats:
         self.counts[MoveKind.RAPID] += n_rapid
         self.counts[MoveKind.LINEAR] += len(moves) - n_rapid
         d = end - start
-        dist = np.sqrt(np.einsum('ij,ij->i', d, d))
-        # added one by one as add() does (sum() adds in order)
+        # the length as add() computes it, bit for bit (_length: squares added in axis
+        # order, one rounding each), added one by one as add() does (sum() adds in order)
+        dist = np.sqrt((d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) + d[:, 2] * d[:, 2])
         self.traverse_length_m = sum(dist[rapid].tolist(), self.traverse_length_m)
         self.feed_length_m = sum(dist[~rapid].tolist(), self.feed_length_m)
+        for m, length in zip(moves, dist.tolist()):
+            self._timed(m, length)
         if self.lo is None:
             self.lo = list(self.position)
             self.hi = list(self.position)
@@ -258,7 +301,9 @@ class MoveStats:
             traverse_length_m=self.traverse_length_m, dwell_s=self.dwell_s,
             final_position=cast(Vec3, tuple(self.position)),
             bbox_min=None if self.lo is None else cast(Vec3, tuple(self.lo)),
-            bbox_max=None if self.hi is None else cast(Vec3, tuple(self.hi)))
+            bbox_max=None if self.hi is None else cast(Vec3, tuple(self.hi)),
+            rotary_travel_deg=math.degrees(self.rotary_rad), n_rotary_moves=self.n_rotary,
+            nominal_feed_time_s=self.nominal_s)
 
 
 def summarize(moves: Iterable[Move], *, start: Vec3 = (0.0, 0.0, 0.0)) -> ProgramStats:

@@ -33,6 +33,9 @@ class ProgramEnd:
         Producers whose streams end at different stamps (``measured_replay``): last header
         stamp per topic (``{'measured/power': ns}``, no leading slash). When given, a topic
         that is not listed has no message to wait for. Empty: every stream ends at ``last_ns``.
+    job_id
+        The job the marker ends (key ``job_id``; '' and absent for a graph started on one
+        program). An aborted job's marker counts what was sent before the abort.
     """
 
     program: str
@@ -41,6 +44,7 @@ class ProgramEnd:
     first_ns: int
     last_ns: int
     topic_last_ns: dict[str, int] = field(default_factory=dict)
+    job_id: str = ''
 
     def last_ns_of(self, topic: str) -> int:
         """Last stamp stream ``topic`` must reach (-1: nothing to wait for)."""
@@ -53,7 +57,8 @@ class ProgramEnd:
         return [('program', self.program), ('samples', str(self.samples)),
                 ('batches', str(self.batches)), ('first_stamp_ns', str(self.first_ns)),
                 ('last_stamp_ns', str(self.last_ns))] + [
-                    (f'{_TOPIC_LAST}{t}', str(ns)) for t, ns in sorted(self.topic_last_ns.items())]
+                    (f'{_TOPIC_LAST}{t}', str(ns)) for t, ns in sorted(self.topic_last_ns.items())
+                ] + ([('job_id', self.job_id)] if self.job_id else [])
 
     @classmethod
     def from_pairs(cls, pairs: Iterable[tuple[str, str]]) -> 'ProgramEnd':
@@ -64,7 +69,8 @@ class ProgramEnd:
                          if k.startswith(_TOPIC_LAST)}
             return cls(program=d['program'], samples=int(d['samples']),
                        batches=int(d['batches']), first_ns=int(d['first_stamp_ns']),
-                       last_ns=int(d['last_stamp_ns']), topic_last_ns=per_topic)
+                       last_ns=int(d['last_stamp_ns']), topic_last_ns=per_topic,
+                       job_id=str(d.get('job_id', '')))
         except (KeyError, ValueError) as err:
             msg = f'bad end-of-program marker {d!r}: {err}'
             raise DataError(msg, file='program/end') from err

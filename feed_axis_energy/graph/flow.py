@@ -16,7 +16,8 @@ from typing import cast, Sequence
 
 import numpy as np
 
-from ..physics import apply_braking, compute_dynamics, compute_power, EnergyIntegrator
+from ..physics import (apply_braking, compute_dynamics, compute_power, electrical_power,
+                       ElectricalAccumulator, ElectricalPower, EnergyIntegrator)
 from ..errors import ConfigError, DataError
 from .end import ProgramEnd
 from ..machine import Machine
@@ -156,6 +157,14 @@ class StreamingPower:
     from its carriage motion with the core (:func:`.dynamics.compute_dynamics`), and every
     declarable effect is sample-local, so batches give the offline numbers.
 
+    With a ``machine`` that declares drives (``axes.<A>.drive``), the electrical side is
+    computed too (:func:`.electrical.electrical_power` on the same rebuilt dynamics; motor
+    terminals, supply side, what the drives return): :attr:`last_electrical` holds the
+    newest batch's, :meth:`electrical_summary` the energies so far
+    (:class:`.electrical.ElectricalAccumulator`, the offline summary's ``electrical``).
+    Peak power per axis and total (:attr:`peak_w`) and the energy returned while braking
+    (:attr:`regenerated_j`) follow the offline summary's rules.
+
     Parameters
     ----------
     axes
@@ -174,7 +183,18 @@ class StreamingPower:
         self.axes = tuple(axes)
         self.braking = braking
         self.machine = machine if machine is not None and machine.effects else None
+        self.electrical_machine = (machine if machine is not None and machine.electrical
+                                   else None)
         self.load_kg = float(load_kg)
+        self._electrical = (ElectricalAccumulator() if self.electrical_machine is not None
+                            else None)
+        self.last_electrical: ElectricalPower | None = None
+        self._peak: np.ndarray | None = None
+        self._last_power = np.zeros(len(self.axes) + 1)
+        self._regenerated = 0.0
+        self._neg_last: float | None = None
+        self._t_first: float | None = None
+        self._prev_t: float | None = None
         if self.machine is not None:
             from ..effects import get_effect
             local = [e.id for e in self.machine.effects if not get_effect(e.id).sample_local]
@@ -204,6 +224,36 @@ class StreamingPower:
         """Cumulative energy so far [J]: per axis, then the total (``k + 1`` values)."""
         return self._energy_last.copy()
 
+    @property
+    def last_power_w(self) -> np.ndarray:
+        """Power of the newest sample [W]: per axis, then the total (zeros before any)."""
+        return self._last_power.copy()
+
+    @property
+    def peak_w(self) -> np.ndarray:
+        """Largest power so far [W]: per axis, then the total (zeros before any sample)."""
+        if self._peak is None:
+            return np.zeros(len(self.axes) + 1)
+        return self._peak.copy()
+
+    @property
+    def regenerated_j(self) -> float:
+        """Energy returned while braking so far, ``-integral sum min(M·omega, 0) dt`` [J]."""
+        return max(0.0, -self._regenerated)
+
+    @property
+    def duration_s(self) -> float:
+        """Time from the first to the newest sample integrated [s]."""
+        last = self._integrator.last_time_s
+        if self._t_first is None or last is None:
+            return 0.0
+        return float(last) - self._t_first
+
+    def electrical_summary(self) -> dict | None:
+        """The electrical energies so far (the offline summary's ``electrical`` object),
+        ``None`` when the machine declares no drive, ``{}`` before any sample."""
+        return None if self._electrical is None else self._electrical.summary()
+
     def update(self, t_s: np.ndarray, torque_nm: np.ndarray, omega_rad_s: np.ndarray, *,
                motion: Motion | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Integrate one batch.
@@ -218,10 +268,15 @@ class StreamingPower:
         """
         mechanical = np.asarray(torque_nm, dtype=float) * np.asarray(omega_rad_s, dtype=float)
         power = apply_braking(mechanical, braking=self.braking)
-        if self.machine is not None:
+        extra = None
+        dyn = None
+        if self.machine is not None or self.electrical_machine is not None:
             if motion is None:
-                raise ValueError('the machine declares effects: update() needs the motion')
-            dyn = compute_dynamics(motion, self.machine, load_kg=self.load_kg)
+                msg = 'the machine declares effects or drives: update() needs the motion'
+                raise ValueError(msg)
+            model = cast(Machine, self.machine or self.electrical_machine)
+            dyn = compute_dynamics(motion, model, load_kg=self.load_kg)
+        if self.machine is not None and dyn is not None:
             extra = declared_effects_power_w(
                 dyn, compute_power(dyn, braking=self.braking), self.machine)
             if extra is not None:
@@ -230,7 +285,15 @@ class StreamingPower:
         both = np.column_stack((power, total))
         t = np.asarray(t_s, dtype=float)
         energy = self._integrator.update(t, both)
+        self.last_electrical = None
+        if dyn is not None and self.electrical_machine is not None and t.shape[0]:
+            elec = electrical_power(dyn, mechanical, self.electrical_machine, effects_w=extra)
+            if elec is not None and self._electrical is not None:
+                self._electrical.add(dyn, mechanical, elec, braking=self.braking)
+            self.last_electrical = elec
         if t.shape[0]:
+            self._last_power = both[-1].copy()
+            self._track_peak_and_braking(t, mechanical, both)
             self._n += t.shape[0]
             self._energy_last = energy[-1].copy()
             if self._table is None:
@@ -238,6 +301,23 @@ class StreamingPower:
             else:
                 self._add_lines(t, total)
         return both, energy
+
+    def _track_peak_and_braking(self, t: np.ndarray, mechanical: np.ndarray,
+                                both: np.ndarray) -> None:
+        # the offline summary's rules (sim/summary.py): column maxima; the braking power
+        # summed over the axes first, one trapezoid, the gap from the last batch included
+        peak = np.array([both[:, j].max() for j in range(both.shape[1])])
+        self._peak = peak if self._peak is None else np.maximum(self._peak, peak)
+        neg = np.minimum(mechanical, 0.0).sum(axis=1)
+        if self._t_first is None:
+            self._t_first = float(t[0])
+        else:
+            d0 = float(t[0]) - float(cast(float, self._prev_t))
+            self._regenerated += 0.5 * (float(neg[0]) + cast(float, self._neg_last)) * d0
+        if t.shape[0] > 1:
+            self._regenerated += float(np.sum(0.5 * (neg[1:] + neg[:-1]) * np.diff(t)))
+        self._neg_last = float(neg[-1])
+        self._prev_t = float(t[-1])
 
     def set_lines(self, starts_ns: np.ndarray, lines: np.ndarray) -> None:
         """The program's line table (:func:`block_starts`); batches that waited for it are

@@ -40,12 +40,15 @@ from ..effects import EFFECTS, EffectState, get_effect
 from ..physics import state_from_simulation
 from ..machine import load_machine, Machine, machine_warnings, observed_range, RangeUse
 from ..errors import ConfigError
-from ..measured import (align_simulated, Campaign, compare_campaign, load_run, MotionCache,
-                        offset_dict, RunComparison, simulate_declared, stamp_shift)
+from ..measured import (align_simulated, Campaign, CampaignComparison, compare_campaign,
+                        load_run, MotionCache, offset_dict, quantity_of, RunComparison,
+                        simulate_declared,
+                        stamp_shift)
 from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_sigma
+from .pinning import LeftOut, left_out_text, MAX_PIN_ROUNDS, repin, split_pinned
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -275,17 +278,72 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     ids = tuple(EFFECTS) if options.effects is None else tuple(options.effects)
     for effect_id in ids:
         get_effect(effect_id)
+    selected = campaign.runs if runs is None else [r for r in campaign.runs if r.name in runs]
+    for spec in selected:
+        if not quantity_of(spec.instrument.measures).is_power:
+            # the catalog's effects are powers; their current, torque or force forms are not
+            # written yet
+            msg = (f'run {spec.name!r} measures {spec.instrument.measures}: analyze selects '
+                   'effects on power traces only; compare and fit-loss --method samples work '
+                   'on drive traces')
+            raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.instrument.measures')
 
     def report(x: float) -> None:
         if progress is not None:
             progress(x)
 
     cmp = compare_campaign(campaign, machine=machine, runs=runs,
-                           progress=lambda f: report(0.4 * f))
+                           progress=lambda f: report(0.3 * f))
+    # only runs whose offset is pinned down are fitted; after each round the offsets are
+    # estimated anew with the effects found (:mod:`.pinning`)
+    pinned, left = split_pinned(cmp.runs, campaign=campaign)
+    spans = [(0.3, 0.8), (0.8, 0.92), (0.92, 1.0)]
+    for round_no in range(MAX_PIN_ROUNDS):
+        lo, hi = spans[min(round_no, len(spans) - 1)]
+        _require_pinned(pinned, left, options.holdout, str(campaign.file))
+
+        def scaled(f: float, lo: float = lo, hi: float = hi) -> None:
+            report(lo + (hi - lo) * f)
+        result, augmented, full_machine = _analyze_round(
+            campaign, machine, machine_file, cmp, pinned, ids, options, scaled)
+        if full_machine is machine or round_no + 1 == MAX_PIN_ROUNDS:
+            break
+        extra = realigned_runs(campaign, full_machine, [r.name for r in left])
+        pinned, left, moved = repin(campaign, machine, list(augmented) + extra, pinned, left)
+        if not moved:
+            break
+    report(1.0)
+    if not left:
+        return replace(result, pin_rounds=round_no + 1)
+    return replace(result, left_out=tuple(left), pin_rounds=round_no + 1,
+                   message=f'{result.message}; {left_out_text(left)}')
+
+
+def _require_pinned(pinned: Sequence[RunComparison], left: Sequence[LeftOut], holdout: str,
+                    file: str) -> None:
+    """Refuse a fit with too few pinned runs, naming the ones left out."""
+    enough = (len(pinned) >= 2 if holdout == 'loro' else
+              {r.role for r in pinned} >= {'calibrate', 'validate'} if holdout == 'roles'
+              else True)
+    if enough or not left:
+        return      # enough runs, or nothing left out: _folds says what is missing
+    msg = (f'too few runs whose time offset is pinned down for holdout "{holdout}" '
+           f'({len(pinned)} pinned); {left_out_text(left)}. Declare each run\'s offset_s in '
+           'the manifest, or record the program\'s start and end')
+    raise ConfigError(msg, file=file, key='runs')
+
+
+def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
+                   cmp: CampaignComparison, cmp_runs: Sequence[RunComparison],
+                   ids: tuple[str, ...], options: AnalyzeOptions,
+                   report: Callable[[float], None],
+                   ) -> tuple[AnalysisResult, list[RunComparison], Machine]:
+    """One analysis of the runs ``cmp_runs`` at their offsets; also returns the fresh
+    comparisons with the effects found and the machine they were made with."""
     # copper and iron as corrections of declared drives (motor-terminal meters, .drivecorr)
-    measures = common_measures(campaign.run(r.name).instrument.measures for r in cmp.runs)
-    data = _prepare(campaign, cmp.runs, machine)
-    axes = cmp.runs[0].axes
+    measures = common_measures(campaign.run(r.name).instrument.measures for r in cmp_runs)
+    data = _prepare(campaign, cmp_runs, machine)
+    axes = cmp_runs[0].axes
     if any(r.cmp.axes != axes for r in data):
         msg = 'analyze needs the same measured axes in every run'
         raise ConfigError(msg, file=str(campaign.file), key='axes')
@@ -400,12 +458,12 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     full_machine = (machine_with(machine, blocks, theta, measures=measures) if options.realign
                     else machine)
     augmented = realigned_runs(campaign, full_machine, names,
-                               baseline=cmp.runs if full_machine is machine else ())
+                               baseline=cmp_runs if full_machine is machine else ())
     after_cmp = dict(enumerate(augmented))
     for train, test in folds if options.realign else ():
         fold_machine = machine_with(machine, blocks, design.fit(cols, train),
                                     measures=measures)
-        base = cmp.runs if fold_machine is machine else ()
+        base = cmp_runs if fold_machine is machine else ()
         after_cmp.update(zip(test, realigned_runs(campaign, fold_machine,
                                                   [names[r] for r in test], baseline=base)))
     held = {r for _, test in folds for r in test}
@@ -458,7 +516,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         candidates=mark_groups(fates, groups), warnings=tuple(warnings),
         ambiguous=tuple(groups),
         calibrated={a: observed_range(u) for a, u in uses.items()}, rounds=chosen.rounds,
-        cap_reached=chosen.cap_reached)
+        cap_reached=chosen.cap_reached), augmented, full_machine
 
 
 def _verdict(fitted, unexplained, steps, data, folds, explained,

@@ -15,6 +15,7 @@ from ..measured import group_metrics, json_clean, Metrics
 from .ambiguity import AmbiguousGroup
 from .consistency import Fate
 from .diagnostics import Diagnostic
+from .pinning import LeftOut
 from .drivecorr import fold_corrections
 from .selection import Step
 
@@ -209,6 +210,11 @@ class AnalysisResult:
     ambiguous
         Findings the data cannot attribute to one effect (:mod:`.ambiguity`): selected
         effects whose power other candidates reproduce within the noise, with their forms.
+    left_out
+        Runs not fitted because their time offset could not be pinned down, not even with
+        the effects found (:mod:`.pinning`).
+    pin_rounds
+        Analysis rounds with offsets estimated anew after the effects found (1: none moved).
     """
 
     status: str
@@ -236,6 +242,8 @@ class AnalysisResult:
     rounds: int = 0
     cap_reached: bool = False
     ambiguous: tuple[AmbiguousGroup, ...] = ()
+    left_out: tuple[LeftOut, ...] = ()
+    pin_rounds: int = 1
 
     @property
     def heldout_runs(self) -> tuple[RunOutcome, ...]:
@@ -315,5 +323,7 @@ class AnalysisResult:
                           for s in self.steps],
             'candidates': [f.to_dict() for f in self.candidates],
             'consistency': {'rounds': self.rounds, 'cap_reached': self.cap_reached},
+            'left_out': [lo.to_dict() for lo in self.left_out],
+            'pin_rounds': self.pin_rounds,
             'warnings': list(self.warnings),
         })

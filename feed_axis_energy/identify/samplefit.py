@@ -108,6 +108,19 @@ class SampleFit:
     cov_loss
         Covariance of ``(coulomb_n, viscous_n_s_m)`` [N², N²·s/m, N²·s²/m²] from the
         least-squares fit (``None`` where no degree of freedom is left).
+    measures
+        What the fitted trace is (``instrument.measures``); a drive trace (``current``,
+        ``torque``, ``force``) is fitted by :func:`.torquefit.fit_drive_samples`.
+    rmse, unit
+        Residual RMS in the trace's unit, and the unit (``rmse_w`` holds it for power).
+    gain, gain_se, gain_fitted
+        A drive trace: torque per unit of the trace [N·m per unit] (``kt`` [N·m/A] for
+        current), its standard error, and whether it was fitted (else declared).
+    standstill_hold_n, n_rest, rest_rmse
+        A drive trace: the force the drive holds after a stop, in the last direction of
+        motion [N] (:mod:`feed_axis_energy.physics.standstill`; ``None`` when too few
+        samples rest after a move), the resting samples it was fitted on, and their
+        residual RMS in the trace's unit.
     """
 
     axis: str
@@ -127,6 +140,15 @@ class SampleFit:
     n_accel: int = 0
     calibrated: CalibratedRange | None = None
     cov_loss: tuple[tuple[float, float], tuple[float, float]] | None = None
+    measures: str = 'shaft'
+    rmse: float | None = None
+    unit: str = 'W'
+    gain: float | None = None
+    gain_se: float | None = None
+    gain_fitted: bool = False
+    standstill_hold_n: float | None = None
+    n_rest: int = 0
+    rest_rmse: float | None = None
 
     @property
     def ok(self) -> bool:
@@ -166,7 +188,12 @@ class SampleFit:
                 'effective_mass_kg': self.effective_mass_kg, 'rmse_w': self.rmse_w,
                 'r2': self.r2, 'n_samples': self.n_samples, 'n_accel': self.n_accel,
                 'calibrated': None if self.calibrated is None else self.calibrated.to_dict(),
-                'cov_loss': None if self.cov_loss is None else [list(r) for r in self.cov_loss]}
+                'cov_loss': None if self.cov_loss is None else [list(r) for r in self.cov_loss],
+                'measures': self.measures, 'unit': self.unit, 'rmse': self.rmse,
+                'torque_per_unit': self.gain, 'torque_per_unit_se': self.gain_se,
+                'torque_per_unit_fitted': self.gain_fitted,
+                'standstill_hold_n': self.standstill_hold_n, 'n_rest': self.n_rest,
+                'rest_rmse': self.rest_rmse}
 
 
 @dataclass
@@ -297,6 +324,7 @@ def _fit_axis(cols: _Columns, *, axis: str, machine: Machine,
                      motor_se=se[0], coulomb_se=se[1], viscous_se=se[2],
                      inertia_fitted=fit_inertia, effective_mass_kg=mass,
                      rmse_w=math.sqrt(float(res @ res) / n), r2=r2, n_samples=n,
+                     rmse=math.sqrt(float(res @ res) / n),
                      n_accel=n_accel, calibrated=calibrated, cov_loss=cov_loss)
 
 
@@ -376,5 +404,10 @@ def machine_with_sample_fits(machine: Machine, fits: dict[str, SampleFit]) -> Ma
                         loss_covariance=f.covariance(),
                         inertias=replace(a.inertias,
                                          motor_kg_m2=float(cast(float, f.motor_kg_m2))))
+            if f.standstill_hold_n is not None:
+                a = replace(a, standstill_hold_n=float(f.standstill_hold_n))
+            if f.gain_fitted and f.measures == 'current' and a.drive is not None:
+                # a fitted torque constant replaces the data sheet's
+                a = replace(a, drive=replace(a.drive, kt_nm_a=float(cast(float, f.gain))))
         axes.append(a)
     return replace(machine, axes=tuple(axes))

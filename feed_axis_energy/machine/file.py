@@ -23,6 +23,9 @@ A machine file looks like (see ``config/demonstrator.yaml``)::
       dialect: linuxcnc
       tools: {1: {radius_m: 0.003, length_m: 0.045}}
 
+Axes ``A``, ``B``, ``C`` are rotary (a rotary table or swivel head, :mod:`.rotary`): moment
+of inertia of table and load, gear ratio, efficiency, friction torque, limits in degrees.
+
 Each axis may declare its motor and drive (``drive:``) and the machine its cabinet standby
 and meter point (``supply:``), from data-sheet values (:mod:`.drives`,
 ``docs/electrical.md``).
@@ -56,8 +59,10 @@ from .covariance import covariance_from_value
 from .losses import loss_from_dict
 from .declared import effects_from_value, effects_to_list
 from ..gcode import gcode_from_dict, gcode_to_dict, travel_from_value
+from .rotary import check_rotary_stacking, rotary_axis_from_value, rotary_axis_to_dict
 from .spec import (AXIS_NAMES, AxisSpec, BRAKING_MODES, InertiaSpec, LimitSpec, Machine,
-                   PlannerSettings, PROFILES, ScrewSpec, STEEL_DENSITY_KG_M3)
+                   PlannerSettings, PROFILES, ROTARY_AXIS_NAMES, ScrewSpec,
+                   STEEL_DENSITY_KG_M3)
 from ..safeyaml import load_yaml_file
 
 __all__ = ['load_machine', 'machine_from_dict', 'machine_to_dict']
@@ -114,8 +119,13 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
     if name not in AXIS_NAMES:
         msg = f'unknown axis name {shorten(str(name))!r}; expected one of {", ".join(AXIS_NAMES)}'
         raise ConfigError(msg, file=file, key=key)
+    if name in ROTARY_AXIS_NAMES:
+        rides = _choice(_mapping(d, file=file, key=key, allowed=None), 'rides_on',
+                        AXIS_NAMES + (None,), file=file, key=key, default=None)
+        return rotary_axis_from_value(name, d, file=file, rides_on=rides)
     allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
-               'loss', 'travel_m', 'loss_calibrated', 'loss_covariance', 'drive')
+               'loss', 'travel_m', 'loss_calibrated', 'loss_covariance', 'drive',
+               'standstill_hold_n')
     d = _mapping(d, file=file, key=key, allowed=allowed)
     for part in ('screw', 'inertias', 'limits', 'loss'):
         if part not in d:
@@ -138,7 +148,9 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
                                               key=f'{key}.loss_calibrated'),
         loss_covariance=covariance_from_value(d.get('loss_covariance'), loss=loss, file=file,
                                               key=f'{key}.loss_covariance'),
-        drive=drive_from_value(d.get('drive'), file=file, key=f'{key}.drive'))
+        drive=drive_from_value(d.get('drive'), file=file, key=f'{key}.drive'),
+        standstill_hold_n=_float(d, 'standstill_hold_n', file=file, key=key, default=0.0,
+                                 minimum=0.0, strict=False, maximum=1.0e6))
 
 
 def _check_stacking(axes: tuple[AxisSpec, ...], *, file: str) -> None:
@@ -194,6 +206,7 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
         raise ConfigError(msg, file=file, key='axes')
     axes = tuple(_axis(n, v, file=file) for n, v in axes_d.items())
     _check_stacking(axes, file=file)
+    check_rotary_stacking(axes, file=file)
     supply = supply_from_value(d.get('supply'), file=file)
     check_drives({a.name: a.drive for a in axes}, supply, file=file)
     planner_d = _mapping(d.get('planner', {}), file=file, key='planner',
@@ -214,7 +227,8 @@ def machine_from_dict(d: Any, *, file: str = '<dict>') -> Machine:
         load_axis=_choice(d, 'load_axis', tuple(a.name for a in axes), file=file, key=''),
         planner=planner,
         effects=effects_from_value(d.get('effects'), tuple(a.name for a in axes), file=file),
-        home_m=_home(d.get('home_m'), tuple(a.name for a in axes), file=file),
+        home_m=_home(d.get('home_m'), tuple(a.name for a in axes if a.rotary is None),
+                     file=file),
         gcode=gcode_from_dict(d.get('gcode'), file=file),
         supply=supply)
 
@@ -267,6 +281,9 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
     """
     axes: dict[str, Any] = {}
     for a in machine.axes:
+        if a.rotary is not None:
+            axes[a.name] = rotary_axis_to_dict(a)
+            continue
         inertias: dict[str, Any] = {'motor_kg_m2': a.inertias.motor_kg_m2,
                                     'coupling_kg_m2': a.inertias.coupling_kg_m2}
         if a.inertias.screw_kg_m2 is not None:
@@ -287,6 +304,8 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
         }
         if a.travel_m is not None:
             axes[a.name]['travel_m'] = [float(v) for v in a.travel_m]
+        if a.standstill_hold_n:
+            axes[a.name]['standstill_hold_n'] = float(a.standstill_hold_n)
         if a.loss_calibrated is not None:
             axes[a.name]['loss_calibrated'] = a.loss_calibrated.to_dict()
         if a.drive is not None:

@@ -38,8 +38,10 @@ def carried_axes(machine: Machine, axis: str) -> tuple[str, ...]:
 def moved_mass_kg(machine: Machine, axis: str, load_kg: float = 0.0) -> float:
     """Return the translational mass moved by ``axis`` [kg].
 
-    Its own table, plus the table of every axis riding on it (recursively), plus
-    ``load_kg`` if it is, or carries, the machine's ``load_axis``.
+    Its own table, plus the table of every axis riding on it (recursively; a rotary unit by
+    its ``mass_kg``), plus ``load_kg`` if it is, or carries, the machine's ``load_axis``.
+    For a rotary axis: the moment of inertia of its table and load about the axis
+    [kg·m^2] (the equivalent mass of :mod:`.rotary`; ``load_kg`` does not enter it).
 
     Parameters
     ----------
@@ -55,8 +57,12 @@ def moved_mass_kg(machine: Machine, axis: str, load_kg: float = 0.0) -> float:
     float
         Moved mass [kg].
     """
+    spec = machine.axis(axis)
+    if spec.rotary is not None:
+        # the table's "mass" is its inertia about the axis [kg m^2] (machine/rotary.py)
+        return float(spec.rotary.inertia_kg_m2)
     names = carried_axes(machine, axis)
-    mass = sum(machine.axis(n).table_mass_kg for n in names)
+    mass = sum(machine.axis(n).carried_mass_kg for n in names)
     if machine.load_axis in names:
         mass += load_kg
     return float(mass)

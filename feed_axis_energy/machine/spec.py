@@ -18,10 +18,13 @@ from ..gcode import GcodeSettings
 from .limits import AxisLimits, PlannerOptions
 
 __all__ = ['ScrewSpec', 'InertiaSpec', 'LimitSpec', 'PlannerSettings', 'AxisSpec', 'Machine',
-           'AXIS_NAMES', 'BRAKING_MODES', 'PROFILES', 'STEEL_DENSITY_KG_M3']
+           'RotarySpec', 'AXIS_NAMES', 'LINEAR_AXIS_NAMES', 'ROTARY_AXIS_NAMES',
+           'BRAKING_MODES', 'PROFILES', 'STEEL_DENSITY_KG_M3']
 
 
-AXIS_NAMES = ('X', 'Y', 'Z')
+LINEAR_AXIS_NAMES = ('X', 'Y', 'Z')
+ROTARY_AXIS_NAMES = ('A', 'B', 'C')
+AXIS_NAMES = LINEAR_AXIS_NAMES + ROTARY_AXIS_NAMES
 BRAKING_MODES = ('regenerative', 'dissipated')
 PROFILES = ('jerk', 'trapezoid')
 STEEL_DENSITY_KG_M3 = 7850.0
@@ -104,6 +107,46 @@ class PlannerSettings:
 
 
 @dataclass(frozen=True)
+class RotarySpec:
+    """What a rotary axis (A, B, C: rotary table or swivel head) declares beyond its motor.
+
+    The dynamics treat a rotary axis as a feed axis whose "carriage" is the table: position
+    [rad], speed [rad/s], "force" the torque at the table [N·m], "mass" its moment of
+    inertia [kg·m^2], and the "lead" ``2·pi / gear_ratio`` (one motor revolution turns the
+    table ``1 / gear_ratio``), so ``M = J_motor·alpha_motor + M_table / (gear_ratio·eta)``
+    with ``M_table = (J_table + J_load)·alpha_table + M_friction`` (:mod:`.rotary`).
+
+    Attributes
+    ----------
+    gear_ratio
+        Motor revolutions per table revolution (1: direct drive; a worm gear 30..180).
+    table_inertia_kg_m2
+        Moment of inertia of the table (or head) about its axis [kg·m^2].
+    load_inertia_kg_m2
+        Moment of inertia of the clamped workpiece and fixture about the axis [kg·m^2].
+    mass_kg
+        Mass of the whole rotary unit that the axis it rides on moves with it [kg].
+    travel_deg
+        ``(min, max)`` travel [deg], or ``None`` (endless).
+    limits_deg
+        Speed, acceleration and jerk limits as the file gives them [deg/s, deg/s^2,
+        deg/s^3] (the axis's ``limits`` hold them in rad).
+    """
+
+    gear_ratio: float
+    table_inertia_kg_m2: float
+    load_inertia_kg_m2: float = 0.0
+    mass_kg: float = 0.0
+    travel_deg: tuple[float, float] | None = None
+    limits_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def inertia_kg_m2(self) -> float:
+        """Table + load inertia about the axis [kg·m^2]."""
+        return self.table_inertia_kg_m2 + self.load_inertia_kg_m2
+
+
+@dataclass(frozen=True)
 class AxisSpec:
     """One ball-screw feed axis.
 
@@ -129,6 +172,16 @@ class AxisSpec:
         Motor and drive from data-sheet values (:mod:`.drives`), or ``None``.
     loss_covariance
         Covariance of the loss parameters, or ``None`` (not known).
+    standstill_hold_n
+        Force the drive keeps holding after a stop, in the last direction of motion [N]
+        (:mod:`feed_axis_energy.physics.standstill`): friction kept by the position loop.
+        Seen only in current, torque and force traces (no power at rest); 0: none.
+    rotary
+        ``None`` for a linear (ball-screw) axis. For a rotary axis (A, B, C) its
+        :class:`RotarySpec`; the other fields then hold the equivalent feed axis (SI with
+        rad for m: ``table_mass_kg`` the table inertia [kg·m^2], ``screw.lead_m``
+        ``2·pi/gear_ratio``, ``limits`` in rad/s, rad/s^2, rad/s^3, ``loss`` the friction
+        torque [N·m] at the table).
     """
 
     name: str
@@ -143,6 +196,18 @@ class AxisSpec:
     loss_calibrated: CalibratedRange | None = None
     loss_covariance: LossCovariance | None = None
     drive: DriveSpec | None = None
+    standstill_hold_n: float = 0.0
+    rotary: RotarySpec | None = None
+
+    @property
+    def is_rotary(self) -> bool:
+        """True for a rotary axis (positions in rad)."""
+        return self.rotary is not None
+
+    @property
+    def carried_mass_kg(self) -> float:
+        """Mass [kg] an axis carrying this one moves with it (a rotary unit's ``mass_kg``)."""
+        return self.table_mass_kg if self.rotary is None else self.rotary.mass_kg
 
     @property
     def screw_inertia_kg_m2(self) -> float:
@@ -210,12 +275,23 @@ class Machine:
 
     def gcode_keywords(self) -> dict[str, Any]:
         """Keywords for :func:`.gcode.load_gcode` from this machine: G28 position, tool
-        table and dialect.
+        table, dialect, subroutine path, ``strict_tools`` and ``allow_no_feed``.
 
         ``load_gcode(path, **machine.gcode_keywords())`` runs a program on this machine.
         """
-        return {'home': self.home_point(), 'tools': self.gcode.tools,
-                'dialect': self.gcode.dialect}
+        g = self.gcode
+        kw: dict[str, Any] = {'home': self.home_point(), 'tools': g.tools, 'dialect': g.dialect,
+                              'search_path': g.subroutine_path, 'strict_tools': g.strict_tools,
+                              'allow_no_feed': g.allow_no_feed}
+        rotary = self.rotary_axes
+        if rotary:
+            kw['rotary_axes'] = rotary
+        return kw
+
+    @property
+    def rotary_axes(self) -> tuple[str, ...]:
+        """Names of the rotary axes (A, B, C) the machine has, in order."""
+        return tuple(a.name for a in self.axes if a.rotary is not None)
 
     @property
     def axis_names(self) -> tuple[str, ...]:

@@ -1,5 +1,7 @@
 """Measured runs: campaign manifests, CSV and bag runs, alignment, metrics, comparison.
 
+What a trace measures (power, current, torque, force) and how it is predicted: :mod:`.quantity`.
+
 Typical use::
 
     campaign = load_campaign('config/campaigns/umich_mill.yaml')
@@ -15,12 +17,16 @@ from .csvload import load_run
 from .importer import import_campaign
 from .manifest import campaign_from_dict, load_campaign
 from .metrics import group_metrics, Metrics, table1_metrics
+from .quantity import (MEASURES, measured_signal, predicted_signal, QUANTITIES, Quantity,
+                       quantity_of, SignalMetrics, signal_metrics, torque_per_unit)
 from .run import GAP_FACTOR, MeasuredRun
 
 __all__ = [
     'align_simulated', 'Campaign', 'campaign_from_dict', 'CampaignComparison', 'ColumnSpec',
     'compare_campaign', 'compare_one_run', 'DEFAULT_MAX_LAG_S', 'estimate_offset', 'GAP_FACTOR',
     'group_metrics', 'import_campaign', 'interval_average', 'json_clean', 'load_campaign',
-    'load_run', 'MeasuredRun', 'Metrics', 'MotionCache', 'offset_dict', 'OffsetResult',
-    'RowFilter', 'RunComparison', 'RunSpec', 'simulate_declared', 'stamp_shift', 'table1_metrics',
+    'load_run', 'MEASURES', 'measured_signal', 'MeasuredRun', 'Metrics', 'MotionCache',
+    'offset_dict', 'OffsetResult', 'predicted_signal', 'QUANTITIES', 'Quantity', 'quantity_of',
+    'RowFilter', 'RunComparison', 'RunSpec', 'signal_metrics', 'SignalMetrics',
+    'simulate_declared', 'stamp_shift', 'table1_metrics', 'torque_per_unit',
 ]

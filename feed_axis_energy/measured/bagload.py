@@ -226,9 +226,16 @@ def _check_spec(spec: RunSpec) -> None:
         msg = ('row filters (rows.exclude_where) apply to CSV input only; a measured-run bag '
                'holds the rows kept at import')
         raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.rows')
+    if not spec.power_axes:
+        msg = ('a measured-run bag is stamped by its power topic; a trace without power '
+               '(current, torque, force) is compared from its CSV file')
+        raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.data')
     for axis, cols in spec.axes.items():
         for q, cs in cols.items():
             key = f'{spec.key}.axes.{axis}.{q}'
+            if q not in QUANTITY_TOPIC:
+                msg = f'a measured-run bag has no topic for {q}; read it from the CSV file'
+                raise ConfigError(msg, file=spec.manifest, key=key)
             si = si_unit_of(cs.unit, quantity=AXIS_QUANTITIES[q])
             if cs.unit != si:
                 msg = f'a rosbag2 run is in SI: the unit must be {si!r}, got {shorten(cs.unit)!r}'

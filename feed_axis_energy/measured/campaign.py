@@ -9,8 +9,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from .quantity import quantity_of
+
 __all__ = ['AXIS_QUANTITIES', 'KINEMATIC_QUANTITIES', 'FILTER_OPS', 'RECONSTRUCT', 'ROLES',
-           'STAMPS', 'MEASURES',
+           'STAMPS',
            'Campaign', 'ColumnSpec', 'InstrumentSpec', 'RowFilter', 'RunSpec',
            'default_instrument']
 
@@ -25,6 +27,8 @@ AXIS_QUANTITIES: dict[str, str] = {
     'command_acceleration': 'acceleration',
     'current': 'current',
     'voltage': 'voltage',
+    'torque': 'torque',
+    'force': 'force',
 }
 KINEMATIC_QUANTITIES = (
     'position', 'velocity', 'acceleration',
@@ -34,7 +38,6 @@ FILTER_OPS = ('equal', 'not_equal', 'greater', 'less')
 ROLES = ('calibrate', 'validate')
 STAMPS = ('end', 'centre', 'start')
 RECONSTRUCT = ('pulses', 'samples')
-MEASURES = ('shaft', 'motor', 'supply')
 
 
 @dataclass(frozen=True)
@@ -53,17 +56,30 @@ class InstrumentSpec:
         ``False`` when the manifest says nothing and this is the default (see
         :func:`default_instrument`).
     measures
-        What the meter measures (:data:`MEASURES`): ``'shaft'`` (default: compared with the
-        simulated shaft power ``M·omega`` after the braking rule, the paper's model whose
+        What the meter measures (:data:`.quantity.MEASURES`): ``'shaft'`` (default: compared
+        with the simulated shaft power ``M·omega`` after the braking rule, the paper's model whose
         loss function holds every loss) or the electrical power of the declared drives at
         ``'motor'`` (between converter and motor) or ``'supply'`` (an axis's drive input,
-        without the cabinet); ``docs/electrical.md``.
+        without the cabinet); ``docs/electrical.md``. Or a drive quantity
+        (:mod:`.quantity`): ``'current'`` [A], ``'torque'`` [N·m], ``'force'`` [N].
+    kt_nm_a
+        Torque constants declared in the manifest, ``((axis, kt [N·m/A]), ...)``; they win
+        over the machine file's ``axes.<A>.drive.kt_nm_a`` (current traces).
+    invert
+        Axes whose trace counts the other way than the model: negated on loading.
     """
 
     window_s: float | None = None
     stamp: str = 'end'
     declared: bool = True
     measures: str = 'shaft'
+    kt_nm_a: tuple[tuple[str, float], ...] = ()
+    invert: tuple[str, ...] = ()
+
+    @property
+    def kt_by_axis(self) -> dict[str, float]:
+        """``kt_nm_a`` as a mapping axis -> torque constant [N·m/A]."""
+        return dict(self.kt_nm_a)
 
     def window_for(self, period_s: float) -> float:
         """The window [s] for a run whose median sampling period is ``period_s``."""
@@ -77,19 +93,20 @@ class InstrumentSpec:
         return text if self.declared else f'{text} (default)'
 
 
-def default_instrument(motion_from_data: str | None) -> InstrumentSpec:
-    """The instrument assumed when the manifest declares none.
+def default_instrument(motion_from_data: str | None, measures: str = 'shaft') -> InstrumentSpec:
+    """The instrument assumed when the manifest declares none (``measures`` kept).
 
     Motion from an NC program: a window of one sampling period stamped at its end (a power
     analyser averaging over its period, as in the paper). Motion from the data: point
     samples, because the simulation then runs on the data's own stamps, where positions and
     power were read at the same instant; a trailing window would shift the simulation by
     half a sample and smear the rapid-move peaks (on the UMich validate runs it raised the
-    RMSE from 0.53 to 0.63 W, see docs/measured.md).
+    RMSE from 0.53 to 0.63 W, see docs/measured.md). A drive trace (current, torque, force:
+    values a controller samples at an instant, not a meter's averages) is point samples too.
     """
-    if motion_from_data is not None:
-        return InstrumentSpec(window_s=0.0, stamp='end', declared=False)
-    return InstrumentSpec(window_s=None, stamp='end', declared=False)
+    if motion_from_data is not None or not quantity_of(measures).is_power:
+        return InstrumentSpec(window_s=0.0, stamp='end', declared=False, measures=measures)
+    return InstrumentSpec(window_s=None, stamp='end', declared=False, measures=measures)
 
 
 @dataclass(frozen=True)
@@ -199,6 +216,12 @@ class RunSpec:
     def power_axes(self) -> tuple[str, ...]:
         """Axes that have a measured power column."""
         return tuple(a for a, cols in self.axes.items() if 'power' in cols)
+
+    @property
+    def measured_axes(self) -> tuple[str, ...]:
+        """Axes with a column of the quantity the instrument measures (:mod:`.quantity`)."""
+        column = quantity_of(self.instrument.measures).column
+        return tuple(a for a, cols in self.axes.items() if column in cols)
 
 
 @dataclass(frozen=True)

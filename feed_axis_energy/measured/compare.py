@@ -39,6 +39,9 @@ from .campaign import Campaign, default_instrument, RunSpec
 from .comparison import CampaignComparison, GroupComparison, RunComparison
 from .instrument import check_instrument, MeterFit
 from .motiondata import reconstruct_motion
+from .quantity import (measured_signal, omega_columns, pool_signal_metrics, predicted_signal,
+                       quantity_of, sign_warnings, signal_metrics, SignalMetrics,
+                       torque_per_unit)
 from .states import residual_by_state, state_labels
 from .metrics import group_metrics, table1_metrics
 
@@ -83,36 +86,6 @@ def simulate_declared(spec: RunSpec, run: MeasuredRun, machine: Machine,
                                          source=where, vel=vel, acc=acc)
         source = f'data:{kind}'
     return simulate_motion(motion, machine, load_kg=spec.load_kg), source
-
-
-def _sim_columns(spec: RunSpec, sim: SimulationResult, machine: Machine) -> np.ndarray:
-    """Simulated power of the run's measured axes, ``(m, k)``; axes the motion lacks are 0.
-
-    What the meter measures (``instrument.measures``): the shaft power after the braking rule,
-    or the electrical power of the declared drives at the motor terminals or the drive's
-    supply side (``docs/electrical.md``).
-    """
-    p = sim.power
-    measures = spec.instrument.measures
-    source = p.power_w
-    if measures != 'shaft':
-        if p.electrical is None:
-            msg = (f'the meter measures {measures} power, but machine {machine.name!r} '
-                   'declares no motors and drives (axes.<A>.drive, docs/electrical.md)')
-            raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.instrument.measures')
-        source = p.electrical.motor_w if measures == 'motor' else p.electrical.supply_w
-    cols = []
-    for axis in spec.power_axes:
-        if axis in p.axes:
-            cols.append(source[:, p.axes.index(axis)])
-        elif axis in machine.axis_names:
-            # An axis that never moves has omega = 0, hence zero actual power (eq. 1).
-            cols.append(np.zeros(p.t.shape[0]))
-        else:
-            msg = (f'measured axis {axis!r} is not an axis of machine {machine.name!r} '
-                   f'{machine.axis_names}')
-            raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.axes.{axis}')
-    return np.column_stack(cols)
 
 
 def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_MAX_LAG_S,
@@ -163,22 +136,40 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
                     check_meter: bool = True) -> RunComparison:
     run = load_run(spec)
     sim, source = simulate_declared(spec, run, machine, cache)
-    sim_w = _sim_columns(spec, sim, machine)
+    qty = quantity_of(spec.instrument.measures)
+    axes = spec.measured_axes
+    gains = (None if qty.is_power else
+             torque_per_unit(qty.name, machine, axes, declared_kt=spec.instrument.kt_by_axis,
+                             manifest=spec.manifest, key=spec.key))
+    sim_q = predicted_signal(qty.name, sim, machine, axes, gains=gains, manifest=spec.manifest,
+                             key=spec.key)
+    meas_q = measured_signal(run, measures=qty.name, axes=axes, invert=spec.instrument.invert)
     meter = (spec.instrument if spec.instrument.declared
-             else default_instrument(spec.motion_from_data))
+             else default_instrument(spec.motion_from_data, qty.name))
     period = float(np.median(np.diff(run.t)))
     window = meter.window_for(period) if window_s is None else float(window_s)
     stamp = meter.stamp if stamp is None else stamp
     if window_s is not None or stamp != meter.stamp:
         meter = replace(meter, window_s=window, stamp=stamp, declared=True)
-    if not np.isfinite(sim_w).all():
-        sample = int(np.flatnonzero(~np.isfinite(sim_w).all(axis=1))[0]) + 1
-        msg = (f'the simulation of this run overflowed (simulated power sample {sample} is '
-               'not finite); check the run\'s kinematics and the machine config')
+    if not np.isfinite(sim_q).all():
+        sample = int(np.flatnonzero(~np.isfinite(sim_q).all(axis=1))[0]) + 1
+        msg = (f'the simulation of this run overflowed (simulated {qty.column} sample '
+               f'{sample} is not finite); check the run\'s kinematics and the machine config')
         raise DataError(msg, file=run.file)
+    # the signal the offset is searched on: summed power; or the magnitudes of the drive
+    # traces, each scaled by its measured RMS (amperes of different motors add up to
+    # nothing), so that a trace of the opposite sign convention is aligned all the same and
+    # then reported
+    if qty.is_power:
+        y_meas, y_sim = meas_q.sum(axis=1), sim_q.sum(axis=1)
+    else:
+        rms = np.sqrt(np.mean(meas_q * meas_q, axis=0))
+        scale = np.where(rms > 0.0, rms, 1.0)
+        y_meas = (np.abs(meas_q) / scale).sum(axis=1)
+        y_sim = (np.abs(sim_q) / scale).sum(axis=1)
     if offset_s is None:
         try:
-            found = estimate_offset(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
+            found = estimate_offset(run.t, y_meas, sim.power.t, y_sim,
                                     max_lag_s=max_lag_s, window_s=window, stamp=stamp,
                                     min_correlation=min_correlation)
         except DataError as err:
@@ -191,39 +182,58 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         used = float(offset_s)
         found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')
     try:
-        aligned = align_simulated(sim.power.t, sim_w, run.t, offset_s=used, window_s=window,
-                                  stamp=stamp)
+        aligned_q = align_simulated(sim.power.t, sim_q, run.t, offset_s=used, window_s=window,
+                                    stamp=stamp)
+        if qty.is_power:
+            meas, aligned = meas_q, aligned_q
+        else:
+            # Table-1 figures of a drive trace: q·g·omega [W] (I·kt·omega for current), both
+            # sides with the simulated speed, so that they weigh the unit figures by omega
+            omega = align_simulated(sim.power.t, omega_columns(sim, axes), run.t,
+                                    offset_s=used, window_s=window, stamp=stamp)
+            g = np.array(gains, dtype=float)
+            meas, aligned = meas_q * g * omega, aligned_q * g * omega
         fits: tuple[MeterFit, ...] = ()
-        if check_meter and offset_s is None and found.status != 'weak':
-            fits = check_instrument(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
+        if qty.is_power and check_meter and offset_s is None and found.status != 'weak':
+            fits = check_instrument(run.t, y_meas, sim.power.t, y_sim,
                                     offset_s=used, window_s=window, stamp=stamp,
                                     same_clock=spec.motion_program is None)
     except DataError as err:
         # align names its arrays only; the run's file is the place the user can act on
-        msg = f'simulated power cannot be aligned: {err.reason}'
+        msg = f'simulated {qty.column} cannot be aligned: {err.reason}'
         raise DataError(msg, file=run.file, column=err.column) from err
-    meas = run.power_w
     where: dict[str, Any] = {'file': run.file, 'rows': run.extra.get('rows'),
                              'floor_fraction': floor_fraction}
+    word = 'power' if qty.is_power else f'{qty.symbol}*g*omega'
     total = table1_metrics(run.t, meas.sum(axis=1), aligned.sum(axis=1),
-                           columns=('time', 'measured total power', 'simulated total power'),
+                           columns=('time', f'measured total {word}', f'simulated total {word}'),
                            **where)
     per_axis = {a: table1_metrics(run.t, meas[:, j], aligned[:, j],
-                                  columns=('time', f'measured {a} power',
-                                           f'simulated {a} power'), **where)
-                for j, a in enumerate(spec.power_axes)}
+                                  columns=('time', f'measured {a} {word}',
+                                           f'simulated {a} {word}'), **where)
+                for j, a in enumerate(axes)}
+    signal: dict[str, SignalMetrics] = {
+        a: signal_metrics(meas_q[:, j], aligned_q[:, j], quantity=qty)
+        for j, a in enumerate(axes)}
     labels = state_labels(sim.motion.t, sim.motion.vel, run.t - used,
                           period_s=period)
     states = residual_by_state(labels, meas.sum(axis=1) - aligned.sum(axis=1))
     return RunComparison(
         name=spec.name, role=spec.role, load_kg=spec.load_kg, data_file=run.file,
-        motion_source=source, axes=spec.power_axes, window_s=window, offset=found,
+        motion_source=source, axes=axes, window_s=window, offset=found,
         offset_used_s=used, metrics=total, axis_metrics=per_axis, t=run.t,
         power_meas_w=meas, power_sim_w=aligned,
         sim_duration_s=float(sim.power.t[-1] - sim.power.t[0]),
         excluded_rows=int(run.extra.get('excluded_rows', 0)), stamp=stamp,
         instrument=meter.describe(period), meter_fits=fits, states=states,
-        energy_sd_pct=relative_sd_pct(sim, spec.power_axes),
+        energy_sd_pct=relative_sd_pct(sim, axes), measures=qty.name,
+        signal_meas=meas_q, signal_sim=aligned_q, signal_metrics=signal,
+        torque_per_unit=(None if gains is None
+                         else {a: float(g_) for a, g_ in zip(axes, gains)
+                               if g_ is not None}),
+        sign_warnings=(() if qty.is_power else
+                       tuple(sign_warnings(signal, quantity=qty,
+                                           invert=spec.instrument.invert))),
     )
 
 
@@ -239,7 +249,11 @@ def _groups(runs: Sequence[RunComparison]) -> tuple[GroupComparison, ...]:
             load_kg=load, runs=tuple(m.name for m in members),
             metrics=group_metrics([m.metrics for m in members]),
             axis_metrics={a: group_metrics([m.axis_metrics[a] for m in members])
-                          for a in shared}))
+                          for a in shared},
+            signal_metrics={a: pool_signal_metrics([m.signal_metrics[a] for m in members])
+                            for a in shared if all(a in m.signal_metrics
+                                                   and m.measures == members[0].measures
+                                                   for m in members)}))
     return tuple(out)
 
 

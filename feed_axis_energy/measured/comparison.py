@@ -10,6 +10,7 @@ import numpy as np
 from .align import OffsetResult
 from .instrument import instrument_verdict, MeterFit
 from .metrics import Metrics
+from .quantity import quantity_of, SignalMetrics
 from .states import pool_states, StateResidual
 
 __all__ = ['CampaignComparison', 'GroupComparison', 'RunComparison', 'TOTAL', 'json_clean',
@@ -68,7 +69,7 @@ class RunComparison:
     motion_source
         The NC program file, or ``'data:commanded'`` / ``'data:actual'``.
     axes
-        Axes with measured power, the columns of the power arrays.
+        Axes with a measured trace (:attr:`measures`), the columns of every array.
     window_s
         Measuring interval the simulated power was averaged over [s] (0: point samples).
     offset
@@ -77,13 +78,15 @@ class RunComparison:
     offset_used_s
         The offset the comparison was made at [s].
     metrics
-        Table-1 metrics of the summed power of ``axes``.
+        Table-1 metrics of the summed power of ``axes`` (of a drive trace: its power
+        equivalent ``q·g·omega``, :mod:`.quantity`).
     axis_metrics
         Table-1 metrics per axis of ``axes``.
     t
         Measured stamps [s], shape ``(n,)``.
     power_meas_w, power_sim_w
-        Measured and aligned, interval-averaged simulated power [W], shape ``(n, len(axes))``.
+        Measured and aligned, interval-averaged simulated power [W], shape ``(n, len(axes))``;
+        of a drive trace its power equivalent ``q·g·omega`` with the simulated ``omega``.
     sim_duration_s
         Length of the simulation [s].
     excluded_rows
@@ -101,6 +104,18 @@ class RunComparison:
         Standard uncertainty of the simulated energy of ``axes`` from the covariance of the
         loss parameters, % of that energy (:func:`..uncertainty.relative_sd_pct`; ``nan``
         when the machine config gives no ``loss_covariance`` for every axis).
+    measures
+        What the trace is (``instrument.measures``: a power kind, ``current``, ``torque``,
+        ``force``; :mod:`.quantity`).
+    signal_meas, signal_sim
+        Measured and aligned simulated trace in its own SI unit, ``(n, len(axes))``.
+    signal_metrics
+        Per axis, the agreement in the trace's unit (:class:`.quantity.SignalMetrics`).
+    torque_per_unit
+        Per axis the gain ``g`` [N·m per unit] of a drive trace (``kt`` for current), else
+        ``None``.
+    sign_warnings
+        Axes whose trace is anti-correlated with its prediction (the wrong sign).
     """
 
     name: str
@@ -124,6 +139,32 @@ class RunComparison:
     meter_fits: tuple[MeterFit, ...] = ()
     states: tuple[StateResidual, ...] = ()
     energy_sd_pct: float = math.nan
+    measures: str = 'shaft'
+    signal_meas: np.ndarray | None = field(default=None, repr=False)
+    signal_sim: np.ndarray | None = field(default=None, repr=False)
+    signal_metrics: dict[str, SignalMetrics] = field(default_factory=dict)
+    torque_per_unit: dict[str, float] | None = None
+    sign_warnings: tuple[str, ...] = ()
+
+    def quantity_dict(self) -> dict[str, Any]:
+        """The ``quantity`` block of :meth:`to_dict` (docs/compare.md, "Measured quantity")."""
+        qty = quantity_of(self.measures)
+        out: dict[str, Any] = {
+            'measures': qty.name, 'unit': qty.unit, 'column': qty.column,
+            'metrics': {a: m.to_dict() for a, m in self.signal_metrics.items()},
+            'sign_check': list(self.sign_warnings),
+        }
+        if self.torque_per_unit is not None:
+            out['torque_per_unit'] = dict(self.torque_per_unit)
+            out['power_equivalent'] = f'{qty.symbol}*g*omega'
+            # energy-like figures of Table-1 style: the integral of |q·g·omega|
+            meas = np.abs(self.power_meas_w)
+            sim = np.abs(self.power_sim_w)
+            out['abs_energy_j'] = {
+                a: {'meas': float(np.trapezoid(meas[:, j], self.t)),
+                    'sim': float(np.trapezoid(sim[:, j], self.t))}
+                for j, a in enumerate(self.axes)}
+        return out
 
     @property
     def total_meas_w(self) -> np.ndarray:
@@ -167,6 +208,7 @@ class RunComparison:
             'residual_by_state': [st.to_dict() for st in self.states],
             'offset': offset_dict(self.offset, used_s=self.offset_used_s),
             'metrics': metrics,
+            'quantity': self.quantity_dict(),
         } | spread)
 
 
@@ -184,19 +226,24 @@ class GroupComparison:
         Pooled metrics of the total.
     axis_metrics
         Pooled metrics per axis (axes measured in every run of the group).
+    signal_metrics
+        Pooled metrics per axis in the trace's own unit (runs of one quantity only).
     """
 
     load_kg: float
     runs: tuple[str, ...]
     metrics: Metrics
     axis_metrics: dict[str, Metrics]
+    signal_metrics: dict[str, SignalMetrics] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able summary; keys carry units, NaN becomes ``None``."""
         metrics = {TOTAL: self.metrics.to_dict()}
         metrics.update({a: m.to_dict() for a, m in self.axis_metrics.items()})
         return json_clean({'load_kg': self.load_kg, 'runs': list(self.runs),
-                           'metrics': metrics})
+                           'metrics': metrics,
+                           'quantity_metrics': {a: m.to_dict()
+                                                for a, m in self.signal_metrics.items()}})
 
 
 @dataclass(frozen=True)
@@ -255,9 +302,14 @@ class CampaignComparison:
         return pool_states([r.states for r in self.runs])
 
     @property
+    def sign_warnings(self) -> list[str]:
+        """One line per run and axis whose drive trace has the wrong sign convention."""
+        return [f'{r.name}: {w}' for r in self.runs for w in r.sign_warnings]
+
+    @property
     def warnings(self) -> list[str]:
-        """Offset and instrument warnings."""
-        return self.offset_warnings + self.instrument_warnings
+        """Offset, instrument and sign-convention warnings."""
+        return self.offset_warnings + self.instrument_warnings + self.sign_warnings
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able summary (see docs/compare.md); keys carry units, NaN becomes ``None``."""

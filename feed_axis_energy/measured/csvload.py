@@ -91,7 +91,8 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
 
     axes = spec.axis_names
     power_axes = spec.power_axes
-    power = np.column_stack([column(spec.axes[a]['power'], 'power') for a in power_axes])
+    power = (np.column_stack([column(spec.axes[a]['power'], 'power') for a in power_axes])
+             if power_axes else np.zeros((t.size, 0)))      # a drive trace: current only
     kin: dict[str, np.ndarray] = {}
     for q in KINEMATIC_QUANTITIES:
         if q in spec.axes[axes[0]]:
@@ -100,7 +101,8 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
     extra: dict[str, Any] = {
         'excluded_rows': excluded, 'rows': numbers, 't0_s': float(t[0]),
     }
-    for q, key in (('current', 'current_a'), ('voltage', 'voltage_v')):
+    for q, key in (('current', 'current_a'), ('voltage', 'voltage_v'), ('torque', 'torque_nm'),
+                   ('force', 'force_n')):
         got = {a: column(cols[q], q) for a, cols in spec.axes.items() if q in cols}
         if got:
             extra[key] = got

@@ -426,6 +426,14 @@ def import_campaign(campaign: Campaign, out_dir: str | Path, *,
     specs = [campaign.run(n) for n in runs] if runs else list(campaign.runs)
     manifest, bags = _destinations(specs, out_dir, manifest_name)
     excerpt = None if start_s == 0.0 and duration_s is None else (start_s, duration_s)
+    for spec in specs:
+        unstored = [f'{a}.{q}' for a, cols in spec.axes.items() for q in cols
+                    if q not in QUANTITY_TOPIC]
+        if not spec.power_axes or unstored:
+            what = unstored[0] if unstored else 'a run without power columns'
+            msg = (f'a measured-run bag holds power (and current, voltage, kinematics); '
+                   f'{what} has no place in it: compare such a run from its CSV file')
+            raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.axes')
     loaded = []
     for spec in specs:
         run = load_run(spec)

@@ -20,9 +20,10 @@ A manifest is YAML::
     split: {calibrate: [exp01], validate: [exp03]}   # optional, instead of per-run roles
 
 Per axis the quantities ``power``, ``position``, ``velocity``, ``acceleration``,
-``command_position``, ``command_velocity``, ``command_acceleration``, ``current`` and
-``voltage`` map to ``{column, unit}``. Kinematic quantities are given for every axis of a
-run or for none; at least one axis must have ``power``. A run has either a ``time:
+``command_position``, ``command_velocity``, ``command_acceleration``, ``current``,
+``voltage``, ``torque`` and ``force`` map to ``{column, unit}``. Kinematic quantities are
+given for every axis of a run or for none; at least one axis must have a column of what the
+instrument measures (``power``, or ``current``/``torque``/``force``). A run has either a ``time:
 {column, unit}`` or a ``period_s`` (the run's own setting wins over ``defaults``).
 
 ``instrument`` declares the power meter: ``point`` (point samples) or ``{window_s, stamp,
@@ -30,7 +31,10 @@ measures}`` with ``window_s`` a number of seconds (``0``: point samples) or ``pe
 median sampling period, the default), ``stamp`` one of ``end`` (default), ``centre``,
 ``start``, and ``measures`` one of ``shaft`` (default), ``motor``, ``supply`` (electrical
 power of the machine's declared drives, ``docs/electrical.md``; ``{measures: motor}`` alone
-keeps the default window).
+keeps the default window), or a drive quantity ``current``, ``torque``, ``force``
+(:mod:`.quantity`). With ``current``, ``kt_nm_a: {X: 1.1}`` declares torque constants
+[N·m/A] (else the machine file's ``axes.<A>.drive.kt_nm_a``); ``invert: [X]`` negates the
+traces of axes that count the other way than the model.
 Without it: a period window stamped at its end for runs with an NC program, point samples
 for motion from the data (:func:`.campaign.default_instrument`). ``motion.reconstruct``
 (motion from data only): ``pulses`` (default) rebuilds data coarser than the simulation rate
@@ -53,8 +57,8 @@ from ..errors import ConfigError, describe, shorten
 from ..safeyaml import load_yaml_file
 from ..units import si_unit_of
 from .campaign import (AXIS_QUANTITIES, Campaign, ColumnSpec, FILTER_OPS, InstrumentSpec,
-                       KINEMATIC_QUANTITIES, MEASURES, RECONSTRUCT, ROLES, RowFilter, RunSpec,
-                       STAMPS)
+                       KINEMATIC_QUANTITIES, RECONSTRUCT, ROLES, RowFilter, RunSpec, STAMPS)
+from .quantity import MEASURES, quantity_of
 
 __all__ = ['campaign_from_dict', 'load_campaign']
 
@@ -301,14 +305,41 @@ class _Ctx:
             return InstrumentSpec(window_s=0.0, stamp='end')
         if not isinstance(value, dict):
             self.fail(key, f'expected point or a mapping {{window_s, stamp}}, got {_kind(value)}')
-        m = self.mapping(value, key, ('window_s', 'stamp', 'measures'))
+        m = self.mapping(value, key, ('window_s', 'stamp', 'measures', 'kt_nm_a', 'invert'))
         measures = m.get('measures', 'shaft')
         if measures not in MEASURES:
             self.fail(f'{key}.measures',
                       f'expected one of {", ".join(MEASURES)}, got {_kind(measures)}')
-        if set(m) == {'measures'}:
+        kt: list[tuple[str, float]] = []
+        if m.get('kt_nm_a') is not None:
+            if measures != 'current':
+                self.fail(f'{key}.kt_nm_a', f'torque constants convert a current trace; the '
+                          f'instrument measures {measures}')
+            given = m['kt_nm_a']
+            if not isinstance(given, dict) or not given:
+                self.fail(f'{key}.kt_nm_a', 'expected a mapping axis -> torque constant '
+                          f'[N·m/A], got {_kind(given)}')
+            for axis, v in given.items():
+                if not isinstance(axis, str) or not axis.strip():
+                    self.fail(f'{key}.kt_nm_a', 'axis names must be non-empty text')
+                value_ = self.number(v, f'{key}.kt_nm_a.{shorten(str(axis))}', positive=True)
+                if not 1.0e-4 <= value_ <= 1.0e3:
+                    self.fail(f'{key}.kt_nm_a.{shorten(str(axis))}',
+                              f'a torque constant lies in [1e-4, 1e3] N·m/A, got {value_:g}')
+                kt.append((str(axis), value_))
+        invert: list[str] = []
+        if m.get('invert') is not None:
+            raw = m['invert']
+            if quantity_of(measures).is_power:
+                self.fail(f'{key}.invert', 'only a current, torque or force trace has a sign '
+                          f'convention to invert; the instrument measures {measures} power')
+            if not isinstance(raw, list) or not all(isinstance(a, str) for a in raw):
+                self.fail(f'{key}.invert', f'expected a list of axis names, got {_kind(raw)}')
+            invert = [a.strip() for a in raw]
+        if m and not set(m) - {'measures', 'kt_nm_a', 'invert'}:
             # what is measured only: the window and stamp stay the default of the run
-            return InstrumentSpec(declared=False, measures=measures)
+            return InstrumentSpec(declared=False, measures=measures, kt_nm_a=tuple(kt),
+                                  invert=tuple(invert))
         window = m.get('window_s', 'period')
         if window != 'period':
             window = self.number(window, f'{key}.window_s', minimum=0.0)
@@ -316,7 +347,7 @@ class _Ctx:
         if stamp not in STAMPS:
             self.fail(f'{key}.stamp', f'expected one of {", ".join(STAMPS)}, got {_kind(stamp)}')
         return InstrumentSpec(window_s=None if window == 'period' else window, stamp=stamp,
-                              measures=measures)
+                              measures=measures, kt_nm_a=tuple(kt), invert=tuple(invert))
 
     def check_run_fields(self, d: dict, key: str, *, partial: bool) -> dict[str, Any]:
         """Check the typed fields present in ``d``; return their converted values."""
@@ -360,8 +391,21 @@ class _Ctx:
         if 'time' not in f and 'period_s' not in f:
             self.fail(f'{key}.period_s', 'the run needs a time column (time) or a period_s')
         axes = f['axes']
-        if not any('power' in cols for cols in axes.values()):
-            self.fail(f'{key}.axes', 'no axis has a power column; power is needed for comparison')
+        meter = f.get('instrument', InstrumentSpec(declared=False))
+        column = quantity_of(meter.measures).column
+        if not any(column in cols for cols in axes.values()):
+            what = ('power' if column == 'power'
+                    else f'{column} (the instrument measures {meter.measures})')
+            self.fail(f'{key}.axes', f'no axis has a {column} column; {what} is needed for '
+                      'comparison')
+        for axis in meter.invert:
+            if column not in axes.get(axis, {}):
+                self.fail(f'{key}.instrument.invert',
+                          f'axis {shorten(axis)!r} has no {column} column to invert')
+        for axis, _kt in meter.kt_nm_a:
+            if axis not in axes:
+                self.fail(f'{key}.instrument.kt_nm_a.{shorten(axis)}',
+                          f'no axis {shorten(axis)!r} in this run ({", ".join(axes)})')
         for q in KINEMATIC_QUANTITIES:
             having = [a for a, cols in axes.items() if q in cols]
             if having and len(having) != len(axes):

@@ -34,7 +34,8 @@ class MeasuredRun:
     power_axes
         The axes that have measured power (a subset of ``axes``, same order).
     power_w
-        Measured power [W], shape ``(n, len(power_axes))``.
+        Measured power [W], shape ``(n, len(power_axes))`` (``(n, 0)`` for a drive trace
+        without power columns).
     position_m, velocity_m_s, acceleration_m_s2
         Actual kinematics, shape ``(n, k)``, or ``None`` if not mapped.
     command_position_m, command_velocity_m_s, command_acceleration_m_s2
@@ -43,7 +44,8 @@ class MeasuredRun:
         Load on the table [kg].
     extra
         ``excluded_rows`` (count), ``rows`` (1-based file data row of each sample),
-        ``t0_s``, ``current_a`` / ``voltage_v`` (axis -> ``(n,)``) when mapped.
+        ``t0_s``, ``current_a`` / ``voltage_v`` / ``torque_nm`` / ``force_n`` (axis ->
+        ``(n,)``) when mapped.
     """
 
     name: str

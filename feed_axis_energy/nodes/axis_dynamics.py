@@ -1,7 +1,10 @@
 """``axis_dynamics``: ``setpoints`` -> ``axis_state`` batch by batch with the core dynamics.
 
-Each setpoints batch becomes one axis_state batch with the same header stamp and sample
-times (layout: :func:`feed_axis_energy.record.recording.axis_state_series`).
+Each setpoints batch becomes one axis_state batch with the same header stamp, sample
+times and ``frame_id`` (the job id; layout:
+:func:`feed_axis_energy.record.recording.axis_state_series`). A batch of a job uses the job's
+machine and load (from the latched ``job/state``; batches that arrive before it are held,
+:class:`feed_axis_energy.graph.JobRouter`); a batch without a job id uses the parameters.
 """
 from __future__ import annotations
 
@@ -9,7 +12,11 @@ import sys
 
 import numpy as np
 from rclpy.node import Node
+from std_msgs.msg import String
 from trajectory_msgs.msg import JointTrajectory
+
+from feed_axis_energy.cell import job_machine, JobSpec
+from feed_axis_energy.graph import header_frame_id, JobRouter, parse_state_text
 
 from feed_axis_energy.record import recording
 from feed_axis_energy.physics import compute_dynamics
@@ -17,7 +24,7 @@ from feed_axis_energy.errors import FeedAxisError
 from feed_axis_energy.machine import load_machine
 from feed_axis_energy.plan import Motion
 from feed_axis_energy.nodes import convert
-from feed_axis_energy.nodes.qos import stream_qos
+from feed_axis_energy.nodes.qos import latched_qos, stream_qos
 from feed_axis_energy.nodes.runner import (check_mass, declare, guard_parameters, LiveParameter,
                                            run, StartupError)
 from feed_axis_energy.paths import default_machine
@@ -41,21 +48,48 @@ class AxisDynamicsNode(Node):
         self.sub = self.create_subscription(JointTrajectory, 'setpoints', self._on_setpoints,
                                             stream_qos(), raw=True)
         self.batches = 0
+        self.router: JobRouter[bytes] = JobRouter()
+        self.create_subscription(String, 'job/state', self._on_job_state, latched_qos())
         # load_kg may change while running (a new workpiece): it applies from the next batch
         guard_parameters(self, {'load_kg': LiveParameter(check_mass, self._set_load)})
 
     def _set_load(self, value: float) -> None:
         self.load_kg = float(value)
 
+    def _on_job_state(self, msg: String) -> None:
+        try:
+            _, _, spec = parse_state_text(msg.data)
+        except FeedAxisError as err:
+            self.get_logger().error(str(err))
+            return
+        if spec is not None and self.router.spec(spec.job_id) is None:
+            for spec_, data in self.router.note(spec):
+                self._compute(data, spec_)
+
     def _on_setpoints(self, data: bytes) -> None:
         try:
+            job_id = header_frame_id(data)
+        except FeedAxisError as err:
+            self.get_logger().error(f'dropped a setpoints batch: {err}')
+            return
+        spec = self.router.spec(job_id) if job_id else None
+        if job_id and spec is None:
+            self.router.hold(job_id, data)      # its job/state has not arrived yet
+            return
+        self._compute(data, spec)
+
+    def _compute(self, data: bytes, spec: JobSpec | None) -> None:
+        try:
+            machine = self.machine if spec is None else job_machine(spec)
+            load_kg = self.load_kg if spec is None else spec.load_kg
             s = convert.cdr_to_series(data)
             n = s.t.shape[0]
             motion = Motion(t=s.t, axes=s.names, pos=s.positions, vel=s.velocities,
                             acc=s.accelerations, line=np.zeros(n, dtype=np.int32))
-            dyn = compute_dynamics(motion, self.machine, load_kg=self.load_kg)
+            dyn = compute_dynamics(motion, machine, load_kg=load_kg)
             out = recording.axis_state_series(motion, dyn)
-            ((_, cdr),) = convert.series_to_cdr(out, batch=max(n, 1))
+            ((_, cdr),) = convert.series_to_cdr(
+                out, batch=max(n, 1), frame_id='' if spec is None else spec.job_id)
         except (FeedAxisError, ValueError, TypeError) as err:
             self.get_logger().error(f'dropped a setpoints batch: {err}')
             return

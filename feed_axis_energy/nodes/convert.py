@@ -318,11 +318,13 @@ def msg_to_series(msg) -> bagio.Series:
 
 
 def block_energy_msg(blocks: Iterable[tuple[int, float, float]], *, stamp_ns: int,
-                     program: str = ''):
-    """Per-block energy as a ``DiagnosticArray`` (the content of ``write_block_energy``)."""
+                     program: str = '', frame_id: str = ''):
+    """Per-block energy as a ``DiagnosticArray`` (the content of ``write_block_energy``;
+    ``frame_id``: the job id)."""
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
     msg = DiagnosticArray()
     msg.header.stamp = _time(stamp_ns)
+    msg.header.frame_id = frame_id
     for line, energy, duration in blocks:
         msg.status.append(DiagnosticStatus(
             level=DiagnosticStatus.OK, name=f'{program}:{line}', message='block energy',
@@ -341,13 +343,16 @@ def block_energy_from_msg(msg) -> list[tuple[int, float, float]]:
     return out
 
 
-def program_end_msg(end: ProgramEnd):
-    """The end-of-program marker as a ``DiagnosticArray`` stamped with the last batch."""
+def program_end_msg(end: ProgramEnd, *, aborted: bool = False):
+    """The end-of-program marker as a ``DiagnosticArray`` stamped with the last batch
+    (``frame_id``: the job id; an aborted job's marker says so in its message)."""
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
     msg = DiagnosticArray()
-    msg.header.stamp = _time(end.last_ns)
+    msg.header.stamp = _time(max(end.last_ns, 0))
+    msg.header.frame_id = end.job_id
+    text = 'job aborted: streamed up to the abort' if aborted else 'program streamed completely'
     msg.status = [DiagnosticStatus(level=DiagnosticStatus.OK, name='program_end',
-                                   message='program streamed completely', hardware_id='',
+                                   message=text, hardware_id='',
                                    values=[KeyValue(key=k, value=v) for k, v in end.to_pairs()])]
     return msg
 
@@ -361,12 +366,14 @@ def program_end_from_msg(msg) -> ProgramEnd:
     raise DataError(msg_, file='program/end')
 
 
-def lines_to_cdr(starts_ns: np.ndarray, lines: np.ndarray, *, first_ns: int) -> bytes:
-    """Run-length code of source lines as a JointTrajectory (joint ``line``, see docs)."""
+def lines_to_cdr(starts_ns: np.ndarray, lines: np.ndarray, *, first_ns: int,
+                 frame_id: str = '') -> bytes:
+    """Run-length code of source lines as a JointTrajectory (joint ``line``, see docs;
+    ``frame_id``: the job id)."""
     starts_ns = np.asarray(starts_ns, dtype=np.int64)
     pos = np.asarray(lines, dtype=np.float64).reshape(-1, 1)
     return encode_trajectory(int(first_ns), starts_ns - int(first_ns), ['line'],
-                             {'positions': pos})
+                             {'positions': pos}, frame_id=frame_id)
 
 
 def lines_from_cdr(data: bytes) -> tuple[np.ndarray, np.ndarray]:

@@ -13,12 +13,17 @@
 * Data published once (``block_energy``, ``program/lines``, ``program/end``): reliable,
   keep last 1, transient local, so a late subscriber (a recorder started afterwards) gets it.
 * ``/clock``: reliable, keep last 1, volatile (only the newest time matters).
+* Job commands and replies (``job/command``, ``job/reply``): reliable, keep last 10,
+  volatile: a command is meant for the graph running now, never replayed to a node that
+  starts later. A client waits until its writer is matched before it sends.
+* Job reports between nodes (``job/energy``): reliable, keep last 10, transient local
+  (asymmetric discovery, as for the streams); each names its job, stale ones are ignored.
 """
 from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ['STREAM_DEPTH', 'stream_qos', 'latched_qos', 'clock_qos']
+__all__ = ['STREAM_DEPTH', 'stream_qos', 'latched_qos', 'clock_qos', 'command_qos', 'report_qos']
 
 STREAM_DEPTH = 100
 
@@ -42,3 +47,17 @@ def clock_qos() -> QoSProfile:
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.VOLATILE)
+
+
+def command_qos() -> QoSProfile:
+    """``job/command``, ``job/reply``: reliable, keep last 10, volatile."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def report_qos() -> QoSProfile:
+    """``job/energy``: reliable, keep last 10, transient local."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)

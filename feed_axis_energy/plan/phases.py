@@ -244,6 +244,8 @@ def _sample_arcs(rows: np.ndarray, ma: np.ndarray, s: np.ndarray, v: np.ndarray,
         whole = sel.size == rows.size
         dst_rows = rows if whole else rows[sel]
         for j, axis in enumerate(cols):
+            if axis > 2:
+                continue        # a rotary column: linear in s, sampled with the lines
             role = plane_axes.index(axis)
             for dst, src in zip(out, local[role]):
                 dst[dst_rows, j] = src if whole else src[sel]

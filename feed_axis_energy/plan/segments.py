@@ -18,8 +18,11 @@ from typing import cast
 import numpy as np
 
 from ..errors import PlanningError
-from ..gcode import Move, MoveKind, Program, PROGRAM_AXES
+from ..gcode import Move, MoveKind, Program, PROGRAM_AXES, ROTARY_AXES
 
+PLAN_AXES = PROGRAM_AXES + ROTARY_AXES
+"""Columns of the planner's points: X, Y, Z, then A, B, C [rad] when the machine has a
+rotary axis (``dims`` 6; else only X, Y, Z)."""
 _TWO_PI = 2.0 * math.pi
 _MIN_LENGTH_M = 1e-12      # shorter moves are dropped (their exact stop is kept)
 _GAP_TOLERANCE_M = 1e-6    # allowed mismatch between a move's start and the previous end
@@ -37,8 +40,8 @@ class SegmentTable:
 
     kind: np.ndarray        # _LINE, ARC or REST
     move: list[Move]
-    p0: np.ndarray          # (m, 3) start point
-    p1: np.ndarray          # (m, 3) end point
+    p0: np.ndarray          # (m, dims) start point (X, Y, Z [m], then A, B, C [rad])
+    p1: np.ndarray          # (m, dims) end point
     dwell: np.ndarray       # rest duration [s]
     stop_after: np.ndarray  # bool: must be at rest at the end
 
@@ -49,14 +52,20 @@ class Collector:
     Drops empty moves, turns dwells/stops into rests and checks continuity. The stop flag
     of the newest segment may still be set by the next move (a dwell, a stop or a dropped
     exact-stop move), so only segments before the newest one are final.
+
+    With ``dims`` 6 (a machine with rotary axes) the points carry A, B, C [rad] after X, Y,
+    Z: a move's ``rot_start``/``rot_end``, else the rotary position so far. A pure rotary
+    move (no XYZ travel) is parameterised by its angle, so it starts and ends at rest.
     """
 
-    def __init__(self, file: str) -> None:
+    def __init__(self, file: str, *, dims: int = 3) -> None:
         self.file = file
+        self.dims = dims
+        self.rot: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self.kinds: list[int] = []
         self.moves: list[Move] = []
-        self.p0: list[tuple[float, float, float]] = []
-        self.p1: list[tuple[float, float, float]] = []
+        self.p0: list[tuple[float, ...]] = []
+        self.p1: list[tuple[float, ...]] = []
         self.dwell: list[float] = []
         self.stop: list[bool] = []
         self.here: tuple[float, float, float] | None = None
@@ -69,7 +78,9 @@ class Collector:
         k = int(mv.kind)
         stop = self.stop
         if k == _DWELL or k == _STOP:
-            pos = self.here if self.here is not None else mv.start
+            pos: tuple[float, ...] = self.here if self.here is not None else mv.start
+            if self.dims > 3:
+                pos = tuple(pos) + self.rot
             if stop:
                 stop[-1] = True
             self.kinds.append(REST)
@@ -91,6 +102,13 @@ class Collector:
         if is_arc and mv.center is None:
             raise PlanningError('arc move without a centre', file=self.file, line=mv.line)
         self.here = end
+        rs = mv.rot_start
+        if self.dims > 3:
+            self.add_rotary(mv, is_arc)
+            return
+        if rs is not None and mv.rot_end != rs:
+            msg = 'move turns a rotary axis, which the machine does not have'
+            raise PlanningError(msg, file=self.file, line=mv.line)
         if not is_arc and math.dist(start, end) < _MIN_LENGTH_M:
             if mv.exact_stop and stop:
                 stop[-1] = True
@@ -102,6 +120,26 @@ class Collector:
         self.dwell.append(0.0)
         stop.append(bool(mv.exact_stop))
 
+    def add_rotary(self, mv: Move, is_arc: bool) -> None:
+        """The move's segment with its rotary columns (``dims`` 6)."""
+        stop = self.stop
+        rs = mv.rot_start if mv.rot_start is not None else self.rot
+        re_ = mv.rot_end if mv.rot_end is not None else rs
+        self.rot = re_
+        pure = not is_arc and math.dist(mv.start, mv.end) < _MIN_LENGTH_M
+        if pure and math.dist(rs, re_) < _MIN_LENGTH_M:
+            if mv.exact_stop and stop:
+                stop[-1] = True
+            return
+        if pure and stop:
+            stop[-1] = True         # a path in rad meets a path in m only at rest
+        self.kinds.append(ARC if is_arc else _LINE)
+        self.moves.append(mv)
+        self.p0.append(mv.start + rs)
+        self.p1.append(mv.end + re_)
+        self.dwell.append(0.0)
+        stop.append(bool(mv.exact_stop) or pure)
+
     def __len__(self) -> int:
         return len(self.kinds)
 
@@ -110,12 +148,13 @@ class Collector:
         if final and self.stop:
             self.stop[-1] = True
         m = len(self.kinds)
+        n = self.dims
         # fromiter over the flattened points: half the time of asarray on a list of tuples
         return SegmentTable(kind=np.asarray(self.kinds, dtype=np.int8), move=list(self.moves),
                             p0=np.fromiter(chain.from_iterable(self.p0), float,
-                                           count=3 * m).reshape(m, 3),
+                                           count=n * m).reshape(m, n),
                             p1=np.fromiter(chain.from_iterable(self.p1), float,
-                                           count=3 * m).reshape(m, 3),
+                                           count=n * m).reshape(m, n),
                             dwell=np.asarray(self.dwell, dtype=float),
                             stop_after=np.asarray(self.stop, bool))
 
@@ -125,9 +164,9 @@ class Collector:
             del lst[:count]
 
 
-def collect_segments(program: Program) -> SegmentTable:
+def collect_segments(program: Program, *, dims: int = 3) -> SegmentTable:
     """Walk the moves once: drop empty moves, turn dwells/stops into rests, check continuity."""
-    collector = Collector(program.file)
+    collector = Collector(program.file, dims=dims)
     for mv in program.moves:
         collector.add(mv)
     return collector.segments(final=True)
@@ -151,14 +190,18 @@ class SegmentGeometry:
 
 
 def segment_geometry(seg: SegmentTable, file: str) -> SegmentGeometry:
-    m = seg.kind.shape[0]
+    m, dims = seg.p0.shape
     d = seg.p1 - seg.p0
     length = np.zeros(m)
-    u = np.zeros((m, 3))
+    u = np.zeros((m, dims))
     is_line = seg.kind == _LINE
-    ln = np.linalg.norm(d[is_line], axis=1)
+    dl = d[is_line]
+    ln = np.linalg.norm(dl[:, :3], axis=1)
+    if dims > 3:
+        # a pure rotary move: its path is the angle [rad] (F in degrees per minute)
+        ln = np.where(ln < _MIN_LENGTH_M, np.linalg.norm(dl[:, 3:], axis=1), ln)
     length[is_line] = ln
-    u[is_line] = d[is_line] / ln[:, None]
+    u[is_line] = dl / ln[:, None]
     tan0 = u.copy()
     tan1 = u.copy()
     centre = seg.p0.copy()
@@ -179,7 +222,7 @@ def segment_geometry(seg: SegmentTable, file: str) -> SegmentGeometry:
             bad_move = next(x for x in mv if x.plane not in PLANE_AXES)
             msg = f'arc plane must be 17, 18 or 19, got {bad_move.plane!r}'
             raise PlanningError(msg, file=file, line=bad_move.line) from err
-        centre[arcs] = [x.center for x in mv]
+        centre[arcs, :3] = [x.center for x in mv]
         ccw = np.array([int(x.kind) == _ARC_CCW for x in mv])
         turns = np.array([max(int(x.turns), 0) for x in mv], dtype=float)
         s = np.take_along_axis(seg.p0[arcs], perm[arcs], axis=1)
@@ -217,7 +260,12 @@ def segment_geometry(seg: SegmentTable, file: str) -> SegmentGeometry:
             loc /= np.linalg.norm(loc, axis=1)[:, None]
             out = np.zeros((arcs.size, 3))
             np.put_along_axis(out, perm[arcs], loc, axis=1)
-            which[arcs] = out
+            which[arcs, :3] = out
+        if dims > 3:
+            # rotary axes turn linearly along the helix [rad/m]
+            rate = d[arcs, 3:] / length[arcs][:, None]
+            for which in (u, tan0, tan1):
+                which[arcs, 3:] = rate
     return SegmentGeometry(length=length, u=u, tan0=tan0, tan1=tan1, centre=centre, perm=perm,
                            plane_ref=plane_ref,
                            theta0=theta0, sweep=sweep, r0=r0, kr=kr, kc=kc, r_min=r_min)
@@ -250,7 +298,7 @@ def line_speed_limits(u: np.ndarray | Sequence[float],
 def path_limits(seg: SegmentTable, geo: SegmentGeometry, lim: np.ndarray,
                 file: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Path speed, acceleration and jerk limits per segment; ``lim`` is (3 kinds, 3 axes)."""
-    m = seg.kind.shape[0]
+    m, dims = seg.p0.shape
     feed = np.array([x.feed_m_s if x.feed_m_s > 0 else math.inf for x in seg.move])
     missing = ~np.isfinite(lim[0])
     moved = np.abs(seg.p1 - seg.p0) > _GAP_TOLERANCE_M
@@ -260,7 +308,7 @@ def path_limits(seg: SegmentTable, geo: SegmentGeometry, lim: np.ndarray,
     bad = np.nonzero(np.any(moved & missing[None, :], axis=1))[0]
     if bad.size:
         mv = seg.move[bad[0]]
-        names = [PROGRAM_AXES[k] for k in range(3) if missing[k] and moved[bad[0], k]]
+        names = [PLAN_AXES[k] for k in range(dims) if missing[k] and moved[bad[0], k]]
         msg = f'move on axis {", ".join(names)} which the machine does not have'
         raise PlanningError(msg, file=file, line=mv.line)
 
@@ -286,6 +334,10 @@ def path_limits(seg: SegmentTable, geo: SegmentGeometry, lim: np.ndarray,
                 np.cbrt(0.5 * in_plane[2] * r * r)])
             amax[arcs] = np.minimum(0.5 * in_plane[1], helix[1])
             jmax[arcs] = np.minimum(0.5 * in_plane[2], helix[2])
+            if dims > 3:
+                rate = np.abs(geo.u[arcs, 3:])                           # [rad/m]
+                for kind, out in enumerate((vmax, amax, jmax)):
+                    out[arcs] = np.minimum(out[arcs], np.min(lim[kind, 3:] / rate, axis=1))
     return vmax, amax, jmax
 
 
@@ -300,7 +352,8 @@ def junction_speeds(seg: SegmentTable, geo: SegmentGeometry, vmax: np.ndarray, a
     vj = np.zeros(m + 1)
     if m < 2:
         return vj
-    cos_t = -np.einsum('ij,ij->i', geo.tan1[:-1], geo.tan0[1:])
+    # the corner angle of the XYZ path (rotary axes enter through the velocity step below)
+    cos_t = -np.einsum('ij,ij->i', geo.tan1[:-1, :3], geo.tan0[1:, :3])
     sin_half = np.sqrt(np.clip(0.5 * (1.0 - cos_t), 0.0, 1.0))
     a = np.minimum(amax[:-1], amax[1:])
     du = np.abs(geo.tan0[1:] - geo.tan1[:-1])

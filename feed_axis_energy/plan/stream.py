@@ -41,11 +41,12 @@ from .lookahead import BlockGroups, group_blocks, path_cumsum, through_accelerat
 from .motion import Motion
 from .phases import corner_terms, junction_times, phase_table, PlannedWindow
 from .profiles import plan_profiles, reach_speed
-from ..gcode import Move, PROGRAM_AXES
+from ..gcode import Move
 from .chunks import Chunk, GridCursor, WindowSampler
-from .segments import Collector, segment_geometry, junction_speeds, path_limits, REST
+from .segments import (Collector, segment_geometry, junction_speeds, path_limits, PLAN_AXES,
+                       REST)
 from .standstill import first_grid_index, standstill_runs
-from .trajectory import limits_array
+from .trajectory import limits_array, rest_rotary
 from ..machine import AxisLimits, PlannerOptions
 
 __all__ = ['DEFAULT_CHUNK_SAMPLES', 'WINDOW_BLOCKS', 'iter_plan',
@@ -132,7 +133,7 @@ def iter_plan(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         As :func:`.trajectory.plan`, naming the move's line.
     """
     lim = limits_array(limits, file)
-    collector = Collector(file)
+    collector = Collector(file, dims=lim.shape[1])
     it = iter(moves)
     ended = False
     read = 0
@@ -250,7 +251,7 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         raise ValueError(msg)
     limits_array(limits, file)
     axes = tuple(limits)
-    cols = [PROGRAM_AXES.index(a) for a in axes]
+    cols = [PLAN_AXES.index(a) for a in axes]
     k = len(axes)
     rate = options.rate_hz
     sample_s = 1.0 / rate
@@ -338,7 +339,8 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         next_index = stop_index
     if not any_window:
         start = first.start if first is not None else (0.0, 0.0, 0.0)
-        pos = np.asarray(start, dtype=float)[cols][None, :]
+        rot = rest_rotary([first] if first is not None else [])
+        pos = np.asarray(start + rot, dtype=float)[cols][None, :]
         yield Motion(t=np.zeros(1), axes=axes, pos=pos, vel=np.zeros_like(pos),
                      acc=np.zeros_like(pos), line=np.zeros(1, np.int32), source=file)
         return

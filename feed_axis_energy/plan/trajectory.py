@@ -85,7 +85,7 @@ junction, not per sample.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 import math
 
 import numpy as np
@@ -97,8 +97,9 @@ from .motion import Motion
 # the planner's steps live in segments (input) and phases (output), shared with stream
 from .phases import BlockLocator, corner_steps, junction_times, phase_table, sample_phases
 from .profiles import plan_profiles
-from ..gcode import Program, PROGRAM_AXES
-from .segments import collect_segments, segment_geometry, junction_speeds, path_limits, REST
+from ..gcode import Move, Program
+from .segments import (collect_segments, segment_geometry, junction_speeds, path_limits,
+                       PLAN_AXES, REST)
 
 __all__ = ['plan']
 
@@ -106,15 +107,19 @@ _CHUNK = 1 << 18           # samples evaluated per vectorised block
 
 
 def limits_array(limits: Mapping[str, AxisLimits], file: str) -> np.ndarray:
-    lim = np.full((3, 3), np.inf)
+    """``(3 kinds, dims)``: speed, acceleration, jerk limit per planner column (``inf``
+    where the machine lacks the axis); ``dims`` is 6 when a rotary axis is among the limits
+    (their values in rad/s, rad/s^2, rad/s^3), else 3."""
+    dims = 6 if any(name in PLAN_AXES[3:] for name in limits) else 3
+    lim = np.full((3, dims), np.inf)
     for name, al in limits.items():
-        if name not in PROGRAM_AXES:
-            msg = f'unknown machine axis {name!r}; expected one of {PROGRAM_AXES}'
+        if name not in PLAN_AXES:
+            msg = f'unknown machine axis {name!r}; expected one of {PLAN_AXES}'
             raise PlanningError(msg, file=file)
         if not isinstance(al, AxisLimits):
             msg = f'limits[{name!r}] must be an AxisLimits, got {type(al).__name__}'
             raise PlanningError(msg, file=file)
-        k = PROGRAM_AXES.index(name)
+        k = PLAN_AXES.index(name)
         lim[:, k] = (al.velocity_m_s, al.acceleration_m_s2, al.jerk_m_s3)
     if not limits:
         raise PlanningError('no machine axes given in limits', file=file)
@@ -131,8 +136,9 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
     program
         The parsed program (SI units).
     limits
-        Kinematic limits per machine axis; its keys (among ``X``, ``Y``, ``Z``), in order,
-        become ``Motion.axes``.
+        Kinematic limits per machine axis; its keys (among ``X``, ``Y``, ``Z`` and the
+        rotary ``A``, ``B``, ``C``, whose limits and positions are in rad), in order, become
+        ``Motion.axes``.
     options
         Sample rate, profile type and corner tolerance.
     progress
@@ -151,12 +157,12 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
     """
     lim = limits_array(limits, program.file)
     axes = tuple(limits)
-    cols = [PROGRAM_AXES.index(a) for a in axes]
-    seg = collect_segments(program)
+    cols = [PLAN_AXES.index(a) for a in axes]
+    seg = collect_segments(program, dims=lim.shape[1])
     m = seg.kind.shape[0]
     if m == 0:
         start = program.moves[0].start if program.moves else (0.0, 0.0, 0.0)
-        pos = np.asarray(start, dtype=float)[cols][None, :]
+        pos = np.asarray(start + rest_rotary(program.moves), dtype=float)[cols][None, :]
         return Motion(t=np.zeros(1), axes=axes, pos=pos, vel=np.zeros_like(pos),
                       acc=np.zeros_like(pos), line=np.zeros(1, np.int32), source=program.file)
     geo = segment_geometry(seg, program.file)
@@ -204,6 +210,14 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
     corner_steps(t, t_junction, v_junction, geo, cols, 1.0 / options.rate_hz, vel=vel,
                  acc=acc)
     return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line, source=program.file)
+
+
+def rest_rotary(moves: Sequence[Move]) -> tuple[float, float, float]:
+    """Rotary position of a program without motion (its first move's, else 0)."""
+    first = moves[0] if moves else None
+    if first is not None and first.rot_start is not None:
+        return first.rot_start
+    return (0.0, 0.0, 0.0)
 
 
 def _report(progress: Callable[[float], None] | None, fraction: float) -> None:

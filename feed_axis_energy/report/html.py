@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from feed_axis_energy.measured import CampaignComparison, Metrics, RunComparison
+from feed_axis_energy.measured import CampaignComparison, Metrics, quantity_of, RunComparison
 from feed_axis_energy.physics import two_digits
 
 from .page import fmt_duration, fmt_pct, fmt_si, img, page, short, table
@@ -124,7 +124,24 @@ def _run_section(r: RunComparison, images: dict[str, bytes]) -> str:
     imgs = ''.join(img(png, f'{r.name} {kind}') for kind, png in images.items())
     return (f'<section id="{_anchor(r.name)}"><h2>Run {escape(short(r.name))} '
             f'(load {r.load_kg:g} kg)</h2>\n{table([], prov_rows, row_head=True)}\n'
-            f'{_metrics_by_column(columns, "metric")}\n{imgs}</section>')
+            f'{_signal_table(r)}{_metrics_by_column(columns, "metric")}\n{imgs}</section>')
+
+
+def _signal_table(r: RunComparison) -> str:
+    """A drive trace's agreement per axis in its own unit (empty for a power run)."""
+    qty = quantity_of(r.measures)
+    if qty.is_power:
+        return ''
+    u = qty.unit
+    rows = [[escape(a), fmt_si(m.rms_meas, u), fmt_si(m.rmse, u), fmt_si(m.bias, u, signed=True),
+             _num(m.r2, '.3f'), _num(m.correlation, '+.3f'),
+             fmt_si((r.torque_per_unit or {}).get(a), 'N·m/' + u)]
+            for a, m in r.signal_metrics.items()]
+    note = (f'<p class="note">Measured {escape(qty.words)} [{u}] against the prediction '
+            f'(motor torque / g); the Table-1 metrics below are in W via '
+            f'{qty.symbol}·g·&omega;.</p>')
+    return note + table(['axis', 'RMS measured', 'RMSE', 'bias (sim &minus; meas)', 'R²', 'r',
+                         'g (torque per unit)'], rows) + '\n'
 
 
 def render_index(cmp: CampaignComparison, images: dict[str, dict[str, bytes]]) -> str:
@@ -144,8 +161,10 @@ def render_index(cmp: CampaignComparison, images: dict[str, dict[str, bytes]]) -
     """
     groups = [(f'{g.load_kg:g} kg ({len(g.runs)} run{"s" if len(g.runs) != 1 else ""})',
                g.metrics) for g in cmp.groups]
-    warnings = ''.join(f'<li>{escape(short(w, 200))}</li>' for w in cmp.offset_warnings)
-    warn_html = (f'<p><b>Time-shift warnings</b> (compared anyway):</p><ul>{warnings}</ul>'
+    warnings = ''.join(f'<li>{escape(short(w, 200))}</li>'
+                       for w in cmp.offset_warnings + cmp.sign_warnings)
+    what = 'Time-shift and sign warnings' if cmp.sign_warnings else 'Time-shift warnings'
+    warn_html = (f'<p><b>{what}</b> (compared anyway):</p><ul>{warnings}</ul>'
                  if warnings else '')
     sections = '\n'.join(_run_section(r, images.get(r.name, {})) for r in cmp.runs)
     machine = escape(cmp.machine) + (f' ({escape(short(cmp.machine_file, 100))})'

@@ -3,6 +3,8 @@
 * power: actual power over time, measured vs simulated (Fig 6 kind), one panel for the sum of
   the measured axes and one per axis when there are several;
 * energy: consumed energy over time, measured vs simulated (Fig 7 kind);
+* signal (drive traces only: current, torque, force): the trace measured vs simulated per
+  axis in its own unit, with its RMSE and R²;
 * error: differential error ``P_meas - P_sim`` [W] and percentual error
   ``100 |dP| / |P_meas|`` [%] over time (Fig 8 kind); the percentual error is drawn only where
   ``|P_meas|`` is above the run's floor, as in the metrics. Its scale ends at the 99th
@@ -17,12 +19,12 @@ from __future__ import annotations
 from matplotlib.figure import Figure
 import numpy as np
 
-from feed_axis_energy.measured import RunComparison
+from feed_axis_energy.measured import quantity_of, RunComparison
 
 from .page import figure_png
 
 __all__ = ['PCT_SCALE_PERCENTILE', 'PLOT_KINDS', 'pct_scale', 'plot_energy', 'plot_error',
-           'plot_power', 'run_plots']
+           'plot_power', 'plot_signal', 'run_plots']
 
 PLOT_KINDS = ('power', 'energy', 'error')
 PCT_SCALE_PERCENTILE = 99.0
@@ -141,7 +143,31 @@ def plot_error(run: RunComparison, *, dpi: int = 100) -> bytes:
     return figure_png(fig, dpi=dpi)
 
 
+def plot_signal(run: RunComparison, *, dpi: int = 100) -> bytes:
+    """A drive trace (current, torque, force) measured vs simulated per axis; PNG bytes."""
+    qty = quantity_of(run.measures)
+    meas, sim = run.signal_meas, run.signal_sim
+    if meas is None or sim is None:
+        raise ValueError(f'run {run.name!r} carries no trace')
+    fig = Figure(figsize=(10, 2.2 + 2.0 * len(run.axes)), layout='constrained')
+    axs = fig.subplots(len(run.axes), 1, sharex=True, squeeze=False)[:, 0]
+    for j, (ax, a) in enumerate(zip(axs, run.axes)):
+        ax.plot(run.t, meas[:, j], **_MEAS)
+        ax.plot(run.t, sim[:, j], **_SIM)
+        m = run.signal_metrics.get(a)
+        note = '' if m is None else f'\nRMSE {m.rmse:.3g} {qty.unit}, R² {m.r2:.3f}'
+        ax.set_ylabel(f'{qty.name} [{qty.unit}]\naxis {a}{note}')
+        ax.grid(True, alpha=0.3)
+    axs[0].legend(loc='upper right')
+    axs[-1].set_xlabel('time [s]')
+    fig.suptitle(f'{_title(run, qty.words)}\nsimulation shifted by {run.offset_used_s:+.3f} s '
+                 f'(offset {run.offset.status})', fontsize=10)
+    return figure_png(fig, dpi=dpi)
+
+
 def run_plots(run: RunComparison, *, dpi: int = 100) -> dict[str, bytes]:
-    """The three plots of one run: kind -> PNG bytes (in :data:`PLOT_KINDS` order)."""
+    """The plots of one run: kind -> PNG bytes (``signal`` for a drive trace, then
+    :data:`PLOT_KINDS` in order)."""
+    kinds = PLOT_KINDS if quantity_of(run.measures).is_power else ('signal',) + PLOT_KINDS
     # looked up by name at call time, so a test can replace one
-    return {kind: globals()[f'plot_{kind}'](run, dpi=dpi) for kind in PLOT_KINDS}
+    return {kind: globals()[f'plot_{kind}'](run, dpi=dpi) for kind in kinds}

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from feed_axis_energy.physics import UNCERTAINTY_KEY, uncertainty_words
+from feed_axis_energy.units import axis_units
 
 from .staging import staged_report
 from .decimate import PowerTrace, Trace
@@ -300,11 +301,16 @@ def _rollups_html(rollups: dict[str, list[tuple[str, float, float]]]) -> str:
 
 
 def _bbox_html(tr: Trace) -> str:
-    rows = [[escape(a), f'<td class="num">{fmt_si(1e3 * lo, "mm")}</td>',
-             f'<td class="num">{fmt_si(1e3 * hi, "mm")}</td>',
-             f'<td class="num">{fmt_si(1e3 * (hi - lo), "mm")}</td>']
+    rows = [[escape(a)] + [f'<td class="num">{_position(a, v)}</td>' for v in (lo, hi, hi - lo)]
             for a, lo, hi in zip(tr.axes, tr.pos_min, tr.pos_max)]
     return table(['axis', 'from', 'to', 'travel range'], rows, row_head=True)
+
+
+def _position(axis: str, value: float) -> str:
+    """A position in mm, or in degrees on a rotary axis (its positions are in rad)."""
+    if axis_units(axis)[0] == 'rad':
+        return f'{round(math.degrees(value), 3) + 0.0:.3f} °'
+    return fmt_si(1e3 * value, 'mm')
 
 
 def _details(summary: Mapping[str, Any], tr: Trace) -> str:

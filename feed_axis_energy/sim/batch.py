@@ -72,6 +72,11 @@ class BatchJob:
         :func:`.sweep.apply_overrides` (a what-if variant); empty: the file as it is.
     feed_override, rapid_override
         Factors on the programmed feed and on the rapid speed (:func:`.sweep.override_moves`).
+    strict_tools, allow_no_feed, subroutine_path
+        How the program is read, on top of the machine config's ``gcode`` settings
+        (:func:`..gcode.with_program_options`; ``--strict-tools``, ``--allow-no-feed``,
+        ``--subroutine-path``): the flags turn the config's on, the directories (absolute)
+        are searched after the config's.
     """
 
     index: int
@@ -90,6 +95,9 @@ class BatchJob:
     overrides: tuple[tuple[str, Any, bool], ...] = ()
     feed_override: float = 1.0
     rapid_override: float = 1.0
+    strict_tools: bool = False
+    allow_no_feed: bool = False
+    subroutine_path: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         where = f'job {self.index + 1}'
@@ -165,7 +173,13 @@ class JobResult:
 def _machine(job: BatchJob):
     """The job's machine (each file and variant loaded once per process)."""
     from .sweep import variant_machine
-    return variant_machine(job.machine_path, job.overrides)
+    machine = variant_machine(job.machine_path, job.overrides)
+    if job.strict_tools or job.allow_no_feed or job.subroutine_path:
+        from ..gcode import with_program_options
+        machine = replace(machine, gcode=with_program_options(
+            machine.gcode, strict_tools=job.strict_tools, allow_no_feed=job.allow_no_feed,
+            subroutine_path=tuple(job.subroutine_path)))
+    return machine
 
 
 def _options(job: BatchJob, machine):

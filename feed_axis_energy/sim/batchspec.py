@@ -133,7 +133,9 @@ def make_jobs(programs: Sequence[tuple[str, str]], machines: Sequence[tuple[str,
               loads_kg: Sequence[float], *, rate_hz: float | None = None,
               profile: str | None = None, top_blocks: int = 0,
               max_samples: int = 0, out_dir: str | os.PathLike[str] | None = None,
-              force: bool = False, compression: str = 'zstd') -> list[BatchJob]:
+              force: bool = False, compression: str = 'zstd', strict_tools: bool = False,
+              allow_no_feed: bool = False,
+              subroutine_path: Sequence[str] = ()) -> list[BatchJob]:
     """Every program x machine x load, program-major (program 1 on every machine first).
 
     Parameters
@@ -146,7 +148,7 @@ def make_jobs(programs: Sequence[tuple[str, str]], machines: Sequence[tuple[str,
         As :class:`.batch.BatchJob`.
     out_dir
         Directory for one recording per job, named by :func:`bag_name`; ``None``: none.
-    force, compression
+    force, compression, strict_tools, allow_no_feed, subroutine_path
         As :class:`.batch.BatchJob`.
 
     Returns
@@ -179,7 +181,9 @@ def make_jobs(programs: Sequence[tuple[str, str]], machines: Sequence[tuple[str,
                              machine_path=mach_path, load_kg=float(load), rate_hz=rate_hz,
                              profile=profile, top_blocks=top_blocks,
                              max_samples=max_samples, out=out, force=force,
-                             compression=compression))
+                             compression=compression, strict_tools=bool(strict_tools),
+                             allow_no_feed=bool(allow_no_feed),
+                             subroutine_path=tuple(subroutine_path)))
     return jobs
 
 

@@ -7,7 +7,8 @@ samples, or of blocks, whatever the program's length.
 * ``timeseries.csv`` / ``.parquet``: every ``decimate``-th sample (counted from the first,
   at the full rate): time, source line, per axis position, velocity, drawn power and
   cumulative energy, the total power and energy, and the power of every cause summed over
-  the axes (:mod:`.breakdown`). Column names carry their SI unit (``X power [W]``). With
+  the axes (:mod:`.breakdown`). Column names carry their SI unit (``X power [W]``; a rotary
+  axis A, B, C has its position in rad and velocity in rad/s, ``C position [rad]``). With
   declared drives (:mod:`.electrical`) also the electrical power per axis at the motor
   terminals and at the supply side, the totals (the supply's with the cabinet's standby),
   their cumulative energies, and the electrical causes summed over the axes.
@@ -36,6 +37,7 @@ import numpy as np
 
 from ..physics import cause_names, cause_powers, LineEnergy
 from ..errors import ConfigError, DataError, OutputError
+from ..units import axis_units
 from .simulate import SimulationResult
 
 __all__ = ['FORMATS', 'TEXT_CHARS', 'TableWriter', 'require_pyarrow', 'SeriesExporter',
@@ -154,8 +156,9 @@ def series_columns(axes: Sequence[str], causes: Sequence[str], *,
                    electrical: bool = False) -> list[str]:
     """Column names of the time series (see the module docstring)."""
     cols = ['t [s]', 'line']
-    for what, unit in (('position', 'm'), ('velocity', 'm/s'), ('power', 'W'),
-                       ('energy', 'J')):
+    cols += [f'{a} position [{axis_units(a)[0]}]' for a in axes]
+    cols += [f'{a} velocity [{axis_units(a)[1]}]' for a in axes]
+    for what, unit in (('power', 'W'), ('energy', 'J')):
         cols += [f'{a} {what} [{unit}]' for a in axes]
     cols += ['total power [W]', 'total energy [J]']
     cols += [f'{c} power [W]' for c in causes]
@@ -211,8 +214,9 @@ class SeriesExporter:
                              for fmt, d in self.directories.items()]
         data: dict[str, Any] = {'t [s]': p.t[keep], 'line': p.line[keep]}
         for j, a in enumerate(p.axes):
-            data[f'{a} position [m]'] = dyn.position_m[keep, j]
-            data[f'{a} velocity [m/s]'] = dyn.velocity_m_s[keep, j]
+            pos_unit, vel_unit, _ = axis_units(a)
+            data[f'{a} position [{pos_unit}]'] = dyn.position_m[keep, j]
+            data[f'{a} velocity [{vel_unit}]'] = dyn.velocity_m_s[keep, j]
             data[f'{a} power [W]'] = p.power_w[keep, j]
             data[f'{a} energy [J]'] = p.energy_j[keep, j]
         data['total power [W]'] = p.total_w[keep]

@@ -11,7 +11,7 @@ import pytest
 from feed_axis_energy.cli import main
 from feed_axis_energy.effects.catalog import get_effect
 from feed_axis_energy.machine.file import load_machine
-from feed_axis_energy.identify.rigtruth import Instrument, parse_effects
+from feed_axis_energy.identify.rig import Instrument, parse_effects
 from feed_axis_energy.identify.rig import make_campaign, RigConfig
 
 ROOT = Path(__file__).resolve().parents[2]

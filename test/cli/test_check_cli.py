@@ -136,9 +136,15 @@ def test_dialect_sets_the_unit_of_g4_p(tmp_path, capsys):
 
 def test_tool_option_fills_the_tool_table(tmp_path, capsys):
     prog = _write(tmp_path, 'tool.nc', 'G21 G90 F100\nG43 H3 G0 Z10\nM2\n')
-    assert main(['check', str(prog), '--machine', str(MILL), '--json']) == 1
+    assert main(['check', str(prog), '--machine', str(MILL), '--json', '--strict-tools']) == 1
     doc = json.loads(capsys.readouterr().out)
     assert doc['programs'][0]['errors'][0]['line'] == 2
+    # without --strict-tools: tool 3 has length 0 (Z10 stays Z10) and one warning
+    assert main(['check', str(prog), '--machine', str(MILL), '--json']) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert [w['line'] for w in doc['programs'][0]['warnings'] if 'tool 3' in w['message']] \
+        == [2]
+    assert doc['programs'][0]['summary']['final_position_m'][2] == pytest.approx(0.01)
     assert main(['check', str(prog), '--machine', str(MILL), '--tool', '3:2:40', '--json']) == 0
     doc = json.loads(capsys.readouterr().out)
     # G43 H3 with a 40 mm tool: Z10 in the program is Z 50 mm in machine coordinates.

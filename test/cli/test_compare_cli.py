@@ -51,7 +51,13 @@ def test_json_keys_and_values(manifest, capsys):
     assert set(run_b) == {'name', 'role', 'load_kg', 'data_file', 'motion_source', 'axes',
                           'window_s', 'duration_meas_s', 'duration_sim_s', 'excluded_rows',
                           'stamp', 'instrument', 'instrument_check', 'residual_by_state',
-                          'offset', 'metrics'}
+                          'offset', 'metrics', 'quantity'}
+    # a power run: the quantity block in W, its RMSE the same as the Table-1 one
+    q = run_b['quantity']
+    assert set(q) == {'measures', 'unit', 'column', 'metrics', 'sign_check'}
+    assert (q['measures'], q['unit'], q['column']) == ('shaft', 'W', 'power')
+    assert q['metrics']['X']['rmse_w'] == pytest.approx(run_b['metrics']['X']['rmse_w'])
+    assert set(out['groups'][0]) == {'load_kg', 'runs', 'metrics', 'quantity_metrics'}
     assert run_b['offset']['used_s'] == pytest.approx(0.150, abs=0.002)
     assert run_b['metrics']['total']['avg_pct_error_pct'] == pytest.approx(
         100.0 * (1.0 - 1.0 / 1.1), abs=0.25)

@@ -138,19 +138,37 @@ def test_tool_length_offset_from_the_table_and_its_variants():
     (lambda c: c.g10(1.0, 0.0, {}, (0, 0, 0), fail=fail), 'P', 'tool number'),
 ])
 def test_errors_name_the_word(call, letter, words):
-    c = Coords(tools={1: ToolSpec()})
+    c = Coords(tools={1: ToolSpec()}, strict_tools=True)
     with pytest.raises(Failed) as err:
         call(c)
     assert err.value.args[0] == letter and words in err.value.args[1]
 
 
 def test_missing_loaded_tool_is_an_error_at_the_g_word():
-    c = Coords()
+    c = Coords(strict_tools=True)
     c.select_tool(4)
     c.change_tool()
     with pytest.raises(Failed) as err:
         c.tool_length('G43', None, {}, fail=fail)
     assert err.value.args[0] == 'G' and 'tool 4' in err.value.args[1]
+
+
+def test_missing_tools_have_zero_length_and_radius_and_are_reported():
+    # without strict_tools a tool the table lacks is tool 0's data, and on_missing_tool hears
+    # of it (the interpreter turns that into one warning per tool number)
+    c = Coords(tools={1: ToolSpec(radius_m=0.003, length_m=0.05)})
+    heard = []
+    c.on_missing_tool = heard.append
+    c.tool_length('G43', 1.0, {}, fail=fail)
+    assert c.tlo == approx3((0.0, 0.0, 0.05))
+    c.tool_length('G43', 7.0, {}, fail=fail)
+    assert c.tlo == approx3((0.0, 0.0, 0.0))
+    assert c.cutter_radius(3.0, fail=fail) == 0.0
+    c.check_tool_number(9, letter='T', fail=fail)       # selecting uses no data: silent
+    assert heard == [7, 3]
+    # G10 L1 on a missing tool adds it, from length and radius 0
+    c.g10(1.0, 8.0, {'R': 0.002}, (0, 0, 0), fail=fail)
+    assert c.tools[8] == ToolSpec(radius_m=0.002, length_m=0.0) and heard == [7, 3, 8]
 
 
 def test_g10_l1_writes_the_tool_table():
@@ -394,7 +412,7 @@ def test_live_position_reads_program_coordinates():
 def test_errors_name_line_and_column(text, line, column, words):
     from feed_axis_energy.gcode.load import parse_gcode
     with pytest.raises(GcodeError) as err:
-        parse_gcode(text, file='t.nc')
+        parse_gcode(text, file='t.nc', strict_tools=True)
     assert (err.value.line, err.value.column) == (line, column)
     assert words in str(err.value)
 

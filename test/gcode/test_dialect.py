@@ -23,8 +23,9 @@ def test_registry_matches_the_machine_config_names():
     assert tuple(DIALECTS) == CONFIG_DIALECTS
     assert dialect_by_name(None).name == 'linuxcnc'
     assert dialect_by_name('FANUC').name == 'fanuc'
-    with pytest.raises(ConfigError, match='known: linuxcnc, fanuc'):
-        dialect_by_name('sinumerik')
+    assert dialect_by_name('Sinumerik').siemens
+    with pytest.raises(ConfigError, match='known: linuxcnc, fanuc.*sinumerik'):
+        dialect_by_name('heidenhain')
 
 
 @pytest.mark.parametrize('dialect, expected', [

@@ -230,13 +230,19 @@ def test_inverse_time_feed():
 
 
 def test_switching_feed_mode_clears_f():
-    # LinuxCNC clears F on a G93/G94 switch; a feed move without F then runs at the
-    # machine's limits (feed inf), with one warning (LinuxCNC's preview accepts it).
-    prog = parse_gcode('G1 X1 F100\nG93 G1 X2 F1\nG94 G1 X3\nX4\n', file='t.nc')
+    # LinuxCNC clears F on a G93/G94 switch; a feed move without F is then refused as on
+    # the control, at the line's G word; allow_no_feed runs it at the machine's limits
+    # (feed inf), with one warning (LinuxCNC's preview accepts it).
+    text = 'G1 X1 F100\nG93 G1 X2 F1\nG94 G1 X3\nX4\n'
+    with pytest.raises(GcodeError) as err:
+        parse_gcode(text, file='t.nc')
+    assert (err.value.line, err.value.column) == (3, 5)
+    assert 'no feed rate (F) set' in err.value.reason and '--allow-no-feed' in err.value.reason
+    prog = parse_gcode(text, file='t.nc', allow_no_feed=True)
     assert [m.feed_m_s for m in prog.moves[2:]] == [math.inf, math.inf]
     assert [w for w in prog.warnings if 'no feed rate' in w] == [
-        't.nc:3: feed move with no feed rate (F) in force: it runs at the machine\'s axis '
-        'limits (LinuxCNC refuses this; its preview accepts it)']
+        't.nc:3: feed move with no feed rate (F) set: it runs at the machine\'s axis '
+        'limits (--allow-no-feed; the control refuses this, LinuxCNC\'s preview accepts it)']
 
 
 def test_dwell_and_stops():
@@ -330,14 +336,15 @@ def test_bad_fixture_place(name):
 
 def test_g43_tool_length_offset_comes_from_the_tool_table():
     # G43 H1 applies tool 1's length to Z (moves are in machine coordinates); a tool the
-    # table lacks is an error at its H word (more cases in test/gcode/test_coords.py).
+    # table lacks is an error at its H word under strict_tools (more cases in
+    # test/gcode/test_coords.py and test/gcode/test_missing_tools.py).
     tools = {1: (0.0, 0.1), 2: (0.0, 0.02)}
     prog = parse_gcode('G21 G90\nG0 G43 H1 Z50\nG1 Z10 F600\nG43 H2\nG49\n', file='t.nc',
                        tools=tools)
     assert [m.end[2] for m in prog.moves] == pytest.approx([0.15, 0.11])
     assert prog.warnings == ()
     with pytest.raises(GcodeError) as err:
-        parse_gcode('G21 G90\nG0 G43 H1 Z50\n', file='t.nc')
+        parse_gcode('G21 G90\nG0 G43 H1 Z50\n', file='t.nc', strict_tools=True)
     assert (err.value.line, err.value.column) == (2, 8) and 'tool table' in str(err.value)
 
 
@@ -355,7 +362,7 @@ def test_g43_tool_length_offset_comes_from_the_tool_table():
     ('G1 X1 F-5', 1, 7, 'negative feed'),
     ('G1 X1 F0', 1, 7, 'zero'),
     ('G93 G1 X1 F0', 1, 11, 'never finish'),
-    ('G41 D1', 1, 5, 'no tool table'),
+    ('G41 D1', 1, 5, 'tool 1 is not in the tool table'),
     ('G0 X1 H1', 1, 7, 'no G43'),
     ('G5.5', 1, 1, 'unknown G code'),
     ('M3 M5', 1, 4, 'same modal group'),
@@ -371,7 +378,7 @@ def test_g43_tool_length_offset_comes_from_the_tool_table():
 ])
 def test_error_places(text, line, column, reason):
     with pytest.raises(GcodeError) as info:
-        parse_gcode(text, file='t.nc')
+        parse_gcode(text, file='t.nc', strict_tools=True)
     err = info.value
     assert (err.line, err.column) == (line, column), str(err)
     assert reason in err.reason, str(err)

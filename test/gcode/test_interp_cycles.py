@@ -138,7 +138,7 @@ def test_program_end_flushes_held_moves():
 
 
 @pytest.mark.parametrize('text, tools, line, column, reason', [
-    ('G41 D1 G1 X10 F100\n', None, 1, 5, 'no tool table'),
+    ('G41 D1 G1 X10 F100\n', None, 1, 5, 'tool 1 is not in the tool table'),
     ('G41 D3 G1 X10 F100\n', {1: 0.001}, 1, 5, 'tool 3 is not in the tool table'),
     ('G41.1 G1 X10 F100\n', None, 1, 1, 'needs a D word'),
     ('G1 X1 D1 F100\n', None, 1, 7, 'D word with no G41'),
@@ -149,7 +149,7 @@ def test_program_end_flushes_held_moves():
 ])
 def test_cutter_errors(text, tools, line, column, reason):
     with pytest.raises(GcodeError) as info:
-        parse_gcode('G21\n' + text, tools=tools)
+        parse_gcode('G21\n' + text, tools=tools, strict_tools=True)
     err = info.value
     assert (err.line, err.column) == (line + 1, column), str(err)
     assert reason.lower() in err.reason.lower()

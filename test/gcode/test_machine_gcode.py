@@ -100,12 +100,17 @@ def test_simulate_takes_the_tool_table_from_the_machine_config(tmp_path, capsys)
     moves = load_gcode(prog, **load_machine(machine).gcode_keywords()).moves
     # G43 H2 Z50: machine Z = 50 mm + 40 mm tool length
     assert moves[0].end == pytest.approx((0.0, 0.0, 0.09))
-    # the demonstrator has no tool table: a clear error at the H word, exit 1
+    # the demonstrator has no tool table: with --strict-tools a clear error at the T word
+    # (as LinuxCNC), exit 1; without it tool 2 runs with length 0 and one warning
     assert main(['simulate', str(prog), '--machine', str(CONFIG / 'demonstrator.yaml'),
-                 '--quiet']) == 1
+                 '--quiet', '--strict-tools']) == 1
     err = capsys.readouterr().err
-    assert 'cam.nc:3:5' in err and 'tool 2 is not in the tool table' in err
+    assert 'cam.nc:2:1' in err and 'tool 2 is not in the tool table' in err
     assert 'Traceback' not in err
+    bare = load_gcode(prog, **load_machine(CONFIG / 'demonstrator.yaml').gcode_keywords())
+    assert bare.moves[0].end == pytest.approx((0.0, 0.0, 0.05))
+    warned = [w for w in bare.warnings if 'tool 2 is not in the tool table' in w]
+    assert len(warned) == 1 and 'cam.nc:3:' in warned[0]
 
 
 @pytest.mark.parametrize('text, number, radius, length', [
@@ -136,8 +141,9 @@ def test_simulate_tool_option_adds_to_the_table(tmp_path, capsys):
     prog = tmp_path / 'cam.nc'
     prog.write_text('G21 G90\nG43 H5 G0 Z20\nG1 X50 F3000\nM30\n')
     mill = str(CONFIG / 'three_axis_mill.yaml')
-    # tool 5 is not in the mill's table: refused; given on the command line: simulated
-    assert main(['simulate', str(prog), '--machine', mill, '--quiet']) == 1
+    # tool 5 is not in the mill's table: refused (--strict-tools); given on the command
+    # line: simulated
+    assert main(['simulate', str(prog), '--machine', mill, '--quiet', '--strict-tools']) == 1
     assert 'tool 5 is not in the tool table' in capsys.readouterr().err
     assert main(['simulate', str(prog), '--machine', mill, '--quiet', '--json',
                  '--tool', '5:3:45']) == 0

@@ -11,7 +11,7 @@ from feed_axis_energy.machine.file import load_machine, machine_from_dict, machi
 from feed_axis_energy.measured.manifest import load_campaign
 from feed_axis_energy.measured.compare import compare_campaign
 from feed_axis_energy.measured.metrics import group_metrics
-from feed_axis_energy.identify.rigtruth import Instrument, parse_effects
+from feed_axis_energy.identify.rig import Instrument, parse_effects
 from feed_axis_energy.identify.rig import make_campaign, RigConfig
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -15,7 +15,7 @@ from feed_axis_energy.identify.selection import at_bounds, Design, solve_normal
 from feed_axis_energy.machine.declared import DeclaredEffect
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.measured.manifest import load_campaign
-from feed_axis_energy.identify.rigtruth import Instrument, parse_effects
+from feed_axis_energy.identify.rig import Instrument, parse_effects
 from feed_axis_energy.identify.rig import make_campaign, RigConfig
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -13,7 +13,7 @@ from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.measured.align import interval_average
 from feed_axis_energy.measured.manifest import load_campaign
 from feed_axis_energy.measured.csvload import load_run
-from feed_axis_energy.identify.rigtruth import (EffectSpec, Instrument, instrument_record,
+from feed_axis_energy.identify.rig import (EffectSpec, Instrument, instrument_record,
                                                 parse_effects)
 from feed_axis_energy.identify.rig import make_campaign, paper_scenario, RigConfig, stroke_program
 from feed_axis_energy.sim.simulate import simulate_program

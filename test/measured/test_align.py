@@ -188,7 +188,7 @@ def test_rig_runs_with_random_offsets_over_stroke_cycles_are_aligned():
     # strokes, load friction the declared model lacks, 50 ms meter, 1.5 W noise
     from feed_axis_energy.gcode.load import parse_gcode
     from feed_axis_energy.machine.file import load_machine
-    from feed_axis_energy.identify.rigtruth import (EffectSpec, instrument_record, Instrument,
+    from feed_axis_energy.identify.rig import (EffectSpec, instrument_record, Instrument,
                                                     simulate_run)
     from feed_axis_energy.identify.rig import stroke_program
     from feed_axis_energy.sim.simulate import simulate_program

@@ -421,8 +421,8 @@ class SplineMixin(InterpreterState):
         feed = self.feed
         if not feed or self.inverse_time:
             # G93 (G5/G5.1 only): the whole curve takes 1/F minutes; G94 without a feed
-            # rate: at the machine's limits with a warning, as G1 (LinuxCNC's preview
-            # accepts it)
+            # rate: refused as G1, or at the machine's limits with a warning under
+            # allow_no_feed (LinuxCNC's preview accepts it)
             feed = self.feed_for(d, math.fsum(lengths), True)
         exact = self.exact or g9
         line = self.lineno

@@ -11,6 +11,7 @@ import math
 from typing import cast, NoReturn, TYPE_CHECKING
 
 from .codes import COMP_FORBIDDEN
+from .tools import missing_tool_message
 from ..expand.cutter import LEFT, RIGHT
 from ..expand.cycles import CycleSpec, expand_cycle
 from ..program import Move, MoveKind
@@ -73,6 +74,7 @@ class CompMixin(InterpreterState):
         t = self.num('T', text)
         if t != int(t) or t < 0:
             self.fail('T (tool number) must be a whole number >= 0', 'T')
+        self.coords.check_tool_number(int(t), letter='T', fail=self.fail)
         self.tool_selected = int(t)
 
     def before_motion(self, d: dict[str, str | float]) -> None:
@@ -86,6 +88,7 @@ class CompMixin(InterpreterState):
                 q = self.num('Q', d['Q'])
                 if q != int(q) or q < 0:
                     self.fail('M61 Q must be a whole number >= 0', 'Q')
+                self.coords.check_tool_number(int(q), letter='Q', fail=self.fail)
                 self.tool_loaded = self.tool_selected = int(q)
             else:
                 self.tool_loaded = self.tool_selected
@@ -131,12 +134,12 @@ class CompMixin(InterpreterState):
             number, letter = self.tool_loaded, 'G'
         if number == 0:
             return 0.0          # no tool: zero diameter, as LinuxCNC's empty pocket 0
-        if self.tools is None:
-            self.fail(f'no tool table for G{code}: tool {number} needs its radius (machine '
-                      'config gcode.tools)', letter, value=None if letter == 'D' else code)
         if number not in self.tools:
-            self.fail(f'tool {number} is not in the tool table (machine config gcode.tools)',
-                      letter, value=None if letter == 'D' else code)
+            if self.coords.strict_tools:
+                self.fail(missing_tool_message(number), letter,
+                          value=None if letter == 'D' else code)
+            self.missing_tool(number)
+            return 0.0
         return _tool_radius(self.tools[number])
 
     def cycle(self, d: dict[str, str | float], code: int) -> None:

@@ -24,8 +24,9 @@ translation without it).
   words) to the stored position ``#5161..#5163`` / ``#5181..#5183`` (machine coordinates);
   G28.1/G30.1 store the current machine position there.
 * G43 H.. (H absent: the loaded tool) applies the tool table's length to Z; G43.1 X/Y/Z
-  sets the offset directly, G43.2 adds to it; G49 cancels it. A tool the table lacks is an
-  error.
+  sets the offset directly, G43.2 adds to it; G49 cancels it. A tool the table lacks runs
+  with length and radius 0 (one warning per tool), or is an error with ``strict_tools``
+  (:mod:`.tools`).
 
 Stored parameters hold lengths in millimetres (LinuxCNC with a millimetre machine
 configuration); the live values (``#5420..`` position, ``#<_x>`` ...) are in program units.
@@ -169,14 +170,19 @@ class Coords(ToolTable, ParamReadback):
     params
         The numbered parameter table (``get``/``set``); a fresh :class:`ParamTable` if
         ``None``.
+    strict_tools
+        A tool the table lacks is an error at the word that names it (LinuxCNC with its
+        own table); otherwise it has length and radius 0 and ``on_missing_tool`` (if set)
+        is called with its number.
     """
 
     __slots__ = ('params', 'tools', 'system', 'g5x', 'g92', 'tlo', 'offset', 'rotation_deg',
                  'cos', 'sin', 'selected_tool',
-                 'loaded_tool', 'home_used')
+                 'loaded_tool', 'home_used', 'strict_tools', 'on_missing_tool')
 
     def __init__(self, *, tools: Mapping[int, object] | None = None,
-                 home_m: Vec3 | None = None, params: ParamStore | None = None):
+                 home_m: Vec3 | None = None, params: ParamStore | None = None,
+                 strict_tools: bool = False):
         self.params = ParamTable() if params is None else params
         self.tools: dict[int, ToolSpec] = {int(t): tool_spec(e)
                                            for t, e in (tools or {}).items()}
@@ -191,6 +197,8 @@ class Coords(ToolTable, ParamReadback):
         self.selected_tool = 0
         self.loaded_tool = 0
         self.home_used = False
+        self.strict_tools = bool(strict_tools)
+        self.on_missing_tool: Callable[[int], None] | None = None
         if home_m is not None:
             for i in range(3):
                 self.params.set(G28_PARAM + i, home_m[i] * _MM)

@@ -5,6 +5,7 @@ once for the type checker (as :mod:`.state` does for the interpreter); imported 
 from __future__ import annotations
 
 from abc import abstractmethod
+from collections.abc import Callable
 from typing import Protocol
 
 from ..settings import ToolSpec
@@ -38,6 +39,8 @@ class CoordsState:
     sin: float
     selected_tool: int
     loaded_tool: int
+    strict_tools: bool
+    on_missing_tool: Callable[[int], None] | None
     home_used: bool
 
     @abstractmethod

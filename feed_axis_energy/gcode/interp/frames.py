@@ -68,6 +68,12 @@ class CoordsMixin(InterpreterState):
                         if '_code_' + g in todo)
             self.fail(msg, 'G', value=cast(int, code) / 10)
 
+        rot = self.rotary
+        if (rot is not None and rot.pending(self.lineno) and todo.get('nonmodal') in ('G92', 'G52')
+                and not any(letter in d for letter in _AXIS_LETTERS)):
+            # rotary words only: X, Y, Z keep their offsets
+            rot.coords(todo, value, lineno=self.lineno, system=self.coord)
+            return True
         control, foreign = foreign_codes(self.dialect.name, todo, value)
         for code in foreign:
             if code not in self.warned:
@@ -82,12 +88,17 @@ class CoordsMixin(InterpreterState):
         self.frame = coords.offset
         self.rotated = coords.rotated
         self.coord = coords.system
+        rotary_data = False
+        if self.rotary is not None:
+            rotary_data = (self.rotary.pending(self.lineno)
+                           and todo.get('nonmodal') in ('G10', 'G92', 'G52'))
+            self.rotary.coords(todo, value, lineno=self.lineno, system=self.coord)
         if effect.home is not None:
             self.home_return(d, effect.home)
             return True
         if todo.get('nonmodal') == 'G53':
             self.machine_words(d)
-        return effect.axes_used
+        return effect.axes_used or rotary_data
 
     def machine_words(self, d: dict[str, str | float]) -> None:
         """G53: this line's axis words are machine coordinates; give them as program ones
@@ -138,13 +149,22 @@ class CoordsMixin(InterpreterState):
         if self.series:
             self.end_series()
         named = cast('tuple[bool, bool, bool]', tuple(letter in d for letter in _AXIS_LETTERS))
+        rot = self.rotary
+        rotary_only = not any(named) and rot is not None and rot.pending(self.lineno)
+        rotary = None if rot is None else rot.home(self.lineno, any(named), system=self.coord,
+                                                   absolute=self.absolute)
         path = self.coords.home_path(code, self.target(d), named,
                                      fail=lambda msg, letter: self.fail(msg, 'G', value=float(
                                          code[1:])))
-        for end in path:
+        if rotary_only:
+            path = [self.pos, self.pos]     # rotary words only: X, Y, Z stay
+        for k, end in enumerate(path):
             # both rapids, even of zero length: LinuxCNC issues both (the planner drops them)
-            self.emit(Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos, end=end,
-                           feed_m_s=_INF, exact_stop=True, length_m=math.dist(self.pos, end)))
+            move = Move(kind=MoveKind.RAPID, line=self.lineno, start=self.pos, end=end,
+                        feed_m_s=_INF, exact_stop=True, length_m=math.dist(self.pos, end))
+            if rot is not None and rotary is not None:
+                move = rot.move(move, rotary[k], inverse_time=False, feed=None, scale=self.scale)
+            self.emit(move)
             self.pos = end
 
     def system_value(self, key: int | str) -> float | None:
@@ -154,6 +174,10 @@ class CoordsMixin(InterpreterState):
         ``None`` for any other key."""
         if self.dialect.fanuc_macro and isinstance(key, int) and 4000 < key < 5100:
             value = fanuc_system_value(self, key)
+            if value is not None:
+                return value
+        if self.rotary is not None:
+            value = self.rotary.system_value(key, self.coord)
             if value is not None:
                 return value
         coords = self.coords

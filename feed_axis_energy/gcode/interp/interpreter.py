@@ -24,6 +24,7 @@ from .comp import CompMixin
 from .frames import CoordsMixin
 from .modes import ModesMixin
 from .motion import MotionMixin
+from .rotary import RotaryAxes
 from ..read.lexer import blank_comments, locate_word
 from ..expand.nurbs import NurbsState
 from ..expand.splines import SplineMixin
@@ -59,15 +60,23 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         The G28 position [m] in machine coordinates (initial #5161..#5163), or ``None``:
         0, as in LinuxCNC's fresh parameter file (G28 then warns).
     tools
-        Tool table for cutter compensation: tool number -> radius [m] (a number, a mapping
-        with ``radius_m`` or an object with a ``radius_m`` attribute); ``None``: no table
-        (G41/G42 with a D word is then an error).
+        Tool table: tool number -> ``ToolSpec`` (or a radius [m], a mapping or an object
+        with ``radius_m`` and ``length_m``); ``None``: an empty table.
+    strict_tools
+        A tool the table lacks is an error (LinuxCNC with its table); otherwise it runs
+        with length and radius 0 and one warning per tool number (:mod:`.tools`).
+    allow_no_feed
+        A feed move with no feed rate ever set runs at the machine's axis limits with one
+        warning (a preview); otherwise it is an error, as on the control.
     dialect
         The :class:`~.dialect.Dialect` (or its name); ``None``: linuxcnc.
     params
         The parameter table shared with the front's reader (``None``: a private one).
     ignore_axes
         Axis letters (A, B, C, U, V, W) whose words are dropped with one warning each.
+    rotary_axes
+        Rotary axis letters (among A, B, C) the machine has: their words move them
+        (:mod:`.rotary`); other rotary words are refused (or ignored).
     """
 
     __slots__ = ('file', 'arc_tol', 'pos', 'motion', 'plane', 'scale', 'absolute',
@@ -78,13 +87,16 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
                  'comp_code', 'pending_lineno', 'tool_change', 'tools', 'tool_selected',
                  'tool_loaded', 'spindle', 'p_unit', 'dialect', 'src', 'io_lineno',
                  'warned', 'ignore_axes', 'rpm', 'polar_line', 'polar_inc',
-                 'arc_quick', 'nurbs', 'd_selected', 'feed_per_rev', 'on_tool')
+                 'arc_quick', 'nurbs', 'd_selected', 'feed_per_rev', 'on_tool',
+                 'allow_no_feed', 'user_m_lineno', 'rotary')
 
     def __init__(self, file: str, start: tuple[float, float, float],
                  arc_tolerance_m: float | None,
                  *, lines: Lines | None, home: tuple[float, float, float] | None = None,
                  tools: Mapping[int, object] | None = None, dialect: Dialect | None = None,
-                 params: ParamStore | None = None, ignore_axes: Iterable[str] = ()):
+                 params: ParamStore | None = None, ignore_axes: Iterable[str] = (),
+                 strict_tools: bool = False, allow_no_feed: bool = False,
+                 rotary_axes: Iterable[str] = ()):
         self.file = file
         self.arc_tol = None if arc_tolerance_m is None else float(arc_tolerance_m)
         # radius differences below this pass every arc check (motion)
@@ -110,7 +122,10 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         self.g_cache: dict[str | float, tuple[str, Any, int]] = {}
         self.g43_lineno = -1                # line of the last G43 (its H word is legal there)
         self.home = None if home is None else cast('Vec3', tuple(float(v) for v in home))
-        self.coords = Coords(tools=tools, home_m=self.home, params=params)
+        self.coords = Coords(tools=tools, home_m=self.home, params=params,
+                             strict_tools=strict_tools)
+        self.coords.on_missing_tool = self.missing_tool
+        self.allow_no_feed = bool(allow_no_feed)
         self.frame = self.coords.offset     # machine - program for absolute axis words
         self.rotated = False                # G10 L2 R: target() turns the whole point
         self.coord_line = -1                # line with coordinate codes to execute
@@ -123,7 +138,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         self.comp_code: int | None = None   # the G40/G41/G42(.1) of the pending line
         self.pending_lineno = -1            # line with work to do before its motion
         self.tool_change = False            # M6 on the pending line
-        self.tools = None if tools is None else self.coords.tools  # G10 L1 writes reach G41
+        self.tools = self.coords.tools      # the same table: G10 L1 writes reach G41
         self.tool_selected = 0              # T word
         self.tool_loaded = 0                # tool in the spindle (after M6); 0 = none
         self.on_tool = None                 # called with the tool loaded by M6 / M61
@@ -134,6 +149,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
             self.p_unit = 0.001
         self.src = None                     # the front's current Block (None: plain lines)
         self.io_lineno = -1                 # line with an I/O M code (its P/Q/E/L words)
+        self.user_m_lineno = -1             # line with a user M code M100-M199 (its P/Q)
         self.warned: set[str] = set()       # warnings given once
         self.ignore_axes = frozenset(ignore_axes)   # axis letters dropped with a warning
         self.rpm = 0.0                      # S word (spindle speed, rev/min)
@@ -141,6 +157,8 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         self.polar_inc = (0.0, 0.0)
         self.d_selected: int | None = None  # Fanuc/Haas: D chosen on an earlier line
         self.nurbs = NurbsState()           # G5.x control points and modes (splines.py)
+        rotary = frozenset(rotary_axes)     # rotary axes of the machine (rotary.py)
+        self.rotary = RotaryAxes(rotary) if rotary else None
 
     # -- errors ---------------------------------------------------------------------------
     def fail(self, msg: str, letter: str, *, value: float | None = None,
@@ -155,12 +173,25 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         column, text = locate_word(code, letter, value=value, nth=nth)
         raise GcodeError(msg, file=file, line=line, column=column, text=text[:60])
 
+    def missing_tool(self, number: int) -> None:
+        """A tool the table lacks runs with length and radius 0: one warning per number."""
+        key = f'tool {number}'
+        if key not in self.warned:
+            self.warned.add(key)
+            self.warnings.append(f'{self.file}:{self.lineno}: tool {number} is not in the tool '
+                                 'table: it runs with length and radius 0 (give it under '
+                                 'gcode.tools of the machine config or with --tool; '
+                                 '--strict-tools refuses it)')
+
     def end_block(self) -> None:
         """After a block of the front's reader: its markers must not reach the next block,
         which may carry the same (main-program) line number."""
         self.pending_lineno = self.coord_line = self.g43_lineno = self.io_lineno = -1
+        self.user_m_lineno = -1
         self.polar_line = -1
         self.nurbs.motion_line = self.nurbs.end_line = -1
+        if self.rotary is not None:
+            self.rotary.line = self.rotary.g53_line = -1
 
     def abandon_line(self) -> None:
         """After an error in a line that the run goes on from (``GcodeRun(max_errors=...)``):
@@ -189,6 +220,23 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         """First axis letter present on the line, else ``G`` (for error places: a full circle
         may be written without axis words)."""
         return next((a for a in _AXIS_LETTERS if a in d), 'G')
+
+    def refuse_rotary(self, what: str) -> None:
+        """Fail at the line's first rotary word if it has one (``what`` cannot take it)."""
+        rot = self.rotary
+        if rot is not None and rot.pending(self.lineno):
+            self.fail(f'a rotary axis word in {what} is not supported', rot.first_letter())
+
+    def rotary_move(self, m: Move) -> Move:
+        """``m`` with the rotary axes turning to the line's rotary words (if any); cutter
+        radius compensation cannot take them."""
+        rot = self.rotary
+        if rot is None or not rot.pending(self.lineno):
+            return m
+        if self.comp.active:
+            self.refuse_rotary('cutter radius compensation (G41/G42)')
+        return rot.move(m, rot.target(self.lineno, self.coord, self.absolute),
+                        inverse_time=self.inverse_time, feed=self.feed, scale=self.scale)
 
     # -- one line -------------------------------------------------------------------------
     def line(self, words: Sequence[tuple[str, str | float]]) -> None:
@@ -224,6 +272,8 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
             self.dwell_x(d)
         mode = self.motion
         has_axes = 'X' in d or 'Y' in d or 'Z' in d
+        if self.rotary is not None and not has_axes:
+            has_axes = self.rotary.pending(self.lineno)
         is_arc = mode == 2 or mode == 3
         if dwell or g64 or not d.keys() <= (_ARC_WORDS if is_arc and has_axes
                                             else _STRAIGHT_WORDS):
@@ -238,6 +288,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
                 self.fail('axis words but no motion mode (G0/G1/G2/G3) is active',
                           self.first_axis(d))
             if mode > 3:
+                self.refuse_rotary('a canned cycle, spline, probe or tap')
                 if mode < 60:
                     self.spline(d, mode, g9)
                 elif mode < 100:
@@ -279,8 +330,11 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
                 self.feed = self.feed_per_rev * self.rpm / 60.0 or None
         if self.io_lineno == self.lineno:
             d = {k: v for k, v in d.items() if k not in 'PQEL'}    # the I/O M code's words
-        elif 'E' in d:
-            self.fail('E word with no M66/M67/M68 to use it', 'E')
+        else:
+            if self.user_m_lineno == self.lineno:
+                d = {k: v for k, v in d.items() if k not in 'PQ'}   # the user program's
+            if 'E' in d:
+                self.fail('E word with no M66/M67/M68 to use it', 'E')
         if 'D' in d and not (self.pending_lineno == self.lineno
                              and self.comp_code not in (None, 40)):
             if not self.dialect.modal_d:

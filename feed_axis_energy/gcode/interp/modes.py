@@ -9,7 +9,7 @@ import math
 from typing import Any, cast, NoReturn, TYPE_CHECKING
 
 from .codes import ALLOWED_LETTERS, G_CODES, G_UNSUPPORTED, M_CODES, UNSUPPORTED_LETTERS
-from ..dialect import CONTROL_MODE_CODES
+from ..dialect import CONTROL_MODE_CODES, USER_M_CODES
 from ..read.lexer import blank_comments, locate_word
 from ...errors import GcodeError
 from ..program import Move, MoveKind
@@ -98,6 +98,10 @@ class ModesMixin(InterpreterState):
     def harmless_m(self, value: float) -> None:
         """An M code outside M_CODES: accepted if the dialect calls it harmless I/O."""
         code = int(value)
+        if code == value and USER_M_CODES[0] <= code <= USER_M_CODES[1] \
+                and self.dialect.user_m:
+            self.user_m(code)
+            return
         if code != value or code not in self.dialect.harmless_m:
             self.fail(f'M{value:g} is not supported (not a machine function the '
                       f'{self.dialect.name} dialect lets pass; see --dialect)', 'M',
@@ -109,6 +113,20 @@ class ModesMixin(InterpreterState):
         elif 62 <= code <= 68 and self.comp.active:
             self.fail('Cannot set motion output with cutter radius compensation on', 'M',
                       value=value)
+
+    def user_m(self, code: int) -> None:
+        """M100-M199 (``Dialect.user_m``): LinuxCNC runs the user's program ``M1nn`` from
+        its ``USER_M_PATH`` with the line's P and Q as arguments and waits for it; it moves
+        no axis the interpreter knows of, so it is no motion here, with one warning per
+        code."""
+        self.user_m_lineno = self.lineno   # its P and Q words are the program's arguments
+        key = f'M{code}'
+        if key not in self.warned:
+            self.warned.add(key)
+            self.warnings.append(f'{self.file}:{self.lineno}: M{code} is a user M code '
+                                 f'(LinuxCNC runs the program M{code} from USER_M_PATH): '
+                                 'no motion is simulated for it, and its run time is not '
+                                 'counted')
 
     def stop(self, actions: list[str]) -> None:
         """STOP moves for M0/M1/M2/M30; M2/M30 end the program."""
@@ -129,6 +147,10 @@ class ModesMixin(InterpreterState):
             self.polar(d)
         for letter in list(d):
             if letter in ALLOWED_LETTERS:
+                continue
+            if self.rotary is not None and letter in self.rotary.axes:
+                self.rotary.word(letter, self.num(letter, d.pop(letter)), self.lineno,
+                                 self.fail)
                 continue
             if letter in self.ignore_axes:
                 del d[letter]

@@ -213,6 +213,8 @@ class MotionMixin(InterpreterState):
                 # The checking (and absolute-centre) path.
                 ca, cb = self.centre_from_offsets(d, start, a, b, n)
         m = self.arc_from(start, end, ca, cb, turn, self.feed, g9, explicit, d)
+        if self.rotary is not None:
+            m = self.rotary_move(m)
         if self.routing:
             self.route(m)
         else:
@@ -356,13 +358,25 @@ class MotionMixin(InterpreterState):
             if feed == 0.0:
                 self.fail('F0 in G93: the move would never finish', 'F')
             return length * cast(float, feed) / 60.0     # set_feed gave it with the F word
-        if feed == 0.0 and 'F' in d:
-            self.fail('feed rate is zero', 'F')
+        if feed == 0.0:
+            # an F0 in force: LinuxCNC refuses it, its preview too ("Cannot do G1 with zero
+            # feed rate"), whatever allow_no_feed says
+            if 'F' in d:
+                self.fail('feed rate is zero', 'F')
+            self.fail_motion('feed move with the feed rate F0 in force (LinuxCNC: Cannot do '
+                             'G1 with zero feed rate)', explicit, d)
+        if not self.allow_no_feed:
+            # no F since the start (or since G93/G95 ended): LinuxCNC's control, Fanuc
+            # (alarm PS0011) and grbl (error 22) refuse the move at run time
+            self.fail_motion('feed move with no feed rate (F) set: the control refuses it '
+                             '(LinuxCNC: Cannot do G1 with zero feed rate); give an F word '
+                             'before it, or --allow-no-feed to preview it at the machine\'s '
+                             'axis limits', explicit, d)
         if 'no feed' not in self.warned:
             self.warned.add('no feed')
             self.warnings.append(f'{self.file}:{self.lineno}: feed move with no feed rate (F) '
-                                 "in force: it runs at the machine's axis limits (LinuxCNC "
-                                 'refuses this; its preview accepts it)')
+                                 "set: it runs at the machine's axis limits (--allow-no-feed; "
+                                 'the control refuses this, LinuxCNC\'s preview accepts it)')
         return _INF
 
     def fail_motion(self, msg: str, explicit: bool, d: dict[str, str | float]) -> NoReturn:
@@ -377,6 +391,8 @@ class MotionMixin(InterpreterState):
         start = self.pos
         end = self.target(d)
         m = self.straight_from(start, end, mode, self.feed, g9, explicit, d)
+        if self.rotary is not None:
+            m = self.rotary_move(m)
         if self.routing:
             self.route(m)
         else:
@@ -409,8 +425,12 @@ class MotionMixin(InterpreterState):
 
     def stand_still(self, d: dict[str, str | float], mode: int, g9: bool) -> None:
         """G0/G1 without axis words: LinuxCNC issues a move to where the tool is (a G1
-        without any feed rate is let pass without one)."""
+        without any feed rate is let pass without one under ``allow_no_feed``, as the
+        preview does; the control refuses it as any G1 without a feed rate)."""
         if mode == 1 and (self.feed is None or self.inverse_time):
+            if (self.feed is None and not self.inverse_time and self.feed_per_rev is None
+                    and not self.allow_no_feed):
+                self.feed_for(d, 0.0, True)         # raises
             return
         if self.series:
             self.end_series()

@@ -23,6 +23,7 @@ from ..read.block import Block
 from ..settings import ToolSpec
 from .coordstate import Vec3
 from .coords import Coords
+from .rotary import RotaryAxes
 
 __all__ = ['InterpreterState', 'Lines']
 
@@ -73,7 +74,8 @@ class InterpreterState:
     comp_code: int | None
     pending_lineno: int
     tool_change: bool
-    tools: dict[int, ToolSpec] | None
+    tools: dict[int, ToolSpec]
+    allow_no_feed: bool
     tool_selected: int
     tool_loaded: int
     on_tool: Callable[[int], None] | None
@@ -82,6 +84,7 @@ class InterpreterState:
     dialect: Dialect
     src: Block | None
     io_lineno: int
+    user_m_lineno: int
     warned: set[str]
     ignore_axes: frozenset[str]
     rpm: float
@@ -89,6 +92,7 @@ class InterpreterState:
     polar_inc: tuple[float, float]
     d_selected: int | None
     nurbs: NurbsState
+    rotary: RotaryAxes | None
 
     # interpreter.py
     @abstractmethod
@@ -100,6 +104,15 @@ class InterpreterState:
 
     @abstractmethod
     def first_axis(self, d: dict[str, str | float]) -> str: ...
+
+    @abstractmethod
+    def missing_tool(self, number: int) -> None: ...
+
+    @abstractmethod
+    def refuse_rotary(self, what: str) -> None: ...
+
+    @abstractmethod
+    def rotary_move(self, m: Move) -> Move: ...
 
     # comp.py
     @abstractmethod

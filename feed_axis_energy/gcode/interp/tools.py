@@ -2,8 +2,18 @@
 length offsets G43/G43.1/G43.2/G49 and the cutter radius for G41/G42.
 
 LinuxCNC 2.9 semantics (``interp_convert.cc``: ``convert_setup_tool``,
-``convert_tool_length_offset``). A tool the table lacks is an error at its H/D/P word, as in
-LinuxCNC; T0/H0 is "no tool" (length and radius 0).
+``convert_tool_length_offset``); T0/H0 is "no tool" (length and radius 0).
+
+A tool the table lacks (the machine's table is rarely at hand when a program is planned):
+
+* by default it has length and radius 0 and the interpreter warns once per tool number
+  (``on_missing_tool``), where its data are used: G43/G43.2 H (or the loaded tool),
+  G41/G42 D (or the loaded tool). G10 L1/L10/L11 on such a tool adds it to the table,
+  starting from length and radius 0. A T word, M6 and M61 Q use no data and do not warn.
+* with ``strict_tools`` (``--strict-tools``, ``gcode.strict_tools``) it is an error, as in
+  LinuxCNC with its tool table: at the T word (LinuxCNC: "Requested tool N not found in
+  the tool table"), at M61's Q, at the H or D word (at the G word when the loaded tool is
+  meant) and at G10's P.
 """
 from __future__ import annotations
 
@@ -18,7 +28,7 @@ if TYPE_CHECKING:
 else:
     CoordsState = object        # the declarations are for the type checker only
 
-__all__ = ['ToolTable', 'tool_spec', 'MAX_OFFSET_M']
+__all__ = ['ToolTable', 'tool_spec', 'MAX_OFFSET_M', 'missing_tool_message']
 
 Vec3 = tuple[float, float, float]
 
@@ -29,6 +39,13 @@ MAX_OFFSET_M = 1.0e3
 an endless move or overflow to inf); :mod:`.coords` uses it for every offset."""
 G59_3_Z_PARAM = 5383
 """Z of coordinate system 9 (G59.3), the fixture G10 L11 measures against."""
+
+
+def missing_tool_message(number: int) -> str:
+    """The error of a tool the table lacks under ``strict_tools``."""
+    return (f'tool {number} is not in the tool table (add it under gcode.tools of the machine '
+            'config or with --tool; without --strict-tools it would run with length and '
+            'radius 0)')
 
 
 def tool_spec(entry: object) -> ToolSpec:
@@ -69,8 +86,7 @@ class ToolTable(CoordsState):
                  f'{MAX_TOOL_NUMBER})', 'P')
         old = self.tools.get(number)
         if old is None:
-            fail(f'tool {number} is not in the tool table (add it under gcode.tools of the '
-                 'machine config)', 'P')
+            old = self.missing_tool(number, letter='P', fail=fail)
         for axis in ('X', 'Y'):
             if axis in values:
                 fail(f'tool {axis} offsets (lathe tools) are not supported', axis)
@@ -115,9 +131,24 @@ class ToolTable(CoordsState):
             return ToolSpec()
         spec = self.tools.get(number)
         if spec is None:
-            fail(f'tool {number} is not in the tool table (add it under gcode.tools of the '
-                 'machine config)', letter)
+            return self.missing_tool(number, letter=letter, fail=fail)
         return spec
+
+    def missing_tool(self, number: int, *, letter: str, fail: Fail = raise_unplaced) -> ToolSpec:
+        """Tool ``number``, which the table lacks: length and radius 0 (``on_missing_tool``
+        is told), or with ``strict_tools`` the error at ``letter``."""
+        if self.strict_tools:
+            fail(missing_tool_message(number), letter)
+        if self.on_missing_tool is not None:
+            self.on_missing_tool(number)
+        return ToolSpec()
+
+    def check_tool_number(self, number: int, *, letter: str,
+                          fail: Fail = raise_unplaced) -> None:
+        """A T word or M61 Q: with ``strict_tools`` a tool the table lacks is an error (as
+        LinuxCNC refuses to select it); otherwise nothing (no data of it are used yet)."""
+        if self.strict_tools and number != 0 and number not in self.tools:
+            fail(missing_tool_message(number), letter)
 
     def cutter_radius(self, d_word: float | None, *, fail: Fail = raise_unplaced) -> float:
         """Radius [m] for G41/G42 with the line's D word (absent: the loaded tool)."""

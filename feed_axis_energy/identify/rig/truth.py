@@ -1,4 +1,4 @@
-"""Truth model and instrument of the virtual test rig (:mod:`.rig`): one run, in memory.
+"""Truth model and instrument of the virtual test rig (:mod:`.campaign`): one run, in memory.
 
 Truth = the declared machine (its loss model, its braking rule) + catalog effects the
 analysed model does not declare (:mod:`.effects`) + optionally one effect that is *not* in
@@ -17,7 +17,7 @@ after. The instrument then
 * adds Gaussian noise (``noise_w``, independent per axis and sample);
 * quantises to ``quantum_w``.
 
-:mod:`.rig` writes campaigns of such runs to disk.
+:mod:`.campaign` writes campaigns of such runs to disk.
 """
 from __future__ import annotations
 
@@ -27,14 +27,14 @@ import math
 
 import numpy as np
 
-from ..effects import EffectState, get_effect
-from ..physics import state_from_simulation
-from ..errors import ConfigError
-from ..gcode import parse_gcode
-from ..machine import Machine
-from ..measured import interval_average
-from ..plan import Motion
-from ..sim import simulate_motion, simulate_program, SimulationResult
+from ...effects import EffectState, get_effect
+from ...physics import state_from_simulation
+from ...errors import ConfigError
+from ...gcode import parse_gcode
+from ...machine import Machine
+from ...measured import interval_average
+from ...plan import Motion
+from ...sim import simulate_motion, simulate_program, SimulationResult
 
 __all__ = ['OUTSIDE_KINDS', 'EffectSpec', 'Instrument', 'RigRun', 'parse_effects',
            'outside_power_w', 'truth_power_w', 'instrument_record', 'simulate_run']

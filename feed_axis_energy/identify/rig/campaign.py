@@ -1,7 +1,7 @@
 """Virtual test rig: "measured" campaigns made from a truth model, for testing the analysis.
 
 The truth model and the instrument that records it (one run, in memory) are in
-:mod:`.rigtruth`; this module builds campaigns of such runs (one per feed and load) and
+:mod:`.truth`; this module builds campaigns of such runs (one per feed and load) and
 writes them to disk.
 
 Output directory (:func:`make_campaign`)::
@@ -20,7 +20,7 @@ byte-identical files.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 import json
 import math
 from pathlib import Path
@@ -30,11 +30,11 @@ from typing import Any, Callable
 import numpy as np
 import yaml
 
-from ..effects import get_effect
-from ..errors import ConfigError
-from ..machine import load_machine
-from ..outputs import marked_or_empty, staged_directory
-from .rigtruth import EffectSpec, Instrument, OUTSIDE_KINDS, RigRun, simulate_run
+from ...effects import get_effect
+from ...errors import ConfigError
+from ...machine import load_machine
+from ...outputs import marked_or_empty, staged_directory
+from .truth import EffectSpec, Instrument, OUTSIDE_KINDS, RigRun, simulate_run
 
 __all__ = ['PAPER_LOADS_KG', 'PAPER_FEEDS_MM_S', 'CLOCK_START_MS', 'RigConfig', 'paper_scenario',
            'stroke_program', 'make_campaign']
@@ -75,6 +75,10 @@ class RigConfig:
     program
         ``program(feed_mm_s) -> NC text`` of each feed's run; ``None``: the reciprocating
         stroke on the machine's load axis (``stroke_mm``, ``cycles``, ``dwell_s``).
+    record_window_s
+        ``(late, early)`` [s]: the meter started ``late`` after the record's start and
+        stopped ``early`` before its end (file times keep their values), so a record can
+        miss the program's non-periodic start and end; ``(0, 0)``: the whole record.
     """
 
     machine: Path
@@ -91,6 +95,14 @@ class RigConfig:
     tail_s: float = 1.0
     bags: bool = False
     program: Callable[[float], str] | None = None
+    record_window_s: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        late, early = self.record_window_s
+        if not (math.isfinite(late) and math.isfinite(early) and late >= 0.0
+                and early >= 0.0):
+            msg = f'record window must be two finite numbers >= 0 s, got {self.record_window_s}'
+            raise ConfigError(msg, key='record_window_s')
 
 
 def paper_scenario(machine: str | Path, *, seed: int = 0, mu: float = 0.1,
@@ -126,6 +138,23 @@ def _prepare_out(out: Path) -> None:
     (out / MARKER).write_text('written by the feed_axis_energy virtual rig\n')
 
 
+def _trim(run: RigRun, window: tuple[float, float], name: str) -> RigRun:
+    """The samples of ``run`` the meter recorded within ``window`` (late, early) [s]."""
+    late, early = window
+    if late == 0.0 and early == 0.0:
+        return run
+    keep = (run.stamps_s >= run.stamps_s[0] + late) & (run.stamps_s <= run.stamps_s[-1] - early)
+    if int(keep.sum()) < 2:
+        msg = (f'run {name}: the record window ({late:g} s late, {early:g} s early) leaves '
+               f'fewer than 2 of its {run.stamps_s.size} samples')
+        raise ConfigError(msg, key='record_window_s')
+    # file time starts at the first recorded sample (what a reader of the file sees): the
+    # record's offset moves with it
+    first = float(run.stamps_s[keep][0])
+    return replace(run, stamps_s=run.stamps_s[keep] - first, measured_w=run.measured_w[keep],
+                   offset_s=run.offset_s - first)
+
+
 def _write_csv(path: Path, run: RigRun, axes: tuple[str, ...]) -> None:
     motion_t = run.result.motion.t
     sim_t = run.stamps_s - run.offset_s
@@ -146,7 +175,7 @@ def _write_csv(path: Path, run: RigRun, axes: tuple[str, ...]) -> None:
 
 
 def _write_bag(path: Path, run: RigRun, axes: tuple[str, ...]) -> None:
-    from ..record import bagio, StreamBagWriter
+    from ...record import bagio, StreamBagWriter
     power = run.measured_w
     total = power.sum(axis=1)
     both = np.column_stack([power, total])
@@ -241,6 +270,7 @@ def _write_campaign(out: Path, config: RigConfig, machine,
                                outside=config.outside, tail_s=config.tail_s, rng=rng,
                                file=program_rel)
             axes = run.result.power.axes
+            run = _trim(run, config.record_window_s, name)
             data_rel = f'runs/{name}.csv'
             _write_csv(out / data_rel, run, axes)
             if config.bags:
@@ -248,7 +278,7 @@ def _write_campaign(out: Path, config: RigConfig, machine,
             if progress is not None:
                 progress((len(runs) + 1) / (len(config.feeds_mm_s) * len(config.loads_kg)))
             runs.append({'name': name, 'load_kg': float(load), 'feed_mm_s': float(feed),
-                         'offset_s': offset, 'program': program_rel, 'data': data_rel,
+                         'offset_s': run.offset_s, 'program': program_rel, 'data': data_rel,
                          'role': 'calibrate' if i % 2 == 0 else 'validate',
                          'notes': f'feed {feed:g} mm/s, load {load:g} kg'})
     manifest = out / 'manifest.yaml'
