@@ -41,7 +41,8 @@ setup(
     ],
     install_requires=INSTALL_REQUIRES,
     # pyarrow: only simulate --parquet (a clear error without it)
-    extras_require={'ros': ROS_WHEELS, 'parquet': ['pyarrow']},
+    # cell: the OPC UA server and MQTT bridge of the machine cell (feed_axis_energy/bridge)
+    extras_require={'ros': ROS_WHEELS, 'parquet': ['pyarrow'], 'cell': ['asyncua', 'paho-mqtt']},
     python_requires='>=3.10',
     zip_safe=False,
     maintainer='feed_axis_energy maintainers',

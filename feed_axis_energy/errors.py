@@ -5,7 +5,8 @@ import os
 from typing import Any
 
 __all__ = ['FeedAxisError', 'GcodeError', 'ConfigError', 'DataError', 'PlanningError',
-           'OutputError', 'JobError', 'describe', 'shorten', 'shorten_path', 'SHOWN_CHARS']
+           'OutputError', 'JobError', 'RequestError', 'describe', 'shorten', 'shorten_path',
+           'SHOWN_CHARS']
 
 SHOWN_CHARS = 60
 """Quoted input in an error message is cut to about this many characters."""
@@ -205,3 +206,27 @@ class JobError(FeedAxisError):
         self.reason = message
         who = f'job {shorten(job_id)!r}: ' if job_id else ''
         super().__init__(f'{who}{field}: {message}')
+
+
+class RequestError(FeedAxisError):
+    """A request from a cell client (an OPC UA method call, an MQTT message) that is refused.
+
+    Parameters
+    ----------
+    message
+        What is wrong and what was expected.
+    request
+        The request (``StartJob``, ``AbortJob``, an MQTT topic).
+    field
+        The argument or key at fault (``JobId``, ``LoadKg``, ``value``).
+    code
+        A short fixed word for counting refusals by kind (``bad_json``, ``too_large``).
+    """
+
+    def __init__(self, message: str, *, request: str, field: str = '', code: str = ''):
+        self.request = request
+        self.field = field
+        self.code = code
+        self.reason = message
+        where = f'{shorten(request)} {field}' if field else shorten(request)
+        super().__init__(f'{where}: {message}')

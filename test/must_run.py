@@ -1,16 +1,17 @@
 """Skips for a missing dependency, and the list of dependencies whose tests must not skip.
 
 Some tests need something outside the Python environment: LinuxCNC's reference interpreter,
-rclpy with loopback DDS, Chromium, the shared data. On a developer's machine they skip with a
-message when it is absent; on CI they must run. Every such skip goes through this module:
-:func:`skip`, :func:`skipif`, :func:`import_or_skip`, :func:`need_linuxcnc` and
-:func:`oracle_script` put the dependency's name into the skip reason (``[needs NAME] ...``),
-and ``test/conftest.py`` hands every skipped report to :func:`enforce`.
+rclpy with loopback DDS, Chromium, the shared data, the mosquitto MQTT broker. On a
+developer's machine they skip with a message when it is absent; on CI they must run. Every
+such skip goes through this module: :func:`skip`, :func:`skipif`, :func:`import_or_skip`,
+:func:`need_linuxcnc` and :func:`oracle_script` put the dependency's name into the skip
+reason (``[needs NAME] ...``), and ``test/conftest.py`` hands every skipped report to
+:func:`enforce`.
 
-``FAE_MUST_RUN=linuxcnc,rclpy,chromium,shared`` (set by ``.ci/run``) names the dependencies
-that must be there: a test that would skip for one of them fails instead, with the name of
-the missing dependency. An unknown name in the list is a usage error (a typo must not turn
-the rule off). Without the variable every such test skips, as before.
+``FAE_MUST_RUN=linuxcnc,rclpy,chromium,shared,mosquitto`` (set by ``.ci/run``) names the
+dependencies that must be there: a test that would skip for one of them fails instead, with
+the name of the missing dependency. An unknown name in the list is a usage error (a typo must
+not turn the rule off). Without the variable every such test skips, as before.
 
 Tests import it as ``import must_run`` (``test/`` is on ``sys.path`` through
 ``test/conftest.py``).
@@ -38,6 +39,7 @@ DEPENDENCIES = {
     'rclpy': 'rclpy with loopback DDS (the ROS 2 Python client library; test/nodes)',
     'chromium': 'Chromium, which renders the report pages (Debian package chromium)',
     'shared': 'the shared data (../shared beside the clone, or FAE_SHARED)',
+    'mosquitto': 'the mosquitto MQTT broker (Debian package mosquitto; test/bridge)',
 }
 """Name in ``FAE_MUST_RUN`` -> what it is (used in the failure message)."""
 

@@ -113,7 +113,7 @@ def test_an_unknown_name_is_a_usage_error(tmp_path):
 
 def test_the_list_parses():
     assert must_run.required({}) == frozenset()
-    assert must_run.required({must_run.ENV: 'linuxcnc, rclpy chromium,shared'}) == set(
+    assert must_run.required({must_run.ENV: 'linuxcnc, rclpy chromium,shared mosquitto'}) == set(
         must_run.DEPENDENCIES)
 
 
