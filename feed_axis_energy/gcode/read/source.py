@@ -17,8 +17,8 @@ import re
 
 from ...errors import GcodeError
 
-__all__ = ['decode_program', 'split_lines', 'read_program', 'find_subroutine_file',
-           'MAX_PROGRAM_BYTES', 'SUBROUTINE_SUFFIX']
+__all__ = ['decode_program', 'split_lines', 'read_program', 'read_program_bytes',
+           'find_subroutine_file', 'MAX_PROGRAM_BYTES', 'SUBROUTINE_SUFFIX']
 
 MAX_PROGRAM_BYTES = 2 * 1024 ** 3
 """Largest program or subroutine file read [bytes] (2 GiB); larger files are refused."""
@@ -106,16 +106,23 @@ def read_program(path: str | PathLike[str], *, file: str | None = None) -> str:
         larger than :data:`MAX_PROGRAM_BYTES`, or is not UTF-8.
     """
     name = str(path) if file is None else file
+    return decode_program(read_program_bytes(path, file=name), file=name)
+
+
+def read_program_bytes(path: str | PathLike[str], *, file: str) -> bytes:
+    """The bytes of a program file, at most :data:`MAX_PROGRAM_BYTES` (every dialect's reader
+    decodes them its own way); :class:`GcodeError` at line 0, column 0 naming ``file`` when
+    the file cannot be read or is larger."""
     try:
         with open(path, 'rb') as fh:
             data = fh.read(MAX_PROGRAM_BYTES + 1)
     except OSError as err:
         msg = f'cannot read the program: {err.strerror or err}'
-        raise GcodeError(msg, file=name, line=0, column=0) from err
+        raise GcodeError(msg, file=file, line=0, column=0) from err
     if len(data) > MAX_PROGRAM_BYTES:
         msg = f'program larger than {MAX_PROGRAM_BYTES // 1024 ** 2} MiB'
-        raise GcodeError(msg, file=name, line=0, column=0)
-    return decode_program(data, file=name)
+        raise GcodeError(msg, file=file, line=0, column=0)
+    return data
 
 
 def find_subroutine_file(name: str, *, program_dir: str | PathLike[str] | None,

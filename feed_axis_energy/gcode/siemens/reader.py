@@ -49,7 +49,7 @@ from .geometry import Geometry, Word, Words
 from .progfile import line_head, SiemensFile
 from .text import code_part, Scanner
 from ..read.block import Block
-from ..read.source import MAX_PROGRAM_BYTES
+from ..read.source import read_program_bytes
 from ...errors import GcodeError, shorten
 
 __all__ = ['SiemensReader', 'read_siemens_blocks', 'decode_siemens', 'read_siemens_program',
@@ -122,16 +122,7 @@ def read_siemens_program(path: str | PathLike[str], *, file: str | None = None) 
 
 
 def _read(path: Path, name: str) -> str:
-    try:
-        with open(path, 'rb') as fh:
-            data = fh.read(MAX_PROGRAM_BYTES + 1)
-    except OSError as err:
-        msg = f'cannot read the program: {err.strerror or err}'
-        raise GcodeError(msg, file=name, line=0, column=0) from err
-    if len(data) > MAX_PROGRAM_BYTES:
-        msg = f'program larger than {MAX_PROGRAM_BYTES // 1024 ** 2} MiB'
-        raise GcodeError(msg, file=name, line=0, column=0)
-    return decode_siemens(data)
+    return decode_siemens(read_program_bytes(path, file=name))
 
 
 class _Level:
