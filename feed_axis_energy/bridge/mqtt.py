@@ -123,6 +123,7 @@ class MqttBridge:
         """Messages paho refused (queue full, not connected for QoS 0)."""
         self._log = BoundedLog(_log)
         self._connected = threading.Event()
+        self._subscribed = threading.Event()    # the broker confirmed measured/# (SUBACK)
         self._connect_error = ''
         self._unsubscribe: Callable[[], None] | None = None
         client_id = self.settings.client_id or f'feed_axis_energy-{self.topics.machine}'
@@ -134,6 +135,7 @@ class MqttBridge:
         client.will_set(self.topics.status, status_payload(online=False, stamp_ns=0), qos=1,
                         retain=True)
         client.on_connect = self._on_connect
+        client.on_subscribe = self._on_subscribe
         client.on_disconnect = self._on_disconnect
         client.on_message = self._on_message
         client.on_socket_open = _no_delay
@@ -172,6 +174,13 @@ class MqttBridge:
             reason = self._connect_error or f'no answer within {timeout_s:g} s'
             raise FeedAxisError(f'the MQTT broker at {where} did not accept the bridge: '
                                 f'{reason}')
+        # measured data published once start() has returned reach the callback: the broker
+        # has confirmed the subscription (without it, the first messages could be lost)
+        if self._subscribe_measured and not self._subscribed.wait(timeout_s):
+            self._client.disconnect()
+            self._client.loop_stop()
+            raise FeedAxisError(f'the MQTT broker at {where} did not confirm the subscription '
+                                f'to {self.topics.measured_filter} within {timeout_s:g} s')
         if self.service is not None:
             self._unsubscribe = self.service.subscribe(self._on_event)
 
@@ -208,9 +217,18 @@ class MqttBridge:
         self._publish_result()
         self._connected.set()
 
+    def _on_subscribe(self, client: paho.Client, userdata: Any, mid: int, reasons: Any,
+                      properties: Any) -> None:
+        if any(getattr(r, 'is_failure', False) for r in reasons):
+            _log.error('the MQTT broker refused the subscription to %s: %s',
+                       self.topics.measured_filter, reasons)
+            return
+        self._subscribed.set()
+
     def _on_disconnect(self, client: paho.Client, userdata: Any, flags: Any, reason: Any,
                        properties: Any) -> None:
         self._connected.clear()
+        self._subscribed.clear()
         if reason.is_failure:
             _log.warning('lost the MQTT broker (%s); paho reconnects', reason)
 
