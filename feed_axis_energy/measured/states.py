@@ -103,11 +103,31 @@ def state_labels(t_sim: np.ndarray, vel: np.ndarray, tau: np.ndarray, *,
     lo = np.clip(np.searchsorted(t_sim, tau - period_s), 0, t_sim.size - 1)
     hi = np.clip(np.searchsorted(t_sim, tau + period_s, side='right'), 1, t_sim.size)
     hi = np.maximum(hi, lo + 1)
-    near = np.array([amax[a:b].max() for a, b in zip(lo, hi)]) if tau.size else np.zeros(0)
+    near = _range_max(amax, lo, hi)
     labels = np.full(tau.shape, STATES.index('steady'))
     labels[near > accel_m_s2] = STATES.index('transient')
     labels[(at < still_m_s) & (near <= accel_m_s2)] = STATES.index('standstill')
     return labels
+
+
+def _range_max(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """``max(values[lo[i]:hi[i]])`` for nondecreasing ``lo < hi`` (sliding windows), O(n).
+
+    The window edges cut ``values`` into elementary pieces whose maxima are one
+    ``maximum.reduceat``; a window is a run of consecutive pieces (a few: the edges inside it
+    belong to its neighbours), combined piece by piece for all windows at once.
+    """
+    if lo.size == 0:
+        return np.zeros(0)
+    edges = np.union1d(lo, hi)
+    edges = edges[edges < values.size]
+    piece = np.maximum.reduceat(values, edges)
+    first = np.searchsorted(edges, lo)
+    stop = np.searchsorted(edges, hi)
+    out = piece[first].copy()
+    for k in range(1, int(np.max(stop - first))):
+        np.maximum(out, piece[np.minimum(first + k, stop - 1)], out=out)
+    return out
 
 
 def residual_by_state(labels: np.ndarray, residual: np.ndarray) -> tuple[StateResidual, ...]:
