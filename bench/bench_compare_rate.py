@@ -177,7 +177,8 @@ def main() -> int:
         truth = PAD_S + args.offset_ms / 1e3      # the record starts PAD_S before the program
         metrics = r['metrics']['total']
         line += (f'  offset {off:+.4f} s (error {1e3 * (off - truth):+.3f} ms, '
-                 f'{r["offset"]["status"]}, drift {r["offset"]["drift_ppm"]:+.0f} ppm)  energy error {metrics["energy_error_pct"]:+.3f} %'
+                 f'{r["offset"]["status"]}, drift {r["offset"]["drift_ppm"]:+.0f} ppm)  '
+                 f'energy error {metrics["energy_error_pct"]:+.3f} %'
                  f'  RMSE {metrics["rmse_w"]:.3f} W')
         if first is None:
             first = (wall, cpu)

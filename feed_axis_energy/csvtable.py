@@ -22,7 +22,7 @@ BLOCK_ROWS = 65_536
 """Data rows per block of :func:`iter_csv_blocks`: bounds the text held at once."""
 
 
-def iter_csv_blocks(path: Path, *, block_rows: int = BLOCK_ROWS
+def iter_csv_blocks(path: Path, *, block_rows: int | None = None
                     ) -> Iterator[tuple[list[str], list[list[str]], np.ndarray]]:
     """Read a CSV file with a header line block by block: memory bounded by the block.
 
@@ -35,7 +35,8 @@ def iter_csv_blocks(path: Path, *, block_rows: int = BLOCK_ROWS
     header, rows, numbers
         The stripped header cells (the same list every time), up to ``block_rows`` data rows
         as lists of strings, and each row's 1-based data-row number as counted in the file
-        (row 1 is the first line after the header). At least one block.
+        (row 1 is the first line after the header). At least one block. ``block_rows``
+        defaults to :data:`BLOCK_ROWS`.
 
     Raises
     ------
@@ -44,6 +45,7 @@ def iter_csv_blocks(path: Path, *, block_rows: int = BLOCK_ROWS
         wrong width.
     """
     file = str(path)
+    block_rows = BLOCK_ROWS if block_rows is None else max(1, int(block_rows))
     try:
         with open(path, newline='', encoding='utf-8-sig') as fh:
             reader = csv.reader(fh)

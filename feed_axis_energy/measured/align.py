@@ -33,8 +33,7 @@ __all__ = ['DRIFT_MIN_DURATION_S', 'STAMPS', 'OffsetResult', 'align_simulated',
 _MAX_LAG_STEPS = 100_000
 _CHUNK_ELEMENTS = 2_000_000
 _EVAL_CHUNK = 1 << 17   # times evaluated at once: bounds the temporaries of an average
-_DIRECT_SHIFTS = 64     # sliding dot products this short are computed directly
-_DIRECT_PRODUCTS = 4_000_000   # ... as are those of at most this many multiplications
+_DIRECT_SHIFTS = 64     # sliding dot products of this few shifts are computed directly
 _FFT_BLOCK = 1 << 16    # measured samples per FFT block of a long sliding dot product
 _DIRECT_PRODUCTS_MAX = 400_000_000   # sample-lag products of a lag grid on irregular stamps
 STAMPS = ('end', 'centre', 'start')
@@ -114,54 +113,73 @@ class _Prefix:
 
     The running integral at the samples is one cumulative sum; an integral up to any time
     is then that sum plus the part of one segment, so averaging over many windows (every
-    lag of an offset search) costs O(1) per window instead of a pass over the signal.
-    Evaluations run in chunks of :data:`_EVAL_CHUNK` times, so their temporaries stay
-    bounded however long the record is.
+    lag of an offset search) costs O(1) per window instead of a pass over the signal. The
+    segment of a time is found by arithmetic within runs of equal time steps (a simulation
+    at its rate is a few such runs: the planner's phase ends break them), else by numpy's
+    interpolation of the sample index. Construction and evaluations run in chunks of
+    :data:`_EVAL_CHUNK` samples, so their temporaries stay bounded however long the record.
     """
 
     def __init__(self, t: np.ndarray, y: np.ndarray):
         self.t = t
         self.y = y
-        dt = np.diff(t)
-        seg = 0.5 * (y[1:] + y[:-1]) * (dt if y.ndim == 1 else dt[:, None])
-        self.big_f = np.concatenate([np.zeros((1,) + y.shape[1:]), np.cumsum(seg, axis=0)])
-        # a uniform time base (the simulation's rate) finds segments by arithmetic
-        step = float(t[-1] - t[0]) / (t.size - 1)
-        self.step = (step if step > 0.0 and float(np.max(np.abs(dt - step))) <= 1e-6 * step
-                     else 0.0)
+        m = t.size
+        self.big_f = np.empty((m,) + y.shape[1:])
+        self.big_f[0] = 0.0
+        breaks: list[np.ndarray] = []
+        last_dt = None
+        for a in range(0, m - 1, _EVAL_CHUNK):
+            b = min(a + _EVAL_CHUNK, m - 1)
+            dt = t[a + 1:b + 1] - t[a:b]
+            seg = 0.5 * (y[a + 1:b + 1] + y[a:b]) * (dt if y.ndim == 1 else dt[:, None])
+            seg[0] += self.big_f[a]         # carried: the same sums as one cumulative sum
+            np.cumsum(seg, axis=0, out=self.big_f[a + 1:b + 1])
+            prev = np.concatenate([[dt[0] if last_dt is None else last_dt], dt[:-1]])
+            breaks.append(a + np.flatnonzero(np.abs(dt - prev) > 1e-9 * prev))
+            last_dt = dt[-1]
+        starts = np.unique(np.concatenate([[0]] + breaks)).astype(np.intp)
         self.index: np.ndarray | None = None
+        self.run_start = self.run_t = self.run_step = self.run_last = np.zeros(0)
+        if starts.size <= max(1, m // 16):
+            ends = np.append(starts[1:], m - 1)        # one past each run's last segment
+            self.run_start = starts
+            self.run_t = t[starts]
+            self.run_step = (t[ends] - t[starts]) / (ends - starts)
+            self.run_last = ends - 1
+        else:
+            self.index = np.arange(m, dtype=np.float64)
 
     def _segment(self, tau: np.ndarray) -> np.ndarray:
-        """Index ``i`` of the segment ``[t[i], t[i+1])`` holding each ``tau``, clipped.
+        """Index ``i`` of the segment ``[t[i], t[i+1])`` holding each finite ``tau``, clipped.
 
-        A guess from the time base (arithmetic on a uniform one; else numpy's interpolation,
-        whose search starts from the previous result, O(1) for increasing times) is
-        corrected by one sample either way and checked; a guess that fails the check falls
-        back to a binary search.
+        Rounding may give the neighbouring segment for a ``tau`` within a rounding error of
+        a sample time; the running integral is continuously differentiable there, so the
+        result is the same to rounding (:meth:`_integral` checks the rest).
         """
-        t, last = self.t, self.t.size - 2
-        if self.step > 0.0:
-            x = (tau - t[0]) / self.step
-        else:
-            if self.index is None:
-                self.index = np.arange(t.size, dtype=np.float64)
-            x = np.interp(tau, t, self.index)
-        if np.isfinite(x).all():
-            i = np.clip(np.floor(x), 0, last).astype(np.intp)
-            i -= (t[i] > tau) & (i > 0)
-            i += (t[np.minimum(i + 1, last + 1)] <= tau) & (i < last)
-            ok = (((t[i] <= tau) | (i == 0))
-                  & ((t[np.minimum(i + 1, last + 1)] > tau) | (i == last)))
-            if ok.all():
-                return i
-        return np.clip(np.searchsorted(t, tau, side='right') - 1, 0, last)
+        last = self.t.size - 2
+        if self.index is not None:
+            x = np.interp(tau, self.t, self.index)
+            np.floor(x, out=x)
+            return np.clip(x, 0, last).astype(np.intp)
+        r = np.clip(np.searchsorted(self.run_t, tau, side='right') - 1, 0, None)
+        x = (tau - self.run_t[r]) / self.run_step[r]
+        np.floor(x, out=x)
+        np.clip(x, 0, self.run_last[r] - self.run_start[r], out=x)
+        return np.clip(self.run_start[r] + x.astype(np.intp), 0, last)
 
     def _integral(self, tau: np.ndarray) -> np.ndarray:
         """Exact integral from ``t[0]`` to each ``tau`` (held values outside ``t``)."""
         t, y = self.t, self.y
-        i = self._segment(tau)
+        finite = bool(np.isfinite(tau).all())
+        i = (self._segment(tau) if finite
+             else np.clip(np.searchsorted(t, tau, side='right') - 1, 0, t.size - 2))
         h = np.clip(tau, t[0], t[-1]) - t[i]
         dt = t[i + 1] - t[i]
+        if finite and not ((h >= -1e-6 * dt) & (h <= dt * (1.0 + 1e-6))).all():
+            # a time base the arithmetic does not fit: a binary search instead
+            i = np.clip(np.searchsorted(t, tau, side='right') - 1, 0, t.size - 2)
+            h = np.clip(tau, t[0], t[-1]) - t[i]
+            dt = t[i + 1] - t[i]
         before = np.minimum(tau - t[0], 0.0)
         after = np.maximum(tau - t[-1], 0.0)
         if y.ndim > 1:
@@ -171,11 +189,18 @@ class _Prefix:
         out = self.big_f[i] + y[i] * h + 0.5 * slope * h * h
         return out + y[0] * before + y[-1] * after
 
-    def average(self, tau: np.ndarray, window_s: float) -> np.ndarray:
-        """Mean over ``[tau - window_s, tau]`` of each ``tau`` (1-D); 0: the value at ``tau``."""
+    def average(self, tau: np.ndarray, window_s: float,
+                moved: tuple[float, float] | None = None) -> np.ndarray:
+        """Mean over ``[tau - window_s, tau]`` of each ``tau`` (1-D); 0: the value at ``tau``.
+
+        ``moved = (offset, shift)`` averages at ``tau - offset + shift`` instead, formed a
+        chunk at a time (no shifted copy of a long record).
+        """
         out = np.empty(tau.shape + self.y.shape[1:])
         for a in range(0, tau.size, _EVAL_CHUNK):
             part = tau[a:a + _EVAL_CHUNK]
+            if moved is not None:
+                part = part - moved[0] + moved[1]
             if window_s == 0.0:
                 if self.y.ndim == 1:
                     out[a:a + _EVAL_CHUNK] = np.interp(part, self.t, self.y)
@@ -261,8 +286,14 @@ def align_simulated(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
         with ``shift`` from :func:`stamp_shift`.
     """
     shift = stamp_shift(window_s, stamp)
-    shifted = np.asarray(t_meas, dtype=np.float64) - offset_s + shift
-    return interval_average(t_sim, y_sim, shifted, window_s=window_s)
+    t_sim, y_sim = _series(t_sim, y_sim, 'sim')
+    if not (math.isfinite(window_s) and window_s >= 0.0):
+        msg = f'window_s must be a finite number >= 0, got {window_s!r}'
+        raise DataError(msg, file='<arrays>', column='window_s')
+    tau = np.asarray(t_meas, dtype=np.float64)
+    out = _Prefix(t_sim, y_sim).average(tau.ravel(), float(window_s),
+                                        moved=(float(offset_s), shift))
+    return out.reshape(tau.shape + y_sim.shape[1:])
 
 
 def _correlation(y: np.ndarray, model: np.ndarray) -> np.ndarray:
@@ -278,12 +309,14 @@ def _correlation(y: np.ndarray, model: np.ndarray) -> np.ndarray:
 def _sliding_dot(a: np.ndarray, b: np.ndarray, count: int) -> np.ndarray:
     """``out[d] = sum_j a[d + j] b[j]`` for ``d < count`` (``a`` has ``b.size + count - 1``).
 
-    Few shifts: numpy's direct correlation. Many: FFTs over blocks of ``b`` (overlap-add of
-    the partial sums), O(len(b) log(count)) and memory bounded by the block, not the record.
+    Few shifts: one product each. Many: FFTs over blocks of ``b`` (overlap-add of the
+    partial sums), O(len(b) log(count)) and memory bounded by the block, not the record.
     """
     n = b.size
-    if count <= _DIRECT_SHIFTS or n * count <= _DIRECT_PRODUCTS:
-        return np.correlate(a, b, mode='valid')
+    if count <= _DIRECT_SHIFTS:
+        # einsum, not a BLAS dot: a threaded BLAS on a busy machine spends more time
+        # handing small products between its threads than computing them
+        return np.array([np.einsum('i,i->', a[d:d + n], b) for d in range(count)])
     block = max(_FFT_BLOCK, 2 * count)
     size = next_fast_len(block + count - 1, real=True)
     out = np.zeros(count)
@@ -327,20 +360,63 @@ class _Signals:
     window_s: float
     shift_s: float
     prefix: _Prefix = field(init=False, repr=False, compare=False)
+    level: float = field(init=False, repr=False, compare=False)
+    means: dict[tuple[int, int, int], tuple[float, float]] = field(
+        init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, 'prefix', _Prefix(self.t_sim, self.y_sim))
+        # the model is summed about this level: less cancellation in its variance
+        span = float(self.t_sim[-1] - self.t_sim[0])
+        level = float(self.prefix.big_f[-1]) / span if span > 0.0 else float(self.y_sim[0])
+        object.__setattr__(self, 'level', level)
+        object.__setattr__(self, 'means', {})
 
-    def model_at(self, lag: float, sel: slice = slice(None)) -> np.ndarray:
-        """Instrument-averaged simulation on the measured stamps at one lag, ``(n,)``."""
-        return self.prefix.average(self.t_meas[sel] - lag + self.shift_s, self.window_s)
+    def _mean(self, sel: slice) -> tuple[float, float]:
+        """Mean of the measured signal on ``sel`` and its sum of squares about it."""
+        key = sel.indices(self.t_meas.size)
+        if key not in self.means:
+            y = self.y_meas[sel]
+            mean = float(y.mean())
+            syy = math.fsum(float(np.sum((y[a:a + _EVAL_CHUNK] - mean) ** 2))
+                            for a in range(0, y.size, _EVAL_CHUNK))
+            self.means[key] = (mean, syy)
+        return self.means[key]
+
+    def score(self, lag: float, sel: slice = slice(None)) -> tuple[float, float]:
+        """Correlation and residual RMS (mean removed) [W] at one lag, in bounded chunks."""
+        t = self.t_meas[sel]
+        y = self.y_meas[sel]
+        n = t.size
+        mean, syy = self._mean(sel)
+        sm = smm = smy = sr = srr = 0.0
+        for a in range(0, n, _EVAL_CHUNK):
+            m = self.prefix.average(t[a:a + _EVAL_CHUNK] - lag + self.shift_s, self.window_s)
+            m -= self.level
+            yc = y[a:a + _EVAL_CHUNK] - mean
+            # einsum: see _sliding_dot
+            sm += float(m.sum())
+            smm += float(np.einsum('i,i->', m, m))
+            smy += float(np.einsum('i,i->', m, yc))
+            yc -= m                     # residual, both about their levels
+            sr += float(yc.sum())
+            srr += float(np.einsum('i,i->', yc, yc))
+        var_m = max(smm - sm * sm / n, 0.0)
+        den = math.sqrt(syy * var_m)
+        corr = smy / den if den > 0.0 else 0.0
+        return corr, math.sqrt(max(srr / n - (sr / n) ** 2, 0.0))
 
     def correlation(self, lags: np.ndarray, sel: slice = slice(None)) -> np.ndarray:
         """Correlation at every lag, computed in chunks of bounded size."""
         t = self.t_meas[sel]
         y = self.y_meas[sel]
         out = np.empty(lags.size)
-        per_chunk = max(1, _CHUNK_ELEMENTS // max(t.size, 1))
+        per_chunk = _CHUNK_ELEMENTS // max(t.size, 1)
+        if per_chunk < 2:
+            # a long record: one lag at a time, itself in chunks
+            for k, lag in enumerate(lags):
+                out[k] = self.score(float(lag), sel)[0]
+            return out
         for start in range(0, lags.size, per_chunk):
             part = lags[start:start + per_chunk]
             tau = t[None, :] - part[:, None] + self.shift_s
@@ -354,9 +430,10 @@ class _Signals:
 
         When the stamps are uniform (period ``P``, within 1e-6 of it) and ``step = P / q``
         with ``q`` whole, every lag's model samples the same instrument-averaged signal on
-        the grid ``t_0 - centre + (j - steps) step``: it is computed once, one residue
-        ``j mod q`` at a time, and the sums of the correlation become sliding sums and
-        sliding dot products (:func:`_sliding_dot`). Returns ``None`` when not applicable.
+        the grid ``t_0 - centre + (j - steps) step``: it is computed one residue ``j mod q``
+        and one block of stamps at a time, and the sums of the correlation become sliding
+        sums and sliding dot products (:func:`_sliding_dot`). Returns ``None`` when not
+        applicable.
         """
         t = self.t_meas[sel]
         q = _whole_fraction(_uniform_period(t), step)
@@ -364,30 +441,31 @@ class _Signals:
             return None
         n = t.size
         y = self.y_meas[sel]
-        yc = y - y.mean()
-        syy = float(yc @ yc)
+        mean, syy = self._mean(sel)
         width = 2 * steps + 1
-        s1 = np.empty(width)
-        s2 = np.empty(width)
-        sy = np.empty(width)
+        s1 = np.zeros(width)
+        s2 = np.zeros(width)
+        sy = np.zeros(width)
         for r in range(min(q, width)):
             # offsets c = r + q * dd of the model's first sample on the fine grid
             cnt = (width - 1 - r) // q + 1
-            u = np.arange(r - steps, r - steps + q * (n + cnt - 1), q) * step
-            u += t[0]
-            if centre != 0.0:
-                u -= centre
-            u += self.shift_s
-            sub = self.prefix.average(u, self.window_s)
-            del u
             c = r + q * np.arange(cnt)
-            s1[c] = float(sub[:n].sum()) + np.concatenate(
-                [[0.0], np.cumsum(sub[n:] - sub[:cnt - 1])])
-            sq = sub * sub
-            s2[c] = float(sq[:n].sum()) + np.concatenate(
-                [[0.0], np.cumsum(sq[n:] - sq[:cnt - 1])])
-            del sq
-            sy[c] = _sliding_dot(sub, yc, cnt)
+            block = max(_FFT_BLOCK, 2 * cnt)
+            for j0 in range(0, n, block):
+                nb = min(block, n - j0)
+                k = np.arange(r - steps + q * j0, r - steps + q * (j0 + nb + cnt - 1), q)
+                u = k * step
+                u += t[0]
+                if centre != 0.0:
+                    u -= centre
+                u += self.shift_s
+                sub = self.prefix.average(u, self.window_s)
+                sub -= self.level
+                cs = np.concatenate([[0.0], np.cumsum(sub)])
+                s1[c] += cs[nb:nb + cnt] - cs[:cnt]
+                cs = np.concatenate([[0.0], np.cumsum(sub * sub)])
+                s2[c] += cs[nb:nb + cnt] - cs[:cnt]
+                sy[c] += _sliding_dot(sub, y[j0:j0 + nb] - mean, cnt)
         var_m = np.maximum(s2 - s1 * s1 / n, 0.0)
         den = np.sqrt(syy * var_m)
         with np.errstate(invalid='ignore', divide='ignore'):
@@ -410,18 +488,17 @@ class _Signals:
 
     def rms(self, lag: float) -> float:
         """RMS of measured minus model at ``lag``, its mean removed [W]."""
-        r = self.y_meas - self.model_at(lag)
-        return float(np.sqrt(np.mean((r - r.mean()) ** 2)))
+        return self.score(lag)[1]
 
     def refine(self, lag: float, lo: float, hi: float, *, tol: float,
                sel: slice = slice(None)) -> tuple[float, float]:
         """Lag of largest correlation in ``[lo, hi]`` near ``lag``: ``(lag, correlation)``."""
-        best = float(self.correlation(np.array([lag]), sel)[0])
+        best = self.score(lag, sel)[0]
         if not hi > lo:
             return lag, best
 
         def negative(x: float) -> float:
-            return -float(self.correlation(np.array([x]), sel)[0])
+            return -self.score(x, sel)[0]
 
         res = minimize_scalar(negative, bounds=(lo, hi), method='bounded',
                               options={'xatol': tol})

@@ -19,7 +19,7 @@ without a measured counterpart (e.g. a Z axis without a power column) are left o
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 import math
 from pathlib import Path
 from typing import Any
@@ -27,11 +27,11 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError, DataError
-from ..gcode import load_gcode
+from ..gcode import iter_moves, load_gcode
 from ..machine import load_machine, Machine
 from ..plan import Motion, motion_from_samples, plan
-from ..sim import simulate_motion, SimulationResult
-from ..physics import relative_sd_pct
+from ..sim import simulate_motion, simulate_stream, SimulationResult, streamable
+from ..physics import relative_sd_pct, UNCERTAINTY_KEY
 from .align import align_simulated, estimate_offset, OffsetResult
 from .csvload import load_run
 from .run import MeasuredRun
@@ -90,7 +90,7 @@ def _sim_columns(spec: RunSpec, sim: SimulationResult, machine: Machine) -> np.n
 
     What the meter measures (``instrument.measures``): the shaft power after the braking rule,
     or the electrical power of the declared drives at the motor terminals or the drive's
-    supply side (``docs/electrical.md``).
+    supply side (``docs/electrical.md``). ``sim`` may be one chunk of a streamed simulation.
     """
     p = sim.power
     measures = spec.instrument.measures
@@ -113,6 +113,95 @@ def _sim_columns(spec: RunSpec, sim: SimulationResult, machine: Machine) -> np.n
                    f'{machine.axis_names}')
             raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.axes.{axis}')
     return np.column_stack(cols)
+
+
+@dataclass(frozen=True)
+class SimTrace:
+    """What a comparison keeps of a simulation: no more than it uses.
+
+    Attributes
+    ----------
+    t
+        Simulated times [s], ``(m,)``.
+    power_w
+        Simulated power of the run's measured axes [W], ``(m, k)`` (:func:`_sim_columns`).
+    vel
+        Simulated velocity per motion axis [m/s], ``(m, j)`` (motion states).
+    source
+        Where the motion came from (``RunComparison.motion_source``).
+    energy_sd_pct
+        Standard uncertainty of the simulated energy of the measured axes [%] (NaN if none).
+    """
+
+    t: np.ndarray
+    power_w: np.ndarray
+    vel: np.ndarray
+    source: str
+    energy_sd_pct: float
+
+
+def _whole_trace(spec: RunSpec, run: MeasuredRun, machine: Machine,
+                 cache: MotionCache) -> SimTrace:
+    sim, source = simulate_declared(spec, run, machine, cache)
+    return SimTrace(sim.power.t, _sim_columns(spec, sim, machine), sim.motion.vel, source,
+                    relative_sd_pct(sim, spec.power_axes))
+
+
+def _streamed_trace(spec: RunSpec, program: Path, machine: Machine) -> SimTrace:
+    """The run's program simulated chunk by chunk, keeping only what :class:`SimTrace` holds.
+
+    Equal to the whole-record simulation (``simulate_stream``'s contract) in a fraction of
+    its memory: a whole simulation holds some 30 arrays per sample, the trace 2 + 2 per axis.
+    """
+    t_parts: list[np.ndarray] = []
+    p_parts: list[np.ndarray] = []
+    v_parts: list[np.ndarray] = []
+
+    def keep(chunk: SimulationResult) -> None:
+        t_parts.append(chunk.power.t.copy())
+        p_parts.append(_sim_columns(spec, chunk, machine))
+        v_parts.append(chunk.motion.vel.copy())
+
+    moves = iter_moves(program, **machine.gcode_keywords())
+    summary, _ = simulate_stream(moves, machine, file=str(program), load_kg=spec.load_kg,
+                                 on_chunk=keep)
+    if not t_parts:
+        msg = 'the program has no motion to simulate'
+        raise DataError(msg, file=str(program))
+    columns = []
+    for parts in (t_parts, p_parts, v_parts):
+        # one whole array at a time: the chunks of a column go as soon as it is joined
+        columns.append(np.concatenate(parts))
+        parts.clear()
+    return SimTrace(columns[0], columns[1], columns[2], str(program),
+                    _summary_sd_pct(summary, spec.power_axes))
+
+
+def _summary_sd_pct(summary: dict[str, Any], axes: Sequence[str]) -> float:
+    """:func:`~feed_axis_energy.physics.relative_sd_pct` from a streamed summary."""
+    found = summary.get(UNCERTAINTY_KEY)
+    moved = [a for a in axes if a in summary['energy_j'] and a != 'total']
+    if found is None or not moved or summary['samples'] < 2:
+        return math.nan
+    if any(a not in found['axes'] for a in moved):
+        return math.nan
+    energy = math.fsum(float(summary['energy_j'][a]) for a in moved)
+    value = math.sqrt(math.fsum(float(found['energy_sd_j'][a]) ** 2 for a in moved))
+    return 100.0 * value / energy if energy > 0.0 and math.isfinite(value) else math.nan
+
+
+def simulate_trace(spec: RunSpec, run: MeasuredRun, machine: Machine,
+                   cache: MotionCache) -> SimTrace:
+    """Simulate a run for comparison: streamed when it comes from a program that streams.
+
+    A run driven by an NC program on a machine whose declared effects are all sample-local
+    is simulated chunk by chunk (:func:`_streamed_trace`), so a long run at a drive-trace
+    rate holds a few arrays, not the whole simulation; other runs take the whole-record path
+    (:func:`simulate_declared`, its plan cached per program).
+    """
+    if spec.motion_program is not None and streamable(machine):
+        return _streamed_trace(spec, spec.motion_program, machine)
+    return _whole_trace(spec, run, machine, cache)
 
 
 def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_MAX_LAG_S,
@@ -162,8 +251,8 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
                     floor_fraction: float, stamp: str | None = None,
                     check_meter: bool = True) -> RunComparison:
     run = load_run(spec)
-    sim, source = simulate_declared(spec, run, machine, cache)
-    sim_w = _sim_columns(spec, sim, machine)
+    sim = simulate_trace(spec, run, machine, cache)
+    sim_w = sim.power_w
     meter = (spec.instrument if spec.instrument.declared
              else default_instrument(spec.motion_from_data))
     period = float(np.median(np.diff(run.t)))
@@ -176,9 +265,11 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         msg = (f'the simulation of this run overflowed (simulated power sample {sample} is '
                'not finite); check the run\'s kinematics and the machine config')
         raise DataError(msg, file=run.file)
+    # the summed signals once: a long run holds no more copies of them than it needs
+    meas_total, sim_total = _total(run.power_w), _total(sim_w)
     if offset_s is None:
         try:
-            found = estimate_offset(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
+            found = estimate_offset(run.t, meas_total, sim.t, sim_total,
                                     max_lag_s=max_lag_s, window_s=window, stamp=stamp,
                                     min_correlation=min_correlation)
         except DataError as err:
@@ -191,11 +282,11 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         used = float(offset_s)
         found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')
     try:
-        aligned = align_simulated(sim.power.t, sim_w, run.t, offset_s=used, window_s=window,
+        aligned = align_simulated(sim.t, sim_w, run.t, offset_s=used, window_s=window,
                                   stamp=stamp)
         fits: tuple[MeterFit, ...] = ()
         if check_meter and offset_s is None and found.status != 'weak':
-            fits = check_instrument(run.t, run.total_power_w, sim.power.t, sim_w.sum(axis=1),
+            fits = check_instrument(run.t, meas_total, sim.t, sim_total,
                                     offset_s=used, window_s=window, stamp=stamp,
                                     same_clock=spec.motion_program is None)
     except DataError as err:
@@ -205,26 +296,31 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
     meas = run.power_w
     where: dict[str, Any] = {'file': run.file, 'rows': run.extra.get('rows'),
                              'floor_fraction': floor_fraction}
-    total = table1_metrics(run.t, meas.sum(axis=1), aligned.sum(axis=1),
+    aligned_total = _total(aligned)
+    total = table1_metrics(run.t, meas_total, aligned_total,
                            columns=('time', 'measured total power', 'simulated total power'),
                            **where)
     per_axis = {a: table1_metrics(run.t, meas[:, j], aligned[:, j],
                                   columns=('time', f'measured {a} power',
                                            f'simulated {a} power'), **where)
                 for j, a in enumerate(spec.power_axes)}
-    labels = state_labels(sim.motion.t, sim.motion.vel, run.t - used,
-                          period_s=period)
-    states = residual_by_state(labels, meas.sum(axis=1) - aligned.sum(axis=1))
+    labels = state_labels(sim.t, sim.vel, run.t - used, period_s=period)
+    states = residual_by_state(labels, meas_total - aligned_total)
     return RunComparison(
         name=spec.name, role=spec.role, load_kg=spec.load_kg, data_file=run.file,
-        motion_source=source, axes=spec.power_axes, window_s=window, offset=found,
+        motion_source=sim.source, axes=spec.power_axes, window_s=window, offset=found,
         offset_used_s=used, metrics=total, axis_metrics=per_axis, t=run.t,
         power_meas_w=meas, power_sim_w=aligned,
-        sim_duration_s=float(sim.power.t[-1] - sim.power.t[0]),
+        sim_duration_s=float(sim.t[-1] - sim.t[0]),
         excluded_rows=int(run.extra.get('excluded_rows', 0)), stamp=stamp,
         instrument=meter.describe(period), meter_fits=fits, states=states,
-        energy_sd_pct=relative_sd_pct(sim, spec.power_axes),
+        energy_sd_pct=sim.energy_sd_pct,
     )
+
+
+def _total(power_w: np.ndarray) -> np.ndarray:
+    """Sum over the axes, ``(n,)``: the one column itself (a view) when there is one."""
+    return power_w[:, 0] if power_w.shape[1] == 1 else power_w.sum(axis=1)
 
 
 def _groups(runs: Sequence[RunComparison]) -> tuple[GroupComparison, ...]:

@@ -5,8 +5,9 @@ The file is read once with the :mod:`csv` module, in blocks of rows
 memory holds the run's numbers, not its text; in each block the rows matching the manifest's
 ``rows.exclude_where`` filters are dropped first, then every mapped column is parsed, checked
 (numbers, finite, no empty cells) and converted to SI once; a bad cell is reported in the
-order of a whole-file check (time, its order and gaps, duration, then the other columns). Time is either a column or the
-original row index times ``period_s``, so rows removed by a filter leave a visible gap.
+order of a whole-file check (time, its order and gaps, duration, then the other columns).
+Time is either a column or the original row index times ``period_s``, so rows removed by a
+filter leave a visible gap.
 Errors are :class:`~feed_axis_energy.errors.DataError` naming file, column and the
 1-based data row as counted in the file (row 1 is the first line after the header).
 :func:`load_run` is also the entry for a run whose data is a measured-run bag
@@ -90,14 +91,15 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
     for _, rows, numbers in chain([first], blocks):
         # the block's text is converted and let go: the file is never held as text at once
         # position among data rows (blank lines skipped): the sample index when time = i * period
-        sample = total + np.arange(len(rows))
+        first_row = total
         total += len(rows)
         keep = np.ones(len(rows), dtype=bool)
         for filt in spec.exclude:
             keep &= ~_matches(filt, rows, index[filt.column], numbers, file)
         kept = [row for row, k in zip(rows, keep) if k]
         numbers = numbers[keep]
-        samples.append(sample[keep])
+        if spec.time is None:
+            samples.append(first_row + np.flatnonzero(keep))
         kept_numbers.append(numbers)
         for key, cs, quantity in wanted:
             cols.add(key, kept, index[cs.column], numbers, file, cs, quantity)
@@ -108,21 +110,23 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
                f'({total} in the file, {excluded} excluded by the manifest filter)')
         raise DataError(msg, file=file)
 
-    t = _time(spec, np.concatenate(samples), numbers, file, cols)
+    t = _time(spec, np.concatenate(samples) if samples else None, numbers, file, cols)
     check_duration(t, spec, min_duration_s, file=file, after=' after filtering')
+    t0 = float(t[0])
+    t -= t0           # in place: a long run holds one copy of its stamps
 
     power = np.column_stack([cols.get(f'power:{a}') for a in power_axes])
     kin: dict[str, np.ndarray] = {}
     for q in kinematic:
         kin[_FIELD[q]] = np.column_stack([cols.get(f'{q}:{a}') for a in axes])
     extra: dict[str, Any] = {
-        'excluded_rows': excluded, 'rows': numbers, 't0_s': float(t[0]),
+        'excluded_rows': excluded, 'rows': numbers, 't0_s': t0,
     }
     for q, key in (('current', 'current_a'), ('voltage', 'voltage_v')):
         got = {a: cols.get(f'{q}:{a}') for qq, a in electric if qq == q}
         if got:
             extra[key] = got
-    return MeasuredRun(name=spec.name, file=file, t=t - t[0], axes=axes,
+    return MeasuredRun(name=spec.name, file=file, t=t, axes=axes,
                        power_axes=power_axes, power_w=power, load_kg=spec.load_kg,
                        extra=extra, **kin)
 
@@ -157,7 +161,8 @@ class _Columns:
         """The whole column; its first bad cell raised as :class:`DataError`."""
         if key in self.errors:
             raise self.errors[key]
-        return np.concatenate(self.parts[key])
+        parts = self.parts.pop(key)         # the blocks go once joined
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
 def _column_index(header: list[str], spec: RunSpec, file: str) -> dict[str, int]:
@@ -198,14 +203,15 @@ def _matches(filt: RowFilter, rows: list[list[str]], j: int, numbers: np.ndarray
     return values < filt.value
 
 
-def _time(spec: RunSpec, sample: np.ndarray, numbers: np.ndarray, file: str,
+def _time(spec: RunSpec, sample: np.ndarray | None, numbers: np.ndarray, file: str,
           cols: _Columns) -> np.ndarray:
     if spec.time is not None:
         name = spec.time.column
         t = cols.get('time')
     else:
         name = '<row index>'
-        t = sample * float(cast(float, spec.period_s))      # a spec without time has one
+        # a spec without time has a period, and then the sample indices were kept
+        t = cast(np.ndarray, sample) * float(cast(float, spec.period_s))
     dt = np.diff(t)
     bad = np.flatnonzero(dt < 0.999 * MIN_STEP_S)  # 0.999: rounding of decimal times
     if bad.size:
