@@ -126,7 +126,7 @@ class _Prefix:
         m = t.size
         self.big_f = np.empty((m,) + y.shape[1:])
         self.big_f[0] = 0.0
-        breaks: list[np.ndarray] = []
+        breaks: list[np.ndarray] = [np.zeros(1, dtype=np.intp)]
         last_dt = None
         for a in range(0, m - 1, _EVAL_CHUNK):
             b = min(a + _EVAL_CHUNK, m - 1)
@@ -135,11 +135,15 @@ class _Prefix:
             seg[0] += self.big_f[a]         # carried: the same sums as one cumulative sum
             np.cumsum(seg, axis=0, out=self.big_f[a + 1:b + 1])
             prev = np.concatenate([[dt[0] if last_dt is None else last_dt], dt[:-1]])
-            breaks.append(a + np.flatnonzero(np.abs(dt - prev) > 1e-9 * prev))
+            # 1e-6: beyond the rounding of differences of times thousands of seconds long
+            breaks.append(a + np.flatnonzero(np.abs(dt - prev) > 1e-6 * prev))
             last_dt = dt[-1]
-        starts = np.unique(np.concatenate([[0]] + breaks)).astype(np.intp)
+        starts = np.unique(np.concatenate(breaks)).astype(np.intp)
         self.index: np.ndarray | None = None
-        self.run_start = self.run_t = self.run_step = self.run_last = np.zeros(0)
+        self.run_start: np.ndarray = np.zeros(0, dtype=np.intp)
+        self.run_last: np.ndarray = self.run_start
+        self.run_t: np.ndarray = np.zeros(0)
+        self.run_step: np.ndarray = self.run_t
         if starts.size <= max(1, m // 16):
             ends = np.append(starts[1:], m - 1)        # one past each run's last segment
             self.run_start = starts
@@ -332,9 +336,12 @@ def _uniform_period(t: np.ndarray) -> float | None:
     """The sampling period of stamps uniform to within 1e-6 of it, else ``None``."""
     if t.size < 3:
         return None
-    d = np.diff(t)
-    period = float(d.mean())
-    return period if float(np.max(np.abs(d - period))) <= 1e-6 * period else None
+    period = float(t[-1] - t[0]) / (t.size - 1)
+    for a in range(0, t.size - 1, _EVAL_CHUNK):
+        d = np.diff(t[a:a + _EVAL_CHUNK + 1])
+        if float(np.max(np.abs(d - period))) > 1e-6 * period:
+            return None
+    return period
 
 
 def _whole_fraction(period: float | None, step: float) -> int:
@@ -541,7 +548,10 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
        (at its full rate) at every lag on a grid of ``grid_step_s`` within ``±max_lag_s``;
        the default step is a quarter of the shorter of the measured period and the window,
        finer than the narrowest feature the instrument can record (coarsened only if that
-       needs more than 100 000 lags per side).
+       needs more than 100 000 lags per side). On uniform stamps every lag is scored at
+       once in O(n log) (:meth:`_Signals.uniform_correlation`); on irregular stamps each lag
+       costs a pass, and a grid above :data:`_DIRECT_PRODUCTS_MAX` sample-lag products is
+       coarsened to that budget (the candidates are then refined within the coarse step).
     2. *Candidates*: the ``candidates`` best local maxima of that correlation are each
        refined by a bounded scalar search within one grid step (to ~1e-4 of a period).
     3. *Choice*: the candidate with the smallest residual after the instrument model (RMS
@@ -554,9 +564,10 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
        correlation is within ``ambiguity_margin`` of the winner's or its mean squared
        residual within that fraction of the winner's.
     5. *Drift*: on records of at least ``drift_min_duration_s``, the offset is re-estimated
-       on each half of the record near the global one; their difference over the time
-       between the halves' centres is the clock-rate difference (``drift_ppm``). Shorter
-       records, or a half without structure, report it as not estimable.
+       on each half of the record near the global one (the same grid, centred on it);
+       their difference over the time between the halves' centres is the clock-rate
+       difference (``drift_ppm``). Shorter records, or a half without structure, report it
+       as not estimable.
 
     Parameters
     ----------
@@ -604,8 +615,8 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
     if grid_step_s is not None and not (math.isfinite(grid_step_s) and grid_step_s > 0.0):
         msg = f'grid_step_s must be a finite number > 0, got {grid_step_s!r}'
         raise DataError(msg, file='<arrays>', column='grid_step_s')
+    period = float(np.median(np.diff(t_meas)))    # its temporaries go before the prefix sums
     sig = _Signals(t_meas, y_meas, t_sim, y_sim, float(window_s), stamp_shift(window_s, stamp))
-    period = float(np.median(np.diff(t_meas)))
     width = min(period, window_s) if window_s > 0.0 else period
     step = 0.25 * width if grid_step_s is None else float(grid_step_s)
     step = max(step, max_lag_s / _MAX_LAG_STEPS)

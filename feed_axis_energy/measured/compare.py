@@ -252,7 +252,10 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
                     check_meter: bool = True) -> RunComparison:
     run = load_run(spec)
     sim = simulate_trace(spec, run, machine, cache)
-    sim_w = sim.power_w
+    # the trace's arrays as names, each let go as soon as it is used up (long runs)
+    t_sim, sim_w, vel = sim.t, sim.power_w, sim.vel
+    source, sim_duration, energy_sd = sim.source, float(t_sim[-1] - t_sim[0]), sim.energy_sd_pct
+    del sim
     meter = (spec.instrument if spec.instrument.declared
              else default_instrument(spec.motion_from_data))
     period = float(np.median(np.diff(run.t)))
@@ -269,7 +272,7 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
     meas_total, sim_total = _total(run.power_w), _total(sim_w)
     if offset_s is None:
         try:
-            found = estimate_offset(run.t, meas_total, sim.t, sim_total,
+            found = estimate_offset(run.t, meas_total, t_sim, sim_total,
                                     max_lag_s=max_lag_s, window_s=window, stamp=stamp,
                                     min_correlation=min_correlation)
         except DataError as err:
@@ -281,40 +284,45 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
     else:
         used = float(offset_s)
         found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')
+    labels = state_labels(t_sim, vel, run.t - used, period_s=period)
+    del vel
     try:
-        aligned = align_simulated(sim.t, sim_w, run.t, offset_s=used, window_s=window,
-                                  stamp=stamp)
         fits: tuple[MeterFit, ...] = ()
         if check_meter and offset_s is None and found.status != 'weak':
-            fits = check_instrument(run.t, meas_total, sim.t, sim_total,
+            fits = check_instrument(run.t, meas_total, t_sim, sim_total,
                                     offset_s=used, window_s=window, stamp=stamp,
                                     same_clock=spec.motion_program is None)
+        aligned = align_simulated(t_sim, sim_w, run.t, offset_s=used, window_s=window,
+                                  stamp=stamp)
     except DataError as err:
         # align names its arrays only; the run's file is the place the user can act on
         msg = f'simulated power cannot be aligned: {err.reason}'
         raise DataError(msg, file=run.file, column=err.column) from err
+    # the simulation is no longer needed: a long run's metrics have its memory
+    del t_sim, sim_w, sim_total
     meas = run.power_w
     where: dict[str, Any] = {'file': run.file, 'rows': run.extra.get('rows'),
                              'floor_fraction': floor_fraction}
     aligned_total = _total(aligned)
+    states = residual_by_state(labels, meas_total - aligned_total)
+    del labels
     total = table1_metrics(run.t, meas_total, aligned_total,
                            columns=('time', 'measured total power', 'simulated total power'),
                            **where)
-    per_axis = {a: table1_metrics(run.t, meas[:, j], aligned[:, j],
-                                  columns=('time', f'measured {a} power',
-                                           f'simulated {a} power'), **where)
-                for j, a in enumerate(spec.power_axes)}
-    labels = state_labels(sim.t, sim.vel, run.t - used, period_s=period)
-    states = residual_by_state(labels, meas_total - aligned_total)
+    # one measured axis is the total: the same arrays, the same metrics
+    per_axis = ({spec.power_axes[0]: total} if meas.shape[1] == 1 else
+                {a: table1_metrics(run.t, meas[:, j], aligned[:, j],
+                                   columns=('time', f'measured {a} power',
+                                            f'simulated {a} power'), **where)
+                 for j, a in enumerate(spec.power_axes)})
     return RunComparison(
         name=spec.name, role=spec.role, load_kg=spec.load_kg, data_file=run.file,
-        motion_source=sim.source, axes=spec.power_axes, window_s=window, offset=found,
+        motion_source=source, axes=spec.power_axes, window_s=window, offset=found,
         offset_used_s=used, metrics=total, axis_metrics=per_axis, t=run.t,
-        power_meas_w=meas, power_sim_w=aligned,
-        sim_duration_s=float(sim.t[-1] - sim.t[0]),
+        power_meas_w=meas, power_sim_w=aligned, sim_duration_s=sim_duration,
         excluded_rows=int(run.extra.get('excluded_rows', 0)), stamp=stamp,
         instrument=meter.describe(period), meter_fits=fits, states=states,
-        energy_sd_pct=sim.energy_sd_pct,
+        energy_sd_pct=energy_sd,
     )
 
 

@@ -97,13 +97,15 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
         for filt in spec.exclude:
             keep &= ~_matches(filt, rows, index[filt.column], numbers, file)
         kept = [row for row, k in zip(rows, keep) if k]
-        numbers = numbers[keep]
+        # row numbers in 32 bits (a file of 2^31 rows is beyond any run): half the memory
+        numbers = numbers[keep].astype(np.int32 if total < 2**31 else np.int64)
         if spec.time is None:
             samples.append(first_row + np.flatnonzero(keep))
         kept_numbers.append(numbers)
         for key, cs, quantity in wanted:
             cols.add(key, kept, index[cs.column], numbers, file, cs, quantity)
     numbers = np.concatenate(kept_numbers)
+    kept_numbers.clear()
     excluded = total - numbers.size
     if numbers.size < 2:
         msg = (f'needs at least 2 data rows, has {numbers.size} '
@@ -225,5 +227,6 @@ def _time(spec: RunSpec, sample: np.ndarray | None, numbers: np.ndarray, file: s
         msg = (f'{what} ({t[i - 1]:.9g} s then {t[i]:.9g} s); time must increase by at '
                f'least {MIN_STEP_S:g} s (stamps are whole nanoseconds)')
         raise DataError(msg, file=file, column=name, row=int(numbers[i]))
+    del dt, bad
     check_gaps(t, spec, file=file, column=name, rows=numbers)
     return t

@@ -90,11 +90,11 @@ def state_labels(t_sim: np.ndarray, vel: np.ndarray, tau: np.ndarray, *,
     Returns
     -------
     numpy.ndarray
-        ``(n,)`` integers.
+        ``(n,)`` small integers (``int8``).
     """
     vel = np.asarray(vel, dtype=float)
     m = t_sim.size
-    labels = np.full(tau.shape, STATES.index('steady'))
+    labels = np.full(tau.shape, STATES.index('steady'), dtype=np.int8)
     for a in range(0, tau.size, _CHUNK):
         # stamps a chunk at a time, with the simulated samples they reach: the temporaries
         # stay bounded on long records (the values are those of one pass over everything)
