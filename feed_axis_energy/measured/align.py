@@ -615,7 +615,8 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
     if grid_step_s is not None and not (math.isfinite(grid_step_s) and grid_step_s > 0.0):
         msg = f'grid_step_s must be a finite number > 0, got {grid_step_s!r}'
         raise DataError(msg, file='<arrays>', column='grid_step_s')
-    period = float(np.median(np.diff(t_meas)))    # its temporaries go before the prefix sums
+    # the steps' median in place (no second copy), before the prefix sums are built
+    period = float(np.median(np.diff(t_meas), overwrite_input=True))
     sig = _Signals(t_meas, y_meas, t_sim, y_sim, float(window_s), stamp_shift(window_s, stamp))
     width = min(period, window_s) if window_s > 0.0 else period
     step = 0.25 * width if grid_step_s is None else float(grid_step_s)

@@ -147,33 +147,59 @@ def _whole_trace(spec: RunSpec, run: MeasuredRun, machine: Machine,
                     relative_sd_pct(sim, spec.power_axes))
 
 
-def _streamed_trace(spec: RunSpec, program: Path, machine: Machine) -> SimTrace:
+class _Growing:
+    """An array filled chunk by chunk, its capacity doubled when full.
+
+    One large buffer instead of a list of chunks to join: a long run's chunks would scatter
+    over the heap and stay there as fragments after the join; the untouched end of a large
+    buffer costs no memory.
+    """
+
+    def __init__(self, capacity: int, tail: tuple[int, ...]):
+        self.buf = np.empty((max(1, capacity),) + tail)
+        self.n = 0
+
+    def add(self, values: np.ndarray) -> None:
+        need = self.n + values.shape[0]
+        if need > self.buf.shape[0]:
+            grown = np.empty((max(need, 2 * self.buf.shape[0]),) + self.buf.shape[1:])
+            grown[:self.n] = self.buf[:self.n]
+            self.buf = grown
+        self.buf[self.n:need] = values
+        self.n = need
+
+    def array(self) -> np.ndarray:
+        return self.buf[:self.n]
+
+
+def _streamed_trace(spec: RunSpec, program: Path, machine: Machine,
+                    expected_s: float) -> SimTrace:
     """The run's program simulated chunk by chunk, keeping only what :class:`SimTrace` holds.
 
     Equal to the whole-record simulation (``simulate_stream``'s contract) in a fraction of
     its memory: a whole simulation holds some 30 arrays per sample, the trace 2 + 2 per axis.
+    ``expected_s`` (the measured record's length) sizes the buffers.
     """
-    t_parts: list[np.ndarray] = []
-    p_parts: list[np.ndarray] = []
-    v_parts: list[np.ndarray] = []
+    capacity = int(machine.planner.rate_hz * (expected_s + 60.0)) + 1
+    t = _Growing(capacity, ())
+    p = _Growing(capacity, (len(spec.power_axes),))
+    v: _Growing | None = None
 
     def keep(chunk: SimulationResult) -> None:
-        t_parts.append(chunk.power.t.copy())
-        p_parts.append(_sim_columns(spec, chunk, machine))
-        v_parts.append(chunk.motion.vel.copy())
+        nonlocal v
+        t.add(chunk.power.t)
+        p.add(_sim_columns(spec, chunk, machine))
+        if v is None:
+            v = _Growing(capacity, chunk.motion.vel.shape[1:])
+        v.add(chunk.motion.vel)
 
     moves = iter_moves(program, **machine.gcode_keywords())
     summary, _ = simulate_stream(moves, machine, file=str(program), load_kg=spec.load_kg,
                                  on_chunk=keep)
-    if not t_parts:
+    if v is None:
         msg = 'the program has no motion to simulate'
         raise DataError(msg, file=str(program))
-    columns = []
-    for parts in (t_parts, p_parts, v_parts):
-        # one whole array at a time: the chunks of a column go as soon as it is joined
-        columns.append(np.concatenate(parts))
-        parts.clear()
-    return SimTrace(columns[0], columns[1], columns[2], str(program),
+    return SimTrace(t.array(), p.array(), v.array(), str(program),
                     _summary_sd_pct(summary, spec.power_axes))
 
 
@@ -200,7 +226,8 @@ def simulate_trace(spec: RunSpec, run: MeasuredRun, machine: Machine,
     (:func:`simulate_declared`, its plan cached per program).
     """
     if spec.motion_program is not None and streamable(machine):
-        return _streamed_trace(spec, spec.motion_program, machine)
+        return _streamed_trace(spec, spec.motion_program, machine,
+                               float(run.t[-1] - run.t[0]))
     return _whole_trace(spec, run, machine, cache)
 
 
@@ -258,7 +285,7 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
     del sim
     meter = (spec.instrument if spec.instrument.declared
              else default_instrument(spec.motion_from_data))
-    period = float(np.median(np.diff(run.t)))
+    period = float(np.median(np.diff(run.t), overwrite_input=True))
     window = meter.window_for(period) if window_s is None else float(window_s)
     stamp = meter.stamp if stamp is None else stamp
     if window_s is not None or stamp != meter.stamp:
@@ -284,7 +311,7 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
     else:
         used = float(offset_s)
         found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')
-    labels = state_labels(t_sim, vel, run.t - used, period_s=period)
+    labels = state_labels(t_sim, vel, run.t, period_s=period, offset_s=used)
     del vel
     try:
         fits: tuple[MeterFit, ...] = ()

@@ -71,7 +71,7 @@ _CHUNK = 1 << 17   # stamps labelled at once
 
 def state_labels(t_sim: np.ndarray, vel: np.ndarray, tau: np.ndarray, *,
                  period_s: float, still_m_s: float = 1e-4,
-                 accel_m_s2: float = 0.05) -> np.ndarray:
+                 accel_m_s2: float = 0.05, offset_s: float = 0.0) -> np.ndarray:
     """Index into :data:`STATES` of every sample (see the module docstring).
 
     Parameters
@@ -86,6 +86,8 @@ def state_labels(t_sim: np.ndarray, vel: np.ndarray, tau: np.ndarray, *,
         Measured sampling period [s].
     still_m_s, accel_m_s2
         Thresholds.
+    offset_s
+        Subtracted from ``tau`` (a chunk at a time: no shifted copy of a long record).
 
     Returns
     -------
@@ -99,6 +101,8 @@ def state_labels(t_sim: np.ndarray, vel: np.ndarray, tau: np.ndarray, *,
         # stamps a chunk at a time, with the simulated samples they reach: the temporaries
         # stay bounded on long records (the values are those of one pass over everything)
         part = tau[a:a + _CHUNK]
+        if offset_s != 0.0:
+            part = part - offset_s
         lo = np.clip(np.searchsorted(t_sim, part - period_s), 0, m - 1)
         hi = np.clip(np.searchsorted(t_sim, part + period_s, side='right'), 1, m)
         hi = np.maximum(hi, lo + 1)

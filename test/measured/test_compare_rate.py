@@ -57,6 +57,18 @@ def test_streamed_simulation_equals_the_whole_record(small):
     assert streamed.energy_sd_pct == pytest.approx(whole.energy_sd_pct, rel=1e-9)
 
 
+def test_trace_buffers_grow_beyond_the_expected_length(small):
+    # sized for a record far shorter than the program: the buffers double, the values stay
+    spec = small.run('a')
+    machine = load_machine(small.machine)
+    run = load_run(spec)
+    whole = cmp._whole_trace(spec, run, machine, cmp.MotionCache(machine))
+    grown = cmp._streamed_trace(spec, spec.motion_program, machine, expected_s=-59.99)
+    assert_allclose(grown.t, whole.t, rtol=0.0, atol=1e-12)
+    assert_allclose(grown.power_w, whole.power_w, rtol=1e-12, atol=1e-9)
+    assert_allclose(grown.vel, whole.vel, rtol=1e-12, atol=1e-12)
+
+
 def test_runs_read_in_blocks_equal_the_whole_file(small, monkeypatch):
     spec = small.run('a')
     whole = load_run(spec)
@@ -151,3 +163,7 @@ def test_state_labels_in_chunks_equal_one_pass(monkeypatch):
     monkeypatch.setattr(states, '_CHUNK', 37)
     assert np.array_equal(states.state_labels(t_sim, vel, tau, period_s=0.01), one)
     assert set(np.unique(one)) == {0, 1, 2}
+    # an offset applied a chunk at a time equals the shifted stamps
+    assert np.array_equal(states.state_labels(t_sim, vel, tau + 0.3, period_s=0.01,
+                                              offset_s=0.3),
+                          states.state_labels(t_sim, vel, (tau + 0.3) - 0.3, period_s=0.01))
