@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy.fft import irfft, next_fast_len, rfft
 from scipy.optimize import minimize_scalar
 
 from ..errors import DataError
@@ -31,6 +32,10 @@ __all__ = ['DRIFT_MIN_DURATION_S', 'STAMPS', 'OffsetResult', 'align_simulated',
 
 _MAX_LAG_STEPS = 100_000
 _CHUNK_ELEMENTS = 2_000_000
+_EVAL_CHUNK = 1 << 17   # times evaluated at once: bounds the temporaries of an average
+_DIRECT_SHIFTS = 64     # sliding dot products of this few shifts are computed directly
+_FFT_BLOCK = 1 << 16    # measured samples per FFT block of a long sliding dot product
+_DIRECT_PRODUCTS_MAX = 400_000_000   # sample-lag products of a lag grid on irregular stamps
 STAMPS = ('end', 'centre', 'start')
 """Where in its averaging window the instrument stamps a sample."""
 DRIFT_MIN_DURATION_S = 60.0
@@ -103,22 +108,113 @@ def _series(t: ArrayLike, y: ArrayLike, name: str) -> tuple[np.ndarray, np.ndarr
     return t, y
 
 
-def _cumulative(t: np.ndarray, y: np.ndarray, tau: np.ndarray) -> np.ndarray:
-    """Exact integral of the piecewise-linear ``y`` from ``t[0]`` to each ``tau``."""
-    dt = np.diff(t)
-    seg = 0.5 * (y[1:] + y[:-1]) * (dt if y.ndim == 1 else dt[:, None])
-    big_f = np.concatenate([np.zeros((1,) + y.shape[1:]), np.cumsum(seg, axis=0)])
-    i = np.clip(np.searchsorted(t, tau, side='right') - 1, 0, t.size - 2)
-    h = np.clip(tau, t[0], t[-1]) - t[i]
-    slope = (y[i + 1] - y[i]) / (dt[i] if y.ndim == 1 else dt[i][:, None])
-    if y.ndim > 1:
-        h = h[:, None]
-    out = big_f[i] + y[i] * h + 0.5 * slope * h * h
-    before = np.minimum(tau - t[0], 0.0)
-    after = np.maximum(tau - t[-1], 0.0)
-    if y.ndim > 1:
-        before, after = before[:, None], after[:, None]
-    return out + y[0] * before + y[-1] * after
+class _Prefix:
+    """A piecewise-linear signal and its running integral, built once and then evaluated.
+
+    The running integral at the samples is one cumulative sum; an integral up to any time
+    is then that sum plus the part of one segment, so averaging over many windows (every
+    lag of an offset search) costs O(1) per window instead of a pass over the signal. The
+    segment of a time is found by arithmetic within runs of equal time steps (a simulation
+    at its rate is a few such runs: the planner's phase ends break them), else by numpy's
+    interpolation of the sample index. Construction and evaluations run in chunks of
+    :data:`_EVAL_CHUNK` samples, so their temporaries stay bounded however long the record.
+    """
+
+    def __init__(self, t: np.ndarray, y: np.ndarray):
+        self.t = t
+        self.y = y
+        m = t.size
+        self.big_f = np.empty((m,) + y.shape[1:])
+        self.big_f[0] = 0.0
+        breaks: list[np.ndarray] = [np.zeros(1, dtype=np.intp)]
+        last_dt = None
+        for a in range(0, m - 1, _EVAL_CHUNK):
+            b = min(a + _EVAL_CHUNK, m - 1)
+            dt = t[a + 1:b + 1] - t[a:b]
+            seg = 0.5 * (y[a + 1:b + 1] + y[a:b]) * (dt if y.ndim == 1 else dt[:, None])
+            seg[0] += self.big_f[a]         # carried: the same sums as one cumulative sum
+            np.cumsum(seg, axis=0, out=self.big_f[a + 1:b + 1])
+            prev = np.concatenate([[dt[0] if last_dt is None else last_dt], dt[:-1]])
+            # 1e-6: beyond the rounding of differences of times thousands of seconds long
+            breaks.append(a + np.flatnonzero(np.abs(dt - prev) > 1e-6 * prev))
+            last_dt = dt[-1]
+        starts = np.unique(np.concatenate(breaks)).astype(np.intp)
+        self.index: np.ndarray | None = None
+        self.run_start: np.ndarray = np.zeros(0, dtype=np.intp)
+        self.run_last: np.ndarray = self.run_start
+        self.run_t: np.ndarray = np.zeros(0)
+        self.run_step: np.ndarray = self.run_t
+        if starts.size <= max(1, m // 16):
+            ends = np.append(starts[1:], m - 1)        # one past each run's last segment
+            self.run_start = starts
+            self.run_t = t[starts]
+            self.run_step = (t[ends] - t[starts]) / (ends - starts)
+            self.run_last = ends - 1
+        else:
+            self.index = np.arange(m, dtype=np.float64)
+
+    def _segment(self, tau: np.ndarray) -> np.ndarray:
+        """Index ``i`` of the segment ``[t[i], t[i+1])`` holding each finite ``tau``, clipped.
+
+        Rounding may give the neighbouring segment for a ``tau`` within a rounding error of
+        a sample time; the running integral is continuously differentiable there, so the
+        result is the same to rounding (:meth:`_integral` checks the rest).
+        """
+        last = self.t.size - 2
+        if self.index is not None:
+            x = np.interp(tau, self.t, self.index)
+            np.floor(x, out=x)
+            return np.clip(x, 0, last).astype(np.intp)
+        r = np.clip(np.searchsorted(self.run_t, tau, side='right') - 1, 0, None)
+        x = (tau - self.run_t[r]) / self.run_step[r]
+        np.floor(x, out=x)
+        np.clip(x, 0, self.run_last[r] - self.run_start[r], out=x)
+        return np.clip(self.run_start[r] + x.astype(np.intp), 0, last)
+
+    def _integral(self, tau: np.ndarray) -> np.ndarray:
+        """Exact integral from ``t[0]`` to each ``tau`` (held values outside ``t``)."""
+        t, y = self.t, self.y
+        finite = bool(np.isfinite(tau).all())
+        i = (self._segment(tau) if finite
+             else np.clip(np.searchsorted(t, tau, side='right') - 1, 0, t.size - 2))
+        h = np.clip(tau, t[0], t[-1]) - t[i]
+        dt = t[i + 1] - t[i]
+        if finite and not ((h >= -1e-6 * dt) & (h <= dt * (1.0 + 1e-6))).all():
+            # a time base the arithmetic does not fit: a binary search instead
+            i = np.clip(np.searchsorted(t, tau, side='right') - 1, 0, t.size - 2)
+            h = np.clip(tau, t[0], t[-1]) - t[i]
+            dt = t[i + 1] - t[i]
+        before = np.minimum(tau - t[0], 0.0)
+        after = np.maximum(tau - t[-1], 0.0)
+        if y.ndim > 1:
+            h, dt = h[:, None], dt[:, None]
+            before, after = before[:, None], after[:, None]
+        slope = (y[i + 1] - y[i]) / dt
+        out = self.big_f[i] + y[i] * h + 0.5 * slope * h * h
+        return out + y[0] * before + y[-1] * after
+
+    def average(self, tau: np.ndarray, window_s: float,
+                moved: tuple[float, float] | None = None) -> np.ndarray:
+        """Mean over ``[tau - window_s, tau]`` of each ``tau`` (1-D); 0: the value at ``tau``.
+
+        ``moved = (offset, shift)`` averages at ``tau - offset + shift`` instead, formed a
+        chunk at a time (no shifted copy of a long record).
+        """
+        out = np.empty(tau.shape + self.y.shape[1:])
+        for a in range(0, tau.size, _EVAL_CHUNK):
+            part = tau[a:a + _EVAL_CHUNK]
+            if moved is not None:
+                part = part - moved[0] + moved[1]
+            if window_s == 0.0:
+                if self.y.ndim == 1:
+                    out[a:a + _EVAL_CHUNK] = np.interp(part, self.t, self.y)
+                else:
+                    for j in range(self.y.shape[1]):
+                        out[a:a + _EVAL_CHUNK, j] = np.interp(part, self.t, self.y[:, j])
+            else:
+                out[a:a + _EVAL_CHUNK] = (self._integral(part)
+                                          - self._integral(part - window_s)) / window_s
+        return out
 
 
 def interval_average(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
@@ -152,15 +248,7 @@ def interval_average(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
     if not (math.isfinite(window_s) and window_s >= 0.0):
         msg = f'window_s must be a finite number >= 0, got {window_s!r}'
         raise DataError(msg, file='<arrays>', column='window_s')
-    flat = tau.ravel()
-    if window_s == 0.0:
-        if y_sim.ndim == 1:
-            out = np.interp(flat, t_sim, y_sim)
-        else:
-            out = np.column_stack([np.interp(flat, t_sim, col) for col in y_sim.T])
-    else:
-        out = (_cumulative(t_sim, y_sim, flat)
-               - _cumulative(t_sim, y_sim, flat - window_s)) / window_s
+    out = _Prefix(t_sim, y_sim).average(tau.ravel(), float(window_s))
     return out.reshape(tau.shape + y_sim.shape[1:])
 
 
@@ -202,8 +290,14 @@ def align_simulated(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
         with ``shift`` from :func:`stamp_shift`.
     """
     shift = stamp_shift(window_s, stamp)
-    shifted = np.asarray(t_meas, dtype=np.float64) - offset_s + shift
-    return interval_average(t_sim, y_sim, shifted, window_s=window_s)
+    t_sim, y_sim = _series(t_sim, y_sim, 'sim')
+    if not (math.isfinite(window_s) and window_s >= 0.0):
+        msg = f'window_s must be a finite number >= 0, got {window_s!r}'
+        raise DataError(msg, file='<arrays>', column='window_s')
+    tau = np.asarray(t_meas, dtype=np.float64)
+    out = _Prefix(t_sim, y_sim).average(tau.ravel(), float(window_s),
+                                        moved=(float(offset_s), shift))
+    return out.reshape(tau.shape + y_sim.shape[1:])
 
 
 def _correlation(y: np.ndarray, model: np.ndarray) -> np.ndarray:
@@ -216,9 +310,55 @@ def _correlation(y: np.ndarray, model: np.ndarray) -> np.ndarray:
         return np.where(den > 0.0, num / np.where(den > 0.0, den, 1.0), 0.0)
 
 
+def _sliding_dot(a: np.ndarray, b: np.ndarray, count: int) -> np.ndarray:
+    """``out[d] = sum_j a[d + j] b[j]`` for ``d < count`` (``a`` has ``b.size + count - 1``).
+
+    Few shifts: one product each. Many: FFTs over blocks of ``b`` (overlap-add of the
+    partial sums), O(len(b) log(count)) and memory bounded by the block, not the record.
+    """
+    n = b.size
+    if count <= _DIRECT_SHIFTS:
+        # einsum, not a BLAS dot: a threaded BLAS on a busy machine spends more time
+        # handing small products between its threads than computing them
+        return np.array([np.einsum('i,i->', a[d:d + n], b) for d in range(count)])
+    block = max(_FFT_BLOCK, 2 * count)
+    size = next_fast_len(block + count - 1, real=True)
+    out = np.zeros(count)
+    for j0 in range(0, n, block):
+        part = b[j0:j0 + block]
+        fa = rfft(a[j0:j0 + part.size + count - 1], size)
+        fa *= np.conj(rfft(part, size))
+        out += irfft(fa, size)[:count]
+    return out
+
+
+def _uniform_period(t: np.ndarray) -> float | None:
+    """The sampling period of stamps uniform to within 1e-6 of it, else ``None``."""
+    if t.size < 3:
+        return None
+    period = float(t[-1] - t[0]) / (t.size - 1)
+    for a in range(0, t.size - 1, _EVAL_CHUNK):
+        d = np.diff(t[a:a + _EVAL_CHUNK + 1])
+        if float(np.max(np.abs(d - period))) > 1e-6 * period:
+            return None
+    return period
+
+
+def _whole_fraction(period: float | None, step: float) -> int:
+    """``q`` if ``step`` is ``period / q`` with ``q`` whole (the uniform fast path), else 0."""
+    if period is None:
+        return 0
+    q = int(round(period / step))
+    return q if q >= 1 and abs(q * step - period) <= 1e-9 * period else 0
+
+
 @dataclass(frozen=True)
 class _Signals:
-    """The two series and the instrument, for scoring lags."""
+    """The two series and the instrument, for scoring lags.
+
+    The simulated signal's running integral (:class:`_Prefix`) is built once and shared by
+    every lag the search, the refinement, the residual and the drift estimate evaluate.
+    """
 
     t_meas: np.ndarray
     y_meas: np.ndarray
@@ -226,88 +366,165 @@ class _Signals:
     y_sim: np.ndarray
     window_s: float
     shift_s: float
+    prefix: _Prefix = field(init=False, repr=False, compare=False)
+    level: float = field(init=False, repr=False, compare=False)
+    means: dict[tuple[int, int, int], tuple[float, float]] = field(
+        init=False, repr=False, compare=False)
 
-    def model(self, lags: np.ndarray, sel: slice = slice(None)) -> np.ndarray:
-        """Instrument-averaged simulation at every lag, ``(len(lags), n)``."""
-        tau = self.t_meas[sel][None, :] - lags[:, None] + self.shift_s
-        return interval_average(self.t_sim, self.y_sim, tau, window_s=self.window_s)
+    def __post_init__(self) -> None:
+        object.__setattr__(self, 'prefix', _Prefix(self.t_sim, self.y_sim))
+        # the model is summed about this level: less cancellation in its variance
+        span = float(self.t_sim[-1] - self.t_sim[0])
+        level = float(self.prefix.big_f[-1]) / span if span > 0.0 else float(self.y_sim[0])
+        object.__setattr__(self, 'level', level)
+        object.__setattr__(self, 'means', {})
+
+    def _mean(self, sel: slice) -> tuple[float, float]:
+        """Mean of the measured signal on ``sel`` and its sum of squares about it."""
+        key = sel.indices(self.t_meas.size)
+        if key not in self.means:
+            y = self.y_meas[sel]
+            mean = float(y.mean())
+            syy = math.fsum(float(np.sum((y[a:a + _EVAL_CHUNK] - mean) ** 2))
+                            for a in range(0, y.size, _EVAL_CHUNK))
+            self.means[key] = (mean, syy)
+        return self.means[key]
+
+    def score(self, lag: float, sel: slice = slice(None)) -> tuple[float, float]:
+        """Correlation and residual RMS (mean removed) [W] at one lag, in bounded chunks."""
+        t = self.t_meas[sel]
+        y = self.y_meas[sel]
+        n = t.size
+        mean, syy = self._mean(sel)
+        sm = smm = smy = sr = srr = 0.0
+        for a in range(0, n, _EVAL_CHUNK):
+            m = self.prefix.average(t[a:a + _EVAL_CHUNK] - lag + self.shift_s, self.window_s)
+            m -= self.level
+            yc = y[a:a + _EVAL_CHUNK] - mean
+            # einsum: see _sliding_dot
+            sm += float(m.sum())
+            smm += float(np.einsum('i,i->', m, m))
+            smy += float(np.einsum('i,i->', m, yc))
+            yc -= m                     # residual, both about their levels
+            sr += float(yc.sum())
+            srr += float(np.einsum('i,i->', yc, yc))
+        var_m = max(smm - sm * sm / n, 0.0)
+        den = math.sqrt(syy * var_m)
+        corr = smy / den if den > 0.0 else 0.0
+        return corr, math.sqrt(max(srr / n - (sr / n) ** 2, 0.0))
 
     def correlation(self, lags: np.ndarray, sel: slice = slice(None)) -> np.ndarray:
         """Correlation at every lag, computed in chunks of bounded size."""
-        n = self.t_meas[sel].size
+        t = self.t_meas[sel]
+        y = self.y_meas[sel]
         out = np.empty(lags.size)
-        per_chunk = max(1, _CHUNK_ELEMENTS // max(n, 1))
+        per_chunk = _CHUNK_ELEMENTS // max(t.size, 1)
+        if per_chunk < 2:
+            # a long record: one lag at a time, itself in chunks
+            for k, lag in enumerate(lags):
+                out[k] = self.score(float(lag), sel)[0]
+            return out
         for start in range(0, lags.size, per_chunk):
             part = lags[start:start + per_chunk]
-            out[start:start + per_chunk] = _correlation(self.y_meas[sel], self.model(part, sel))
+            tau = t[None, :] - part[:, None] + self.shift_s
+            model = self.prefix.average(tau.ravel(), self.window_s).reshape(tau.shape)
+            out[start:start + per_chunk] = _correlation(y, model)
         return out
 
-    def uniform_correlation(self, step: float, steps: int) -> np.ndarray | None:
-        """Correlation at the lags ``k * step``, ``|k| <= steps``, for uniform stamps.
+    def uniform_correlation(self, step: float, steps: int, sel: slice = slice(None),
+                            centre: float = 0.0) -> np.ndarray | None:
+        """Correlation at the lags ``centre + k * step``, ``|k| <= steps``, for uniform stamps.
 
         When the stamps are uniform (period ``P``, within 1e-6 of it) and ``step = P / q``
         with ``q`` whole, every lag's model samples the same instrument-averaged signal on
-        the grid ``t_0 + (j - steps) step``: it is computed once and the sums of the
-        correlation become sliding dot products. Returns ``None`` when not applicable.
+        the grid ``t_0 - centre + (j - steps) step``: it is computed one residue ``j mod q``
+        and one block of stamps at a time, and the sums of the correlation become sliding
+        sums and sliding dot products (:func:`_sliding_dot`). Returns ``None`` when not
+        applicable.
         """
-        t = self.t_meas
-        d = np.diff(t)
-        period = float(d.mean())
-        q = int(round(period / step))
-        if (q < 1 or abs(q * step - period) > 1e-9 * period
-                or np.max(np.abs(d - period)) > 1e-6 * period):
+        t = self.t_meas[sel]
+        q = _whole_fraction(_uniform_period(t), step)
+        if not q:
             return None
         n = t.size
-        u = t[0] + (np.arange((n - 1) * q + 2 * steps + 1) - steps) * step
-        big_m = interval_average(self.t_sim, self.y_sim, u + self.shift_s,
-                                 window_s=self.window_s)
-        y = self.y_meas
-        yc = y - y.mean()
-        syy = float(yc @ yc)
+        y = self.y_meas[sel]
+        mean, syy = self._mean(sel)
         width = 2 * steps + 1
-        s1 = np.empty(width)
-        s2 = np.empty(width)
-        sy = np.empty(width)
-        for r in range(q):
-            # offsets c = r + q * dd of the model's first sample in big_m
-            sub = big_m[r::q]
-            cnt = (width - 1 - r) // q + 1 if r < width else 0
-            if cnt <= 0:
-                continue
-            cs1 = np.concatenate([[0.0], np.cumsum(sub)])
-            cs2 = np.concatenate([[0.0], np.cumsum(sub * sub)])
-            dd = np.arange(cnt)
-            c = r + q * dd
-            s1[c] = cs1[dd + n] - cs1[dd]
-            s2[c] = cs2[dd + n] - cs2[dd]
-            sy[c] = np.correlate(sub[:n + cnt - 1], yc, mode='valid')
+        s1 = np.zeros(width)
+        s2 = np.zeros(width)
+        sy = np.zeros(width)
+        for r in range(min(q, width)):
+            # offsets c = r + q * dd of the model's first sample on the fine grid
+            cnt = (width - 1 - r) // q + 1
+            c = r + q * np.arange(cnt)
+            block = max(_FFT_BLOCK, 2 * cnt)
+            for j0 in range(0, n, block):
+                nb = min(block, n - j0)
+                k = np.arange(r - steps + q * j0, r - steps + q * (j0 + nb + cnt - 1), q)
+                u = k * step
+                u += t[0]
+                if centre != 0.0:
+                    u -= centre
+                u += self.shift_s
+                sub = self.prefix.average(u, self.window_s)
+                sub -= self.level
+                cs = np.concatenate([[0.0], np.cumsum(sub)])
+                s1[c] += cs[nb:nb + cnt] - cs[:cnt]
+                cs = np.concatenate([[0.0], np.cumsum(sub * sub)])
+                s2[c] += cs[nb:nb + cnt] - cs[:cnt]
+                sy[c] += _sliding_dot(sub, y[j0:j0 + nb] - mean, cnt)
         var_m = np.maximum(s2 - s1 * s1 / n, 0.0)
         den = np.sqrt(syy * var_m)
         with np.errstate(invalid='ignore', divide='ignore'):
             corr = np.where(den > 1e-300, sy / np.where(den > 1e-300, den, 1.0), 0.0)
-        # offset c belongs to lag index k = 2 steps - c, i.e. lag (steps - c) * step
+        # offset c belongs to lag index k = 2 steps - c, i.e. lag centre + (steps - c) * step
         return corr[::-1]
+
+    def grid_correlation(self, lags: np.ndarray, step: float, steps: int,
+                         sel: slice = slice(None), centre: float = 0.0) -> np.ndarray:
+        """Correlation on the grid ``lags`` (``centre + k * step``, clipped at its ends)."""
+        corr = self.uniform_correlation(step, steps, sel, centre)
+        if corr is None:
+            return self.correlation(lags, sel)
+        ends = [0, -1]
+        if not np.allclose(lags[ends], centre + np.array([-steps, steps]) * step,
+                           rtol=0.0, atol=1e-12 * max(1.0, abs(centre))):
+            # clipped end lags are not on the uniform grid
+            corr[ends] = self.correlation(lags[ends], sel)
+        return corr
 
     def rms(self, lag: float) -> float:
         """RMS of measured minus model at ``lag``, its mean removed [W]."""
-        r = self.y_meas - self.model(np.array([lag]))[0]
-        return float(np.sqrt(np.mean((r - r.mean()) ** 2)))
+        return self.score(lag)[1]
 
     def refine(self, lag: float, lo: float, hi: float, *, tol: float,
                sel: slice = slice(None)) -> tuple[float, float]:
         """Lag of largest correlation in ``[lo, hi]`` near ``lag``: ``(lag, correlation)``."""
-        best = float(self.correlation(np.array([lag]), sel)[0])
+        best = self.score(lag, sel)[0]
         if not hi > lo:
             return lag, best
 
         def negative(x: float) -> float:
-            return -float(self.correlation(np.array([x]), sel)[0])
+            return -self.score(x, sel)[0]
 
         res = minimize_scalar(negative, bounds=(lo, hi), method='bounded',
                               options={'xatol': tol})
         if -float(res.fun) > best:
             return float(res.x), -float(res.fun)
         return lag, best
+
+
+def _grid_step(n: int, step: float, span_s: float, uniform: bool) -> float:
+    """``step``, or a coarser one when scoring every lag directly would cost too much.
+
+    Uniform stamps score any number of lags in O(n log) (:meth:`_Signals.uniform_correlation`);
+    other stamps cost ``n`` per lag, so their grid is coarsened to at most
+    :data:`_DIRECT_PRODUCTS_MAX` sample-lag products in all (the candidates are then
+    refined within one such step).
+    """
+    if uniform or n * (span_s / step + 1.0) <= _DIRECT_PRODUCTS_MAX:
+        return step
+    return span_s / max(_DIRECT_PRODUCTS_MAX / n - 1.0, 8.0)
 
 
 def _local_maxima(corr: np.ndarray) -> np.ndarray:
@@ -331,7 +548,10 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
        (at its full rate) at every lag on a grid of ``grid_step_s`` within ``±max_lag_s``;
        the default step is a quarter of the shorter of the measured period and the window,
        finer than the narrowest feature the instrument can record (coarsened only if that
-       needs more than 100 000 lags per side).
+       needs more than 100 000 lags per side). On uniform stamps every lag is scored at
+       once in O(n log) (:meth:`_Signals.uniform_correlation`); on irregular stamps each lag
+       costs a pass, and a grid above :data:`_DIRECT_PRODUCTS_MAX` sample-lag products is
+       coarsened to that budget (the candidates are then refined within the coarse step).
     2. *Candidates*: the ``candidates`` best local maxima of that correlation are each
        refined by a bounded scalar search within one grid step (to ~1e-4 of a period).
     3. *Choice*: the candidate with the smallest residual after the instrument model (RMS
@@ -344,9 +564,10 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
        correlation is within ``ambiguity_margin`` of the winner's or its mean squared
        residual within that fraction of the winner's.
     5. *Drift*: on records of at least ``drift_min_duration_s``, the offset is re-estimated
-       on each half of the record near the global one; their difference over the time
-       between the halves' centres is the clock-rate difference (``drift_ppm``). Shorter
-       records, or a half without structure, report it as not estimable.
+       on each half of the record near the global one (the same grid, centred on it);
+       their difference over the time between the halves' centres is the clock-rate
+       difference (``drift_ppm``). Shorter records, or a half without structure, report it
+       as not estimable.
 
     Parameters
     ----------
@@ -394,26 +615,25 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
     if grid_step_s is not None and not (math.isfinite(grid_step_s) and grid_step_s > 0.0):
         msg = f'grid_step_s must be a finite number > 0, got {grid_step_s!r}'
         raise DataError(msg, file='<arrays>', column='grid_step_s')
+    # the steps' median in place (no second copy), before the prefix sums are built
+    period = float(np.median(np.diff(t_meas), overwrite_input=True))
     sig = _Signals(t_meas, y_meas, t_sim, y_sim, float(window_s), stamp_shift(window_s, stamp))
-    period = float(np.median(np.diff(t_meas)))
     width = min(period, window_s) if window_s > 0.0 else period
     step = 0.25 * width if grid_step_s is None else float(grid_step_s)
     step = max(step, max_lag_s / _MAX_LAG_STEPS)
     if grid_step_s is None and step < period:
         # a whole fraction of the period, so that uniform stamps take the fast path
         step = period / math.ceil(period / step - 1e-9)
+    if grid_step_s is None:
+        step = _grid_step(t_meas.size, step, 2.0 * max_lag_s,
+                          bool(_whole_fraction(_uniform_period(t_meas), step)))
     steps = int(math.ceil(max_lag_s / step - 1e-9))
     lags = np.clip(np.arange(-steps, steps + 1) * step, -max_lag_s, max_lag_s)
     if np.ptp(y_meas) == 0.0 or np.ptp(y_sim) == 0.0:
         which = 'measured' if np.ptp(y_meas) == 0.0 else 'simulated'
         return OffsetResult(0.0, math.nan, 'weak', f'the {which} signal is constant',
                             lags, np.zeros_like(lags))
-    corr = sig.uniform_correlation(step, steps) if t_meas.size > 2 else None
-    if corr is None:
-        corr = sig.correlation(lags)
-    elif steps * step > max_lag_s:
-        # the clipped end lags are not on the uniform grid
-        corr[[0, -1]] = sig.correlation(lags[[0, -1]])
+    corr = sig.grid_correlation(lags, step, steps)
     found = []
     for k in _local_maxima(corr)[:max(2, int(candidates))]:
         lo, hi = max(-max_lag_s, lags[k] - step), min(max_lag_s, lags[k] + step)
@@ -465,11 +685,14 @@ def _drift(sig: _Signals, offset: float, *, step: float, period: float,
     for name, sel in (('first', slice(0, half)), ('second', slice(half, t.size))):
         if np.ptp(sig.y_meas[sel]) == 0.0:
             return math.nan, f'not estimable: the {name} half of the record is constant'
-        grid = offset + np.arange(-reach, reach + 0.5 * step, step)
-        corr = sig.correlation(grid, sel)
+        uniform = bool(_whole_fraction(_uniform_period(t[sel]), step))
+        grid_step = _grid_step(t[sel].size, step, 2.0 * reach, uniform)
+        steps = int(math.ceil(reach / grid_step - 1e-9))
+        grid = offset + np.arange(-steps, steps + 1) * grid_step
+        corr = sig.grid_correlation(grid, grid_step, steps, sel, centre=offset)
         k = int(np.argmax(corr))
-        lag, c = sig.refine(float(grid[k]), float(grid[k]) - step, float(grid[k]) + step,
-                            tol=period * 1e-4, sel=sel)
+        lag, c = sig.refine(float(grid[k]), float(grid[k]) - grid_step,
+                            float(grid[k]) + grid_step, tol=period * 1e-4, sel=sel)
         if c < min_correlation:
             return math.nan, (f'not estimable: the {name} half correlates only {c:.3f} '
                               f'(below {min_correlation:g})')

@@ -19,7 +19,7 @@ without a measured counterpart (e.g. a Z axis without a power column) are left o
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 import math
 from pathlib import Path
 from typing import Any
@@ -27,11 +27,11 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError, DataError
-from ..gcode import load_gcode
+from ..gcode import iter_moves, load_gcode
 from ..machine import load_machine, Machine
 from ..plan import Motion, motion_from_samples, plan
-from ..sim import simulate_motion, SimulationResult
-from ..physics import relative_sd_pct
+from ..sim import simulate_motion, simulate_stream, SimulationResult, streamable
+from ..physics import relative_sd_pct, UNCERTAINTY_KEY
 from .align import align_simulated, estimate_offset, OffsetResult
 from .csvload import load_run
 from .run import MeasuredRun
@@ -88,6 +88,138 @@ def simulate_declared(spec: RunSpec, run: MeasuredRun, machine: Machine,
     return simulate_motion(motion, machine, load_kg=spec.load_kg), source
 
 
+@dataclass(frozen=True)
+class SimTrace:
+    """What a comparison keeps of a simulation: no more than it uses.
+
+    Attributes
+    ----------
+    t
+        Simulated times [s], ``(m,)``.
+    signal
+        The predicted trace of the run's measured axes in the quantity's SI unit, ``(m, k)``
+        (:func:`.quantity.predicted_signal`: power [W], current [A], torque, force).
+    omega
+        Screw speed of the measured axes [rad/s], ``(m, k)``, for a drive trace's Table-1
+        figures (``q·g·omega``); ``None`` for power.
+    vel
+        Simulated velocity per motion axis [m/s], ``(m, j)`` (motion states).
+    source
+        Where the motion came from (``RunComparison.motion_source``).
+    energy_sd_pct
+        Standard uncertainty of the simulated energy of the measured axes [%] (NaN if none).
+    """
+
+    t: np.ndarray
+    signal: np.ndarray
+    omega: np.ndarray | None
+    vel: np.ndarray
+    source: str
+    energy_sd_pct: float
+
+
+def _predicted(spec: RunSpec, sim: SimulationResult, machine: Machine,
+               gains: Sequence[float | None] | None) -> np.ndarray:
+    return predicted_signal(spec.instrument.measures, sim, machine, spec.measured_axes,
+                            gains=gains, manifest=spec.manifest, key=spec.key)
+
+
+def _whole_trace(spec: RunSpec, run: MeasuredRun, machine: Machine, cache: MotionCache,
+                 gains: Sequence[float | None] | None = None) -> SimTrace:
+    sim, source = simulate_declared(spec, run, machine, cache)
+    omega = (None if quantity_of(spec.instrument.measures).is_power
+             else omega_columns(sim, spec.measured_axes))
+    return SimTrace(sim.power.t, _predicted(spec, sim, machine, gains), omega, sim.motion.vel,
+                    source, relative_sd_pct(sim, spec.measured_axes))
+
+
+class _Growing:
+    """An array filled chunk by chunk, its capacity doubled when full.
+
+    One large buffer instead of a list of chunks to join: a long run's chunks would scatter
+    over the heap and stay there as fragments after the join; the untouched end of a large
+    buffer costs no memory.
+    """
+
+    def __init__(self, capacity: int, tail: tuple[int, ...]):
+        self.buf = np.empty((max(1, capacity),) + tail)
+        self.n = 0
+
+    def add(self, values: np.ndarray) -> None:
+        need = self.n + values.shape[0]
+        if need > self.buf.shape[0]:
+            grown = np.empty((max(need, 2 * self.buf.shape[0]),) + self.buf.shape[1:])
+            grown[:self.n] = self.buf[:self.n]
+            self.buf = grown
+        self.buf[self.n:need] = values
+        self.n = need
+
+    def array(self) -> np.ndarray:
+        return self.buf[:self.n]
+
+
+def _streamed_trace(spec: RunSpec, program: Path, machine: Machine,
+                    expected_s: float) -> SimTrace:
+    """The run's program simulated chunk by chunk, keeping only what :class:`SimTrace` holds.
+
+    Equal to the whole-record simulation (``simulate_stream``'s contract) in a fraction of
+    its memory: a whole simulation holds some 30 arrays per sample, the trace 2 + 2 per axis.
+    ``expected_s`` (the measured record's length) sizes the buffers.
+    """
+    capacity = int(machine.planner.rate_hz * (expected_s + 60.0)) + 1
+    t = _Growing(capacity, ())
+    p = _Growing(capacity, (len(spec.measured_axes),))
+    v: _Growing | None = None
+
+    def keep(chunk: SimulationResult) -> None:
+        nonlocal v
+        t.add(chunk.power.t)
+        p.add(_predicted(spec, chunk, machine, None))
+        if v is None:
+            v = _Growing(capacity, chunk.motion.vel.shape[1:])
+        v.add(chunk.motion.vel)
+
+    moves = iter_moves(program, **machine.gcode_keywords())
+    summary, _ = simulate_stream(moves, machine, file=str(program), load_kg=spec.load_kg,
+                                 on_chunk=keep)
+    if v is None:
+        msg = 'the program has no motion to simulate'
+        raise DataError(msg, file=str(program))
+    return SimTrace(t.array(), p.array(), None, v.array(), str(program),
+                    _summary_sd_pct(summary, spec.measured_axes))
+
+
+def _summary_sd_pct(summary: dict[str, Any], axes: Sequence[str]) -> float:
+    """:func:`~feed_axis_energy.physics.relative_sd_pct` from a streamed summary."""
+    found = summary.get(UNCERTAINTY_KEY)
+    moved = [a for a in axes if a in summary['energy_j'] and a != 'total']
+    if found is None or not moved or summary['samples'] < 2:
+        return math.nan
+    if any(a not in found['axes'] for a in moved):
+        return math.nan
+    energy = math.fsum(float(summary['energy_j'][a]) for a in moved)
+    value = math.sqrt(math.fsum(float(found['energy_sd_j'][a]) ** 2 for a in moved))
+    return 100.0 * value / energy if energy > 0.0 and math.isfinite(value) else math.nan
+
+
+def simulate_trace(spec: RunSpec, run: MeasuredRun, machine: Machine, cache: MotionCache,
+                   gains: Sequence[float | None] | None = None) -> SimTrace:
+    """Simulate a run for comparison: streamed when it comes from a program that streams.
+
+    A power run driven by an NC program on a machine whose declared effects are all
+    sample-local is simulated chunk by chunk (:func:`_streamed_trace`), so a long run at a
+    drive-trace rate holds a few arrays, not the whole simulation; other runs (drive traces
+    in current, torque or force among them, whose prediction at rest carries state across
+    samples) take the whole-record path (:func:`simulate_declared`, its plan cached per
+    program). ``gains``: :func:`.quantity.torque_per_unit` of a drive trace's axes.
+    """
+    if (quantity_of(spec.instrument.measures).is_power and spec.motion_program is not None
+            and streamable(machine)):
+        return _streamed_trace(spec, spec.motion_program, machine,
+                               float(run.t[-1] - run.t[0]))
+    return _whole_trace(spec, run, machine, cache, gains)
+
+
 def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_MAX_LAG_S,
                 window_s: float | None = None, offset_s: float | None = None,
                 min_correlation: float = 0.5, floor_fraction: float = 0.05,
@@ -135,18 +267,20 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
                     floor_fraction: float, stamp: str | None = None,
                     check_meter: bool = True) -> RunComparison:
     run = load_run(spec)
-    sim, source = simulate_declared(spec, run, machine, cache)
     qty = quantity_of(spec.instrument.measures)
     axes = spec.measured_axes
     gains = (None if qty.is_power else
              torque_per_unit(qty.name, machine, axes, declared_kt=spec.instrument.kt_by_axis,
                              manifest=spec.manifest, key=spec.key))
-    sim_q = predicted_signal(qty.name, sim, machine, axes, gains=gains, manifest=spec.manifest,
-                             key=spec.key)
+    sim = simulate_trace(spec, run, machine, cache, gains)
+    # the trace's arrays as names, each let go as soon as it is used up (long runs)
+    t_sim, sim_q, omega_sim, vel = sim.t, sim.signal, sim.omega, sim.vel
+    source, sim_duration, energy_sd = sim.source, float(t_sim[-1] - t_sim[0]), sim.energy_sd_pct
+    del sim
     meas_q = measured_signal(run, measures=qty.name, axes=axes, invert=spec.instrument.invert)
     meter = (spec.instrument if spec.instrument.declared
              else default_instrument(spec.motion_from_data, qty.name))
-    period = float(np.median(np.diff(run.t)))
+    period = float(np.median(np.diff(run.t), overwrite_input=True))
     window = meter.window_for(period) if window_s is None else float(window_s)
     stamp = meter.stamp if stamp is None else stamp
     if window_s is not None or stamp != meter.stamp:
@@ -156,12 +290,12 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         msg = (f'the simulation of this run overflowed (simulated {qty.column} sample '
                f'{sample} is not finite); check the run\'s kinematics and the machine config')
         raise DataError(msg, file=run.file)
-    # the signal the offset is searched on: summed power; or the magnitudes of the drive
-    # traces, each scaled by its measured RMS (amperes of different motors add up to
-    # nothing), so that a trace of the opposite sign convention is aligned all the same and
-    # then reported
+    # the signal the offset is searched on, summed once (a long run holds no more copies of
+    # it than it needs): the power; or the magnitudes of the drive traces, each scaled by its
+    # measured RMS (amperes of different motors add up to nothing), so that a trace of the
+    # opposite sign convention is aligned all the same and then reported
     if qty.is_power:
-        y_meas, y_sim = meas_q.sum(axis=1), sim_q.sum(axis=1)
+        y_meas, y_sim = _total(meas_q), _total(sim_q)
     else:
         rms = np.sqrt(np.mean(meas_q * meas_q, axis=0))
         scale = np.where(rms > 0.0, rms, 1.0)
@@ -169,7 +303,7 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         y_sim = (np.abs(sim_q) / scale).sum(axis=1)
     if offset_s is None:
         try:
-            found = estimate_offset(run.t, y_meas, sim.power.t, y_sim,
+            found = estimate_offset(run.t, y_meas, t_sim, y_sim,
                                     max_lag_s=max_lag_s, window_s=window, stamp=stamp,
                                     min_correlation=min_correlation)
         except DataError as err:
@@ -181,52 +315,59 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
     else:
         used = float(offset_s)
         found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')
+    labels = state_labels(t_sim, vel, run.t, period_s=period, offset_s=used)
+    del vel
     try:
-        aligned_q = align_simulated(sim.power.t, sim_q, run.t, offset_s=used, window_s=window,
+        fits: tuple[MeterFit, ...] = ()
+        if qty.is_power and check_meter and offset_s is None and found.status != 'weak':
+            fits = check_instrument(run.t, y_meas, t_sim, y_sim,
+                                    offset_s=used, window_s=window, stamp=stamp,
+                                    same_clock=spec.motion_program is None)
+        aligned_q = align_simulated(t_sim, sim_q, run.t, offset_s=used, window_s=window,
                                     stamp=stamp)
         if qty.is_power:
             meas, aligned = meas_q, aligned_q
         else:
             # Table-1 figures of a drive trace: q·g·omega [W] (I·kt·omega for current), both
             # sides with the simulated speed, so that they weigh the unit figures by omega
-            omega = align_simulated(sim.power.t, omega_columns(sim, axes), run.t,
-                                    offset_s=used, window_s=window, stamp=stamp)
+            assert omega_sim is not None    # a drive trace takes the whole-record path
+            omega = align_simulated(t_sim, omega_sim, run.t, offset_s=used, window_s=window,
+                                    stamp=stamp)
             g = np.array(gains, dtype=float)
             meas, aligned = meas_q * g * omega, aligned_q * g * omega
-        fits: tuple[MeterFit, ...] = ()
-        if qty.is_power and check_meter and offset_s is None and found.status != 'weak':
-            fits = check_instrument(run.t, y_meas, sim.power.t, y_sim,
-                                    offset_s=used, window_s=window, stamp=stamp,
-                                    same_clock=spec.motion_program is None)
     except DataError as err:
         # align names its arrays only; the run's file is the place the user can act on
         msg = f'simulated {qty.column} cannot be aligned: {err.reason}'
         raise DataError(msg, file=run.file, column=err.column) from err
+    # the simulation is no longer needed: a long run's metrics have its memory
+    del t_sim, sim_q, y_sim, omega_sim
     where: dict[str, Any] = {'file': run.file, 'rows': run.extra.get('rows'),
                              'floor_fraction': floor_fraction}
     word = 'power' if qty.is_power else f'{qty.symbol}*g*omega'
-    total = table1_metrics(run.t, meas.sum(axis=1), aligned.sum(axis=1),
+    meas_total = y_meas if qty.is_power else _total(meas)
+    aligned_total = _total(aligned)
+    states = residual_by_state(labels, meas_total - aligned_total)
+    del labels
+    total = table1_metrics(run.t, meas_total, aligned_total,
                            columns=('time', f'measured total {word}', f'simulated total {word}'),
                            **where)
-    per_axis = {a: table1_metrics(run.t, meas[:, j], aligned[:, j],
-                                  columns=('time', f'measured {a} {word}',
-                                           f'simulated {a} {word}'), **where)
-                for j, a in enumerate(axes)}
+    # one measured axis is the total: the same arrays, the same metrics
+    per_axis = ({axes[0]: total} if meas.shape[1] == 1 else
+                {a: table1_metrics(run.t, meas[:, j], aligned[:, j],
+                                   columns=('time', f'measured {a} {word}',
+                                            f'simulated {a} {word}'), **where)
+                 for j, a in enumerate(axes)})
     signal: dict[str, SignalMetrics] = {
         a: signal_metrics(meas_q[:, j], aligned_q[:, j], quantity=qty)
         for j, a in enumerate(axes)}
-    labels = state_labels(sim.motion.t, sim.motion.vel, run.t - used,
-                          period_s=period)
-    states = residual_by_state(labels, meas.sum(axis=1) - aligned.sum(axis=1))
     return RunComparison(
         name=spec.name, role=spec.role, load_kg=spec.load_kg, data_file=run.file,
         motion_source=source, axes=axes, window_s=window, offset=found,
         offset_used_s=used, metrics=total, axis_metrics=per_axis, t=run.t,
-        power_meas_w=meas, power_sim_w=aligned,
-        sim_duration_s=float(sim.power.t[-1] - sim.power.t[0]),
+        power_meas_w=meas, power_sim_w=aligned, sim_duration_s=sim_duration,
         excluded_rows=int(run.extra.get('excluded_rows', 0)), stamp=stamp,
         instrument=meter.describe(period), meter_fits=fits, states=states,
-        energy_sd_pct=relative_sd_pct(sim, axes), measures=qty.name,
+        energy_sd_pct=energy_sd, measures=qty.name,
         signal_meas=meas_q, signal_sim=aligned_q, signal_metrics=signal,
         torque_per_unit=(None if gains is None
                          else {a: float(g_) for a, g_ in zip(axes, gains)
@@ -235,6 +376,11 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
                        tuple(sign_warnings(signal, quantity=qty,
                                            invert=spec.instrument.invert))),
     )
+
+
+def _total(power_w: np.ndarray) -> np.ndarray:
+    """Sum over the axes, ``(n,)``: the one column itself (a view) when there is one."""
+    return power_w[:, 0] if power_w.shape[1] == 1 else power_w.sum(axis=1)
 
 
 def _groups(runs: Sequence[RunComparison]) -> tuple[GroupComparison, ...]:

@@ -127,8 +127,8 @@ def check_gaps(t: np.ndarray, spec: RunSpec, *, file: str, column: str,
     """
     if spec.allow_gaps:
         return
+    median = float(np.median(np.diff(t), overwrite_input=True))  # before the steps are kept
     dt = np.diff(t)
-    median = float(np.median(dt))
     gaps = np.flatnonzero(dt > GAP_FACTOR * median)
     if gaps.size:
         i = int(gaps[0]) + 1

@@ -66,9 +66,12 @@ class StateResidual:
         }
 
 
+_CHUNK = 1 << 17   # stamps labelled at once
+
+
 def state_labels(t_sim: np.ndarray, vel: np.ndarray, tau: np.ndarray, *,
                  period_s: float, still_m_s: float = 1e-4,
-                 accel_m_s2: float = 0.05) -> np.ndarray:
+                 accel_m_s2: float = 0.05, offset_s: float = 0.0) -> np.ndarray:
     """Index into :data:`STATES` of every sample (see the module docstring).
 
     Parameters
@@ -83,31 +86,71 @@ def state_labels(t_sim: np.ndarray, vel: np.ndarray, tau: np.ndarray, *,
         Measured sampling period [s].
     still_m_s, accel_m_s2
         Thresholds.
+    offset_s
+        Subtracted from ``tau`` (a chunk at a time: no shifted copy of a long record).
 
     Returns
     -------
     numpy.ndarray
-        ``(n,)`` integers.
+        ``(n,)`` small integers (``int8``).
     """
     vel = np.asarray(vel, dtype=float)
-    speed = np.sqrt(np.sum(vel ** 2, axis=1))
-    # mean acceleration over one period centred at each simulated sample, per axis
-    half = 0.5 * period_s
-    amax = np.zeros(t_sim.shape)
-    for j in range(vel.shape[1]):
-        dv = np.interp(t_sim + half, t_sim, vel[:, j]) - np.interp(t_sim - half, t_sim, vel[:, j])
-        np.maximum(amax, np.abs(dv) / period_s, out=amax)
-    at = np.interp(tau, t_sim, speed)
-    # largest |a| of any axis within one period either side of each stamp: maxima between
-    # consecutive window edges, then the two halves around the stamp
-    lo = np.clip(np.searchsorted(t_sim, tau - period_s), 0, t_sim.size - 1)
-    hi = np.clip(np.searchsorted(t_sim, tau + period_s, side='right'), 1, t_sim.size)
-    hi = np.maximum(hi, lo + 1)
-    near = np.array([amax[a:b].max() for a, b in zip(lo, hi)]) if tau.size else np.zeros(0)
-    labels = np.full(tau.shape, STATES.index('steady'))
-    labels[near > accel_m_s2] = STATES.index('transient')
-    labels[(at < still_m_s) & (near <= accel_m_s2)] = STATES.index('standstill')
+    m = t_sim.size
+    labels = np.full(tau.shape, STATES.index('steady'), dtype=np.int8)
+    for a in range(0, tau.size, _CHUNK):
+        # stamps a chunk at a time, with the simulated samples they reach: the temporaries
+        # stay bounded on long records (the values are those of one pass over everything)
+        part = tau[a:a + _CHUNK]
+        if offset_s != 0.0:
+            part = part - offset_s
+        lo = np.clip(np.searchsorted(t_sim, part - period_s), 0, m - 1)
+        hi = np.clip(np.searchsorted(t_sim, part + period_s, side='right'), 1, m)
+        hi = np.maximum(hi, lo + 1)
+        first = max(0, min(int(lo[0]), int(np.searchsorted(t_sim, part[0])) - 1))
+        stop = min(m, max(int(hi[-1]), int(np.searchsorted(t_sim, part[-1])) + 2))
+        near = _range_max(_accel_max(t_sim, vel, first, stop, period_s), lo - first,
+                          hi - first)
+        speed = np.sqrt(np.sum(vel[first:stop] ** 2, axis=1))
+        at = np.interp(part, t_sim[first:stop], speed)
+        out = labels[a:a + _CHUNK]
+        out[near > accel_m_s2] = STATES.index('transient')
+        out[(at < still_m_s) & (near <= accel_m_s2)] = STATES.index('standstill')
     return labels
+
+
+def _accel_max(t_sim: np.ndarray, vel: np.ndarray, first: int, stop: int,
+               period_s: float) -> np.ndarray:
+    """Largest |mean acceleration| of any axis over one period centred at each simulated
+    sample ``first`` .. ``stop - 1`` [m/s^2]."""
+    half = 0.5 * period_s
+    t = t_sim[first:stop]
+    amax = np.zeros(t.shape)
+    for j in range(vel.shape[1]):
+        dv = np.interp(t + half, t_sim, vel[:, j]) - np.interp(t - half, t_sim, vel[:, j])
+        np.maximum(amax, np.abs(dv) / period_s, out=amax)
+    return amax
+
+
+def _range_max(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """``max(values[lo[i]:hi[i]])`` for nondecreasing ``lo < hi`` (sliding windows), O(n).
+
+    The window edges cut ``values`` into elementary pieces whose maxima are one
+    ``maximum.reduceat``; a window is a run of consecutive pieces (a few: the edges inside it
+    belong to its neighbours), combined piece by piece for all windows at once.
+    """
+    if lo.size == 0:
+        return np.zeros(0)
+    base, end = int(lo[0]), int(hi[-1])
+    lo, hi = lo - base, hi - base
+    edges = np.union1d(lo, hi)
+    edges = edges[edges < end - base]
+    piece = np.maximum.reduceat(values[base:end], edges)
+    first = np.searchsorted(edges, lo)
+    stop = np.searchsorted(edges, hi)
+    out = piece[first].copy()
+    for k in range(1, int(np.max(stop - first))):
+        np.maximum(out, piece[np.minimum(first + k, stop - 1)], out=out)
+    return out
 
 
 def residual_by_state(labels: np.ndarray, residual: np.ndarray) -> tuple[StateResidual, ...]:
