@@ -85,7 +85,7 @@ def main() -> None:
     import rclpy
     from rclpy.context import Context
     from std_msgs.msg import String
-    from feed_axis_energy.nodes.qos import command_qos, latched_qos
+    from feed_axis_energy.nodes.qos import command_qos, job_qos
     from feed_axis_energy.nodes.runner import make_executor
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -124,7 +124,7 @@ def main() -> None:
             last_live[d['job_id']] = now
 
         pub = node.create_publisher(String, 'job/command', command_qos())
-        node.create_subscription(String, 'job/result', on_result, latched_qos())
+        node.create_subscription(String, 'job/result', on_result, job_qos())
         node.create_subscription(String, 'job/live', on_live, command_qos())
 
         def spin_until(cond, timeout_s):

@@ -24,7 +24,7 @@ from feed_axis_energy.errors import FeedAxisError
 from feed_axis_energy.machine import load_machine
 from feed_axis_energy.plan import Motion
 from feed_axis_energy.nodes import convert
-from feed_axis_energy.nodes.qos import latched_qos, stream_qos
+from feed_axis_energy.nodes.qos import job_qos, stream_qos
 from feed_axis_energy.nodes.runner import (check_mass, declare, guard_parameters, LiveParameter,
                                            run, StartupError)
 from feed_axis_energy.paths import default_machine
@@ -49,7 +49,7 @@ class AxisDynamicsNode(Node):
                                             stream_qos(), raw=True)
         self.batches = 0
         self.router: JobRouter[bytes] = JobRouter()
-        self.create_subscription(String, 'job/state', self._on_job_state, latched_qos())
+        self.create_subscription(String, 'job/state', self._on_job_state, job_qos())
         # load_kg may change while running (a new workpiece): it applies from the next batch
         guard_parameters(self, {'load_kg': LiveParameter(check_mass, self._set_load)})
 

@@ -35,7 +35,7 @@ from feed_axis_energy.graph import (EndTracker, header_frame_id, JobRouter, line
 from feed_axis_energy.machine import load_machine
 from feed_axis_energy.plan import Motion
 from feed_axis_energy.nodes import convert
-from feed_axis_energy.nodes.qos import command_qos, latched_qos, report_qos, stream_qos
+from feed_axis_energy.nodes.qos import command_qos, job_qos, latched_qos, report_qos, stream_qos
 from feed_axis_energy.nodes.runner import (check_mass, declare, guard_parameters, LiveParameter,
                                            run, StartupError, steady_timer)
 from feed_axis_energy.paths import default_machine
@@ -89,7 +89,7 @@ class EnergyEstimator(Node):
         self.create_subscription(JointTrajectory, 'program/lines', self._on_lines,
                                  latched_qos(), raw=True)
         self.create_subscription(DiagnosticArray, 'program/end', self._on_end, latched_qos())
-        self.create_subscription(String, 'job/state', self._on_job_state, latched_qos())
+        self.create_subscription(String, 'job/state', self._on_job_state, job_qos())
         steady_timer(self, 0.1, self._check_exit)
         # load_kg may change while running: the declared effects use it from the next batch
         guard_parameters(self, {'load_kg': LiveParameter(check_mass, self._set_load)})

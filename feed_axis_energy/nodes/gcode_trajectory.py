@@ -38,7 +38,8 @@ from feed_axis_energy.graph import (FlowWindow, header_frame_id, header_stamp_ns
 from feed_axis_energy.machine import load_machine
 from feed_axis_energy.plan import iter_motion
 from feed_axis_energy.nodes import convert
-from feed_axis_energy.nodes.qos import clock_qos, command_qos, latched_qos, report_qos, stream_qos
+from feed_axis_energy.nodes.qos import (clock_qos, command_qos, job_qos, latched_qos, report_qos,
+                                        stream_qos)
 from feed_axis_energy.nodes.runner import (check_positive, declare, guard_parameters,
                                            LiveParameter, run, STARTUP_ERRORS, StartupError,
                                            steady_timer)
@@ -202,8 +203,8 @@ class GcodeTrajectory(LifecycleNode):
 
     # jobs --------------------------------------------------------------------------------
     def _configure_jobs(self) -> None:
-        self.pub_state = self.create_publisher(String, 'job/state', latched_qos())
-        self.pub_result = self.create_publisher(String, 'job/result', latched_qos())
+        self.pub_state = self.create_publisher(String, 'job/state', job_qos())
+        self.pub_result = self.create_publisher(String, 'job/result', job_qos())
         self.pub_reply = self.create_publisher(String, 'job/reply', command_qos())
         self.sub_command = self.create_subscription(String, 'job/command', self._on_command,
                                                     command_qos())

@@ -18,14 +18,22 @@
   starts later. A client waits until its writer is matched before it sends.
 * Job reports between nodes (``job/energy``): reliable, keep last 10, transient local
   (asymmetric discovery, as for the streams); each names its job, stale ones are ignored.
+* Job states and results (``job/state``, ``job/result``): reliable, keep last
+  :data:`JOB_DEPTH`, transient local, writer and readers alike. Keep last 1 lost states
+  under load: a job's ``ended`` was replaced in the writer's history by the next job's
+  ``planning`` before a slow reader had it (1 in 3 node-test runs on a loaded machine). A
+  late subscriber gets the last :data:`JOB_DEPTH` messages, the newest last.
 """
 from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ['STREAM_DEPTH', 'stream_qos', 'latched_qos', 'clock_qos', 'command_qos', 'report_qos']
+__all__ = ['STREAM_DEPTH', 'JOB_DEPTH', 'stream_qos', 'latched_qos', 'clock_qos', 'command_qos',
+           'report_qos', 'job_qos']
 
 STREAM_DEPTH = 100
+JOB_DEPTH = 16
+"""History of ``job/state`` and ``job/result``: every state of a few jobs in a row."""
 
 
 def stream_qos(depth: int = STREAM_DEPTH) -> QoSProfile:
@@ -59,5 +67,12 @@ def command_qos() -> QoSProfile:
 def report_qos() -> QoSProfile:
     """``job/energy``: reliable, keep last 10, transient local."""
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def job_qos() -> QoSProfile:
+    """``job/state``, ``job/result``: reliable, keep last :data:`JOB_DEPTH`, transient local."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=JOB_DEPTH,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -30,7 +30,7 @@ class _Client:
     def __init__(self, context):
         from std_msgs.msg import String
         from trajectory_msgs.msg import JointTrajectory
-        from feed_axis_energy.nodes.qos import command_qos, latched_qos, stream_qos
+        from feed_axis_energy.nodes.qos import command_qos, job_qos, stream_qos
         from feed_axis_energy.nodes.runner import make_executor
         import rclpy
         self.String = String
@@ -42,8 +42,8 @@ class _Client:
         self.node.create_subscription(String, 'job/reply', self._on_reply, command_qos())
         self.node.create_subscription(String, 'job/state',
                                       lambda m: self.states.append(json.loads(m.data)),
-                                      latched_qos())
-        self.node.create_subscription(String, 'job/result', self._on_result, latched_qos())
+                                      job_qos())
+        self.node.create_subscription(String, 'job/result', self._on_result, job_qos())
         self.node.create_subscription(JointTrajectory, 'setpoints', self._on_setpoints,
                                       stream_qos(), raw=True)
         self.node.create_subscription(String, 'job/live', self._on_live, command_qos())
