@@ -46,9 +46,18 @@ class _Client:
         self.node.create_subscription(String, 'job/result', self._on_result, job_qos())
         self.node.create_subscription(JointTrajectory, 'setpoints', self._on_setpoints,
                                       stream_qos(), raw=True)
-        self.node.create_subscription(String, 'job/live', self._on_live, command_qos())
+        self.live_sub = self.node.create_subscription(String, 'job/live', self._on_live,
+                                                      command_qos())
         self.setpoint_samples = {}
         self.live = {}
+
+    def wait_for_live(self):
+        """Until the estimator's job/live writer is matched (seen from here, then 0.5 s for
+        the other direction of discovery)."""
+        self.spin_until(lambda: self.live_sub.get_publisher_count() > 0, 30,
+                        'job/live publisher matched')
+        settle = time.monotonic() + 0.5
+        self.spin_until(lambda: time.monotonic() > settle, 5, 'settle')
 
     def _on_live(self, msg):
         d = json.loads(msg.data)
@@ -126,6 +135,10 @@ def test_two_jobs_a_refused_start_and_an_abort_in_one_graph_launch(tmp_path, nod
                              load_kg=1e30)
         assert not nan['accepted'] and nan['field'] == 'load_kg', nan
 
+        # job/live is volatile and sent only while someone is subscribed: the estimator
+        # must have matched this client before job 1 (discovery is per pair of nodes; the
+        # job/state writer above is another node), else a 0.1 s job passes unseen
+        client.wait_for_live()
         # job 1: the default machine, 5 kg
         r1 = client.command('r1', command='start', job_id='j1', program='short.nc',
                             load_kg=5.0)
@@ -242,6 +255,7 @@ def test_live_stream_is_stamped_in_wall_clock_time_in_realtime_mode(tmp_path, no
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     client = _Client(context)
     try:
+        client.wait_for_live()
         r = client.command('r1', command='start', job_id='rt1', program='xyz.nc', load_kg=3)
         assert r['accepted'], r
         t_start_ns = time.time_ns()
