@@ -42,7 +42,8 @@ from ..units import GRAVITY_M_S2
 from ..measured import MeasuredRun
 from .steady import kinematics, VELOCITY_SOURCES
 
-__all__ = ['SampleFit', 'SampleFitOptions', 'fit_loss_samples', 'machine_with_sample_fits']
+__all__ = ['SampleFit', 'SampleFitOptions', 'fit_loss_samples', 'machine_with_sample_fits',
+           'nonnegative_lsq']
 
 _MAX_ROUNDS = 20
 _MM_PER_M = 1000.0
@@ -227,8 +228,9 @@ def _collect(runs: Sequence[MeasuredRun], axis: str, machine: Machine,
     return _Columns(cat(vs), cat(accs), cat(ps), cat(masses), loads)
 
 
-def _solve(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-    """Non-negative least squares and the (unbounded) covariance of the coefficients."""
+def nonnegative_lsq(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """Non-negative least squares and the (unbounded) covariance of the coefficients (the
+    fits on every sample of power and of drive traces, :mod:`.torquefit`)."""
     sol = lsq_linear(x, y, bounds=(0.0, np.inf), method='bvls')
     coef = np.asarray(sol.x, dtype=float)
     n, k = x.shape
@@ -287,7 +289,7 @@ def _fit_axis(cols: _Columns, *, axis: str, machine: Machine,
                    f'dissipated reads 0 otherwise); need at least {options.min_samples}')
             return SampleFit(axis=axis, status='insufficient', message=msg, n_samples=n,
                              n_accel=n_accel)
-        coef, cov = _solve(x, y[use])
+        coef, cov = nonnegative_lsq(x, y[use])
         params = coef.copy() if fit_inertia else np.array([motor, *coef])
     force_power = known + params[1] * speed + params[2] * v * v
     k = np.where(force_power >= 0.0, 1.0 / eta, eta)

@@ -42,14 +42,13 @@ from collections.abc import Mapping, Sequence
 import math
 
 import numpy as np
-from scipy.optimize import lsq_linear
 
 from ..errors import ConfigError, DataError
 from ..machine import CalibratedRange, Machine, moved_mass_kg
 from ..measured import MeasuredRun, measured_signal, quantity_of
 from ..physics import last_direction
 from ..units import GRAVITY_M_S2
-from .samplefit import SampleFit, SampleFitOptions
+from .samplefit import nonnegative_lsq, SampleFit, SampleFitOptions
 from .steady import kinematics, VELOCITY_SOURCES
 
 __all__ = ['fit_drive_samples', 'WRONG_SIGN']
@@ -97,19 +96,6 @@ def _collect(runs: Sequence[MeasuredRun], axis: str, machine: Machine, measures:
     return (np.concatenate(vs), np.concatenate(accs), np.concatenate(qs),
             np.concatenate(masses), np.array(loads), np.concatenate(dirs),
             np.concatenate(q_rest), np.concatenate(m_rest))
-
-
-def _lsq(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-    """Non-negative least squares and the (unbounded) covariance of the coefficients."""
-    coef = np.asarray(lsq_linear(x, y, bounds=(0.0, np.inf), method='bvls').x, dtype=float)
-    n, k = x.shape
-    cov = None
-    if n > k:
-        res = y - x @ coef
-        xtx = x.T @ x
-        if np.linalg.matrix_rank(xtx) == k:
-            cov = float(res @ res) / (n - k) * np.linalg.inv(xtx)
-    return coef, cov
 
 
 def _se(cov: np.ndarray | None, i: int) -> float | None:
@@ -173,7 +159,7 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
                 basis.insert(0, alpha)
             else:
                 y = y - motor * alpha
-            coef, cov = _lsq(np.column_stack(basis), y)
+            coef, cov = nonnegative_lsq(np.column_stack(basis), y)
             if fit_inertia:
                 inertia, coulomb, viscous = (float(c) for c in coef)
             else:
@@ -181,7 +167,7 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
         else:
             x = np.column_stack([(motor + rest) * alpha + k * r * known, k * r * sgn,
                                  k * r * v])
-            coef, cov = _lsq(x, q)
+            coef, cov = nonnegative_lsq(x, q)
             theta0 = float(coef[0])
             if theta0 <= 0.0:
                 msg = (f'the torque constant of axis {axis} cannot be told from the data (the '
@@ -263,7 +249,7 @@ def _standstill_hold(d: np.ndarray, q: np.ndarray, mass: np.ndarray, *, spec, ga
     # holding the weight: the motor drives the nut (as the dynamics take it at rest)
     y = q * gain - r * weight / eta
     x = (d * r)[:, None]
-    coef, _ = _lsq(x, y)
+    coef, _ = nonnegative_lsq(x, y)
     hold = float(coef[0])
     res = q - (r * weight / eta + hold * d * r) / gain
     return hold, math.sqrt(float(res @ res) / res.size)
