@@ -83,3 +83,24 @@ def test_off_loopback_needs_certificate_and_users(root, tmp_path):
     done = _serve('--program-root', str(root), '--opcua-users', str(users),
                   '--opcua-port', str(_free_port()))
     assert done.returncode == 2 and f'{users}:1' in done.stderr
+
+
+def _client(*args: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join([str(ROOT), env.get('PYTHONPATH', '')])
+    return subprocess.run([sys.executable, '-m', 'feed_axis_energy', 'cell-client', *args],
+                          capture_output=True, text=True, timeout=60, env=env, cwd=ROOT)
+
+
+def test_cell_client_without_a_server():
+    port = _free_port()
+    done = _client('--endpoint', f'opc.tcp://127.0.0.1:{port}/feed_axis_energy/', 'a.nc')
+    assert done.returncode == 1 and 'Traceback' not in done.stderr
+    assert f'cannot connect to opc.tcp://127.0.0.1:{port}/' in done.stderr
+    assert 'is feed-axis-energy serve running?' in done.stderr
+
+
+@pytest.mark.parametrize('args', [['--load-kg', 'nan', 'a.nc'], ['--timeout', '0', 'a.nc']])
+def test_cell_client_bad_options(args):
+    done = _client(*args)
+    assert done.returncode == 2 and done.stderr.startswith('error: --')
