@@ -7,8 +7,8 @@ interface. :mod:`.requests` checks what clients send before the service sees it;
 :mod:`.topics` is the MQTT topic tree and its JSON, :mod:`.measured` the check of live
 measured drive data arriving over MQTT, :mod:`.mqtt` the client that joins them;
 :mod:`.graphjobs` is the job service on the graph's job topics (the ``opcua_bridge`` node is
-its ROS shell); :mod:`.logbound` keeps a peer that fails again and again from flooding the log. The address
-space, topic tree, job states and security are contracts: docs/cell.md.
+its ROS shell); :mod:`.logbound` keeps a peer that fails again and again from flooding the
+log. The address space, topic tree, job states and security are contracts: docs/cell.md.
 """
 from .measured import (DROP_REASONS, MAX_PAYLOAD_BYTES, MeasuredInput, MeasuredSample,
                        parse_measured, QUANTITIES)

@@ -1,5 +1,6 @@
 """``feed-axis-energy serve`` refuses what it cannot serve before it starts anything: a clear
-message and a non-zero exit, no node started (the running service: test/nodes/test_serve_e2e.py)."""
+message and a non-zero exit, no node started (the running service:
+test/nodes/test_serve_e2e.py); ``cell-client`` without a server or with bad options."""
 from __future__ import annotations
 
 import os

@@ -188,7 +188,7 @@ def _programs(tmp):
 
 @child_only
 def test_serve_runs_jobs_from_opcua_ros_and_mqtt_and_stops_cleanly(tmp_path, node_env,
-                                                                    context):
+                                                                   context):
     if mosquitto_binary() is None:
         must_run.skip('mosquitto', 'mosquitto is not installed (apt-get install mosquitto)')
     root = _programs(tmp_path)
