@@ -16,7 +16,8 @@ through ``StartJob``; per job:
 
 Every time is ``time.time_ns()`` at arrival in this process. Prints per-job lines and
 p50 / p90 / max; each job's ``energy_j`` is checked against ``simulate --json`` of the same
-program once (relative difference printed). Figures: README "Benchmarks", docs/cell.md.
+program once (relative difference printed); the RSS of ``serve`` and each of its nodes after
+job 10 and after the last job. Figures: README "Benchmarks", docs/cell.md.
 
     PYTHONPATH=. .venv/bin/python bench/bench_serve.py [--jobs 10] [--mode realtime|fast]
         [--publish-ms 10] [--domain-id 209]
@@ -136,8 +137,24 @@ class _Changes:
             self.last_id.append((t, value))
 
 
+def _rss_mib(serve_pid: int) -> dict[str, float]:
+    """Resident memory of serve's processes [MiB], by node name ('serve' for itself)."""
+    from feed_axis_energy.lifeline import child_processes
+    out = {}
+    for pid, cmd in [(serve_pid, 'serve')] + child_processes(serve_pid):
+        name = cmd.split('feed_axis_energy.nodes.')[-1].split()[0] if 'nodes.' in cmd \
+            else 'serve'
+        try:
+            for line in Path(f'/proc/{pid}/status').read_text().splitlines():
+                if line.startswith('VmRSS:'):
+                    out[name] = int(line.split()[1]) / 1024
+        except OSError:
+            pass
+    return out
+
+
 async def _jobs(endpoint: str, n: int, publish_ms: float, ros: _RosResults,
-                mqtt: _MqttResults, timeout_s: float) -> list[dict]:
+                mqtt: _MqttResults, timeout_s: float, serve_pid: int) -> list[dict]:
     from asyncua import Client
     client = Client(endpoint, timeout=30)
     client.session_timeout = 600_000
@@ -177,6 +194,8 @@ async def _jobs(endpoint: str, n: int, publish_ms: float, ros: _RosResults,
                          'end_to_opcua_ms': (t_ua - t_ros) / 1e6,
                          'end_to_mqtt_ms': (mqtt.arrived[job] - t_ros) / 1e6,
                          'energy_j': result['energy_j'], 'status': result['status']})
+            if k == min(10, n) or k == n:
+                rows[-1]['rss_mib'] = _rss_mib(serve_pid)
             r = rows[-1]
             print(f"{job}: {r['status']}, {r['energy_j']:.6f} J; StartJob -> first power "
                   f"{r['start_to_power_ms']:.1f} ms; job end -> OPC UA LastJob "
@@ -228,7 +247,7 @@ def main() -> None:
                 try:
                     rows = asyncio.run(_jobs(f'opc.tcp://127.0.0.1:{opcua_port}/'
                                              'feed_axis_energy/', args.jobs, args.publish_ms,
-                                             ros, mqtt, 120.0))
+                                             ros, mqtt, 120.0, serve.pid))
                 finally:
                     mqtt.close()
                     ros.close()
@@ -252,6 +271,12 @@ def main() -> None:
                  [r['end_to_mqtt_ms'] for r in rows]))
     print(f'energy_j against simulate --json: largest relative difference {worst:.1e}; '
           f"statuses {sorted({r['status'] for r in rows})}")
+    marks = [r for r in rows if 'rss_mib' in r]
+    if len(marks) == 2:
+        first, last = marks
+        print(f"RSS after job {rows.index(first) + 1} -> after job {len(rows)}: " + ', '.join(
+            f"{name} {first['rss_mib'][name]:.1f} -> {last['rss_mib'].get(name, 0.0):.1f} MiB"
+            for name in sorted(first['rss_mib'])))
 
 
 if __name__ == '__main__':
