@@ -328,11 +328,18 @@ class GraphJobService:
         if not isinstance(job_id, str) or not isinstance(power, dict) \
                 or not isinstance(energy, dict):
             raise ValueError('bad job/live message')
-        # job/live carries the net mechanical energy after the braking rule: it is what the
-        # axes drew; the energy returned while braking is not in it (export 0 here)
-        axes = {name: AxisPower(float(power[name]), max(0.0, float(energy.get(name, 0.0))),
-                                0.0) for name in power if name != 'total'}
-        total = AxisPower(float(power['total']), max(0.0, float(energy['total'])), 0.0)
+        # job/live carries the energy drawn (import) and returned (export) since the job
+        # started; a message without them (an older graph) gives the net energy as import
+        drawn, back = data.get('energy_import_j'), data.get('energy_export_j')
+        if not isinstance(drawn, dict) or not isinstance(back, dict):
+            drawn, back = {k: max(0.0, float(v)) for k, v in energy.items()}, {}
+
+        def split(name: str) -> AxisPower:
+            return AxisPower(float(power[name]), max(0.0, float(drawn.get(name, 0.0))),
+                             max(0.0, float(back.get(name, 0.0))))
+
+        axes = {name: split(name) for name in power if name != 'total'}
+        total = split('total')
         if data.get('clock') == 'wall' and isinstance(data.get('stamp_ns'), int):
             stamp_ns = int(data['stamp_ns'])
         else:   # simulation time from 0 (fast mode): the bridges show wall-clock time

@@ -202,6 +202,8 @@ class StreamingPower:
                 msg = f'declared effects {local} need whole records; the graph cannot stream them'
                 raise ConfigError(msg, file=self.machine.name, key='effects')
         self._integrator = EnergyIntegrator(len(self.axes) + 1)
+        # the negative part of the drawn power (after the braking rule): what flows back
+        self._returned = EnergyIntegrator(len(self.axes) + 1)
         self._n = 0
         self._energy_last = np.zeros(len(self.axes) + 1)
         self._prev: tuple[float, float] | None = None        # (t, total power) of the last
@@ -235,6 +237,23 @@ class StreamingPower:
         if self._peak is None:
             return np.zeros(len(self.axes) + 1)
         return self._peak.copy()
+
+    @property
+    def energy_export_j(self) -> np.ndarray:
+        """Energy returned so far [J], per axis then the total (``k + 1`` values, >= 0).
+
+        The trapezoid integral of ``-min(P, 0)`` of the power after the braking rule (and
+        declared effects), per axis; the total is the sum over the axes' negative parts (the
+        offline summary's rule for the energy returned). Zero with ``'dissipated'``
+        braking. :attr:`energy_import_j` ``-`` this equals :attr:`energy_j`.
+        """
+        return np.maximum(-self._returned.energy_j, 0.0)
+
+    @property
+    def energy_import_j(self) -> np.ndarray:
+        """Energy drawn so far [J], per axis then the total: :attr:`energy_j` plus
+        :attr:`energy_export_j`."""
+        return self._energy_last + self.energy_export_j
 
     @property
     def regenerated_j(self) -> float:
@@ -285,6 +304,8 @@ class StreamingPower:
         both = np.column_stack((power, total))
         t = np.asarray(t_s, dtype=float)
         energy = self._integrator.update(t, both)
+        negative = np.minimum(power, 0.0)
+        self._returned.update(t, np.column_stack((negative, negative.sum(axis=1))))
         self.last_electrical = None
         if dyn is not None and self.electrical_machine is not None and t.shape[0]:
             elec = electrical_power(dyn, mechanical, self.electrical_machine, effects_w=extra)

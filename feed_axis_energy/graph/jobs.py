@@ -150,7 +150,8 @@ def live_payload(power: StreamingPower, *, job_id: str, stamp_ns: int, clock: st
     -------
     dict
         ``power_w`` (the last sample's power after the braking rule per axis and ``total``
-        [W]), ``energy_j`` (so far [J]); with declared drives ``electrical``: the last
+        [W]), ``energy_j`` (so far [J]), ``energy_import_j`` and ``energy_export_j`` (drawn
+        and returned so far, ``energy_j`` = import - export [J]); with declared drives ``electrical``: the last
         sample's ``motor_w`` and ``supply_w`` (per axis, ``total``; the supply with
         ``cabinet``) [W] and ``motor_energy_j``, ``supply_energy_j``, ``returned_j`` so far [J].
     """
@@ -163,6 +164,8 @@ def live_payload(power: StreamingPower, *, job_id: str, stamp_ns: int, clock: st
         'job_id': job_id, 'stamp_ns': int(stamp_ns), 'clock': clock,
         'time_s': float(power.last_time_s or 0.0), 'samples': power.n_samples,
         'line': line, 'power_w': _named(names, last), 'energy_j': _named(names, power.energy_j),
+        'energy_import_j': _named(names, power.energy_import_j),
+        'energy_export_j': _named(names, power.energy_export_j),
         'electrical': None}
     elec = power.last_electrical
     summary = power.electrical_summary()

@@ -104,9 +104,16 @@ def test_state_follows_the_newest_sequence_and_live_gives_line_and_progress(grap
     assert sample.total.power_w == 10.0 and sample.axes['X'].power_w == 9.0
     assert sample.total.energy_import_j == 2.5 and sample.total.energy_export_j == 0.0
     assert [e.state for e in events if isinstance(e, StateChange)] == ['planning', 'running']
+    split = json.loads(_live('j1', 260, 7))
+    split['energy_import_j'] = {'X': 3.0, 'Y': 0.75, 'total': 3.75}
+    split['energy_export_j'] = {'X': 1.0, 'Y': 0.25, 'total': 1.25}
+    service.on_live(json.dumps(split))
+    sample = events[-1]
+    assert (sample.total.energy_import_j, sample.total.energy_export_j) == (3.75, 1.25)
+    assert (sample.axes['Y'].energy_import_j, sample.axes['Y'].energy_export_j) == (0.75, 0.25)
     unsubscribe()
     service.on_live(_live('j1', 300, 8))
-    assert len(events) == 3
+    assert len(events) == 4
 
 
 def test_a_final_state_waits_for_its_result(graph):

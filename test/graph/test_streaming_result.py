@@ -68,6 +68,11 @@ def test_a_machine_without_drives_has_no_electrical_side():
     assert stream.regenerated_j == pytest.approx(2.0)      # -(-2 W) * 1 s
     # regenerative braking: the drawn power is the signed -2 W, and the largest of it is that
     assert stream.peak_w.tolist() == [-2.0, -2.0]
+    assert stream.energy_export_j.tolist() == [2.0, 2.0]
+    assert stream.energy_import_j.tolist() == [0.0, 0.0]
+    burnt = StreamingPower(('X',), braking='dissipated', machine=machine)
+    burnt.update(np.array([0.0, 1.0]), np.ones((2, 1)), np.full((2, 1), -2.0))
+    assert burnt.energy_export_j.tolist() == [0.0, 0.0]     # burned, not returned
 
 
 def test_live_payload_holds_the_last_sample_and_the_energy_so_far():
@@ -84,6 +89,16 @@ def test_live_payload_holds_the_last_sample_and_the_energy_so_far():
     p = result.power
     assert d['power_w']['X'] == p.power_w[-1, 0] and d['power_w']['total'] == p.total_w[-1]
     assert_allclose(d['energy_j']['total'], summary['energy_j']['total'], rtol=1e-12)
+    # drawn and returned: net = import - export per axis; under regenerative braking the
+    # total returned is the offline summary's energy returned while braking
+    for name in list(result.dynamics.axes) + ['total']:
+        assert d['energy_import_j'][name] >= d['energy_export_j'][name] >= 0.0
+        assert_allclose(d['energy_import_j'][name] - d['energy_export_j'][name],
+                        d['energy_j'][name], rtol=1e-12, atol=1e-12)
+    assert machine.braking == 'regenerative'
+    assert_allclose(d['energy_export_j']['total'], summary['regenerated_energy_j'], rtol=1e-9)
+    assert_allclose(sum(d['energy_export_j'][a] for a in result.dynamics.axes),
+                    d['energy_export_j']['total'], rtol=1e-12)
     e = d['electrical']
     elec = p.electrical
     assert e['motor_w']['Z'] == elec.motor_w[-1, 2]
