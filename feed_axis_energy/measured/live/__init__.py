@@ -9,16 +9,18 @@ from the stream's own kinematics (runs without an NC program); :mod:`.monitor` j
 :mod:`.message` is the JSON of the node's topics.
 """
 from .compare import BAND_SOURCES, LagState, LiveComparison, LiveSettings
-from .message import (COMPARISON_KEYS, comparison_text, LiveSample, MAX_BATCH, MAX_TEXT_CHARS,
-                      parse_live, REJECTS)
+from .message import (ALARM_KEYS, alarm_text, COMPARISON_KEYS, comparison_text, JobLive,
+                      LiveSample, MAX_BATCH, MAX_TEXT_CHARS, parse_job_live, parse_live,
+                      REJECTS)
 from .monitor import LIVE_QUANTITIES, LiveMonitor, SOURCES
 from .motion import KINEMATICS, LiveMotionPredictor
 from .ring import SampleRing
 from .rows import COUNTER_KEYS, Row, RowAssembler, StreamCounters
 
 __all__ = [
-    'BAND_SOURCES', 'COMPARISON_KEYS', 'comparison_text', 'COUNTER_KEYS', 'KINEMATICS',
-    'LagState', 'LIVE_QUANTITIES', 'LiveComparison', 'LiveMonitor', 'LiveMotionPredictor',
-    'LiveSample', 'LiveSettings', 'MAX_BATCH', 'MAX_TEXT_CHARS', 'parse_live', 'REJECTS', 'Row',
-    'RowAssembler', 'SampleRing', 'SOURCES', 'StreamCounters',
+    'ALARM_KEYS', 'alarm_text', 'BAND_SOURCES', 'COMPARISON_KEYS', 'comparison_text',
+    'COUNTER_KEYS', 'JobLive', 'KINEMATICS', 'LagState', 'LIVE_QUANTITIES', 'LiveComparison',
+    'LiveMonitor', 'LiveMotionPredictor', 'LiveSample', 'LiveSettings', 'MAX_BATCH',
+    'MAX_TEXT_CHARS', 'parse_job_live', 'parse_live', 'REJECTS', 'Row', 'RowAssembler',
+    'SampleRing', 'SOURCES', 'StreamCounters',
 ]

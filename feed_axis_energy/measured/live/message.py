@@ -11,6 +11,7 @@ of :data:`REJECTS`.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import json
 import math
 from typing import Any
@@ -18,8 +19,8 @@ from typing import Any
 from ..comparison import json_clean
 from .monitor import LIVE_QUANTITIES
 
-__all__ = ['COMPARISON_KEYS', 'comparison_text', 'LiveSample', 'MAX_BATCH', 'MAX_TEXT_CHARS',
-           'parse_live', 'REJECTS']
+__all__ = ['ALARM_KEYS', 'alarm_text', 'COMPARISON_KEYS', 'comparison_text', 'JobLive',
+           'LiveSample', 'MAX_BATCH', 'MAX_TEXT_CHARS', 'parse_job_live', 'parse_live', 'REJECTS']
 
 MAX_BATCH = 10_000
 """Most samples in one batch message."""
@@ -34,6 +35,9 @@ COMPARISON_KEYS = ('job_id', 'source', 'stamp', 'axes', 'elapsed_s', 'measured_p
                    'predicted_energy_j', 'energy_error_j', 'energy_error_pct', 'lag', 'alarm',
                    'rows', 'final', 'counters')
 """Top-level keys of a ``measured/comparison`` message, in order."""
+
+ALARM_KEYS = ('job_id', 'stamp', 'active', 'count', 'residual_w', 'band_w', 'band_source')
+"""Keys of a ``measured/alarm`` message."""
 
 LiveSample = tuple[str, str, int, float]
 """``(axis, quantity, stamp_ns, value)``."""
@@ -116,3 +120,55 @@ def comparison_text(comparison: dict[str, Any]) -> str:
     """One ``measured/comparison`` message: strict JSON, NaN as null, keys in order."""
     ordered = {k: comparison[k] for k in COMPARISON_KEYS}
     return json.dumps(json_clean(ordered), allow_nan=False, separators=(',', ':'))
+
+
+@dataclass(frozen=True)
+class JobLive:
+    """What ``measured_live`` takes from one ``job/live`` message (docs/nodes.md, "Jobs").
+
+    Attributes
+    ----------
+    job_id
+        The job.
+    stamp_ns
+        Time of the batch's last sample [ns].
+    clock
+        ``wall`` (real-time mode) or ``simulation``.
+    power_w
+        That sample's power per axis and ``total`` [W].
+    """
+
+    job_id: str
+    stamp_ns: int
+    clock: str
+    power_w: dict[str, float]
+
+
+def parse_job_live(text: str) -> JobLive | None:
+    """The prediction in one ``job/live`` message, or None when it is not usable."""
+    if len(text) > MAX_TEXT_CHARS:
+        return None
+    try:
+        data = json.loads(text, parse_constant=_constant)
+    except (ValueError, RecursionError):
+        return None
+    if not isinstance(data, dict):
+        return None
+    job_id, stamp, clock, power = (data.get('job_id'), data.get('stamp_ns'), data.get('clock'),
+                                   data.get('power_w'))
+    if not (isinstance(job_id, str) and isinstance(clock, str) and isinstance(power, dict)
+            and isinstance(stamp, int) and not isinstance(stamp, bool) and stamp > 0):
+        return None
+    values = {k: float(v) for k, v in power.items()
+              if isinstance(k, str) and _is_number(v) and math.isfinite(float(v))}
+    return JobLive(job_id, stamp, clock, values)
+
+
+def alarm_text(comparison: dict[str, Any]) -> str:
+    """One ``measured/alarm`` message (:data:`ALARM_KEYS`) from a comparison."""
+    alarm = comparison['alarm']
+    body = {'job_id': comparison['job_id'], 'stamp': comparison['stamp'],
+            'active': alarm['active'], 'count': alarm['count'],
+            'residual_w': alarm['residual_w'], 'band_w': alarm['band_w'],
+            'band_source': alarm['band_source']}
+    return json.dumps(json_clean(body), allow_nan=False, separators=(',', ':'))
