@@ -90,8 +90,13 @@ class MeasuredLive(Node):
                                     'outside (or back inside) the band this long [s]'),
         }
         stamp = declare(self, 'stamp', d.stamp, 'where the meter stamps its window')
-        if not rate > 0.0 or not self.end_after_s > 0.0:
-            raise StartupError('parameters publish_rate_hz and end_after_s must be > 0')
+        self.band_sigmas = float(declare(self, 'band_sigmas', 2.0,
+                                         "live_motion on a calibrated machine (loss_covariance): "
+                                         'band = this many standard uncertainties of the '
+                                         'predicted energy (0: band_pct)'))
+        if not rate > 0.0 or not self.end_after_s > 0.0 or not self.band_sigmas >= 0.0:
+            raise StartupError('parameters publish_rate_hz and end_after_s must be > 0, '
+                               'band_sigmas >= 0')
         try:
             self.settings = LiveSettings(stamp=stamp, **{
                 n: (int(v) if n == 'freeze_count' else float(v)) for n, v in options.items()})
@@ -128,7 +133,7 @@ class MeasuredLive(Node):
     def _new_monitor(self, job_id: str) -> LiveMonitor:
         return LiveMonitor(self.measured_axes, source=self.source, settings=self.settings,
                            predictor=self._predictor(), reorder_s=self.reorder_s,
-                           job_id=job_id)
+                           job_id=job_id, band_sigmas=self.band_sigmas)
 
     # -- input -------------------------------------------------------------------------
     def _on_job_state(self, msg: String) -> None:

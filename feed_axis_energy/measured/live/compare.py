@@ -195,6 +195,8 @@ class _Alarm:
         self.mean_r = math.nan
         self.band = math.nan
         self.armed = False
+        self.pct = s.band_pct
+        self.source = s.band_source
 
     def feed(self, t: float, residual: float, predicted: float) -> None:
         s = self.s
@@ -208,7 +210,7 @@ class _Alarm:
             self.sum_p -= p
         n = len(self.rows)
         self.mean_r = self.sum_r / n
-        self.band = s.band_floor_w + 0.01 * s.band_pct * abs(self.sum_p / n)
+        self.band = s.band_floor_w + 0.01 * self.pct * abs(self.sum_p / n)
         switching = (abs(self.mean_r) > self.band if not self.active
                      else abs(self.mean_r) < s.release_fraction * self.band)
         if not switching:
@@ -225,7 +227,7 @@ class _Alarm:
         s = self.s
         return {'armed': self.armed, 'active': self.active, 'count': self.count,
                 'residual_w': self.mean_r, 'band_w': self.band, 'band_floor_w': s.band_floor_w,
-                'band_pct': s.band_pct, 'band_source': s.band_source, 'window_s': s.alarm_window_s,
+                'band_pct': self.pct, 'band_source': self.source, 'window_s': s.alarm_window_s,
                 'hold_s': s.alarm_hold_s}
 
 
@@ -272,6 +274,13 @@ class LiveComparison:
         self.settled_rows = 0
         self._latest: tuple[float, np.ndarray, np.ndarray] | None = None
         self._finished = False
+
+    def set_band(self, band_pct: float, source: str) -> None:
+        """The alarm band's share of the predicted power [%] from now on, and its source."""
+        if source not in BAND_SOURCES or not (math.isfinite(band_pct) and band_pct >= 0.0):
+            return
+        self._alarm.pct = float(band_pct)
+        self._alarm.source = source
 
     # -- input -------------------------------------------------------------------------
     def add_prediction(self, t: np.ndarray, power_w: np.ndarray) -> None:

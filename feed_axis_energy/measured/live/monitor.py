@@ -52,12 +52,17 @@ class LiveMonitor:
         How long a row waits for its missing values [s] (:class:`~.rows.RowAssembler`).
     job_id
         The job compared ('' when none).
+    band_sigmas
+        With a predictor whose machine carries the loss parameters' covariance (a calibrated
+        machine): the alarm band's share of the predicted power is this many standard
+        uncertainties of the predicted energy so far (``band_source`` ``'calibration'``);
+        0, or no covariance: the settings' ``band_pct`` (``'default'``).
     """
 
     def __init__(self, measured_axes: tuple[str, ...], *, source: str,
                  settings: LiveSettings | None = None,
                  predictor: LiveMotionPredictor | None = None, reorder_s: float = 0.5,
-                 job_id: str = ''):
+                 job_id: str = '', band_sigmas: float = 2.0):
         if source not in SOURCES:
             msg = f'source must be one of {", ".join(SOURCES)}, got {source!r}'
             raise DataError(msg, file='<measured_live>', column='source')
@@ -81,6 +86,7 @@ class LiveMonitor:
         self.unused_quantity = 0
         self.prediction_axes_missing = 0
         self.samples = 0
+        self.band_sigmas = float(band_sigmas)
 
     def _seconds(self, stamp_ns: int) -> float:
         if self.origin_ns is None:
@@ -129,6 +135,14 @@ class LiveMonitor:
         out = self.predictor.add(self._seconds(row.stamp_ns), row.values)
         if out is not None:
             self.core.add_prediction(*out)
+            self._calibrated_band()
+
+    def _calibrated_band(self) -> None:
+        if self.predictor is None or not self.band_sigmas > 0.0:
+            return
+        rel = self.predictor.relative_sd_pct()
+        if math.isfinite(rel):
+            self.core.set_band(self.band_sigmas * rel, 'calibration')
 
     def finish(self) -> dict[str, Any]:
         """The stream has ended: flush the assemblers and the predictor; the final figures."""
@@ -138,6 +152,7 @@ class LiveMonitor:
             out = self.predictor.flush()
             if out is not None:
                 self.core.add_prediction(*out)
+                self._calibrated_band()
         for row in self.measured.flush():
             self._measured_row(row)
         return self._dress(self.core.finish())

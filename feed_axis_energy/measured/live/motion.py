@@ -23,6 +23,7 @@ import numpy as np
 
 from ...errors import ConfigError, DataError
 from ...machine import Machine
+from ...physics import UncertaintyAccumulator
 from ...sim import simulate_motion, streamable
 from ..motiondata import reconstruct_motion
 from ..quantity import predicted_signal, quantity_of
@@ -97,6 +98,22 @@ class LiveMotionPredictor:
         self._t: list[float] = []
         self._rows: list[np.ndarray] = []
         self._started = False
+        # the energy's uncertainty from the loss parameters' covariance (a calibrated
+        # machine, fit-loss): the alarm's band (monitor)
+        self._uncertainty = UncertaintyAccumulator.of(machine)
+        self._energy_j = np.zeros(len(self.measured_axes))
+
+    def relative_sd_pct(self) -> float:
+        """Standard uncertainty of the predicted energy of the measured axes so far, in % of
+        it, from the machine's ``loss_covariance`` (NaN without one on every measured axis)."""
+        if self._uncertainty is None:
+            return math.nan
+        sd = self._uncertainty.standard_uncertainty_j()
+        if any(a not in sd for a in self.measured_axes):
+            return math.nan
+        energy = abs(float(self._energy_j.sum()))
+        value = math.sqrt(math.fsum(sd[a] ** 2 for a in self.measured_axes))
+        return 100.0 * value / energy if energy > 0.0 else math.nan
 
     @property
     def slots(self) -> tuple[tuple[str, str], ...]:
@@ -139,6 +156,10 @@ class LiveMotionPredictor:
             self.last_error = str(err)
             return None
         times = sim.power.t
+        if self._uncertainty is not None:
+            self._uncertainty.add(sim.dynamics, sim.power.mechanical_w,
+                                  braking=self.machine.braking)
+        self._energy_j += np.trapezoid(power, times, axis=0)
         if self._started:
             times, power = times[1:], power[1:]
         self._started = True

@@ -78,3 +78,33 @@ def test_bad_configuration_is_refused(machine):
     with pytest.raises(ConfigError, match='position_m, velocity_m_s'):
         LiveMotionPredictor(machine, axes=AXES, measured_axes=('X',),
                             quantities=('velocity_m_s',))
+
+
+def test_a_calibrated_machine_sets_the_alarm_band(machine):
+    """With the loss parameters' covariance (fit-loss), the band is 2 standard uncertainties
+    of the predicted energy, and the comparison says it came from the calibration."""
+    from feed_axis_energy.machine import machine_from_dict, machine_to_dict
+    from feed_axis_energy.measured.live import LiveMonitor
+    data = machine_to_dict(machine)
+    for axis in ('X', 'Y'):
+        units = list(machine.axis(axis).loss.param_units().values())
+        data['axes'][axis]['loss_covariance'] = {
+            'params': ['a', 'b'], 'units': units, 'matrix': [[1e-4, 0.0], [0.0, 1e-4]]}
+    calibrated = machine_from_dict(data)
+    t, pos, vel, acc = kinematics(n=200)
+    out = {}
+    for name, m in (('default', machine), ('calibrated', calibrated)):
+        predictor = LiveMotionPredictor(m, axes=AXES, measured_axes=('X', 'Y'))
+        monitor = LiveMonitor(('X', 'Y'), source='live_motion', predictor=predictor)
+        for i in range(t.size):
+            ns = 10 ** 18 + int(round(t[i] * 1e9))
+            for j, axis in enumerate(AXES):
+                for q, v in zip(KINEMATICS, (pos[i, j], vel[i, j], acc[i, j])):
+                    monitor.add_sample(axis, q, ns, float(v))
+            for axis in ('X', 'Y'):
+                monitor.add_sample(axis, 'power_w', ns, 1.0)
+        out[name] = (monitor.finish()['alarm'], predictor.relative_sd_pct())
+    assert out['default'][0]['band_source'] == 'default' and np.isnan(out['default'][1])
+    alarm, rel = out['calibrated']
+    assert alarm['band_source'] == 'calibration' and rel > 0.0
+    assert_allclose(alarm['band_pct'], 2.0 * rel, rtol=1e-12)
