@@ -162,7 +162,10 @@ class MeasuredLive(Node):
         if live.clock != 'wall':
             self.prediction_clock += 1      # simulation time cannot meet wall-clock stamps
             return
-        self.monitor.add_prediction(live.stamp_ns, live.power_w)
+        try:
+            self.monitor.add_prediction(live.stamp_ns, live.power_w)
+        except (FeedAxisError, ValueError) as err:     # never out of a callback
+            self.get_logger().error(f'prediction not used: {err}')
         self._dirty = True
 
     def _on_measured(self, msg: String) -> None:
@@ -177,8 +180,11 @@ class MeasuredLive(Node):
                 self.outside_job += len(samples)
                 return
             self.monitor = self._new_monitor(self.job_id)
-        for sample in samples:
-            self.monitor.add_sample(*sample)
+        try:
+            for sample in samples:
+                self.monitor.add_sample(*sample)
+        except (FeedAxisError, ValueError) as err:     # never out of a callback
+            self.get_logger().error(f'measured sample not compared: {err}')
         self._dirty = True
 
     # -- output ------------------------------------------------------------------------

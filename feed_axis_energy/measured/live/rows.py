@@ -19,6 +19,7 @@ Nothing here raises on data; memory is bounded by ``max_pending`` rows.
 """
 from __future__ import annotations
 
+import bisect
 from collections import deque
 from dataclasses import dataclass, field
 import math
@@ -197,7 +198,7 @@ class RowAssembler:
         if not order or stamp_ns > order[-1]:
             order.append(stamp_ns)
         else:
-            order.insert(int(np.searchsorted(np.asarray(order), stamp_ns)), stamp_ns)
+            bisect.insort(order, stamp_ns)
         if len(order) > self.max_pending:
             self.counters.overflow += 1
             self._leave(order[0], keep=self._pending[order[0]].count == len(self.slots))
@@ -219,7 +220,10 @@ class RowAssembler:
         return out
 
     def _leave(self, stamp_ns: int, *, keep: bool) -> Row | None:
-        self._order.remove(stamp_ns) if self._order[0] != stamp_ns else self._order.pop(0)
+        if self._order[0] == stamp_ns:
+            self._order.pop(0)
+        else:
+            self._order.remove(stamp_ns)
         row = self._pending.pop(stamp_ns)
         if not keep:
             self.counters.incomplete += 1
