@@ -57,6 +57,7 @@ setup(
             'axis_dynamics = feed_axis_energy.nodes.axis_dynamics:main',
             'energy_estimator = feed_axis_energy.nodes.energy_estimator:main',
             'measured_replay = feed_axis_energy.nodes.measured_replay:main',
+            'measured_live = feed_axis_energy.nodes.measured_live:main',
             'mcap_recorder = feed_axis_energy.nodes.mcap_recorder:main',
             'opcua_bridge = feed_axis_energy.nodes.opcua_bridge:main',
         ],

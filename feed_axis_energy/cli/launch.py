@@ -79,6 +79,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--machine-root', type=Path, default=None, metavar='DIR',
                    help='with --program-root: a job may name a machine YAML inside DIR '
                         '(default: jobs run on --machine)')
+    p.add_argument('--measured-live', action='store_true',
+                   help='with --program-root: also start measured_live, which compares live '
+                        'measured data (measured/live) with each running job\'s prediction '
+                        '(job/live; wall-clock stamps need --mode realtime) and publishes '
+                        'measured/comparison (docs/nodes.md, measured_live)')
     p.set_defaults(run=run)
 
 
@@ -193,6 +198,8 @@ def graph_parameters(args: argparse.Namespace) -> dict[str, dict[str, object]]:
         if getattr(args, 'machine_root', None) is not None:
             params['gcode_trajectory']['machine_root'] = str(args.machine_root.resolve())
         params['energy_estimator']['exit_at_end'] = False
+        if getattr(args, 'measured_live', False):
+            params['measured_live'] = {**machine, 'source': 'job_live'}
     if args.record is not None:
         params['mcap_recorder'] = {'output': str(args.record.resolve()), 'exit_at_end': True}
         if getattr(args, 'plot_rate_hz', None) is not None:
@@ -423,8 +430,9 @@ def run(args: argparse.Namespace) -> int:
         if not args.program_root.is_dir():
             print(f'error: --program-root {args.program_root}: not a directory', file=sys.stderr)
             return 2
-    elif args.machine_root is not None:
-        print('error: --machine-root applies to jobs; give --program-root', file=sys.stderr)
+    elif args.machine_root is not None or args.measured_live:
+        option = '--machine-root' if args.machine_root is not None else '--measured-live'
+        print(f'error: {option} applies to jobs; give --program-root', file=sys.stderr)
         return 2
     if not math.isfinite(args.load_kg) or args.load_kg < 0:
         print(f'error: --load-kg must be a finite mass >= 0 kg, got {args.load_kg}',

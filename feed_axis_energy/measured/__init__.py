@@ -1,5 +1,8 @@
 """Measured runs: campaign manifests, CSV and bag runs, alignment, metrics, comparison.
 
+Live drive data compared while the machine runs (the ``measured_live`` node's core):
+:mod:`.live`.
+
 What a trace measures (power, current, torque, force) and how it is predicted: :mod:`.quantity`.
 
 Typical use::
@@ -15,6 +18,9 @@ from .compare import (compare_campaign, compare_one_run, DEFAULT_MAX_LAG_S, Moti
 from .comparison import CampaignComparison, json_clean, offset_dict, RunComparison
 from .csvload import load_run
 from .importer import import_campaign
+from .live import (ALARM_KEYS, alarm_text, comparison_text, COMPARISON_KEYS, KINEMATICS,
+                   LiveComparison, LiveMonitor, LiveMotionPredictor, LiveSettings,
+                   parse_job_live, parse_live, SOURCES)
 from .manifest import campaign_from_dict, load_campaign
 from .metrics import group_metrics, Metrics, table1_metrics
 from .quantity import (MEASURES, measured_signal, predicted_signal, QUANTITIES, Quantity,
@@ -22,11 +28,13 @@ from .quantity import (MEASURES, measured_signal, predicted_signal, QUANTITIES, 
 from .run import GAP_FACTOR, MeasuredRun
 
 __all__ = [
-    'align_simulated', 'Campaign', 'campaign_from_dict', 'CampaignComparison', 'ColumnSpec',
-    'compare_campaign', 'compare_one_run', 'DEFAULT_MAX_LAG_S', 'estimate_offset', 'GAP_FACTOR',
-    'group_metrics', 'import_campaign', 'interval_average', 'json_clean', 'load_campaign',
-    'load_run', 'MEASURES', 'measured_signal', 'MeasuredRun', 'Metrics', 'MotionCache',
-    'offset_dict', 'OffsetResult', 'predicted_signal', 'QUANTITIES', 'Quantity', 'quantity_of',
-    'RowFilter', 'RunComparison', 'RunSpec', 'signal_metrics', 'SignalMetrics',
-    'simulate_declared', 'stamp_shift', 'table1_metrics', 'torque_per_unit',
+    'ALARM_KEYS', 'alarm_text', 'align_simulated', 'Campaign', 'campaign_from_dict',
+    'CampaignComparison', 'ColumnSpec', 'compare_campaign', 'compare_one_run', 'COMPARISON_KEYS',
+    'comparison_text', 'DEFAULT_MAX_LAG_S', 'estimate_offset', 'GAP_FACTOR', 'group_metrics',
+    'import_campaign', 'interval_average', 'json_clean', 'KINEMATICS', 'LiveComparison',
+    'LiveMonitor', 'LiveMotionPredictor', 'LiveSettings', 'load_campaign', 'load_run',
+    'measured_signal', 'MeasuredRun', 'MEASURES', 'Metrics', 'MotionCache', 'offset_dict',
+    'OffsetResult', 'parse_job_live', 'parse_live', 'predicted_signal', 'QUANTITIES', 'Quantity',
+    'quantity_of', 'RowFilter', 'RunComparison', 'RunSpec', 'signal_metrics', 'SignalMetrics',
+    'simulate_declared', 'SOURCES', 'stamp_shift', 'table1_metrics', 'torque_per_unit',
 ]

@@ -18,6 +18,8 @@
   starts later. A client waits until its writer is matched before it sends.
 * Job reports between nodes (``job/energy``): reliable, keep last 10, transient local
   (asymmetric discovery, as for the streams); each names its job, stale ones are ignored.
+* Live measured drive data (``measured/live``): reliable, keep last :data:`MEASURED_DEPTH`,
+  volatile (the contract of the ``opcua_bridge`` writer and the ``measured_live`` reader).
 * Job states and results (``job/state``, ``job/result``): reliable, keep last
   :data:`JOB_DEPTH`, transient local, writer and readers alike. Keep last 1 lost states
   under load: a job's ``ended`` was replaced in the writer's history by the next job's
@@ -31,14 +33,14 @@ from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-__all__ = ['STREAM_DEPTH', 'JOB_DEPTH', 'stream_qos', 'latched_qos', 'clock_qos', 'command_qos',
-           'report_qos', 'job_qos', 'measured_live_qos', 'MEASURED_LIVE_DEPTH']
-
-MEASURED_LIVE_DEPTH = 1000
+__all__ = ['STREAM_DEPTH', 'JOB_DEPTH', 'MEASURED_DEPTH', 'stream_qos', 'latched_qos',
+           'clock_qos', 'command_qos', 'report_qos', 'job_qos', 'measured_live_qos']
 
 STREAM_DEPTH = 100
 JOB_DEPTH = 16
 """History of ``job/state`` and ``job/result``: every state of a few jobs in a row."""
+MEASURED_DEPTH = 1000
+"""History of ``measured/live`` (the cell's live drive data, one sample per message)."""
 
 
 def stream_qos(depth: int = STREAM_DEPTH) -> QoSProfile:
@@ -84,7 +86,7 @@ def job_qos() -> QoSProfile:
 
 
 def measured_live_qos() -> QoSProfile:
-    """``measured/live``: reliable, keep last :data:`MEASURED_LIVE_DEPTH`, volatile."""
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=MEASURED_LIVE_DEPTH,
+    """``measured/live``: reliable, keep last :data:`MEASURED_DEPTH`, volatile."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=MEASURED_DEPTH,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.VOLATILE)

@@ -12,7 +12,7 @@ import pytest
 from pkgscan import declared_parameters, graph_parameters, ROOT
 
 NODES = ['gcode_trajectory', 'axis_dynamics', 'energy_estimator', 'mcap_recorder',
-         'measured_replay', 'opcua_bridge']
+         'measured_replay', 'opcua_bridge', 'measured_live']
 
 
 def test_every_node_found_by_the_scan():
