@@ -31,7 +31,8 @@ def test_help_names_every_option():
     done = _serve('--help')
     assert done.returncode == 0, done.stderr
     for option in ('--program-root', '--machine', '--opcua-port', '--opcua-host', '--mqtt',
-                   '--domain-id', '--opcua-cert', '--opcua-key', '--opcua-users', '--mode'):
+                   '--domain-id', '--opcua-cert', '--opcua-key', '--opcua-users', '--mode',
+                   '--measured-live'):
         assert option in done.stdout
 
 
@@ -45,6 +46,13 @@ def test_program_root_missing(tmp_path):
     done = _serve('--program-root', str(tmp_path / 'nope'), '--opcua-port', str(_free_port()))
     assert done.returncode == 2
     assert 'nope: not a directory' in done.stderr and 'Traceback' not in done.stderr
+
+
+def test_measured_live_needs_realtime(root):
+    done = _serve('--program-root', str(root), '--opcua-port', str(_free_port()),
+                  '--mode', 'fast', '--measured-live')
+    assert done.returncode == 2
+    assert '--measured-live needs --mode realtime' in done.stderr
 
 
 def test_opcua_port_in_use(root):

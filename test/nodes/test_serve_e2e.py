@@ -152,12 +152,12 @@ async def _wait_value(node, want, timeout_s, what):
     raise AssertionError(f'timed out waiting for {what}; last {value!r}')
 
 
-def _start_serve(root, tmp, env, opcua_port, mqtt_port):
+def _start_serve(root, tmp, env, opcua_port, mqtt_port, extra=()):
     proc = subprocess.Popen(
         [PY, '-m', 'feed_axis_energy', 'serve', '--program-root', str(root),
          '--machine', str(_shipped(MACHINE)), '--opcua-port', str(opcua_port),
          '--mqtt', f'127.0.0.1:{mqtt_port}', '--domain-id', env['ROS_DOMAIN_ID'],
-         '--mode', 'realtime'], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+         '--mode', 'realtime', *extra], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
         text=True)
     lines = []
     end = time.monotonic() + 120
@@ -367,6 +367,102 @@ def _measured(ros, mqtt_port):
     for m, (_, t, _) in zip(ros.measured, sent):
         assert m['stamp'] == pytest.approx(t, abs=1e-6)
     assert all(m['quantity'] == 'power_w' for m in ros.measured)
+
+
+class _Echo:
+    """A drive that measures 1.1 times the predicted power: every MQTT ``power`` message of
+    the job comes back as ``measured/<axis>`` samples with the same stamp."""
+
+    def __init__(self, port, axes, factor):
+        import paho.mqtt.client as paho
+        self.axes, self.factor, self.echoed = axes, factor, 0
+        ready = threading.Event()
+        self.client = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id='e2e-echo')
+        self.client.on_subscribe = lambda *a: ready.set()
+        self.client.on_message = self._on_power
+        self.client.on_connect = lambda c, *a: c.subscribe(f'{BASE}/power', qos=0)
+        self.client.connect('127.0.0.1', port)
+        self.client.loop_start()
+        assert ready.wait(10)
+
+    def _on_power(self, client, userdata, message):
+        d = json.loads(message.payload)
+        for axis in self.axes:
+            client.publish(f'{BASE}/measured/{axis}', json.dumps(
+                {'stamp': d['stamp'], 'value': self.factor * d['power_w'][axis],
+                 'quantity': 'power_w'}), qos=1)
+        self.echoed += 1
+
+    def close(self):
+        self.client.disconnect()
+        self.client.loop_stop()
+
+
+@child_only
+def test_serve_compares_measured_data_from_mqtt_with_the_running_job(tmp_path, node_env,
+                                                                     context):
+    """``serve --measured-live --mqtt``: a job started over OPC UA, its predicted power
+    echoed at 1.1 times as MQTT measured data; measured_live's final comparison of the job
+    names it and shows the energy error (1 - 1.1) / 1.1 = -9.09 %."""
+    if mosquitto_binary() is None:
+        must_run.skip('mosquitto', 'mosquitto is not installed (apt-get install mosquitto)')
+    import rclpy  # noqa: F401
+    from std_msgs.msg import String
+    from feed_axis_energy.nodes.qos import command_qos
+    root = _programs(tmp_path)
+    mqtt_port, opcua_port = _free_port(), _free_port()
+    with mosquitto(tmp_path / 'broker', mqtt_port):
+        echo = _Echo(mqtt_port, ('X', 'Y', 'Z'), 1.1)
+        proc, lines = _start_serve(root, tmp_path, node_env, opcua_port, mqtt_port,
+                                   extra=('--measured-live',))
+        ros = _Ros(context)
+        finals = []
+
+        def on_comparison(msg):
+            d = json.loads(msg.data)
+            if d.get('final'):
+                finals.append(d)
+
+        ros.node.create_subscription(String, 'measured/comparison', on_comparison,
+                                     command_qos())
+        try:
+            ros.spin_until(lambda: ros.node.count_publishers('measured/comparison') >= 1, 60,
+                           'measured_live')
+            time.sleep(1.0)
+
+            async def start():
+                client, idx, jobs, _ = await _opcua_client(
+                    f'opc.tcp://127.0.0.1:{opcua_port}/feed_axis_energy/')
+                try:
+                    from asyncua import ua
+                    accepted, message = await jobs.call_method(
+                        f'{idx}:StartJob', ua.Variant('m1', ua.VariantType.String),
+                        ua.Variant('xyz.nc', ua.VariantType.String),
+                        ua.Variant(5.0, ua.VariantType.Double))
+                    assert accepted, message
+                finally:
+                    await client.disconnect()
+
+            asyncio.run(start())
+            ros.spin_until(lambda: any(f['job_id'] == 'm1' for f in finals), 120,
+                           'the final comparison of job m1')
+            final = next(f for f in finals if f['job_id'] == 'm1')
+            assert echo.echoed >= 10
+            assert final['source'] == 'job_live'
+            assert final['counters']['samples'] > 0
+            measured = final['measured_energy_j']['total']
+            predicted = final['predicted_energy_j']['total']
+            assert measured > 0
+            assert predicted / measured == pytest.approx(1 / 1.1, rel=0.01)
+            for name in ('X', 'Y', 'Z', 'total'):
+                assert final['energy_error_pct'][name] == pytest.approx(100 * (1 / 1.1 - 1),
+                                                                        abs=0.1)
+            assert not final['alarm']['active']
+        finally:
+            echo.close()
+            ros.close()
+            proc.send_signal(signal.SIGINT)
+            assert proc.wait(30) == 0, ''.join(lines)
 
 
 @pytest.mark.skipif(IN_CHILD, reason='the wrapper itself')

@@ -62,6 +62,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='first MQTT topic levels (default feed_axis_energy)')
     p.add_argument('--mqtt-machine', default='machine', metavar='NAME',
                    help='machine name, one MQTT topic level (default machine)')
+    p.add_argument('--measured-live', action='store_true',
+                   help='also start measured_live: live measured drive data (measured/live, '
+                        'from MQTT measured/<axis> with --mqtt) compared with each running '
+                        'job\'s prediction on measured/comparison (docs/nodes.md, '
+                        'measured_live; needs --mode realtime)')
     p.add_argument('--domain-id', type=int, default=None, metavar='N',
                    help='ROS_DOMAIN_ID for the graph (default: inherited)')
     p.add_argument('--params', type=Path, default=None, metavar='YAML',
@@ -113,6 +118,9 @@ def _check(args: argparse.Namespace) -> int:
         return _fail(f'--machine {args.machine}: no such file', 2)
     if args.machine_root is not None and not args.machine_root.is_dir():
         return _fail(f'--machine-root {args.machine_root}: not a directory', 2)
+    if args.measured_live and args.mode != 'realtime':
+        return _fail('--measured-live needs --mode realtime: only then are the predictions '
+                     'stamped in wall-clock time, as live measured data are', 2)
     if not 1 <= args.opcua_port <= 65535:
         return _fail(f'--opcua-port must be 1...65535, got {args.opcua_port}', 2)
     if not math.isfinite(args.ready_timeout) or args.ready_timeout <= 0:
