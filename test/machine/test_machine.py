@@ -218,8 +218,8 @@ def test_new_friction_effects_are_machine_effects_that_round_trip(tmp_path):
         {'id': 'coulomb', 'axis': 'X', 'params': {'f_pos_n': 3.0, 'f_neg_n': -3.0}},
     ]
     m = machine_from_dict(d, file='stand.yaml')
-    assert [e.id for e in m.effects] == ['offset_force', 'viscous_asymmetry', 'stribeck',
-                                        'coulomb']
+    assert [e.id for e in m.effects] == [
+        'offset_force', 'viscous_asymmetry', 'stribeck', 'coulomb']
     out = tmp_path / 'augmented.yaml'
     out.write_text(yaml.safe_dump(machine_to_dict(m), sort_keys=False))
     assert load_machine(out) == m
