@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import argparse
 from collections import Counter, defaultdict
-import math
 from pathlib import Path
 import shutil
 import sys
