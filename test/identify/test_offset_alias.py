@@ -31,3 +31,23 @@ def test_offset_force_and_gravity_separate_only_when_the_mass_varies(tmp_path, l
     members = {m.split('@')[0] for m in group.members}
     assert 'coulomb' in members          # F+ = F0, F- = -F0: the same power everywhere
     assert ('gravity' in members) == gravity_in_group
+
+
+def test_analyze_prints_both_readings_of_an_asymmetric_coulomb(tmp_path):
+    import subprocess
+    import sys
+    cfg = RigConfig(machine=ROOT / 'config' / 'demonstrator.yaml', loads_kg=(0.0,),
+                    feeds_mm_s=(100.0, 300.0, 500.0),
+                    effects=(EffectSpec('coulomb', {'f_pos_n': 60.0, 'f_neg_n': 20.0}),),
+                    instrument=Instrument(noise_w=1.5), seed=2)
+    manifest = make_campaign(tmp_path / 'c', cfg)
+    r = subprocess.run([sys.executable, '-m', 'feed_axis_energy', 'analyze', str(manifest),
+                        '--quiet'], capture_output=True, text=True, timeout=600,
+                       env={'PYTHONPATH': str(ROOT), 'PATH': '/usr/bin:/bin'})
+    assert r.returncode == 0, r.stderr
+    line = next(x for x in r.stdout.splitlines() if 'symmetric friction' in x)
+    # F+ 60, F- 20: symmetric 40 N + a constant 20 N (fitted within a few percent)
+    words = line.split()
+    fc = float(words[words.index('friction') + 1])
+    f0 = float(words[words.index('(offset_force)') + 1])
+    assert fc == pytest.approx(40.0, rel=0.1) and f0 == pytest.approx(20.0, rel=0.1)
