@@ -22,8 +22,8 @@ def _analyze(tmp_path, loads):
 
 @pytest.mark.parametrize('loads, gravity_in_group', [((0.0,), True),
                                                      ((0.0, 22.711), False)])
-def test_offset_force_and_gravity_separate_only_when_the_mass_varies(tmp_path, loads,
-                                                                      gravity_in_group):
+def test_offset_force_and_gravity_separate_only_when_the_mass_varies(
+        tmp_path, loads, gravity_in_group):
     res = _analyze(tmp_path, loads)
     assert [e.id for e in res.effects] == ['offset_force']
     assert res.effects[0].values()['f0_n'] == pytest.approx(40.0, rel=0.05)
