@@ -37,8 +37,10 @@ left out with a reason (``left_out``). Progress on stderr, the table on stdout.
 from __future__ import annotations
 
 import argparse
+import ast
 from collections import Counter, defaultdict
 from pathlib import Path
+import re
 import shutil
 import sys
 import tempfile
@@ -209,8 +211,8 @@ def print_table(results: list[dict], cells: list[tuple[str, str]], seeds: int,
           f'(capped at +-{MAX_OFFSET_S:g} s), drift +-{tt.DRIFT_PPM:g} ppm; {wall_s:.0f} s')
     print()
     print('| case | class | named right % (alone / in a group) | false | missed | misaligned '
-          'runs | left out | named instead / beside |')
-    print('| --- | --- | --- | --- | --- | --- | --- | --- |')
+          'runs | left out | named instead / beside | status |')
+    print('| --- | --- | --- | --- | --- | --- | --- | --- | --- |')
     total: Counter = Counter()
     by_class: dict[str, Counter] = defaultdict(Counter)
     for case, cls in cells:
@@ -224,9 +226,11 @@ def print_table(results: list[dict], cells: list[tuple[str, str]], seeds: int,
         true_id = CATALOG_ID.get(case, case)
         other = Counter(n for r in rs for n in r['named'] if n != true_id)
         ok = v['right'] + v['group']
+        statuses = Counter(r['status'] for r in rs)
         print(f'| `{case}` | {cls} | {100.0 * ok / len(rs):.0f} % ({v["right"]} / {v["group"]} '
               f'of {len(rs)}) | {v["false"]} | {v["missed"]} | {mis}/{runs} | {left} | '
-              + (', '.join(f'{k} {n}' for k, n in sorted(other.items())) or '-') + ' |')
+              + (', '.join(f'{k} {n}' for k, n in sorted(other.items())) or '-') + ' | '
+              + ', '.join(f'{k} {n}' for k, n in sorted(statuses.items())) + ' |')
         for key, val in (('n', len(rs)), ('ok', ok), ('false', v['false']), ('mis', mis),
                          ('runs', runs), ('left', left)):
             total[key] += val
@@ -240,6 +244,26 @@ def print_table(results: list[dict], cells: list[tuple[str, str]], seeds: int,
           f'misaligned runs {total["mis"]}/{total["runs"]}')
 
 
+_LOG = re.compile(r'^(\S+) (\S+) seed (\d+): (\S+) named (.+?) status (\S+) share '
+                  r'([\d.]+) % misaligned (\d+)/(\d+) left out (\d+) ')
+
+
+def parse_log(lines) -> list[dict]:
+    """Results from the progress lines of earlier runs (``--from-log``)."""
+    out = []
+    for line in lines:
+        m = _LOG.match(line)
+        if m is None:
+            continue
+        case, cls, seed, verd, named, status, share, mis, aligned, left = m.groups()
+        out.append({'case': case, 'cls': cls, 'seed': int(seed), 'verdict': verd,
+                    'named': [] if named == '-' else ast.literal_eval(named),
+                    'status': status, 'share': float(share) / 100.0,
+                    'misaligned': [''] * int(mis), 'aligned_runs': int(aligned),
+                    'left_out': [''] * int(left)})
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the matrix, print the table."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -248,7 +272,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--cases', default=None, help='comma-separated cases (default: all + clean)')
     p.add_argument('--classes', default='large,small,smooth',
                    help='comma-separated classes (default: large,small,smooth)')
+    p.add_argument('--from-log', nargs='+', type=Path, default=None, metavar='FILE',
+                   help='print the table of earlier runs from their progress lines (stderr)')
     args = p.parse_args(argv)
+    if args.from_log is not None:
+        results = parse_log(line for f in args.from_log
+                            for line in f.read_text(encoding='utf-8').splitlines())
+        cells = list(dict.fromkeys((r['case'], r['cls']) for r in results))
+        seeds = len({r['seed'] for r in results})
+        print_table(results, cells, seeds, 0.0)
+        return 0
     cases = (('clean',) + CASES if args.cases is None
              else tuple(c.strip() for c in args.cases.split(',') if c.strip()))
     classes = tuple(c.strip() for c in args.classes.split(',') if c.strip())
