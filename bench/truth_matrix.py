@@ -9,8 +9,9 @@ loss models or effect catalog). Campaign per cell and seed: the paper's 15 runs 
 17.336, 22.711 kg x feeds 100 ... 500 mm/s), two reciprocating 400 mm strokes with 1 s
 dwells, clock drift uniform in +-50 ppm, and a start offset per run uniform in +-2 stroke
 periods (one stroke = the 400 mm move at the run's feed + its dwell: +-3.6 s at 500 mm/s),
-capped at +-4.4 s (the truth is padded by 4.5 s), inside ``compare``'s +-5 s search. So the truth offset may lie one or two
-strokes away from 0, and the up and down strokes differ only through the missing effect.
+capped at +-4.4 s (the truth is padded by 4.5 s), inside ``compare``'s +-5 s search. So
+the truth offset may lie one or two strokes away from 0, and the up and down strokes differ
+only through the missing effect.
 
 Classes (the failing classes of issue 24):
 
@@ -207,7 +208,7 @@ def run_cells(cells: list[tuple[str, str]], seeds: range, *, log=None) -> list[d
 def print_table(results: list[dict], cells: list[tuple[str, str]], seeds: int,
                 wall_s: float) -> None:
     """Markdown table per cell and the totals."""
-    print(f'truth matrix: {seeds} seed(s) per cell, offsets up to +-{STROKES:g} strokes '
+    print(f'truth matrix: up to {seeds} seed(s) per cell, offsets up to +-{STROKES:g} strokes '
           f'(capped at +-{MAX_OFFSET_S:g} s), drift +-{tt.DRIFT_PPM:g} ppm; {wall_s:.0f} s')
     print()
     print('| case | class | named right % (alone / in a group) | false | missed | misaligned '
@@ -249,19 +250,20 @@ _LOG = re.compile(r'^(\S+) (\S+) seed (\d+): (\S+) named (.+?) status (\S+) shar
 
 
 def parse_log(lines) -> list[dict]:
-    """Results from the progress lines of earlier runs (``--from-log``)."""
-    out = []
+    """Results from the progress lines of earlier runs (``--from-log``; a cell and seed
+    logged twice keeps its last line)."""
+    out: dict[tuple[str, str, int], dict] = {}
     for line in lines:
         m = _LOG.match(line)
         if m is None:
             continue
         case, cls, seed, verd, named, status, share, mis, aligned, left = m.groups()
-        out.append({'case': case, 'cls': cls, 'seed': int(seed), 'verdict': verd,
-                    'named': [] if named == '-' else ast.literal_eval(named),
-                    'status': status, 'share': float(share) / 100.0,
-                    'misaligned': [''] * int(mis), 'aligned_runs': int(aligned),
-                    'left_out': [''] * int(left)})
-    return out
+        out[case, cls, int(seed)] = {
+            'case': case, 'cls': cls, 'seed': int(seed), 'verdict': verd,
+            'named': [] if named == '-' else ast.literal_eval(named), 'status': status,
+            'share': float(share) / 100.0, 'misaligned': [''] * int(mis),
+            'aligned_runs': int(aligned), 'left_out': [''] * int(left)}
+    return list(out.values())
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -278,8 +280,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.from_log is not None:
         results = parse_log(line for f in args.from_log
                             for line in f.read_text(encoding='utf-8').splitlines())
-        cells = list(dict.fromkeys((r['case'], r['cls']) for r in results))
-        seeds = len({r['seed'] for r in results})
+        order = {c: i for i, c in enumerate(('clean',) + CASES)}
+        cells = sorted(dict.fromkeys((r['case'], r['cls']) for r in results),
+                       key=lambda c: (order.get(c[0], len(order)), list(CLASSES).index(c[1])))
+        seeds = max(Counter((r['case'], r['cls']) for r in results).values(), default=0)
         print_table(results, cells, seeds, 0.0)
         return 0
     cases = (('clean',) + CASES if args.cases is None
