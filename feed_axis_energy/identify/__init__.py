@@ -1,11 +1,11 @@
 """Identification from measured runs: what the declared model is missing.
 
 The loss-function fit of section 2.1 (:mod:`.lossfit` on steady segments, :mod:`.samplefit` on
-every sample, :mod:`.torquefit` on every sample of a current, torque or force trace, :mod:`.frictionfit`
-the richer friction of such a trace: asymmetric Coulomb and viscous, Stribeck, offset force), residual
-diagnostics, effect selection with held-out checks and ambiguity (:mod:`.analyze` and its
-steps), and the virtual test rig that makes "measured" campaigns from a truth model
-(:mod:`.rig`).
+every sample, :mod:`.torquefit` on every sample of a current, torque or force trace,
+:mod:`.frictionfit` the richer friction of such a trace: asymmetric Coulomb and viscous,
+Stribeck, offset force), residual diagnostics, effect selection with held-out checks and
+ambiguity (:mod:`.analyze` and its steps), and the virtual test rig that makes "measured"
+campaigns from a truth model (:mod:`.rig`).
 """
 from .ambiguity import found_text
 from .frictionfit import fit_drive_friction, FrictionFit, machine_with_friction_fits
