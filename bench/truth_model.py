@@ -243,7 +243,37 @@ def _cat_iron(s: State, lead: float = 0.01) -> np.ndarray:
     return w + 0.002 * w * w          # hysteresis + eddy with a fixed ratio [W per unit]
 
 
+def _cat_offset(s: State) -> np.ndarray:
+    # a cable carrier pulling towards -: the same force at every load, moving or not
+    return np.ones_like(s.t)
+
+
+def _cat_viscous_asymmetry(s: State) -> np.ndarray:
+    # the direction-odd part of a viscous drag that differs by direction: force d |v|
+    return np.abs(s.v)
+
+
+def _cat_stribeck_exp(s: State, v_s: float = 0.005) -> np.ndarray:
+    # the Stribeck excess with an exponential decay (not the catalog's default Gaussian)
+    return np.exp(-np.abs(s.v) / v_s) * np.sign(s.v)
+
+
+def _cat_mass(s: State) -> np.ndarray:
+    return s.a                        # forgotten mass: force dm a
+
+
+def _cat_ripple(s: State, lead: float = 0.01) -> np.ndarray:
+    # torque ripple once per screw revolution, as power omega * sin(phi)
+    return 2.0 * math.pi * s.v / lead * np.sin(2.0 * math.pi * s.x / lead + 0.3)
+
+
 CATALOG = {
+    'offset_force': ('force', _cat_offset),
+    'viscous_asymmetry': ('force', _cat_viscous_asymmetry),
+    'stribeck_exp': ('force', _cat_stribeck_exp),
+    'mass_error': ('force', _cat_mass),
+    'torque_ripple': ('power', _cat_ripple),
+    'braking_loss': ('braking', None),
     'standby': ('power', _cat_standby),
     'coulomb': ('force', _cat_coulomb),
     'viscous': ('force', _cat_viscous),
@@ -312,7 +342,7 @@ def true_power(s: State, axis: AxisData, effects: dict[str, float]) -> np.ndarra
         / np.abs(s.v[moving]) * np.sign(s.v[moving])
     force = s.mass_kg * s.a + loss_force + s.mass_kg * G * axis.sin_theta
     drive = np.zeros_like(s.v)
-    copper = 0.0
+    copper = braking = 0.0
     for name, amp in effects.items():
         kind, fn = CATALOG.get(name) or OUTSIDE[name]
         if kind == 'force':
@@ -321,9 +351,13 @@ def true_power(s: State, axis: AxisData, effects: dict[str, float]) -> np.ndarra
             drive = drive + amp * fn(s)
         elif kind == 'torque2':
             copper = amp
+        elif kind == 'braking':
+            braking = amp
     k = 2.0 * math.pi / axis.lead_m
     torque = axis.inertia_kg_m2 * k * s.a + force / k
-    return torque * k * s.v + copper * torque * torque + drive
+    mech = torque * k * s.v
+    # a share of the braking power is burned in the chopper instead of returned
+    return mech + braking * np.maximum(-mech, 0.0) + copper * torque * torque + drive
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ import yaml
 from feed_axis_energy.cli.common import (add_quiet_option, format_table, metric_cells,
                                          METRIC_HEADER)
 from feed_axis_energy.cli.progress import Progress
+from feed_axis_energy.effects import split_coulomb
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.identify import AnalysisResult, analyze_campaign, AnalyzeOptions, HOLDOUTS
 from feed_axis_energy.machine import load_machine, machine_to_dict
@@ -83,6 +84,8 @@ def _print(res: AnalysisResult) -> None:
         for e in res.effects:
             if e.correction is not None:
                 print(correction_line(e.id, e.axis, e.correction))
+            if e.id == 'coulomb':
+                _print_coulomb_split(e)
         _print_ambiguous(res)
     else:
         print('effects added: none')
@@ -110,6 +113,19 @@ def _print(res: AnalysisResult) -> None:
     print('held-out runs, before and after (after: effects fitted without the run):')
     print(format_table(['run', 'load [kg]', ''] + METRIC_HEADER, rows))
     _print_alignment(res)
+
+
+def _print_coulomb_split(e) -> None:
+    """An asymmetric Coulomb friction is symmetric friction plus a constant force (the
+    catalog's exact alias, docs/effects.md): say both readings."""
+    values = e.values()
+    fc, f0 = split_coulomb(values.get('f_pos_n', 0.0), values.get('f_neg_n', 0.0))
+    if f0 != 0.0:
+        print(f'coulomb@{e.axis}: F+ {values.get("f_pos_n", 0.0):.4g} N, F- '
+              f'{values.get("f_neg_n", 0.0):.4g} N = symmetric friction {fc:.4g} N + a '
+              f'constant force (offset_force) {f0:.4g} N: power cannot tell the two apart '
+              '(a force or torque trace at rest can: fit-loss --method samples --friction '
+              'extended)')
 
 
 def _print_ambiguous(res: AnalysisResult) -> None:

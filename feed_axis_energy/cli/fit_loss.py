@@ -10,10 +10,11 @@ import yaml
 
 from feed_axis_energy.cli.common import format_table
 from feed_axis_energy.cli.import_run import split_names
-from feed_axis_energy.identify import (fit_drive_samples, fit_loss, fit_loss_samples,
-                                       machine_with_losses,
-                                       machine_with_sample_fits, range_uses, SampleFitOptions,
-                                       SteadyOptions, VELOCITY_SOURCES)
+from feed_axis_energy.identify import (fit_drive_friction, fit_drive_samples, fit_loss,
+                                       fit_loss_samples, machine_with_friction_fits,
+                                       machine_with_losses, machine_with_sample_fits,
+                                       range_uses, SampleFitOptions, SteadyOptions,
+                                       VELOCITY_SOURCES)
 from feed_axis_energy.machine import load_machine, machine_to_dict, range_warnings
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.measured import load_campaign, load_run, quantity_of, torque_per_unit
@@ -57,6 +58,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'samples: Coulomb + viscous loss and the motor inertia fitted to every '
                         'moving sample (velocity and acceleration at its stamp), with the '
                         'kinematics each run\'s motion comes from (docs/measured.md)')
+    p.add_argument('--friction', choices=('symmetric', 'extended'), default='symmetric',
+                   help='with --method samples on a drive trace (force, torque, current with '
+                        'a known kt): symmetric (default) = Coulomb + viscous; extended = also '
+                        'the constant offset force (told from asymmetric Coulomb friction by '
+                        'the resting samples), viscous asymmetry and a Stribeck excess, '
+                        'written as catalog effects with --out-machine (docs/test-stand.md)')
     g = p.add_argument_group('steady segments (--velocity, --max-accel and --min-speed also '
                              'for --method samples)')
     g.add_argument('--velocity', choices=VELOCITY_SOURCES, default=_D.velocity,
@@ -115,6 +122,12 @@ def run(args: argparse.Namespace) -> int:
                         or any(s.instrument.measures != 'current' for s in specs)):
         print('error: --fit-kt fits torque constants with --method samples on runs whose '
               'instrument measures current', file=sys.stderr)
+        return 1
+    if args.friction == 'extended' and (args.method != 'samples' or args.fit_kt or any(
+            quantity_of(s.instrument.measures).is_power for s in specs)):
+        print('error: --friction extended fits a drive trace (force, torque or current with a '
+              'declared kt) with --method samples; a power trace does not show a constant '
+              'force at rest', file=sys.stderr)
         return 1
     if args.method == 'samples':
         return _run_samples(args, runs, specs, machine, machine_path, axes)
@@ -216,6 +229,9 @@ def _run_samples(args: argparse.Namespace, runs: list, specs: list, machine,
         gains = _gains(specs, machine, measures[0])
         if args.fit_kt:
             gains = {a: None for a in gains}
+        if args.friction == 'extended':
+            return _run_extended(args, runs, specs, machine, machine_path, axes, velocity,
+                                 options, gains, measures[0])
         fits = fit_drive_samples(runs, machine=machine, measures=measures[0],
                                  gains=gains, axes=axes,
                                  velocity=velocity, invert=[s.instrument.invert for s in specs],
@@ -246,6 +262,44 @@ def _run_samples(args: argparse.Namespace, runs: list, specs: list, machine,
                    what='loss functions and inertias (fit-loss --method samples)',
                    show=show, head={'method': 'samples', 'measures': measures[0]},
                    more={'velocity': velocity})
+
+
+def _run_extended(args: argparse.Namespace, runs: list, specs: list, machine,
+                  machine_path: Path, axes: list[str] | None, velocity: list[str], options,
+                  gains: dict, measures: str) -> int:
+    """``--friction extended``: the richer friction model on a drive trace."""
+    fits = fit_drive_friction(runs, machine=machine, measures=measures, gains=gains, axes=axes,
+                              velocity=velocity, invert=[s.instrument.invert for s in specs],
+                              options=options)
+    if not fits:
+        print(f'error: no run has {measures} for an axis of the machine', file=sys.stderr)
+        return 1
+
+    def show() -> None:
+        num = (lambda v, fmt: '-' if v is None else format(v, fmt))
+        rows = [[a, f.status, num(f.effective_mass_kg, '.4g'), num(f.coulomb_n, '.4g'),
+                 num(f.coulomb_asymmetry_n, '+.4g'), num(f.offset_n, '.4g'),
+                 num(f.viscous_n_s_m, '.4g'), num(f.viscous_asymmetry_n_s_m, '+.4g'),
+                 num(f.stribeck_n, '.4g'),
+                 num(None if f.stribeck_v_m_s is None else 1e3 * f.stribeck_v_m_s, '.3g'),
+                 num(f.rmse, '.3g'), str(f.n_samples), str(f.n_rest)]
+                for a, f in fits.items()]
+        print(format_table(['axis', 'status', 'eq. mass [kg]', 'coulomb [N]', 'asym. [N]',
+                            'offset [N]', 'viscous [N s/m]', 'asym. [N s/m]',
+                            'stribeck [N]', 'vs [mm/s]', f'RMS [{quantity_of(measures).unit}]',
+                            'moving', 'resting'], rows))
+        print('F(v) = coulomb*sgn(v) + viscous*v + (offset + asym.)*1 + asym.[N s/m]*|v| + '
+              'stribeck*exp(-(|v|/vs)^delta)*sgn(v) while moving, offset at rest '
+              '(docs/test-stand.md)')
+        for axis, f in fits.items():
+            print(f'axis {axis}: {f.message}')
+
+    return _finish(args, fits, specs, machine_path, [],
+                   fitted=lambda: machine_with_friction_fits(machine, fits),
+                   what='friction, offset force and inertias (fit-loss --method samples '
+                        '--friction extended)',
+                   show=show, head={'method': 'samples', 'friction': 'extended',
+                                    'measures': measures}, more={'velocity': velocity})
 
 
 def _gains(specs: list, machine, measures: str) -> dict[str, float | None]:

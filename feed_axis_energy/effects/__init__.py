@@ -11,10 +11,12 @@ table of effects, formulas and parameters::
     extra = get_effect('load_friction').power_w(state, {'mu': 0.05})   # (n, k) [W]
 """
 from . import drive, friction  # noqa: F401  (importing them registers the effects)
+from .aliases import Alias, ALIASES, aliases_of, join_coulomb, masses_vary, split_coulomb
 from .catalog import (Effect, EFFECTS, effects_power_w, EffectState, get_effect, Param,
                       ParamValue, register_effect)
 
 __all__ = [
-    'Effect', 'EFFECTS', 'effects_power_w', 'EffectState', 'get_effect', 'Param', 'ParamValue',
-    'register_effect',
+    'Alias', 'ALIASES', 'aliases_of', 'Effect', 'EFFECTS', 'effects_power_w', 'EffectState',
+    'get_effect', 'join_coulomb', 'masses_vary', 'Param', 'ParamValue', 'register_effect',
+    'split_coulomb',
 ]

@@ -8,8 +8,8 @@ import numpy as np
 from ..units import GRAVITY_M_S2
 from .catalog import Effect, EffectState, NON_NEGATIVE, Param, ParamValue, register_effect
 
-__all__ = ['Standby', 'CopperLoss', 'IronLoss', 'MassError', 'Gravity', 'TorqueRipple',
-           'TimeOffset', 'BrakingLoss']
+__all__ = ['Standby', 'CopperLoss', 'IronLoss', 'MassError', 'Gravity', 'OffsetForce',
+           'TorqueRipple', 'TimeOffset', 'BrakingLoss']
 
 
 @register_effect
@@ -90,6 +90,30 @@ class Gravity(Effect):
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
         return [state.velocity_m_s * (state.mass_kg * GRAVITY_M_S2)]
+
+
+@register_effect
+class OffsetForce(Effect):
+    """A constant force along the axis: cable carrier, counterweight imbalance, an incline.
+
+    The drive pushes ``F0`` more moving in + and ``F0`` less moving in - (positive: the force
+    pulls towards -). Aliases (:data:`~feed_axis_energy.effects.ALIASES`): on runs that all
+    move the same mass it has the power shape of ``gravity`` (``sin_theta = F0/(m·g)``), which
+    separates only when the moved mass varies between runs; and ``coulomb`` with
+    ``F+ = Fc + F0``, ``F- = Fc - F0`` is symmetric friction ``Fc`` plus this force, the same
+    power everywhere. Unlike friction it also acts at rest, where a force or torque trace (not
+    the power) shows it.
+    """
+
+    id = 'offset_force'
+    description = 'constant force along the axis (cable carrier, counterweight, incline)'
+    formula = 'P = F0 · v'
+    params = (Param('f0_n', 'N', 0.0, -500.0, 500.0, 30.0,
+                    'constant force (positive: moving in + costs more)',
+                    bounds=(-1.0e6, 1.0e6)),)
+
+    def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
+        return [np.array(state.velocity_m_s, dtype=float)]
 
 
 @register_effect

@@ -14,8 +14,8 @@ import numpy as np
 from ..units import GRAVITY_M_S2
 from .catalog import Effect, EffectState, NON_NEGATIVE, Param, ParamValue, register_effect
 
-__all__ = ['Coulomb', 'Viscous', 'LoadFriction', 'Stribeck', 'PositionFriction',
-           'ThermalDrift']
+__all__ = ['Coulomb', 'Viscous', 'ViscousAsymmetry', 'LoadFriction', 'Stribeck',
+           'PositionFriction', 'ThermalDrift']
 
 
 @register_effect
@@ -47,6 +47,27 @@ class Viscous(Effect):
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
         v = state.velocity_m_s
         return [v * v]
+
+
+@register_effect
+class ViscousAsymmetry(Effect):
+    """Viscous friction that differs between the + and the - direction.
+
+    With ``viscous`` (``c``) it makes the directional pair ``c+ = c + d``, ``c- = c - d``:
+    ``c·v² + d·v·|v|`` is ``c+·v²`` moving in + and ``c-·v²`` moving in -. On a program that
+    moves alike in both directions the two columns are orthogonal, so the symmetric part and
+    the asymmetry are told apart (unlike Coulomb's asymmetry, see ``offset_force``).
+    """
+
+    id = 'viscous_asymmetry'
+    description = 'viscous friction differing by direction: half the difference c+ - c-'
+    formula = 'P = d · v · |v|,  d = (c+ - c-)/2'
+    params = (Param('d_n_s_m', 'N*s/m', 0.0, -5000.0, 5000.0, 50.0,
+                    'half the difference of the viscous coefficients, + minus -'),)
+
+    def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
+        v = state.velocity_m_s
+        return [v * np.abs(v)]
 
 
 @register_effect
@@ -87,22 +108,33 @@ class ClampedLoadFriction(Effect):
 
 @register_effect
 class Stribeck(Effect):
-    """Excess static friction that dies away with speed."""
+    """Excess static friction that dies away with speed (the Stribeck curve).
+
+    The friction force falls from the static level ``Fc + Fs`` at rest to the Coulomb level
+    ``Fc`` (held by the loss function or ``coulomb``) as ``exp(-(|v|/vs)^delta)``: the
+    characteristic (Stribeck) speed ``vs`` and the shape exponent ``delta`` (2: Gaussian,
+    the default; 1: a plain exponential; the literature finds 0.5 ... 2). ``analyze``
+    searches ``vs`` with ``delta`` as given (default 2).
+    """
 
     id = 'stribeck'
     description = 'static friction excess decaying with speed (Stribeck curve)'
-    formula = 'P = Fs · exp(-(v/vs)²) · |v|'
+    formula = 'P = Fs · exp(-(|v|/vs)^delta) · |v|'
     params = (
         Param('f_s_n', 'N', 0.0, 0.0, 500.0, 40.0, 'static excess force at v -> 0',
               bounds=NON_NEGATIVE),
         Param('v_s_m_s', 'm/s', 0.01, 0.0005, 0.2, 0.01, 'Stribeck speed', linear=False,
               bounds=(1e-9, math.inf)),
+        Param('delta', '-', 2.0, 0.5, 2.0, 2.0, 'shape exponent of the decay', linear=False,
+              bounds=(0.1, 10.0)),
     )
 
     def _basis(self, state: EffectState, values: dict[str, ParamValue]) -> list[np.ndarray]:
         v = state.velocity_m_s
-        vs = np.broadcast_to(np.asarray(values['v_s_m_s'], dtype=float), (v.shape[1],))
-        return [np.exp(-(v / vs) ** 2) * np.abs(v)]
+        k = v.shape[1]
+        vs = np.broadcast_to(np.asarray(values['v_s_m_s'], dtype=float), (k,))
+        delta = np.broadcast_to(np.asarray(values['delta'], dtype=float), (k,))
+        return [np.exp(-(np.abs(v) / vs) ** delta) * np.abs(v)]
 
 
 BUMPS = 16

@@ -133,13 +133,13 @@ def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
         hi = max(float(np.max(x)) for x in pos if x.size) if any(x.size for x in pos) else 0.0
         span = hi - lo if hi > lo else 0.4
         return [{'x0_m': lo, 'spacing_m': span / n} for n in POSITION_DIVISIONS]
-    if len(shapes) > 1:
-        return [{p.name: p.default for p in shapes}]
+    # the first shape parameter is searched, further ones (stribeck's delta) stay at default
     par = shapes[0]
+    rest = {p.name: p.default for p in shapes[1:]}
     grid = list(np.geomspace(max(par.low, 1e-12), par.high, points))
     if par.default > par.high:
         grid.append(par.default)    # thermal_drift: the linear limit (tau = 1e9 s)
-    return [{par.name: float(v)} for v in np.unique(grid)]
+    return [{par.name: float(v)} | rest for v in np.unique(grid)]
 
 
 def _block(runs: Sequence[_Run], effect_id: str, axis_j: int, shape: Mapping[str, float]):
@@ -205,9 +205,11 @@ def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
     """1-D bounded search of a block's single shape parameter around its grid value."""
     effect = get_effect(block.key[0])
     shapes = [p for p in effect.params if not p.linear]
-    if len(shapes) != 1:
+    if not shapes or effect.id == 'position_friction':
         return block
+    # the first shape parameter is refined; further ones keep their grid value
     par = shapes[0]
+    fixed = {p.name: float(block.shape[p.name]) for p in shapes[1:] if p.name in block.shape}
     axis_j = _axis_index(runs, block.key[1])
     grid = sorted(float(b.shape[par.name]) for b in design.blocks if b.key == block.key)
     value = float(block.shape[par.name])
@@ -221,7 +223,8 @@ def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
     bounds = (design.lower[list(block.cols)], design.upper[list(block.cols)])
 
     def columns(value: float) -> list[np.ndarray]:
-        return [_columns(r, block.key[0], axis_j, {par.name: value})[:, used] for r in runs]
+        return [_columns(r, block.key[0], axis_j, {par.name: value} | fixed)[:, used]
+                for r in runs]
 
     def cost(log_v: float) -> float:
         return _sse_with(design, others, columns(math.exp(log_v)), bounds)
@@ -232,7 +235,7 @@ def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
     if not float(res.fun) < _sse_with(design, others, [design.x[r][:, list(block.cols)]
                                                        for r in range(design.runs)], bounds):
         return block
-    return design.add_block(block.key, {par.name: best}, block.names, columns(best),
+    return design.add_block(block.key, {par.name: best} | fixed, block.names, columns(best),
                             bounds=bounds)
 
 

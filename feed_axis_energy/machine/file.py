@@ -60,9 +60,9 @@ from .losses import loss_from_dict
 from .declared import effects_from_value, effects_to_list
 from ..gcode import gcode_from_dict, gcode_to_dict, travel_from_value
 from .rotary import check_rotary_stacking, rotary_axis_from_value, rotary_axis_to_dict
-from .spec import (AXIS_NAMES, AxisSpec, BRAKING_MODES, InertiaSpec, LimitSpec, Machine,
-                   PlannerSettings, PROFILES, ROTARY_AXIS_NAMES, ScrewSpec,
-                   STEEL_DENSITY_KG_M3)
+from .spec import (AXIS_NAMES, AxisSpec, BRAKING_MODES, DIRECT_SCREW, InertiaSpec, LimitSpec,
+                   Machine, PlannerSettings, PROFILES, ROTARY_AXIS_NAMES, ScrewSpec,
+                   STEEL_DENSITY_KG_M3, TRANSMISSIONS)
 from ..safeyaml import load_yaml_file
 
 __all__ = ['load_machine', 'machine_from_dict', 'machine_to_dict']
@@ -125,11 +125,22 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         return rotary_axis_from_value(name, d, file=file, rides_on=rides)
     allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
                'loss', 'travel_m', 'loss_calibrated', 'loss_covariance', 'drive',
-               'standstill_hold_n')
+               'standstill_hold_n', 'transmission')
     d = _mapping(d, file=file, key=key, allowed=allowed)
-    for part in ('screw', 'inertias', 'limits', 'loss'):
+    direct = _choice(d, 'transmission', TRANSMISSIONS, file=file, key=key,
+                     default='screw') == 'direct'
+    if direct:
+        # a linear motor or force-measuring stand: no screw, no rotating inertia
+        for part in ('screw', 'inertias'):
+            if part in d:
+                msg = (f'a direct axis (transmission: direct) has no {part}; remove the '
+                       'section (the moving part of a linear motor belongs in table_mass_kg)')
+                raise ConfigError(msg, file=file, key=f'{key}.{part}')
+    for part in (('limits', 'loss') if direct else ('screw', 'inertias', 'limits', 'loss')):
         if part not in d:
             msg = 'missing required section'
+            if part == 'screw':
+                msg += ' (or transmission: direct for an axis without a screw)'
             raise ConfigError(msg, file=file, key=f'{key}.{part}')
     rides_on = _choice(d, 'rides_on', AXIS_NAMES + (None,), file=file, key=key, default=None)
     loss = loss_from_dict(d['loss'], file=file, key=f'{key}.loss')
@@ -137,8 +148,10 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         name=name,
         table_mass_kg=_float(d, 'table_mass_kg', file=file, key=key, minimum=0.0, strict=False,
                              maximum=1.0e6),
-        screw=_screw(d['screw'], file=file, key=f'{key}.screw'),
-        inertias=_inertias(d['inertias'], file=file, key=f'{key}.inertias'),
+        screw=DIRECT_SCREW if direct else _screw(d['screw'], file=file, key=f'{key}.screw'),
+        inertias=(InertiaSpec(motor_kg_m2=0.0, coupling_kg_m2=0.0, screw_kg_m2=0.0) if direct
+                  else _inertias(d['inertias'], file=file, key=f'{key}.inertias')),
+        direct=direct,
         limits=_limits(d['limits'], file=file, key=f'{key}.limits'),
         loss=loss, rides_on=rides_on,
         inclination_deg=_float(d, 'inclination_deg', file=file, key=key, default=0.0,
@@ -288,15 +301,17 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
                                     'coupling_kg_m2': a.inertias.coupling_kg_m2}
         if a.inertias.screw_kg_m2 is not None:
             inertias['screw_kg_m2'] = a.inertias.screw_kg_m2
-        axes[a.name] = {
-            'table_mass_kg': a.table_mass_kg,
-            'rides_on': a.rides_on,
-            'inclination_deg': a.inclination_deg,
+        transmission: dict[str, Any] = {'transmission': 'direct'} if a.direct else {
             'screw': {'diameter_m': a.screw.diameter_m, 'lead_m': a.screw.lead_m,
                       'length_m': a.screw.length_m, 'starts': a.screw.starts,
                       'efficiency': a.screw.efficiency,
                       'density_kg_m3': a.screw.density_kg_m3},
-            'inertias': inertias,
+            'inertias': inertias}
+        axes[a.name] = {
+            'table_mass_kg': a.table_mass_kg,
+            'rides_on': a.rides_on,
+            'inclination_deg': a.inclination_deg,
+            **transmission,
             'limits': {'velocity_m_s': a.limits.velocity_m_s,
                        'acceleration_m_s2': a.limits.acceleration_m_s2,
                        'jerk_m_s3': a.limits.jerk_m_s3},

@@ -19,7 +19,7 @@ from .limits import AxisLimits, PlannerOptions
 
 __all__ = ['ScrewSpec', 'InertiaSpec', 'LimitSpec', 'PlannerSettings', 'AxisSpec', 'Machine',
            'RotarySpec', 'AXIS_NAMES', 'LINEAR_AXIS_NAMES', 'ROTARY_AXIS_NAMES',
-           'BRAKING_MODES', 'PROFILES', 'STEEL_DENSITY_KG_M3']
+           'BRAKING_MODES', 'PROFILES', 'STEEL_DENSITY_KG_M3', 'DIRECT_SCREW', 'TRANSMISSIONS']
 
 
 LINEAR_AXIS_NAMES = ('X', 'Y', 'Z')
@@ -146,6 +146,13 @@ class RotarySpec:
         return self.table_inertia_kg_m2 + self.load_inertia_kg_m2
 
 
+DIRECT_SCREW = ScrewSpec(diameter_m=0.0, lead_m=2.0 * math.pi, length_m=0.0, starts=1,
+                         efficiency=1.0, density_kg_m3=0.0)
+"""Transmission of a direct linear axis: 1 m per rad, no loss, no inertia (force = torque)."""
+TRANSMISSIONS = ('screw', 'direct')
+"""Values of ``axes.<A>.transmission``."""
+
+
 @dataclass(frozen=True)
 class AxisSpec:
     """One ball-screw feed axis.
@@ -176,6 +183,13 @@ class AxisSpec:
         Force the drive keeps holding after a stop, in the last direction of motion [N]
         (:mod:`feed_axis_energy.physics.standstill`): friction kept by the position loop.
         Seen only in current, torque and force traces (no power at rest); 0: none.
+    direct
+        ``True`` for a direct linear drive without a screw (``transmission: direct``: a
+        linear motor, or a test stand whose trace is the actuator force): ``screw`` is then
+        the identity transmission :data:`DIRECT_SCREW` (lead ``2·pi`` m, efficiency 1, no
+        inertia), so the "screw torque" [N·m] equals the axis force [N] and the "screw
+        speed" [rad/s] the carriage speed [m/s], and ``inertias`` are 0 (the moving part of
+        the motor belongs in ``table_mass_kg``).
     rotary
         ``None`` for a linear (ball-screw) axis. For a rotary axis (A, B, C) its
         :class:`RotarySpec`; the other fields then hold the equivalent feed axis (SI with
@@ -198,6 +212,7 @@ class AxisSpec:
     drive: DriveSpec | None = None
     standstill_hold_n: float = 0.0
     rotary: RotarySpec | None = None
+    direct: bool = False
 
     @property
     def is_rotary(self) -> bool:

@@ -57,6 +57,10 @@ HAND = {
     'coulomb': ({'f_pos_n': 20.0, 'f_neg_n': 25.0},
                 lambda i, j: 20.0 * V[i][j] if V[i][j] > 0 else -25.0 * V[i][j]),
     'viscous': ({'c_n_s_m': 100.0}, lambda i, j: 100.0 * V[i][j] ** 2),
+    # +30 N*s/m more moving in +, 30 less moving in -
+    'viscous_asymmetry': ({'d_n_s_m': 30.0}, lambda i, j: 30.0 * V[i][j] * abs(V[i][j])),
+    # 15 N pulling towards -: moving in + costs 15 N * v, moving in - returns it
+    'offset_force': ({'f0_n': 15.0}, lambda i, j: 15.0 * V[i][j]),
     'load_friction': ({'mu': 0.05}, lambda i, j: 0.05 * NORMAL[j] * abs(V[i][j])),
     'clamped_load_friction': ({'mu_l': 0.05},
                               lambda i, j: 0.05 * LOAD_NORMAL[j] * abs(V[i][j])),
@@ -152,10 +156,52 @@ def test_stribeck_shape_parameter_changes_basis() -> None:
     effect = get_effect('stribeck')
     narrow = effect.basis(_state(), {'v_s_m_s': 0.05})
     wide = effect.basis(_state(), {'v_s_m_s': 0.5})
-    assert effect.shape_params() == ('v_s_m_s',)
+    assert effect.shape_params() == ('v_s_m_s', 'delta')
     assert effect.linear_params() == ('f_s_n',)
     assert np.all(wide[..., 0] >= narrow[..., 0])
     assert wide[2, 0, 0] > narrow[2, 0, 0]
+
+
+def test_stribeck_exponential_decays_from_static_to_coulomb_level() -> None:
+    # delta = 1: the excess force at |v| = vs is Fs/e, at 3 vs Fs/e^3 (hand values)
+    effect = get_effect('stribeck')
+    state = _state()
+    p = effect.power_w(state, {'f_s_n': 40.0, 'v_s_m_s': 0.1, 'delta': 1.0})
+    assert_allclose(p[0, 0], 40.0 * math.exp(-1.0) * 0.1)
+    assert_allclose(p[1, 0], 40.0 * math.exp(-3.0) * 0.3)
+    assert np.all(p >= 0.0)
+    with pytest.raises(ConfigError, match="'delta' of effect 'stribeck' must lie in"):
+        effect.resolve({'delta': 0.0})
+
+
+def test_asymmetric_coulomb_is_symmetric_friction_plus_offset_force() -> None:
+    from feed_axis_energy.effects import aliases_of, join_coulomb, split_coulomb
+    state = _state()
+    fc, f0 = split_coulomb(30.0, 10.0)
+    assert (fc, f0) == (20.0, 10.0)
+    assert join_coulomb(fc, f0) == (30.0, 10.0)
+    asym = get_effect('coulomb').power_w(state, {'f_pos_n': 30.0, 'f_neg_n': 10.0})
+    parts = (get_effect('coulomb').power_w(state, {'f_pos_n': fc, 'f_neg_n': fc})
+             + get_effect('offset_force').power_w(state, {'f0_n': f0}))
+    assert_allclose(asym, parts, atol=1e-12)
+    exact = [a for a in aliases_of('offset_force') if 'coulomb' in a.members]
+    assert len(exact) == 1 and exact[0].separates_when == ''
+
+
+def test_offset_force_is_gravity_unless_the_moved_mass_varies() -> None:
+    from feed_axis_energy.effects import masses_vary
+    state = _state()
+    offset = get_effect('offset_force')
+    gravity = get_effect('gravity')
+    # one mass (axis X, 20 kg): F0 = m g sin(theta) gives the same power
+    same = gravity.power_w(state, {'sin_theta': 15.0 / (20.0 * GRAVITY_M_S2)})
+    assert_allclose(offset.power_w(state, {'f0_n': 15.0})[:, 0], same[:, 0])
+    assert not masses_vary(np.array([20.0, 20.0, 20.0]))
+    # another run with 5 kg more: gravity's force follows the mass, the offset does not
+    heavier = EffectState(**{**state.__dict__, 'mass_kg': np.array([25.0, 8.0])})
+    other = gravity.power_w(heavier, {'sin_theta': 15.0 / (20.0 * GRAVITY_M_S2)})
+    assert not np.allclose(other[:, 0], offset.power_w(heavier, {'f0_n': 15.0})[:, 0])
+    assert masses_vary(np.array([20.0, 25.0]))
 
 
 def test_unknown_parameter_and_effect_are_named() -> None:
@@ -170,7 +216,8 @@ def test_unknown_parameter_and_effect_are_named() -> None:
 @pytest.mark.parametrize('effect_id, name, value', [
     ('copper', 'k_w_nm2', -3.1), ('iron', 'k_e_w_s2_rad2', -1e-5), ('standby', 'p0_w', -1.0),
     ('stribeck', 'f_s_n', -5.0), ('load_friction', 'mu', -0.01), ('gravity', 'sin_theta', 1.5),
-    ('braking_loss', 'fraction', 1.2), ('thermal_drift', 'tau_s', 0.0)])
+    ('braking_loss', 'fraction', 1.2), ('thermal_drift', 'tau_s', 0.0),
+    ('offset_force', 'f0_n', 2.0e6), ('stribeck', 'delta', 20.0)])
 def test_values_outside_the_physical_bounds_are_refused(effect_id, name, value) -> None:
     with pytest.raises(ConfigError, match=f"'{name}' of effect '{effect_id}' must lie in"):
         get_effect(effect_id).resolve({name: value})

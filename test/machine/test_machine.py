@@ -3,6 +3,7 @@ import copy
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -153,3 +154,76 @@ def test_limits_as_planner_type(mill):
     assert isinstance(limits['Z'], AxisLimits)
     assert limits['Z'].velocity_m_s == mill.axis('Z').limits.velocity_m_s
     assert limits['Z'].jerk_m_s3 == mill.axis('Z').limits.jerk_m_s3
+
+
+def test_direct_axis_has_no_screw_and_round_trips(tmp_path):
+    # a linear test stand: torque equals force, screw speed equals carriage speed
+    m = load_machine(CONFIG / 'linear_stand.yaml')
+    x = m.axis('X')
+    assert x.direct
+    assert x.screw.lead_m / (2.0 * math.pi) == pytest.approx(1.0, rel=1e-15)
+    assert x.screw.efficiency == 1.0 and x.rotary_inertia_kg_m2 == 0.0
+    d = machine_to_dict(m)
+    assert d['axes']['X']['transmission'] == 'direct'
+    assert 'screw' not in d['axes']['X'] and 'inertias' not in d['axes']['X']
+    out = tmp_path / 'stand.yaml'
+    out.write_text(yaml.safe_dump(d, sort_keys=False))
+    assert load_machine(out) == m
+
+
+@pytest.mark.parametrize('change, key, expected', [
+    ({'screw': {'diameter_m': 0.02, 'lead_m': 0.01, 'length_m': 0.5}}, 'axes.X.screw',
+     'has no screw'),
+    ({'inertias': {'motor_kg_m2': 1e-4}}, 'axes.X.inertias', 'has no inertias'),
+    ({'transmission': 'belt'}, 'axes.X.transmission', 'screw'),
+])
+def test_direct_axis_errors_name_the_key(change, key, expected):
+    d = yaml.safe_load((CONFIG / 'linear_stand.yaml').read_text())
+    d['axes']['X'].update(change)
+    with pytest.raises(ConfigError, match=expected) as err:
+        machine_from_dict(d, file='stand.yaml')
+    assert key in str(err.value)
+
+
+def test_missing_screw_names_the_direct_transmission(demo):
+    d = machine_to_dict(demo)
+    del d['axes']['X']['screw']
+    with pytest.raises(ConfigError, match='transmission: direct'):
+        machine_from_dict(d, file='m.yaml')
+
+
+def test_direct_axis_force_is_the_dynamics_torque():
+    # m a + F_loss: on a direct axis the screw torque of the dynamics is that force in N
+    from feed_axis_energy.gcode.load import parse_gcode
+    from feed_axis_energy.sim.simulate import simulate_program
+    m = load_machine(CONFIG / 'linear_stand.yaml')
+    prog = parse_gcode('G21 G90 G94 G61\nG1 X200 F6000\nM30\n', file='p.nc')
+    res = simulate_program(prog, m, load_kg=2.0)
+    v = res.motion.vel[:, 0]
+    a = res.motion.acc[:, 0]
+    force = 10.0 * a + (20.0 * np.sign(v) + 40.0 * v)
+    np.testing.assert_allclose(res.dynamics.torque_nm[:, 0], force, atol=1e-9)
+    np.testing.assert_allclose(res.power.power_w[:, 0] if res.power.power_w.ndim == 2
+                               else res.power.power_w, force * v, atol=1e-9)
+
+
+def test_new_friction_effects_are_machine_effects_that_round_trip(tmp_path):
+    # an accepted finding of each new shape writes an augmented machine file that reads back
+    d = yaml.safe_load((CONFIG / 'linear_stand.yaml').read_text())
+    d['effects'] = [
+        {'id': 'offset_force', 'axis': 'X', 'params': {'f0_n': -12.5}},
+        {'id': 'viscous_asymmetry', 'axis': 'X', 'params': {'d_n_s_m': 7.0}},
+        {'id': 'stribeck', 'axis': 'X', 'params': {'f_s_n': 9.0, 'v_s_m_s': 0.004,
+                                                   'delta': 1.0}},
+        {'id': 'coulomb', 'axis': 'X', 'params': {'f_pos_n': 3.0, 'f_neg_n': -3.0}},
+    ]
+    m = machine_from_dict(d, file='stand.yaml')
+    assert [e.id for e in m.effects] == [
+        'offset_force', 'viscous_asymmetry', 'stribeck', 'coulomb']
+    out = tmp_path / 'augmented.yaml'
+    out.write_text(yaml.safe_dump(machine_to_dict(m), sort_keys=False))
+    assert load_machine(out) == m
+    d['effects'][2]['params']['delta'] = 50.0
+    with pytest.raises(ConfigError, match='delta') as err:
+        machine_from_dict(d, file='stand.yaml')
+    assert 'effects[2].params' in str(err.value)

@@ -1,0 +1,91 @@
+"""Issue 24 §8, the fast CI subset of ``bench/truth_matrix.py`` (the matrix runs outside CI,
+its figures are in docs/analyze.md): a few cells of the independent truth, one seed each,
+failing on any false attribution or misaligned run; and hand checks of the new truth forms
+(they are written apart from the catalog, so they are compared with it here)."""
+import importlib.util
+import math
+from pathlib import Path
+import sys
+
+import numpy as np
+import pytest
+
+from feed_axis_energy.effects import EffectState, get_effect
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _load(name):
+    spec = importlib.util.spec_from_file_location(f'fae_bench_{name}',
+                                                  ROOT / 'bench' / f'{name}.py')
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope='module')
+def tm():
+    return _load('truth_model')
+
+
+@pytest.fixture(scope='module')
+def matrix():
+    return _load('truth_matrix')
+
+
+def test_new_truth_forms_match_the_catalog_shapes(tm):
+    # the truth writes each shape on its own; at equal parameters its extra power must be
+    # the catalog's (lead 10 mm, the demonstrator's)
+    axis = tm.read_axis(ROOT / 'config' / 'demonstrator.yaml')
+    line = tm.stroke_timeline(0.2, axis=axis, stroke_m=0.1, cycles=1, dwell_s=0.2)
+    s = tm.fine_state(line, axis=axis, load_kg=5.0, run_index=0, before_s=0.1, after_s=0.1)
+    base = tm.true_power(s, axis, {})
+    k = s.t.size
+    col = (lambda a: np.asarray(a, dtype=float).reshape(k, 1))
+    w = 2 * math.pi * s.v / 0.01
+    state = EffectState(
+        t=s.t, axes=('X',), position_m=col(s.x), velocity_m_s=col(s.v),
+        acceleration_m_s2=col(s.a), angle_rad=col(2 * math.pi * s.x / 0.01),
+        omega_rad_s=col(w), force_n=np.zeros((k, 1)), torque_nm=np.zeros((k, 1)),
+        mass_kg=np.array([s.mass_kg]), load_kg=5.0, normal_force_n=np.array([1.0]),
+        lead_m=np.array([0.01]), mechanical_w=col(base), power_w=col(base))
+    cases = {
+        'offset_force': ('offset_force', {'f0_n': 7.0}, 7.0),
+        'viscous_asymmetry': ('viscous_asymmetry', {'d_n_s_m': 40.0}, 40.0),
+        'stribeck_exp': ('stribeck', {'f_s_n': 9.0, 'v_s_m_s': 0.005, 'delta': 1.0}, 9.0),
+        'mass_error': ('mass_error', {'dm_kg': 3.0}, 3.0),
+    }
+    for case, (effect_id, params, amp) in cases.items():
+        extra = tm.true_power(s, axis, {case: amp}) - base
+        want = get_effect(effect_id).power_w(state, params)[:, 0]
+        # force effects pass the rotor's torque relation unchanged: F/k * k v = F v
+        np.testing.assert_allclose(extra, want, atol=1e-9, err_msg=case)
+    # torque ripple: omega * sin(phi + 0.3) = a1 sin(phi) + b1 cos(phi) with the phase split
+    extra = tm.true_power(s, axis, {'torque_ripple': 0.02}) - base
+    want = get_effect('torque_ripple').power_w(
+        state, {'a1_nm': 0.02 * math.cos(0.3), 'b1_nm': 0.02 * math.sin(0.3)})[:, 0]
+    np.testing.assert_allclose(extra, want, atol=1e-9)
+    # braking loss: a share of the negative power, never more than all of it
+    extra = tm.true_power(s, axis, {'braking_loss': 0.4}) - base
+    np.testing.assert_allclose(extra, 0.4 * np.maximum(-base, 0.0), atol=1e-9)
+
+
+def test_verdicts(matrix):
+    assert matrix.verdict('gravity', ['gravity'], []) == 'right'
+    assert matrix.verdict('offset_force', ['coulomb'], []) == 'group'    # exact alias
+    assert matrix.verdict('stribeck_exp', ['stribeck'], []) == 'right'
+    assert matrix.verdict('copper', ['copper', 'iron'], [{'copper', 'iron'}]) == 'group'
+    assert matrix.verdict('copper', ['iron'], []) == 'false'
+    assert matrix.verdict('copper', [], []) == 'missed'
+    assert matrix.verdict('clean', ['standby'], []) == 'false'
+
+
+CI_CELLS = [('offset_force', 'large'), ('clean', 'smooth'), ('gravity', 'large')]
+
+
+@pytest.mark.parametrize('case, cls', CI_CELLS)
+def test_ci_subset_no_false_attribution_no_misaligned_run(matrix, case, cls):
+    (r,) = matrix.run_cells([(case, cls)], range(1, 2))
+    assert r['verdict'] != 'false', r
+    assert r['misaligned'] == [], r
