@@ -18,8 +18,8 @@ life and its place on disk:
   half-written is left;
 * **closed** once the job's result has arrived (``job/result``) and every stream holds what
   the job's ``program/end`` says was sent, at once for a job that failed before it sent
-  anything, else ``grace_s`` after the result (a job failed by a stall); on shutdown of the recorder, whatever is open is closed as
-  ``interrupted``;
+  anything, else ``grace_s`` after the result (a job failed by a stall); on shutdown of the
+  recorder, whatever is open is closed as ``interrupted``;
 * **marked** in the bag's ``custom_data`` under :data:`JOB_KEY` (JSON): ``job_id``,
   ``status`` (the result's ``ended``, ``aborted`` or ``failed``, or ``interrupted``),
   ``message``, ``complete`` (every stream up to the end marker), ``gaps`` (what is missing
