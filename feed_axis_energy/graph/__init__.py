@@ -8,8 +8,8 @@ job (:mod:`.jobrecord`).
 from .end import EndTracker, ProgramEnd, restamp_end_marker
 from .flow import (FlowWindow, header_stamp_ns, lines_at, NS_PER_S, pacing_delay_s,
                    recording_gaps, seconds_to_ns, StreamingPower)
-from .jobrecord import (BagSink, JOB_KEY, JobRecorder, JobRecording, RECORDING_STATUSES,
-                        sink_gaps)
+from .jobrecord import (BagSink, JOB_KEY, JobRecorder, JobRecording, read_back,
+                        RECORDING_STATUSES, sink_gaps)
 from .jobs import header_frame_id, JobRouter, live_payload, LIVE_CLOCKS, parse_state_text
 from .plots import GraphPlotter, PLOT_SOURCES
 from .source import SetpointSource
@@ -18,6 +18,6 @@ __all__ = [
     'BagSink', 'EndTracker', 'FlowWindow', 'GraphPlotter', 'header_frame_id', 'header_stamp_ns',
     'JOB_KEY', 'JobRecorder', 'JobRecording', 'JobRouter', 'lines_at', 'live_payload',
     'LIVE_CLOCKS', 'NS_PER_S', 'pacing_delay_s', 'parse_state_text', 'PLOT_SOURCES',
-    'ProgramEnd', 'RECORDING_STATUSES', 'recording_gaps', 'restamp_end_marker',
+    'ProgramEnd', 'read_back', 'RECORDING_STATUSES', 'recording_gaps', 'restamp_end_marker',
     'seconds_to_ns', 'SetpointSource', 'sink_gaps', 'StreamingPower',
 ]

@@ -44,14 +44,15 @@ import time
 from typing import Any, Callable, Mapping
 
 from ..cell import check_job_id
-from ..errors import FeedAxisError, OutputError, shorten
+from ..errors import DataError, FeedAxisError, OutputError, shorten
 from ..outputs import check_component, remove_stale_temporaries, staged_directory
-from ..record import ChunkedBagWriter
+from ..record import check_mcap, ChunkedBagWriter
+from ..safeyaml import load_yaml_file
 from .end import EndTracker
 from .plots import GraphPlotter
 
-__all__ = ['BagSink', 'JOB_KEY', 'JobRecorder', 'JobRecording', 'RECORDING_STATUSES',
-           'sink_gaps']
+__all__ = ['BagSink', 'JOB_KEY', 'JobRecorder', 'JobRecording', 'read_back',
+           'RECORDING_STATUSES', 'sink_gaps']
 
 JOB_KEY = 'feed_axis_energy/job'
 """``custom_data`` key of a job's recording (JSON object, module docstring)."""
@@ -104,6 +105,37 @@ def sink_gaps(sink: BagSink) -> list[str]:
     return [f'{topic}: {counts.get(topic, 0)} of {end.batches} batches'
             for topic in _STREAM_TOPICS
             if topic in sink.bag.topics and counts.get(topic, 0) != end.batches]
+
+
+def read_back(path: str | os.PathLike[str], counts: Mapping[str, int]) -> list[str]:
+    """Problems of a closed bag read back from disk (empty: none): its ``metadata.yaml``
+    must list ``counts`` messages per topic, and every MCAP file it lists must be complete
+    (:func:`~feed_axis_energy.record.check_mcap`: framing, summary, footer).
+
+    A few milliseconds per job: the metadata and the records' framing only, not the
+    messages (``rosbags`` takes about half a second to open a job's bag on a busy machine,
+    which the recorder cannot spend between two jobs).
+    """
+    path = Path(path)
+    try:
+        meta = load_yaml_file(path / 'metadata.yaml', error=DataError, what='bag metadata')
+        info = meta['rosbag2_bagfile_information']
+        listed = {t['topic_metadata']['name']: int(t['message_count'])
+                  for t in info['topics_with_message_count']}
+        files = [str(f) for f in info['relative_file_paths']]
+    except (FeedAxisError, KeyError, TypeError, ValueError) as err:
+        return [f'metadata.yaml: {shorten(str(err))}']
+    problems = [f'{topic}: {listed.get(topic, 0)} messages listed, {n} written'
+                for topic, n in sorted(counts.items()) if listed.get(topic, 0) != n]
+    for name in files:
+        if Path(name).name != name:
+            problems.append(f'{shorten(name)}: not a file name of the bag')
+            continue
+        try:
+            check_mcap(path / name, bag=path)
+        except (FeedAxisError, OSError) as err:
+            problems.append(shorten(str(err)))
+    return problems
 
 
 @dataclass

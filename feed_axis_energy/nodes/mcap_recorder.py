@@ -50,7 +50,7 @@ from feed_axis_energy.record import (bagio, BLOCK_ENERGY_PER_MESSAGE, ChunkedBag
 from feed_axis_energy.errors import FeedAxisError
 from feed_axis_energy.graph import (BagSink, EndTracker, GraphPlotter, header_frame_id,
                                     header_stamp_ns, JobRecorder, JobRecording, parse_state_text,
-                                    PLOT_SOURCES, recording_gaps, restamp_end_marker)
+                                    PLOT_SOURCES, read_back, restamp_end_marker, sink_gaps)
 from feed_axis_energy.nodes import convert
 from feed_axis_energy.nodes.qos import clock_qos, job_qos, latched_qos, stream_qos
 from feed_axis_energy.nodes.runner import (declare, guard_parameters, run, StartupError,
@@ -269,10 +269,14 @@ class McapRecorder(Node):
             self.get_logger().error(f'job {rec.job_id}: recording not kept: {err}')
             return
         status = rec.result.get('status') if rec.result else 'interrupted'
-        gaps = recording_gaps(path) if rec.sink.tracker.end is not None else ['no end marker']
+        gaps = sink_gaps(rec.sink)
         counts = ', '.join(f'{t} {n}' for t, n in sorted(rec.sink.bag.counts.items()))
         self.get_logger().info(f'job {rec.job_id}: closed {path} ({status}, '
                                f'{"complete" if not gaps else "; ".join(gaps)}): {counts}')
+        problems = read_back(path, rec.sink.bag.counts)     # what is on disk, checked
+        if problems:
+            self.get_logger().error(f'job {rec.job_id}: {path} read back: '
+                                    f'{"; ".join(problems)}')
 
     def _announce(self) -> None:
         """Create the ack publishers once every end stream has a matched publisher."""

@@ -8,7 +8,7 @@ import pytest
 
 from feed_axis_energy.errors import OutputError
 from feed_axis_energy.graph import (BagSink, EndTracker, JOB_KEY, JobRecorder, ProgramEnd,
-                                    recording_gaps)
+                                    read_back, recording_gaps)
 from feed_axis_energy.record import bagio, ChunkedBagWriter
 
 STREAMS = ('setpoints', 'axis_state', 'power')
@@ -223,3 +223,19 @@ def test_open_recordings_are_bounded(tmp_path):
     assert list(jobs.open) == ['b', 'c']
     mark = bagio.read_custom_data(tmp_path / 'a', JOB_KEY)
     assert mark['status'] == 'interrupted' and 'closed early' in mark['message']
+
+
+def test_read_back_finds_a_damaged_or_miscounted_bag(tmp_path):
+    jobs = JobRecorder(tmp_path, new_sink=_new_sink, clock=Clock())
+    rec = jobs.recording('j1')
+    _stream(rec, 3)
+    jobs.note_result({'job_id': 'j1', 'status': 'ended', 'samples': 300})
+    path = jobs.close(rec)
+    counts = dict(rec.sink.bag.counts)
+    assert read_back(path, counts) == []
+    assert read_back(path, {**counts, '/power': 4}) == ['/power: 3 messages listed, 4 written']
+    last = sorted(path.glob('*.mcap'))[-1]
+    last.write_bytes(last.read_bytes()[:-20])          # the footer cut off
+    assert len(read_back(path, counts)) == 1            # that file, named in the message
+    (path / 'metadata.yaml').write_text('rosbag2_bagfile_information: {}\n')
+    assert read_back(path, counts)[0].startswith('metadata.yaml')
