@@ -119,11 +119,13 @@ def main() -> None:
         first_live: dict[str, float] = {}
         last_live: dict[str, float] = {}
         result_at: dict[str, float] = {}
+        result_wall: dict[str, float] = {}
 
         def on_result(msg):
             d = json.loads(msg.data)
             results[d['job_id']] = d
             result_at[d['job_id']] = time.monotonic()
+            result_wall[d['job_id']] = time.time()
 
         def on_live(msg):
             d = json.loads(msg.data)
@@ -170,7 +172,7 @@ def main() -> None:
                     rss[i + 1] = {n: _rss_mib(pid) for n, pid in _nodes(launcher.pid).items()}
             wall = time.monotonic() - t_all
             if args.record:
-                checked = _check_recordings(root / 'rec', results, rows)
+                checked = _check_recordings(root / 'rec', results, rows, result_wall)
         finally:
             ex.shutdown()
             node.destroy_node()
@@ -201,8 +203,10 @@ def main() -> None:
                   f'({b - a:+.1f} MiB)')
 
 
-def _check_recordings(out: Path, results: dict[str, dict], rows: list) -> str:
-    """Wait for every job's recording, then check its mark and its /power totals."""
+def _check_recordings(out: Path, results: dict[str, dict], rows: list,
+                      result_wall: dict[str, float]) -> str:
+    """Wait for every job's recording, then check its mark and its /power totals; how long
+    after the job's result (as the bench received it) its metadata was last written."""
     from feed_axis_energy.graph import JOB_KEY, recording_gaps
     from feed_axis_energy.record import bagio
     jobs = [r[0] for r in rows]
@@ -213,6 +217,8 @@ def _check_recordings(out: Path, results: dict[str, dict], rows: list) -> str:
             raise SystemExit(f'recordings missing after 60 s: {missing[:5]}')
         time.sleep(0.1)
     waited = time.monotonic() - t0
+    lag_ms = np.array([(out / j / 'metadata.yaml').stat().st_mtime - result_wall[j]
+                       for j in jobs]) * 1e3
     worst, bad = 0.0, []
     for job in jobs:
         res = results[job]
@@ -229,7 +235,9 @@ def _check_recordings(out: Path, results: dict[str, dict], rows: list) -> str:
     return (f'recordings: {len(jobs) - len(bad)} of {len(jobs)} complete, marked with the '
             f'job\'s status and holding its samples (bad: {bad[:5]}); /power totals vs the '
             f'results: worst relative difference {worst:.2e}; hidden temporaries left: '
-            f'{len(hidden)}; all in place {waited:.2f} s after the last result')
+            f'{len(hidden)}; waited {waited:.2f} s for them after the RSS figures; job/result '
+            f'-> its recording\'s metadata written: median {np.median(lag_ms):.1f} ms, p99 '
+            f'{np.percentile(lag_ms, 99):.1f} ms, max {lag_ms.max():.1f} ms')
 
 
 if __name__ == '__main__':
