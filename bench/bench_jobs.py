@@ -84,6 +84,8 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('--jobs', type=int, default=100)
     p.add_argument('--domain-id', type=int, default=231)
+    p.add_argument('--log', type=Path, default=None,
+                   help='write the launcher\'s output (every node\'s log) to this file')
     p.add_argument('--record', action='store_true',
                    help='record every job (launch --record OUT): OUT/<job_id>/')
     args = p.parse_args()
@@ -105,10 +107,11 @@ def main() -> None:
             if key not in refs:
                 refs[key] = _offline(root / program, MACHINES[machine], load, env)
         record = ['--record', str(root / 'rec')] if args.record else []
+        log = open(args.log, 'w') if args.log else subprocess.DEVNULL
         launcher = subprocess.Popen(
             [sys.executable, '-m', 'feed_axis_energy', 'launch', '--program-root', str(root),
              '--machine-root', str(config_dir()), '--domain-id', str(args.domain_id), *record],
-            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            env=env, stdout=log, stderr=subprocess.STDOUT)
         n_nodes = 4 if args.record else 3
         ctx = Context()
         rclpy.init(context=ctx, domain_id=args.domain_id)
@@ -226,7 +229,8 @@ def _check_recordings(out: Path, results: dict[str, dict], rows: list,
         power = bagio.read_series(out / job, bagio.TOPIC_POWER)
         if (not mark['complete'] or mark['status'] != res['status'] or recording_gaps(out / job)
                 or power.t.shape[0] != res['samples']):
-            bad.append(job)
+            bad.append(f"{job} ({mark['status']}: {'; '.join(mark['gaps'])}; "
+                       f"{power.t.shape[0]} of {res['samples']} samples)")
             continue
         for name, value in zip(power.names, power.positions[-1].tolist()):
             ref = res['energy_j'][name]

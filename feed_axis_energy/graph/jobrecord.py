@@ -181,6 +181,9 @@ class JobRecorder:
         self._clock = clock
         self.open: OrderedDict[str, JobRecording] = OrderedDict()
         self._done: OrderedDict[str, str] = OrderedDict()     # job id -> why not recording
+        # results of jobs not opened yet: DDS does not order job/result before the job's
+        # state and stream messages
+        self._early: OrderedDict[str, tuple[dict[str, Any], float]] = OrderedDict()
         self.ignored = 0          # messages of closed, refused or unnamed jobs
         self.closed: list[Path] = []
         for entry in os.listdir(self.root):
@@ -231,6 +234,8 @@ class JobRecorder:
             _unwind(stack, err)
             raise
         rec = JobRecording(job_id, sink, final, stack)
+        if job_id in self._early:
+            rec.result, rec.result_at = self._early.pop(job_id)
         self.open[job_id] = rec
         return rec
 
@@ -253,8 +258,14 @@ class JobRecorder:
     def note_result(self, result: Mapping[str, Any]) -> None:
         """A ``job/result`` object: the job's recording closes once complete (:meth:`due`)."""
         job_id = result.get('job_id')
-        rec = self.open.get(job_id) if isinstance(job_id, str) else None
-        if rec is not None and rec.result is None:
+        if not isinstance(job_id, str) or job_id in self._done:
+            return
+        rec = self.open.get(job_id)
+        if rec is None:       # its first message or state has not been taken yet
+            self._early[job_id] = (dict(result), self._clock())
+            while len(self._early) > self.max_open:
+                self._early.popitem(last=False)
+        elif rec.result is None:
             rec.result = dict(result)
             rec.result_at = self._clock()
 

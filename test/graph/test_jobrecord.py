@@ -239,3 +239,14 @@ def test_read_back_finds_a_damaged_or_miscounted_bag(tmp_path):
     assert len(read_back(path, counts)) == 1            # that file, named in the message
     (path / 'metadata.yaml').write_text('rosbag2_bagfile_information: {}\n')
     assert read_back(path, counts)[0].startswith('metadata.yaml')
+
+
+def test_a_result_taken_before_the_job_was_opened_is_kept(tmp_path):
+    clock = Clock()
+    jobs = JobRecorder(tmp_path, new_sink=_new_sink, clock=clock)
+    jobs.note_result({'job_id': 'j1', 'status': 'ended', 'samples': 200})   # DDS: any order
+    assert jobs.open == {} and os.listdir(tmp_path) == []
+    rec = jobs.recording('j1')
+    _stream(rec, 2)
+    assert jobs.due() == [rec]
+    assert bagio.read_custom_data(jobs.close(rec), JOB_KEY)['status'] == 'ended'

@@ -1,9 +1,10 @@
 """One recording per job over loopback DDS: ``launch --program-root DIR --record OUT``.
 
-Three jobs in one graph (one aborted), each recorded to ``OUT/<job_id>/``, complete, marked
-with its status, readable by the tools that read a one-program recording, its ``/power``
-totals equal to the job's result (and, for a finished job, to offline ``simulate``); a job
-id whose recording exists is refused and the existing directory is left alone.
+Four jobs in one graph (one aborted) and one that fails while planning, each recorded to
+``OUT/<job_id>/``, complete (the failed one empty), marked with its status, readable by the
+tools that read a one-program recording, its ``/power`` totals equal to the job's result
+(and, for a finished job, to offline ``simulate``); a job id whose recording exists is
+refused and the existing directory is left alone.
 """
 import json
 import os
@@ -28,6 +29,7 @@ PY = sys.executable
 SHORT = 'G21 G90 G94 G61\nG0 X0\nG1 X100 F3000\nG4 P0.2\nG1 X80 F3000\n'
 XYZ = 'G21 G90 G94 G61\nG1 X120 Y40 Z-20 F6000\nG4 P0.1\nG1 X0 Y0 Z0 F9000\n'
 LONG = 'G21 G90 G94 G61\n' + 'G1 X100 F3000\nG1 X0 F3000\n' * 15
+BAD = 'G21 G90 G94\nG1 X10 F3000\nG1 X@5\n'
 
 
 class _Client:
@@ -115,7 +117,8 @@ def test_three_jobs_one_aborted_each_recorded_complete(tmp_path, node_env, domai
     from feed_axis_energy.paths import config_dir
     root = tmp_path / 'programs'
     root.mkdir()
-    for name, text in (('short.nc', SHORT), ('xyz.nc', XYZ), ('long.nc', LONG)):
+    for name, text in (('short.nc', SHORT), ('xyz.nc', XYZ), ('long.nc', LONG),
+                       ('bad.nc', BAD)):
         (root / name).write_text(text)
     out = tmp_path / 'rec'
     (out / 'taken').mkdir(parents=True)           # an earlier recording: never overwritten
@@ -145,10 +148,14 @@ def test_three_jobs_one_aborted_each_recorded_complete(tmp_path, node_env, domai
         res3 = client.result('j3')
         for job in ('j1', 'j2', 'j3'):        # closed by the recorder once complete
             _wait_for_file(out / job / 'metadata.yaml')
+        # a job that fails while planning (a G-code error): recorded empty, marked failed
+        assert client.command('r6', command='start', job_id='bad', program='bad.nc')['accepted']
+        bad = client.result('bad')
         again = client.command('r5', command='start', job_id='j4', program='short.nc')
         assert again['accepted']              # the graph goes on after the recordings closed
         res4 = client.result('j4')
         _wait_for_file(out / 'j4' / 'metadata.yaml')
+        _wait_for_file(out / 'bad' / 'metadata.yaml')
     finally:
         client.close()
         launcher.send_signal(2)
@@ -160,7 +167,13 @@ def test_three_jobs_one_aborted_each_recorded_complete(tmp_path, node_env, domai
         print(log)
     assert launcher.returncode == 130 and 'Traceback' not in log, log
 
-    assert sorted(os.listdir(out)) == ['j1', 'j2', 'j3', 'j4', 'taken']   # nothing hidden left
+    # nothing hidden left
+    assert sorted(os.listdir(out)) == ['bad', 'j1', 'j2', 'j3', 'j4', 'taken']
+    assert bad['status'] == 'failed' and 'bad.nc:3:5' in bad['message'], bad
+    mark = bagio.read_custom_data(out / 'bad', JOB_KEY)
+    assert mark['status'] == 'failed' and mark['result'] == bad and not mark['complete']
+    assert 'bad.nc:3:5' in mark['message']
+    assert all(n == 0 for _, n in bagio.bag_topics(out / 'bad').values())
     assert os.listdir(out / 'taken') == ['note.txt']
     assert (out / 'taken' / 'note.txt').read_text() == 'earlier'
     assert (res1['status'], res2['status'], res3['status'], res4['status']) == (
