@@ -113,7 +113,7 @@ def _wait_for_file(path, timeout_s=30):
 
 
 @child_only
-def test_jobs_in_a_row_one_aborted_one_failed_each_recorded(tmp_path, node_env, domain_id, context):
+def test_jobs_one_aborted_one_failed_each_recorded(tmp_path, node_env, domain_id, context):
     from feed_axis_energy.paths import config_dir
     root = tmp_path / 'programs'
     root.mkdir()
