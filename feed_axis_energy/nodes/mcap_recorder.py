@@ -52,7 +52,7 @@ from feed_axis_energy.graph import (BagSink, EndTracker, GraphPlotter, header_fr
                                     header_stamp_ns, JobRecorder, JobRecording, parse_state_text,
                                     PLOT_SOURCES, read_back, restamp_end_marker, sink_gaps)
 from feed_axis_energy.nodes import convert
-from feed_axis_energy.nodes.qos import clock_qos, job_qos, latched_qos, stream_qos
+from feed_axis_energy.nodes.qos import clock_qos, JOB_DEPTH, job_qos, latched_qos, stream_qos
 from feed_axis_energy.nodes.runner import (declare, guard_parameters, run, StartupError,
                                            steady_timer)
 
@@ -154,8 +154,11 @@ class McapRecorder(Node):
         for topic in topics:
             cls, msgtype, latched = KNOWN_TOPICS[topic]
             name = topic if topic.startswith('/') else '/' + topic
-            qos = latched_qos() if latched else (clock_qos() if topic == '/clock'
-                                                 else stream_qos())
+            # per job, a latched topic carries one message per job: a reader keeping only the
+            # last lost job n's end marker and block energies when job n+1's replaced them
+            # before a busy recorder took them (1 of 200 jobs in a row, bench_jobs)
+            qos = (latched_qos(JOB_DEPTH if self.per_job else 1) if latched
+                   else clock_qos() if topic == '/clock' else stream_qos())
             self._subs.append((self._raw_subscription(cls, topic, qos), cls, (topic, name)))
         self._waitset = _rclpy.WaitSet(len(self._subs), 0, 0, 0, 0, 0, self.context.handle)
         # Created last (nothing left behind if a step above fails); from here on the
