@@ -58,6 +58,7 @@ setup(
             'energy_estimator = feed_axis_energy.nodes.energy_estimator:main',
             'measured_replay = feed_axis_energy.nodes.measured_replay:main',
             'mcap_recorder = feed_axis_energy.nodes.mcap_recorder:main',
+            'opcua_bridge = feed_axis_energy.nodes.opcua_bridge:main',
         ],
     },
 )

@@ -6,8 +6,9 @@ interface. :mod:`.requests` checks what clients send before the service sees it;
 :mod:`.security` decides who may connect to the OPC UA server (:mod:`.opcua`);
 :mod:`.topics` is the MQTT topic tree and its JSON, :mod:`.measured` the check of live
 measured drive data arriving over MQTT, :mod:`.mqtt` the client that joins them;
-:mod:`.logbound` keeps a peer that fails again and again from flooding the log. The address
-space, topic tree, job states and security are contracts: docs/cell.md.
+:mod:`.graphjobs` is the job service on the graph's job topics (the ``opcua_bridge`` node is
+its ROS shell); :mod:`.logbound` keeps a peer that fails again and again from flooding the
+log. The address space, topic tree, job states and security are contracts: docs/cell.md.
 """
 from .measured import (DROP_REASONS, MAX_PAYLOAD_BYTES, MeasuredInput, MeasuredSample,
                        parse_measured, QUANTITIES)
@@ -16,7 +17,9 @@ from .opcua import (BROWSE_PATHS, ENERGY_NAMES, J_PER_WH, NAMESPACE_URI, OpcUaBr
                     OpcUaSettings, OpcUaThread, UNECE_NAMESPACE, unece_unit_id, UNITS)
 from .requests import (check_job_id, check_load_kg, check_program, MAX_JOB_ID_CHARS,
                        MAX_LOAD_KG, MAX_PROGRAM_CHARS)
-from .security import is_loopback, OpcUaSecurity, PasswordUsers, security_plan, SecurityPlan
+from .graphjobs import GraphJobService, MEASURED_LIVE_KEYS, measured_live_payload, service_result
+from .security import (is_loopback, OpcUaSecurity, PasswordUsers, read_users_file,
+                       security_plan, SecurityPlan)
 from .service import (AxisPower, FINAL_STATES, JOB_STATES, JobService, Listener, LiveSample,
                       RESULT_KEYS, result_summary, ResultSummary, ServiceEvent, StateChange)
 from .topics import (DEFAULT_PREFIX, POWER_KEYS, power_payload, result_payload, RETAINED,
@@ -24,7 +27,9 @@ from .topics import (DEFAULT_PREFIX, POWER_KEYS, power_payload, result_payload, 
 
 __all__ = [
     'AxisPower', 'BROWSE_PATHS', 'check_job_id', 'check_load_kg', 'check_program',
-    'DEFAULT_PREFIX', 'DROP_REASONS', 'ENERGY_NAMES', 'FINAL_STATES', 'is_loopback',
+    'DEFAULT_PREFIX', 'DROP_REASONS', 'ENERGY_NAMES', 'FINAL_STATES', 'GraphJobService',
+    'is_loopback', 'MEASURED_LIVE_KEYS', 'measured_live_payload', 'read_users_file',
+    'service_result',
     'J_PER_WH', 'JOB_STATES', 'JobService', 'Listener', 'LiveSample', 'MAX_JOB_ID_CHARS',
     'MAX_LOAD_KG', 'MAX_PAYLOAD_BYTES', 'MAX_PROGRAM_CHARS', 'MeasuredInput', 'MeasuredSample',
     'MqttBridge', 'MqttSettings', 'NAMESPACE_URI', 'OpcUaBridge', 'OpcUaSecurity',

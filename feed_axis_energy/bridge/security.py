@@ -22,7 +22,10 @@ from asyncua.server.user_managers import UserManager
 
 from ..errors import ConfigError
 
-__all__ = ['is_loopback', 'OpcUaSecurity', 'PasswordUsers', 'SecurityPlan', 'security_plan']
+__all__ = ['is_loopback', 'OpcUaSecurity', 'PasswordUsers', 'read_users_file', 'SecurityPlan',
+           'security_plan']
+
+MAX_USERS_FILE_BYTES = 64 * 1024
 
 
 @dataclass(frozen=True)
@@ -144,3 +147,43 @@ class PasswordUsers(UserManager):
         if not hmac.compare_digest(given, want):
             return None
         return User(role=UserRole.User, name=username)
+
+
+def read_users_file(path: Path) -> dict[str, str]:
+    """The OPC UA users of a text file: one ``name:password`` a line.
+
+    Blank lines and lines starting with ``#`` are skipped; the password is everything after
+    the first ``:`` (it may hold colons). The file is not echoed in messages (passwords).
+
+    Raises
+    ------
+    ConfigError
+        The file cannot be read, is larger than 64 KiB or not UTF-8, a line has no ``:``, an
+        empty name or password, or a name given twice (``file:line``).
+    """
+    try:
+        with open(path, 'rb') as stream:
+            raw = stream.read(MAX_USERS_FILE_BYTES + 1)
+    except OSError as exc:
+        raise ConfigError(f'cannot read the users file: {exc.strerror}', file=str(path)) from None
+    if len(raw) > MAX_USERS_FILE_BYTES:
+        raise ConfigError(f'a users file is at most {MAX_USERS_FILE_BYTES} bytes',
+                          file=str(path))
+    try:
+        text = raw.decode('utf-8')
+    except UnicodeDecodeError:
+        raise ConfigError('a users file is UTF-8 text', file=str(path)) from None
+    users: dict[str, str] = {}
+    for number, line in enumerate(text.splitlines(), start=1):
+        line = line.strip()
+        if not line or line.startswith('#'):
+            continue
+        name, colon, password = line.partition(':')
+        name = name.strip()
+        where = f'{path}:{number}'
+        if not colon or not name or not password:
+            raise ConfigError('expected name:password with both non-empty', file=where)
+        if name in users:
+            raise ConfigError(f'user {name!r} is given twice', file=where)
+        users[name] = password
+    return users

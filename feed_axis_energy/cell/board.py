@@ -46,6 +46,9 @@ class JobSnapshot:
         ``None`` before the first job.
     sequence
         Number of state changes so far (a reader can tell a repeated state from a new one).
+    planned_samples
+        Samples the running job's plan holds (0 before it is planned): a client's progress
+        is the samples integrated (``job/live``) over this.
     """
 
     state: JobState
@@ -53,11 +56,12 @@ class JobSnapshot:
     message: str = ''
     spec: JobSpec | None = None
     sequence: int = 0
+    planned_samples: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON form (``job/state``)."""
         return {'state': self.state.value, 'job_id': self.job_id, 'message': self.message,
-                'sequence': self.sequence,
+                'sequence': self.sequence, 'planned_samples': self.planned_samples,
                 'spec': None if self.spec is None else self.spec.to_dict()}
 
 
@@ -99,13 +103,16 @@ class JobBoard:
         """Whether the running job has been asked to stop."""
         return self._abort_requested
 
-    def _enter(self, state: JobState, *, message: str = '', spec: JobSpec | None = None
-               ) -> JobSnapshot:
+    def _enter(self, state: JobState, *, message: str = '', spec: JobSpec | None = None,
+               planned_samples: int | None = None) -> JobSnapshot:
         old = self._snapshot
         check_transition(old.state, state, job_id=spec.job_id if spec else old.job_id)
+        if planned_samples is None:     # kept through the job's end; a new job starts at 0
+            planned_samples = 0 if spec is not None else old.planned_samples
         spec = spec if spec is not None else old.spec
         self._snapshot = JobSnapshot(state, job_id=spec.job_id if spec else '',
-                                     message=message, spec=spec, sequence=old.sequence + 1)
+                                     message=message, spec=spec, sequence=old.sequence + 1,
+                                     planned_samples=planned_samples)
         for callback in list(self.on_change):
             callback(self._snapshot)
         return self._snapshot
@@ -132,10 +139,11 @@ class JobBoard:
         self._enter(JobState.PLANNING, spec=spec, message='planning')
         return spec
 
-    def planned(self, job_id: str) -> None:
-        """The runner has planned the job and streams it: ``planning -> running``."""
+    def planned(self, job_id: str, *, samples: int = 0) -> None:
+        """The runner has planned the job (``samples`` in its plan) and streams it:
+        ``planning -> running``."""
         self._check_current(job_id)
-        self._enter(JobState.RUNNING, message='running')
+        self._enter(JobState.RUNNING, message='running', planned_samples=max(0, int(samples)))
 
     def abort(self, job_id: str) -> None:
         """Ask the running (or planning) job ``job_id`` to stop.

@@ -26,13 +26,16 @@ SUBCOMMANDS = {
     'demo': "simulate the paper's demonstrator at its 3 loads and 5 feeds",
     'compare': 'compare measured runs of a campaign with the simulation (Table 1)',
     'launch': 'run the ROS 2 node graph on an NC program (separate processes)',
+    'serve': 'run the node graph as a job service with an OPC UA server (and MQTT)',
+    'cell-client': 'run programs as jobs on a serve over OPC UA; print the results',
     'import': 'turn the measured runs of a campaign into rosbag2/MCAP bags',
     'fit-loss': 'fit the loss function y = a*x^b from no-load runs at several feeds',
     'rig': 'write a virtual measured campaign (truth model + instrument artefacts)',
     'analyze': 'find the catalog effect(s) the model misses; error before/after',
 }
-# Subcommands whose module is not named after them ('import' is a Python keyword).
-_MODULES = {'import': 'import_run'}
+# Subcommands whose module is not named after them ('import' is a Python keyword; the
+# machine cell's commands live in cli/cell/).
+_MODULES = {'import': 'import_run', 'serve': 'cell.serve', 'cell-client': 'cell.client'}
 
 
 def _chosen(argv: list[str]) -> str | None:

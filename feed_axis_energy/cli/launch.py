@@ -33,7 +33,8 @@ from feed_axis_energy.cli.common import plot_rate_option, start_time_option
 from feed_axis_energy.paths import config_dir, program_path
 
 __all__ = ['add_parser', 'run', 'node_command', 'params_yaml', 'write_params_file',
-           'graph_parameters', 'Supervisor']
+           'graph_parameters', 'graph_commands', 'remove_stale_parameter_dirs',
+           'private_parameter_dir', 'node_environment', 'Supervisor']
 
 NODES = ('mcap_recorder', 'axis_dynamics', 'energy_estimator', 'gcode_trajectory')
 _IDENTIFIER = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
@@ -206,12 +207,32 @@ def graph_parameters(args: argparse.Namespace) -> dict[str, dict[str, object]]:
     return params
 
 
-def graph_commands(args: argparse.Namespace, overrides: Path) -> dict[str, list[str]]:
-    """The command of every node of the graph: ``--params`` (or graph.yaml), then
-    ``overrides`` (the file :func:`write_params_file` made from the options)."""
+def graph_commands(args: argparse.Namespace, overrides: Path, *,
+                   extra: tuple[str, ...] = ()) -> dict[str, list[str]]:
+    """The command of every node of the graph (and of the ``extra`` nodes, ``serve``'s
+    ``opcua_bridge``): ``--params`` (or graph.yaml), then ``overrides`` (the file
+    :func:`write_params_file` made from the options)."""
     params_file = args.params if args.params is not None else config_dir() / 'graph.yaml'
     files = ([params_file] if params_file.is_file() else []) + [overrides]
-    return {name: node_command(name, params_files=files) for name in graph_parameters(args)}
+    return {name: node_command(name, params_files=files)
+            for name in [*graph_parameters(args), *extra]}
+
+
+def node_environment(domain_id: int | None) -> dict[str, str]:
+    """The nodes' environment: this package first on ``PYTHONPATH``, the domain id."""
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join(
+        [_package_root()] + ([env['PYTHONPATH']] if env.get('PYTHONPATH') else []))
+    if domain_id is not None:
+        env['ROS_DOMAIN_ID'] = str(domain_id)
+    return env
+
+
+def private_parameter_dir() -> Path:
+    """A new private directory (mode 0700) for this run's parameter file; the caller
+    removes it. Directories of launchers that died without removing theirs go first."""
+    remove_stale_parameter_dirs()
+    return Path(tempfile.mkdtemp(prefix=f'{_PRIVATE_PREFIX}{os.getpid()}-'))
 
 
 class Supervisor:
@@ -430,17 +451,12 @@ def run(args: argparse.Namespace) -> int:
         print(f'error: --load-kg must be a finite mass >= 0 kg, got {args.load_kg}',
               file=sys.stderr)
         return 2
-    env = dict(os.environ)
-    env['PYTHONPATH'] = os.pathsep.join(
-        [_package_root()] + ([env['PYTHONPATH']] if env.get('PYTHONPATH') else []))
-    if args.domain_id is not None:
-        env['ROS_DOMAIN_ID'] = str(args.domain_id)
+    env = node_environment(args.domain_id)
     finishers = {'energy_estimator'} | ({'mcap_recorder'} if args.record is not None else set())
     if args.program_root is not None:
         finishers = set()      # a job graph runs until it is stopped
     # the options' parameter file lives in a private directory (mode 0700) for this run only
-    remove_stale_parameter_dirs()
-    private = Path(tempfile.mkdtemp(prefix=f'{_PRIVATE_PREFIX}{os.getpid()}-'))
+    private = private_parameter_dir()
     try:
         overrides = write_params_file(private, graph_parameters(args))
         state, reason, stop_reason, t0 = _supervise(

@@ -19,7 +19,7 @@ import sys
 import threading
 
 EXECUTABLES = ('gcode_trajectory', 'axis_dynamics', 'energy_estimator', 'measured_replay',
-               'mcap_recorder')
+               'mcap_recorder', 'opcua_bridge')
 NO_RCLPY = ('the feed_axis_energy nodes need rclpy and the ROS 2 message packages: source a '
             "ROS 2 installation, or pip install 'feed_axis_energy[ros]' (the ros-* wheels; "
             'pins in constraints.txt)')

@@ -288,7 +288,7 @@ class GcodeTrajectory(LifecycleNode):
         self.get_logger().info(
             f'job {spec.job_id}: planned {spec.program}: {survey.n_samples} samples, '
             f'{survey.duration_s:.3f} s, {survey.n_batches} batches')
-        self.board.planned(spec.job_id)
+        self.board.planned(spec.job_id, samples=survey.n_samples)
         self._pump()
 
     def _on_energy(self, msg: String) -> None:

@@ -25,13 +25,18 @@
   under load: a job's ``ended`` was replaced in the writer's history by the next job's
   ``planning`` before a slow reader had it (1 in 3 node-test runs on a loaded machine). A
   late subscriber gets the last :data:`JOB_DEPTH` messages, the newest last.
+* Live measured samples from the cell (``measured/live``, published by ``opcua_bridge`` for
+  the samples its MQTT bridge accepts): reliable, keep last 1000, volatile: a live stream
+  for the consumers running now; 1000 holds seconds of drive data for a slow reader.
 """
 from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 __all__ = ['STREAM_DEPTH', 'JOB_DEPTH', 'stream_qos', 'latched_qos', 'clock_qos', 'command_qos',
-           'report_qos', 'job_qos']
+           'report_qos', 'job_qos', 'measured_live_qos', 'MEASURED_LIVE_DEPTH']
+
+MEASURED_LIVE_DEPTH = 1000
 
 STREAM_DEPTH = 100
 JOB_DEPTH = 16
@@ -78,3 +83,10 @@ def job_qos() -> QoSProfile:
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=JOB_DEPTH,
                       reliability=ReliabilityPolicy.RELIABLE,
                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def measured_live_qos() -> QoSProfile:
+    """``measured/live``: reliable, keep last :data:`MEASURED_LIVE_DEPTH`, volatile."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=MEASURED_LIVE_DEPTH,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)

@@ -12,7 +12,7 @@ import pytest
 from pkgscan import declared_parameters, graph_parameters, ROOT
 
 NODES = ['gcode_trajectory', 'axis_dynamics', 'energy_estimator', 'mcap_recorder',
-         'measured_replay']
+         'measured_replay', 'opcua_bridge']
 
 
 def test_every_node_found_by_the_scan():

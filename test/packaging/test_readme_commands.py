@@ -8,7 +8,8 @@ uses are relative to the clone) and ``shared`` -> the shared data beside the clo
 the venv's ``bin`` first on PATH. Blocks that cannot run here are recognised and skipped with
 the reason: ROS 2 workspace commands (colcon, rosdep, ros2: no ROS 2 install), ``scripts/test``
 (this suite), ``scripts/demo`` (the node graph and the 15-run campaign: minutes; the graph is
-covered by test/nodes, the campaign by test/cli) and benchmarks (run by hand).
+covered by test/nodes, the campaign by test/cli), ``scripts/cell_demo`` (run as written by
+test/nodes/test_cell_demo.py) and benchmarks (run by hand).
 """
 from __future__ import annotations
 
@@ -34,6 +35,9 @@ SKIPS = [
     (re.compile(r'^\s*scripts/demo\b', re.M),
      'scripts/demo runs the node graph and the 15-run campaign (minutes)'),
     (re.compile(r'\bbench/'), 'benchmark, run by hand (figures in README "Benchmarks")'),
+    (re.compile(r'^\s*scripts/cell_demo\b', re.M),
+     'scripts/cell_demo starts the node graph, OPC UA and mosquitto; it runs in '
+     'test/nodes/test_cell_demo.py'),
 ]
 
 

@@ -1,0 +1,107 @@
+"""``feed-axis-energy serve`` refuses what it cannot serve before it starts anything: a clear
+message and a non-zero exit, no node started (the running service:
+test/nodes/test_serve_e2e.py); ``cell-client`` without a server or with bad options."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import socket
+import subprocess
+import sys
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _serve(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join([str(ROOT), env.get('PYTHONPATH', '')])
+    return subprocess.run([sys.executable, '-m', 'feed_axis_energy', 'serve', *args],
+                          capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT)
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(('127.0.0.1', 0))
+        return sock.getsockname()[1]
+
+
+def test_help_names_every_option():
+    done = _serve('--help')
+    assert done.returncode == 0, done.stderr
+    for option in ('--program-root', '--machine', '--opcua-port', '--opcua-host', '--mqtt',
+                   '--domain-id', '--opcua-cert', '--opcua-key', '--opcua-users', '--mode'):
+        assert option in done.stdout
+
+
+@pytest.fixture
+def root(tmp_path: Path) -> Path:
+    (tmp_path / 'programs').mkdir()
+    return tmp_path / 'programs'
+
+
+def test_program_root_missing(tmp_path):
+    done = _serve('--program-root', str(tmp_path / 'nope'), '--opcua-port', str(_free_port()))
+    assert done.returncode == 2
+    assert 'nope: not a directory' in done.stderr and 'Traceback' not in done.stderr
+
+
+def test_opcua_port_in_use(root):
+    with socket.socket() as busy:
+        busy.bind(('127.0.0.1', 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        done = _serve('--program-root', str(root), '--opcua-port', str(port))
+    assert done.returncode == 1
+    assert f'cannot listen on 127.0.0.1:{port} for OPC UA' in done.stderr
+    assert 'Traceback' not in done.stderr
+
+
+def test_broker_unreachable(root):
+    port = _free_port()
+    done = _serve('--program-root', str(root), '--opcua-port', str(_free_port()),
+                  '--mqtt', f'127.0.0.1:{port}')
+    assert done.returncode == 1
+    assert f'cannot reach the MQTT broker at 127.0.0.1:{port}' in done.stderr
+
+
+@pytest.mark.parametrize('text', ['localhost', 'h:0', 'h:99999', ':1883', 'h:x'])
+def test_bad_broker_text(root, text):
+    done = _serve('--program-root', str(root), '--opcua-port', str(_free_port()),
+                  '--mqtt', text)
+    assert done.returncode == 2 and '--mqtt expects HOST:PORT' in done.stderr
+
+
+def test_off_loopback_needs_certificate_and_users(root, tmp_path):
+    done = _serve('--program-root', str(root), '--opcua-host', '0.0.0.0',
+                  '--opcua-port', str(_free_port()))
+    assert done.returncode == 2
+    assert 'requires Basic256Sha256' in done.stderr
+    assert 'a server certificate' in done.stderr and 'at least one user' in done.stderr
+    users = tmp_path / 'users'
+    users.write_text('operator\n')
+    done = _serve('--program-root', str(root), '--opcua-users', str(users),
+                  '--opcua-port', str(_free_port()))
+    assert done.returncode == 2 and f'{users}:1' in done.stderr
+
+
+def _client(*args: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join([str(ROOT), env.get('PYTHONPATH', '')])
+    return subprocess.run([sys.executable, '-m', 'feed_axis_energy', 'cell-client', *args],
+                          capture_output=True, text=True, timeout=60, env=env, cwd=ROOT)
+
+
+def test_cell_client_without_a_server():
+    port = _free_port()
+    done = _client('--endpoint', f'opc.tcp://127.0.0.1:{port}/feed_axis_energy/', 'a.nc')
+    assert done.returncode == 1 and 'Traceback' not in done.stderr
+    assert f'cannot connect to opc.tcp://127.0.0.1:{port}/' in done.stderr
+    assert 'is feed-axis-energy serve running?' in done.stderr
+
+
+@pytest.mark.parametrize('args', [['--load-kg', 'nan', 'a.nc'], ['--timeout', '0', 'a.nc']])
+def test_cell_client_bad_options(args):
+    done = _client(*args)
+    assert done.returncode == 2 and done.stderr.startswith('error: --')
