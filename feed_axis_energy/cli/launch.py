@@ -33,7 +33,8 @@ from feed_axis_energy.cli.common import plot_rate_option, start_time_option
 from feed_axis_energy.paths import config_dir, program_path
 
 __all__ = ['add_parser', 'run', 'node_command', 'params_yaml', 'write_params_file',
-           'graph_parameters', 'graph_commands', 'remove_stale_parameter_dirs',
+           'graph_parameters', 'graph_commands', 'check_job_record',
+           'remove_stale_parameter_dirs',
            'private_parameter_dir', 'node_environment', 'Supervisor']
 
 NODES = ('mcap_recorder', 'axis_dynamics', 'energy_estimator', 'gcode_trajectory')
@@ -407,8 +408,9 @@ def _supervise(sup: Supervisor, *, timeout: float | None):
     return state, reason, stop_reason, t0
 
 
-def _check_job_record(args: argparse.Namespace) -> str | None:
-    """What is wrong with ``--record`` (and ``--start-time``) for jobs, or ``None``."""
+def check_job_record(args: argparse.Namespace) -> str | None:
+    """What is wrong with ``--record`` (and ``--start-time``) for jobs, or ``None``
+    (``launch --program-root`` and ``serve``)."""
     if os.path.islink(args.record):
         return f'--record {args.record}: a symbolic link; give the directory itself'
     if os.path.lexists(args.record) and not args.record.is_dir():
@@ -422,7 +424,7 @@ def _check_job_record(args: argparse.Namespace) -> str | None:
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
     if args.program_root is not None and args.record is not None:
-        problem = _check_job_record(args)
+        problem = check_job_record(args)
         if problem:
             print(f'error: {problem}', file=sys.stderr)
             return 2

@@ -19,7 +19,7 @@ import socket
 import sys
 import time
 
-from feed_axis_energy.cli.launch import (graph_commands, node_environment,
+from feed_axis_energy.cli.launch import (check_job_record, graph_commands, node_environment,
                                          private_parameter_dir, Supervisor, write_params_file)
 
 __all__ = ['add_parser', 'run', 'parse_broker', 'bridge_parameters']
@@ -62,6 +62,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='first MQTT topic levels (default feed_axis_energy)')
     p.add_argument('--mqtt-machine', default='machine', metavar='NAME',
                    help='machine name, one MQTT topic level (default machine)')
+    p.add_argument('--record', type=Path, default=None, metavar='DIR',
+                   help='record every job to DIR/<job_id>/ (rosbag2/MCAP, as launch '
+                        '--program-root --record; DIR may exist, a job whose recording '
+                        'exists is refused)')
     p.add_argument('--domain-id', type=int, default=None, metavar='N',
                    help='ROS_DOMAIN_ID for the graph (default: inherited)')
     p.add_argument('--params', type=Path, default=None, metavar='YAML',
@@ -113,6 +117,11 @@ def _check(args: argparse.Namespace) -> int:
         return _fail(f'--machine {args.machine}: no such file', 2)
     if args.machine_root is not None and not args.machine_root.is_dir():
         return _fail(f'--machine-root {args.machine_root}: not a directory', 2)
+    if args.record is not None:
+        args.start_time = None
+        problem = check_job_record(args)
+        if problem:
+            return _fail(problem, 2)
     if not 1 <= args.opcua_port <= 65535:
         return _fail(f'--opcua-port must be 1...65535, got {args.opcua_port}', 2)
     if not math.isfinite(args.ready_timeout) or args.ready_timeout <= 0:
@@ -159,8 +168,8 @@ def run(args: argparse.Namespace) -> int:
     code = _check(args)
     if code:
         return code
-    # the graph's options as launch takes them (job mode: no program, no recording)
-    args.program, args.record, args.load_kg = None, None, 0.0
+    # the graph's options as launch takes them (job mode: no program; --record per job)
+    args.program, args.load_kg = None, 0.0
     args.plot_rate_hz = args.start_time = None
     from feed_axis_energy.cli.launch import graph_parameters
     params = graph_parameters(args)
