@@ -100,7 +100,7 @@ def sink_gaps(sink: BagSink) -> list[str]:
     (the rule of :func:`~feed_axis_energy.graph.flow.recording_gaps`; flushed messages only)."""
     end = sink.tracker.end
     if end is None:
-        return ['no /program/end marker: the job ended before its stream did']
+        return ['no /program/end marker: the recording ended before the job\'s stream did']
     counts = sink.bag.counts
     return [f'{topic}: {counts.get(topic, 0)} of {end.batches} batches'
             for topic in _STREAM_TOPICS

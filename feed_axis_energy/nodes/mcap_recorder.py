@@ -487,7 +487,7 @@ class McapRecorder(Node):
             try:
                 self._close_due()
                 for rec in list(self.jobs.open.values()):
-                    self._close_job(rec, note='the recorder stopped')
+                    self._close_job(rec)     # marked interrupted: no result
             finally:
                 for handle, _, _ in subs:
                     handle.destroy_when_not_in_use()
