@@ -59,6 +59,9 @@ class JobLimits:
         Largest workpiece mass accepted [kg].
     max_program_bytes
         Largest program file accepted [bytes].
+    record_root
+        Directory the recorder writes one recording per job into (``<root>/<job_id>/``):
+        a job id whose recording exists there is refused (``None``: nothing is recorded).
     """
 
     program_root: Path
@@ -66,6 +69,7 @@ class JobLimits:
     machine_root: Path | None = None
     max_load_kg: float = 10_000.0
     max_program_bytes: int = 256 * 1024 * 1024
+    record_root: Path | None = None
 
     def __post_init__(self) -> None:
         for name in ('program_root', 'machine_root'):
@@ -285,6 +289,10 @@ def parse_job_request(request: Any, limits: JobLimits) -> JobSpec:
                f'known: {", ".join(sorted(_REQUEST_KEYS))}')
         raise JobError(msg, field='request')
     job_id = check_job_id(request.get('job_id'))
+    if limits.record_root is not None and os.path.lexists(Path(limits.record_root) / job_id):
+        msg = (f'a recording {shorten_path(str(Path(limits.record_root) / job_id))} exists '
+               'already (never overwritten); choose a new job id')
+        raise JobError(msg, field='job_id', job_id=job_id)
     if 'program' not in request:
         raise JobError('is required', field='program', job_id=job_id)
     program = resolve_inside(limits.program_root, request['program'], what='program',

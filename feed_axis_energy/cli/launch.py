@@ -33,7 +33,8 @@ from feed_axis_energy.cli.common import plot_rate_option, start_time_option
 from feed_axis_energy.paths import config_dir, program_path
 
 __all__ = ['add_parser', 'run', 'node_command', 'params_yaml', 'write_params_file',
-           'graph_parameters', 'graph_commands', 'remove_stale_parameter_dirs',
+           'graph_parameters', 'graph_commands', 'check_job_record',
+           'remove_stale_parameter_dirs',
            'private_parameter_dir', 'node_environment', 'Supervisor']
 
 NODES = ('mcap_recorder', 'axis_dynamics', 'energy_estimator', 'gcode_trajectory')
@@ -58,7 +59,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='fast: simulated time, as fast as possible (default); '
                         'realtime: paced by the wall clock')
     p.add_argument('--record', type=Path, default=None, metavar='DIR',
-                   help='record the graph into this rosbag2/MCAP directory (must not exist)')
+                   help='record the graph into this rosbag2/MCAP directory (must not exist); '
+                        'with --program-root one recording per job, DIR/<job_id>/ (DIR may '
+                        'exist; a job whose recording exists is refused)')
     p.add_argument('--plot-rate-hz', type=plot_rate_option, default=None, metavar='HZ',
                    help='display rate of the recording\'s plot topics (/plot/power, /plot/axes; '
                         '0: every sample; default: the recorder\'s plot_rate_hz, 20); needs '
@@ -75,7 +78,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--program-root', type=Path, default=None, metavar='DIR',
                    help='run jobs instead of one program: the graph stays up and takes '
                         'start/abort/result commands on job/command for programs inside DIR '
-                        '(docs/nodes.md, Jobs) until Ctrl-C; excludes --program and --record')
+                        '(docs/nodes.md, Jobs) until Ctrl-C; excludes --program')
     p.add_argument('--machine-root', type=Path, default=None, metavar='DIR',
                    help='with --program-root: a job may name a machine YAML inside DIR '
                         '(default: jobs run on --machine)')
@@ -202,6 +205,9 @@ def graph_parameters(args: argparse.Namespace) -> dict[str, dict[str, object]]:
             params['measured_live'] = {**machine, 'source': 'job_live'}
     if args.record is not None:
         params['mcap_recorder'] = {'output': str(args.record.resolve()), 'exit_at_end': True}
+        if root is not None:      # one recording per job, record/<job_id>/
+            params['mcap_recorder'].update(exit_at_end=False, per_job=True)
+            params['gcode_trajectory']['record_root'] = str(args.record.resolve())
         if getattr(args, 'plot_rate_hz', None) is not None:
             params['mcap_recorder']['plot_rate_hz'] = float(args.plot_rate_hz)
         if getattr(args, 'start_time', None) is not None:
@@ -409,9 +415,27 @@ def _supervise(sup: Supervisor, *, timeout: float | None):
     return state, reason, stop_reason, t0
 
 
+def check_job_record(args: argparse.Namespace) -> str | None:
+    """What is wrong with ``--record`` (and ``--start-time``) for jobs, or ``None``
+    (``launch --program-root`` and ``serve``)."""
+    if os.path.islink(args.record):
+        return f'--record {args.record}: a symbolic link; give the directory itself'
+    if os.path.lexists(args.record) and not args.record.is_dir():
+        return f'--record {args.record}: exists and is not a directory'
+    if args.start_time is not None and args.start_time.strip().lower() != 'now':
+        return ('--start-time with --program-root: only "now" (each job\'s recording starts '
+                'when the job does)')
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand."""
-    if args.record is not None and os.path.lexists(args.record):
+    if args.program_root is not None and args.record is not None:
+        problem = check_job_record(args)
+        if problem:
+            print(f'error: {problem}', file=sys.stderr)
+            return 2
+    elif args.record is not None and os.path.lexists(args.record):
         # lexists: a dangling symlink counts (the recorder would refuse it after start-up)
         msg = f'{args.record} exists already; choose a new output directory'
         raise FileExistsError(msg)
@@ -423,9 +447,8 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     if args.program_root is not None:
-        if args.program is not None or args.record is not None:
-            print('error: --program-root runs jobs; it excludes --program and --record (the '
-                  'recorder does not record jobs yet)', file=sys.stderr)
+        if args.program is not None:
+            print('error: --program-root runs jobs; it excludes --program', file=sys.stderr)
             return 2
         if not args.program_root.is_dir():
             print(f'error: --program-root {args.program_root}: not a directory', file=sys.stderr)
@@ -453,7 +476,9 @@ def run(args: argparse.Namespace) -> int:
         shutil.rmtree(private, ignore_errors=True)
     if stop_reason:
         print(f'stopped by {stop_reason[0]}; all nodes shut down', file=sys.stderr)
-        if args.record is not None and (args.record / 'metadata.yaml').is_file():
+        if args.program_root is not None and args.record is not None:
+            print(f'recordings: {args.record}/<job_id>/')
+        elif args.record is not None and (args.record / 'metadata.yaml').is_file():
             _describe_bag(args.record)
         return 130
     if state == 'failed':

@@ -86,6 +86,9 @@ class GcodeTrajectory(LifecycleNode):
                                    'largest workpiece mass a job may ask for [kg]')
         self.keep_results = declare(self, 'keep_results', 100,
                                     'results of this many jobs are kept for the result command')
+        self.record_root = declare(self, 'record_root', '',
+                                   'jobs: the directory the recorder writes one recording per '
+                                   'job into; a job id whose recording exists is refused')
         self.board: JobBoard | None = None
         self._check_parameters()
         self._reset()
@@ -115,16 +118,15 @@ class GcodeTrajectory(LifecycleNode):
                 msg = ('parameters program and program_root exclude each other: one program, '
                        'or jobs on programs under the root')
                 raise StartupError(msg)
-            if self.ack_recorder:
-                msg = 'ack_recorder: the recorder does not record jobs yet (docs/nodes.md, Jobs)'
-                raise StartupError(msg)
             machine_root = (config_dir() if self.machine_root == 'shipped'
                             else self.machine_root or None)
             self.board = JobBoard(JobLimits(
                 program_root=self.program_root,
                 default_machine=Path(self.machine_path or default_machine()),
                 machine_root=None if machine_root is None else Path(machine_root),
-                max_load_kg=float(self.max_load_kg)), keep=int(self.keep_results))
+                max_load_kg=float(self.max_load_kg),
+                record_root=Path(self.record_root) if self.record_root else None),
+                keep=int(self.keep_results))
         elif not self.program:
             msg = 'parameter program (the NC file) is required (or program_root for jobs)'
             raise StartupError(msg)
@@ -281,7 +283,8 @@ class GcodeTrajectory(LifecycleNode):
         self._end_sent = self._done_logged = False
         self._end_at = None
         self._last_progress = time.monotonic()
-        self.flow = FlowWindow(self.window, ['power'])
+        self.flow = FlowWindow(self.window, ['power'] + (['recorder'] if self.ack_recorder
+                                                         else []))
         self.get_logger().info(
             f'job {spec.job_id}: planned {spec.program}: {survey.n_samples} samples, '
             f'{survey.duration_s:.3f} s, {survey.n_batches} batches')
@@ -383,8 +386,8 @@ class GcodeTrajectory(LifecycleNode):
         self._ack('power', header_stamp_ns(data))
 
     def _on_progress(self, msg: Header) -> None:
-        if msg.frame_id:
-            return   # a per-stream ack; the empty frame_id one covers every recorded stream
+        if msg.frame_id != self._job_id:
+            return   # an earlier job's ack (jobs: frame_id = job id; one program: '')
         self._ack('recorder', convert.time_to_ns(msg.stamp))
 
     def _ack(self, source: str, stamp_ns: int) -> None:

@@ -12,6 +12,8 @@
   match these writers.
 * Data published once (``block_energy``, ``program/lines``, ``program/end``): reliable,
   keep last 1, transient local, so a late subscriber (a recorder started afterwards) gets it.
+  Once per job in a job graph: the per-job recorder reads them with keep last
+  :data:`JOB_DEPTH`, so a job's marker is not replaced by the next job's before it is taken.
 * ``/clock``: reliable, keep last 1, volatile (only the newest time matters).
 * Job commands and replies (``job/command``, ``job/reply``): reliable, keep last 10,
   volatile: a command is meant for the graph running now, never replayed to a node that

@@ -95,6 +95,11 @@ class ChunkedBagWriter:
         return len(self._buffer)
 
     @property
+    def topics(self) -> dict[str, str]:
+        """``{topic: message type}`` declared so far (a copy)."""
+        return dict(self._types)
+
+    @property
     def files(self) -> int:
         """Number of MCAP files written (the first, empty one included)."""
         return len(self._files)

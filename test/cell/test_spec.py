@@ -199,3 +199,23 @@ def test_limits_need_existing_directories_and_a_finite_load_limit(tmp_path):
 def test_spec_from_dict_refuses_missing_keys():
     with pytest.raises(JobError, match='not a job spec'):
         JobSpec.from_dict({'job_id': 'j'})
+
+
+@pytest.mark.parametrize('kind', ['dir', 'file', 'dangling link'])
+def test_a_job_id_whose_recording_exists_is_refused(root, tmp_path, kind):
+    rec = tmp_path / 'recordings'
+    rec.mkdir()
+    limits = JobLimits(program_root=root, default_machine=default_machine(), record_root=rec)
+    assert parse_job_request({'job_id': 'j1', 'program': 'a.nc'}, limits).job_id == 'j1'
+    target = rec / 'j1'
+    if kind == 'dir':
+        target.mkdir()
+    elif kind == 'file':
+        target.write_text('')
+    else:
+        target.symlink_to(tmp_path / 'nowhere')
+    _refused({'job_id': 'j1', 'program': 'a.nc'}, limits, 'job_id', 'exists already')
+    # a root that does not exist yet (the recorder creates it) refuses nothing
+    later = JobLimits(program_root=root, default_machine=default_machine(),
+                      record_root=tmp_path / 'not-yet')
+    assert parse_job_request({'job_id': 'j1', 'program': 'a.nc'}, later).job_id == 'j1'

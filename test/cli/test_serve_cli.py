@@ -113,3 +113,33 @@ def test_cell_client_without_a_server():
 def test_cell_client_bad_options(args):
     done = _client(*args)
     assert done.returncode == 2 and done.stderr.startswith('error: --')
+
+
+@pytest.mark.parametrize('kind, words', [('link', 'a symbolic link'),
+                                         ('file', 'not a directory')])
+def test_record_must_be_a_directory_not_a_link(root, tmp_path, kind, words):
+    (tmp_path / 'elsewhere').mkdir()
+    target = tmp_path / 'rec'
+    if kind == 'link':
+        target.symlink_to(tmp_path / 'elsewhere')
+    else:
+        target.write_text('')
+    done = _serve('--program-root', str(root), '--opcua-port', str(_free_port()), '--record',
+                  str(target))
+    assert done.returncode == 2, done.stderr
+    assert words in done.stderr and 'Traceback' not in done.stderr
+    assert os.listdir(tmp_path / 'elsewhere') == []
+
+
+def test_record_reaches_the_graph_as_launch_gives_it(tmp_path):
+    import argparse
+    from feed_axis_energy.cli.launch import graph_parameters
+    from feed_axis_energy.cli.cell import serve
+    parser = argparse.ArgumentParser()
+    serve.add_parser(parser.add_subparsers())
+    args = parser.parse_args(['serve', '--program-root', str(tmp_path), '--record',
+                              str(tmp_path / 'rec')])
+    args.program, args.load_kg, args.plot_rate_hz, args.start_time = None, 0.0, None, None
+    params = graph_parameters(args)
+    assert params['mcap_recorder']['per_job'] is True
+    assert params['gcode_trajectory']['record_root'] == str((tmp_path / 'rec').resolve())

@@ -66,7 +66,8 @@ def test_end_reached_inside_the_take_loop(context, tmp_path, ack_every):
         pub_blocks.publish(convert.block_energy_msg([(1, 1.0, 0.1)], stamp_ns=batches[9][0]))
         # the latched marker and block energies are taken first (conditions, not sleeps:
         # under load delivery takes longer than any fixed pause)
-        _until(lambda: rec.poll(0.01) or (rec.tracker.end is not None and rec.received >= 2),
+        _until(lambda: rec.poll(0.01) or (rec.sink.tracker.end is not None
+                                          and rec.received >= 2),
                'the recorder took the end marker and the block energies')
         assert rec.exit_code is None
         for _, cdr in batches:
@@ -111,7 +112,7 @@ def test_flush_is_due_by_wall_time_without_the_timer(context, tmp_path):
         flush = rec._flush
 
         def timed_flush():
-            t0, buffered = time.monotonic(), rec.bag.buffered
+            t0, buffered = time.monotonic(), rec.sink.bag.buffered
             flush()
             flushes.append((t0, time.monotonic(), buffered))
         rec._flush = timed_flush

@@ -19,7 +19,7 @@ import socket
 import sys
 import time
 
-from feed_axis_energy.cli.launch import (graph_commands, node_environment,
+from feed_axis_energy.cli.launch import (check_job_record, graph_commands, node_environment,
                                          private_parameter_dir, Supervisor, write_params_file)
 
 __all__ = ['add_parser', 'run', 'parse_broker', 'bridge_parameters']
@@ -67,6 +67,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'from MQTT measured/<axis> with --mqtt) compared with each running '
                         'job\'s prediction on measured/comparison (docs/nodes.md, '
                         'measured_live; needs --mode realtime)')
+    p.add_argument('--record', type=Path, default=None, metavar='DIR',
+                   help='record every job to DIR/<job_id>/ (rosbag2/MCAP, as launch '
+                        '--program-root --record; DIR may exist, a job whose recording '
+                        'exists is refused)')
     p.add_argument('--domain-id', type=int, default=None, metavar='N',
                    help='ROS_DOMAIN_ID for the graph (default: inherited)')
     p.add_argument('--params', type=Path, default=None, metavar='YAML',
@@ -121,6 +125,11 @@ def _check(args: argparse.Namespace) -> int:
     if args.measured_live and args.mode != 'realtime':
         return _fail('--measured-live needs --mode realtime: only then are the predictions '
                      'stamped in wall-clock time, as live measured data are', 2)
+    if args.record is not None:
+        args.start_time = None
+        problem = check_job_record(args)
+        if problem:
+            return _fail(problem, 2)
     if not 1 <= args.opcua_port <= 65535:
         return _fail(f'--opcua-port must be 1...65535, got {args.opcua_port}', 2)
     if not math.isfinite(args.ready_timeout) or args.ready_timeout <= 0:
@@ -167,8 +176,8 @@ def run(args: argparse.Namespace) -> int:
     code = _check(args)
     if code:
         return code
-    # the graph's options as launch takes them (job mode: no program, no recording)
-    args.program, args.record, args.load_kg = None, None, 0.0
+    # the graph's options as launch takes them (job mode: no program; --record per job)
+    args.program, args.load_kg = None, 0.0
     args.plot_rate_hz = args.start_time = None
     from feed_axis_energy.cli.launch import graph_parameters
     params = graph_parameters(args)
