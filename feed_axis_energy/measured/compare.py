@@ -119,9 +119,13 @@ class SimTrace:
 
 
 def _predicted(spec: RunSpec, sim: SimulationResult, machine: Machine,
-               gains: Sequence[float | None] | None) -> np.ndarray:
+               gains: Sequence[float | None] | None,
+               run: MeasuredRun | None = None) -> np.ndarray:
+    # a window of a longer record: the direction each axis last moved in before it
+    before = None if run is None else run.extra.get('direction_before')
     return predicted_signal(spec.instrument.measures, sim, machine, spec.measured_axes,
-                            gains=gains, manifest=spec.manifest, key=spec.key)
+                            gains=gains, manifest=spec.manifest, key=spec.key,
+                            start_direction=before)
 
 
 def _whole_trace(spec: RunSpec, run: MeasuredRun, machine: Machine, cache: MotionCache,
@@ -129,8 +133,8 @@ def _whole_trace(spec: RunSpec, run: MeasuredRun, machine: Machine, cache: Motio
     sim, source = simulate_declared(spec, run, machine, cache)
     omega = (None if quantity_of(spec.instrument.measures).is_power
              else omega_columns(sim, spec.measured_axes))
-    return SimTrace(sim.power.t, _predicted(spec, sim, machine, gains), omega, sim.motion.vel,
-                    source, relative_sd_pct(sim, spec.measured_axes))
+    return SimTrace(sim.power.t, _predicted(spec, sim, machine, gains, run), omega,
+                    sim.motion.vel, source, relative_sd_pct(sim, spec.measured_axes))
 
 
 class _Growing:

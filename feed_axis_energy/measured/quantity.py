@@ -46,7 +46,7 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 
 from ..errors import ConfigError, DataError
-from ..physics import AxisDynamics, holding_force, REST_SPEED_M_S
+from ..physics import AxisDynamics, holding_force, HoldState, REST_SPEED_M_S
 
 if TYPE_CHECKING:       # types only: the manifest reader imports this module, not the simulation
     from ..machine import Machine
@@ -279,7 +279,8 @@ def _power_columns(measures: str, sim: SimulationResult, machine: Machine,
 
 def predicted_signal(measures: str, sim: SimulationResult, machine: Machine,
                      axes: Sequence[str], *, gains: Sequence[float | None] | None = None,
-                     manifest: str = '<manifest>', key: str = '') -> np.ndarray:
+                     manifest: str = '<manifest>', key: str = '',
+                     start_direction: Mapping[str, float] | None = None) -> np.ndarray:
     """The simulated trace of ``axes`` in the quantity's SI unit, ``(m, k)`` on ``sim``'s times.
 
     Parameters
@@ -297,6 +298,11 @@ def predicted_signal(measures: str, sim: SimulationResult, machine: Machine,
         not allowed here).
     manifest, key
         Name the manifest and the run in errors.
+    start_direction
+        Axis -> the direction (-1, 0, +1) it last moved in before the first sample (a window
+        of a longer record, ``extra['direction_before']`` of a measured run): what the drive
+        holds at rest until the axis moves (:mod:`feed_axis_energy.physics.standstill`);
+        default 0 (nothing held before the first move).
 
     Raises
     ------
@@ -331,7 +337,9 @@ def predicted_signal(measures: str, sim: SimulationResult, machine: Machine,
             # (physics/standstill.py) instead of the kinetic F_c·sgn(v) of a velocity's noise
             rest = np.abs(dyn.velocity_m_s[:, j]) <= REST_SPEED_M_S
             torque[rest] -= _loss_torque(dyn, j)[rest]
-            torque += (holding_force(dyn.velocity_m_s[:, j], hold)[:, 0]
+            before = (start_direction or {}).get(axis, 0.0)
+            state = HoldState(direction=np.array([before], dtype=float))
+            torque += (holding_force(dyn.velocity_m_s[:, j], hold, state=state)[:, 0]
                        * float(dyn.lead_m[j]) / (2.0 * math.pi))
         cols.append(torque / float(g))       # type: ignore[arg-type]  # checked above
     return np.column_stack(cols) if cols else np.zeros((m, 0))
