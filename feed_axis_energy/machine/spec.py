@@ -15,6 +15,7 @@ from .covariance import LossCovariance
 from .losses import LossModel
 from .declared import DeclaredEffect
 from ..gcode import GcodeSettings
+from ..units import GRAVITY_M_S2
 from .limits import AxisLimits, PlannerOptions
 
 __all__ = ['ScrewSpec', 'InertiaSpec', 'LimitSpec', 'PlannerSettings', 'AxisSpec', 'Machine',
@@ -176,6 +177,11 @@ class AxisSpec:
         Force the drive keeps holding after a stop, in the last direction of motion [N]
         (:mod:`feed_axis_energy.physics.standstill`): friction kept by the position loop.
         Seen only in current, torque and force traces (no power at rest); 0: none.
+    counterbalance_n
+        Weight compensation of an inclined axis [N] (counterweight, gas or hydraulic
+        cylinder): a constant force against the weight along the axis, ``>= 0``; the drive
+        carries ``m·g·sin(incl) - sgn(sin(incl))·counterbalance_n`` (:meth:`weight_force_n`).
+        0 on a horizontal axis.
     rotary
         ``None`` for a linear (ball-screw) axis. For a rotary axis (A, B, C) its
         :class:`RotarySpec`; the other fields then hold the equivalent feed axis (SI with
@@ -198,6 +204,16 @@ class AxisSpec:
     drive: DriveSpec | None = None
     standstill_hold_n: float = 0.0
     rotary: RotarySpec | None = None
+    counterbalance_n: float = 0.0
+
+    def weight_force_n(self, mass_kg: float) -> float:
+        """Force the drive carries against gravity along the axis [N] for a moved mass [kg].
+
+        ``m·g·sin(incl)`` less the counterbalance, which acts against the weight:
+        ``m·g·sin(incl) - sgn(sin(incl))·counterbalance_n``.
+        """
+        s = math.sin(math.radians(self.inclination_deg))
+        return mass_kg * GRAVITY_M_S2 * s - math.copysign(self.counterbalance_n, s) * (s != 0.0)
 
     @property
     def is_rotary(self) -> bool:
