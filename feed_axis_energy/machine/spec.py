@@ -291,7 +291,8 @@ class Machine:
 
     def gcode_keywords(self) -> dict[str, Any]:
         """Keywords for :func:`.gcode.load_gcode` from this machine: G28 position, tool
-        table, dialect, subroutine path, ``strict_tools`` and ``allow_no_feed``.
+        table, dialect, subroutine path, ``strict_tools``, ``allow_no_feed`` and the work
+        offsets (``gcode.work_offsets_m``).
 
         ``load_gcode(path, **machine.gcode_keywords())`` runs a program on this machine.
         """
@@ -302,6 +303,8 @@ class Machine:
         rotary = self.rotary_axes
         if rotary:
             kw['rotary_axes'] = rotary
+        if g.work_offsets_m:
+            kw['work_offsets'] = dict(g.work_offsets_m)
         return kw
 
     @property
