@@ -227,6 +227,9 @@ class RunSpec:
         ``'samples'`` takes the samples as they are.
     window
         The part of the record the run takes (:class:`TimeWindow`), ``None``: all of it.
+    work_offset_m
+        Declared work offset ``((axis, machine - program [m]), ...)`` of a run simulated
+        from its program whose data has positions (:mod:`.spatial`); empty: estimated.
     """
 
     name: str
@@ -247,6 +250,7 @@ class RunSpec:
     instrument: InstrumentSpec = InstrumentSpec(declared=False)
     motion_reconstruct: str = 'pulses'
     window: TimeWindow | None = None
+    work_offset_m: tuple[tuple[str, float], ...] = ()
 
     @property
     def axis_names(self) -> tuple[str, ...]:

@@ -24,7 +24,9 @@ record's first sample, after the row filter) or ``window: {start_fraction: 0.5}`
 of the record's duration; a missing end is the end of the record). A sample at ``t`` is kept
 when ``start <= t < end``, so two runs of one file with ``end_fraction: 0.5`` and
 ``start_fraction: 0.5`` split it into halves without a shared sample: one to calibrate, one
-to validate (:class:`.campaign.TimeWindow`).
+to validate (:class:`.campaign.TimeWindow`). A run simulated from its program whose data has
+positions may declare the work offset between them, ``work_offset_m: {X: -0.0378, Y: 0.26931,
+Z: 0.38333}`` (machine - program [m]); without it ``compare`` estimates it (:mod:`.spatial`).
 
 Per axis the quantities ``power``, ``position``, ``velocity``, ``acceleration``,
 ``command_position``, ``command_velocity``, ``command_acceleration``, ``current``,
@@ -73,7 +75,7 @@ __all__ = ['campaign_from_dict', 'load_campaign']
 _TOP_KEYS = ('name', 'description', 'machine', 'defaults', 'runs', 'split')
 _RUN_KEYS = (
     'name', 'notes', 'load_kg', 'motion', 'data', 'period_s', 'time', 'axes', 'rows', 'role',
-    'min_duration_s', 'allow_gaps', 'instrument', 'window',
+    'min_duration_s', 'allow_gaps', 'instrument', 'window', 'work_offset_m',
 )
 _DEFAULT_KEYS = tuple(k for k in _RUN_KEYS if k not in ('name', 'data', 'notes', 'window'))
 _WINDOW_KEYS = ('start_s', 'end_s', 'start_fraction', 'end_fraction')
@@ -414,6 +416,10 @@ class _Ctx:
             out['instrument'] = self.instrument(d['instrument'], f'{key}.instrument')
         if d.get('window') is not None:
             out['window'] = self.window(d['window'], f'{key}.window')
+        if d.get('work_offset_m') is not None:
+            given = self.mapping(d['work_offset_m'], f'{key}.work_offset_m', ('X', 'Y', 'Z'))
+            out['work_offset_m'] = tuple(
+                (a, self.number(v, f'{key}.work_offset_m.{a}')) for a, v in given.items())
         if not partial and 'time' in out and 'period_s' in out:
             self.fail(f'{key}.time', 'give either time or period_s, not both')
         return out
@@ -467,6 +473,7 @@ class _Ctx:
             allow_gaps=f.get('allow_gaps', False), manifest=str(self.file), key=key,
             instrument=f.get('instrument', InstrumentSpec(declared=False)),
             motion_reconstruct=rebuild, window=f.get('window'),
+            work_offset_m=f.get('work_offset_m', ()),
         )
 
     def apply_split(self, value: Any, runs: list[RunSpec]) -> list[RunSpec]:
