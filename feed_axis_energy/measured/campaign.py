@@ -230,6 +230,10 @@ class RunSpec:
     work_offset_m
         Declared work offset ``((axis, machine - program [m]), ...)`` of a run simulated
         from its program whose data has positions (:mod:`.spatial`); empty: estimated.
+    motion_start_m
+        Where the machine stood when the program started, ``(X, Y, Z)`` in machine
+        coordinates [m] (``motion.start_m``; the program's first move starts there), or
+        ``None``: at the origin.
     """
 
     name: str
@@ -251,6 +255,7 @@ class RunSpec:
     motion_reconstruct: str = 'pulses'
     window: TimeWindow | None = None
     work_offset_m: tuple[tuple[str, float], ...] = ()
+    motion_start_m: tuple[float, float, float] | None = None
 
     @property
     def axis_names(self) -> tuple[str, ...]:

@@ -57,20 +57,22 @@ class MotionCache:
 
     def __init__(self, machine: Machine):
         self.machine = machine
-        self._plans: dict[Path, Motion] = {}
+        self._plans: dict[tuple[Path, tuple[float, float, float]], Motion] = {}
 
-    def program_motion(self, path: Path) -> Motion:
-        if path not in self._plans:
-            program = load_gcode(path, **self.machine.gcode_keywords())
-            self._plans[path] = plan(program, self.machine.limits(),
-                                     options=self.machine.planner.options())
-        return self._plans[path]
+    def program_motion(self, path: Path,
+                       start: tuple[float, float, float] | None = None) -> Motion:
+        key = (path, start or (0.0, 0.0, 0.0))
+        if key not in self._plans:
+            program = load_gcode(path, start=key[1], **self.machine.gcode_keywords())
+            self._plans[key] = plan(program, self.machine.limits(),
+                                    options=self.machine.planner.options())
+        return self._plans[key]
 
 
 def simulate_declared(spec: RunSpec, run: MeasuredRun, machine: Machine,
                       cache: MotionCache) -> tuple[SimulationResult, str]:
     if spec.motion_program is not None:
-        motion = cache.program_motion(spec.motion_program)
+        motion = cache.program_motion(spec.motion_program, spec.motion_start_m)
         source = str(spec.motion_program)
     else:
         kind = spec.motion_from_data or 'commanded'
@@ -196,7 +198,8 @@ def _streamed_trace(spec: RunSpec, program: Path, machine: Machine,
         v.add(chunk.motion.vel)
         x.add(chunk.motion.pos)
 
-    moves = iter_moves(program, **machine.gcode_keywords())
+    moves = iter_moves(program, start=spec.motion_start_m or (0.0, 0.0, 0.0),
+                       **machine.gcode_keywords())
     summary, _ = simulate_stream(moves, machine, file=str(program), load_kg=spec.load_kg,
                                  on_chunk=keep)
     if v is None:

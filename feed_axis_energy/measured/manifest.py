@@ -27,6 +27,8 @@ when ``start <= t < end``, so two runs of one file with ``end_fraction: 0.5`` an
 to validate (:class:`.campaign.TimeWindow`). A run simulated from its program whose data has
 positions may declare the work offset between them, ``work_offset_m: {X: -0.0378, Y: 0.26931,
 Z: 0.38333}`` (machine - program [m]); without it ``compare`` estimates it (:mod:`.spatial`).
+``motion.start_m: {X: .., Y: .., Z: ..}`` (machine coordinates [m]) is where the machine stood
+when the program started (a drive trace's first position); default the origin.
 
 Per axis the quantities ``power``, ``position``, ``velocity``, ``acceleration``,
 ``command_position``, ``command_velocity``, ``command_acceleration``, ``current``,
@@ -294,9 +296,11 @@ class _Ctx:
         return out
 
     def motion(self, value: Any, key: str) -> tuple[Path | None, str | None, str]:
-        m = dict(self.mapping(value, key, ('program', 'from_data', 'reconstruct')))
+        m = dict(self.mapping(value, key, ('program', 'from_data', 'reconstruct', 'start_m')))
         given = 'reconstruct' in m
         rebuild = m.pop('reconstruct', 'pulses')
+        if m.pop('start_m', None) is not None and 'program' not in m:
+            self.fail(f'{key}.start_m', 'only for motion from a program')
         if len(m) != 1:
             self.fail(key, 'expected exactly one of program, from_data')
         if rebuild not in RECONSTRUCT:
@@ -456,6 +460,12 @@ class _Ctx:
                           f'{q} is given for {", ".join(having)} but not for {missing}; '
                           'give it for every axis or none')
         program, from_data, rebuild = f['motion']
+        start = None
+        raw_start = (merged.get('motion') or {}).get('start_m')
+        if raw_start is not None:
+            given = self.mapping(raw_start, f'{key}.motion.start_m', ('X', 'Y', 'Z'))
+            values = {a: self.number(v, f'{key}.motion.start_m.{a}') for a, v in given.items()}
+            start = (values.get('X', 0.0), values.get('Y', 0.0), values.get('Z', 0.0))
         if from_data is not None:
             need = 'command_position' if from_data == 'commanded' else 'position'
             lacking = [a for a, cols in axes.items() if need not in cols]
@@ -473,7 +483,7 @@ class _Ctx:
             allow_gaps=f.get('allow_gaps', False), manifest=str(self.file), key=key,
             instrument=f.get('instrument', InstrumentSpec(declared=False)),
             motion_reconstruct=rebuild, window=f.get('window'),
-            work_offset_m=f.get('work_offset_m', ()),
+            work_offset_m=f.get('work_offset_m', ()), motion_start_m=start,
         )
 
     def apply_split(self, value: Any, runs: list[RunSpec]) -> list[RunSpec]:

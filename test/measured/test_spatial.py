@@ -154,3 +154,22 @@ def test_a_trace_that_is_no_translation_is_loose():
     assert w.found_m[0] == pytest.approx(0.2)
     none = estimate_work_offset(t, meas, t, sim, axes=('X', 'Y'), offset_s=100.0)
     assert none.status == 'loose' and all(math.isnan(v) for v in none.found_m)
+
+
+def test_the_program_starts_where_motion_start_m_says(tmp_path):
+    manifest = _campaign(tmp_path)
+    doc = yaml.safe_load(manifest.read_text(encoding='utf-8'))
+    doc['runs'][0]['motion']['start_m'] = {'X': 0.05, 'Y': -0.02}
+    manifest.write_text(yaml.safe_dump(doc), encoding='utf-8')
+    from feed_axis_energy.measured.compare import MotionCache
+    spec = load_campaign(manifest).runs[0]
+    assert spec.motion_start_m == (0.05, -0.02, 0.0)
+    machine = load_machine(tmp_path / 'machine.yaml')
+    motion = MotionCache(machine).program_motion(spec.motion_program, spec.motion_start_m)
+    assert tuple(motion.pos[0]) == pytest.approx((0.05, -0.02))
+    doc['runs'][0]['motion'] = {'from_data': 'actual', 'start_m': {'X': 0.0}}
+    manifest.write_text(yaml.safe_dump(doc), encoding='utf-8')
+    from feed_axis_energy.errors import ConfigError
+    with pytest.raises(ConfigError) as err:
+        load_campaign(manifest)
+    assert 'runs[0].motion.start_m' in str(err.value)

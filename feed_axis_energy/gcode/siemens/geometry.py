@@ -281,6 +281,9 @@ class Geometry:
             return [extra] if extra else []
         moved = self._motion(geo, s, suppress)
         if moved is None:
+            if self.motion in (0, 1) and any(name in 'ABC' for name, _ in extra):
+                # a rotary axis alone (G1 B0): it moves in the modal G0/G1 of the block
+                return [[('G', float(self.motion))] + extra]
             return [extra] if extra else []
         return [moved + extra]
 
