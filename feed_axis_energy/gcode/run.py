@@ -99,6 +99,7 @@ class GcodeRun:
                  work_offsets: Mapping[str, Vec3] | None = None):
         self.recent = _Recent()
         self.work_offsets = dict(work_offsets or {})
+        self.rotary_axes = frozenset(rotary_axes)
         if text is not None:
             if '\r' in text:
                 text = text.replace('\r\n', '\n').replace('\r', '\n')
@@ -315,6 +316,8 @@ class GcodeRun:
             reader = read_blocks(text, file=file, params=self.params, dialect=self.dialect,
                                  search_path=self.search_path)
         self._reader_warnings = reader.warnings
+        if siemens:
+            reader.geo.rotary = self.rotary_axes
         if self.max_errors:
             reader.on_error = self._keep
         interpret = self._guarded(p.line)
