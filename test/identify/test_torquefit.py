@@ -214,11 +214,12 @@ def test_fit_loss_steady_refuses_a_drive_trace(tmp_path, capsys):
     assert '--method samples' in capsys.readouterr().err
 
 
-def test_analyze_refuses_a_drive_trace_by_name(tmp_path, capsys):
-    manifest, _ = write_fit_campaign(tmp_path)
+def test_analyze_refuses_a_torque_trace_by_name(tmp_path, capsys):
+    # current traces are analysed (test_analyze_current.py); torque and force not yet
+    manifest, _ = write_fit_campaign(tmp_path, measures='torque', noise=0.002)
     assert main(['analyze', str(manifest), '--quiet']) == 1
     err = capsys.readouterr().err
-    assert 'runs[0].instrument.measures' in err and 'power traces only' in err
+    assert 'runs[0].instrument.measures' in err and 'power and current traces' in err
     assert 'Traceback' not in err
 
 
