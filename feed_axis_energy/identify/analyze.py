@@ -96,7 +96,8 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
             for arr in (state.velocity_m_s, state.position_m, state.acceleration_m_s2):
                 cols.append(arr[:, j] if j is not None else np.zeros(n))
         kt = None
-        if r.measures == 'current' and r.torque_per_unit is not None:
+        if (r.measures == 'current' and r.torque_per_unit is not None
+                and r.signal_meas is not None and r.signal_sim is not None):
             # a current trace: the residual in A, the candidates in their current form
             kt = [float(r.torque_per_unit[a]) for a in r.axes]
             residual = r.signal_meas - r.signal_sim
