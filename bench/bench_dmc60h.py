@@ -21,11 +21,11 @@ calibrates, ``val_air_1_second`` (121.7 s to the end) is held out.
     the config's B table turns it, ``G1 B0``) on the fitted machine. The record holds the
     program three times (1.5-79.0 s, 83.5-161.0 s, 164.1-241.6 s, each ending where it
     started); the third run, from 162 s on, lies wholly in the held-out half and is
-    compared, starting where the trace's first row stands (``motion.start_m``). First with
-    the work offset G57 taken as 0 (the config's value removed): ``compare`` finds the time
-    offset and estimates the work offset from the positions; then with the config's G57
-    (that estimate, rounded): the translation left, and the current figures as in (a). No
-    anchor.
+    compared. First with the work offset G57 taken as 0 (the config's value removed) and the
+    program starting at the origin: ``compare`` finds the time offset and estimates the work
+    offset from the positions; then with the config's G57 (that estimate, rounded), starting
+    where the trace's first row stands (``motion.start_m``): the translation left, and the
+    current figures as in (a). No anchor.
 
 CPU time at the end (``time.process_time``).
 """
@@ -185,8 +185,13 @@ def from_program(campaign: Campaign, fitted: Machine) -> None:
     no_g57 = replace(fitted, gcode=replace(fitted.gcode, work_offsets_m=MappingProxyType({})))
     print(f'(b) motion from the program, its third run in the record ({THIRD_RUN_S:g} s to the '
           f'end, {run.t.size} samples), on the machine fitted in (a):')
-    for label, machine in (('G57 taken as 0', no_g57), ('G57 of the config', fitted)):
-        r = compare_campaign(one, machine=machine).runs[0]
+    # G57 unknown: the program starts at the origin (where its first position would be
+    # in machine coordinates is what is being estimated); then the config's G57, which is
+    # that estimate rounded, from the trace's first position
+    unknown = replace(campaign, runs=(replace(spec, motion_start_m=None),))
+    for label, machine, runs in (('G57 taken as 0, start at the origin', no_g57, unknown),
+                                 ('G57 of the config, start at the first row', fitted, one)):
+        r = compare_campaign(runs, machine=machine).runs[0]
         w = r.work_offset
         assert w is not None
         cells = ', '.join(f'{a} {1e3 * u:+.2f} mm (spread {1e3 * sp:.1f})'
