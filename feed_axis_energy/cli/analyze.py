@@ -60,7 +60,9 @@ def _print(res: AnalysisResult) -> None:
     print(f'campaign  {res.campaign} ({res.manifest})')
     where = f' ({res.machine_file})' if res.machine_file else ''
     print(f'machine   {res.machine.name}{where}')
-    noise = ', '.join(f'{a} {s:.2f} W' for a, s in res.noise_sigma_w.items())
+    fmt = '.2f' if res.residual_unit == 'W' else '.3g'
+    noise = ', '.join(f'{a} {format(s, fmt)} {res.residual_unit}'
+                      for a, s in res.noise_sigma_w.items())
     print(f'held out  {res.holdout}; noise level {noise}')
     print()
     print(f'status: {res.status}: {res.message}')

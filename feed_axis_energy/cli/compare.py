@@ -95,6 +95,16 @@ def _print_tables(cmp: CampaignComparison) -> None:
     if spread:
         print('energy uncertainty from the loss functions (one standard uncertainty of the '
               f'simulated energy, loss_covariance): {", ".join(spread)}')
+    works = [r for r in cmp.runs if r.work_offset is not None]
+    if works:
+        print('work offset (machine - program positions, at the time offset used; '
+              'spread: RMS left after the translation):')
+        for r in works:
+            w = r.work_offset
+            assert w is not None
+            cells = ', '.join(f'{a} {1e3 * u:+.3f} mm (spread {1e3 * s:.3g} mm)'
+                              for a, u, s in zip(w.axes, w.used_m, w.spread_m))
+            print(f'  {r.name}: {cells} [{w.status}]')
     _print_quantity(cmp)
     print()
     rows = [[f'{g.load_kg:g}', str(len(g.runs))] + metric_cells(g.metrics) for g in cmp.groups]

@@ -53,6 +53,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='with --method samples on a current trace: fit the torque constants '
                         'even where the manifest or the machine config declares them (a '
                         'fitted kt is written into axes.<A>.drive.kt_nm_a with --out-machine)')
+    p.add_argument('--fit-counterbalance', action='store_true',
+                   help='with --method samples on a current, torque or force trace: on an '
+                        'inclined axis fit the weight the drive carries as a counterbalance '
+                        'against the configured mass\'s weight [N, >= 0] (written as '
+                        'axes.<A>.counterbalance_n with --out-machine)')
     p.add_argument('--method', choices=('steady', 'samples'), default='steady',
                    help='steady (default): the paper\'s power regression on steady segments; '
                         'samples: Coulomb + viscous loss and the motor inertia fitted to every '
@@ -128,6 +133,11 @@ def run(args: argparse.Namespace) -> int:
         print('error: --friction extended fits a drive trace (force, torque or current with a '
               'declared kt) with --method samples; a power trace does not show a constant '
               'force at rest', file=sys.stderr)
+        return 1
+    if args.fit_counterbalance and (args.method != 'samples' or any(
+            quantity_of(s.instrument.measures).is_power for s in specs)):
+        print('error: --fit-counterbalance fits the weight an inclined axis carries with '
+              '--method samples on a current, torque or force trace', file=sys.stderr)
         return 1
     if args.method == 'samples':
         return _run_samples(args, runs, specs, machine, machine_path, axes)
@@ -223,7 +233,8 @@ def _run_samples(args: argparse.Namespace, runs: list, specs: list, machine,
     # the kinematics the comparison simulates: the run's motion source, unless --velocity
     velocity = [s.motion_from_data or 'auto' if args.velocity == 'auto' else args.velocity
                 for s in specs]
-    options = SampleFitOptions(min_speed_m_s=args.min_speed, accel_m_s2=args.max_accel)
+    options = SampleFitOptions(min_speed_m_s=args.min_speed, accel_m_s2=args.max_accel,
+                               fit_counterbalance=args.fit_counterbalance)
     measures = sorted({s.instrument.measures for s in specs})
     if len(measures) == 1 and not quantity_of(measures[0]).is_power:
         gains = _gains(specs, machine, measures[0])
@@ -336,7 +347,8 @@ def _print_drive(fits: dict, specs: list, velocity: list[str], machine) -> None:
     print(format_table(['axis', 'status', gain, '+-', '', 'coulomb [N]', '+-',
                         'viscous [N s/m]', '+-', 'motor [kg m2]', 'eff. mass [kg]',
                         f'RMS [{qty.unit}]', 'R2', 'samples'], rows))
-    print(f'{qty.symbol} = (J*alpha + k*r*(m*a + m*g*sin(incl) + coulomb*sgn(v) + viscous*v)) / g '
+    print(f'{qty.symbol} = (J*alpha + k*r*(m*a + m*g*sin(incl) - balance + coulomb*sgn(v) + '
+          'viscous*v)) / g '
           'per moving sample (r = lead/2pi, alpha = a/r, k = 1/eta driving, eta back-driven; '
           f'{qty.words}); +-: standard errors')
     for axis, f in fits.items():

@@ -123,7 +123,8 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
                 dialect: str | Dialect | None = None,
                 search_path: Sequence[str | PathLike[str]] = (),
                 ignore_axes: Sequence[str] = (), strict_tools: bool = False,
-                allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()) -> Program:
+                allow_no_feed: bool = False, rotary_axes: Sequence[str] = (),
+                work_offsets: Mapping[str, Vec3] | None = None) -> Program:
     """Parse an NC program into moves in SI units.
 
     Parameters
@@ -166,6 +167,9 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
     rotary_axes
         Rotary axis letters among A, B, C that the machine has: their words turn them
         (:mod:`.interp.rotary`; the moves carry ``rot_start``/``rot_end``).
+    work_offsets
+        Values of the settable work offsets ``{'G54'..'G59': (x, y, z)}`` [m] (machine -
+        program; a machine's ``gcode.work_offsets_m``); one the mapping lacks is 0.
 
     Returns
     -------
@@ -185,7 +189,7 @@ def parse_gcode(text: str, *, file: str = '<string>', start: Vec3 = (0.0, 0.0, 0
                    tools=tools, dialect=chosen,
                    search_path=_directories(search_path), ignore_axes=_axes(ignore_axes),
                    strict_tools=bool(strict_tools), allow_no_feed=bool(allow_no_feed),
-                   rotary_axes=rotary_letters(rotary_axes))
+                   rotary_axes=rotary_letters(rotary_axes), work_offsets=work_offsets)
     if note:
         run.interp.warnings.insert(0, note)
     # The parse allocates one Move per block and frees nothing: cyclic garbage collection
@@ -284,7 +288,8 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                search_path: Sequence[str | PathLike[str]] = (),
                ignore_axes: Sequence[str] = (), batch: int = 4096,
                max_errors: int = 0, strict_tools: bool = False,
-               allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()) -> MoveStream:
+               allow_no_feed: bool = False, rotary_axes: Sequence[str] = (),
+               work_offsets: Mapping[str, Vec3] | None = None) -> MoveStream:
     """Stream the moves of a program file in bounded memory.
 
     Plain lines are read one at a time, so memory stays at ``batch`` moves however long
@@ -296,7 +301,7 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     path
         The program file.
     start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes, strict_tools
-    allow_no_feed, rotary_axes
+    allow_no_feed, rotary_axes, work_offsets
         As for :func:`parse_gcode`.
     batch
         Moves interpreted ahead of the consumer (at least 1).
@@ -316,7 +321,8 @@ def iter_moves(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
               dialect=chosen, search_path=_directories(search_path),
               batch=max(1, int(batch)), ignore_axes=_axes(ignore_axes),
               max_errors=max(0, int(max_errors)), strict_tools=bool(strict_tools),
-              allow_no_feed=bool(allow_no_feed), rotary_axes=rotary_letters(rotary_axes))
+              allow_no_feed=bool(allow_no_feed), rotary_axes=rotary_letters(rotary_axes),
+              work_offsets=work_offsets)
     return MoveStream(path, kw, note)
 
 
@@ -326,7 +332,8 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
                dialect: str | Dialect | None = None,
                search_path: Sequence[str | PathLike[str]] = (),
                ignore_axes: Sequence[str] = (), strict_tools: bool = False,
-               allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()) -> Program:
+               allow_no_feed: bool = False, rotary_axes: Sequence[str] = (),
+               work_offsets: Mapping[str, Vec3] | None = None) -> Program:
     """Read a program file (UTF-8, a BOM allowed) and parse it (see :func:`parse_gcode`).
 
     Parameters
@@ -334,7 +341,7 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     path
         The program file; its path is used as ``file`` in messages and in the result.
     start, arc_tolerance_m, home, tools, dialect, search_path, ignore_axes, strict_tools
-    allow_no_feed, rotary_axes
+    allow_no_feed, rotary_axes, work_offsets
         As for :func:`parse_gcode`.
 
     Returns
@@ -357,7 +364,8 @@ def load_gcode(path: str | PathLike[str], *, start: Vec3 = (0.0, 0.0, 0.0),
     return parse_gcode(text, file=name, start=start, arc_tolerance_m=arc_tolerance_m,
                        home=home, tools=tools, dialect=dialect, search_path=search_path,
                        ignore_axes=ignore_axes, strict_tools=strict_tools,
-                       allow_no_feed=allow_no_feed, rotary_axes=rotary_axes)
+                       allow_no_feed=allow_no_feed, rotary_axes=rotary_axes,
+                       work_offsets=work_offsets)
 
 
 def _directories(paths: Sequence[str | PathLike[str]]) -> tuple[str, ...]:

@@ -95,8 +95,11 @@ class GcodeRun:
                  search_path: Sequence[str | PathLike[str]] = (), batch: int | None = None,
                  ignore_axes: Sequence[str] = (), max_errors: int = 0,
                  context: OperationContext | None = None, strict_tools: bool = False,
-                 allow_no_feed: bool = False, rotary_axes: Sequence[str] = ()):
+                 allow_no_feed: bool = False, rotary_axes: Sequence[str] = (),
+                 work_offsets: Mapping[str, Vec3] | None = None):
         self.recent = _Recent()
+        self.work_offsets = dict(work_offsets or {})
+        self.rotary_axes = frozenset(rotary_axes)
         if text is not None:
             if '\r' in text:
                 text = text.replace('\r\n', '\n').replace('\r', '\n')
@@ -123,7 +126,10 @@ class GcodeRun:
         self.interp = Interpreter(file, start, arc_tolerance_m, lines=ref_lines, home=home,
                                   tools=tools, dialect=dialect, params=self.params,
                                   ignore_axes=ignore_axes, strict_tools=strict_tools,
-                                  allow_no_feed=allow_no_feed, rotary_axes=rotary_axes)
+                                  allow_no_feed=allow_no_feed, rotary_axes=rotary_axes,
+                                  # the Siemens front applies its own (G54..G57) and
+                                  # hands on machine coordinates
+                                  work_offsets=None if dialect.siemens else self.work_offsets)
         self.params.provider = self.interp.system_value
         self.context = context
         self.emitted = 0                             # moves handed on so far
@@ -302,11 +308,16 @@ class GcodeRun:
         reader: Any
         if siemens:
             reader = read_siemens_blocks(text, file=file, search_path=self.search_path,
-                                         start_mm=_mm(p.pos))
+                                         start_mm=_mm(p.pos), offsets_mm={
+                                             int(name[1:]): _mm(v)
+                                             for name, v in self.work_offsets.items()
+                                             if name in ('G54', 'G55', 'G56', 'G57')})
         else:
             reader = read_blocks(text, file=file, params=self.params, dialect=self.dialect,
                                  search_path=self.search_path)
         self._reader_warnings = reader.warnings
+        if siemens:
+            reader.geo.rotary = self.rotary_axes
         if self.max_errors:
             reader.on_error = self._keep
         interpret = self._guarded(p.line)

@@ -11,6 +11,9 @@ A machine file may hold (all optional)::
       strict_tools: false          # true: a tool the table lacks is an error (--strict-tools)
       allow_no_feed: false         # true: G1 with no F previews at the axis limits
       subroutine_path: [subs, /srv/nc/lib]   # searched after the program's folder
+      work_offsets_m:              # settable work offsets (machine - program) [m]
+        G54: {X: 0.0, Y: 0.0, Z: 0.0}
+        G57: {X: 0.512, Y: 0.2843, Z: 0.4833}
     axes:
       X:
         travel_m: [-0.2, 0.3]     # travel limits in machine coordinates [m]
@@ -25,7 +28,12 @@ limits with a warning, as LinuxCNC's preview does; the control refuses it (the d
 ``subroutine_path`` lists directories searched for ``o<name> call`` files after the
 program's own, as LinuxCNC's ``[RS274NGC] SUBROUTINE_PATH`` (``--subroutine-path`` adds
 more after them); a relative one is taken from the machine file's folder, and each must be
-an existing directory.
+an existing directory. ``work_offsets_m`` holds the values of the settable work offsets
+``G54``..``G59`` (the origin of the program's coordinates in machine coordinates, per axis
+X, Y, Z [m], a missing axis 0): the control's data, not the program's. LinuxCNC's front
+stores them as its parameters #5221.. (what its var file would hold), the Sinumerik front as
+its settable offsets ``G54``..``G57``; a system the table lacks is 0 (the Sinumerik front
+warns). A drive trace in machine coordinates then lines up with the simulated positions.
 """
 from __future__ import annotations
 
@@ -39,7 +47,8 @@ from ..errors import ConfigError, describe, shorten, shorten_path
 
 __all__ = ['ToolSpec', 'GcodeSettings', 'DIALECTS', 'MAX_TOOLS', 'MAX_TOOL_NUMBER',
            'MAX_SUBROUTINE_DIRS', 'gcode_from_dict', 'gcode_to_dict', 'travel_from_value',
-           'parse_tool_option', 'with_tools', 'check_subroutine_dir', 'with_program_options']
+           'parse_tool_option', 'with_tools', 'check_subroutine_dir', 'with_program_options',
+           'WORK_OFFSETS']
 
 DIALECTS = ('linuxcnc', 'fanuc', 'haas', 'grbl', 'mach3', 'sinumerik')
 """Dialect names a config may choose (the profiles live in ``gcode/dialect.py``)."""
@@ -47,6 +56,8 @@ MAX_TOOLS = 10_000
 """Entries a tool table may hold (a config is read whole; this bounds it)."""
 MAX_TOOL_NUMBER = 99_999
 _TRAVEL_LIMIT_M = 1.0e3
+WORK_OFFSETS = ('G54', 'G55', 'G56', 'G57', 'G58', 'G59')
+"""The settable work offsets a config may give values for (``gcode.work_offsets_m``)."""
 
 
 @dataclass(frozen=True)
@@ -85,6 +96,8 @@ class GcodeSettings:
         A feed move with no F set previews at the axis limits (else it is an error).
     subroutine_path
         Directories searched for subroutine files after the program's own.
+    work_offsets_m
+        Read-only mapping ``{'G54'..'G59': (x, y, z)}`` [m]: the settable work offsets.
     """
 
     dialect: str = 'linuxcnc'
@@ -92,6 +105,8 @@ class GcodeSettings:
     strict_tools: bool = False
     allow_no_feed: bool = False
     subroutine_path: tuple[str, ...] = ()
+    work_offsets_m: Mapping[str, tuple[float, float, float]] = field(
+        default_factory=lambda: MappingProxyType({}))
 
     def tool(self, number: int) -> ToolSpec | None:
         """Return tool ``number`` of the table, or ``None`` if the table lacks it."""
@@ -157,7 +172,7 @@ def gcode_from_dict(value: Any, *, file: str) -> GcodeSettings:
         return GcodeSettings()
     d = check_mapping(value, file=file, key='gcode',
                       allowed=('dialect', 'tools', 'strict_tools', 'allow_no_feed',
-                               'subroutine_path'))
+                               'subroutine_path', 'work_offsets_m'))
     return GcodeSettings(
         dialect=check_choice(d, 'dialect', DIALECTS, file=file, key='gcode',
                              default='linuxcnc'),
@@ -166,7 +181,31 @@ def gcode_from_dict(value: Any, *, file: str) -> GcodeSettings:
                                        key='gcode', default=False)),
         allow_no_feed=bool(check_choice(d, 'allow_no_feed', (False, True), file=file,
                                         key='gcode', default=False)),
-        subroutine_path=_subroutine_path(d.get('subroutine_path'), file=file))
+        subroutine_path=_subroutine_path(d.get('subroutine_path'), file=file),
+        work_offsets_m=_work_offsets(d.get('work_offsets_m'), file=file))
+
+
+def _work_offsets(value: Any, *, file: str) -> Mapping[str, tuple[float, float, float]]:
+    if value is None:
+        return MappingProxyType({})
+    key = 'gcode.work_offsets_m'
+    table = check_mapping(value, file=file, key=key, allowed=WORK_OFFSETS)
+    out = {}
+    for name in WORK_OFFSETS:
+        if name not in table:
+            continue
+        axes = check_mapping(table[name], file=file, key=f'{key}.{name}',
+                             allowed=('X', 'Y', 'Z'))
+        values = []
+        for axis in ('X', 'Y', 'Z'):
+            v = axes.get(axis, 0.0)
+            if not is_finite_number(v) or abs(v) > _TRAVEL_LIMIT_M:
+                msg = (f'expected a finite number within +-{_TRAVEL_LIMIT_M:g} m, got '
+                       f'{describe(v)}')
+                raise ConfigError(msg, file=file, key=f'{key}.{name}.{axis}')
+            values.append(float(v))
+        out[name] = (values[0], values[1], values[2])
+    return MappingProxyType(out)
 
 
 MAX_SUBROUTINE_DIRS = 64
@@ -237,6 +276,9 @@ def gcode_to_dict(settings: GcodeSettings) -> dict[str, Any] | None:
         out['allow_no_feed'] = True
     if settings.subroutine_path:
         out['subroutine_path'] = list(settings.subroutine_path)
+    if settings.work_offsets_m:
+        out['work_offsets_m'] = {name: dict(zip(('X', 'Y', 'Z'), v))
+                                 for name, v in settings.work_offsets_m.items()}
     return out
 
 

@@ -53,6 +53,7 @@ from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
 from .drivecorr import common_measures, correction_bounds, declared_values, describe_correction
+from .driveforms import current_basis, has_current_form
 from .selection import at_bounds, Block, Design, loro_folds, solve_normal
 
 POSITION_DIVISIONS = (15, 10, 6, 3)
@@ -70,6 +71,7 @@ class _Run:
     sim_index: list[int | None]     # measured axis j -> column of the simulation or None
     residual: np.ndarray            # (m, k_meas)
     states: dict[str, np.ndarray]   # name -> (m, k_meas) on the stamps
+    kt: list[float] | None = None   # a current trace: kt per measured axis (.driveforms)
 
     def aligned(self, cols: np.ndarray) -> np.ndarray:
         """Align 1 kHz columns ``(n, c)`` onto the measured stamps: ``(m, c)``."""
@@ -93,8 +95,15 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
         for j in idx:
             for arr in (state.velocity_m_s, state.position_m, state.acceleration_m_s2):
                 cols.append(arr[:, j] if j is not None else np.zeros(n))
-        run = _Run(cmp=r, state=state, sim_index=idx,
-                   residual=r.power_meas_w - r.power_sim_w, states={})
+        kt = None
+        if (r.measures == 'current' and r.torque_per_unit is not None
+                and r.signal_meas is not None and r.signal_sim is not None):
+            # a current trace: the residual in A, the candidates in their current form
+            kt = [float(r.torque_per_unit[a]) for a in r.axes]
+            residual = r.signal_meas - r.signal_sim
+        else:
+            residual = r.power_meas_w - r.power_sim_w
+        run = _Run(cmp=r, state=state, sim_index=idx, residual=residual, states={}, kt=kt)
         on = run.aligned(np.column_stack(cols))
         k = len(idx)
         # simulated time at the centre of each sample's window
@@ -115,6 +124,8 @@ def _columns(run: _Run, effect_id: str, axis_j: int, shape: Mapping[str, float])
     j = run.sim_index[axis_j]
     if j is not None:
         basis = effect.basis(run.state, dict(shape))[:, j, :]
+        if run.kt is not None:
+            basis = current_basis(effect_id, basis, run.state, j, run.kt[axis_j])
         out[:, axis_j, :] = run.aligned(basis)
     return out.reshape(m * k, p)
 
@@ -283,12 +294,11 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         get_effect(effect_id)
     selected = campaign.runs if runs is None else [r for r in campaign.runs if r.name in runs]
     for spec in selected:
-        if not quantity_of(spec.instrument.measures).is_power:
-            # the catalog's effects are powers; their current, torque or force forms are not
-            # written yet
+        if not quantity_of(spec.instrument.measures).is_power and \
+                spec.instrument.measures != 'current':
             msg = (f'run {spec.name!r} measures {spec.instrument.measures}: analyze selects '
-                   'effects on power traces only; compare and fit-loss --method samples work '
-                   'on drive traces')
+                   'effects on power and current traces; compare and fit-loss --method '
+                   'samples work on torque and force traces')
             raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.instrument.measures')
 
     def report(x: float) -> None:
@@ -354,6 +364,8 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     report(0.5)
 
     design = Design([r.residual.reshape(-1) for r in data])
+    if measures == 'current':
+        ids = tuple(e for e in ids if has_current_form(e))
     for effect_id in ids:
         for j, axis in enumerate(axes):
             for shape in _shape_grid(effect_id, data, j, options.shape_grid_points):
@@ -485,9 +497,11 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
             offset_before=offset_dict(c.offset, used_s=c.offset_used_s),
             offset_after=offset_dict(a.offset, used_s=a.offset_used_s)))
 
+    unit = 'A' if measures == 'current' else 'W'
     diag_before, spectra_before = diagnose_runs(data, [r.residual for r in data], sigmas,
-                                                names=STATE_NAMES)
-    diag_after, spectra_after = diagnose_runs(data, residual_after, sigmas, names=STATE_NAMES)
+                                                names=STATE_NAMES, unit=unit)
+    diag_after, spectra_after = diagnose_runs(data, residual_after, sigmas, names=STATE_NAMES,
+                                              unit=unit)
     spectra = {a: (spectra_before[a][0], spectra_before[a][1], spectra_after[a][1])
                for a in axes}
     unexplained = list(rejected)
@@ -519,7 +533,7 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
         candidates=mark_groups(fates, groups), warnings=tuple(warnings),
         ambiguous=tuple(groups),
         calibrated={a: observed_range(u) for a, u in uses.items()}, rounds=chosen.rounds,
-        cap_reached=chosen.cap_reached), augmented, full_machine
+        cap_reached=chosen.cap_reached, residual_unit=unit), augmented, full_machine
 
 
 def _verdict(fitted, unexplained, steps, data, folds, explained,

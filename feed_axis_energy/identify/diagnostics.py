@@ -83,7 +83,7 @@ def noise_sigma(residuals: Sequence[np.ndarray]) -> float:
 
 def binned_structure(residual: np.ndarray, state: np.ndarray, *, sigma: float, name: str,
                      axis: str, bins: int = 12, alpha: float = 1e-4,
-                     min_rms_fraction: float = 0.3) -> Diagnostic:
+                     min_rms_fraction: float = 0.3, unit: str = 'W') -> Diagnostic:
     """Test whether the residual's mean depends on a state (quantile bins).
 
     Parameters
@@ -126,18 +126,19 @@ def binned_structure(residual: np.ndarray, state: np.ndarray, *, sigma: float, n
     structured = p < alpha and rms > min_rms_fraction * sigma
     worst = int(np.argmax(np.abs(means)))
     lo, hi = edges[np.flatnonzero(used)[worst]], edges[np.flatnonzero(used)[worst] + 1]
+    u = unit
     message = (f'residual mean depends on {name} (chi2/dof {chi2 / dof:.1f}, p {p:.2g}, '
-               f'RMS of bin means {rms:.2f} W vs noise {sigma:.2f} W; largest '
-               f'{means[worst]:+.2f} W for {name} in [{lo:.4g}, {hi:.4g}])'
+               f'RMS of bin means {rms:.2f} {u} vs noise {sigma:.2f} {u}; largest '
+               f'{means[worst]:+.2f} {u} for {name} in [{lo:.4g}, {hi:.4g}])'
                if structured else
                f'no structure against {name} (chi2/dof {chi2 / dof:.2f}, '
-               f'RMS of bin means {rms:.2f} W vs noise {sigma:.2f} W)')
+               f'RMS of bin means {rms:.2f} {u} vs noise {sigma:.2f} {u})')
     return Diagnostic(name, axis, chi2 / dof, p, rms, math.nan, structured, message)
 
 
 def spectrum_structure(residuals: Sequence[np.ndarray], *, period_s: float, sigma: float,
                        axis: str, nperseg: int = 256, max_ratio: float = 8.0,
-                       min_rms_fraction: float = 0.3) -> Diagnostic:
+                       min_rms_fraction: float = 0.3, unit: str = 'W') -> Diagnostic:
     """Peak-to-median ratio of the run-averaged Welch periodogram of the residual.
 
     Parameters
@@ -184,17 +185,18 @@ def spectrum_structure(residuals: Sequence[np.ndarray], *, period_s: float, sigm
     peak = float(f[k + 1])
     structured = ratio > max_ratio and amplitude > min_rms_fraction * sigma
     message = (f'spectral peak at {peak:.2f} Hz, {ratio:.1f} x the median level '
-               f'(sine of about {amplitude:.2f} W)' if structured else
+               f'(sine of about {amplitude:.2f} {unit})' if structured else
                f'no dominant frequency (peak {ratio:.1f} x the median at {peak:.2f} Hz)')
     return Diagnostic('spectrum', axis, ratio, math.nan, amplitude, peak, structured, message)
 
 
 def diagnose_runs(runs: Sequence, residuals: Sequence[np.ndarray], sigmas: Mapping[str, float],
-                  *, names: Sequence[str]) -> tuple[list[Diagnostic], dict]:
+                  *, names: Sequence[str], unit: str = 'W') -> tuple[list[Diagnostic], dict]:
     """Binned structure against each state of ``names`` and the spectrum, per measured axis.
 
     ``runs`` carry ``cmp`` (``axes``, stamps ``t``) and ``states`` (``{name: (m, k)}``);
-    ``residuals[r]`` is ``(m, k)``. Returns the diagnostics and ``{axis: (f, psd)}``.
+    ``residuals[r]`` is ``(m, k)`` in ``unit`` (``'W'``, ``'A'`` for a current trace).
+    Returns the diagnostics and ``{axis: (f, psd)}``.
     """
     out: list[Diagnostic] = []
     spectra = {}
@@ -203,11 +205,12 @@ def diagnose_runs(runs: Sequence, residuals: Sequence[np.ndarray], sigmas: Mappi
         y = np.concatenate([res[:, j] for res in residuals])
         for name in names:
             x = np.concatenate([r.states[name][:, j] for r in runs])
-            out.append(binned_structure(y, x, sigma=sigmas[axis], name=name, axis=axis))
+            out.append(binned_structure(y, x, sigma=sigmas[axis], name=name, axis=axis,
+                                        unit=unit))
         # the sampling period (the window may be 0: point samples)
         period = float(np.median([np.median(np.diff(r.cmp.t)) for r in runs]))
         out.append(spectrum_structure([res[:, j] for res in residuals], period_s=period,
-                                      sigma=sigmas[axis], axis=axis))
+                                      sigma=sigmas[axis], axis=axis, unit=unit))
         spectra[axis] = average_spectrum([res[:, j] for res in residuals], period)
     return out, spectra
 

@@ -213,6 +213,10 @@ class AnalysisResult:
     left_out
         Runs not fitted because their time offset could not be pinned down, not even with
         the effects found (:mod:`.pinning`).
+    residual_unit
+        Unit of the residual the effects were selected on, of the noise levels
+        (``noise_sigma_w``) and of the diagnostics: ``'W'``, or ``'A'`` on current traces
+        (:mod:`.driveforms`).
     pin_rounds
         Analysis rounds with offsets estimated anew after the effects found (1: none moved).
     """
@@ -244,6 +248,7 @@ class AnalysisResult:
     ambiguous: tuple[AmbiguousGroup, ...] = ()
     left_out: tuple[LeftOut, ...] = ()
     pin_rounds: int = 1
+    residual_unit: str = 'W'
 
     @property
     def heldout_runs(self) -> tuple[RunOutcome, ...]:
@@ -325,5 +330,6 @@ class AnalysisResult:
             'consistency': {'rounds': self.rounds, 'cap_reached': self.cap_reached},
             'left_out': [lo.to_dict() for lo in self.left_out],
             'pin_rounds': self.pin_rounds,
+            'residual_unit': self.residual_unit,
             'warnings': list(self.warnings),
         })

@@ -64,12 +64,18 @@ class SampleFitOptions:
         Moving samples needed per axis.
     min_accel_samples
         Accelerating samples needed to fit the inertia (else the configured one is kept).
+    fit_counterbalance
+        A drive trace of an inclined axis: fit the weight the drive carries, as the
+        counterbalance ``axes.<A>.counterbalance_n`` (a weight compensation, ``>= 0``) on top
+        of the configured ``m·g·sin(incl)``, instead of taking the configured mass's weight
+        as it is (:func:`.torquefit.fit_drive_samples`).
     """
 
     min_speed_m_s: float = 5.0e-4
     accel_m_s2: float = 0.05
     min_samples: int = 20
     min_accel_samples: int = 10
+    fit_counterbalance: bool = False
 
     def __post_init__(self) -> None:
         for name in ('min_speed_m_s', 'accel_m_s2'):
@@ -122,6 +128,9 @@ class SampleFit:
         motion [N] (:mod:`feed_axis_energy.physics.standstill`; ``None`` when too few
         samples rest after a move), the resting samples it was fitted on, and their
         residual RMS in the trace's unit.
+    counterbalance_n, counterbalance_se
+        A drive trace of an inclined axis fitted with ``fit_counterbalance``: the weight
+        compensation [N] (``axes.<A>.counterbalance_n``) and its standard error; else ``None``.
     """
 
     axis: str
@@ -150,6 +159,8 @@ class SampleFit:
     standstill_hold_n: float | None = None
     n_rest: int = 0
     rest_rmse: float | None = None
+    counterbalance_n: float | None = None
+    counterbalance_se: float | None = None
 
     @property
     def ok(self) -> bool:
@@ -194,7 +205,8 @@ class SampleFit:
                 'torque_per_unit': self.gain, 'torque_per_unit_se': self.gain_se,
                 'torque_per_unit_fitted': self.gain_fitted,
                 'standstill_hold_n': self.standstill_hold_n, 'n_rest': self.n_rest,
-                'rest_rmse': self.rest_rmse}
+                'rest_rmse': self.rest_rmse, 'counterbalance_n': self.counterbalance_n,
+                'counterbalance_se': self.counterbalance_se}
 
 
 @dataclass
@@ -408,6 +420,8 @@ def machine_with_sample_fits(machine: Machine, fits: dict[str, SampleFit]) -> Ma
                                          motor_kg_m2=float(cast(float, f.motor_kg_m2))))
             if f.standstill_hold_n is not None:
                 a = replace(a, standstill_hold_n=float(f.standstill_hold_n))
+            if f.counterbalance_n is not None:
+                a = replace(a, counterbalance_n=float(f.counterbalance_n))
             if f.gain_fitted and f.measures == 'current' and a.drive is not None:
                 # a fitted torque constant replaces the data sheet's
                 a = replace(a, drive=replace(a.drive, kt_nm_a=float(cast(float, f.gain))))

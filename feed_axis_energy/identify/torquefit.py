@@ -124,7 +124,14 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
     alpha = a / r
     rest = spec.inertias.coupling_kg_m2 + spec.screw_inertia_kg_m2
     motor = spec.inertias.motor_kg_m2
-    known = mass * a + mass * GRAVITY_M_S2 * math.sin(math.radians(spec.inclination_deg))
+    sin_incl = math.sin(math.radians(spec.inclination_deg))
+    # the weight the drive carries: fitted (a counterbalance against the configured mass's
+    # weight) or as configured (its counterbalance included)
+    fit_balance = options.fit_counterbalance and sin_incl != 0.0
+    weight = mass * GRAVITY_M_S2 * sin_incl
+    if not fit_balance and spec.counterbalance_n:
+        weight = weight - math.copysign(spec.counterbalance_n, sin_incl)
+    known = mass * a + weight
     sgn = np.sign(v)
     normal = mass * GRAVITY_M_S2 * abs(math.cos(math.radians(spec.inclination_deg)))
     # the configured model's torque: the sign check
@@ -145,8 +152,10 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
     drive = None
     cov = None
     coef = np.zeros(3)
+    balance = 0.0
+    up = math.copysign(1.0, sin_incl)      # the counterbalance pushes against the weight
     for _ in range(_MAX_ROUNDS):
-        force = known + coulomb * sgn + viscous * v
+        force = known - up * balance + coulomb * sgn + viscous * v
         new_drive = force * v >= 0.0
         if drive is not None and np.array_equal(new_drive, drive):
             break
@@ -159,22 +168,30 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
                 basis.insert(0, alpha)
             else:
                 y = y - motor * alpha
+            if fit_balance:
+                basis.append(-up * k * r)
             coef, cov = nonnegative_lsq(np.column_stack(basis), y)
             if fit_inertia:
-                inertia, coulomb, viscous = (float(c) for c in coef)
+                inertia, coulomb, viscous = (float(c) for c in coef[:3])
             else:
-                coulomb, viscous = (float(c) for c in coef)
+                coulomb, viscous = (float(c) for c in coef[:2])
+            if fit_balance:
+                balance = float(coef[-1])
         else:
-            x = np.column_stack([(motor + rest) * alpha + k * r * known, k * r * sgn,
-                                 k * r * v])
-            coef, cov = nonnegative_lsq(x, q)
+            xcols = [(motor + rest) * alpha + k * r * known, k * r * sgn, k * r * v]
+            if fit_balance:
+                xcols.append(-up * k * r)
+            coef, cov = nonnegative_lsq(np.column_stack(xcols), q)
             theta0 = float(coef[0])
+            if fit_balance and theta0 > 0.0:
+                balance = float(coef[3]) / theta0
             if theta0 <= 0.0:
                 msg = (f'the torque constant of axis {axis} cannot be told from the data (the '
                        'configured masses and inertias explain none of the trace); declare '
                        f'it: axes.{axis}.drive.kt_nm_a or instrument.kt_nm_a.{axis}')
                 return failed('insufficient', msg)
             coulomb, viscous = float(coef[1]) / theta0, float(coef[2]) / theta0
+    known = known - up * balance
     k = np.where((known + coulomb * sgn + viscous * v) * v >= 0.0, 1.0 / eta, eta)
     torque = (inertia + rest) * alpha + k * r * (known + coulomb * sgn + viscous * v)
     fitted_gain = gain if gain is not None else 1.0 / theta0
@@ -183,7 +200,7 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
     r2 = 1.0 - float(res @ res) / ss_tot if ss_tot > 0.0 else 0.0
     rmse = math.sqrt(float(res @ res) / n)
     se: dict[str, float | None] = {'motor': None, 'coulomb': None, 'viscous': None,
-                                   'gain': None}
+                                   'gain': None, 'balance': None}
     cov_loss = None
     if cov is not None:
         if gain is not None:
@@ -191,14 +208,22 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
             if fit_inertia:
                 se['motor'] = _se(cov, 0)
             se['coulomb'], se['viscous'] = _se(cov, j), _se(cov, j + 1)
+            if fit_balance:
+                se['balance'] = _se(cov, j + 2)
             block = cov[j:j + 2, j:j + 2]
         else:
             # (kt, Fc, cv) = (1, theta2, theta3) / theta0: the delta method
-            t0, t2, t3 = (float(c) for c in coef)
+            t0, t2, t3 = (float(c) for c in coef[:3])
             jac = np.array([[-1.0 / t0 ** 2, 0.0, 0.0], [-t2 / t0 ** 2, 1.0 / t0, 0.0],
                             [-t3 / t0 ** 2, 0.0, 1.0 / t0]])
+            if fit_balance:
+                # (kt, Fc, cv, balance) = (1, theta2, theta3, theta4) / theta0
+                jac = np.pad(jac, ((0, 1), (0, 1)))
+                jac[3, 0], jac[3, 3] = -float(coef[3]) / t0 ** 2, 1.0 / t0
             full = jac @ cov @ jac.T
             se['gain'], se['coulomb'], se['viscous'] = (_se(full, i) for i in range(3))
+            if fit_balance:
+                se['balance'] = _se(full, 3)
             block = full[1:3, 1:3]
         block = 0.5 * (block + block.T)
         if np.all(np.isfinite(block)):
@@ -220,7 +245,14 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
                f'{options.accel_m_s2:g} m/s^2, need {options.min_accel_samples})')
     msg = (f'{n} moving samples ({n_accel} accelerating), {how}; RMS residual '
            f'{rmse:.3g} {qty.unit}, R^2 = {r2:.4f}')
-    hold, rest_rmse = _standstill_hold(d_rest, q_rest, m_rest, spec=spec,
+    if fit_balance:
+        msg += (f'; counterbalance {balance:.4g} N against the weight of the configured mass '
+                f'({float(np.mean(mass)) * GRAVITY_M_S2 * abs(sin_incl):.4g} N)')
+    w_rest = m_rest * GRAVITY_M_S2 * sin_incl
+    net_balance = balance if fit_balance else spec.counterbalance_n
+    if sin_incl != 0.0:
+        w_rest = w_rest - up * net_balance
+    hold, rest_rmse = _standstill_hold(d_rest, q_rest, w_rest, spec=spec,
                                        gain=float(fitted_gain), options=options)
     if hold is not None:
         msg += (f'; after a stop the drive holds {hold:.3g} N in the last direction of motion '
@@ -233,19 +265,21 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
         r2=r2, n_samples=n, n_accel=n_accel, calibrated=calibrated, cov_loss=cov_loss,
         measures=measures, rmse=rmse, unit=qty.unit, gain=float(fitted_gain),
         gain_se=se['gain'], gain_fitted=gain is None, standstill_hold_n=hold,
-        n_rest=int(d_rest.size) if hold is not None else 0, rest_rmse=rest_rmse)
+        n_rest=int(d_rest.size) if hold is not None else 0, rest_rmse=rest_rmse,
+        counterbalance_n=balance if fit_balance else None,
+        counterbalance_se=se['balance'] if fit_balance else None)
 
 
-def _standstill_hold(d: np.ndarray, q: np.ndarray, mass: np.ndarray, *, spec, gain: float,
+def _standstill_hold(d: np.ndarray, q: np.ndarray, weight: np.ndarray, *, spec, gain: float,
                      options: SampleFitOptions) -> tuple[float | None, float | None]:
     """The force held at rest after a move [N] (``>= 0``, in the last direction ``d``) and
-    the resting samples' residual RMS, from ``q·g = M_weight + h·d·r`` at rest; ``(None,
-    None)`` with fewer than ``min_samples`` such samples or no move in either direction."""
+    the resting samples' residual RMS, from ``q·g = M_weight + h·d·r`` at rest (``weight``:
+    the weight the drive carries per sample [N]); ``(None, None)`` with fewer than
+    ``min_samples`` such samples or no move in either direction."""
     if d.size < options.min_samples:
         return None, None
     eta = spec.screw.efficiency
     r = spec.screw.lead_m / (2.0 * math.pi)
-    weight = mass * GRAVITY_M_S2 * math.sin(math.radians(spec.inclination_deg))
     # holding the weight: the motor drives the nut (as the dynamics take it at rest)
     y = q * gain - r * weight / eta
     x = (d * r)[:, None]

@@ -125,7 +125,7 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
         return rotary_axis_from_value(name, d, file=file, rides_on=rides)
     allowed = ('table_mass_kg', 'rides_on', 'inclination_deg', 'screw', 'inertias', 'limits',
                'loss', 'travel_m', 'loss_calibrated', 'loss_covariance', 'drive',
-               'standstill_hold_n', 'transmission')
+               'standstill_hold_n', 'transmission', 'counterbalance_n')
     d = _mapping(d, file=file, key=key, allowed=allowed)
     direct = _choice(d, 'transmission', TRANSMISSIONS, file=file, key=key,
                      default='screw') == 'direct'
@@ -163,7 +163,19 @@ def _axis(name: Any, d: Any, *, file: str) -> AxisSpec:
                                               key=f'{key}.loss_covariance'),
         drive=drive_from_value(d.get('drive'), file=file, key=f'{key}.drive'),
         standstill_hold_n=_float(d, 'standstill_hold_n', file=file, key=key, default=0.0,
-                                 minimum=0.0, strict=False, maximum=1.0e6))
+                                 minimum=0.0, strict=False, maximum=1.0e6),
+        counterbalance_n=_counterbalance(d, file=file, key=key))
+
+
+def _counterbalance(d: dict, *, file: str, key: str) -> float:
+    value = _float(d, 'counterbalance_n', file=file, key=key, default=0.0, minimum=0.0,
+                   strict=False, maximum=1.0e7)
+    incl = d.get('inclination_deg', 0.0)
+    if value > 0.0 and isinstance(incl, (int, float)) and float(incl) == 0.0:
+        msg = ('a counterbalance acts against the weight along an inclined axis; this axis '
+               'is horizontal (inclination_deg 0)')
+        raise ConfigError(msg, file=file, key=f'{key}.counterbalance_n')
+    return value
 
 
 def _check_stacking(axes: tuple[AxisSpec, ...], *, file: str) -> None:
@@ -321,6 +333,8 @@ def machine_to_dict(machine: Machine) -> dict[str, Any]:
             axes[a.name]['travel_m'] = [float(v) for v in a.travel_m]
         if a.standstill_hold_n:
             axes[a.name]['standstill_hold_n'] = float(a.standstill_hold_n)
+        if a.counterbalance_n:
+            axes[a.name]['counterbalance_n'] = float(a.counterbalance_n)
         if a.loss_calibrated is not None:
             axes[a.name]['loss_calibrated'] = a.loss_calibrated.to_dict()
         if a.drive is not None:

@@ -15,6 +15,7 @@ from .covariance import LossCovariance
 from .losses import LossModel
 from .declared import DeclaredEffect
 from ..gcode import GcodeSettings
+from ..units import GRAVITY_M_S2
 from .limits import AxisLimits, PlannerOptions
 
 __all__ = ['ScrewSpec', 'InertiaSpec', 'LimitSpec', 'PlannerSettings', 'AxisSpec', 'Machine',
@@ -190,6 +191,11 @@ class AxisSpec:
         inertia), so the "screw torque" [N·m] equals the axis force [N] and the "screw
         speed" [rad/s] the carriage speed [m/s], and ``inertias`` are 0 (the moving part of
         the motor belongs in ``table_mass_kg``).
+    counterbalance_n
+        Weight compensation of an inclined axis [N] (counterweight, gas or hydraulic
+        cylinder): a constant force against the weight along the axis, ``>= 0``; the drive
+        carries ``m·g·sin(incl) - sgn(sin(incl))·counterbalance_n`` (:meth:`weight_force_n`).
+        0 on a horizontal axis.
     rotary
         ``None`` for a linear (ball-screw) axis. For a rotary axis (A, B, C) its
         :class:`RotarySpec`; the other fields then hold the equivalent feed axis (SI with
@@ -213,6 +219,16 @@ class AxisSpec:
     standstill_hold_n: float = 0.0
     rotary: RotarySpec | None = None
     direct: bool = False
+    counterbalance_n: float = 0.0
+
+    def weight_force_n(self, mass_kg: float) -> float:
+        """Force the drive carries against gravity along the axis [N] for a moved mass [kg].
+
+        ``m·g·sin(incl)`` less the counterbalance, which acts against the weight:
+        ``m·g·sin(incl) - sgn(sin(incl))·counterbalance_n``.
+        """
+        s = math.sin(math.radians(self.inclination_deg))
+        return mass_kg * GRAVITY_M_S2 * s - math.copysign(self.counterbalance_n, s) * (s != 0.0)
 
     @property
     def is_rotary(self) -> bool:
@@ -290,7 +306,8 @@ class Machine:
 
     def gcode_keywords(self) -> dict[str, Any]:
         """Keywords for :func:`.gcode.load_gcode` from this machine: G28 position, tool
-        table, dialect, subroutine path, ``strict_tools`` and ``allow_no_feed``.
+        table, dialect, subroutine path, ``strict_tools``, ``allow_no_feed`` and the work
+        offsets (``gcode.work_offsets_m``).
 
         ``load_gcode(path, **machine.gcode_keywords())`` runs a program on this machine.
         """
@@ -301,6 +318,8 @@ class Machine:
         rotary = self.rotary_axes
         if rotary:
             kw['rotary_axes'] = rotary
+        if g.work_offsets_m:
+            kw['work_offsets'] = dict(g.work_offsets_m)
         return kw
 
     @property

@@ -12,7 +12,7 @@ Typical use::
     result = compare_campaign(campaign, machine=machine)
 """
 from .align import align_simulated, estimate_offset, interval_average, OffsetResult, stamp_shift
-from .campaign import Campaign, ColumnSpec, RowFilter, RunSpec
+from .campaign import Campaign, ColumnSpec, RowFilter, RunSpec, TimeWindow
 from .compare import (compare_campaign, compare_one_run, DEFAULT_MAX_LAG_S, MotionCache,
                       simulate_declared)
 from .comparison import CampaignComparison, json_clean, offset_dict, RunComparison
@@ -36,5 +36,6 @@ __all__ = [
     'measured_signal', 'MeasuredRun', 'MEASURES', 'Metrics', 'MotionCache', 'offset_dict',
     'OffsetResult', 'parse_job_live', 'parse_live', 'predicted_signal', 'QUANTITIES', 'Quantity',
     'quantity_of', 'RowFilter', 'RunComparison', 'RunSpec', 'signal_metrics', 'SignalMetrics',
-    'simulate_declared', 'SOURCES', 'stamp_shift', 'table1_metrics', 'torque_per_unit',
+    'simulate_declared', 'SOURCES', 'stamp_shift', 'table1_metrics', 'TimeWindow',
+    'torque_per_unit',
 ]

@@ -7,13 +7,14 @@ work with.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 from pathlib import Path
 
 from .quantity import quantity_of
 
 __all__ = ['AXIS_QUANTITIES', 'KINEMATIC_QUANTITIES', 'FILTER_OPS', 'RECONSTRUCT', 'ROLES',
            'STAMPS',
-           'Campaign', 'ColumnSpec', 'InstrumentSpec', 'RowFilter', 'RunSpec',
+           'Campaign', 'ColumnSpec', 'InstrumentSpec', 'RowFilter', 'RunSpec', 'TimeWindow',
            'default_instrument']
 
 # manifest field -> physical quantity (a key of units.QUANTITIES)
@@ -146,6 +147,43 @@ class RowFilter:
 
 
 @dataclass(frozen=True)
+class TimeWindow:
+    """The part of a record a run takes (the manifest's ``window``), from its first sample.
+
+    Attributes
+    ----------
+    start, end
+        Where the window begins and ends, in seconds from the record's first sample (after
+        the row filter) or, with ``fraction``, as fractions of the record's duration;
+        ``end`` ``None``: to the end. A sample at ``t`` is kept when ``start <= t < end``.
+    fraction
+        ``True`` when ``start`` and ``end`` are fractions in ``[0, 1]``.
+
+    Two runs of one record, ``{end_fraction: 0.5}`` and ``{start_fraction: 0.5}``, share no
+    sample and together hold all of them: a calibration on one half and a held-out check on
+    the other.
+    """
+
+    start: float = 0.0
+    end: float | None = None
+    fraction: bool = False
+
+    def bounds_s(self, duration_s: float) -> tuple[float, float]:
+        """``(start, end)`` [s] from the first sample, for a record of ``duration_s``."""
+        if self.fraction:
+            end = 1.0 if self.end is None else self.end
+            return self.start * duration_s, (end * duration_s if end < 1.0 else math.inf)
+        return self.start, math.inf if self.end is None else self.end
+
+    def describe(self) -> str:
+        """A few words: ``'samples from 0 to 121.7 s'``, ``'the second half (0.5 to 1)'``."""
+        unit = '' if self.fraction else ' s'
+        end = 'the end' if self.end is None else f'{self.end:g}{unit}'
+        what = 'fraction of the record ' if self.fraction else ''
+        return f'{what}from {self.start:g}{unit} to {end}'
+
+
+@dataclass(frozen=True)
 class RunSpec:
     """One measured run of a campaign, with every path resolved and every unit checked.
 
@@ -187,6 +225,15 @@ class RunSpec:
         Motion from data sampled coarser than the simulation rate: ``'pulses'`` rebuilds
         it at that rate from positions, velocities and accelerations (:mod:`.motiondata`);
         ``'samples'`` takes the samples as they are.
+    window
+        The part of the record the run takes (:class:`TimeWindow`), ``None``: all of it.
+    work_offset_m
+        Declared work offset ``((axis, machine - program [m]), ...)`` of a run simulated
+        from its program whose data has positions (:mod:`.spatial`); empty: estimated.
+    motion_start_m
+        Where the machine stood when the program started, ``(X, Y, Z)`` in machine
+        coordinates [m] (``motion.start_m``; the program's first move starts there), or
+        ``None``: at the origin.
     """
 
     name: str
@@ -206,6 +253,9 @@ class RunSpec:
     key: str = ''
     instrument: InstrumentSpec = InstrumentSpec(declared=False)
     motion_reconstruct: str = 'pulses'
+    window: TimeWindow | None = None
+    work_offset_m: tuple[tuple[str, float], ...] = ()
+    motion_start_m: tuple[float, float, float] | None = None
 
     @property
     def axis_names(self) -> tuple[str, ...]:

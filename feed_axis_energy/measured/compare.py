@@ -42,6 +42,7 @@ from .motiondata import reconstruct_motion
 from .quantity import (measured_signal, omega_columns, pool_signal_metrics, predicted_signal,
                        quantity_of, sign_warnings, signal_metrics, SignalMetrics,
                        torque_per_unit)
+from .spatial import estimate_work_offset, WorkOffset
 from .states import residual_by_state, state_labels
 from .metrics import group_metrics, table1_metrics
 
@@ -56,20 +57,22 @@ class MotionCache:
 
     def __init__(self, machine: Machine):
         self.machine = machine
-        self._plans: dict[Path, Motion] = {}
+        self._plans: dict[tuple[Path, tuple[float, float, float]], Motion] = {}
 
-    def program_motion(self, path: Path) -> Motion:
-        if path not in self._plans:
-            program = load_gcode(path, **self.machine.gcode_keywords())
-            self._plans[path] = plan(program, self.machine.limits(),
-                                     options=self.machine.planner.options())
-        return self._plans[path]
+    def program_motion(self, path: Path,
+                       start: tuple[float, float, float] | None = None) -> Motion:
+        key = (path, start or (0.0, 0.0, 0.0))
+        if key not in self._plans:
+            program = load_gcode(path, start=key[1], **self.machine.gcode_keywords())
+            self._plans[key] = plan(program, self.machine.limits(),
+                                    options=self.machine.planner.options())
+        return self._plans[key]
 
 
 def simulate_declared(spec: RunSpec, run: MeasuredRun, machine: Machine,
                       cache: MotionCache) -> tuple[SimulationResult, str]:
     if spec.motion_program is not None:
-        motion = cache.program_motion(spec.motion_program)
+        motion = cache.program_motion(spec.motion_program, spec.motion_start_m)
         source = str(spec.motion_program)
     else:
         kind = spec.motion_from_data or 'commanded'
@@ -104,6 +107,10 @@ class SimTrace:
         figures (``q·g·omega``); ``None`` for power.
     vel
         Simulated velocity per motion axis [m/s], ``(m, j)`` (motion states).
+    pos
+        Simulated position per motion axis [m], ``(m, j)`` (the work offset), or ``None``.
+    motion_axes
+        The ``j`` axes of ``vel`` and ``pos``.
     source
         Where the motion came from (``RunComparison.motion_source``).
     energy_sd_pct
@@ -116,12 +123,18 @@ class SimTrace:
     vel: np.ndarray
     source: str
     energy_sd_pct: float
+    pos: np.ndarray | None = None
+    motion_axes: tuple[str, ...] = ()
 
 
 def _predicted(spec: RunSpec, sim: SimulationResult, machine: Machine,
-               gains: Sequence[float | None] | None) -> np.ndarray:
+               gains: Sequence[float | None] | None,
+               run: MeasuredRun | None = None) -> np.ndarray:
+    # a window of a longer record: the direction each axis last moved in before it
+    before = None if run is None else run.extra.get('direction_before')
     return predicted_signal(spec.instrument.measures, sim, machine, spec.measured_axes,
-                            gains=gains, manifest=spec.manifest, key=spec.key)
+                            gains=gains, manifest=spec.manifest, key=spec.key,
+                            start_direction=before)
 
 
 def _whole_trace(spec: RunSpec, run: MeasuredRun, machine: Machine, cache: MotionCache,
@@ -129,8 +142,9 @@ def _whole_trace(spec: RunSpec, run: MeasuredRun, machine: Machine, cache: Motio
     sim, source = simulate_declared(spec, run, machine, cache)
     omega = (None if quantity_of(spec.instrument.measures).is_power
              else omega_columns(sim, spec.measured_axes))
-    return SimTrace(sim.power.t, _predicted(spec, sim, machine, gains), omega, sim.motion.vel,
-                    source, relative_sd_pct(sim, spec.measured_axes))
+    return SimTrace(sim.power.t, _predicted(spec, sim, machine, gains, run), omega,
+                    sim.motion.vel, source, relative_sd_pct(sim, spec.measured_axes),
+                    pos=sim.motion.pos, motion_axes=tuple(sim.motion.axes))
 
 
 class _Growing:
@@ -170,23 +184,30 @@ def _streamed_trace(spec: RunSpec, program: Path, machine: Machine,
     t = _Growing(capacity, ())
     p = _Growing(capacity, (len(spec.measured_axes),))
     v: _Growing | None = None
+    x: _Growing | None = None
+    names: list[tuple[str, ...]] = []
 
     def keep(chunk: SimulationResult) -> None:
-        nonlocal v
+        nonlocal v, x
         t.add(chunk.power.t)
         p.add(_predicted(spec, chunk, machine, None))
-        if v is None:
+        if v is None or x is None:
             v = _Growing(capacity, chunk.motion.vel.shape[1:])
+            x = _Growing(capacity, chunk.motion.pos.shape[1:])
+            names.append(tuple(chunk.motion.axes))
         v.add(chunk.motion.vel)
+        x.add(chunk.motion.pos)
 
-    moves = iter_moves(program, **machine.gcode_keywords())
+    moves = iter_moves(program, start=spec.motion_start_m or (0.0, 0.0, 0.0),
+                       **machine.gcode_keywords())
     summary, _ = simulate_stream(moves, machine, file=str(program), load_kg=spec.load_kg,
                                  on_chunk=keep)
     if v is None:
         msg = 'the program has no motion to simulate'
         raise DataError(msg, file=str(program))
     return SimTrace(t.array(), p.array(), None, v.array(), str(program),
-                    _summary_sd_pct(summary, spec.measured_axes))
+                    _summary_sd_pct(summary, spec.measured_axes),
+                    pos=None if x is None else x.array(), motion_axes=names[0])
 
 
 def _summary_sd_pct(summary: dict[str, Any], axes: Sequence[str]) -> float:
@@ -276,6 +297,7 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
     # the trace's arrays as names, each let go as soon as it is used up (long runs)
     t_sim, sim_q, omega_sim, vel = sim.t, sim.signal, sim.omega, sim.vel
     source, sim_duration, energy_sd = sim.source, float(t_sim[-1] - t_sim[0]), sim.energy_sd_pct
+    sim_pos, motion_axes = sim.pos, sim.motion_axes
     del sim
     meas_q = measured_signal(run, measures=qty.name, axes=axes, invert=spec.instrument.invert)
     meter = (spec.instrument if spec.instrument.declared
@@ -317,6 +339,8 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')
     labels = state_labels(t_sim, vel, run.t, period_s=period, offset_s=used)
     del vel
+    work = _work_offset(spec, run, t_sim, sim_pos, motion_axes, used)
+    del sim_pos
     try:
         fits: tuple[MeterFit, ...] = ()
         if qty.is_power and check_meter and offset_s is None and found.status != 'weak':
@@ -375,7 +399,26 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         sign_warnings=(() if qty.is_power else
                        tuple(sign_warnings(signal, quantity=qty,
                                            invert=spec.instrument.invert))),
+        work_offset=work,
     )
+
+
+def _work_offset(spec: RunSpec, run: MeasuredRun, t_sim: np.ndarray, pos: np.ndarray | None,
+                 motion_axes: Sequence[str], offset_s: float) -> WorkOffset | None:
+    """The work offset of a run simulated from its program whose data has positions
+    (machine coordinates) of axes the motion has (:mod:`.spatial`), else ``None``."""
+    if spec.motion_program is None or pos is None:
+        return None
+    measured = run.position_m if run.position_m is not None else run.command_position_m
+    if measured is None:
+        return None
+    axes = [a for a in run.axes if a in motion_axes]
+    if not axes:
+        return None
+    meas = np.column_stack([measured[:, run.axes.index(a)] for a in axes])
+    sim = np.column_stack([pos[:, list(motion_axes).index(a)] for a in axes])
+    return estimate_work_offset(run.t, meas, t_sim, sim, axes=axes, offset_s=offset_s,
+                                declared=dict(spec.work_offset_m) or None)
 
 
 def _total(power_w: np.ndarray) -> np.ndarray:

@@ -11,6 +11,7 @@ from .align import OffsetResult
 from .instrument import instrument_verdict, MeterFit
 from .metrics import Metrics
 from .quantity import quantity_of, SignalMetrics
+from .spatial import WorkOffset
 from .states import pool_states, StateResidual
 
 __all__ = ['CampaignComparison', 'GroupComparison', 'RunComparison', 'TOTAL', 'json_clean',
@@ -116,6 +117,10 @@ class RunComparison:
         ``None``.
     sign_warnings
         Axes whose trace is anti-correlated with its prediction (the wrong sign).
+    work_offset
+        A run simulated from its program whose data has positions: the translation from the
+        simulated (program) to the measured (machine) positions at the time offset used
+        (:mod:`.spatial`), else ``None``.
     """
 
     name: str
@@ -145,6 +150,7 @@ class RunComparison:
     signal_metrics: dict[str, SignalMetrics] = field(default_factory=dict)
     torque_per_unit: dict[str, float] | None = None
     sign_warnings: tuple[str, ...] = ()
+    work_offset: WorkOffset | None = None
 
     def quantity_dict(self) -> dict[str, Any]:
         """The ``quantity`` block of :meth:`to_dict` (docs/compare.md, "Measured quantity")."""
@@ -207,6 +213,7 @@ class RunComparison:
             'instrument_check': [f.to_dict() for f in self.meter_fits],
             'residual_by_state': [st.to_dict() for st in self.states],
             'offset': offset_dict(self.offset, used_s=self.offset_used_s),
+            'work_offset': None if self.work_offset is None else self.work_offset.to_dict(),
             'metrics': metrics,
             'quantity': self.quantity_dict(),
         } | spread)

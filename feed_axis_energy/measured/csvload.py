@@ -26,7 +26,7 @@ from ..errors import DataError, shorten
 from ..units import check_si_values, to_si
 from .campaign import AXIS_QUANTITIES, KINEMATIC_QUANTITIES, ColumnSpec, RowFilter, RunSpec
 from .bagload import load_run_from_bag
-from .run import check_duration, check_gaps, MeasuredRun
+from .run import check_duration, check_gaps, MeasuredRun, take_window
 
 __all__ = ['load_run']
 
@@ -44,7 +44,8 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
     """Load a manifest run: the one entry for CSV and bag runs.
 
     A CSV file is read here (rows filtered, values checked and converted to SI); a
-    measured-run bag directory goes to :func:`.bagload.load_run_from_bag`.
+    measured-run bag directory goes to :func:`.bagload.load_run_from_bag`. A run with a
+    ``window`` keeps the samples inside it (:func:`.run.take_window`), its time from 0.
 
     Parameters
     ----------
@@ -65,11 +66,18 @@ def load_run(spec: RunSpec, *, min_duration_s: float | None = None) -> MeasuredR
         name), non-numeric, empty, NaN or infinite cell, duplicate or decreasing time, a gap
         longer than :data:`.run.GAP_FACTOR` median periods (unless ``spec.allow_gaps``), an
         empty file or one with a header only, or a run shorter than ``min_duration_s``. A bag
-        run: as :func:`.bagload.load_run_from_bag` (also a :class:`ConfigError`).
+        run: as :func:`.bagload.load_run_from_bag` (also a :class:`ConfigError`). A window
+        with fewer than 2 samples.
     """
-    file = str(spec.data)
     if spec.data_kind != 'csv':
-        return load_run_from_bag(spec, min_duration_s=min_duration_s)
+        run = load_run_from_bag(spec, min_duration_s=min_duration_s)
+    else:
+        run = _load_csv(spec, min_duration_s)
+    return take_window(run, spec.window, key=f'{spec.key}.window' if spec.key else 'window')
+
+
+def _load_csv(spec: RunSpec, min_duration_s: float | None) -> MeasuredRun:
+    file = str(spec.data)
     blocks = iter_csv_blocks(spec.data)
     first = next(blocks)
     index = _column_index(first[0], spec, file)

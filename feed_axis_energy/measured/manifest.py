@@ -19,6 +19,17 @@ A manifest is YAML::
         instrument: {window_s: period, stamp: end}   # optional; or: instrument: point
     split: {calibrate: [exp01], validate: [exp03]}   # optional, instead of per-run roles
 
+A run may take part of its record: ``window: {start_s: 0, end_s: 120}`` (seconds from the
+record's first sample, after the row filter) or ``window: {start_fraction: 0.5}`` (fractions
+of the record's duration; a missing end is the end of the record). A sample at ``t`` is kept
+when ``start <= t < end``, so two runs of one file with ``end_fraction: 0.5`` and
+``start_fraction: 0.5`` split it into halves without a shared sample: one to calibrate, one
+to validate (:class:`.campaign.TimeWindow`). A run simulated from its program whose data has
+positions may declare the work offset between them, ``work_offset_m: {X: -0.0378, Y: 0.26931,
+Z: 0.38333}`` (machine - program [m]); without it ``compare`` estimates it (:mod:`.spatial`).
+``motion.start_m: {X: .., Y: .., Z: ..}`` (machine coordinates [m]) is where the machine stood
+when the program started (a drive trace's first position); default the origin.
+
 Per axis the quantities ``power``, ``position``, ``velocity``, ``acceleration``,
 ``command_position``, ``command_velocity``, ``command_acceleration``, ``current``,
 ``voltage``, ``torque`` and ``force`` map to ``{column, unit}``. Kinematic quantities are
@@ -57,7 +68,8 @@ from ..errors import ConfigError, describe, shorten
 from ..safeyaml import load_yaml_file
 from ..units import si_unit_of
 from .campaign import (AXIS_QUANTITIES, Campaign, ColumnSpec, FILTER_OPS, InstrumentSpec,
-                       KINEMATIC_QUANTITIES, RECONSTRUCT, ROLES, RowFilter, RunSpec, STAMPS)
+                       KINEMATIC_QUANTITIES, RECONSTRUCT, ROLES, RowFilter, RunSpec, STAMPS,
+                       TimeWindow)
 from .quantity import MEASURES, quantity_of
 
 __all__ = ['campaign_from_dict', 'load_campaign']
@@ -65,9 +77,10 @@ __all__ = ['campaign_from_dict', 'load_campaign']
 _TOP_KEYS = ('name', 'description', 'machine', 'defaults', 'runs', 'split')
 _RUN_KEYS = (
     'name', 'notes', 'load_kg', 'motion', 'data', 'period_s', 'time', 'axes', 'rows', 'role',
-    'min_duration_s', 'allow_gaps', 'instrument',
+    'min_duration_s', 'allow_gaps', 'instrument', 'window', 'work_offset_m',
 )
-_DEFAULT_KEYS = tuple(k for k in _RUN_KEYS if k not in ('name', 'data', 'notes'))
+_DEFAULT_KEYS = tuple(k for k in _RUN_KEYS if k not in ('name', 'data', 'notes', 'window'))
+_WINDOW_KEYS = ('start_s', 'end_s', 'start_fraction', 'end_fraction')
 
 
 def load_campaign(path: str | Path, *, check_files: bool = True) -> Campaign:
@@ -283,9 +296,11 @@ class _Ctx:
         return out
 
     def motion(self, value: Any, key: str) -> tuple[Path | None, str | None, str]:
-        m = dict(self.mapping(value, key, ('program', 'from_data', 'reconstruct')))
+        m = dict(self.mapping(value, key, ('program', 'from_data', 'reconstruct', 'start_m')))
         given = 'reconstruct' in m
         rebuild = m.pop('reconstruct', 'pulses')
+        if m.pop('start_m', None) is not None and 'program' not in m:
+            self.fail(f'{key}.start_m', 'only for motion from a program')
         if len(m) != 1:
             self.fail(key, 'expected exactly one of program, from_data')
         if rebuild not in RECONSTRUCT:
@@ -349,6 +364,31 @@ class _Ctx:
         return InstrumentSpec(window_s=None if window == 'period' else window, stamp=stamp,
                               measures=measures, kt_nm_a=tuple(kt), invert=tuple(invert))
 
+    def window(self, value: Any, key: str) -> TimeWindow:
+        w = self.mapping(value, key, _WINDOW_KEYS)
+        seconds = [k for k in ('start_s', 'end_s') if k in w]
+        fractions = [k for k in ('start_fraction', 'end_fraction') if k in w]
+        if not w:
+            self.fail(key, 'expected start_s and/or end_s, or start_fraction and/or '
+                      'end_fraction')
+        if seconds and fractions:
+            self.fail(f'{key}.{fractions[0]}', 'give the window in seconds (start_s, end_s) '
+                      'or as fractions of the record (start_fraction, end_fraction), not both')
+        frac = bool(fractions)
+        names = ('start_fraction', 'end_fraction') if frac else ('start_s', 'end_s')
+        start = self.number(w.get(names[0], 0.0), f'{key}.{names[0]}', minimum=0.0)
+        end = None
+        if w.get(names[1]) is not None:
+            end = self.number(w[names[1]], f'{key}.{names[1]}', positive=True)
+            if end <= start:
+                self.fail(f'{key}.{names[1]}', f'the window ends ({end:g}) where or before it '
+                          f'starts ({start:g})')
+        if frac and (start >= 1.0 or (end is not None and end > 1.0)):
+            bad = names[0] if start >= 1.0 else names[1]
+            self.fail(f'{key}.{bad}', 'a fraction of the record lies in [0, 1] (the start '
+                      'below 1)')
+        return TimeWindow(start=start, end=end, fraction=frac)
+
     def check_run_fields(self, d: dict, key: str, *, partial: bool) -> dict[str, Any]:
         """Check the typed fields present in ``d``; return their converted values."""
         out: dict[str, Any] = {}
@@ -378,6 +418,12 @@ class _Ctx:
             out['allow_gaps'] = d['allow_gaps']
         if d.get('instrument') is not None:
             out['instrument'] = self.instrument(d['instrument'], f'{key}.instrument')
+        if d.get('window') is not None:
+            out['window'] = self.window(d['window'], f'{key}.window')
+        if d.get('work_offset_m') is not None:
+            given = self.mapping(d['work_offset_m'], f'{key}.work_offset_m', ('X', 'Y', 'Z'))
+            out['work_offset_m'] = tuple(
+                (a, self.number(v, f'{key}.work_offset_m.{a}')) for a, v in given.items())
         if not partial and 'time' in out and 'period_s' in out:
             self.fail(f'{key}.time', 'give either time or period_s, not both')
         return out
@@ -414,6 +460,12 @@ class _Ctx:
                           f'{q} is given for {", ".join(having)} but not for {missing}; '
                           'give it for every axis or none')
         program, from_data, rebuild = f['motion']
+        start = None
+        raw_start = (merged.get('motion') or {}).get('start_m')
+        if raw_start is not None:
+            given = self.mapping(raw_start, f'{key}.motion.start_m', ('X', 'Y', 'Z'))
+            values = {a: self.number(v, f'{key}.motion.start_m.{a}') for a, v in given.items()}
+            start = (values.get('X', 0.0), values.get('Y', 0.0), values.get('Z', 0.0))
         if from_data is not None:
             need = 'command_position' if from_data == 'commanded' else 'position'
             lacking = [a for a, cols in axes.items() if need not in cols]
@@ -430,7 +482,8 @@ class _Ctx:
             role=f.get('role'), min_duration_s=f.get('min_duration_s', 0.0),
             allow_gaps=f.get('allow_gaps', False), manifest=str(self.file), key=key,
             instrument=f.get('instrument', InstrumentSpec(declared=False)),
-            motion_reconstruct=rebuild,
+            motion_reconstruct=rebuild, window=f.get('window'),
+            work_offset_m=f.get('work_offset_m', ()), motion_start_m=start,
         )
 
     def apply_split(self, value: Any, runs: list[RunSpec]) -> list[RunSpec]:

@@ -31,7 +31,10 @@ rest) is part of ``M``: the prediction is not zero at standstill. Declared effec
 catalog gives as powers, enter the prediction as ``P_effect/omega`` while the axis moves and
 not at all at rest. At rest the prediction adds the force the drive keeps holding after a stop,
 in the last direction of motion (``axes.<A>.standstill_hold_n``,
-:mod:`feed_axis_energy.physics.standstill`), which ``fit-loss --method samples`` fits.
+:mod:`feed_axis_energy.physics.standstill`), which ``fit-loss --method samples`` fits; on such
+an axis the held force replaces the kinetic friction at rest (``|v| <= REST_SPEED_M_S``:
+static friction holds it; ``F_c·sgn(v)`` of a measured velocity's noise would jump by
+``2·F_c`` from sample to sample; on the KIT DMC 60H air cut it was most of the residual).
 """
 from __future__ import annotations
 
@@ -43,7 +46,7 @@ from typing import Any, TYPE_CHECKING
 import numpy as np
 
 from ..errors import ConfigError, DataError
-from ..physics import holding_force
+from ..physics import AxisDynamics, holding_force, HoldState, REST_SPEED_M_S
 
 if TYPE_CHECKING:       # types only: the manifest reader imports this module, not the simulation
     from ..machine import Machine
@@ -237,6 +240,19 @@ def _effects_torque(sim: SimulationResult, j: int) -> np.ndarray | None:
     return out
 
 
+def _loss_torque(dyn: AxisDynamics, j: int) -> np.ndarray:
+    """The part of axis ``j``'s screw torque that overcomes its loss force [N·m], ``(n,)``.
+
+    The screw efficiency as in the dynamics: ``F·r/eta`` where the motor drives the nut
+    (``F·v >= 0`` for the total force), ``F·r·eta`` where it is driven back.
+    """
+    r = float(dyn.lead_m[j]) / (2.0 * math.pi)
+    eta = float(dyn.efficiency[j])
+    loss = dyn.loss_force_n[:, j]
+    drives = dyn.force_n[:, j] * dyn.velocity_m_s[:, j] >= 0.0
+    return np.where(drives, loss * r / eta, loss * r * eta)
+
+
 def _power_columns(measures: str, sim: SimulationResult, machine: Machine,
                    axes: Sequence[str], *, manifest: str, key: str) -> np.ndarray:
     p = sim.power
@@ -263,7 +279,8 @@ def _power_columns(measures: str, sim: SimulationResult, machine: Machine,
 
 def predicted_signal(measures: str, sim: SimulationResult, machine: Machine,
                      axes: Sequence[str], *, gains: Sequence[float | None] | None = None,
-                     manifest: str = '<manifest>', key: str = '') -> np.ndarray:
+                     manifest: str = '<manifest>', key: str = '',
+                     start_direction: Mapping[str, float] | None = None) -> np.ndarray:
     """The simulated trace of ``axes`` in the quantity's SI unit, ``(m, k)`` on ``sim``'s times.
 
     Parameters
@@ -281,6 +298,11 @@ def predicted_signal(measures: str, sim: SimulationResult, machine: Machine,
         not allowed here).
     manifest, key
         Name the manifest and the run in errors.
+    start_direction
+        Axis -> the direction (-1, 0, +1) it last moved in before the first sample (a window
+        of a longer record, ``extra['direction_before']`` of a measured run): what the drive
+        holds at rest until the axis moves (:mod:`feed_axis_energy.physics.standstill`);
+        default 0 (nothing held before the first move).
 
     Raises
     ------
@@ -311,8 +333,13 @@ def predicted_signal(measures: str, sim: SimulationResult, machine: Machine,
             torque += extra
         hold = machine.axis(axis).standstill_hold_n
         if hold > 0.0:
-            # the force the drive keeps after a stop (physics/standstill.py), at the screw
-            torque += (holding_force(dyn.velocity_m_s[:, j], hold)[:, 0]
+            # at rest friction is static: the drive holds the force it kept after the stop
+            # (physics/standstill.py) instead of the kinetic F_c·sgn(v) of a velocity's noise
+            rest = np.abs(dyn.velocity_m_s[:, j]) <= REST_SPEED_M_S
+            torque[rest] -= _loss_torque(dyn, j)[rest]
+            before = (start_direction or {}).get(axis, 0.0)
+            state = HoldState(direction=np.array([before], dtype=float))
+            torque += (holding_force(dyn.velocity_m_s[:, j], hold, state=state)[:, 0]
                        * float(dyn.lead_m[j]) / (2.0 * math.pi))
         cols.append(torque / float(g))       # type: ignore[arg-type]  # checked above
     return np.column_stack(cols) if cols else np.zeros((m, 0))

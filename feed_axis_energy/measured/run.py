@@ -2,15 +2,16 @@
 :mod:`.bagload`), and the checks both apply."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from ..errors import DataError, shorten
-from .campaign import RunSpec
+from ..physics import last_direction
+from .campaign import RunSpec, TimeWindow
 
-__all__ = ['GAP_FACTOR', 'MeasuredRun', 'check_duration', 'check_gaps']
+__all__ = ['GAP_FACTOR', 'MeasuredRun', 'check_duration', 'check_gaps', 'take_window']
 
 GAP_FACTOR = 1.5
 """A time step longer than this many median periods is a gap."""
@@ -136,3 +137,56 @@ def check_gaps(t: np.ndarray, spec: RunSpec, *, file: str, column: str,
                f'median period {median:.6g} s (set allow_gaps: true to accept it)')
         raise DataError(msg, file=file, column=column,
                         row=i + 1 if rows is None else int(rows[i]))
+
+
+_PER_SAMPLE = ('position_m', 'velocity_m_s', 'acceleration_m_s2', 'command_position_m',
+               'command_velocity_m_s', 'command_acceleration_m_s2')
+
+
+def take_window(run: MeasuredRun, window: TimeWindow | None, *,
+                key: str = 'window') -> MeasuredRun:
+    """The samples of ``run`` inside ``window`` (all of it for ``None``), time from 0 again.
+
+    ``extra['t0_s']`` moves by the window's start, ``extra['rows']`` keeps the file rows of
+    the samples kept, ``extra['window_s']`` records ``(start, end)`` [s] from the record's
+    first sample and ``extra['direction_before']`` (axis -> -1, 0, +1) the direction each axis
+    last moved in before the window (from the measured velocity); every per-sample array
+    (kinematics, power, current, voltage, torque, force) is cut alike.
+
+    Raises
+    ------
+    DataError
+        Fewer than 2 samples in the window (naming the window, the record's duration and
+        ``key``, the manifest key).
+    """
+    if window is None:
+        return run
+    duration = float(run.t[-1] - run.t[0])
+    start, end = window.bounds_s(duration)
+    rel = run.t - run.t[0]
+    keep = (rel >= start) & (rel < end)
+    if int(keep.sum()) < 2:
+        msg = (f'{key}: the window {window.describe()} holds {int(keep.sum())} sample(s) of '
+               f'a record of {duration:.6g} s; it needs at least 2')
+        raise DataError(msg, file=run.file)
+    idx = np.flatnonzero(keep)
+    t = run.t[idx]
+    shift = float(t[0])
+    extra = dict(run.extra)
+    for name in ('current_a', 'voltage_v', 'torque_nm', 'force_n'):
+        if name in extra:
+            extra[name] = {a: np.asarray(v)[idx] for a, v in extra[name].items()}
+    if extra.get('rows') is not None:
+        extra['rows'] = np.asarray(extra['rows'])[idx]
+    extra['t0_s'] = float(extra.get('t0_s', 0.0)) + shift
+    extra['window_s'] = (shift, float(t[-1]))
+    for source in (run.velocity_m_s, run.command_velocity_m_s):
+        if source is not None and idx[0] > 0:
+            # the direction each axis last moved in before the window: what a drive holds at
+            # rest depends on it (physics/standstill.py), and the window cut it off
+            before = last_direction(source[:idx[0]])[-1]
+            extra['direction_before'] = dict(zip(run.axes, (float(d) for d in before)))
+            break
+    arrays = {name: getattr(run, name)[idx] for name in _PER_SAMPLE
+              if getattr(run, name) is not None}
+    return replace(run, t=t - shift, power_w=run.power_w[idx], extra=extra, **arrays)

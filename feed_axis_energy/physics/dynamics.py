@@ -6,8 +6,9 @@ For every axis ``k`` (columns of the ``(n, k)`` arrays in ``motion.axes`` order)
   rotary inertia ``J_k`` = motor + coupling + screw;
 * screw speed ``omega = 2·pi·v/lead`` and acceleration ``alpha = 2·pi·a/lead``;
 * force the nut must push the carriage with,
-  ``F = m·a + m·g·sin(incl) + F_loss(v)``, where ``F_loss = -loss.force_n(v)`` has the sign
-  of ``v`` (the drive overcomes the resistance) and the guideway normal force handed to the
+  ``F = m·a + m·g·sin(incl) + F_loss(v)`` (less a declared counterbalance, which acts
+  against the weight), where ``F_loss = -loss.force_n(v)`` has the sign of ``v`` (the drive
+  overcomes the resistance) and the guideway normal force handed to the
   loss model is ``m·g·|cos(incl)|``;
 * screw (= motor, direct drive) torque ``M = J·alpha + M_F`` with
   ``M_F = F·lead/(2·pi·eta)`` when the motor drives the load (``F·v >= 0``) and
@@ -139,6 +140,10 @@ def compute_dynamics(motion: Motion, machine: Machine, *, load_kg: float = 0.0) 
 
     gravity = np.empty_like(vel)       # keeps the layout of vel (column-major from the planner)
     gravity[...] = mass * GRAVITY_M_S2 * np.sin(incl)
+    balance = np.array([s.counterbalance_n for s in specs], dtype=float)
+    if balance.any():
+        # a weight compensation acts against the weight (AxisSpec.weight_force_n)
+        gravity -= balance * np.sign(np.sin(incl))
     normal = mass * GRAVITY_M_S2 * np.abs(np.cos(incl))
     loss = np.empty_like(vel)
     for j, spec in enumerate(specs):

@@ -51,7 +51,11 @@ def test_json_keys_and_values(manifest, capsys):
     assert set(run_b) == {'name', 'role', 'load_kg', 'data_file', 'motion_source', 'axes',
                           'window_s', 'duration_meas_s', 'duration_sim_s', 'excluded_rows',
                           'stamp', 'instrument', 'instrument_check', 'residual_by_state',
-                          'offset', 'metrics', 'quantity'}
+                          'offset', 'work_offset', 'metrics', 'quantity'}
+    # positions written from the program's own simulation: no work offset between them
+    w = run_b['work_offset']
+    assert w['status'] == 'ok' and w['declared_m'] is None
+    assert all(abs(v) < 1e-6 for v in w['found_m'].values())
     # a power run: the quantity block in W, its RMSE the same as the Table-1 one
     q = run_b['quantity']
     assert set(q) == {'measures', 'unit', 'column', 'metrics', 'sign_check'}

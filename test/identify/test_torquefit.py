@@ -106,8 +106,12 @@ def write_fit_campaign(tmp_path: Path, *, measures: str = 'current', noise: floa
         torque = dyn.torque_nm[:, j]
         if hold:
             lead = truth.axis(axis).screw.lead_m
-            torque = torque + _held_force(dyn.velocity_m_s[:, j], hold[axis]) * lead / (
+            held = _held_force(dyn.velocity_m_s[:, j], hold[axis], rest_speed=1.0e-4)
+            # at rest friction is static: the held force acts, not the kinetic F_c·sgn(v)
+            # (eta = 1 in the truth: the loss torque is F_loss·lead/(2·pi))
+            torque = torque - np.where(held != 0.0, dyn.loss_force_n[:, j], 0.0) * lead / (
                 2.0 * math.pi)
+            torque = torque + held * lead / (2.0 * math.pi)
         q = torque / gain + rng.normal(0.0, noise, dyn.t.size)
         header += [f'{axis}_pos', f'{axis}_vel', f'{axis}_acc', f'{axis}_q']
         cols += [dyn.position_m[:, j], dyn.velocity_m_s[:, j], dyn.acceleration_m_s2[:, j],
@@ -210,11 +214,12 @@ def test_fit_loss_steady_refuses_a_drive_trace(tmp_path, capsys):
     assert '--method samples' in capsys.readouterr().err
 
 
-def test_analyze_refuses_a_drive_trace_by_name(tmp_path, capsys):
-    manifest, _ = write_fit_campaign(tmp_path)
+def test_analyze_refuses_a_torque_trace_by_name(tmp_path, capsys):
+    # current traces are analysed (test_analyze_current.py); torque and force not yet
+    manifest, _ = write_fit_campaign(tmp_path, measures='torque', noise=0.002)
     assert main(['analyze', str(manifest), '--quiet']) == 1
     err = capsys.readouterr().err
-    assert 'runs[0].instrument.measures' in err and 'power traces only' in err
+    assert 'runs[0].instrument.measures' in err and 'power and current traces' in err
     assert 'Traceback' not in err
 
 

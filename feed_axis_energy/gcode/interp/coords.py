@@ -174,6 +174,9 @@ class Coords(ToolTable, ParamReadback):
         A tool the table lacks is an error at the word that names it (LinuxCNC with its
         own table); otherwise it has length and radius 0 and ``on_missing_tool`` (if set)
         is called with its number.
+    work_offsets_m
+        Stored origins of coordinate systems by name (``'G54'``..``'G59.3'``) [m], written
+        to their parameters #5221.. before the first line; the others stay 0.
     """
 
     __slots__ = ('params', 'tools', 'system', 'g5x', 'g92', 'tlo', 'offset', 'rotation_deg',
@@ -182,7 +185,8 @@ class Coords(ToolTable, ParamReadback):
 
     def __init__(self, *, tools: Mapping[int, object] | None = None,
                  home_m: Vec3 | None = None, params: ParamStore | None = None,
-                 strict_tools: bool = False):
+                 strict_tools: bool = False,
+                 work_offsets_m: Mapping[str, Vec3] | None = None):
         self.params = ParamTable() if params is None else params
         self.tools: dict[int, ToolSpec] = {int(t): tool_spec(e)
                                            for t, e in (tools or {}).items()}
@@ -202,6 +206,11 @@ class Coords(ToolTable, ParamReadback):
         if home_m is not None:
             for i in range(3):
                 self.params.set(G28_PARAM + i, home_m[i] * _MM)
+        for name, origin in (work_offsets_m or {}).items():
+            # the control's stored origins of G54..G59 (LinuxCNC's var file)
+            system = SYSTEM_NAMES.index(name) + 1
+            for i in range(3):
+                self.params.set(system_param(system, i), origin[i] * _MM)
         self.params.set(SYSTEM_PARAM, 1.0)
         self._load_system(1)
 

@@ -96,7 +96,8 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
                  tools: Mapping[int, object] | None = None, dialect: Dialect | None = None,
                  params: ParamStore | None = None, ignore_axes: Iterable[str] = (),
                  strict_tools: bool = False, allow_no_feed: bool = False,
-                 rotary_axes: Iterable[str] = ()):
+                 rotary_axes: Iterable[str] = (),
+                 work_offsets: Mapping[str, tuple[float, float, float]] | None = None):
         self.file = file
         self.arc_tol = None if arc_tolerance_m is None else float(arc_tolerance_m)
         # radius differences below this pass every arc check (motion)
@@ -123,7 +124,7 @@ class Interpreter(MotionMixin, SplineMixin, CompMixin, ModesMixin, CoordsMixin):
         self.g43_lineno = -1                # line of the last G43 (its H word is legal there)
         self.home = None if home is None else cast('Vec3', tuple(float(v) for v in home))
         self.coords = Coords(tools=tools, home_m=self.home, params=params,
-                             strict_tools=strict_tools)
+                             strict_tools=strict_tools, work_offsets_m=work_offsets)
         self.coords.on_missing_tool = self.missing_tool
         self.allow_no_feed = bool(allow_no_feed)
         self.frame = self.coords.offset     # machine - program for absolute axis words

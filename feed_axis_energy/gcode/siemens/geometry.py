@@ -81,6 +81,7 @@ class Geometry:
         self.feed: float | None = None      # mm/min as handed on
         self.comp = 40
         self.offsets: dict[int, Vec3] = {}  # settable work offsets given [mm]
+        self.rotary: frozenset[str] = frozenset()   # the machine's rotary axis letters
 
     # -- PROC ... SAVE ---------------------------------------------------------------------
     def snapshot(self) -> tuple[object, ...]:
@@ -281,6 +282,9 @@ class Geometry:
             return [extra] if extra else []
         moved = self._motion(geo, s, suppress)
         if moved is None:
+            if self.motion in (0, 1) and any(name in self.rotary for name, _ in extra):
+                # a rotary axis of the machine alone (G1 B0): it moves in the modal G0/G1
+                return [[('G', float(self.motion))] + extra]
             return [extra] if extra else []
         return [moved + extra]
 

@@ -37,7 +37,7 @@ programs use it):
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from os import PathLike
 from pathlib import Path
 import re
@@ -154,10 +154,11 @@ class _Level:
 def read_siemens_blocks(text: str, *, file: str = '<string>',
                         search_path: tuple[str | PathLike[str], ...] = (),
                         program_dir: str | PathLike[str] | None = None,
-                        start_mm: Vec3 = (0.0, 0.0, 0.0)) -> 'SiemensReader':
+                        start_mm: Vec3 = (0.0, 0.0, 0.0),
+                        offsets_mm: Mapping[int, Vec3] | None = None) -> 'SiemensReader':
     """The executed blocks of a Sinumerik program (see :class:`SiemensReader`)."""
     return SiemensReader(text, file=file, search_path=search_path, program_dir=program_dir,
-                         start_mm=start_mm)
+                         start_mm=start_mm, offsets_mm=offsets_mm)
 
 
 class SiemensReader:
@@ -175,6 +176,10 @@ class SiemensReader:
         The main program's directory (default: that of ``file`` if it exists).
     start_mm
         Tool position [mm] in machine coordinates before the first block.
+    offsets_mm
+        Values of the settable work offsets by number (``57`` for ``G57``) [mm]: the
+        control's data (a machine's ``gcode.work_offsets_m``); one not given is 0, with a
+        warning when the program selects it.
 
     Attributes
     ----------
@@ -191,7 +196,8 @@ class SiemensReader:
     def __init__(self, text: str, *, file: str = '<string>',
                  search_path: tuple[str | PathLike[str], ...] = (),
                  program_dir: str | PathLike[str] | None = None,
-                 start_mm: Vec3 = (0.0, 0.0, 0.0)):
+                 start_mm: Vec3 = (0.0, 0.0, 0.0),
+                 offsets_mm: Mapping[int, Vec3] | None = None):
         self.warnings: list[str] = []
         self.on_error: Callable[[GcodeError], None] | None = None
         self.main = SiemensFile(file, text)
@@ -204,6 +210,7 @@ class SiemensReader:
         self.frames: list[_Level] = [_Level(self.main, 0, kind='main')]
         self.rparams: dict[str, float] = {}
         self.geo = Geometry(start_mm, self._warn_once)
+        self.geo.offsets.update(offsets_mm or {})
         self.mcall: tuple[str, list[Any], int] | None = None
         self.executed = 0
         self._warned: set[str] = set()

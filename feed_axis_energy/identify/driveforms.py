@@ -1,0 +1,69 @@
+"""The catalog's effects as motor current: what ``analyze`` selects on a current trace.
+
+The catalog (:mod:`feed_axis_energy.effects`) gives every effect as the power ``P`` it adds to
+an axis. On a current trace the residual ``I_meas - I_sim`` [A] is fitted instead of a power,
+with each candidate in its *force form*: the force along the axis ``F = P / v`` while the axis
+moves, turned into current as the dynamics turn a force into motor torque,
+``I = F · (lead / 2·pi) / kt`` (screw efficiency 1: the candidates are small corrections).
+At rest an effect's force is what it holds there: the weight of an undeclared inclination
+(``gravity``: ``m·g·sin(theta)``, the holding current a vertical axis shows at every stop,
+which a power trace cannot see since ``omega = 0``), nothing for the frictions (static
+friction takes any value up to the breakaway force; the declared model's standstill hold is
+:mod:`feed_axis_energy.physics.standstill`).
+
+Effects whose power is not a force along the axis have no current form and are not
+candidates on a current trace: a drive's standby draw, the motor's copper and iron losses
+(heat, or a current the torque-producing component does not carry), the braking rule, and
+a residual time offset (an artefact of alignment, its basis a power derivative).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..effects import EffectState
+from ..physics import REST_SPEED_M_S
+from ..units import GRAVITY_M_S2
+
+__all__ = ['NO_CURRENT_FORM', 'current_basis', 'has_current_form']
+
+NO_CURRENT_FORM = ('standby', 'copper', 'iron', 'braking_loss', 'time_offset')
+"""Effects that are not a force along the axis (see the module docstring)."""
+
+
+def has_current_form(effect_id: str) -> bool:
+    """Whether ``effect_id`` is a candidate on a current trace."""
+    return effect_id not in NO_CURRENT_FORM
+
+
+def current_basis(effect_id: str, basis_w: np.ndarray, state: EffectState, j: int,
+                  kt_nm_a: float) -> np.ndarray:
+    """The basis of an effect on simulated axis ``j`` as current [A per unit], ``(n, p)``.
+
+    Parameters
+    ----------
+    effect_id
+        The effect (one with a current form, :func:`has_current_form`).
+    basis_w
+        Its power basis on axis ``j`` [W per unit], ``(n, p)`` (``Effect.basis``).
+    state
+        The state it was computed from (velocity, moved mass, lead).
+    j
+        Column of the axis in ``state``.
+    kt_nm_a
+        The axis's torque constant [N·m/A].
+
+    Returns
+    -------
+    numpy.ndarray
+        ``basis_w / v`` while moving, the held force at rest, times ``lead/(2·pi)/kt``.
+    """
+    v = state.velocity_m_s[:, j]
+    moving = np.abs(v) > REST_SPEED_M_S
+    force = np.zeros_like(basis_w)
+    force[moving] = basis_w[moving] / v[moving, None]
+    if effect_id == 'gravity':
+        # the weight is there whether the axis moves or not: m·g per unit of sin(theta)
+        force[~moving] = float(state.mass_kg[j]) * GRAVITY_M_S2
+    return force * (float(state.lead_m[j]) / (2.0 * math.pi) / kt_nm_a)
