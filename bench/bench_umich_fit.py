@@ -23,9 +23,9 @@ from __future__ import annotations
 from dataclasses import replace
 import time
 
-from feed_axis_energy.identify.lossfit import fit_loss, machine_with_losses
-from feed_axis_energy.identify.steady import SteadyOptions
-from feed_axis_energy.identify.samplefit import fit_loss_samples, machine_with_sample_fits
+from feed_axis_energy.identify.fit.lossfit import fit_loss, machine_with_losses
+from feed_axis_energy.identify.fit.steady import SteadyOptions
+from feed_axis_energy.identify.fit.samplefit import fit_loss_samples, machine_with_sample_fits
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.machine.spec import Machine
 from feed_axis_energy.measured.csvload import load_run

@@ -210,7 +210,7 @@ def recovery(fit, truth: StandTruth) -> dict[str, tuple[float, float]]:
 
 def fit_campaign(manifest: Path):
     """``fit_drive_friction`` on the calibration runs (as ``fit-loss`` runs it)."""
-    from feed_axis_energy.identify.frictionfit import fit_drive_friction
+    from feed_axis_energy.identify.fit.frictionfit import fit_drive_friction
     from feed_axis_energy.machine import load_machine
     from feed_axis_energy.measured import load_campaign, load_run
     campaign = load_campaign(manifest)

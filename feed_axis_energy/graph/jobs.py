@@ -151,9 +151,10 @@ def live_payload(power: StreamingPower, *, job_id: str, stamp_ns: int, clock: st
     dict
         ``power_w`` (the last sample's power after the braking rule per axis and ``total``
         [W]), ``energy_j`` (so far [J]), ``energy_import_j`` and ``energy_export_j`` (drawn
-        and returned so far, ``energy_j`` = import - export [J]); with declared drives ``electrical``: the last
-        sample's ``motor_w`` and ``supply_w`` (per axis, ``total``; the supply with
-        ``cabinet``) [W] and ``motor_energy_j``, ``supply_energy_j``, ``returned_j`` so far [J].
+        and returned so far, ``energy_j`` = import - export [J]); with declared drives
+        ``electrical``: the last sample's ``motor_w`` and ``supply_w`` (per axis, ``total``;
+        the supply with ``cabinet``) [W] and ``motor_energy_j``, ``supply_energy_j``,
+        ``returned_j`` so far [J].
     """
     if clock not in LIVE_CLOCKS:
         msg = f'clock must be one of {LIVE_CLOCKS}, got {clock!r}'

@@ -23,7 +23,7 @@ axes with ``eta = 1`` and ``'regenerative'`` braking: ``E(theta + d) = E + g·d`
 ``u(E)`` is exact for the covariance given. Otherwise (``b``, the exponent; a screw efficiency
 below 1 or ``'dissipated'`` braking, whose switching points move with ``theta``) ``u(E)`` is
 first order. The covariance ``fit-loss`` writes is itself first order in ``a``
-(:meth:`.identify.lossfit.LossFit.covariance`).
+(:meth:`.identify.fit.lossfit.LossFit.covariance`).
 
 Declared effects (:mod:`.effects`) are held fixed: one that depends on the torque (``copper``)
 would also change with ``theta``; its share is not in ``g``.

@@ -138,7 +138,7 @@ def test_paper_scenario_with_the_loss_fitted_at_no_load(tmp_path) -> None:
     # The paper's own workflow: the loss function is fitted on the no-load runs (section
     # 2.1), so the table's share of the guideway friction is already inside it; what the
     # model misses is the clamped load's share only.
-    from feed_axis_energy.identify.lossfit import fit_loss, machine_with_losses
+    from feed_axis_energy.identify.fit.lossfit import fit_loss, machine_with_losses
     from feed_axis_energy.measured.csvload import load_run
 
     campaign = _campaign(tmp_path, 'load_friction=mu:0.1', loads=(0.0, 17.336, 22.711),

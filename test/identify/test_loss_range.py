@@ -8,8 +8,9 @@ import yaml
 from feed_axis_energy.machine.calibrated import (calibrated_from_value, CalibratedRange,
                                                  range_warnings, RangeUse)
 from feed_axis_energy.errors import ConfigError
-from feed_axis_energy.identify.lossfit import fit_loss, fit_power_regression, machine_with_losses
-from feed_axis_energy.identify.steady import range_uses, SteadySegment
+from feed_axis_energy.identify.fit.lossfit import (fit_loss, fit_power_regression,
+                                                   machine_with_losses)
+from feed_axis_energy.identify.fit.steady import range_uses, SteadySegment
 from feed_axis_energy.machine.file import load_machine, machine_to_dict
 
 from test_lossfit import _synthetic, ROOT  # noqa: I100  (sibling test module)

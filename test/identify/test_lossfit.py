@@ -11,8 +11,8 @@ import yaml
 from feed_axis_energy.physics.dynamics import compute_dynamics
 from feed_axis_energy.physics.energy import compute_power
 from feed_axis_energy.errors import ConfigError
-from feed_axis_energy.identify.lossfit import fit_loss, machine_with_losses
-from feed_axis_energy.identify.steady import steady_segments, SteadyOptions
+from feed_axis_energy.identify.fit.lossfit import fit_loss, machine_with_losses
+from feed_axis_energy.identify.fit.steady import steady_segments, SteadyOptions
 from feed_axis_energy.machine.losses import PowerRegressionLoss
 from feed_axis_energy.machine.file import load_machine, machine_from_dict, machine_to_dict
 from feed_axis_energy.measured.manifest import load_campaign

@@ -9,8 +9,8 @@ import pytest
 from feed_axis_energy.physics.dynamics import compute_dynamics
 from feed_axis_energy.physics.energy import compute_power
 from feed_axis_energy.errors import ConfigError
-from feed_axis_energy.identify.samplefit import (fit_loss_samples, machine_with_sample_fits,
-                                                 SampleFitOptions)
+from feed_axis_energy.identify.fit.samplefit import (fit_loss_samples, machine_with_sample_fits,
+                                                     SampleFitOptions)
 from feed_axis_energy.machine.losses import CoulombViscousLoss
 from feed_axis_energy.machine.file import load_machine, machine_from_dict, machine_to_dict
 from feed_axis_energy.machine.mass import moved_mass_kg

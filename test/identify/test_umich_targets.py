@@ -7,7 +7,7 @@ from pathlib import Path
 
 import must_run
 
-from feed_axis_energy.identify.samplefit import fit_loss_samples, machine_with_sample_fits
+from feed_axis_energy.identify.fit.samplefit import fit_loss_samples, machine_with_sample_fits
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.measured.manifest import load_campaign
 from feed_axis_energy.measured.csvload import load_run

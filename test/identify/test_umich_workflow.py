@@ -8,7 +8,7 @@ from pathlib import Path
 
 import must_run
 
-from feed_axis_energy.identify.lossfit import fit_loss, machine_with_losses
+from feed_axis_energy.identify.fit.lossfit import fit_loss, machine_with_losses
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.measured.manifest import load_campaign
 from feed_axis_energy.measured.csvload import load_run

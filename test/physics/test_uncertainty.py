@@ -260,7 +260,7 @@ def test_covariance_propagates_through_sigma_points(contour):
 
 
 def test_fit_covariance_in_model_units():
-    from feed_axis_energy.identify.lossfit import LossFit
+    from feed_axis_energy.identify.fit.lossfit import LossFit
     fit = LossFit(axis='X', status='ok', message='', a=0.2, b=0.3,
                   cov_ln_a_b=((0.01, -0.002), (-0.002, 0.0004)))
     cov = fit.covariance()

@@ -36,10 +36,10 @@ from typing import Any, cast
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from ..machine import CalibratedRange, CoulombViscousLoss, LossCovariance, Machine, moved_mass_kg
-from ..errors import ConfigError, DataError
-from ..units import GRAVITY_M_S2
-from ..measured import MeasuredRun
+from ...machine import CalibratedRange, CoulombViscousLoss, LossCovariance, Machine, moved_mass_kg
+from ...errors import ConfigError, DataError
+from ...units import GRAVITY_M_S2
+from ...measured import MeasuredRun
 from .steady import kinematics, VELOCITY_SOURCES
 
 __all__ = ['SampleFit', 'SampleFitOptions', 'fit_loss_samples', 'machine_with_sample_fits',

@@ -43,11 +43,11 @@ import math
 
 import numpy as np
 
-from ..errors import ConfigError, DataError
-from ..machine import CalibratedRange, Machine, moved_mass_kg
-from ..measured import MeasuredRun, measured_signal, quantity_of
-from ..physics import last_direction
-from ..units import GRAVITY_M_S2
+from ...errors import ConfigError, DataError
+from ...machine import CalibratedRange, Machine, moved_mass_kg
+from ...measured import MeasuredRun, measured_signal, quantity_of
+from ...physics import last_direction
+from ...units import GRAVITY_M_S2
 from .samplefit import nonnegative_lsq, SampleFit, SampleFitOptions
 from .steady import kinematics, VELOCITY_SOURCES
 

@@ -37,11 +37,11 @@ from typing import Any
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from ..errors import ConfigError, DataError
-from ..machine import (CoulombViscousLoss, DeclaredEffect, Machine, moved_mass_kg)
-from ..measured import MeasuredRun, measured_signal, quantity_of
-from ..physics import last_direction
-from ..units import GRAVITY_M_S2
+from ...errors import ConfigError, DataError
+from ...machine import (CoulombViscousLoss, DeclaredEffect, Machine, moved_mass_kg)
+from ...measured import MeasuredRun, measured_signal, quantity_of
+from ...physics import last_direction
+from ...units import GRAVITY_M_S2
 from .samplefit import SampleFitOptions
 from .steady import kinematics, VELOCITY_SOURCES
 

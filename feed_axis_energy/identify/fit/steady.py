@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from ..machine import Machine, moved_mass_kg, RangeUse
-from ..errors import ConfigError, DataError
-from ..units import GRAVITY_M_S2
-from ..measured import GAP_FACTOR, MeasuredRun
+from ...machine import Machine, moved_mass_kg, RangeUse
+from ...errors import ConfigError, DataError
+from ...units import GRAVITY_M_S2
+from ...measured import GAP_FACTOR, MeasuredRun
 
 __all__ = ['SteadyOptions', 'SteadySegment', 'steady_segments', 'run_segments',
            'range_uses', 'VELOCITY_SOURCES']

@@ -32,8 +32,8 @@ from typing import Any, cast, Sequence
 
 import numpy as np
 
-from ..machine import CalibratedRange, LossCovariance, Machine, PowerRegressionLoss
-from ..measured import MeasuredRun
+from ...machine import CalibratedRange, LossCovariance, Machine, PowerRegressionLoss
+from ...measured import MeasuredRun
 from .steady import run_segments, SteadyOptions, SteadySegment
 
 __all__ = ['LossFit', 'fit_power_regression', 'fit_loss', 'machine_with_losses']
