@@ -577,11 +577,16 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
 
 def _size_text(effects: Sequence[FittedEffect], min_share: float) -> str:
     """``; below 1 % of the energy: copper on X (0.4 %)`` for effects that do not matter."""
+    # a time_offset corrects the records; its energy is nobody's loss
     small = [f'{e.id} on {e.axis} ({100 * e.energy_share:.2g} %)' for e in effects
-             if not e.matters]
+             if not e.matters and get_effect(e.id).machine_property]
     if not small:
         return ''
     return (f'; detected, below {100 * min_share:g} % of the energy: ' + ', '.join(small))
+
+
+def _record_text(effect: FittedEffect) -> str:
+    return ', '.join(f'{p.name} {p.value:+.3g} {p.unit}' for p in effect.params)
 
 
 def _verdict(fitted, unexplained, steps, data, folds, explained,
@@ -606,6 +611,11 @@ def _verdict(fitted, unexplained, steps, data, folds, explained,
         return 'partial', (f'added {names}{share}; structure remains that no catalog effect '
                            f'explains: {"; ".join(u["diagnostic"] for u in unexplained)}'
                            f'{offer}')
+    if fitted and not any(get_effect(e.id).machine_property for e in fitted):
+        # only a correction of the records (time_offset): the machine lacks nothing
+        fixes = ', '.join(f'{e.id} on {e.axis} ({_record_text(e)})' for e in fitted)
+        return 'clean', (f'no effect added; the alignment was corrected by {fixes}; no '
+                         f'structure beyond the noise{offer}')
     if fitted:
         return 'effects', f'added {names}{share}; no structure left beyond the noise{offer}'
     if unexplained:

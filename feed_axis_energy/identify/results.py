@@ -234,7 +234,8 @@ class AnalysisResult:
     status
         ``'effects'`` (effects found, no structure left), ``'partial'`` (effects found,
         structure left), ``'unexplained'`` (structure, no catalog effect explains it),
-        ``'clean'`` (no effect, no structure), ``'too_few_runs'``.
+        ``'clean'`` (no effect, no structure; a ``time_offset`` alone, which corrects the
+        records' alignment, is clean too), ``'too_few_runs'``.
     message
         One sentence.
     alignment_warnings
