@@ -52,6 +52,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="declared machine config (default: the manifest's machine)")
     p.add_argument('--holdout', choices=HOLDOUTS, default='loro',
                    help='held-out scheme: leave one run out (default) or the manifest roles')
+    p.add_argument('--min-share', type=float, default=100 * AnalyzeOptions.min_share,
+                   metavar='PCT',
+                   help='share of the measured energy [%%] at which an effect matters in the '
+                        'report (default %(default)g %%); smaller effects are still added '
+                        'when the statistics support them, marked "detected, below PCT %% of '
+                        'the energy"')
+    p.add_argument('--noise-w', type=float, metavar='W',
+                   help='noise level per sample [W] for every test, instead of the estimate '
+                        'from the data (which is still printed)')
     add_quiet_option(p)
     p.set_defaults(run=run)
 
@@ -60,29 +69,21 @@ def _print(res: AnalysisResult) -> None:
     print(f'campaign  {res.campaign} ({res.manifest})')
     where = f' ({res.machine_file})' if res.machine_file else ''
     print(f'machine   {res.machine.name}{where}')
-    fmt = '.2f' if res.residual_unit == 'W' else '.3g'
-    noise = ', '.join(f'{a} {format(s, fmt)} {res.residual_unit}'
+    noise = ', '.join(f'{a} {s:.3g} {res.residual_unit}'
                       for a, s in res.noise_sigma_w.items())
     print(f'held out  {res.holdout}; noise level {noise}')
+    for a, n in res.noise.items():
+        unit = res.residual_unit
+        print(f'  noise {a}: {n.sigma_w:.3g} {unit} per sample for every test '
+              f'({_noise_method(n, unit)})')
     print()
     print(f'status: {res.status}: {res.message}')
     print()
     if res.effects:
-        rows = []
         finding = {m: n for n, g in enumerate(res.ambiguous, start=1) for m in g.selected}
-        for e in res.effects:
-            name = f'{e.id}@{e.axis}'
-            if name in finding:
-                name += f' (finding {finding[name]})'
-            for p in e.params:
-                unc = f'{p.uncertainty:.3g}' if p.uncertainty is not None else '-'
-                value = f'{p.value:.5g}' + ('' if p.at_bound is None else f' ({p.at_bound} bound)')
-                rows.append([name, p.name, value, unc, p.unit,
-                             f'{100 * e.share_of_structured:.1f}',
-                             f'{100 * e.heldout_gain_rel:.1f}', ', '.join(e.aliases)])
-        print('effects added (uncertainty: jackknife over runs):')
-        print(format_table(['effect', 'parameter', 'value', '+-', 'unit',
-                            'share of structure [%]', 'held-out gain [%]', 'aliases'], rows))
+        print('effects added (uncertainty: jackknife over runs; ranked by their share of the '
+              f'energy, "matters" at {100 * res.min_share:g} % and above):')
+        print(_effect_table(res.effects, finding, res.min_share))
         for e in res.effects:
             if e.correction is not None:
                 print(correction_line(e.id, e.axis, e.correction))
@@ -91,6 +92,12 @@ def _print(res: AnalysisResult) -> None:
         _print_ambiguous(res)
     else:
         print('effects added: none')
+    if res.offered:
+        print()
+        print('offered, not attributed to one effect (a loss of this shape improves the '
+              'held-out error; it is in --out-machine; see unexplained for why it is not '
+              'named):')
+        print(_effect_table(res.offered, {}, res.min_share))
     if res.unexplained:
         print()
         print('unexplained structure:')
@@ -128,6 +135,36 @@ def _print_coulomb_split(e) -> None:
               f'constant force (offset_force) {f0:.4g} N: power cannot tell the two apart '
               '(a force or torque trace at rest can: fit-loss --method samples --friction '
               'extended)')
+
+
+def _noise_method(n, unit: str = 'W') -> str:
+    if n.method == 'declared':
+        return f'declared; estimated {n.white_w:.3g} {unit} white, {n.slow_w:.3g} {unit} slow'
+    what = ('sample-to-sample scatter' if n.method == 'white' else
+            'slow noise: block means vary as the data do')
+    slow = f'{n.slow_w:.3g} {unit}' if math.isfinite(n.slow_w) else '-'
+    return (f'{what}; white {n.white_w:.3g} {unit}, slow {slow}, correlation '
+            f'{n.correlation:.3g}')
+
+
+def _effect_table(effects, finding: dict, min_share: float) -> str:
+    rows = []
+    for e in sorted(effects, key=lambda e: -e.energy_share if math.isfinite(e.energy_share)
+                    else 0.0):
+        name = f'{e.id}@{e.axis}'
+        if name in finding:
+            name += f' (finding {finding[name]})'
+        size = (f'{100 * e.energy_share:.3g}' if math.isfinite(e.energy_share) else '-')
+        mark = 'matters' if e.matters else f'below {100 * min_share:g} %'
+        for p in e.params:
+            unc = f'{p.uncertainty:.3g}' if p.uncertainty is not None else '-'
+            value = f'{p.value:.5g}' + ('' if p.at_bound is None else f' ({p.at_bound} bound)')
+            rows.append([name, p.name, value, unc, p.unit, size, mark,
+                         f'{100 * e.share_of_structured:.1f}',
+                         f'{100 * e.heldout_gain_rel:.1f}', ', '.join(e.aliases)])
+            name = size = mark = ''
+    return format_table(['effect', 'parameter', 'value', '+-', 'unit', 'energy [%]', 'size',
+                         'share of structure [%]', 'held-out gain [%]', 'aliases'], rows)
 
 
 def _print_ambiguous(res: AnalysisResult) -> None:
@@ -191,10 +228,18 @@ def run(args: argparse.Namespace) -> int:
         if not names:
             raise ConfigError('--runs needs at least one run name', file='command line',
                               key='runs')
+    if not (math.isfinite(args.min_share) and 0.0 <= args.min_share < 100.0):
+        msg = f'--min-share must be a percentage in [0, 100), got {args.min_share:g}'
+        raise ConfigError(msg, file='command line', key='min-share')
+    if args.noise_w is not None and not (math.isfinite(args.noise_w) and args.noise_w > 0.0):
+        msg = f'--noise-w must be a level > 0 W, got {args.noise_w:g}'
+        raise ConfigError(msg, file='command line', key='noise-w')
     machine = load_machine(args.machine) if args.machine is not None else None
+    options = AnalyzeOptions(holdout=args.holdout, min_share=args.min_share / 100.0,
+                             noise_w=args.noise_w)
     progress = Progress('analyze', enabled=not args.quiet)
-    result = analyze_campaign(campaign, machine=machine, runs=names,
-                              options=AnalyzeOptions(holdout=args.holdout), progress=progress)
+    result = analyze_campaign(campaign, machine=machine, runs=names, options=options,
+                              progress=progress)
     progress.done()
     for w in result.warnings:
         print(f'warning: {w}', file=sys.stderr)

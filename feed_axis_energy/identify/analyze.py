@@ -47,7 +47,7 @@ from ..measured import (align_simulated, Campaign, CampaignComparison, compare_c
 from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
 from .consistency import heterogeneity, label, mark_groups, select_consistent
-from .diagnostics import diagnose_runs, noise_sigma
+from .diagnostics import diagnose_runs, noise_level, NoiseLevel
 from .pinning import LeftOut, left_out_text, MAX_PIN_ROUNDS, repin, split_pinned
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
@@ -56,6 +56,10 @@ from .drivecorr import common_measures, correction_bounds, declared_values, desc
 from .driveforms import current_basis, has_current_form
 from .selection import at_bounds, Block, Design, loro_folds, solve_normal
 
+NOISE_PASSES = 2
+"""Selections at most: on the baseline's noise level, then on the level left by its effects."""
+NOISE_CHANGE = 0.1
+"""Relative change of the noise level that makes the selection run again."""
 POSITION_DIVISIONS = (15, 10, 6, 3)
 """Candidate resolutions of ``position_friction``: bump spacing = travelled span / n."""
 
@@ -250,6 +254,16 @@ def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
                             bounds=bounds)
 
 
+def _noise(data: Sequence[_Run], residuals: Sequence[np.ndarray], options: AnalyzeOptions,
+           *, stage: str) -> dict[str, NoiseLevel]:
+    """The noise level of each measured axis (:func:`.diagnostics.noise_level`)."""
+    axes = data[0].cmp.axes
+    return {a: replace(noise_level(
+        [res[:, j] for res in residuals], declared_w=options.noise_w,
+        states=[np.column_stack([r.states['velocity'][:, j], r.states['acceleration'][:, j]])
+                for r in data]), residual=stage) for j, a in enumerate(axes)}
+
+
 def _axis_index(runs: Sequence[_Run], axis: str) -> int:
     return list(runs[0].cmp.axes).index(axis)
 
@@ -376,29 +390,53 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
                     design.add_block((effect_id, axis), shape, names, cols, bounds=bounds)
     report(0.7)
 
-    sigmas = {a: noise_sigma([r.residual[:, j] for r in data]) for j, a in enumerate(axes)}
+    # one noise level per axis for every test: the bin and spectrum tests, the selection's
+    # chi-square, the consistency check and the equivalence limit (.diagnostics). It is
+    # estimated on the baseline residual, then once more on the residual left by the effects
+    # selected with it (a large missing effect reads as slow noise in the baseline); the
+    # selection is redone when that moves the level by more than NOISE_CHANGE.
+    noise = _noise(data, [r.residual for r in data], options, stage='baseline')
     n_total = float(design.n.sum())
     sse0 = float(design.yy.sum())
-    noise_ss = sum(sigmas[a] ** 2 * sum(r.residual.shape[0] for r in data) for a in axes)
-    structured0 = max(sse0 - noise_ss, 0.0)
-    # one noise variance for the whole design (axes pooled by their sample counts)
-    sigma2 = noise_ss / n_total if n_total > 0 else math.nan
-
-    chosen = select_consistent(
-        design, folds, options, keys=[(e, a) for e in ids for a in axes],
-        structured0=structured0, noise_ss=noise_ss, sigma2=sigma2,
-        refine=lambda block, others: _refine_shape(design, data, block, others))
+    for noise_pass in range(NOISE_PASSES):
+        sigmas = {a: n.sigma_w for a, n in noise.items()}
+        noise_ss = sum(sigmas[a] ** 2 * sum(r.residual.shape[0] for r in data) for a in axes)
+        structured0 = max(sse0 - noise_ss, 0.0)
+        # one noise variance for the whole design (axes pooled by their sample counts)
+        sigma2 = noise_ss / n_total if n_total > 0 else math.nan
+        chosen = select_consistent(
+            design, folds, options, keys=[(e, a) for e in ids for a in axes],
+            structured0=structured0, noise_ss=noise_ss, sigma2=sigma2,
+            refine=lambda block, others: _refine_shape(design, data, block, others))
+        found = [c for b in chosen.blocks + chosen.offered for c in b.cols]
+        if options.noise_w is not None or not found or noise_pass + 1 == NOISE_PASSES:
+            break
+        theta0 = design.fit(found, range(design.runs))
+        left = [r.residual - design.predict(found, theta0, q).reshape(r.residual.shape)
+                for q, r in enumerate(data)]
+        fresh = _noise(data, left, options, stage='after the effects found')
+        if all(abs(fresh[a].sigma_w - noise[a].sigma_w) <= NOISE_CHANGE * noise[a].sigma_w
+               for a in axes):
+            break
+        noise = fresh
     blocks, steps, rejected = list(chosen.blocks), chosen.steps, list(chosen.rejected)
+    offered = list(chosen.offered)
     fates = chosen.fates
     alt = check_alternatives(design, blocks, [(r.state, r.sim_index, r.aligned) for r in data],
                              axes=axes)
     if alt is not None:
-        # something outside the catalog fits as well: no catalog effect is claimed
+        # something outside the catalog fits as well: no catalog effect is named; what the
+        # selection improves is offered as a loss of that shape, not dropped
         rejected.append(alt)
         claimed = {b.key for b in blocks}
-        fates = tuple(replace(f, fate='not_claimed', reason=alt['message'])
-                      if (f.effect, f.axis) in claimed else f for f in fates)
+        fates = tuple(replace(f, fate='offered', reason=(
+            f'{alt["message"]}; offered as a loss of that shape'))
+            if (f.effect, f.axis) in claimed else f for f in fates)
+        # (a time_offset beside them corrected the alignment for them: it goes with them)
+        offered = [b for b in blocks if get_effect(b.key[0]).machine_property] + offered
         blocks = []
+    n_claimed = len(blocks)
+    blocks = blocks + offered       # fitted together; the first n_claimed are named
     report(0.85)
 
     cols = [c for b in blocks for c in b.cols]
@@ -415,6 +453,8 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
 
     # per-effect figures
     fitted: list[FittedEffect] = []
+    periods = [float(np.median(np.diff(r.cmp.t))) if r.cmp.t.size > 1 else 0.0 for r in data]
+    energy_meas = sum(r.cmp.metrics.energy_meas_j for r in data)
     pos = 0
     for i, block in enumerate(blocks):
         effect = get_effect(block.key[0])
@@ -449,6 +489,10 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
                 aliases.append(label(other.key))
                 seen.add(other.key)
         corrects = declared_values(machine, block.key[1], block.key[0], measures) is not None
+        own = theta[pos - len(block.cols):pos]
+        energy = sum(float(design.predict(list(block.cols), own, r).sum()) * periods[r]
+                     for r in range(design.runs))
+        share = abs(energy) / energy_meas if energy_meas > 0.0 else math.nan
         fitted.append(FittedEffect(
             id=block.key[0], axis=block.key[1], params=tuple(params),
             correction=describe_correction(machine, block.key[0], block.key[1],
@@ -459,11 +503,19 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
             else 0.0,
             heldout_gain_w2=gain, heldout_gain_rel=rel,
             heterogeneity=heterogeneity(design, blocks, i, sigma2)[0],
-            aliases=tuple(aliases)))
+            aliases=tuple(aliases), energy_j=energy, energy_share=share,
+            matters=bool(share >= options.min_share), attributed=i < n_claimed))
+    fitted, offered_fx = fitted[:n_claimed], fitted[n_claimed:]
+    offered_gain = math.nan
+    if offered_fx:
+        # what the offered loss as a whole does to the held-out error, beside the named ones
+        mse_named = design.heldout_mse([c for b in blocks[:n_claimed] for c in b.cols], folds)
+        offered_gain = float(np.mean([1.0 - mse_full[r] / mse_named[r] for r in mse_full
+                                      if mse_named[r] > 0.0]))
 
     # selected effects whose power other candidates reproduce within the noise: one finding
-    periods = [float(np.median(np.diff(r.cmp.t))) if r.cmp.t.size > 1 else 0.0 for r in data]
-    groups = find_groups(design, blocks, theta, sigma2=sigma2,
+    n_cols = sum(len(b.cols) for b in blocks[:n_claimed])
+    groups = find_groups(design, blocks[:n_claimed], theta[:n_cols], sigma2=sigma2,
                          keys=[(e, a) for e in ids for a in axes], periods_s=periods, axes=axes)
 
     # in-sample residual after (diagnostics, at the baseline offset); the before/after
@@ -517,7 +569,9 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
                             position_m=r.states['position'][:, j]) for r in data]
             for j, axis in enumerate(axes)}
     warnings = machine_warnings(machine, uses)
-    status, message = _verdict(fitted, unexplained, steps, data, folds, explained, groups)
+    status, message = _verdict(fitted, unexplained, steps, data, folds, explained, groups,
+                               offered=offered_fx, offered_gain=offered_gain,
+                               min_share=options.min_share)
     if chosen.cap_reached:
         message += (f'; the consistency loop reached its cap of {options.max_rounds} rounds '
                     '(kept the effects consistent in its last round; see candidates)')
@@ -525,7 +579,9 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     return AnalysisResult(
         status=status, message=message, campaign=cmp.campaign, manifest=cmp.manifest,
         machine=machine, machine_file=machine_file, holdout=options.holdout, axes=axes,
-        noise_sigma_w=sigmas, runs=tuple(outcomes), effects=tuple(fitted),
+        noise_sigma_w=sigmas, noise=noise, runs=tuple(outcomes), effects=tuple(fitted),
+        offered=tuple(offered_fx), offered_gain_rel=offered_gain,
+        min_share=options.min_share,
         unexplained=tuple(unexplained), diagnostics_before=tuple(diag_before),
         diagnostics_after=tuple(diag_after), steps=steps, spectra=spectra,
         augmented=tuple(augmented_outcome(c) for c in augmented),
@@ -536,23 +592,52 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
         cap_reached=chosen.cap_reached, residual_unit=unit), augmented, full_machine
 
 
+def _size_text(effects: Sequence[FittedEffect], min_share: float) -> str:
+    """``; below 1 % of the energy: copper on X (0.4 %)`` for effects that do not matter."""
+    # a time_offset corrects the records; its energy is nobody's loss
+    small = [f'{e.id} on {e.axis} ({100 * e.energy_share:.2g} %)' for e in effects
+             if not e.matters and get_effect(e.id).machine_property]
+    if not small:
+        return ''
+    return (f'; detected, below {100 * min_share:g} % of the energy: ' + ', '.join(small))
+
+
+def _record_text(effect: FittedEffect) -> str:
+    return ', '.join(f'{p.name} {p.value:+.3g} {p.unit}' for p in effect.params)
+
+
 def _verdict(fitted, unexplained, steps, data, folds, explained,
-             groups=()) -> tuple[str, str]:
+             groups=(), *, offered: Sequence[FittedEffect] = (),
+             offered_gain: float = math.nan, min_share: float = 0.01) -> tuple[str, str]:
     n_test = len({r for _, test in folds for r in test})
-    names = found_text(fitted, groups)
+    names = found_text(fitted, groups) + _size_text(fitted, min_share)
     share = (f' ({100 * explained:.0f} % of the structured residual explained)'
              if math.isfinite(explained) else '')
+    offer = ''
+    if offered:
+        gain = offered_gain
+        offer = ('; offered, not attributed to one effect: a loss of the shape of '
+                 + ' + '.join(f'{e.id} on {e.axis}' for e in offered)
+                 + f' (mean squared error on held-out runs {100 * gain:.0f} % lower; '
+                 + ', '.join(f'{100 * e.energy_share:.2g} %' for e in offered)
+                 + ' of the energy; in the augmented machine)')
     if n_test < 2:
         return 'too_few_runs', ('fewer than 2 held-out runs: no effect can be shown to '
                                 'improve held-out error')
     if fitted and unexplained:
         return 'partial', (f'added {names}{share}; structure remains that no catalog effect '
-                           f'explains: {"; ".join(u["diagnostic"] for u in unexplained)}')
+                           f'explains: {"; ".join(u["diagnostic"] for u in unexplained)}'
+                           f'{offer}')
+    if fitted and not any(get_effect(e.id).machine_property for e in fitted):
+        # only a correction of the records (time_offset): the machine lacks nothing
+        fixes = ', '.join(f'{e.id} on {e.axis} ({_record_text(e)})' for e in fitted)
+        return 'clean', (f'no effect added; the alignment was corrected by {fixes}; no '
+                         f'structure beyond the noise{offer}')
     if fitted:
-        return 'effects', f'added {names}{share}; no structure left beyond the noise'
+        return 'effects', f'added {names}{share}; no structure left beyond the noise{offer}'
     if unexplained:
         return 'unexplained', ('the residual has structure ('
                                + '; '.join(u['diagnostic'] for u in unexplained)
-                               + ') that no catalog effect explains consistently')
+                               + f') that no catalog effect explains consistently{offer}')
     last = steps[-1].reason if steps else 'no candidate'
-    return 'clean', f'no effect added ({last}); no structure beyond the noise'
+    return 'clean', f'no effect added ({last}); no structure beyond the noise{offer}'

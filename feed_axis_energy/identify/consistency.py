@@ -22,12 +22,14 @@ from .selection import Block, Design, forward_select, solve_normal, Step
 __all__ = ['FATES', 'Fate', 'ConsistentSelection', 'select_consistent', 'prune',
            'heterogeneity', 'label', 'mark_groups']
 
-FATES = ('accepted', 'rejected', 'dropped_in_pruning', 'excluded_inconsistent',
+FATES = ('accepted', 'offered', 'rejected', 'dropped_in_pruning', 'excluded_inconsistent',
          'not_claimed', 'not_tried', 'round_cap', 'no_basis', 'equivalent')
-"""Possible fates: ``accepted``; ``rejected`` (its held-out gain did not pass);
+"""Possible fates: ``accepted``; ``offered`` (selected, improves the held-out error, but not
+attributed to this effect: offered as a loss of its shape, in the augmented machine);
+``rejected`` (its held-out gain did not pass);
 ``dropped_in_pruning`` (selected, then made redundant by a later effect); ``excluded_inconsistent``
-(fits, but not with one set of parameters for every run); ``not_claimed`` (selected, but the
-selection explained too little of the structured residual); ``not_tried`` (``max_effects``
+(fits, but not with one set of parameters for every run); ``not_claimed`` (selected, but
+an alternative outside the catalog fits as well); ``not_tried`` (``max_effects``
 reached first); ``round_cap`` (left out when the consistency loop reached its cap);
 ``no_basis`` (the effect adds nothing on these runs, e.g. braking loss without braking);
 ``equivalent`` (not selected, but part of an equivalent form of a selected effect: one
@@ -83,6 +85,10 @@ class ConsistentSelection:
     rounds
         Consistency rounds run; ``cap_reached`` whether the last one still found an
         inconsistent effect.
+    offered
+        Effects whose held-out gain passed every test but that explain too little of the
+        structured residual to be named (``min_explained``): offered as a loss of their
+        shape, never dropped.
     """
 
     blocks: tuple[Block, ...]
@@ -91,6 +97,7 @@ class ConsistentSelection:
     fates: tuple[Fate, ...]
     rounds: int
     cap_reached: bool
+    offered: tuple[Block, ...] = ()
 
 
 def label(key: tuple[str, str]) -> str:
@@ -99,13 +106,14 @@ def label(key: tuple[str, str]) -> str:
 
 
 def prune(design: Design, blocks: list[Block], folds, options,
-          structured: float) -> tuple[list[Block], list[tuple[Block, str]]]:
+          sigma2: float = math.nan) -> tuple[list[Block], list[tuple[Block, str]]]:
     """Backward pass: drop, one at a time, the weakest effect that no longer earns its place.
 
     An effect stays when, added last, its mean relative held-out gain still exceeds
-    ``se_factor`` standard errors and ``min_gain``, and it explains at least ``min_share`` of
-    the structured baseline residual (an effect picked early can be made redundant by a
-    later one; a tiny timing correction is not a missing physical effect).
+    ``se_factor`` standard errors and its drop of the residual sum of squares still exceeds
+    the chi-square limit of its parameters at ``alpha / m`` (``m`` candidate keys, the
+    entry test's level; with a noise level): an effect picked early can be made redundant
+    by a later one. Its size plays no part.
 
     Returns
     -------
@@ -114,6 +122,9 @@ def prune(design: Design, blocks: list[Block], folds, options,
     """
     blocks = list(blocks)
     dropped: list[tuple[Block, str]] = []
+    known = math.isfinite(sigma2) and sigma2 > 0.0
+    # the entry test's multiple-testing level: one test per candidate key
+    tests = max(len({b.key for b in design.blocks}), 1)
     while blocks:
         cols = [c for b in blocks for c in b.cols]
         full = design.heldout_mse(cols, folds)
@@ -125,24 +136,18 @@ def prune(design: Design, blocks: list[Block], folds, options,
             gains = np.array([1.0 - full[r] / wo[r] if wo[r] > 0.0 else 0.0 for r in full])
             se = (float(np.std(gains, ddof=1) / math.sqrt(gains.size)) if gains.size > 1
                   else math.inf)
-            share = ((design.total_sse(without) - sse_full) / structured if structured > 0.0
-                     else 0.0)
             mean = float(np.mean(gains))
-            # time_offset corrects the baseline alignment (biased by whatever the declared
-            # model misses); its worth is the held-out gain, not a share of the structure
-            if blocks[i].key[0] == 'time_offset':
-                share = max(share, options.min_share)
-            keep = (mean > options.se_factor * se and mean > options.min_gain
-                    and share >= options.min_share)
-            score = min(mean - options.se_factor * se, share - options.min_share)
+            chi2 = (design.total_sse(without) - sse_full) / sigma2 if known else math.inf
+            limit = float(stats.chi2.isf(options.alpha / tests, len(blocks[i].cols)))
+            keep = mean > options.se_factor * se and chi2 > limit
+            score = mean - options.se_factor * se
             if not keep and score < worst_score:
                 others = ', '.join(label(b.key) for k, b in enumerate(blocks) if k != i)
                 worst, worst_score = i, score
+                drop = f', residual drop {chi2:.1f} sigma² (limit {limit:.1f})' if known else ''
                 why = (f'added last beside {others or "nothing"}, its held-out gain is '
-                       f'{100 * mean:.2f} % +- {100 * se:.2f} % and it explains '
-                       f'{100 * share:.1f} % of the structured residual (needs more than '
-                       f'{options.se_factor:g} standard errors, {100 * options.min_gain:g} % '
-                       f'and {100 * options.min_share:g} %)')
+                       f'{100 * mean:.2f} % +- {100 * se:.2f} %{drop} (needs more than '
+                       f'{options.se_factor:g} standard errors and the limit)')
         if worst is None:
             break
         dropped.append((blocks[worst], why))
@@ -205,8 +210,9 @@ def select_consistent(design: Design, folds, options, *, keys: Sequence[tuple[st
     folds
         Held-out folds.
     options
-        :class:`.results.AnalyzeOptions` (``se_factor``, ``min_gain``, ``max_effects``,
-        ``min_share``, ``max_heterogeneity``, ``heterogeneity_alpha``, ``min_explained``,
+        :class:`.results.AnalyzeOptions` (``se_factor``, ``alpha``, ``max_effects``,
+        ``max_tries``, ``pair_pool``, ``max_heterogeneity``, ``heterogeneity_alpha``,
+        ``min_explained``,
         ``max_rounds``).
     keys
         Every candidate ``(effect, axis)`` considered, in catalog order (also those without
@@ -232,13 +238,15 @@ def select_consistent(design: Design, folds, options, *, keys: Sequence[tuple[st
     rounds = 0
     for rounds in range(1, options.max_rounds + 1):
         sel = forward_select(design, folds, exclude=excluded, se_factor=options.se_factor,
-                             min_gain=options.min_gain, max_effects=options.max_effects)
+                             sigma2=sigma2, alpha=options.alpha,
+                             max_effects=options.max_effects, max_tries=options.max_tries,
+                             pair_pool=options.pair_pool)
         steps, stop = sel.steps, sel.stop
         blocks = list(sel.blocks)
         for i in range(len(blocks)):
             others = [c for k, b in enumerate(blocks) if k != i for c in b.cols]
             blocks[i] = refine(blocks[i], others)
-        blocks, dropped = prune(design, blocks, folds, options, structured0)
+        blocks, dropped = prune(design, blocks, folds, options, sigma2)
         het = [heterogeneity(design, blocks, i, sigma2) for i in range(len(blocks))]
         bad = [i for i, (h, p) in enumerate(het)
                if h > options.max_heterogeneity and p < options.heterogeneity_alpha]
@@ -255,7 +263,7 @@ def select_consistent(design: Design, folds, options, *, keys: Sequence[tuple[st
             # and checked again without the excluded ones), and say so.
             cap_reached = True
             blocks = [b for i, b in enumerate(blocks) if i not in bad]
-            blocks, more = prune(design, blocks, folds, options, structured0)
+            blocks, more = prune(design, blocks, folds, options, sigma2)
             dropped += more
             het = [heterogeneity(design, blocks, i, sigma2) for i in range(len(blocks))]
             for i, (h, p) in enumerate(het):
@@ -270,23 +278,28 @@ def select_consistent(design: Design, folds, options, *, keys: Sequence[tuple[st
     for block, why in dropped:
         if block.key not in fate and block.key not in {b.key for b in blocks}:
             fate[block.key] = Fate(block.key[0], block.key[1], 'dropped_in_pruning', why)
+    offered: list[Block] = []
     if blocks and structured0 > 0.0:
         cols = [c for b in blocks for c in b.cols]
         share = 1.0 - (design.total_sse(cols) - noise_ss) / structured0
         if share < options.min_explained:
+            # a real improvement of the held-out error is never dropped: it is offered as a
+            # loss of this shape, not attributed to these effects
             msg = (f'{", ".join(label(b.key) for b in blocks)} would explain only '
                    f'{100 * share:.0f} % of the structured residual (at least '
-                   f'{100 * options.min_explained:.0f} % needed): not claimed')
+                   f'{100 * options.min_explained:.0f} % needed to name it): not attributed; '
+                   f'offered as a loss of that shape')
             rejected.append({'diagnostic': 'weak_attribution',
                              'axis': ','.join(sorted({b.key[1] for b in blocks})),
                              'effect': ','.join(b.key[0] for b in blocks), 'statistic': share,
                              'message': msg})
             for b in blocks:
-                fate[b.key] = Fate(b.key[0], b.key[1], 'not_claimed', msg)
-            blocks = []
+                fate[b.key] = Fate(b.key[0], b.key[1], 'offered', msg)
+            offered, blocks = blocks, []
     fates = _fates(keys, design, blocks, steps, stop, fate, cap_reached, options)
     return ConsistentSelection(blocks=tuple(blocks), steps=steps, rejected=tuple(rejected),
-                               fates=fates, rounds=rounds, cap_reached=cap_reached)
+                               fates=fates, rounds=rounds, cap_reached=cap_reached,
+                               offered=tuple(offered))
 
 
 def _fates(keys, design: Design, blocks, steps: Sequence[Step], stop: str,
@@ -295,16 +308,21 @@ def _fates(keys, design: Design, blocks, steps: Sequence[Step], stop: str,
     kept = {b.key for b in blocks}
     with_block = {b.key for b in design.blocks}
     scored = {}
-    for n, step in enumerate(steps, start=1):
+    tried: dict[tuple[str, str], Step] = {}
+    for step in steps:
         for key, gain, se in step.candidates:
-            scored[key] = (n, gain, se)
-    last = steps[-1] if steps else None
+            scored[key] = (step.round, gain, se)
+        tried[step.key] = step
+        if step.with_key is not None:
+            tried[step.with_key] = step
+    last_round = steps[-1].round if steps else 0
     out = []
     for key in keys:
         n, gain, se = scored.get(key, (0, math.nan, math.nan))
+        found = tried.get(key)
         if key in kept:
-            kept_step = next((s for s in steps if s.key == key), None)
-            why = kept_step.reason if kept_step is not None else 'kept'
+            why = found.reason if found is not None and found.accepted else 'kept'
+            n = found.round if found is not None else n
             out.append(Fate(key[0], key[1], 'accepted', f'round {n}: {why}', gain, se))
         elif key in fate:
             f = fate[key]
@@ -320,13 +338,19 @@ def _fates(keys, design: Design, blocks, steps: Sequence[Step], stop: str,
             out.append(Fate(key[0], key[1], 'not_tried',
                             f'not added: max_effects ({options.max_effects}) was reached',
                             gain, se))
-        elif last is not None and key == last.key:
-            out.append(Fate(key[0], key[1], 'rejected', f'round {n}: {last.reason}', gain, se))
-        elif last is not None:
+        elif found is not None and found.round == last_round:
+            pair = ''
+            if found.with_key is not None:
+                other = found.key if found.with_key == key else found.with_key
+                pair = f' (tried together with {label(other)})'
             out.append(Fate(key[0], key[1], 'rejected',
-                            f'round {n}: held-out gain {100 * gain:.2f} % +- {100 * se:.2f} %, '
-                            f'not the best by held-out error; the best, {label(last.key)}, was '
-                            f'rejected ({last.reason})', gain, se))
+                            f'round {n}: {found.reason}{pair}', gain, se))
+        elif steps:
+            out.append(Fate(key[0], key[1], 'rejected',
+                            f'round {n}: held-out gain {100 * gain:.2f} % +- {100 * se:.2f} %; '
+                            f'not tried: the round tries the {options.max_tries} best by '
+                            'held-out error, then pairs of the '
+                            f'{options.pair_pool} best', gain, se))
         else:
             out.append(Fate(key[0], key[1], 'rejected', 'no selection round ran'))
     return tuple(out)

@@ -5,16 +5,18 @@ JSON of ``docs/analyze.md``).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+import math
 from typing import Any
 
 import numpy as np
 
 from ..machine import CalibratedRange, DeclaredEffect, Machine
 from ..effects import get_effect
+from ..errors import ConfigError
 from ..measured import group_metrics, json_clean, Metrics
 from .ambiguity import AmbiguousGroup
 from .consistency import Fate
-from .diagnostics import Diagnostic
+from .diagnostics import Diagnostic, NoiseLevel
 from .pinning import LeftOut
 from .drivecorr import fold_corrections
 from .selection import Step
@@ -37,21 +39,31 @@ class AnalyzeOptions:
         ``validate`` runs of the manifest).
     effects
         Catalog ids to consider (default: all).
-    se_factor, min_gain
-        Acceptance: mean relative held-out gain above ``se_factor`` standard errors and
-        above ``min_gain`` (see :func:`.selection.forward_select`).
+    se_factor, alpha
+        Acceptance, by statistics only: mean relative held-out gain above ``se_factor``
+        standard errors, and the drop of the residual above the chi-square limit at family
+        level ``alpha`` over the candidates of a round (see
+        :func:`.selection.forward_select`).
     max_effects
         Most effects added.
+    max_tries, pair_pool
+        A round tries its ``max_tries`` best candidates one by one, then the pairs of its
+        ``pair_pool`` best, until one passes.
     max_heterogeneity, heterogeneity_alpha
         An effect is inconsistent across runs when per-run refits add more than
         ``max_heterogeneity`` of what it explains and that improvement is significant
         against the noise (chi-square probability below ``heterogeneity_alpha``).
     min_share
-        Smallest share of the structured baseline residual an effect must explain to stay
-        (pruning after the forward pass; see :func:`_prune`).
+        Share of the measured energy at which an effect *matters* in the report (default
+        1 %): an effect below it is reported as "detected, below ... of the energy". It
+        decides how effects are ranked and marked, never whether they exist.
     min_explained
         The selected effects together must explain at least this share of the structured
-        baseline residual; otherwise none is claimed (the structure is reported instead).
+        baseline residual to be named; otherwise they are *offered* as a loss of their
+        shape (``offered``, in the augmented machine), not attributed.
+    noise_w
+        A noise level declared by the user [W, per sample] for every test instead of the
+        estimate (:func:`.diagnostics.noise_level`; the estimate is still reported).
     shape_grid_points
         Grid size of each shape parameter before the refinement.
     max_rounds
@@ -67,8 +79,10 @@ class AnalyzeOptions:
     holdout: str = 'loro'
     effects: tuple[str, ...] | None = None
     se_factor: float = 2.0
-    min_gain: float = 0.01
+    alpha: float = 0.05
     max_effects: int = 4
+    max_tries: int = 8
+    pair_pool: int = 4
     max_heterogeneity: float = 0.05
     heterogeneity_alpha: float = 1e-3
     min_share: float = 0.01
@@ -76,6 +90,19 @@ class AnalyzeOptions:
     shape_grid_points: int = 8
     max_rounds: int = 6
     realign: bool = True
+    noise_w: float | None = None
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.min_share < 1.0:
+            msg = f'min_share must lie in [0, 1), got {self.min_share!r}'
+            raise ConfigError(msg, key='min_share')
+        if self.noise_w is not None and not (math.isfinite(self.noise_w)
+                                             and self.noise_w > 0.0):
+            msg = f'noise_w must be a finite number > 0 W, got {self.noise_w!r}'
+            raise ConfigError(msg, key='noise_w')
+        if not 0.0 < self.alpha < 1.0:
+            msg = f'alpha must lie in (0, 1), got {self.alpha!r}'
+            raise ConfigError(msg, key='alpha')
 
 
 @dataclass(frozen=True)
@@ -126,6 +153,15 @@ class FittedEffect:
     correction
         When the effect corrects a declared drive (:mod:`.drivecorr`): the declared value,
         the change (the fitted parameters) and the corrected value, else ``None``.
+    energy_j, energy_share
+        Energy of its fitted power over every run of the campaign [J] (fitted on all runs,
+        beside the other effects) and its magnitude relative to the measured energy [-].
+    matters
+        ``energy_share >= AnalyzeOptions.min_share``: how the report marks it ("detected,
+        below ... of the energy" otherwise); it was added either way.
+    attributed
+        ``False`` for an *offered* effect: it improves the held-out error, but the data do
+        not attribute the loss to it (``AnalysisResult.offered``).
     """
 
     id: str
@@ -138,6 +174,10 @@ class FittedEffect:
     heterogeneity: float
     aliases: tuple[str, ...] = ()
     correction: dict[str, Any] | None = None
+    energy_j: float = math.nan
+    energy_share: float = math.nan
+    matters: bool = True
+    attributed: bool = True
 
     def values(self) -> dict[str, float]:
         """Parameter values by name."""
@@ -152,7 +192,9 @@ class FittedEffect:
                 'heldout_gain_w2': self.heldout_gain_w2,
                 'heldout_gain_rel': self.heldout_gain_rel,
                 'heterogeneity': self.heterogeneity,
-                'aliases': list(self.aliases)} | (
+                'aliases': list(self.aliases), 'energy_j': self.energy_j,
+                'energy_share': self.energy_share, 'matters': self.matters,
+                'attributed': self.attributed} | (
                     {} if self.correction is None else {'correction': self.correction})
 
 
@@ -192,7 +234,8 @@ class AnalysisResult:
     status
         ``'effects'`` (effects found, no structure left), ``'partial'`` (effects found,
         structure left), ``'unexplained'`` (structure, no catalog effect explains it),
-        ``'clean'`` (no effect, no structure), ``'too_few_runs'``.
+        ``'clean'`` (no effect, no structure; a ``time_offset`` alone, which corrects the
+        records' alignment, is clean too), ``'too_few_runs'``.
     message
         One sentence.
     alignment_warnings
@@ -219,6 +262,19 @@ class AnalysisResult:
         (:mod:`.driveforms`).
     pin_rounds
         Analysis rounds with offsets estimated anew after the effects found (1: none moved).
+    noise
+        Axis -> the noise level every test used and how it was found
+        (:class:`.diagnostics.NoiseLevel`); ``noise_sigma_w`` holds its ``sigma_w``.
+    offered
+        Effects that improve the held-out error but that the data do not attribute (too
+        little of the structured residual explained, or an alternative outside the catalog
+        fits as well): a loss of their shape, fitted beside the named effects, written into
+        the augmented machine; never counted as a finding of that effect.
+    offered_gain_rel
+        Mean relative drop of the held-out mean squared error the offered effects give
+        together, beside the named ones (NaN: none offered).
+    min_share
+        Share of the measured energy at which an effect matters in the report.
     """
 
     status: str
@@ -249,6 +305,10 @@ class AnalysisResult:
     left_out: tuple[LeftOut, ...] = ()
     pin_rounds: int = 1
     residual_unit: str = 'W'
+    noise: dict[str, NoiseLevel] = field(default_factory=dict)
+    offered: tuple[FittedEffect, ...] = ()
+    offered_gain_rel: float = math.nan
+    min_share: float = 0.01
 
     @property
     def heldout_runs(self) -> tuple[RunOutcome, ...]:
@@ -278,15 +338,18 @@ class AnalysisResult:
 
         Effects that describe the comparison rather than the machine (``time_offset``: how
         the two records line up, which ``compare`` estimates anew for every run) are left out.
+        Offered effects (a loss of their shape, not attributed) are in: they are what
+        improves the prediction.
         """
+        every = self.effects + self.offered
         added = tuple(DeclaredEffect(id=e.id, axis=e.axis,
                                      params=tuple((p.name, float(p.value)) for p in e.params),
                                      calibrated=self.calibrated.get(e.axis))
-                      for e in self.effects
+                      for e in every
                       if get_effect(e.id).machine_property and e.correction is None)
         # corrections of a declared drive change its data-sheet values (.drivecorr)
         machine = fold_corrections(self.machine, [(e.id, e.axis, e.values())
-                                                  for e in self.effects
+                                                  for e in every
                                                   if e.correction is not None])
         return replace(machine, effects=machine.effects + added)
 
@@ -311,9 +374,13 @@ class AnalysisResult:
             'status': self.status,
             'message': self.message,
             'noise_sigma_w': self.noise_sigma_w,
+            'noise': {a: n.to_dict() for a, n in self.noise.items()},
+            'min_share': self.min_share,
             'before': metrics('before'),
             'after': metrics('after'),
             'effects': [e.to_dict() for e in self.effects],
+            'offered': [e.to_dict() for e in self.offered],
+            'offered_gain_rel': self.offered_gain_rel,
             'ambiguous': [g.to_dict() for g in self.ambiguous],
             'augmented': list(self.augmented),
             'alignment_warnings': list(self.alignment_warnings),
@@ -324,7 +391,10 @@ class AnalysisResult:
                            'shape': {k: float(v) for k, v in s.shape.items()},
                            'heldout_gain_rel': s.mean_gain, 'heldout_gain_se': s.se_gain,
                            'bic_before': s.bic_before, 'bic_after': s.bic_after,
-                           'accepted': s.accepted, 'reason': s.reason}
+                           'accepted': s.accepted, 'reason': s.reason, 'round': s.round,
+                           'with': None if s.with_key is None else
+                           {'effect': s.with_key[0], 'axis': s.with_key[1]},
+                           'chi2': s.chi2, 'chi2_limit': s.chi2_limit}
                           for s in self.steps],
             'candidates': [f.to_dict() for f in self.candidates],
             'consistency': {'rounds': self.rounds, 'cap_reached': self.cap_reached},

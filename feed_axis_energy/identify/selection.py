@@ -11,18 +11,27 @@ is the bounded least-squares solution (:func:`solve_normal`), so an impossible v
 negative copper coefficient) is never a result; a value on its bound is flagged
 (:func:`at_bounds`).
 
-Acceptance of a candidate (:func:`forward_select`): the mean relative held-out gain
-``g_r = 1 - mse_r(S + c) / mse_r(S)`` over held-out runs must exceed ``se_factor`` standard
-errors of the mean and ``min_gain``, and the BIC of the in-sample fit must drop.
+Acceptance of a candidate (:func:`forward_select`) is a matter of statistics, not of size:
+the mean relative held-out gain ``g_r = 1 - mse_r(S + c) / mse_r(S)`` over held-out runs
+must exceed ``se_factor`` standard errors of the mean; the drop of the in-sample residual
+sum of squares, in units of the noise variance (:func:`.diagnostics.noise_level`, the
+level every test of ``analyze`` uses), must exceed the chi-square limit of the candidate's
+parameters at ``alpha / m`` for ``m`` candidates tried in the round (Bonferroni: the
+multiple-testing control for false attributions); and the BIC must drop. How large the
+effect is (its share of the energy) decides how the report ranks it, never whether it
+exists. A round does not end at a rejected best candidate: the next ones are tried, then
+pairs of the best few (bounded, deterministic).
 """
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+import itertools
 import math
 from typing import cast
 
 import numpy as np
+from scipy import stats
 from scipy.optimize import lsq_linear
 
 __all__ = ['Block', 'Design', 'Step', 'SelectionResult', 'forward_select', 'loro_folds',
@@ -222,12 +231,12 @@ def loro_folds(runs: int) -> list[tuple[list[int], list[int]]]:
 
 @dataclass(frozen=True)
 class Step:
-    """One round of forward selection: the best candidate and whether it was added.
+    """One candidate (or pair) tried in a round of forward selection, and whether it was added.
 
     Attributes
     ----------
     key
-        ``(effect_id, axis)`` of the best candidate of the round.
+        ``(effect_id, axis)`` of the candidate tried (of a pair: the first).
     shape
         Its best shape values.
     mean_gain, se_gain
@@ -243,6 +252,13 @@ class Step:
     candidates
         ``[(key, mean relative held-out gain, its standard error), ...]`` of every candidate
         of the round (best variant of each), best first.
+    round
+        The round (several candidates may be tried in one).
+    with_key
+        The second candidate of a pair tried together, else ``None``.
+    chi2, chi2_limit
+        The drop of the in-sample residual sum of squares [sigma²] and its limit (NaN
+        without a noise level).
     """
 
     key: tuple[str, str]
@@ -255,6 +271,10 @@ class Step:
     reason: str
     ranking: list[tuple[tuple[str, str], float]] = field(default_factory=list)
     candidates: list[tuple[tuple[str, str], float, float]] = field(default_factory=list)
+    round: int = 1
+    with_key: tuple[str, str] | None = None
+    chi2: float = math.nan
+    chi2_limit: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -282,10 +302,89 @@ def _score(design: Design, cols: list[int], folds, base: dict[int, float]):
     return float(np.mean([mse[r] for r in runs])), gains
 
 
+def _chi2_limit(alpha: float, tests: int, params: int) -> float:
+    """Chi-square limit of an SSE drop [sigma²] at family level ``alpha`` over ``tests``."""
+    return float(stats.chi2.isf(alpha / max(tests, 1), max(params, 1)))
+
+
+@dataclass(frozen=True)
+class _Trial:
+    blocks: tuple[Block, ...]
+    mean_gain: float
+    se_gain: float
+    bic_before: float
+    bic_after: float
+    chi2: float
+    limit: float
+    ok: bool
+    reason: str
+
+
+def _judge(design: Design, cols: list[int], blocks: Sequence[Block], folds,
+           base: dict[int, float], *, n_test: int, se_factor: float, sigma2: float,
+           alpha: float, tests: int, bic_before: float) -> _Trial:
+    """Is adding ``blocks`` beside ``cols`` statistically supported? (module docstring)."""
+    new = cols + [c for b in blocks for c in b.cols]
+    _, gains = _score(design, new, folds, base)
+    mean_gain, se = _mean_se(gains)
+    bic_after = design.bic(new)
+    drop = design.total_sse(cols) - design.total_sse(new)
+    known = math.isfinite(sigma2) and sigma2 > 0.0
+    chi2 = drop / sigma2 if known else math.nan
+    p = sum(len(b.cols) for b in blocks)
+    limit = _chi2_limit(alpha, tests, p)
+    if n_test < 2:
+        ok, reason = False, 'fewer than 2 held-out runs: the gain has no standard error'
+    elif not mean_gain > se_factor * se:
+        ok, reason = False, (f'held-out gain {100 * mean_gain:.2f} % is within '
+                             f'{se_factor:g} standard errors ({100 * se:.2f} %)')
+    elif known and not chi2 > limit:
+        ok, reason = False, (f'its drop of the residual is {chi2:.1f} sigma², not above '
+                             f'{limit:.1f} (chi-square, {p} parameter(s), family level '
+                             f'{alpha:g} over {tests} tests)')
+    elif not bic_after < bic_before:
+        ok, reason = False, f'BIC does not drop ({bic_before:.1f} -> {bic_after:.1f})'
+    elif known and len(blocks) > 1 and (passenger := _passenger(
+            design, cols, blocks, sigma2=sigma2, alpha=alpha, tests=tests)):
+        ok, reason = False, passenger
+    else:
+        drop_text = f', residual drop {chi2:.1f} sigma² > {limit:.1f}' if known else ''
+        ok, reason = True, (f'held-out gain {100 * mean_gain:.2f} % +- {100 * se:.2f} %'
+                            f'{drop_text}, BIC {bic_before:.1f} -> {bic_after:.1f}')
+    return _Trial(tuple(blocks), mean_gain, se, bic_before, bic_after, chi2, limit, ok, reason)
+
+
+def _passenger(design: Design, cols: list[int], blocks: Sequence[Block], *, sigma2: float,
+               alpha: float, tests: int) -> str:
+    """Why a member of a set tried together adds nothing beside the others ('' if none).
+
+    A pair is accepted only when each member, added last beside the other, drops the
+    residual beyond the chi-square limit of its parameters too: a weak candidate does not
+    ride into the model on a strong one.
+    """
+    every = cols + [c for b in blocks for c in b.cols]
+    sse = design.total_sse(every)
+    for block in blocks:
+        without = [c for c in every if c not in block.cols]
+        chi2 = (design.total_sse(without) - sse) / sigma2
+        limit = _chi2_limit(alpha, tests, len(block.cols))
+        if not chi2 > limit:
+            return (f'{block.key[0]}@{block.key[1]} adds {chi2:.1f} sigma² beside the other, '
+                    f'not above {limit:.1f}: tried together, it would ride on the other')
+    return ''
+
+
 def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence[int]]], *,
                    exclude: Sequence[tuple[str, str]] = (), se_factor: float = 2.0,
-                   min_gain: float = 0.01, max_effects: int = 4) -> SelectionResult:
-    """Add candidates one at a time while each improves the held-out error beyond its noise.
+                   sigma2: float = math.nan, alpha: float = 0.05, max_effects: int = 4,
+                   max_tries: int = 8, pair_pool: int = 4) -> SelectionResult:
+    """Add candidates while each is statistically supported on held-out runs.
+
+    Per round the candidates are tried in the order of their held-out error (the best
+    first, exact ties by BIC); the first that passes (module docstring) is added. When none
+    of the first ``max_tries`` passes alone, the pairs of the ``pair_pool`` best are tried
+    together (a loss two effects share, whose parts are weak alone), in the order of their
+    held-out error. The search is bounded and deterministic.
 
     Parameters
     ----------
@@ -299,21 +398,30 @@ def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence
         Candidate keys not to consider.
     se_factor
         The mean relative held-out gain must exceed this many standard errors.
-    min_gain
-        ... and this fraction of the held-out mean squared error.
+    sigma2
+        Noise variance per sample [W²] (:func:`.diagnostics.noise_level`); NaN: no
+        chi-square test (BIC only).
+    alpha
+        Family level of the chi-square test of the residual drop: each of a round's ``m``
+        candidates (``m·(m-1)/2`` pairs) is tested at ``alpha / m`` (Bonferroni), so on data
+        without any effect a round adds one by chance with probability at most ``alpha``.
     max_effects
         Stop after this many.
+    max_tries, pair_pool
+        Bounds of the search of one round (above).
 
     Returns
     -------
     SelectionResult
-        The chosen blocks and the record of every round.
+        The chosen blocks and every candidate tried (``steps``, with its round).
     """
     chosen: list[Block] = []
     steps: list[Step] = []
     n_test = len({r for _, test in folds for r in test})
     stop = 'max_effects'
+    round_no = 0
     while len(chosen) < max_effects:
+        round_no += 1
         cols = [c for b in chosen for c in b.cols]
         base = design.heldout_mse(cols, folds)
         taken = {b.key for b in chosen} | set(exclude)
@@ -334,33 +442,43 @@ def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence
         # the lowest BIC (fewest parameters) wins, then catalog order.
         ties = [k for k, m in ranking if m - top <= 1e-3 * abs(spread) + 1e-12 * abs(top)]
         bics = {k: design.bic(cols + list(best[k][1].cols)) for k in ties}
-        key = min(ties, key=lambda k: bics[k])
-        _, block, gains = best[key]
-        mean_gain = float(np.mean(gains))
-        se = float(np.std(gains, ddof=1) / math.sqrt(gains.size)) if gains.size > 1 else math.inf
+        first = min(ties, key=lambda k: bics[k])
+        order = [first] + [k for k, _ in ranking if k != first and k not in ties]
+        cands = [(k, *_mean_se(best[k][2])) for k, _ in ranking]
         bic_before = design.bic(cols)
-        bic_after = bics[key]
-        if n_test < 2:
-            ok, reason = False, 'fewer than 2 held-out runs: the gain has no standard error'
-        elif not mean_gain > se_factor * se:
-            ok, reason = False, (f'held-out gain {100 * mean_gain:.2f} % is within '
-                                 f'{se_factor:g} standard errors ({100 * se:.2f} %)')
-        elif not mean_gain > min_gain:
-            ok, reason = False, (f'held-out gain {100 * mean_gain:.2f} % is below '
-                                 f'{100 * min_gain:g} %')
-        elif not bic_after < bic_before:
-            ok, reason = False, f'BIC does not drop ({bic_before:.1f} -> {bic_after:.1f})'
-        else:
-            ok, reason = True, (f'held-out gain {100 * mean_gain:.2f} % +- {100 * se:.2f} %, '
-                                f'BIC {bic_before:.1f} -> {bic_after:.1f}')
-        steps.append(Step(key=key, shape=block.shape, mean_gain=mean_gain, se_gain=se,
-                          bic_before=bic_before, bic_after=bic_after, accepted=ok,
-                          reason=reason, ranking=ranking,
-                          candidates=[(k, *_mean_se(best[k][2])) for k, _ in ranking]))
-        if not ok:
+
+        def judge(blocks: list[Block], tests: int) -> _Trial:
+            return _judge(design, cols, blocks, folds, base, n_test=n_test,
+                          se_factor=se_factor, sigma2=sigma2, alpha=alpha, tests=tests,
+                          bic_before=bic_before)
+        trials = [judge([best[k][1]], len(best)) for k in order[:max_tries]]
+        passed = next((t for t in trials if t.ok), None)
+        if passed is None and n_test >= 2:
+            pool = order[:pair_pool]
+            pairs = sorted(itertools.combinations(pool, 2), key=lambda ab: (
+                _score(design, cols + list(best[ab[0]][1].cols) + list(best[ab[1]][1].cols),
+                       folds, base)[0], order.index(ab[0]), order.index(ab[1])))
+            npairs = max(len(best) * (len(best) - 1) // 2, 1)
+            for a, b in pairs:
+                t = judge([best[a][1], best[b][1]], npairs)
+                trials.append(t)
+                if t.ok:
+                    passed = t
+                    break
+        for t in trials:
+            steps.append(Step(key=t.blocks[0].key, shape=t.blocks[0].shape,
+                              mean_gain=t.mean_gain, se_gain=t.se_gain,
+                              bic_before=t.bic_before, bic_after=t.bic_after,
+                              accepted=t is passed, reason=t.reason, ranking=ranking,
+                              candidates=cands, round=round_no,
+                              with_key=t.blocks[1].key if len(t.blocks) > 1 else None,
+                              chi2=t.chi2, chi2_limit=t.limit))
+            if t is passed:
+                break
+        if passed is None:
             stop = 'rejected'
             break
-        chosen.append(block)
+        chosen.extend(passed.blocks)
     return SelectionResult(blocks=tuple(chosen), steps=tuple(steps), stop=stop)
 
 

@@ -10,6 +10,7 @@ image embedded as well, so the page alone opens offline).
 from __future__ import annotations
 
 from html import escape
+import math
 import os
 from pathlib import Path
 
@@ -110,6 +111,10 @@ def analyze_answer(res: AnalysisResult) -> str:
     """The one-line answer: what was added and how much better runs not fitted on got."""
     added = found_text(res.effects, res.ambiguous)
     what = f'Added {escape(short(added, 120))}' if res.effects else 'No effect added'
+    if res.offered:
+        shape = ' + '.join(f'{e.id} on {e.axis}' for e in res.offered)
+        what += (f'{"; offered" if res.effects else ", but offered"} a loss of the shape of '
+                 f'{escape(short(shape, 120))} that the data do not attribute to one effect')
     before, after = res.before.avg_pct_error_pct, res.after.avg_pct_error_pct
     text = (f'{what}: on runs the fit did not see, the power error goes from '
             f'<b>{fmt_pct(before)}</b> to <b>{fmt_pct(after)}</b> on average')
@@ -120,6 +125,24 @@ def analyze_answer(res: AnalysisResult) -> str:
 
 def _bound(at_bound: str | None) -> str:
     return '' if at_bound is None else f' (on its {escape(at_bound)} bound)'
+
+
+def _effect_table(effects, min_share: float) -> str:
+    rows = []
+    for e in sorted(effects, key=lambda e: -e.energy_share if math.isfinite(e.energy_share)
+                    else 0.0):
+        size = (fmt_pct(100 * e.energy_share) if math.isfinite(e.energy_share) else '-')
+        if not e.matters:
+            size += f' (&lt; {100 * min_share:g} %)'
+        for p in e.params:
+            rows.append([escape(e.id), escape(e.axis), escape(p.name),
+                         f'<td class="num">{p.value:.5g}{_bound(p.at_bound)}</td>',
+                         f'<td class="num">{_num(p.uncertainty, ".3g")}</td>', escape(p.unit),
+                         f'<td class="num">{size}</td>',
+                         f'<td class="num">{fmt_pct(100 * e.heldout_gain_rel)}</td>',
+                         escape(short(', '.join(e.aliases), 80))])
+    return table(['effect', 'axis', 'parameter', 'value', '&plusmn;', 'unit',
+                  'share of the energy', 'gain on unseen runs', 'could also be'], rows)
 
 
 def _html(res: AnalysisResult, images: dict[str, bytes], run_images: dict[str, str]) -> str:
@@ -134,18 +157,13 @@ def _html(res: AnalysisResult, images: dict[str, bytes], run_images: dict[str, s
                         for _, b, a in cols)
         rows.append(f'<tr><th style="text-align:left">{escape(label)}</th>{cells}</tr>')
     metrics = '<div class="fit"><table>' + '\n'.join(rows) + '</table></div>'
-    eff = []
-    for e in res.effects:
-        for p in e.params:
-            eff.append([escape(e.id), escape(e.axis), escape(p.name),
-                        f'<td class="num">{p.value:.5g}{_bound(p.at_bound)}</td>',
-                        f'<td class="num">{_num(p.uncertainty, ".3g")}</td>', escape(p.unit),
-                        f'<td class="num">{fmt_pct(100 * e.share_of_structured)}</td>',
-                        f'<td class="num">{fmt_pct(100 * e.heldout_gain_rel)}</td>',
-                        escape(short(', '.join(e.aliases), 80))])
-    effects = (table(['effect', 'axis', 'parameter', 'value', '&plusmn;', 'unit',
-                      'share of the pattern explained', 'gain on unseen runs',
-                      'could also be'], eff) if res.effects else '<p>No effect added.</p>')
+    effects = (_effect_table(res.effects, res.min_share) if res.effects
+               else '<p>No effect added.</p>')
+    if res.offered:
+        effects += ('<h3>Offered, not attributed</h3><p>A loss of this shape makes the '
+                    'prediction better on unseen runs, but the data do not attribute it to '
+                    'one effect (see "What is left unexplained"); it is in the augmented '
+                    'machine file.</p>' + _effect_table(res.offered, res.min_share))
     if res.ambiguous:
         items = ''.join(
             f'<li>{escape(short(g.message, 400))}<ul>'
@@ -167,6 +185,9 @@ def _html(res: AnalysisResult, images: dict[str, bytes], run_images: dict[str, s
     cap = ', its cap reached' if res.cap_reached else ''
     ranges = ''.join(f'<li>{escape(short(w, 300))}</li>' for w in res.warnings)
     ranges = (f'<h2>Used outside the calibrated range</h2><ul>{ranges}</ul>' if ranges else '')
+    noise = escape('; '.join(f'{a} {n.sigma_w:.3g} W ({n.method}; sample-to-sample '
+                             f'{n.white_w:.3g} W, correlation {n.correlation:.3g})'
+                             for a, n in res.noise.items()) or 'not estimated')
     diag = table(['axis', 'test', 'pattern left', 'detail'],
                  [[escape(d.axis), escape(d.name), 'yes' if d.structured else 'no',
                    escape(short(d.message, 300))] for d in res.diagnostics_after])
@@ -187,12 +208,15 @@ is added only if it makes the prediction better on runs it was not fitted on: he
 {img(images['residual_states.png'], 'residual vs states', link='residual_states.png')}
 <h2>Runs</h2>{runs}
 <details><summary>Details: statistical tests and spectrum</summary>
-<p class="note">Manifest {escape(short(res.manifest, 120))}. "Share of the pattern
-explained" is the drop of the residual sum of squares above the noise level; "gain on
+<p class="note">Manifest {escape(short(res.manifest, 120))}. "Share of the energy" is
+the energy of the effect's fitted power over the measured energy; an effect below
+{100 * res.min_share:g} % is detected but does not matter at that threshold
+(<code>--min-share</code>); "gain on
 unseen runs" the relative drop of the mean squared error on held-out runs; the
 &plusmn; values are jackknife uncertainties over runs. An effect is called inconsistent
 across runs when refitting it per run explains much more than one set of parameters for all
 runs and that improvement is significant against the noise (&chi;&sup2; test).</p>
+<p class="note">Noise level every test uses, per axis: {noise}.</p>
 <h3>Residual tests (after)</h3>{diag}
 {img(images['spectrum.png'], 'residual spectrum', link='spectrum.png')}
 </details>

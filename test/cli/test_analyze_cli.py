@@ -30,7 +30,8 @@ def test_help_lists_the_options() -> None:
     proc = subprocess.run([sys.executable, '-m', 'feed_axis_energy', 'analyze', '--help'],
                           cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0
-    for option in ('--json', '--report', '--out-machine', '--runs', '--quiet', '--holdout'):
+    for option in ('--json', '--report', '--out-machine', '--runs', '--quiet', '--holdout',
+                   '--min-share', '--noise-w'):
         assert option in proc.stdout
 
 
@@ -136,3 +137,39 @@ def test_an_ambiguous_finding_is_reported_as_one_group(tmp_path, capsys) -> None
     text = capsys.readouterr().out
     assert 'iron@X (finding 1)' in text
     assert 'ambiguous findings' in text and 'iron@X = coulomb@X + viscous@X' in text
+
+
+def test_min_share_marks_size_and_the_noise_is_stated(manifest, capsys) -> None:
+    # the same effect is added at any --min-share: the threshold only marks its size
+    assert main(['analyze', str(manifest), '--json', '--quiet']) == 0
+    low = json.loads(capsys.readouterr().out)
+    assert main(['analyze', str(manifest), '--json', '--quiet', '--min-share', '90']) == 0
+    high = json.loads(capsys.readouterr().out)
+    assert [e['id'] for e in low['effects']] == [e['id'] for e in high['effects']]
+    friction = [e for e in low['effects'] if e['id'] == 'load_friction'][0]
+    # energy of mu*(m_table + m_load)*g*|v| over the campaign, as a share of the measured:
+    # a few per cent on this campaign, never more than the whole
+    assert 0.01 < friction['energy_share'] < 0.5 and friction['energy_j'] > 0.0
+    assert friction['matters'] is True
+    assert [e for e in high['effects'] if e['id'] == 'load_friction'][0]['matters'] is False
+    assert low['min_share'] == pytest.approx(0.01) and high['min_share'] == pytest.approx(0.9)
+    assert 'detected, below 90 % of the energy: load_friction on X' in high['message']
+    assert low['offered'] == [] and 'offered' not in low['message']
+    noise = low['noise']['X']
+    assert noise['method'] in ('white', 'slow')
+    assert noise['sigma_w'] == pytest.approx(low['noise_sigma_w']['X'])
+    # the rig's 1 W noise plus 1 W quantisation, white
+    assert noise['sigma_w'] == pytest.approx((1.0 + 1.0 / 12.0) ** 0.5, rel=0.15)
+    assert main(['analyze', str(manifest), '--quiet', '--noise-w', '2.5']) == 0
+    text = capsys.readouterr().out
+    assert 'noise X: 2.5 W per sample for every test (declared;' in text
+    assert 'energy [%]' in text
+
+
+@pytest.mark.parametrize('args, key', [(['--min-share', '100'], '--min-share'),
+                                       (['--min-share', '-1'], '--min-share'),
+                                       (['--noise-w', '0'], '--noise-w'),
+                                       (['--noise-w', 'nan'], '--noise-w')])
+def test_bad_min_share_or_noise_is_refused(manifest, capsys, args, key) -> None:
+    assert main(['analyze', str(manifest), '--quiet'] + args) == 1
+    assert key in capsys.readouterr().err

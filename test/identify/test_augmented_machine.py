@@ -22,12 +22,24 @@ def test_time_offset_is_reported_but_not_written_into_the_machine():
     fake = SimpleNamespace(machine=machine,
                            effects=(_fitted('load_friction', 'mu', 0.1, '-'),
                                     _fitted('time_offset', 'delta_s', 0.002, 's')),
-                           calibrated={'X': seen})
+                           offered=(), calibrated={'X': seen})
     augmented = AnalysisResult.augmented_machine(fake)
     assert [(e.id, e.axis, dict(e.params)) for e in augmented.effects] == [
         ('load_friction', 'X', {'mu': 0.1})]
     # the range the effect was identified on travels with it
     assert augmented.effects[0].calibrated == seen
+
+
+def test_an_offered_loss_is_written_beside_the_named_effects():
+    # an improvement the data do not attribute (issue 24, section 2) is a loss of that shape
+    # in the machine file: never dropped
+    machine = load_machine(default_machine())
+    fake = SimpleNamespace(machine=machine, effects=(_fitted('load_friction', 'mu', 0.1, '-'),),
+                           offered=(_fitted('viscous', 'c_n_s_m', 120.0, 'N*s/m'),),
+                           calibrated={})
+    augmented = AnalysisResult.augmented_machine(fake)
+    assert [(e.id, dict(e.params)) for e in augmented.effects] == [
+        ('load_friction', {'mu': 0.1}), ('viscous', {'c_n_s_m': 120.0})]
 
 
 def test_only_the_alignment_effect_is_not_a_machine_property_nor_sample_local():
