@@ -318,7 +318,9 @@ def bag_manifest(campaign: Campaign, runs: Sequence[tuple[RunSpec, MeasuredRun, 
                        for q, cs in cols.items()}
                 for axis, cols in spec.axes.items()}
         if spec.motion_program is not None:
-            motion: dict[str, str] = {'program': rel(spec.motion_program)}
+            motion: dict[str, Any] = {'program': rel(spec.motion_program)}
+            if spec.motion_start_m is not None:
+                motion['start_m'] = dict(zip(('X', 'Y', 'Z'), spec.motion_start_m))
         else:
             motion = {'from_data': str(spec.motion_from_data)}
             if spec.motion_reconstruct != 'pulses':
@@ -334,12 +336,19 @@ def bag_manifest(campaign: Campaign, runs: Sequence[tuple[RunSpec, MeasuredRun, 
             entry['allow_gaps'] = True
         if spec.role is not None:
             entry['role'] = spec.role
+        if spec.work_offset_m:
+            entry['work_offset_m'] = dict(spec.work_offset_m)
+        # a run's window was applied when it was loaded: its bag holds the window only
         meter = spec.instrument
         if meter.declared:
             entry['instrument'] = {'window_s': 'period' if meter.window_s is None
                                    else meter.window_s, 'stamp': meter.stamp}
         if meter.measures != 'shaft':
             entry.setdefault('instrument', {})['measures'] = meter.measures
+        if meter.kt_nm_a:
+            entry.setdefault('instrument', {})['kt_nm_a'] = dict(meter.kt_nm_a)
+        if meter.invert:
+            entry.setdefault('instrument', {})['invert'] = list(meter.invert)
         entries.append(entry)
     return {
         'name': campaign.name,

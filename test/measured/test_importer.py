@@ -66,6 +66,36 @@ def test_declared_instrument_is_carried_into_the_bag_manifest(tmp_path):
     assert not bags.run('b').instrument.declared
 
 
+def test_work_offset_start_and_window_are_carried_into_the_bag_manifest(tmp_path):
+    """A declared work offset and the machine's start position reach the bag manifest; a
+    run's window is applied at import (its bag holds the window only, time from 0)."""
+    from dataclasses import replace
+    from feed_axis_energy.measured.campaign import TimeWindow
+    campaign = load_campaign(FIXTURES / 'campaign.yaml')
+    offset = (('X', -0.0378), ('Y', 0.2693))
+    half = TimeWindow(end=0.5, fraction=True)
+    first = replace(campaign.runs[0], work_offset_m=offset, window=half)
+    campaign = replace(campaign, runs=(first, campaign.runs[1]))
+    whole = load_run(replace(first, window=None))
+    bags = load_campaign(import_campaign(campaign, tmp_path / 'out').manifest)
+    got = bags.run('a')
+    assert dict(got.work_offset_m) == pytest.approx(dict(offset))
+    assert got.window is None and bags.run('b').work_offset_m == ()
+    run = load_run(got)
+    assert run.t[0] == pytest.approx(0.0, abs=1e-9)
+    assert run.t[-1] < 0.5 * (whole.t[-1] - whole.t[0])
+    assert run.t.shape[0] < whole.t.shape[0]
+    # motion from a program: where the machine stood when it started goes along
+    from feed_axis_energy.measured.importer import bag_manifest
+    program = tmp_path / 'p.nc'
+    program.write_text('G1 X1 F100\n')
+    spec = replace(first, motion_program=program, motion_from_data=None,
+                   motion_start_m=(0.1, -0.2, 0.3))
+    entry = bag_manifest(campaign, [(spec, whole, tmp_path / 'bag')],
+                         out_file=tmp_path / 'm.yaml')['runs'][0]
+    assert entry['motion'] == {'program': 'p.nc', 'start_m': {'X': 0.1, 'Y': -0.2, 'Z': 0.3}}
+
+
 def test_bag_topics_energy_and_metadata(tmp_path):
     campaign = load_campaign(FIXTURES / 'campaign.yaml')
     bag = import_campaign(campaign, tmp_path / 'out', runs=['a']).runs[0].bag
