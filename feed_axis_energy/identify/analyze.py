@@ -254,6 +254,16 @@ def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
                             bounds=bounds)
 
 
+def declared_noise(campaign: Campaign, cmp_runs: Sequence[RunComparison]) -> float | None:
+    """The noise level the manifest declares for the analysed runs (``instrument.noise``,
+    in the trace's unit), the largest where runs differ; ``None`` unless every run declares
+    one (the estimate from the data is used then)."""
+    levels = [campaign.run(r.name).instrument.noise for r in cmp_runs]
+    if not levels or any(v is None for v in levels):
+        return None
+    return max(float(v) for v in levels if v is not None)
+
+
 def _noise(data: Sequence[_Run], residuals: Sequence[np.ndarray], options: AnalyzeOptions,
            *, stage: str) -> dict[str, NoiseLevel]:
     """The noise level of each measured axis (:func:`.diagnostics.noise_level`)."""
@@ -369,6 +379,8 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     comparisons with the effects found and the machine they were made with."""
     # copper and iron as corrections of declared drives (motor-terminal meters, .drivecorr)
     measures = common_measures(campaign.run(r.name).instrument.measures for r in cmp_runs)
+    if options.noise_w is None:
+        options = replace(options, noise_w=declared_noise(campaign, cmp_runs))
     data = _prepare(campaign, cmp_runs, machine)
     axes = cmp_runs[0].axes
     if any(r.cmp.axes != axes for r in data):

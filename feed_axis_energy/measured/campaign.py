@@ -68,6 +68,10 @@ class InstrumentSpec:
         over the machine file's ``axes.<A>.drive.kt_nm_a`` (current traces).
     invert
         Axes whose trace counts the other way than the model: negated on loading.
+    noise
+        The instrument's noise level per sample, in the unit of what it measures (W, A,
+        N·m or N), when the manifest declares it (``instrument.noise``); ``analyze`` then
+        uses it for every test instead of its estimate from the data.
     """
 
     window_s: float | None = None
@@ -76,6 +80,7 @@ class InstrumentSpec:
     measures: str = 'shaft'
     kt_nm_a: tuple[tuple[str, float], ...] = ()
     invert: tuple[str, ...] = ()
+    noise: float | None = None
 
     @property
     def kt_by_axis(self) -> dict[str, float]:

@@ -320,7 +320,8 @@ class _Ctx:
             return InstrumentSpec(window_s=0.0, stamp='end')
         if not isinstance(value, dict):
             self.fail(key, f'expected point or a mapping {{window_s, stamp}}, got {_kind(value)}')
-        m = self.mapping(value, key, ('window_s', 'stamp', 'measures', 'kt_nm_a', 'invert'))
+        m = self.mapping(value, key, ('window_s', 'stamp', 'measures', 'kt_nm_a', 'invert',
+                                      'noise'))
         measures = m.get('measures', 'shaft')
         if measures not in MEASURES:
             self.fail(f'{key}.measures',
@@ -351,10 +352,13 @@ class _Ctx:
             if not isinstance(raw, list) or not all(isinstance(a, str) for a in raw):
                 self.fail(f'{key}.invert', f'expected a list of axis names, got {_kind(raw)}')
             invert = [a.strip() for a in raw]
-        if m and not set(m) - {'measures', 'kt_nm_a', 'invert'}:
+        noise = None
+        if m.get('noise') is not None:
+            noise = self.number(m['noise'], f'{key}.noise', positive=True)
+        if m and not set(m) - {'measures', 'kt_nm_a', 'invert', 'noise'}:
             # what is measured only: the window and stamp stay the default of the run
             return InstrumentSpec(declared=False, measures=measures, kt_nm_a=tuple(kt),
-                                  invert=tuple(invert))
+                                  invert=tuple(invert), noise=noise)
         window = m.get('window_s', 'period')
         if window != 'period':
             window = self.number(window, f'{key}.window_s', minimum=0.0)
@@ -362,7 +366,8 @@ class _Ctx:
         if stamp not in STAMPS:
             self.fail(f'{key}.stamp', f'expected one of {", ".join(STAMPS)}, got {_kind(stamp)}')
         return InstrumentSpec(window_s=None if window == 'period' else window, stamp=stamp,
-                              measures=measures, kt_nm_a=tuple(kt), invert=tuple(invert))
+                              measures=measures, kt_nm_a=tuple(kt), invert=tuple(invert),
+                              noise=noise)
 
     def window(self, value: Any, key: str) -> TimeWindow:
         w = self.mapping(value, key, _WINDOW_KEYS)

@@ -86,6 +86,14 @@ def test_clean_data_gets_no_effect(tmp_path) -> None:
     assert res.after.avg_pct_error_pct == pytest.approx(res.before.avg_pct_error_pct)
     # the noise level estimate is the instrument's (1 W noise + 1 W quantisation)
     assert res.noise_sigma_w['X'] == pytest.approx(np.sqrt(1.0 + 1.0 / 12.0), rel=0.15)
+    assert res.noise['X'].method != 'declared'
+    # a level the manifest declares (instrument.noise, every run) replaces the estimate
+    from dataclasses import replace
+    campaign = _campaign(tmp_path / 'declared', 'none')
+    runs = tuple(replace(r, instrument=replace(r.instrument, noise=1.5)) for r in campaign.runs)
+    declared = analyze_campaign(replace(campaign, runs=runs))
+    assert declared.noise['X'].method == 'declared'
+    assert declared.noise_sigma_w['X'] == 1.5 and declared.status == 'clean'
 
 
 def test_periodic_outside_catalog_is_reported_not_attributed(tmp_path) -> None:

@@ -220,6 +220,8 @@ def test_wrong_sign_is_detected_and_invert_fixes_it(tmp_path):
     ({'measures': 'current', 'kt_nm_a': {'Z': 1.0}}, 'kt_nm_a.Z', "no axis 'Z'"),
     ({'measures': 'volts'}, 'measures', 'expected one of shaft, motor, supply, current'),
     ({'measures': 'force'}, 'axes', 'no axis has a force column'),
+    ({'measures': 'current', 'noise': -0.1}, 'noise', 'positive'),
+    ({'measures': 'current', 'noise': 'low'}, 'noise', ''),
 ])
 def test_manifest_errors_name_the_key(tmp_path, instrument, key, text):
     doc = {'machine': 'm.yaml', 'runs': [{
@@ -230,6 +232,26 @@ def test_manifest_errors_name_the_key(tmp_path, instrument, key, text):
         campaign_from_dict(doc, file=tmp_path / 'c.yaml', check_files=False)
     assert info.value.key == (f'runs[0].instrument.{key}' if key != 'axes' else 'runs[0].axes')
     assert text in str(info.value)
+
+
+def test_a_declared_noise_level_is_read_and_used_by_analyze_when_every_run_has_one(tmp_path):
+    from types import SimpleNamespace
+    from feed_axis_energy.identify.analyze import declared_noise
+    run = {'load_kg': 0.0, 'motion': {'program': 'p.nc'}, 'period_s': 0.001,
+           'axes': {'X': {'current': {'column': 'IX', 'unit': 'A'}}}}
+    doc = {'machine': 'm.yaml', 'runs': [
+        {**run, 'name': 'a', 'data': 'a.csv',
+         'instrument': {'measures': 'current', 'noise': 0.05}},
+        {**run, 'name': 'b', 'data': 'b.csv',
+         'instrument': {'measures': 'current', 'noise': 0.08, 'window_s': 0.0}},
+        {**run, 'name': 'c', 'data': 'c.csv', 'instrument': {'measures': 'current'}}]}
+    campaign = campaign_from_dict(doc, file=tmp_path / 'c.yaml', check_files=False)
+    a = campaign.run('a').instrument
+    assert a.noise == 0.05 and not a.declared      # the noise declares no window
+    assert campaign.run('b').instrument.noise == 0.08 and campaign.run('b').instrument.declared
+    named = [SimpleNamespace(name=n) for n in ('a', 'b')]
+    assert declared_noise(campaign, named) == 0.08     # the larger where runs differ
+    assert declared_noise(campaign, named + [SimpleNamespace(name='c')]) is None
 
 
 def test_power_runs_keep_their_metrics_and_get_the_quantity_block(tmp_path):
