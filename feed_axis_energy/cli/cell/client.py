@@ -5,7 +5,12 @@ use it: for each program ``StartJob(JobId, Program, LoadKg)``, then wait until
 ``Results/LastJob/JobId`` names the job, then ``Results/GetResult(JobId)``; the results are
 printed with units (``--json``: one JSON object per job). Exit 1 when a job is refused, does
 not end within ``--timeout`` or ends other than ``ended``; the message says which and why.
-Anonymous, without encryption: a server on loopback (``serve``'s default).
+Anonymous, without encryption, by default: a server on loopback (``serve``'s default). A
+server bound elsewhere takes only ``Basic256Sha256`` ``SignAndEncrypt`` with a user name
+(docs/cell.md, "Security"): ``--cert``/``--key`` give the client's certificate (its
+application URI is read from the certificate) and ``--user`` the name, whose password comes
+from the environment variable ``FAE_OPCUA_PASSWORD`` (never from the command line, where
+other users of the machine could read it).
 """
 from __future__ import annotations
 
@@ -13,12 +18,15 @@ import argparse
 import asyncio
 import json
 import math
+import os
+from pathlib import Path
 import sys
 import time
 
 __all__ = ['add_parser', 'run', 'format_result']
 
 NAMESPACE = 'urn:feed-axis-energy:cell'
+PASSWORD_ENV = 'FAE_OPCUA_PASSWORD'
 J_PER_WH = 3600.0
 
 
@@ -40,6 +48,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'not repeat one whose result the server keeps)')
     p.add_argument('--timeout', type=float, default=600.0, metavar='S',
                    help='longest wait for one job [s] (default 600)')
+    p.add_argument('--user', default=None, metavar='NAME',
+                   help='log in as NAME; the password is read from the environment variable '
+                        f'{PASSWORD_ENV} (a server off loopback requires a user)')
+    p.add_argument('--cert', type=Path, default=None, metavar='FILE',
+                   help='client certificate (DER or PEM): connect with Basic256Sha256 '
+                        'SignAndEncrypt (needs --key)')
+    p.add_argument('--key', type=Path, default=None, metavar='FILE',
+                   help='private key of --cert (PEM)')
     p.add_argument('--json', action='store_true', help='one JSON result per line')
     p.set_defaults(run=run)
 
@@ -68,16 +84,56 @@ class _Failed(Exception):
     pass
 
 
+def _application_uri(cert: Path) -> str:
+    """The URI in a certificate's subject alternative name (what the server checks the
+    client's application URI against)."""
+    from cryptography import x509
+    data = cert.read_bytes()
+    try:
+        loaded = (x509.load_pem_x509_certificate(data) if data.lstrip().startswith(b'-----')
+                  else x509.load_der_x509_certificate(data))
+        names = loaded.extensions.get_extension_for_class(x509.SubjectAlternativeName)
+        uris = names.value.get_values_for_type(x509.UniformResourceIdentifier)
+    except (ValueError, x509.ExtensionNotFound) as err:
+        raise _Failed(f'--cert {cert}: not a certificate with an application URI '
+                      f'({err})') from None
+    if not uris:
+        raise _Failed(f'--cert {cert}: the certificate names no application URI')
+    return str(uris[0])
+
+
+async def _secure(client, args: argparse.Namespace) -> None:
+    """User name and password, certificate and encryption as the options ask."""
+    if args.user is not None:
+        password = os.environ.get(PASSWORD_ENV)
+        if password is None:
+            raise _Failed(f'--user {args.user}: set the password in the environment variable '
+                          f'{PASSWORD_ENV}')
+        client.set_user(args.user)
+        client.set_password(password)
+    if args.cert is not None:
+        from asyncua import ua
+        from asyncua.crypto.security_policies import SecurityPolicyBasic256Sha256
+        client.application_uri = _application_uri(args.cert)
+        await client.set_security(SecurityPolicyBasic256Sha256, str(args.cert), str(args.key),
+                                  mode=ua.MessageSecurityMode.SignAndEncrypt)
+
+
 async def _run_jobs(args: argparse.Namespace) -> int:
     from asyncua import Client
     prefix = args.job_prefix or f'job-{time.strftime("%Y%m%dT%H%M%S")}'
     client = Client(args.endpoint, timeout=30)
     client.session_timeout = 600_000    # the server's limit [ms]; more is only a warning
+    await _secure(client, args)
     try:
         await client.connect()
     except (OSError, asyncio.TimeoutError) as err:
         raise _Failed(f'cannot connect to {args.endpoint}: {err or type(err).__name__} '
                       '(is feed-axis-energy serve running?)') from None
+    except Exception as err:     # asyncua's refusals: security, identity, bad password
+        raise _Failed(f'{args.endpoint} refused the connection: {err or type(err).__name__}'
+                      + ('' if args.user or args.cert else ' (a server off loopback needs '
+                         '--cert, --key and --user)')) from None
     code = 0
     try:
         try:
@@ -124,6 +180,16 @@ def run(args: argparse.Namespace) -> int:
     if not math.isfinite(args.timeout) or args.timeout <= 0:
         print(f'error: --timeout must be a positive number of seconds, got {args.timeout}',
               file=sys.stderr)
+        return 2
+    if (args.cert is None) != (args.key is None):
+        print('error: --cert and --key go together', file=sys.stderr)
+        return 2
+    for option, path in (('--cert', args.cert), ('--key', args.key)):
+        if path is not None and not path.is_file():
+            print(f'error: {option} {path}: no such file', file=sys.stderr)
+            return 2
+    if args.user is not None and not args.user.strip():
+        print('error: --user needs a name', file=sys.stderr)
         return 2
     try:
         return asyncio.run(_run_jobs(args))
