@@ -50,6 +50,8 @@ class OpcUaBridgeNode(Node):
         cert = declare(self, 'opcua_certificate', '', 'server certificate (DER or PEM)')
         key = declare(self, 'opcua_private_key', '', 'its private key (PEM)')
         users = declare(self, 'opcua_users_file', '', 'users: one name:password a line')
+        trusted = declare(self, 'opcua_trusted_clients', '',
+                          "client certificates accepted, comma-separated files ('': any)")
         max_load = declare(self, 'max_load_kg', 10000.0, 'largest LoadKg accepted [kg]')
         mqtt_host = declare(self, 'mqtt_host', '', "MQTT broker; '' for no MQTT bridge")
         mqtt_port = declare(self, 'mqtt_port', 1883, 'TCP port of the MQTT broker')
@@ -64,7 +66,9 @@ class OpcUaBridgeNode(Node):
             security = OpcUaSecurity(
                 certificate=Path(cert) if cert else None,
                 private_key=Path(key) if key else None,
-                users=read_users_file(Path(users)) if users else {})
+                users=read_users_file(Path(users)) if users else {},
+                trusted_clients=tuple(Path(p.strip()) for p in trusted.split(',')
+                                      if p.strip()))
             settings = OpcUaSettings(host=host, port=port, security=security,
                                      max_load_kg=max_load, call_timeout_s=reply_s + 2.0)
             mqtt = MqttSettings(host=mqtt_host, port=mqtt_port,

@@ -143,3 +143,23 @@ def test_record_reaches_the_graph_as_launch_gives_it(tmp_path):
     params = graph_parameters(args)
     assert params['mcap_recorder']['per_job'] is True
     assert params['gcode_trajectory']['record_root'] == str((tmp_path / 'rec').resolve())
+
+
+def test_trusted_client_certificates_are_checked_and_passed_to_the_bridge(root, tmp_path):
+    import argparse
+    from feed_axis_energy.cli.cell.serve import add_parser, bridge_parameters
+    missing = _serve('--program-root', str(root), '--opcua-port', str(_free_port()),
+                     '--opcua-trust', str(tmp_path / 'nope.der'))
+    assert missing.returncode == 2 and '--opcua-trust' in missing.stderr
+    cert = tmp_path / 'client.der'
+    cert.write_bytes(b'not checked here')
+    plain = _serve('--program-root', str(root), '--opcua-port', str(_free_port()),
+                   '--opcua-trust', str(cert))
+    assert plain.returncode == 2 and 'needs --opcua-cert and --opcua-key' in plain.stderr
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers())
+    args = parser.parse_args(['serve', '--program-root', str(root), '--opcua-trust', str(cert),
+                              '--opcua-trust', str(cert)])
+    assert bridge_parameters(args)['opcua_trusted_clients'] == f'{cert.resolve()},{cert.resolve()}'
+    args = parser.parse_args(['serve', '--program-root', str(root)])
+    assert 'opcua_trusted_clients' not in bridge_parameters(args)

@@ -55,6 +55,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='private key of --opcua-cert (PEM)')
     p.add_argument('--opcua-users', type=Path, default=None, metavar='FILE',
                    help='users who may log in: one name:password a line')
+    p.add_argument('--opcua-trust', type=Path, action='append', default=[], metavar='FILE',
+                   help='a client certificate (DER or PEM) accepted on a secure channel; '
+                        'repeatable; default: any client certificate (the password guards '
+                        'the access)')
     p.add_argument('--mqtt', default=None, metavar='HOST:PORT',
                    help='MQTT broker: publish job state, live power and results, take '
                         'measured drive data (docs/cell.md); default: no MQTT')
@@ -103,6 +107,8 @@ def bridge_parameters(args: argparse.Namespace) -> dict[str, object]:
                       ('opcua_users_file', args.opcua_users)):
         if path is not None:
             params[key] = str(path.resolve())
+    if args.opcua_trust:
+        params['opcua_trusted_clients'] = ','.join(str(p.resolve()) for p in args.opcua_trust)
     if args.mqtt is not None:
         host, port = parse_broker(args.mqtt)
         params.update(mqtt_host=host, mqtt_port=port)
@@ -139,6 +145,14 @@ def _check(args: argparse.Namespace) -> int:
                          ('--opcua-users', args.opcua_users)):
         if path is not None and not path.is_file():
             return _fail(f'{option} {path}: no such file', 2)
+    for path in args.opcua_trust:
+        if not path.is_file():
+            return _fail(f'--opcua-trust {path}: no such file', 2)
+        if ',' in str(path.resolve()):
+            return _fail(f'--opcua-trust {path}: a path with a comma cannot be passed on', 2)
+    if args.opcua_trust and args.opcua_cert is None:
+        return _fail('--opcua-trust needs --opcua-cert and --opcua-key: client certificates '
+                     'are checked on a secure channel only', 2)
     from feed_axis_energy.bridge import OpcUaSecurity, read_users_file, security_plan
     from feed_axis_energy.errors import ConfigError
     try:
