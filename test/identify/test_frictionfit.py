@@ -3,13 +3,13 @@
 exponential Stribeck excess and a constant offset force), recovery within 5 %, the augmented
 machine, a linear (direct) stand, and the errors."""
 from dataclasses import replace
-import importlib.util
 import json
 from pathlib import Path
 import subprocess
 import sys
 
 import numpy as np
+from bench_modules import load_bench
 import pytest
 import yaml
 
@@ -21,18 +21,9 @@ from feed_axis_energy.measured import load_campaign, load_run
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _load(name):
-    spec = importlib.util.spec_from_file_location(f'fae_bench_{name}',
-                                                  ROOT / 'bench' / f'{name}.py')
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.fixture(scope='module')
 def stand():
-    return _load('truth_stand')
+    return load_bench('truth_stand')
 
 
 @pytest.fixture(scope='module')

@@ -2,12 +2,11 @@
 its figures are in docs/analyze.md): a few cells of the independent truth, one seed each,
 failing on any false attribution or misaligned run; and hand checks of the new truth forms
 (they are written apart from the catalog, so they are compared with it here)."""
-import importlib.util
 import math
 from pathlib import Path
-import sys
 
 import numpy as np
+from bench_modules import load_bench
 import pytest
 
 from feed_axis_energy.effects import EffectState, get_effect
@@ -15,23 +14,14 @@ from feed_axis_energy.effects import EffectState, get_effect
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _load(name):
-    spec = importlib.util.spec_from_file_location(f'fae_bench_{name}',
-                                                  ROOT / 'bench' / f'{name}.py')
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.fixture(scope='module')
 def tm():
-    return _load('truth_model')
+    return load_bench('truth_model')
 
 
 @pytest.fixture(scope='module')
 def matrix():
-    return _load('truth_matrix')
+    return load_bench('truth_matrix')
 
 
 def test_new_truth_forms_match_the_catalog_shapes(tm):

@@ -1,33 +1,23 @@
 """Issue 11 section 7 on the independent truth rig: a small CI subset of
 ``bench/truth_targets.py`` (the study runs outside CI) and hand checks of the truth model."""
-import importlib.util
 import math
 from pathlib import Path
-import sys
 
 import numpy as np
+from bench_modules import load_bench
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _load(name):
-    spec = importlib.util.spec_from_file_location(f'fae_bench_{name}',
-                                                  ROOT / 'bench' / f'{name}.py')
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.fixture(scope='module')
 def study():
-    return _load('truth_targets')
+    return load_bench('truth_targets')
 
 
 @pytest.fixture(scope='module')
 def tm():
-    return _load('truth_model')
+    return load_bench('truth_model')
 
 
 @pytest.fixture(scope='module')
