@@ -25,7 +25,7 @@ ROSDEP_KEYS = {
     'ament_index_python': 'ament_index_python', 'launch': 'launch', 'launch_ros': 'launch_ros',
     'numpy': 'python3-numpy', 'scipy': 'python3-scipy', 'yaml': 'python3-yaml',
     'matplotlib': 'python3-matplotlib', 'zstandard': 'python3-zstandard',
-    'lz4': 'python3-lz4', 'paho': 'python3-paho-mqtt',
+    'lz4': 'python3-lz4', 'paho': 'python3-paho-mqtt', 'cryptography': 'python3-cryptography',
 }
 # no rosdep key: installed with pip (README "ROS 2 workspace" says so)
 PIP_ONLY = {'rosbags', 'mcap', 'distributed', 'pyarrow', 'asyncua'}
