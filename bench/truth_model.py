@@ -414,3 +414,18 @@ def record(s: State, p: np.ndarray, *, meter: Meter, offset_s: float, end_s: flo
     if meter.quantum_w > 0:
         y = np.round(y / meter.quantum_w) * meter.quantum_w
     return stamps, y
+
+
+def write_record_csv(out: Path, name: str, state: State, stamps: np.ndarray, y: np.ndarray,
+                     t_true: np.ndarray) -> str:
+    """Write one metered run as ``out/runs/<name>.csv`` (time [ms] from 60 s, power [kW],
+    the carriage position [mm] and velocity [mm/s] at the true times ``t_true`` [s]);
+    returns the file's path relative to ``out``."""
+    x = np.interp(t_true, state.t, state.x)
+    v = np.interp(t_true, state.t, state.v)
+    rows = ['time_ms,X_power_kW,X_position_mm,X_velocity_mm_s']
+    rows += [f'{60000.0 + 1000.0 * a:.3f},{b / 1000.0:.12g},{c * 1000.0:.4f},'
+             f'{d * 1000.0:.4f}' for a, b, c, d in zip(stamps, y, x, v)]
+    data = f'runs/{name}.csv'
+    (out / data).write_text('\n'.join(rows) + '\n', encoding='utf-8')
+    return data

@@ -145,13 +145,7 @@ def write_campaign(out: Path, case: str, amp: float, runs: list[Run], axis: tm.A
         truth_offsets[run.name] = offset + mid * (1.0 - 1.0 / (1.0 + 1e-6 * meter.drift_ppm)) \
             + meter.lag_s
         t_true = stamps / (1.0 + 1e-6 * meter.drift_ppm) - offset
-        x = np.interp(t_true, run.state.t, run.state.x)
-        v = np.interp(t_true, run.state.t, run.state.v)
-        rows = ['time_ms,X_power_kW,X_position_mm,X_velocity_mm_s']
-        rows += [f'{60000.0 + 1000.0 * a:.3f},{b / 1000.0:.12g},{c * 1000.0:.4f},'
-                 f'{d * 1000.0:.4f}' for a, b, c, d in zip(stamps, y, x, v)]
-        data = f'runs/{run.name}.csv'
-        (out / data).write_text('\n'.join(rows) + '\n', encoding='utf-8')
+        data = tm.write_record_csv(out, run.name, run.state, stamps, y, t_true)
         entries.append({'name': run.name, 'load_kg': run.load_kg, 'motion': {'program': prog},
                         'data': data})
     cols = {'power': {'column': 'X_power_kW', 'unit': 'kW'},
