@@ -31,7 +31,7 @@ MAX_PAYLOAD_BYTES = 64 * 1024
 """Largest measured-data message decoded [bytes]."""
 
 QUANTITIES = {
-    'power_w': 'W', 'current_a': 'A', 'torque_nm': 'N m', 'velocity_m_s': 'm/s',
+    'power_w': 'W', 'current_a': 'A', 'torque_nm': 'N m', 'force_n': 'N', 'velocity_m_s': 'm/s',
     'speed_rad_s': 'rad/s', 'position_m': 'm', 'acceleration_m_s2': 'm/s^2', 'energy_j': 'J',
 }
 """Accepted ``quantity`` names -> their unit (the name ends in it)."""

@@ -20,11 +20,12 @@ from .csvload import load_run
 from .importer import import_campaign
 from .live import (ALARM_KEYS, alarm_text, comparison_text, COMPARISON_KEYS, KINEMATICS,
                    LiveComparison, LiveMonitor, LiveMotionPredictor, LiveSettings,
-                   parse_job_live, parse_live, SOURCES)
+                   parse_job_live, parse_live, SOURCES, ThreadedLag)
 from .manifest import campaign_from_dict, load_campaign
 from .metrics import group_metrics, Metrics, table1_metrics
-from .quantity import (MEASURES, measured_signal, predicted_signal, QUANTITIES, Quantity,
-                       quantity_of, SignalMetrics, signal_metrics, torque_per_unit)
+from .quantity import (MEASURES, measured_signal, POWER_MEASURES, predicted_signal,
+                       QUANTITIES, Quantity, quantity_of, SignalMetrics, signal_metrics,
+                       torque_per_unit)
 from .run import GAP_FACTOR, MeasuredRun
 
 __all__ = [
@@ -34,8 +35,9 @@ __all__ = [
     'import_campaign', 'interval_average', 'json_clean', 'KINEMATICS', 'LiveComparison',
     'LiveMonitor', 'LiveMotionPredictor', 'LiveSettings', 'load_campaign', 'load_run',
     'measured_signal', 'MeasuredRun', 'MEASURES', 'Metrics', 'MotionCache', 'offset_dict',
-    'OffsetResult', 'parse_job_live', 'parse_live', 'predicted_signal', 'QUANTITIES', 'Quantity',
+    'OffsetResult', 'parse_job_live', 'parse_live', 'POWER_MEASURES', 'predicted_signal',
+    'QUANTITIES', 'Quantity',
     'quantity_of', 'RowFilter', 'RunComparison', 'RunSpec', 'signal_metrics', 'SignalMetrics',
-    'simulate_declared', 'SOURCES', 'stamp_shift', 'table1_metrics', 'TimeWindow',
-    'torque_per_unit',
+    'simulate_declared', 'SOURCES', 'stamp_shift', 'table1_metrics', 'ThreadedLag',
+    'TimeWindow', 'torque_per_unit',
 ]

@@ -4,7 +4,9 @@ Subscribes to ``measured/live`` (the cell's drive data, one JSON sample or a bat
 message), ``job/state`` and ``job/live``; publishes the running comparison on
 ``measured/comparison`` and the alarm's changes on ``measured/alarm`` (docs/nodes.md,
 "measured_live"). The work is done by :class:`feed_axis_energy.measured.LiveMonitor`; this
-node only routes messages to it.
+node only routes messages to it. The comparison's lag estimates run on a worker thread
+(:class:`~feed_axis_energy.measured.ThreadedLag`), so that the executor delivering samples
+never waits for one.
 
 ``source``: ``job_live`` compares with the running job's predicted power (``job/live``,
 wall-clock stamps: the graph in real-time mode), one comparison per job, final when the job
@@ -14,6 +16,7 @@ one comparison per stretch of stream, final after ``end_after_s`` without sample
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 
@@ -25,7 +28,7 @@ from feed_axis_energy.graph import parse_state_text
 from feed_axis_energy.machine import load_machine
 from feed_axis_energy.measured import (alarm_text, comparison_text, KINEMATICS, LiveMonitor,
                                        LiveMotionPredictor, LiveSettings, parse_job_live,
-                                       parse_live, SOURCES)
+                                       parse_live, POWER_MEASURES, SOURCES, ThreadedLag)
 from feed_axis_energy.nodes.qos import command_qos, job_qos, latched_qos, measured_live_qos
 from feed_axis_energy.nodes.runner import declare, run, StartupError, steady_timer
 from feed_axis_energy.paths import default_machine
@@ -37,6 +40,22 @@ _FINAL_STATES = ('ended', 'aborted', 'failed')
 
 def _names(text: str) -> tuple[str, ...]:
     return tuple(a.strip() for a in text.split(',') if a.strip())
+
+
+def _constants(text: str) -> dict[str, float]:
+    """``'X=1.3,Y=1.3'`` -> ``{'X': 1.3, 'Y': 1.3}``; ``ValueError`` naming the bad item."""
+    out = {}
+    for item in _names(text):
+        axis, eq, value = item.partition('=')
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not eq or not axis.strip() or not (math.isfinite(number) and number > 0.0):
+            msg = f"parameter kt_nm_a: expected AXIS=N·m/A > 0, got {item!r}"
+            raise ValueError(msg)
+        out[axis.strip()] = number
+    return out
 
 
 class MeasuredLive(Node):
@@ -61,6 +80,14 @@ class MeasuredLive(Node):
         quantities = _names(declare(self, 'motion_quantities', ','.join(KINEMATICS),
                                     'live_motion: kinematic quantities of each axis'))
         self.load_kg = float(declare(self, 'load_kg', 0.0, 'live_motion: workpiece mass [kg]'))
+        self.measures = declare(self, 'measures', 'shaft',
+                                'what the measured trace is (compare\'s instrument.measures): '
+                                'shaft, motor, supply (power_w samples), current (current_a), '
+                                'torque (torque_nm), force (force_n); a drive trace needs '
+                                'live_motion')
+        kt_text = declare(self, 'kt_nm_a', '',
+                          "measures current: torque constants 'X=1.3,Y=1.3' [N·m/A] ('': "
+                          "the machine's drives)")
         self.reorder_s = float(declare(self, 'reorder_s', 0.5,
                                        'how long a row waits for its missing values [s]'))
         self.end_after_s = float(declare(self, 'end_after_s', 10.0,
@@ -98,6 +125,10 @@ class MeasuredLive(Node):
             raise StartupError('parameters publish_rate_hz and end_after_s must be > 0, '
                                'band_sigmas >= 0')
         try:
+            self.kt_nm_a = _constants(kt_text)
+            if self.source != 'live_motion' and self.measures not in POWER_MEASURES:
+                raise StartupError(f'measures {self.measures!r} needs source live_motion: '
+                                   'job/live predicts power only')
             self.settings = LiveSettings(stamp=stamp, **{
                 n: (int(v) if n == 'freeze_count' else float(v)) for n, v in options.items()})
             self.measured_axes = tuple(axes)
@@ -128,12 +159,14 @@ class MeasuredLive(Node):
             return None
         axes, quantities = self._motion
         return LiveMotionPredictor(self.machine, axes=axes, measured_axes=self.measured_axes,
-                                   quantities=quantities, load_kg=self.load_kg)
+                                   quantities=quantities, load_kg=self.load_kg,
+                                   measures=self.measures, kt_nm_a=self.kt_nm_a or None)
 
     def _new_monitor(self, job_id: str) -> LiveMonitor:
         return LiveMonitor(self.measured_axes, source=self.source, settings=self.settings,
                            predictor=self._predictor(), reorder_s=self.reorder_s,
-                           job_id=job_id, band_sigmas=self.band_sigmas)
+                           job_id=job_id, band_sigmas=self.band_sigmas,
+                           lag_runner=ThreadedLag(name='measured_live lag'))
 
     # -- input -------------------------------------------------------------------------
     def _on_job_state(self, msg: String) -> None:
@@ -218,6 +251,12 @@ class MeasuredLive(Node):
             f"{final['measured_energy_j']['total']:.3f} J, predicted "
             f"{final['predicted_energy_j']['total']:.3f} J, error "
             f'{total:+.3f} %, lag {final["lag"]["lag_s"]:+.4f} s ({final["lag"]["status"]})')
+
+    def destroy_node(self) -> None:
+        """Let the running comparison's lag worker go, then the node."""
+        if self.monitor is not None:
+            self.monitor.close()
+        super().destroy_node()
 
     def _tick(self) -> None:
         try:

@@ -9,7 +9,9 @@ The rules are :mod:`feed_axis_energy.measured.compare`'s, applied as the data ar
   ``min_align_s`` on. A ``'weak'`` estimate is used as offset 0, as ``compare`` does. The lag
   is *frozen* (no more estimates) once ``freeze_count`` estimates in a row agree within
   ``freeze_tol_s``; ``freeze_count = 0`` never freezes. At :meth:`LiveComparison.finish`, a
-  lag not yet frozen is estimated once more on the rings.
+  lag not yet frozen is estimated once more on the rings. Estimates run where the caller's
+  ``lag_runner`` says (:mod:`.lagworker`): at once (the default), or on a worker thread so
+  that delivering samples never waits for one (the ``measured_live`` node).
 * **Aligned prediction**: the prediction averaged over each measured sample's window at the
   lag (:func:`~feed_axis_energy.measured.align.align_simulated`, the instrument model; window 0
   is linear interpolation), held at its first and last value outside its range (the machine
@@ -30,6 +32,15 @@ The rules are :mod:`feed_axis_energy.measured.compare`'s, applied as the data ar
   armed once the lag has a usable estimate (not before the first, nor while it is
   ``'weak'``): at an unknown lag a residual says nothing.
 
+**Drive traces** (``measures`` current, torque or force, ``compare``'s quantities): the measured
+rows hold the trace ``q`` in its unit and the prediction ``q`` and the screw speed ``omega``
+[rad/s] per axis. As ``compare`` does, the lag is estimated on the magnitudes of the traces,
+each scaled by its measured RMS (over the ring), and everything in watts (the powers at the
+stamp, the energies, the alarm) is ``q·g·omega`` of both sides with the aligned predicted
+``omega`` and the axis's gain ``g`` [N·m per unit] (``I·kt·omega`` for current); the trace
+itself is reported in its unit beside (``signal``: values at the stamp, RMS of the residual
+over the rows evaluated).
+
 Memory is bounded: ``ring_s`` (and at most ``max_ring_samples``) of each stream, a window
 of alarm rows, and sums. Nothing raises on data.
 """
@@ -43,8 +54,10 @@ from typing import Any
 import numpy as np
 
 from ...errors import DataError
-from ..align import align_simulated, estimate_offset, stamp_shift, STAMPS
+from ..align import align_simulated, stamp_shift, STAMPS
 from ..compare import DEFAULT_MAX_LAG_S
+from ..quantity import MEASURES, quantity_of
+from .lagworker import InlineLag, LagOutcome, LagRequest, LagRunner
 from .ring import SampleRing
 
 __all__ = ['BAND_SOURCES', 'LagState', 'LiveComparison', 'LiveSettings']
@@ -241,21 +254,48 @@ class LiveComparison:
         :meth:`add_prediction`.
     settings
         Options (:class:`LiveSettings`).
+    lag_runner
+        Where the lag estimates run (:mod:`.lagworker`): :class:`~.lagworker.InlineLag` (the
+        default: at once, in the caller's thread) or :class:`~.lagworker.ThreadedLag` (on a
+        worker thread, so that :meth:`add_measured` never waits for one; an estimate is then
+        used from the first row after it finished, and rows that leave the ring before are
+        settled at the lag in force, so only runs longer than ``ring_s`` can end otherwise).
+        :meth:`finish` closes it.
+    measures, gains
+        What the measured rows hold (``compare``'s ``instrument.measures``; a power by
+        default) and, for a drive trace, the gain ``g`` [N·m per unit] of each axis
+        (:func:`~feed_axis_energy.measured.quantity.torque_per_unit`); the prediction then
+        holds the trace and ``omega`` [rad/s] per axis (module docstring).
 
     Times are float seconds on one clock shared by both streams (the caller subtracts one
     origin from wall-clock stamps, so that float seconds keep microseconds).
     """
 
-    def __init__(self, axes: tuple[str, ...], settings: LiveSettings | None = None):
+    def __init__(self, axes: tuple[str, ...], settings: LiveSettings | None = None, *,
+                 lag_runner: LagRunner | None = None, measures: str = 'shaft',
+                 gains: tuple[float, ...] | None = None):
         if not axes:
             raise DataError('no measured axes to compare', file='<live>', column='axes')
         self.axes = tuple(axes)
         self.s = settings or LiveSettings()
         k = len(self.axes)
         s = self.s
+        if measures not in MEASURES:
+            msg = f'measures must be one of {", ".join(MEASURES)}, got {measures!r}'
+            raise DataError(msg, file='<live>', column='measures')
+        self.quantity = quantity_of(measures)
+        self._gains: np.ndarray | None = None
+        if not self.quantity.is_power:
+            g = np.asarray(gains if gains is not None else (), dtype=float).reshape(-1)
+            if g.size != k or not (np.isfinite(g).all() and (g != 0.0).all()):
+                msg = f'a {measures} trace needs a finite, non-zero gain per measured axis'
+                raise DataError(msg, file='<live>', column='gains')
+            self._gains = g
+        self._pred_cols = k if self._gains is None else 2 * k
         self.meas = SampleRing(k, span_s=s.ring_s, max_samples=s.max_ring_samples)
         # the prediction is kept as far back as the oldest measured row may look
-        self.pred = SampleRing(k, span_s=math.inf, max_samples=s.max_ring_samples)
+        self.pred = SampleRing(self._pred_cols, span_s=math.inf,
+                               max_samples=s.max_ring_samples)
         self._reach_s = s.max_lag_s + s.window_s + 1.0
         self.lag = LagState()
         if s.fixed_lag_s is not None:
@@ -268,12 +308,17 @@ class LiveComparison:
         self._e_meas = np.zeros(k)
         self._e_pred = np.zeros(k)
         self._settled_last: tuple[float, np.ndarray, np.ndarray] | None = None
+        # drive traces: the residual in the trace's unit, squared and summed, over settled rows
+        self._sq_settled = np.zeros(k)
+        self._latest_q: tuple[np.ndarray, np.ndarray] | None = None
         self._alarm = _Alarm(s)
         self._alarm_t = -math.inf     # newest row fed to the alarm
         self.prediction_late = 0
         self.settled_rows = 0
         self._latest: tuple[float, np.ndarray, np.ndarray] | None = None
         self._finished = False
+        self.lag_runner: LagRunner = lag_runner if lag_runner is not None else InlineLag()
+        self._lag_seq = 0
 
     def set_band(self, band_pct: float, source: str) -> None:
         """The alarm band's share of the predicted power [%] from now on, and its source."""
@@ -284,13 +329,14 @@ class LiveComparison:
 
     # -- input -------------------------------------------------------------------------
     def add_prediction(self, t: np.ndarray, power_w: np.ndarray) -> None:
-        """Append predicted samples, times ``(n,)`` [s] and power ``(n, k)`` [W].
+        """Append predicted samples, times ``(n,)`` [s] and power ``(n, k)`` [W] (a drive
+        trace: ``(n, 2k)``, the trace in its unit, then ``omega`` [rad/s]).
 
         Samples not later than the newest held, or not finite, are dropped and counted as
         ``prediction_late``.
         """
         t = np.asarray(t, dtype=float).reshape(-1)
-        y = np.asarray(power_w, dtype=float).reshape(t.size, len(self.axes))
+        y = np.asarray(power_w, dtype=float).reshape(t.size, self._pred_cols)
         keep = np.isfinite(t) & np.isfinite(y).all(axis=1)
         last = self.pred.last_t
         if last is not None:
@@ -306,6 +352,7 @@ class LiveComparison:
         last = self.meas.last_t
         if last is not None and t <= last:
             return      # the assembler hands rows on in order; a caller's slip is ignored
+        self._take_lag()
         if math.isnan(self._first_t):
             self._first_t = t
             self._next_align = t + max(self.s.min_align_s, self.s.realign_every_s)
@@ -315,25 +362,49 @@ class LiveComparison:
             oldest = self.meas.arrays()[0][0]
             self.pred.drop_before(float(oldest) - abs(self.lag.lag_s) - self._reach_s)
         if not self.lag.frozen and t >= self._next_align:
-            self._estimate()
+            self._request_lag()
+            self._take_lag()        # an inline runner's outcome: used at once, as always
             self._next_align = t + self.s.realign_every_s
         if t >= self._alarm_t + self.s.alarm_every_s:
             self._feed_alarm()
 
     # -- lag ---------------------------------------------------------------------------
-    def _estimate(self) -> None:
+    def _lag_request(self) -> LagRequest | None:
         tm, ym = self.meas.arrays()
         tp, yp = self.pred.arrays()
-        lag = self.lag
         if tm.size < 2 or tp.size < 2:
-            lag.message = 'too few samples to estimate the lag yet'
-            return
-        try:
-            found = estimate_offset(tm, ym.sum(axis=1), tp, yp.sum(axis=1),
-                                    max_lag_s=self.s.max_lag_s, window_s=self.s.window_s,
-                                    stamp=self.s.stamp, min_correlation=self.s.min_correlation)
-        except DataError as err:
-            lag.message = f'lag not estimated: {err.reason}'
+            self.lag.message = 'too few samples to estimate the lag yet'
+            return None
+        self._lag_seq += 1
+        s = self.s
+        if self._gains is None:
+            y_meas, y_pred = ym.sum(axis=1), yp.sum(axis=1)
+        else:
+            # compare's rule: magnitudes, each axis scaled by its measured RMS
+            rms = np.sqrt(np.mean(ym * ym, axis=0))
+            scale = np.where(rms > 0.0, rms, 1.0)
+            k = len(self.axes)
+            y_meas = (np.abs(ym) / scale).sum(axis=1)
+            y_pred = (np.abs(yp[:, :k]) / scale).sum(axis=1)
+        return LagRequest(self._lag_seq, tm.copy(), y_meas, tp.copy(), y_pred,
+                          max_lag_s=s.max_lag_s, window_s=s.window_s, stamp=s.stamp,
+                          min_correlation=s.min_correlation)
+
+    def _request_lag(self) -> None:
+        request = self._lag_request()
+        if request is not None:
+            self.lag_runner.submit(request)
+
+    def _take_lag(self) -> None:
+        out = self.lag_runner.take()
+        if out is not None and not self.lag.frozen:
+            self._use_lag(out)
+
+    def _use_lag(self, out: LagOutcome) -> None:
+        lag = self.lag
+        found = out.found
+        if found is None:
+            lag.message = f'lag not estimated: {out.reason}'
             return
         lag.estimates += 1
         previous = lag.found_s
@@ -355,14 +426,25 @@ class LiveComparison:
             lag.frozen = True
 
     # -- evaluation --------------------------------------------------------------------
+    def _watts(self, t: np.ndarray,
+               y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Measured and aligned predicted power [W] of rows ``y``, and the aligned
+        prediction in the rows' unit (a power: the same array)."""
+        aligned = self._aligned(t)
+        if self._gains is None:
+            return y, aligned, aligned
+        k = len(self.axes)
+        q, omega = aligned[:, :k], aligned[:, k:]
+        return y * self._gains * omega, q * self._gains * omega, q
+
     def _aligned(self, t: np.ndarray) -> np.ndarray:
         if t.size == 0:
-            return np.zeros((0, len(self.axes)))
+            return np.zeros((0, self._pred_cols))
         # only the stretch of prediction these rows look at (plus a sample either side)
         start = float(t[0]) - self.lag.lag_s + self._shift - self.s.window_s
         tp, yp = self.pred.window(start, float(t[-1]) - self.lag.lag_s + self._shift)
         if tp.size == 0:
-            return np.full((t.size, len(self.axes)), math.nan)
+            return np.full((t.size, self._pred_cols), math.nan)
         if tp.size == 1:
             return np.repeat(yp, t.size, axis=0)
         if self.s.window_s == 0.0:
@@ -381,7 +463,10 @@ class LiveComparison:
 
     def _settle(self, t: np.ndarray, y: np.ndarray) -> None:
         """Fold rows leaving the measured ring into the sums, at the lag in force."""
-        pred = self._aligned(t)
+        q = y
+        y, pred, pred_q = self._watts(t, y)
+        if self._gains is not None:
+            self._sq_settled += np.sum((q - pred_q) ** 2, axis=0)
         self.settled_rows += t.size
         if self._settled_last is not None:
             t0, m0, p0 = self._settled_last
@@ -399,9 +484,10 @@ class LiveComparison:
         if not ok.any():
             return
         n = int(np.argmin(ok)) if not ok.all() else ok.size    # a covered prefix
-        tm, ym = tm[:n], ym[:n]
-        pred = self._aligned(tm)
+        tm, q = tm[:n], ym[:n]
+        ym, pred, pred_q = self._watts(tm, q)
         self._latest = (float(tm[-1]), ym[-1].copy(), pred[-1].copy())
+        self._latest_q = (q[-1].copy(), pred_q[-1].copy())
         self._alarm_t = float(tm[-1])
         if self.lag.status in ('none', 'weak'):
             return      # not armed: at an unknown lag, a residual says nothing
@@ -413,9 +499,17 @@ class LiveComparison:
         """The stream has ended: a last lag estimate (unless frozen), every row evaluated."""
         if not self._finished:
             self._finished = True
+            self._take_lag()
+            self.lag_runner.close()     # an estimate still running is of older data
             if not self.lag.frozen and self.meas.size >= 2:
-                self._estimate()
+                request = self._lag_request()
+                if request is not None:
+                    self._use_lag(self.lag_runner.run_now(request))
         return self.snapshot()
+
+    def close(self) -> None:
+        """Let go of the lag runner (its thread, if any) without finishing."""
+        self.lag_runner.close()
 
     def snapshot(self) -> dict[str, Any]:
         """The comparison so far: keys documented in docs/nodes.md ("measured_live").
@@ -430,8 +524,15 @@ class LiveComparison:
             tm, ym = tm[ok], ym[ok]     # covered rows are a prefix: times increase
         e_meas = self._e_meas.copy()
         e_pred = self._e_pred.copy()
+        sq = self._sq_settled.copy()
+        n_rows = self.settled_rows + tm.size
         if tm.size:
-            pred = self._aligned(tm)
+            q = ym
+            ym, pred, pred_q = self._watts(tm, q)
+            if self._gains is not None:
+                sq += np.sum((q - pred_q) ** 2, axis=0)
+            if self._finished:
+                self._latest_q = (q[-1].copy(), pred_q[-1].copy())
             if self._settled_last is not None:
                 t0, m0, p0 = self._settled_last
                 tm, ym, pred = np.r_[t0, tm], np.vstack([m0, ym]), np.vstack([p0, pred])
@@ -474,4 +575,25 @@ class LiveComparison:
                      'prediction_ring': self.pred.size},
             'prediction_late': self.prediction_late,
             'final': self._finished,
+            'measures': self.quantity.name,
+            'signal': self._signal(sq, n_rows),
         }
+
+    def _signal(self, sq: np.ndarray, n_rows: int) -> dict[str, Any] | None:
+        """A drive trace in its unit: values at the stamp, residual RMS (None: a power)."""
+        if self._gains is None:
+            return None
+        qty = self.quantity
+        k = len(self.axes)
+
+        def per_axis(values: np.ndarray | None) -> dict[str, float]:
+            return {a: (float(values[j]) if values is not None else math.nan)
+                    for j, a in enumerate(self.axes)}
+
+        meas, pred = self._latest_q if self._latest_q is not None else (None, None)
+        res = meas - pred if meas is not None and pred is not None else None
+        rms = np.sqrt(sq / n_rows) if n_rows else np.full(k, math.nan)
+        return {'quantity': qty.name, 'unit': qty.unit, 'key': qty.key,
+                'measured': per_axis(meas), 'predicted': per_axis(pred),
+                'residual': per_axis(res), 'residual_rms': per_axis(rms),
+                'gain': per_axis(self._gains)}

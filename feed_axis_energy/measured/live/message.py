@@ -6,8 +6,9 @@
 
 or a batch of such objects, ``{"samples": [{...}, ...]}`` (at most :data:`MAX_BATCH`).
 ``stamp`` is wall-clock time [s since the UNIX epoch]; ``value`` a finite number in the unit
-the quantity names. :func:`parse_live` never raises: what it cannot use it counts under one
-of :data:`REJECTS`.
+the quantity names; ``quantity`` may be left out: it is then ``power_w`` (what the contract
+carried first; publishers of power need not name it). :func:`parse_live` never raises: what
+it cannot use it counts under one of :data:`REJECTS`.
 """
 from __future__ import annotations
 
@@ -19,9 +20,12 @@ from typing import Any
 from ..comparison import json_clean
 from .monitor import LIVE_QUANTITIES
 
-__all__ = ['ALARM_KEYS', 'alarm_text', 'COMPARISON_KEYS', 'comparison_text', 'JobLive',
+__all__ = ['ALARM_KEYS', 'alarm_text', 'COMPARISON_KEYS', 'comparison_text',
+           'DEFAULT_QUANTITY', 'JobLive',
            'LiveSample', 'MAX_BATCH', 'MAX_TEXT_CHARS', 'parse_job_live', 'parse_live', 'REJECTS']
 
+DEFAULT_QUANTITY = 'power_w'
+"""The quantity of a sample that names none."""
 MAX_BATCH = 10_000
 """Most samples in one batch message."""
 MAX_TEXT_CHARS = 4 * 1024 * 1024
@@ -33,7 +37,7 @@ _MAX_STAMP_S = 9.2e9    # int64 nanoseconds end in 2262
 COMPARISON_KEYS = ('job_id', 'source', 'stamp', 'axes', 'elapsed_s', 'measured_power_w',
                    'predicted_power_w', 'residual_power_w', 'measured_energy_j',
                    'predicted_energy_j', 'energy_error_j', 'energy_error_pct', 'lag', 'alarm',
-                   'rows', 'final', 'counters')
+                   'rows', 'final', 'measures', 'signal', 'counters')
 """Top-level keys of a ``measured/comparison`` message, in order."""
 
 ALARM_KEYS = ('job_id', 'stamp', 'active', 'count', 'residual_w', 'band_w', 'band_source')
@@ -54,7 +58,7 @@ def _is_number(value: Any) -> bool:
 def _sample(item: Any) -> LiveSample | None:
     if not isinstance(item, dict):
         return None
-    axis, quantity = item.get('axis'), item.get('quantity')
+    axis, quantity = item.get('axis'), item.get('quantity', DEFAULT_QUANTITY)
     stamp, value = item.get('stamp'), item.get('value')
     if not (isinstance(axis, str) and 0 < len(axis) <= 16 and axis.isprintable()):
         return None

@@ -1,12 +1,13 @@
 """One live comparison: samples of any kind in, the comparison's JSON-ready dict out.
 
-:class:`LiveMonitor` routes each live sample (axis, quantity, stamp, value): measured power
-(``power_w``) of the measured axes to a :class:`~.rows.RowAssembler` whose rows feed the
-:class:`~.compare.LiveComparison`; in ``live_motion`` mode, the kinematics of the motion axes
-to a second assembler whose rows feed the :class:`~.motion.LiveMotionPredictor`, whose
-output is the prediction. In ``job_live`` mode the prediction comes from outside
-(:meth:`LiveMonitor.add_prediction`: the running job's ``job/live`` power). Samples of other
-axes or quantities are counted, never raised on.
+:class:`LiveMonitor` routes each live sample (axis, quantity, stamp, value): the measured
+trace of the measured axes (``power_w``; with a predictor for a drive trace, ``current_a``,
+``torque_nm`` or ``force_n``: ``compare``'s ``instrument.measures``) to a
+:class:`~.rows.RowAssembler` whose rows feed the :class:`~.compare.LiveComparison`; in
+``live_motion`` mode, the kinematics of the motion axes to a second assembler whose rows feed
+the :class:`~.motion.LiveMotionPredictor`, whose output is the prediction. In ``job_live``
+mode the prediction comes from outside (:meth:`LiveMonitor.add_prediction`: the running job's
+``job/live`` power). Samples of other axes or quantities are counted, never raised on.
 
 Stamps are integer nanoseconds (wall clock); the monitor counts time from the first stamp it
 sees (:attr:`LiveMonitor.origin_ns`), so the float seconds of the core keep sub-microsecond
@@ -22,6 +23,7 @@ import numpy as np
 
 from ...errors import DataError
 from .compare import LiveComparison, LiveSettings
+from .lagworker import LagRunner
 from .motion import LiveMotionPredictor
 from .rows import Row, RowAssembler
 
@@ -30,8 +32,8 @@ __all__ = ['LIVE_QUANTITIES', 'LiveMonitor', 'SOURCES']
 SOURCES = ('job_live', 'live_motion')
 """Where the prediction comes from: the running job's ``job/live``, or the stream's motion."""
 
-LIVE_QUANTITIES = ('power_w', 'current_a', 'torque_nm', 'velocity_m_s', 'speed_rad_s',
-                   'position_m', 'acceleration_m_s2', 'energy_j')
+LIVE_QUANTITIES = ('power_w', 'current_a', 'torque_nm', 'force_n', 'velocity_m_s',
+                   'speed_rad_s', 'position_m', 'acceleration_m_s2', 'energy_j')
 """Quantity names a live sample may carry (as the MQTT bridge's ``QUANTITIES``)."""
 
 
@@ -57,12 +59,15 @@ class LiveMonitor:
         machine): the alarm band's share of the predicted power is this many standard
         uncertainties of the predicted energy so far (``band_source`` ``'calibration'``);
         0, or no covariance: the settings' ``band_pct`` (``'default'``).
+    lag_runner
+        Where the lag estimates run (:class:`~.compare.LiveComparison`; default: at once).
     """
 
     def __init__(self, measured_axes: tuple[str, ...], *, source: str,
                  settings: LiveSettings | None = None,
                  predictor: LiveMotionPredictor | None = None, reorder_s: float = 0.5,
-                 job_id: str = '', band_sigmas: float = 2.0):
+                 job_id: str = '', band_sigmas: float = 2.0,
+                 lag_runner: LagRunner | None = None):
         if source not in SOURCES:
             msg = f'source must be one of {", ".join(SOURCES)}, got {source!r}'
             raise DataError(msg, file='<measured_live>', column='source')
@@ -72,8 +77,16 @@ class LiveMonitor:
         self.axes = tuple(measured_axes)
         self.source = source
         self.job_id = job_id
-        self.core = LiveComparison(self.axes, settings)
-        self.measured = RowAssembler(tuple((a, 'power_w') for a in self.axes),
+        measures = predictor.measures if predictor is not None else 'shaft'
+        if predictor is not None and tuple(predictor.measured_axes) != self.axes:
+            raise DataError('the predictor predicts other axes than the measured ones',
+                            file='<measured_live>', column='measured_axes')
+        self.core = LiveComparison(self.axes, settings, lag_runner=lag_runner,
+                                   measures=measures,
+                                   gains=predictor.gains if predictor is not None else None)
+        self.quantity_name = self.core.quantity.run_field
+        """The live quantity of the measured trace (``power_w``, ``current_a``, ...)."""
+        self.measured = RowAssembler(tuple((a, self.quantity_name) for a in self.axes),
                                      reorder_s=reorder_s)
         self.predictor = predictor
         self.kinematics = (RowAssembler(predictor.slots, reorder_s=reorder_s)
@@ -156,6 +169,10 @@ class LiveMonitor:
         for row in self.measured.flush():
             self._measured_row(row)
         return self._dress(self.core.finish())
+
+    def close(self) -> None:
+        """Let go of the comparison's lag runner (its thread) without finishing."""
+        self.core.close()
 
     def snapshot(self) -> dict[str, Any]:
         """The comparison so far (keys: docs/nodes.md, "measured_live")."""

@@ -23,10 +23,10 @@ import numpy as np
 
 from ...errors import ConfigError, DataError
 from ...machine import Machine
-from ...physics import UncertaintyAccumulator
+from ...physics import REST_SPEED_M_S, UncertaintyAccumulator
 from ...sim import simulate_motion, streamable
 from ..motiondata import reconstruct_motion
-from ..quantity import predicted_signal, quantity_of
+from ..quantity import MEASURES, omega_columns, predicted_signal, quantity_of, torque_per_unit
 
 __all__ = ['KINEMATICS', 'LiveMotionPredictor']
 
@@ -51,7 +51,10 @@ class LiveMotionPredictor:
     load_kg
         Workpiece mass [kg].
     measures
-        What the measured power is (``compare``'s ``instrument.measures``: ``shaft``, ...).
+        What the measured trace is (``compare``'s ``instrument.measures``: ``shaft``,
+        ``motor``, ``supply``, ``current``, ``torque``, ``force``).
+    kt_nm_a
+        Torque constants [N·m/A] per axis for ``current`` (win over the machine's drives).
     chunk_rows
         Intervals rebuilt at once.
 
@@ -64,7 +67,8 @@ class LiveMotionPredictor:
 
     def __init__(self, machine: Machine, *, axes: tuple[str, ...],
                  measured_axes: tuple[str, ...], quantities: tuple[str, ...] = KINEMATICS,
-                 load_kg: float = 0.0, measures: str = 'shaft', chunk_rows: int = 10):
+                 load_kg: float = 0.0, measures: str = 'shaft', chunk_rows: int = 10,
+                 kt_nm_a: dict[str, float] | None = None):
         where = '<measured_live>'
         known = machine.axis_names
         missing = [a for a in tuple(axes) + tuple(measured_axes) if a not in known]
@@ -80,8 +84,10 @@ class LiveMotionPredictor:
         if not streamable(machine):
             msg = 'the machine declares effects that are not sample-local: no live prediction'
             raise ConfigError(msg, file=where, key='effects')
-        if not quantity_of(measures).is_power:
-            raise ConfigError(f'{measures!r} is not a power', file=where, key='measures')
+        if measures not in MEASURES:
+            msg = f'measures must be one of {", ".join(MEASURES)}, got {measures!r}'
+            raise ConfigError(msg, file=where, key='measures')
+        self.quantity = quantity_of(measures)
         if not (math.isfinite(load_kg) and load_kg >= 0.0) or chunk_rows < 1:
             raise ConfigError('load_kg must be >= 0 and chunk_rows >= 1', file=where,
                               key='load_kg')
@@ -91,6 +97,13 @@ class LiveMotionPredictor:
         self.quantities = tuple(quantities)
         self.load_kg = float(load_kg)
         self.measures = measures
+        self.gains: tuple[float, ...] | None = None
+        """``torque_per_unit`` of the measured axes for a drive trace (None: a power)."""
+        if not self.quantity.is_power:
+            gains = torque_per_unit(measures, machine, self.measured_axes,
+                                    declared_kt=kt_nm_a, manifest=where)
+            self.gains = tuple(float(g) for g in gains)     # type: ignore[arg-type]
+        self._direction = {a: 0.0 for a in self.measured_axes}
         self.chunk_rows = int(chunk_rows)
         self.failures = 0
         """Chunks that could not be simulated (a message says why: :attr:`last_error`)."""
@@ -126,8 +139,9 @@ class LiveMotionPredictor:
         Returns
         -------
         tuple or None
-            ``(t, power)`` of new predicted samples ([s], ``(n, k)`` [W]) once a chunk is
-            complete, else ``None``.
+            ``(t, values)`` of new predicted samples ([s]; ``(n, k)`` power [W], or for a
+            drive trace ``(n, 2k)``: the trace in its unit, then ``omega`` [rad/s], per
+            measured axis) once a chunk is complete, else ``None``.
         """
         self._t.append(float(t))
         self._rows.append(np.asarray(values, dtype=float))
@@ -150,7 +164,17 @@ class LiveMotionPredictor:
                                         rate_hz=self.machine.planner.rate_hz,
                                         vel=rows[:, :, 1], acc=acc, source='measured/live')
             sim = simulate_motion(motion, self.machine, load_kg=self.load_kg)
-            power = predicted_signal(self.measures, sim, self.machine, self.measured_axes)
+            if self.gains is None:
+                power = values = predicted_signal(self.measures, sim, self.machine,
+                                                  self.measured_axes)
+            else:
+                signal = predicted_signal(self.measures, sim, self.machine,
+                                          self.measured_axes, gains=self.gains,
+                                          start_direction=self._direction)
+                omega = omega_columns(sim, self.measured_axes)
+                power = signal * np.array(self.gains) * omega
+                values = np.hstack([signal, omega])
+                self._track_direction(sim)
         except (DataError, ConfigError, ValueError) as err:
             self.failures += 1
             self.last_error = str(err)
@@ -161,6 +185,17 @@ class LiveMotionPredictor:
                                   braking=self.machine.braking)
         self._energy_j += np.trapezoid(power, times, axis=0)
         if self._started:
-            times, power = times[1:], power[1:]
+            times, values = times[1:], values[1:]
         self._started = True
-        return times, power
+        return times, values
+
+    def _track_direction(self, sim) -> None:
+        """The direction each measured axis last moved in (the next chunk's start)."""
+        dyn = sim.dynamics
+        for a in self.measured_axes:
+            if a not in dyn.axes:
+                continue
+            v = dyn.velocity_m_s[:, dyn.axes.index(a)]
+            moving = np.flatnonzero(np.abs(v) > REST_SPEED_M_S)
+            if moving.size:
+                self._direction[a] = float(np.sign(v[moving[-1]]))
