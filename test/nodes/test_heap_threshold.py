@@ -1,12 +1,13 @@
 """gcode_trajectory fixes glibc's mmap threshold: a large array freed and made again is mapped."""
 import os
+from pathlib import Path
 import platform
 import subprocess
 import sys
 
 import pytest
 
-from conftest import ROOT
+ROOT = Path(__file__).resolve().parents[2]
 
 glibc = pytest.mark.skipif(platform.system() != 'Linux' or platform.libc_ver()[0] != 'glibc',
                            reason='mallopt/mallinfo2 are glibc')
