@@ -6,6 +6,8 @@ interface. :mod:`.requests` checks what clients send before the service sees it;
 :mod:`.security` decides who may connect to the OPC UA server (:mod:`.opcua`);
 :mod:`.topics` is the MQTT topic tree and its JSON, :mod:`.measured` the check of live
 measured drive data arriving over MQTT, :mod:`.mqtt` the client that joins them;
+:mod:`.sparkplug` publishes the same as a Sparkplug B edge node, with the protobuf payloads
+of :mod:`.sparkplug_payload`;
 :mod:`.graphjobs` is the job service on the graph's job topics (the ``opcua_bridge`` node is
 its ROS shell); :mod:`.logbound` keeps a peer that fails again and again from flooding the
 log. The address space, topic tree, job states and security are contracts: docs/cell.md.
@@ -22,12 +24,19 @@ from .security import (is_loopback, OpcUaSecurity, PasswordUsers, read_users_fil
                        security_plan, SecurityPlan)
 from .service import (AxisPower, FINAL_STATES, JOB_STATES, JobService, Listener, LiveSample,
                       RESULT_KEYS, result_summary, ResultSummary, ServiceEvent, StateChange)
+from .sparkplug import (device_metrics, REBIRTH_METRIC, SPARKPLUG_NAMESPACE, SparkplugBridge,
+                        SparkplugSettings, SparkplugTopics)
+from .sparkplug_payload import (decode_sparkplug, encode_sparkplug, MAX_DECODED_BYTES,
+                                SpDataType, SpMetric, SpPayload)
 from .topics import (DEFAULT_PREFIX, POWER_KEYS, power_payload, result_payload, RETAINED,
                      STATE_KEYS, state_payload, STATUS_KEYS, status_payload, TopicTree)
 
 __all__ = [
     'AxisPower', 'BROWSE_PATHS', 'check_job_id', 'check_load_kg', 'check_program',
-    'DEFAULT_PREFIX', 'DROP_REASONS', 'ENERGY_NAMES', 'FINAL_STATES', 'GraphJobService',
+    'decode_sparkplug', 'DEFAULT_PREFIX', 'device_metrics', 'DROP_REASONS', 'ENERGY_NAMES',
+    'encode_sparkplug', 'FINAL_STATES', 'GraphJobService', 'MAX_DECODED_BYTES',
+    'REBIRTH_METRIC', 'SPARKPLUG_NAMESPACE', 'SparkplugBridge', 'SparkplugSettings',
+    'SparkplugTopics', 'SpDataType', 'SpMetric', 'SpPayload',
     'is_loopback', 'MEASURED_LIVE_KEYS', 'measured_live_payload', 'read_users_file',
     'service_result',
     'J_PER_WH', 'JOB_STATES', 'JobService', 'Listener', 'LiveSample', 'MAX_JOB_ID_CHARS',

@@ -4,7 +4,9 @@ A thin shell (docs/cell.md): :class:`feed_axis_energy.bridge.GraphJobService` is
 service on the job topics (``job/command`` out; ``job/reply``, ``job/state``, ``job/result``,
 ``job/live`` in), :class:`feed_axis_energy.bridge.OpcUaThread` serves it on OPC UA and, when
 ``mqtt_host`` is set, :class:`feed_axis_energy.bridge.MqttBridge` publishes it on MQTT and
-takes live measured drive data from ``<prefix>/<machine>/measured/<axis>``; each accepted
+takes live measured drive data from ``<prefix>/<machine>/measured/<axis>``; with
+``sparkplug`` (``GROUP_ID/EDGE_NODE_ID``) :class:`feed_axis_energy.bridge.SparkplugBridge`
+also publishes it as a Sparkplug B edge node with the machine as its device; each accepted
 sample is republished on ``measured/live`` (``std_msgs/String``, JSON ``{"axis", "stamp",
 "quantity", "value"}``, docs/nodes.md). Bad parameters, a port in use or a broker that does
 not answer end the node at start-up with one line and exit code 1. Once the OPC UA server
@@ -23,7 +25,8 @@ from std_msgs.msg import String
 
 from feed_axis_energy.bridge import (GraphJobService, measured_live_payload, MqttBridge,
                                      MqttSettings, OpcUaSecurity, OpcUaSettings, OpcUaThread,
-                                     read_users_file, TopicTree)
+                                     read_users_file, SparkplugBridge, SparkplugSettings,
+                                     SparkplugTopics, TopicTree)
 from feed_axis_energy.machine import load_machine
 from feed_axis_energy.nodes.qos import command_qos, job_qos, measured_live_qos
 from feed_axis_energy.nodes.runner import declare, guard_parameters, run, StartupError, \
@@ -57,6 +60,9 @@ class OpcUaBridgeNode(Node):
         mqtt_port = declare(self, 'mqtt_port', 1883, 'TCP port of the MQTT broker')
         prefix = declare(self, 'mqtt_prefix', 'feed_axis_energy', 'first MQTT topic levels')
         name = declare(self, 'mqtt_machine', 'machine', 'machine name, one MQTT topic level')
+        sparkplug = declare(self, 'sparkplug', '',
+                            "GROUP_ID/EDGE_NODE_ID: also publish as a Sparkplug B edge node "
+                            "(device: mqtt_machine) on the MQTT broker; '' for none")
         reply_s = declare(self, 'reply_timeout_s', 10.0,
                           'longest wait for the graph to answer a command [s]')
         keep = declare(self, 'keep_results', 100, 'job results kept for GetResult')
@@ -74,6 +80,11 @@ class OpcUaBridgeNode(Node):
             mqtt = MqttSettings(host=mqtt_host, port=mqtt_port,
                                 topics=TopicTree(prefix=prefix, machine=name),
                                 axes=tuple(axes)) if mqtt_host else None
+            if sparkplug and not mqtt_host:
+                raise ValueError('sparkplug needs mqtt_host: the edge node uses that broker')
+            spb = SparkplugSettings(host=mqtt_host, port=mqtt_port,
+                                    topics=SparkplugTopics.parse(sparkplug, device_id=name)) \
+                if sparkplug else None
         except (TypeError, ValueError) as err:
             raise StartupError(str(err)) from None
         self.pub_command = self.create_publisher(String, 'job/command', command_qos())
@@ -91,6 +102,7 @@ class OpcUaBridgeNode(Node):
         self._ready = False
         self.opcua = OpcUaThread(self.service, settings)
         self.mqtt: MqttBridge | None = None
+        self.sparkplug: SparkplugBridge | None = None
         try:
             self.opcua.start()
         except Exception as err:   # noqa: B902 - asyncua's bind/cert failures: one clear line
@@ -104,9 +116,20 @@ class OpcUaBridgeNode(Node):
                 self.mqtt = None
                 self.opcua.stop()
                 raise StartupError(str(err)) from None
+        if spb is not None:
+            try:
+                self.sparkplug = SparkplugBridge(self.service, spb)
+                self.sparkplug.start()
+            except Exception as err:   # noqa: B902 - a start-up failure: one line, exit 1
+                self.sparkplug = None
+                self.close()
+                raise StartupError(str(err)) from None
         self._where = [f'OPC UA {settings.endpoint}']
         if mqtt is not None:
             self._where.append(f'MQTT {mqtt.host}:{mqtt.port} topics {mqtt.topics.base}/#')
+        if spb is not None:
+            self._where.append(f'Sparkplug B {spb.topics.device("DDATA")} (spBv1.0/'
+                               f'{spb.topics.group_id}/#)')
         steady_timer(self, 0.1, self._tick)
 
     def _send(self, text: str) -> None:
@@ -141,7 +164,13 @@ class OpcUaBridgeNode(Node):
             self.get_logger().info(f'ready: {"; ".join(self._where)}')
 
     def close(self) -> None:
-        """Stop MQTT (offline, retained) and the OPC UA server; the graph's job goes on."""
+        """Stop MQTT (offline, retained; Sparkplug NDEATH) and the OPC UA server.
+
+        The graph's job goes on.
+        """
+        if self.sparkplug is not None:
+            self.sparkplug.stop()
+            self.sparkplug = None
         if self.mqtt is not None:
             self.mqtt.stop()
             self.mqtt = None

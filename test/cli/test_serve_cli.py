@@ -32,7 +32,7 @@ def test_help_names_every_option():
     assert done.returncode == 0, done.stderr
     for option in ('--program-root', '--machine', '--opcua-port', '--opcua-host', '--mqtt',
                    '--domain-id', '--opcua-cert', '--opcua-key', '--opcua-users', '--mode',
-                   '--measured-live'):
+                   '--measured-live', '--mqtt-sparkplug'):
         assert option in done.stdout
 
 
@@ -163,3 +163,28 @@ def test_trusted_client_certificates_are_checked_and_passed_to_the_bridge(root, 
     assert bridge_parameters(args)['opcua_trusted_clients'] == f'{cert.resolve()},{cert.resolve()}'
     args = parser.parse_args(['serve', '--program-root', str(root)])
     assert 'opcua_trusted_clients' not in bridge_parameters(args)
+
+
+@pytest.mark.parametrize('extra, words', [
+    (['--mqtt-sparkplug', 'plant1/cell3'], '--mqtt-sparkplug needs --mqtt'),
+    (['--mqtt', '127.0.0.1:1883', '--mqtt-sparkplug', 'plant1'], 'GROUP_ID/EDGE_NODE_ID'),
+    (['--mqtt', '127.0.0.1:1883', '--mqtt-sparkplug', 'a/b/c'], 'Sparkplug id'),
+    (['--mqtt', '127.0.0.1:1883', '--mqtt-sparkplug', 'a/b#'], 'Sparkplug id'),
+])
+def test_sparkplug_option_is_checked_before_anything_starts(root, extra, words):
+    done = _serve('--program-root', str(root), '--opcua-port', str(_free_port()), *extra)
+    assert done.returncode == 2, done.stderr
+    assert words in done.stderr and 'Traceback' not in done.stderr
+
+
+def test_sparkplug_option_reaches_the_bridge(root):
+    import argparse
+    from feed_axis_energy.cli.cell.serve import add_parser, bridge_parameters
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers())
+    args = parser.parse_args(['serve', '--program-root', str(root), '--mqtt', 'h:1883',
+                              '--mqtt-sparkplug', 'plant1/cell3', '--mqtt-machine', 'dmc'])
+    params = bridge_parameters(args)
+    assert params['sparkplug'] == 'plant1/cell3' and params['mqtt_machine'] == 'dmc'
+    args = parser.parse_args(['serve', '--program-root', str(root), '--mqtt', 'h:1883'])
+    assert 'sparkplug' not in bridge_parameters(args)

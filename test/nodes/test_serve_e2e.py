@@ -2,7 +2,8 @@
 and a real MQTT broker (mosquitto) on loopback; two jobs through OPC UA ``StartJob``, one
 through the ROS job interface, a fourth aborted while it runs; every ended result against
 offline ``simulate --json`` of the same program, machine and load; the MQTT result and state
-messages; measured samples over MQTT seen on ROS ``measured/live``; hostile clients."""
+messages and the same results as Sparkplug B metrics (``--mqtt-sparkplug``); measured
+samples over MQTT seen on ROS ``measured/live``; hostile clients."""
 import asyncio
 import json
 import os
@@ -53,24 +54,30 @@ def _offline(program, env, load_kg):
 
 
 class _Mqtt:
-    """Subscribes to the whole topic tree; publishes measured samples."""
+    """Subscribes to the whole topic tree and to spBv1.0/#; publishes measured samples."""
 
     def __init__(self, port):
         import paho.mqtt.client as paho
         self.messages = []
+        self.sparkplug = []
         self.lock = threading.Lock()
         subscribed = threading.Event()
         self.client = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id='e2e-watch')
         self.client.on_subscribe = lambda *a: subscribed.set()
         self.client.on_message = self._on_message
-        self.client.on_connect = lambda c, *a: c.subscribe(f'{BASE}/#', qos=1)
+        self.client.on_connect = lambda c, *a: c.subscribe(
+            [(f'{BASE}/#', 1), ('spBv1.0/#', 1)])
         self.client.connect('127.0.0.1', port)
         self.client.loop_start()
         assert subscribed.wait(10)
 
     def _on_message(self, client, userdata, message):
+        from feed_axis_energy.bridge import decode_sparkplug
         with self.lock:
-            self.messages.append((message.topic, json.loads(message.payload)))
+            if message.topic.startswith('spBv1.0/'):
+                self.sparkplug.append((message.topic, decode_sparkplug(message.payload)))
+            else:
+                self.messages.append((message.topic, json.loads(message.payload)))
 
     def on(self, topic):
         with self.lock:
@@ -195,7 +202,8 @@ def test_serve_runs_jobs_from_opcua_ros_and_mqtt_and_stops_cleanly(tmp_path, nod
     mqtt_port, opcua_port = _free_port(), _free_port()
     with mosquitto(tmp_path / 'broker', mqtt_port):
         watch = _Mqtt(mqtt_port)
-        proc, lines = _start_serve(root, tmp_path, node_env, opcua_port, mqtt_port)
+        proc, lines = _start_serve(root, tmp_path, node_env, opcua_port, mqtt_port,
+                                   extra=('--mqtt-sparkplug', 'cell/serve1'))
         ros = _Ros(context)
         try:
             endpoint = f'opc.tcp://127.0.0.1:{opcua_port}/feed_axis_energy/'
@@ -272,6 +280,32 @@ def test_serve_runs_jobs_from_opcua_ros_and_mqtt_and_stops_cleanly(tmp_path, nod
     assert {m['job_id'] for m in powers} >= {'j1', 'j2', 'j3', 'j4'}
     assert all(m['predicted'] is True for m in powers)
     assert f'{BASE}/status' in topics and watch.on('status')[-1]['online'] is False
+    _check_sparkplug(watch.sparkplug, results, powers)
+
+
+def _check_sparkplug(messages, results, powers):
+    """The Sparkplug B edge node of the same run: births, seq, the results, the death."""
+    topics = [t for t, _ in messages]
+    assert topics[:2] == ['spBv1.0/cell/NBIRTH/serve1', 'spBv1.0/cell/DBIRTH/serve1/machine']
+    assert topics[-1] == 'spBv1.0/cell/NDEATH/serve1'       # the clean stop says so
+    seqs = [p.seq for _, p in messages[:-1]]
+    assert seqs[0] == 0 and all(b == (a + 1) % 256 for a, b in zip(seqs, seqs[1:]))
+    names = {m.alias: m.name for m in messages[1][1].metrics}
+    values = [{names[m.alias]: m.value for m in p.metrics}
+              for t, p in messages if t.endswith('/DDATA/serve1/machine')]
+    for job in ('j1', 'j2', 'j3', 'j4'):
+        got = next(v for v in values if v.get('Result/JobId') == job)
+        assert got['Result/Status'] == results[job]['status']
+        for key in ('energy_j', 'duration_s', 'peak_power_w'):
+            assert got[f'Result/{key}'] == results[job][key], (job, key)
+        for axis, energy in results[job]['energy_by_axis_j'].items():
+            assert got[f'Result/{axis}/energy_j'] == energy
+    live = [v for v in values if 'Live/JobId' in v]
+    assert len(live) == len(powers)
+    print(f'Sparkplug B: {len(messages)} messages, {len(live)} live DDATA, seq wrapped '
+          f'{seqs.count(0) - 1} time(s)')
+    assert all(v['Live/total/power_w'] == p['power_w']['total']
+               and v['Live/X/energy_j'] == p['energy_j']['X'] for v, p in zip(live, powers))
 
 
 async def _scenario(endpoint, ros, root, tmp):

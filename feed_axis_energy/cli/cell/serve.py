@@ -66,6 +66,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='first MQTT topic levels (default feed_axis_energy)')
     p.add_argument('--mqtt-machine', default='machine', metavar='NAME',
                    help='machine name, one MQTT topic level (default machine)')
+    p.add_argument('--mqtt-sparkplug', default=None, metavar='GROUP_ID/EDGE_NODE_ID',
+                   help='also publish job state, live power and results as a Sparkplug B edge '
+                        'node on the --mqtt broker, the machine (--mqtt-machine) as its device '
+                        '(spBv1.0/GROUP_ID/...; docs/cell.md, Sparkplug B)')
     p.add_argument('--measured-live', action='store_true',
                    help='also start measured_live: live measured drive data (measured/live, '
                         'from MQTT measured/<axis> with --mqtt) compared with each running '
@@ -112,6 +116,8 @@ def bridge_parameters(args: argparse.Namespace) -> dict[str, object]:
     if args.mqtt is not None:
         host, port = parse_broker(args.mqtt)
         params.update(mqtt_host=host, mqtt_port=port)
+    if getattr(args, 'mqtt_sparkplug', None):
+        params['sparkplug'] = args.mqtt_sparkplug
     return params
 
 
@@ -168,6 +174,15 @@ def _check(args: argparse.Namespace) -> int:
         except OSError as err:
             return _fail(f'cannot listen on {args.opcua_host}:{args.opcua_port} for OPC UA: '
                          f'{err.strerror or err}')
+    if args.mqtt_sparkplug is not None:
+        from feed_axis_energy.bridge import SparkplugTopics
+        if args.mqtt is None:
+            return _fail('--mqtt-sparkplug needs --mqtt HOST:PORT (the broker it publishes '
+                         'on)', 2)
+        try:
+            SparkplugTopics.parse(args.mqtt_sparkplug, device_id=args.mqtt_machine)
+        except ConfigError as err:
+            return _fail(f'--mqtt-sparkplug: {err}', 2)
     if args.mqtt is not None:
         try:
             host, port = parse_broker(args.mqtt)
