@@ -340,3 +340,32 @@ def test_an_unreachable_broker_is_our_error(program_root) -> None:
         edge.start(timeout_s=2.0)
     with pytest.raises(ConfigError):
         SparkplugSettings(host='127.0.0.1', port=0, topics=SparkplugTopics('g', 'e'))
+
+
+def test_docs_list_every_device_metric_with_its_unit() -> None:
+    """docs/cell.md, "Sparkplug B": the metric table is the contract of device_metrics."""
+    import re
+    text = (Path(__file__).resolve().parents[2] / 'docs' / 'cell.md').read_text()
+    section = text.split('### Sparkplug B', 1)[1].split('\n## ', 1)[0]
+    rows = [line for line in section.splitlines()
+            if line.startswith('| `Job/') or line.startswith('| `Live/')
+            or line.startswith('| `Result/')]
+    documented: dict[str, str] = {}
+    for row in rows:
+        cells = [c.strip() for c in row.strip('|').split('|')]
+        names, last = [], ''
+        for token in re.findall(r'`([^`]+)`', cells[0]):
+            if token.startswith('.../'):
+                token = last.rsplit('/', 1)[0] + token[3:]
+            names.append(token)
+            last = token
+        units = [u.strip() for u in cells[2].split(',')] if cells[2] else ['']
+        for k, name in enumerate(names):
+            documented[name] = units[min(k, len(units) - 1)]
+    generic = {}
+    for name, _, unit in device_metrics(('X',)):
+        if name.startswith('Live/'):
+            name = name.replace('/X/', '/<part>/').replace('/total/', '/<part>/')
+        name = name.replace('/X/', '/<axis>/')
+        generic[name] = unit
+    assert documented == generic
