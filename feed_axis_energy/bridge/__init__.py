@@ -14,7 +14,7 @@ log. The address space, topic tree, job states and security are contracts: docs/
 """
 from .measured import (DROP_REASONS, MAX_PAYLOAD_BYTES, MeasuredInput, MeasuredSample,
                        parse_measured, QUANTITIES)
-from .mqtt import MqttBridge, MqttSettings
+from .mqtt import MqttBridge, MqttSettings, tcp_no_delay
 from .opcua import (BROWSE_PATHS, ENERGY_NAMES, J_PER_WH, NAMESPACE_URI, OpcUaBridge,
                     OpcUaSettings, OpcUaThread, UNECE_NAMESPACE, unece_unit_id, UNITS)
 from .requests import (check_job_id, check_load_kg, check_program, MAX_JOB_ID_CHARS,
@@ -36,7 +36,7 @@ __all__ = [
     'decode_sparkplug', 'DEFAULT_PREFIX', 'device_metrics', 'DROP_REASONS', 'ENERGY_NAMES',
     'encode_sparkplug', 'FINAL_STATES', 'GraphJobService', 'MAX_DECODED_BYTES',
     'REBIRTH_METRIC', 'SPARKPLUG_NAMESPACE', 'SparkplugBridge', 'SparkplugSettings',
-    'SparkplugTopics', 'SpDataType', 'SpMetric', 'SpPayload',
+    'SparkplugTopics', 'SpDataType', 'SpMetric', 'SpPayload', 'tcp_no_delay',
     'is_loopback', 'MEASURED_LIVE_KEYS', 'measured_live_payload', 'read_users_file',
     'service_result',
     'J_PER_WH', 'JOB_STATES', 'JobService', 'Listener', 'LiveSample', 'MAX_JOB_ID_CHARS',

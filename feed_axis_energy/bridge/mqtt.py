@@ -27,7 +27,7 @@ from .service import FINAL_STATES, JobService, LiveSample, ServiceEvent, StateCh
 from .topics import (power_payload, result_payload, state_payload, status_payload,
                      TopicTree)
 
-__all__ = ['MqttBridge', 'MqttSettings']
+__all__ = ['MqttBridge', 'MqttSettings', 'tcp_no_delay']
 
 _log = logging.getLogger(__name__)
 
@@ -83,7 +83,8 @@ class MqttSettings:
                               f'{describe(self.max_rate_hz)}', file='<mqtt>', key='max_rate_hz')
 
 
-def _no_delay(client: paho.Client, userdata: Any, sock: Any) -> None:
+def tcp_no_delay(client: paho.Client, userdata: Any, sock: Any) -> None:
+    """paho's ``on_socket_open``: Nagle's algorithm off on the broker connection."""
     # without it Nagle's algorithm holds a small message back until the broker's delayed
     # acknowledgement of the one before (up to 40 ms on Linux)
     try:
@@ -138,7 +139,7 @@ class MqttBridge:
         client.on_subscribe = self._on_subscribe
         client.on_disconnect = self._on_disconnect
         client.on_message = self._on_message
-        client.on_socket_open = _no_delay
+        client.on_socket_open = tcp_no_delay
         self._client = client
 
     def __enter__(self) -> MqttBridge:

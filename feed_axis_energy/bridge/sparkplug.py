@@ -35,7 +35,7 @@ import paho.mqtt.client as paho
 
 from ..errors import ConfigError, describe, FeedAxisError, RequestError
 from .logbound import BoundedLog
-from .mqtt import _no_delay
+from .mqtt import tcp_no_delay
 from .service import FINAL_STATES, JobService, LiveSample, ServiceEvent, StateChange
 from .sparkplug_payload import (decode_sparkplug, encode_sparkplug, SpDataType, SpMetric,
                                 SpPayload)
@@ -255,7 +255,7 @@ class SparkplugBridge:
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
         client.on_message = self._on_message
-        client.on_socket_open = _no_delay
+        client.on_socket_open = tcp_no_delay
         self._client = client
 
     def __enter__(self) -> SparkplugBridge:
