@@ -17,7 +17,9 @@ session rules after Eclipse Sparkplug 3.0 (docs/cell.md, "Sparkplug B"):
   job);
 * an NCMD with ``Node Control/Rebirth`` = true makes the node publish NBIRTH and DBIRTH again
   (``seq`` from 0, the same ``bdSeq``) before any further data; a clean stop publishes
-  NDEATH before DISCONNECT; malformed commands are counted (:attr:`SparkplugBridge.drops`).
+  NDEATH before DISCONNECT; malformed commands, and rebirth requests sooner than
+  ``min_rebirth_interval_s`` after the last one, are dropped and counted
+  (:attr:`SparkplugBridge.drops`).
 
 Not built: waiting for a primary host application's STATE before the births, DCMD, NDATA
 (the node itself has no data), store and forward while the broker is away.
@@ -111,6 +113,9 @@ class SparkplugSettings:
         packet from a node that vanished without closing its connection.
     max_queued
         Outgoing messages held while the broker is away.
+    min_rebirth_interval_s
+        A rebirth request sooner than this after the last one honoured is dropped
+        (``rate_limited``): a flood of NCMDs cannot turn into a flood of births.
     """
 
     host: str
@@ -121,12 +126,18 @@ class SparkplugSettings:
     password: str | None = None
     keepalive_s: int = 30
     max_queued: int = 1000
+    min_rebirth_interval_s: float = 0.5
 
     def __post_init__(self) -> None:
         if isinstance(self.port, bool) or not isinstance(self.port, int) \
                 or not 1 <= self.port <= 65535:
             raise ConfigError(f'expected a TCP port 1...65535, got {describe(self.port)}',
                               file='<sparkplug>', key='port')
+        interval = self.min_rebirth_interval_s
+        if isinstance(interval, bool) or not isinstance(interval, (int, float)) \
+                or not math.isfinite(interval) or interval < 0:
+            raise ConfigError(f'expected a finite number >= 0, got {describe(interval)}',
+                              file='<sparkplug>', key='min_rebirth_interval_s')
         for key in ('keepalive_s', 'max_queued'):
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -240,6 +251,7 @@ class SparkplugBridge:
         self.publish_failures = 0
         self.births = 0
         self.drops: dict[str, int] = {}
+        self._last_rebirth = -math.inf
         self._log = BoundedLog(_log)
         self._connected = threading.Event()
         self._connect_error = ''
@@ -433,6 +445,12 @@ class SparkplugBridge:
             self._drop('wrong_type', f'NCMD {REBIRTH_METRIC} must be Boolean true, got '
                        f'{describe(rebirth[0].value)}')
             return
+        now = time.monotonic()
+        if now - self._last_rebirth < self.settings.min_rebirth_interval_s:
+            self._drop('rate_limited', f'a rebirth request within '
+                       f'{self.settings.min_rebirth_interval_s:g} s of the last one: ignored')
+            return
+        self._last_rebirth = now
         self._births()
 
     # -- the service's listener -----------------------------------------------------------

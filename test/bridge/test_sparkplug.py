@@ -306,6 +306,8 @@ def test_rebirth_on_ncmd_and_bad_commands_counted(broker_port, program_root):
             sink.publish(ncmd, command(REBIRTH_METRIC, SpDataType.STRING, 'yes'))
             sink.publish(ncmd, command('Node Control/Reboot', SpDataType.BOOLEAN, True))
             sink.publish(ncmd, command(REBIRTH_METRIC, SpDataType.BOOLEAN, True))
+            for _ in range(50):   # a flood of requests right after: not a flood of births
+                sink.publish(ncmd, command(REBIRTH_METRIC, SpDataType.BOOLEAN, True))
             _, nbirth, _, _ = sink.until(lambda t, b: t == 'spBv1.0/g1/NBIRTH/e3')
             assert nbirth.seq == 0
             assert {m.name: m.value for m in nbirth.metrics}['bdSeq'] == 0   # same session
@@ -314,7 +316,9 @@ def test_rebirth_on_ncmd_and_bad_commands_counted(broker_port, program_root):
             values = {m.name: m.value for m in dbirth.metrics}
             assert values['Job/State'] == 'ended' and values['Result/JobId'] == 'job-r'
             assert values['Result/energy_j'] == service.result('job-r')['energy_j']
-            assert edge.drops == {'bad_protobuf': 1, 'wrong_type': 2, 'unknown_metric': 1}
+            assert _wait_for(lambda: sum(edge.drops.values()) == 54)
+            assert edge.drops == {'bad_protobuf': 1, 'wrong_type': 2, 'unknown_metric': 1,
+                                  'rate_limited': 50}
             assert edge.births == 2
             # data go on after the rebirth, counting from the DBIRTH
             assert service.start_job('job-s', 'a.ngc', 0.0)[0]
@@ -323,6 +327,13 @@ def test_rebirth_on_ncmd_and_bad_commands_counted(broker_port, program_root):
             service.wait()
     finally:
         sink.close()
+
+
+def _wait_for(condition, timeout: float = 10.0) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and not condition():
+        time.sleep(0.02)
+    return condition()
 
 
 def _state_of(edge: str, name: str):
