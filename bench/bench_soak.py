@@ -1,7 +1,7 @@
 """Real-time soak of the job graph with and without the cell bridges: live latency, lost samples.
 
     PYTHONPATH=. .venv/bin/python bench/bench_soak.py [--seconds 600] [--subscribers 1,5,20]
-        [--publish-ms 10] [--domain-ids 180-189] [--no-baseline]
+        [--publish-ms 10] [--domain-ids 180-189] [--no-baseline | --interleave PAIRS]
 
 One long real-time job per round: a reciprocating program (X 0 <-> 100 mm at 3 m/min, generated
 into a temporary folder, as many strokes as last ``--seconds``) on the 3-axis mill with
@@ -13,6 +13,14 @@ drives. Rounds, one after another in the same sitting:
     subscribers (``--subscribers``), each its own asyncua client session; the sessions run in
     child processes of at most 5 sessions each, and each child reports its own event-loop lag
     and CPU time so that a slow client side shows up as such.
+
+With ``--interleave PAIRS`` the rounds alternate instead: a1, b1, a2, b2, ... (a: the graph
+alone; b: with the bridges, taking the ``--subscribers`` counts in turn), so that a load that
+drifts over the sitting falls on both kinds alike; the 1-minute load average is sampled every
+5 s during each job, and a summary at the end gives per round and pooled (a rounds, b rounds)
+p50 / p99 / max of the graph's own latency, raw and centred on each round's median (each
+round's stamps carry its first batch's delay), lost samples and missing ``job/live``
+messages, and the paired difference of the spread p99 - p50.
 
 Every round starts its job over ``job/command`` from this process (the same way in every
 round) and measures, per sample, on this machine's wall clock:
@@ -64,6 +72,9 @@ NAMESPACE = 'urn:feed-axis-energy:cell'
 HEADER = 'G21 G90 G94 G61\nG0 X0\n'
 STROKES = 'G1 X100 F3000\nG1 X0 F3000\n'
 CLIENTS_PER_PROCESS = 5
+# raw job/live latencies kept per round for the interleaved summary (one per 0.1 s batch:
+# 10 000 cover 16 minutes); beyond, only the histogram
+RAW_CAP = 10_000
 
 
 class Hist:
@@ -307,6 +318,7 @@ class RosSide:
         rclpy.init(context=self.context, domain_id=domain_id)
         self.node = rclpy.create_node('bench_soak', context=self.context)
         self.hist = Hist()
+        self.raw: list[float] = []
         self.job = ''
         self.messages = 0
         self.increments: dict[int, int] = {}
@@ -328,7 +340,10 @@ class RosSide:
         d = json.loads(msg.data)
         if d['job_id'] != self.job:
             return
-        self.hist.add((now - d['stamp_ns']) * 1e-9)
+        latency_s = (now - d['stamp_ns']) * 1e-9
+        self.hist.add(latency_s)
+        if len(self.raw) < RAW_CAP:
+            self.raw.append(latency_s)
         self.messages += 1
         step = d['samples'] - self.last_samples
         if step > 0 and self.last_samples > 0:
@@ -409,7 +424,8 @@ def _drain(proc: subprocess.Popen) -> None:
 
 
 def _round(label: str, n_ua: int | None, args: argparse.Namespace, root: Path, machine: Path,
-           domain_id: int, mqtt_port: int, broker_pid: int | None, duration_s: float) -> None:
+           domain_id: int, mqtt_port: int, broker_pid: int | None,
+           duration_s: float) -> dict[str, Any]:
     env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED='1')
     base = [sys.executable, '-m', 'feed_axis_energy']
     common = ['--program-root', str(root), '--machine', str(machine), '--mode', 'realtime',
@@ -468,7 +484,12 @@ def _round(label: str, n_ua: int | None, args: argparse.Namespace, root: Path, m
         t0 = time.monotonic()
         ros.start(job, 'soak.nc')
         deadline = t0 + duration_s * 1.5 + 120
+        loads: list[float] = []
+        next_load = t0
         while job not in ros.results:
+            if time.monotonic() >= next_load:     # the 1-minute load average every 5 s
+                loads.append(os.getloadavg()[0])
+                next_load += 5.0
             if time.monotonic() > deadline:
                 raise SystemExit(f'round {label}: no result within {deadline - t0:.0f} s')
             if proc.poll() is not None:
@@ -501,7 +522,9 @@ def _round(label: str, n_ua: int | None, args: argparse.Namespace, root: Path, m
           f'{wall:.1f} s wall, {res["samples"]} samples, lost_samples {res["lost_samples"]}, '
           f'energy {res["energy_j"].get("total", math.nan):.3f} J; ready {ready_s:.1f} s after '
           f'start; load average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end '
-          f'(5-min {load1[1]:.1f})')
+          f'(5-min {load1[1]:.1f}; 1-min every 5 s during the job: mean '
+          f'{np.mean(loads) if loads else math.nan:.1f}, '
+          f'{min(loads, default=math.nan):.1f}-{max(loads, default=math.nan):.1f})')
     expected = math.ceil(res['samples'] / batch) if batch else 0
     # stamps: the job's first batch anchors simulation time 0 to the wall clock when it reaches
     # energy_estimator, and a message carries its batch's last sample: raw figures are
@@ -539,6 +562,13 @@ def _round(label: str, n_ua: int | None, args: argparse.Namespace, root: Path, m
     print('  CPU during the job: ' + ', '.join(
         f'{name} {_cpu_pct(cpu0.get(name), cpu1.get(name), wall)}' for name in cpu0)
         + ' (% of one core)', flush=True)
+    return {'label': label, 'subscribers': n_ua, 'hist': ros.hist, 'raw': ros.raw,
+            'missing': gone,
+            'messages': ros.messages, 'expected': expected, 'lost_samples': res['lost_samples'],
+            'samples': res['samples'], 'status': res['status'],
+            'load': (load0[0], load1[0], load1[1]),
+            'load_mean': float(np.mean(loads)) if loads else load0[0],
+            'load_range': (min(loads, default=load0[0]), max(loads, default=load0[0]))}
 
 
 def _cpu_pct(start: float | None, end: float | None, wall_s: float) -> str:
@@ -580,16 +610,28 @@ def main() -> None:
                         help='ROS domain ids, one per round (default 180-189)')
     parser.add_argument('--no-baseline', action='store_true',
                         help='skip round (a), the graph without bridges')
+    parser.add_argument('--interleave', type=int, default=0, metavar='PAIRS',
+                        help='PAIRS x (a, b) alternated: a the graph alone, b the graph with '
+                        'the bridges, b taking the --subscribers counts in turn; prints a '
+                        'per-round and pooled summary of the graph\'s own latency')
     args = parser.parse_args()
     try:
         counts = [int(x) for x in args.subscribers.split(',') if x]
         lo, hi = (int(x) for x in args.domain_ids.split('-'))
     except ValueError:
         parser.error('--subscribers takes numbers like 1,5,20; --domain-ids LO-HI')
-    if args.seconds <= 0 or any(n < 1 for n in counts):
+    if args.seconds <= 0 or any(n < 1 for n in counts) or not counts:
         parser.error('--seconds must be > 0 and every subscriber count >= 1')
-    rounds: list[tuple[str, int | None]] = [] if args.no_baseline else [('a', None)]
-    rounds += [(chr(ord('b') + i), n) for i, n in enumerate(counts)]
+    if args.interleave < 0 or (args.interleave and args.no_baseline):
+        parser.error('--interleave takes a number of pairs >= 1, without --no-baseline')
+    rounds: list[tuple[str, int | None]]
+    if args.interleave:
+        rounds = []
+        for i in range(args.interleave):
+            rounds += [(f'a{i + 1}', None), (f'b{i + 1}', counts[i % len(counts)])]
+    else:
+        rounds = [] if args.no_baseline else [('a', None)]
+        rounds += [(chr(ord('b') + i), n) for i, n in enumerate(counts)]
     if hi - lo + 1 < len(rounds):
         parser.error(f'{len(rounds)} rounds need {len(rounds)} domain ids')
     if mosquitto_binary() is None:
@@ -606,13 +648,67 @@ def main() -> None:
               f'mm at 3 m/min), OPC UA publishing interval {args.publish_ms:g} ms, '
               f'{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}; '
               f'{time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}', flush=True)
+        figures = []
         with mosquitto(tmp / 'broker', mqtt_port):
             broker_pid = _broker_pid(mqtt_port)
             for k, (label, n) in enumerate(rounds):
-                _round(label, n, args, root, machine, lo + k, mqtt_port, broker_pid,
-                       duration_s)
+                figures.append(_round(label, n, args, root, machine, lo + k, mqtt_port,
+                                      broker_pid, duration_s))
+        if args.interleave:
+            _summary(figures)
     print(f'\ndone {time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}, load average '
           + ' '.join(f'{x:.1f}' for x in os.getloadavg()))
+
+
+def _pct(values: np.ndarray) -> str:
+    """p50 / p99 / max [ms] of raw latencies."""
+    if values.size == 0:
+        return 'nothing arrived'
+    p50, p99 = np.percentile(values, [50, 99])
+    return f'{_ms(p50)} / {_ms(p99)} / {_ms(values.max())}'
+
+
+def _summary(figures: list[dict[str, Any]]) -> None:
+    """Interleaved rounds: one line per round, then a and b pooled, raw and centred.
+
+    Each round's stamps are shifted by its first batch's delay (docs/cell.md, "Soak"), so the
+    pooled figures are given twice: raw, and centred on each round's own median (the spread,
+    which is what compares across rounds).
+    """
+    print('\n== interleaved summary: the graph\'s own latency, job/live -> ROS subscriber '
+          '(p50 / p99 / max; spread = p99 - p50 and max - p50 of the round)')
+    print('round  OPC UA  load 1-min mean (range)  p50 / p99 / max              '
+          'spread p99 / max    lost_samples  missing job/live  samples')
+    for f in figures:
+        raw = np.asarray(f['raw'])
+        med = float(np.median(raw)) if raw.size else math.nan
+        p99 = float(np.percentile(raw, 99)) if raw.size else math.nan
+        top = float(raw.max()) if raw.size else math.nan
+        lo, hi = f['load_range']
+        subs = '-' if f['subscribers'] is None else str(f['subscribers'])
+        print(f'{f["label"]:<6} {subs:>6}  {f["load_mean"]:5.1f} ({lo:.1f}-{hi:.1f})'
+              f'{"":10}{_pct(raw):<28} {_ms(p99 - med):>7} / {_ms(top - med):<9}'
+              f' {f["lost_samples"]:>12}  {f["missing"]:>16}  {f["samples"]} {f["status"]}')
+    for kind, name in (('a', 'graph alone'), ('b', 'graph + bridges')):
+        group = [f for f in figures if f['label'].startswith(kind)]
+        raw = np.concatenate([np.asarray(f['raw']) for f in group]) if group else np.zeros(0)
+        centred = np.concatenate([np.asarray(f['raw']) - np.median(f['raw'])
+                                  for f in group if f['raw']]) if group else np.zeros(0)
+        loads = [f['load_mean'] for f in group]
+        print(f'pooled {kind} ({name}, {len(group)} rounds, load means '
+              f'{min(loads, default=math.nan):.1f}-{max(loads, default=math.nan):.1f}): '
+              f'raw {_pct(raw)}; centred on each round\'s median {_pct(centred)}; '
+              f'lost_samples {sum(f["lost_samples"] for f in group)}, missing job/live '
+              f'{sum(f["missing"] for f in group)} of '
+              f'{sum(f["messages"] + f["missing"] for f in group)}')
+    pairs = [(a, b) for a, b in zip(figures[0::2], figures[1::2])]
+    for a, b in pairs:
+        spread = [float(np.percentile(f['raw'], 99) - np.median(f['raw'])) if f['raw']
+                  else math.nan for f in (a, b)]
+        print(f'pair {a["label"]}/{b["label"]}: spread p99 - p50 {_ms(spread[0])} alone, '
+              f'{_ms(spread[1])} with the bridges ({b["subscribers"]} OPC UA), difference '
+              f'{_ms(spread[1] - spread[0])}; load means {a["load_mean"]:.1f} / '
+              f'{b["load_mean"]:.1f}')
 
 
 def _broker_pid(port: int) -> int | None:
