@@ -114,6 +114,7 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
         mid = r.t - r.offset_used_s + stamp_shift(r.window_s, r.stamp) - 0.5 * r.window_s
         run.states = {'velocity': on[:, 0::3], 'position': on[:, 1::3],
                       'acceleration': on[:, 2::3],
+                      'kinetic_power': on[:, 0::3] * on[:, 2::3],
                       'time': np.repeat(mid[:, None], k, axis=1)}
         out.append(run)
     return out
