@@ -55,6 +55,7 @@ from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, Pa
 from .drivecorr import common_measures, correction_bounds, declared_values, describe_correction
 from .driveforms import current_basis, has_current_form
 from .selection import at_bounds, Block, Design, loro_folds, solve_normal
+from .summed import offer_summed
 
 NOISE_PASSES = 2
 """Selections at most: on the baseline's noise level, then on the level left by its effects."""
@@ -114,6 +115,7 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
         mid = r.t - r.offset_used_s + stamp_shift(r.window_s, r.stamp) - 0.5 * r.window_s
         run.states = {'velocity': on[:, 0::3], 'position': on[:, 1::3],
                       'acceleration': on[:, 2::3],
+                      'kinetic_power': on[:, 0::3] * on[:, 2::3],
                       'time': np.repeat(mid[:, None], k, axis=1)}
         out.append(run)
     return out
@@ -272,6 +274,12 @@ def _noise(data: Sequence[_Run], residuals: Sequence[np.ndarray], options: Analy
         [res[:, j] for res in residuals], declared_w=options.noise_w,
         states=[np.column_stack([r.states['velocity'][:, j], r.states['acceleration'][:, j]])
                 for r in data]), residual=stage) for j, a in enumerate(axes)}
+
+
+def _summable(effect_id: str) -> bool:
+    """An effect of the machine without shape parameters (:func:`.summed.offer_summed`)."""
+    effect = get_effect(effect_id)
+    return bool(effect.machine_property) and all(p.linear for p in effect.params)
 
 
 def _axis_index(runs: Sequence[_Run], axis: str) -> int:
@@ -434,6 +442,18 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     blocks, steps, rejected = list(chosen.blocks), chosen.steps, list(chosen.rejected)
     offered = list(chosen.offered)
     fates = chosen.fates
+    if measures != 'current':
+        # what the summed power of unseen runs supports and per axis cannot be confirmed
+        # (axes trading power on a contour): offered on every axis, never named (.summed)
+        summed = offer_summed(design, folds, axes=axes, kept=blocks + offered,
+                              effects=[e for e in ids if _summable(e)], sigma2=sigma2,
+                              se_factor=options.se_factor, alpha=options.alpha,
+                              max_effects=options.max_effects)
+        reasons = {(b.key, s.reason) for s in summed for b in s.blocks}
+        offered.extend(b for s in summed for b in s.blocks)
+        why = dict(reasons)
+        fates = tuple(replace(f, fate='offered', reason=why[(f.effect, f.axis)])
+                      if (f.effect, f.axis) in why else f for f in fates)
     alt = check_alternatives(design, blocks, [(r.state, r.sim_index, r.aligned) for r in data],
                              axes=axes)
     if alt is not None:

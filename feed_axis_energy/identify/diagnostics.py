@@ -20,10 +20,10 @@
   UMich power it read 0.02–0.06 W under a residual of 0.6–1.3 W RMS, and every test
   reported structure.)
 * Binned means (:func:`binned_structure`): the residual is grouped into quantile bins of a
-  state (velocity, position, acceleration, time); ``chi2 = sum n_b · mean_b² / sigma²`` over
-  ``B`` bins is compared with a chi-square distribution of ``B`` degrees of freedom (an F-test
-  of "the bin means are all zero" with the noise level known). ``rms_w`` is the size of the
-  structure, ``sqrt(sum n_b mean_b² / N)``.
+  state (velocity, position, acceleration, kinetic power ``a·v``, time); ``chi2 = sum n_b ·
+  mean_b² / sigma²`` over ``B`` bins is compared with a chi-square distribution of ``B``
+  degrees of freedom (an F-test of "the bin means are all zero" with the noise level known).
+  ``rms_w`` is the size of the structure, ``sqrt(sum n_b mean_b² / N)``.
 * Spectrum (:func:`spectrum_structure`): Welch periodograms of every run on a common
   segment length, averaged; the peak-to-median ratio of the averaged periodogram (without
   the zero frequency) is about 1.5 for white noise.
@@ -63,7 +63,8 @@ class Diagnostic:
     Attributes
     ----------
     name
-        ``'velocity'``, ``'position'``, ``'acceleration'``, ``'time'`` or ``'spectrum'``.
+        ``'velocity'``, ``'position'``, ``'acceleration'``, ``'kinetic_power'`` (``a·v``),
+        ``'time'`` or ``'spectrum'``.
     axis
         The measured axis.
     statistic

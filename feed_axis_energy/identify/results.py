@@ -25,7 +25,11 @@ __all__ = ['AnalyzeOptions', 'AnalysisResult', 'FittedEffect', 'ParamEstimate', 
            'HOLDOUTS', 'STATE_NAMES']
 
 HOLDOUTS = ('loro', 'roles')
-STATE_NAMES = ('velocity', 'position', 'acceleration', 'time')
+STATE_NAMES = ('velocity', 'position', 'acceleration', 'kinetic_power', 'time')
+"""States the residual is binned against. ``kinetic_power`` is ``a·v`` [W/kg], the rate of
+change of the kinetic energy per kilogram: an error of a moved mass or of braking is odd in
+the velocity at a given acceleration (starts forward and stops backward share ``a > 0``),
+so bins of the acceleration alone average it away."""
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,8 @@ from .page import figure_png, fmt_pct, img, page, short, table
 
 __all__ = ['analyze_answer', 'write_analyze_report']
 
-_UNITS = {'velocity': 'm/s', 'position': 'm', 'acceleration': 'm/s²', 'time': 's'}
+_UNITS = {'velocity': 'm/s', 'position': 'm', 'acceleration': 'm/s²', 'kinetic_power': 'W/kg',
+          'time': 's'}
 
 
 def _save(fig: Figure, path: Path, dpi: int) -> bytes:

@@ -204,7 +204,7 @@ def test_to_dict_is_strict_json_with_documented_keys(tmp_path) -> None:
     assert set(d['before']) == {'total', 'loads', 'runs'}
     assert d['after']['total']['avg_pct_error_pct'] < d['before']['total']['avg_pct_error_pct']
     assert {x['name'] for x in d['diagnostics']['after']} == {
-        'velocity', 'position', 'acceleration', 'time', 'spectrum'}
+        'velocity', 'position', 'acceleration', 'kinetic_power', 'time', 'spectrum'}
 
 
 def test_roles_holdout_scores_validate_runs_only(tmp_path) -> None:

@@ -117,3 +117,23 @@ def test_diagnostics_find_a_step_and_a_sine_not_noise() -> None:
     assert wavy.structured
     assert wavy.peak_hz == pytest.approx(3.7, abs=0.1)
     assert wavy.rms_w == pytest.approx(5.0, rel=0.3)
+
+
+def test_a_mass_error_on_a_circle_shows_only_against_kinetic_power() -> None:
+    # X of a circle at constant speed: v = -R w sin(wt), a = -R w² cos(wt). A wrong moved
+    # mass leaves dm·a·v = dm R² w³ sin cos, whose mean is zero at every velocity, position
+    # and acceleration (each bin holds sin and cos of both signs), not at every a·v.
+    rng = np.random.default_rng(3)
+    r_m, w, dm_kg, sigma = 0.02, 2.0, 400.0, 0.2
+    t = np.arange(0.0, 60.0, 0.1)
+    x = r_m * np.cos(w * t)
+    v = -r_m * w * np.sin(w * t)
+    a = -r_m * w ** 2 * np.cos(w * t)
+    residual = dm_kg * a * v + rng.normal(scale=sigma, size=t.size)
+    for name, state in (('velocity', v), ('position', x), ('acceleration', a)):
+        assert not binned_structure(residual, state, sigma=sigma, name=name,
+                                    axis='X').structured, name
+    found = binned_structure(residual, a * v, sigma=sigma, name='kinetic_power', axis='X')
+    assert found.structured and found.p_value < 1e-10
+    # the bin means follow dm·a·v: their RMS is that of a sine of amplitude dm R² w³ / 2
+    assert found.rms_w == pytest.approx(dm_kg * r_m ** 2 * w ** 3 / 2 / np.sqrt(2), rel=0.15)
