@@ -48,7 +48,8 @@ from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
-from .pinning import LeftOut, left_out_text, MAX_PIN_ROUNDS, repin, split_pinned
+from .pinning import (at_common_lag, LeftOut, left_out_text, MAX_PIN_ROUNDS, repin,
+                      split_pinned)
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -333,6 +334,10 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
                            progress=lambda f: report(0.3 * f))
     # only runs whose offset is pinned down are fitted; after each round the offsets are
     # estimated anew with the effects found (:mod:`.pinning`)
+    # runs aligned on their measured motion: at the motion's offset, the meter's lag behind
+    # it found only with the effects in the model (pinning)
+    at_lag = at_common_lag(campaign, machine, cmp.runs, lag_s=0.0)
+    cmp = replace(cmp, runs=tuple(at_lag))
     pinned, left = split_pinned(cmp.runs, campaign=campaign)
     spans = [(0.3, 0.8), (0.8, 0.92), (0.92, 1.0)]
     for round_no in range(MAX_PIN_ROUNDS):

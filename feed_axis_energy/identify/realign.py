@@ -87,14 +87,16 @@ def realigned_runs(campaign: Campaign, machine: Machine, names: Sequence[str], *
         Run names.
     baseline
         Comparisons with the same machine already made (reused by name, bit for bit the
-        same as a new one).
+        same as a new one), except those aligned on their measured motion: analyze fits
+        those at the motion's offset plus a common lag (:mod:`.pinning`), where ``compare``
+        refines each on its own power, so they are compared anew.
 
     Returns
     -------
     list of RunComparison
         One per name, in order.
     """
-    known = {c.name: c for c in baseline}
+    known = {c.name: c for c in baseline if c.offset.anchor != 'motion'}
     cache = MotionCache(machine)
     out = []
     for name in names:
