@@ -103,8 +103,8 @@ def test_analyze_starts_at_the_motion_and_one_common_lag(heavy):
 
 def test_motion_anchor_on_arrays():
     t_sim = np.arange(0.0, 12.0, 0.001)
-    v_sim = np.where((t_sim > 2) & (t_sim < 5), 0.2, np.where((t_sim > 7) & (t_sim < 10),
-                                                               -0.2, 0.0))[:, None]
+    back = np.where((t_sim > 7) & (t_sim < 10), -0.2, 0.0)
+    v_sim = np.where((t_sim > 2) & (t_sim < 5), 0.2, back)[:, None]
     t_meas = np.arange(0.0, 15.0, 0.01)
     v_meas = np.interp(t_meas - 1.234, t_sim, v_sim[:, 0])[:, None]
     found = motion_anchor(t_meas, v_meas, t_sim, v_sim, max_lag_s=5.0)
