@@ -48,8 +48,8 @@ from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
-from .pinning import (at_common_lag, LeftOut, left_out_text, MAX_PIN_ROUNDS, repin,
-                      split_pinned)
+from .pinning import (at_common_lag, lag_tolerance_s, LeftOut, left_out_text, MAX_PIN_ROUNDS,
+                      motion_lag_s, repin, split_pinned)
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -149,13 +149,22 @@ def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
         hi = max(float(np.max(x)) for x in pos if x.size) if any(x.size for x in pos) else 0.0
         span = hi - lo if hi > lo else 0.4
         return [{'x0_m': lo, 'spacing_m': span / n} for n in POSITION_DIVISIONS]
-    # the first shape parameter is searched, further ones (stribeck's delta) stay at default
+    # the first shape parameter is searched on a grid; a further one (stribeck's delta)
+    # takes its default and the geometric middle of its range (delta 2: Gaussian, 1:
+    # exponential), so that a decay of the other form is not forced into this one's shape
     par = shapes[0]
-    rest = {p.name: p.default for p in shapes[1:]}
     grid = list(np.geomspace(max(par.low, 1e-12), par.high, points))
     if par.default > par.high:
         grid.append(par.default)    # thermal_drift: the linear limit (tau = 1e9 s)
-    return [{par.name: float(v)} | rest for v in np.unique(grid)]
+    rests: list[dict[str, float]] = [{}]
+    for q in shapes[1:]:
+        values = [float(q.default)]
+        if q.low > 0.0 and q.high > q.low:
+            middle = float(math.sqrt(q.low * q.high))
+            if abs(middle - q.default) > 1e-9 * max(abs(q.default), 1.0):
+                values.append(middle)
+        rests = [r | {q.name: v} for r in rests for v in values]
+    return [{par.name: float(v)} | rest for rest in rests for v in np.unique(grid)]
 
 
 def _block(runs: Sequence[_Run], effect_id: str, axis_j: int, shape: Mapping[str, float]):
@@ -332,14 +341,62 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
 
     cmp = compare_campaign(campaign, machine=machine, runs=runs,
                            progress=lambda f: report(0.3 * f))
+    # runs aligned on their measured motion start at the motion's offset, the meter's lag
+    # behind it found only with the effects in the model (:mod:`.pinning`); when that start
+    # leaves the residual unsettled and the power's own lags say otherwise, the analysis is
+    # also run from their median lag and the better model of the data wins (BIC)
+    span = (0.3, 1.0)
+    lag = motion_lag_s(cmp.runs)
+    if lag is not None and _runs_differ(cmp.runs, lag):
+        span = (0.3, 0.65)
+    result = _from_start(campaign, machine, machine_file, cmp, 0.0, ids, options, report, span)
+    if span != (0.3, 1.0) and lag is not None and _unsettled(result):
+        other = _from_start(campaign, machine, machine_file, cmp, lag, ids, options, report,
+                            (0.65, 1.0))
+        a, b = _bic(result, 0.0), _bic(other, lag)
+        if b < a:
+            result = replace(other, message=(
+                f'{other.message}; fitted at the common meter lag {1e3 * lag:+.1f} ms behind '
+                f'the measured motion (BIC {b:.1f} against {a:.1f} from the motion\'s offset)'))
+    report(1.0)
+    return result
+
+
+def _runs_differ(runs: Sequence[RunComparison], lag: float) -> bool:
+    """Whether a motion-anchored run's offset at ``lag`` differs from its motion's offset."""
+    return any(r.offset.anchor == 'motion' and abs(lag) > lag_tolerance_s(r) for r in runs)
+
+
+def _unsettled(result: AnalysisResult) -> bool:
+    """An analysis that leaves structure or offers a loss it cannot attribute."""
+    return result.status in ('unexplained', 'partial') or bool(result.offered)
+
+
+def _bic(result: AnalysisResult, lag: float) -> float:
+    """BIC of an analysis's in-sample model of the data: ``n ln(SSE/n) + k ln n`` over the
+    fitted runs' residuals after its effects, ``k`` the effects' and offered losses'
+    parameters plus one for a meter lag other than 0."""
+    res = [np.asarray(r.residual_after_w, dtype=float).ravel() for r in result.runs]
+    n = sum(r.size for r in res)
+    if n == 0:
+        return math.inf
+    sse = sum(float(np.sum(r * r)) for r in res)
+    k = sum(len(e.values()) for e in result.effects + result.offered) + (1 if lag else 0)
+    return n * math.log(max(sse, 1e-300) / n) + k * math.log(n)
+
+
+def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
+                cmp: CampaignComparison, lag: float, ids: tuple[str, ...],
+                options: AnalyzeOptions, report: Callable[[float], None],
+                span: tuple[float, float]) -> AnalysisResult:
+    """The analysis rounds with the motion-anchored runs starting at ``lag`` [s]."""
+    cmp = replace(cmp, runs=tuple(at_common_lag(campaign, machine, cmp.runs, lag_s=lag)))
     # only runs whose offset is pinned down are fitted; after each round the offsets are
     # estimated anew with the effects found (:mod:`.pinning`)
-    # runs aligned on their measured motion: at the motion's offset, the meter's lag behind
-    # it found only with the effects in the model (pinning)
-    at_lag = at_common_lag(campaign, machine, cmp.runs, lag_s=0.0)
-    cmp = replace(cmp, runs=tuple(at_lag))
     pinned, left = split_pinned(cmp.runs, campaign=campaign)
-    spans = [(0.3, 0.8), (0.8, 0.92), (0.92, 1.0)]
+    w = span[1] - span[0]
+    spans = [(span[0], span[0] + 0.7 * w), (span[0] + 0.7 * w, span[0] + 0.9 * w),
+             (span[0] + 0.9 * w, span[1])]
     for round_no in range(MAX_PIN_ROUNDS):
         lo, hi = spans[min(round_no, len(spans) - 1)]
         _require_pinned(pinned, left, options.holdout, str(campaign.file))
@@ -354,7 +411,6 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         pinned, left, moved = repin(campaign, machine, list(augmented) + extra, pinned, left)
         if not moved:
             break
-    report(1.0)
     if not left:
         return replace(result, pin_rounds=round_no + 1)
     return replace(result, left_out=tuple(left), pin_rounds=round_no + 1,
