@@ -32,6 +32,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 import math
+from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -149,22 +150,14 @@ def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
         hi = max(float(np.max(x)) for x in pos if x.size) if any(x.size for x in pos) else 0.0
         span = hi - lo if hi > lo else 0.4
         return [{'x0_m': lo, 'spacing_m': span / n} for n in POSITION_DIVISIONS]
-    # the first shape parameter is searched on a grid; a further one (stribeck's delta)
-    # takes its default and the geometric middle of its range (delta 2: Gaussian, 1:
-    # exponential), so that a decay of the other form is not forced into this one's shape
+    # the first shape parameter is searched, further ones (stribeck's delta) stay at default
+    # here (the selected variant tries their other forms: _refine_shape)
     par = shapes[0]
+    rest = {p.name: p.default for p in shapes[1:]}
     grid = list(np.geomspace(max(par.low, 1e-12), par.high, points))
     if par.default > par.high:
         grid.append(par.default)    # thermal_drift: the linear limit (tau = 1e9 s)
-    rests: list[dict[str, float]] = [{}]
-    for q in shapes[1:]:
-        values = [float(q.default)]
-        if q.low > 0.0 and q.high > q.low:
-            middle = float(math.sqrt(q.low * q.high))
-            if abs(middle - q.default) > 1e-9 * max(abs(q.default), 1.0):
-                values.append(middle)
-        rests = [r | {q.name: v} for r in rests for v in values]
-    return [{par.name: float(v)} | rest for rest in rests for v in np.unique(grid)]
+    return [{par.name: float(v)} | rest for v in np.unique(grid)]
 
 
 def _block(runs: Sequence[_Run], effect_id: str, axis_j: int, shape: Mapping[str, float]):
@@ -225,16 +218,30 @@ def _sse_with(design: Design, cols: list[int], extra: Sequence[np.ndarray],
     return float(design.yy.sum() - 2.0 * theta @ b + theta @ g @ theta)
 
 
+def _other_forms(shapes: Sequence[Any], shape: Mapping[str, float]) -> list[dict[str, float]]:
+    """The further shape parameters as selected, then each in its other form: the geometric
+    middle of its range (stribeck's delta: 2 is the Gaussian decay, 1 the exponential)."""
+    fixed = {p.name: float(shape[p.name]) for p in shapes[1:] if p.name in shape}
+    forms = [fixed]
+    for q in shapes[1:]:
+        if q.name in fixed and q.low > 0.0 and q.high > q.low:
+            middle = float(math.sqrt(q.low * q.high))
+            if abs(middle - fixed[q.name]) > 1e-9 * max(abs(middle), 1.0):
+                forms.append(fixed | {q.name: middle})
+    return forms
+
+
 def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
                   others: list[int]) -> Block:
-    """1-D bounded search of a block's single shape parameter around its grid value."""
+    """1-D bounded search of a selected block's first shape parameter around its grid value,
+    for the further shape parameters as selected and in their other forms
+    (:func:`_other_forms`): the best fit wins. Only a selected effect gets the other forms,
+    so that they do not widen what the candidates can take on."""
     effect = get_effect(block.key[0])
     shapes = [p for p in effect.params if not p.linear]
     if not shapes or effect.id == 'position_friction':
         return block
-    # the first shape parameter is refined; further ones keep their grid value
     par = shapes[0]
-    fixed = {p.name: float(block.shape[p.name]) for p in shapes[1:] if p.name in block.shape}
     axis_j = _axis_index(runs, block.key[1])
     grid = sorted(float(b.shape[par.name]) for b in design.blocks if b.key == block.key)
     value = float(block.shape[par.name])
@@ -247,20 +254,31 @@ def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
     used = [effect.linear_params().index(n) for n in block.names]
     bounds = (design.lower[list(block.cols)], design.upper[list(block.cols)])
 
-    def columns(value: float) -> list[np.ndarray]:
+    def columns(value: float, fixed: dict[str, float]) -> list[np.ndarray]:
         return [_columns(r, block.key[0], axis_j, {par.name: value} | fixed)[:, used]
                 for r in runs]
 
-    def cost(log_v: float) -> float:
-        return _sse_with(design, others, columns(math.exp(log_v)), bounds)
+    best_sse = _sse_with(design, others, [design.x[r][:, list(block.cols)]
+                                          for r in range(design.runs)], bounds)
+    best: tuple[float, dict[str, float]] | None = None
+    for k, fixed in enumerate(_other_forms(shapes, block.shape)):
+        # another form of the decay moves the best first parameter: a wider bracket
+        a, b = ((lo, hi) if k == 0 else
+                (max(par.low, value / 4.0), min(par.high, value * 4.0)))
+        if not b > a:
+            continue
 
-    res = minimize_scalar(cost, bounds=(math.log(lo), math.log(hi)), method='bounded',
-                          options={'xatol': 1e-3, 'maxiter': 30})
-    best = math.exp(float(res.x))
-    if not float(res.fun) < _sse_with(design, others, [design.x[r][:, list(block.cols)]
-                                                       for r in range(design.runs)], bounds):
+        def cost(log_v: float, fixed: dict[str, float] = fixed) -> float:
+            return _sse_with(design, others, columns(math.exp(log_v), fixed), bounds)
+
+        res = minimize_scalar(cost, bounds=(math.log(a), math.log(b)), method='bounded',
+                              options={'xatol': 1e-3, 'maxiter': 30})
+        if float(res.fun) < best_sse:
+            best_sse, best = float(res.fun), (math.exp(float(res.x)), fixed)
+    if best is None:
         return block
-    return design.add_block(block.key, {par.name: best} | fixed, block.names, columns(best),
+    v, fixed = best
+    return design.add_block(block.key, {par.name: v} | fixed, block.names, columns(v, fixed),
                             bounds=bounds)
 
 

@@ -87,16 +87,14 @@ def realigned_runs(campaign: Campaign, machine: Machine, names: Sequence[str], *
         Run names.
     baseline
         Comparisons with the same machine already made (reused by name, bit for bit the
-        same as a new one), except those aligned on their measured motion: analyze fits
-        those at the motion's offset plus a common lag (:mod:`.pinning`), where ``compare``
-        refines each on its own power, so they are compared anew.
+        same as a new one).
 
     Returns
     -------
     list of RunComparison
         One per name, in order.
     """
-    known = {c.name: c for c in baseline if c.offset.anchor != 'motion'}
+    known = {c.name: c for c in baseline}
     cache = MotionCache(machine)
     out = []
     for name in names:
