@@ -32,6 +32,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 import math
+from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -48,7 +49,8 @@ from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
-from .pinning import LeftOut, left_out_text, MAX_PIN_ROUNDS, repin, split_pinned
+from .pinning import (at_common_lag, lag_tolerance_s, LeftOut, left_out_text, MAX_PIN_ROUNDS,
+                      motion_lag_s, repin, split_pinned)
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -151,6 +153,7 @@ def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
         span = hi - lo if hi > lo else 0.4
         return [{'x0_m': lo, 'spacing_m': span / n} for n in POSITION_DIVISIONS]
     # the first shape parameter is searched, further ones (stribeck's delta) stay at default
+    # here (the selected variant tries their other forms: _refine_shape)
     par = shapes[0]
     rest = {p.name: p.default for p in shapes[1:]}
     grid = list(np.geomspace(max(par.low, 1e-12), par.high, points))
@@ -217,16 +220,30 @@ def _sse_with(design: Design, cols: list[int], extra: Sequence[np.ndarray],
     return float(design.yy.sum() - 2.0 * theta @ b + theta @ g @ theta)
 
 
+def _other_forms(shapes: Sequence[Any], shape: Mapping[str, float]) -> list[dict[str, float]]:
+    """The further shape parameters as selected, then each in its other form: the geometric
+    middle of its range (stribeck's delta: 2 is the Gaussian decay, 1 the exponential)."""
+    fixed = {p.name: float(shape[p.name]) for p in shapes[1:] if p.name in shape}
+    forms = [fixed]
+    for q in shapes[1:]:
+        if q.name in fixed and q.low > 0.0 and q.high > q.low:
+            middle = float(math.sqrt(q.low * q.high))
+            if abs(middle - fixed[q.name]) > 1e-9 * max(abs(middle), 1.0):
+                forms.append(fixed | {q.name: middle})
+    return forms
+
+
 def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
                   others: list[int]) -> Block:
-    """1-D bounded search of a block's single shape parameter around its grid value."""
+    """1-D bounded search of a selected block's first shape parameter around its grid value,
+    for the further shape parameters as selected and in their other forms
+    (:func:`_other_forms`): the best fit wins. Only a selected effect gets the other forms,
+    so that they do not widen what the candidates can take on."""
     effect = get_effect(block.key[0])
     shapes = [p for p in effect.params if not p.linear]
     if not shapes or effect.id == 'position_friction':
         return block
-    # the first shape parameter is refined; further ones keep their grid value
     par = shapes[0]
-    fixed = {p.name: float(block.shape[p.name]) for p in shapes[1:] if p.name in block.shape}
     axis_j = _axis_index(runs, block.key[1])
     grid = sorted(float(b.shape[par.name]) for b in design.blocks if b.key == block.key)
     value = float(block.shape[par.name])
@@ -239,20 +256,31 @@ def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
     used = [effect.linear_params().index(n) for n in block.names]
     bounds = (design.lower[list(block.cols)], design.upper[list(block.cols)])
 
-    def columns(value: float) -> list[np.ndarray]:
+    def columns(value: float, fixed: dict[str, float]) -> list[np.ndarray]:
         return [_columns(r, block.key[0], axis_j, {par.name: value} | fixed)[:, used]
                 for r in runs]
 
-    def cost(log_v: float) -> float:
-        return _sse_with(design, others, columns(math.exp(log_v)), bounds)
+    best_sse = _sse_with(design, others, [design.x[r][:, list(block.cols)]
+                                          for r in range(design.runs)], bounds)
+    best: tuple[float, dict[str, float]] | None = None
+    for k, fixed in enumerate(_other_forms(shapes, block.shape)):
+        # another form of the decay moves the best first parameter: a wider bracket
+        a, b = ((lo, hi) if k == 0 else
+                (max(par.low, value / 4.0), min(par.high, value * 4.0)))
+        if not b > a:
+            continue
 
-    res = minimize_scalar(cost, bounds=(math.log(lo), math.log(hi)), method='bounded',
-                          options={'xatol': 1e-3, 'maxiter': 30})
-    best = math.exp(float(res.x))
-    if not float(res.fun) < _sse_with(design, others, [design.x[r][:, list(block.cols)]
-                                                       for r in range(design.runs)], bounds):
+        def cost(log_v: float, fixed: dict[str, float] = fixed) -> float:
+            return _sse_with(design, others, columns(math.exp(log_v), fixed), bounds)
+
+        res = minimize_scalar(cost, bounds=(math.log(a), math.log(b)), method='bounded',
+                              options={'xatol': 1e-3, 'maxiter': 30})
+        if float(res.fun) < best_sse:
+            best_sse, best = float(res.fun), (math.exp(float(res.x)), fixed)
+    if best is None:
         return block
-    return design.add_block(block.key, {par.name: best} | fixed, block.names, columns(best),
+    v, fixed = best
+    return design.add_block(block.key, {par.name: v} | fixed, block.names, columns(v, fixed),
                             bounds=bounds)
 
 
@@ -339,10 +367,62 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
 
     cmp = compare_campaign(campaign, machine=machine, runs=runs,
                            progress=lambda f: report(0.3 * f))
+    # runs aligned on their measured motion start at the motion's offset, the meter's lag
+    # behind it found only with the effects in the model (:mod:`.pinning`); when that start
+    # leaves the residual unsettled and the power's own lags say otherwise, the analysis is
+    # also run from their median lag and the better model of the data wins (BIC)
+    span = (0.3, 1.0)
+    lag = motion_lag_s(cmp.runs)
+    if lag is not None and _runs_differ(cmp.runs, lag):
+        span = (0.3, 0.65)
+    result = _from_start(campaign, machine, machine_file, cmp, 0.0, ids, options, report, span)
+    if span != (0.3, 1.0) and lag is not None and _unsettled(result):
+        other = _from_start(campaign, machine, machine_file, cmp, lag, ids, options, report,
+                            (0.65, 1.0))
+        a, b = _bic(result, 0.0), _bic(other, lag)
+        if b < a:
+            result = replace(other, message=(
+                f'{other.message}; fitted at the common meter lag {1e3 * lag:+.1f} ms behind '
+                f'the measured motion (BIC {b:.1f} against {a:.1f} from the motion\'s offset)'))
+    report(1.0)
+    return result
+
+
+def _runs_differ(runs: Sequence[RunComparison], lag: float) -> bool:
+    """Whether a motion-anchored run's offset at ``lag`` differs from its motion's offset."""
+    return any(r.offset.anchor == 'motion' and abs(lag) > lag_tolerance_s(r) for r in runs)
+
+
+def _unsettled(result: AnalysisResult) -> bool:
+    """An analysis that leaves structure or offers a loss it cannot attribute."""
+    return result.status in ('unexplained', 'partial') or bool(result.offered)
+
+
+def _bic(result: AnalysisResult, lag: float) -> float:
+    """BIC of an analysis's in-sample model of the data: ``n ln(SSE/n) + k ln n`` over the
+    fitted runs' residuals after its effects, ``k`` the effects' and offered losses'
+    parameters plus one for a meter lag other than 0."""
+    res = [np.asarray(r.residual_after_w, dtype=float).ravel() for r in result.runs]
+    n = sum(r.size for r in res)
+    if n == 0:
+        return math.inf
+    sse = sum(float(np.sum(r * r)) for r in res)
+    k = sum(len(e.values()) for e in result.effects + result.offered) + (1 if lag else 0)
+    return n * math.log(max(sse, 1e-300) / n) + k * math.log(n)
+
+
+def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
+                cmp: CampaignComparison, lag: float, ids: tuple[str, ...],
+                options: AnalyzeOptions, report: Callable[[float], None],
+                span: tuple[float, float]) -> AnalysisResult:
+    """The analysis rounds with the motion-anchored runs starting at ``lag`` [s]."""
+    cmp = replace(cmp, runs=tuple(at_common_lag(campaign, machine, cmp.runs, lag_s=lag)))
     # only runs whose offset is pinned down are fitted; after each round the offsets are
     # estimated anew with the effects found (:mod:`.pinning`)
     pinned, left = split_pinned(cmp.runs, campaign=campaign)
-    spans = [(0.3, 0.8), (0.8, 0.92), (0.92, 1.0)]
+    w = span[1] - span[0]
+    spans = [(span[0], span[0] + 0.7 * w), (span[0] + 0.7 * w, span[0] + 0.9 * w),
+             (span[0] + 0.9 * w, span[1])]
     for round_no in range(MAX_PIN_ROUNDS):
         lo, hi = spans[min(round_no, len(spans) - 1)]
         _require_pinned(pinned, left, options.holdout, str(campaign.file))
@@ -357,7 +437,6 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         pinned, left, moved = repin(campaign, machine, list(augmented) + extra, pinned, left)
         if not moved:
             break
-    report(1.0)
     if not left:
         return replace(result, pin_rounds=round_no + 1)
     return replace(result, left_out=tuple(left), pin_rounds=round_no + 1,

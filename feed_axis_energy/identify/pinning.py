@@ -19,6 +19,20 @@ lie at the end of the search (``'edge'``). So:
   offset then enters the next round. Rounds end when nothing moves (at most
   :data:`MAX_PIN_ROUNDS`).
 
+**Runs aligned on their measured motion** (``offset.anchor == 'motion'``,
+:func:`.measured.spatial.motion_anchor`) are pinned by it: the motion tells the strokes
+apart whatever the power lacks. Only the power's refinement near the anchor (the meter's lag
+behind the motion columns) is still pulled by a missing effect, each run its own way (a
+missing inertia makes the power of fast strokes look earlier than that of slow ones), and
+on a 50 ms meter a lag is not told apart from a missing inertia at all. That lag is a
+property of the instrument, one for the campaign. So ``analyze`` first compares every
+motion-anchored run at the motion's offset itself (:func:`at_common_lag` with lag 0: the
+instrument model's window and stamp already describe the meter's averaging), and estimates
+the meter's lag only with the effects found in the model: :func:`repin` moves these runs to
+their anchor plus the median lag of the comparisons with the effects
+(:func:`motion_lag_s`), by any amount above :func:`lag_tolerance_s`. A lag the effects do
+not explain is the ``time_offset`` candidate in the meantime.
+
 A candidate that explains the residual of wrongly aligned runs can only be selected from the
 pinned runs, so a stroke-off alignment cannot pull the selection toward a false effect; and
 the effect found on the pinned runs is what tells the stroke-off lags of the others apart
@@ -36,7 +50,8 @@ from ..machine import Machine
 from ..measured import Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MotionCache, RunComparison
 
 __all__ = ['PINNED_STATUSES', 'MAX_PIN_ROUNDS', 'PIN_MARGIN', 'LeftOut', 'split_pinned',
-           'decisive', 'peak_tolerance_s', 'repin', 'left_out_text']
+           'decisive', 'peak_tolerance_s', 'repin', 'left_out_text', 'motion_lag_s',
+           'at_common_lag', 'lag_tolerance_s']
 
 PINNED_STATUSES = ('ok', 'fixed')
 """Offset statuses a fit may use."""
@@ -159,8 +174,24 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
     cache = MotionCache(declared) if cache is None else cache
     moved: list[str] = []
     out: list[RunComparison] = []
+    lag = motion_lag_s(augmented)
     for run in pinned:
         a = by_name.get(run.name)
+        if (lag is not None and a is not None and run.offset.anchor == 'motion'
+                and a.offset.anchor == 'motion'):
+            target = a.offset.motion_s + lag
+            if abs(target - run.offset_used_s) > lag_tolerance_s(run):
+                was = f'{run.offset_used_s:+.4f} s'
+                cmp = _at_offset(campaign, declared, run.name, a, cache, max_lag_s,
+                                 was=was, offset_s=target)
+                out.append(replace(cmp, offset=replace(cmp.offset, offset_s=target, message=(
+                    f'{a.offset.message}; used at the common meter lag behind the motion '
+                    f'found with the effects in the model, {1e3 * lag:+.1f} ms: '
+                    f'{target:+.4f} s (was {was})'))))
+                moved.append(run.name)
+            else:
+                out.append(run)
+            continue
         if (a is not None and decisive(a)
                 and abs(a.offset_used_s - run.offset_used_s) > peak_tolerance_s(run)):
             out.append(_at_offset(campaign, declared, run.name, a, cache, max_lag_s,
@@ -180,11 +211,80 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
     return out, still, moved
 
 
+def motion_lag_s(runs: Sequence[RunComparison]) -> float | None:
+    """The campaign's meter lag behind the motion columns [s]: the median over the
+    motion-anchored runs of (offset found - motion anchor); ``None`` when there is none."""
+    lags = [r.offset.offset_s - r.offset.motion_s for r in runs
+            if r.offset.anchor == 'motion' and math.isfinite(r.offset.motion_s)
+            and math.isfinite(r.offset.offset_s)]
+    return float(np.median(lags)) if lags else None
+
+
+def lag_tolerance_s(run: RunComparison) -> float:
+    """How far a motion-anchored run's offset may be from its target and stay [s]: a
+    thousandth of its sample period (compared anew above that: a large missing effect
+    turns a fraction of a period into structure the selection would fit)."""
+    period = float(np.median(np.diff(run.t))) if run.t.size > 1 else 0.0
+    return 1.0e-3 * period
+
+
+def at_common_lag(campaign: Campaign, declared: Machine, runs: Sequence[RunComparison], *,
+                  lag_s: float | None = None, cache: MotionCache | None = None,
+                  max_lag_s: float = DEFAULT_MAX_LAG_S) -> list[RunComparison]:
+    """The comparisons with every motion-anchored run at its anchor plus the common lag.
+
+    Parameters
+    ----------
+    campaign
+        The campaign.
+    declared
+        The machine the comparisons are made with.
+    runs
+        Comparisons (any anchors; runs anchored on the power are returned as they are).
+    lag_s
+        The common lag [s]; default :func:`motion_lag_s` of ``runs``.
+    cache
+        Motion cache for the comparisons made anew.
+    max_lag_s
+        The offset search range of the comparisons [s].
+
+    Returns
+    -------
+    list of RunComparison
+        Same order; a run already within :func:`lag_tolerance_s` of its target is kept.
+    """
+    lag = motion_lag_s(runs) if lag_s is None else lag_s
+    if lag is None:
+        return list(runs)
+    cache = MotionCache(declared) if cache is None else cache
+    out = []
+    for run in runs:
+        o = run.offset
+        if o.anchor != 'motion' or not math.isfinite(o.motion_s):
+            out.append(run)
+            continue
+        target = o.motion_s + lag
+        if abs(run.offset_used_s - target) <= lag_tolerance_s(run):
+            out.append(run)
+            continue
+        cmp = compare_one_run(campaign.run(run.name), declared, cache, max_lag_s=max_lag_s,
+                              window_s=None, offset_s=target, min_correlation=0.5,
+                              floor_fraction=0.05, check_meter=False)
+        offset = replace(o, offset_s=target, message=(
+            f'{o.message}; used at the campaign\'s common meter lag behind the motion, '
+            f'{1e3 * lag:+.1f} ms: {target:+.4f} s'))
+        out.append(replace(cmp, offset=offset))
+    return out
+
+
 def _at_offset(campaign: Campaign, declared: Machine, name: str, found: RunComparison,
-               cache: MotionCache, max_lag_s: float, *, was: str) -> RunComparison:
-    """The declared model's comparison of a run at the offset ``found`` pinned."""
+               cache: MotionCache, max_lag_s: float, *, was: str,
+               offset_s: float | None = None) -> RunComparison:
+    """The declared model's comparison of a run at the offset ``found`` pinned (or at
+    ``offset_s``)."""
+    at = found.offset_used_s if offset_s is None else offset_s
     cmp = compare_one_run(campaign.run(name), declared, cache, max_lag_s=max_lag_s,
-                          window_s=None, offset_s=found.offset_used_s, min_correlation=0.5,
+                          window_s=None, offset_s=at, min_correlation=0.5,
                           floor_fraction=0.05, check_meter=False)
     offset = replace(found.offset, message=(
         f'{found.offset.message}; pinned with the effects found in the model (was {was})'))

@@ -74,6 +74,12 @@ class OffsetResult:
         than the simulation's (NaN when not estimable).
     drift_message
         How the drift was estimated, or why it was not.
+    anchor
+        What pinned the offset: ``'power'`` (this search on the power or drive trace) or
+        ``'motion'`` (the record's measured motion, the power only refining it:
+        :func:`.spatial.motion_anchor`); ``'given'`` for an offset the caller fixed.
+    motion_s
+        The offset the measured motion gave [s] (NaN when the record has none).
     """
 
     offset_s: float
@@ -88,6 +94,8 @@ class OffsetResult:
     runner_up_rms_w: float = math.nan
     drift_ppm: float = math.nan
     drift_message: str = 'not estimated'
+    anchor: str = 'power'
+    motion_s: float = math.nan
 
 
 def _series(t: ArrayLike, y: ArrayLike, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -541,7 +549,8 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
                     *, max_lag_s: float, window_s: float, stamp: str = 'end',
                     min_correlation: float = 0.5, ambiguity_margin: float = 0.1,
                     grid_step_s: float | None = None, candidates: int = 8,
-                    drift_min_duration_s: float = DRIFT_MIN_DURATION_S) -> OffsetResult:
+                    drift_min_duration_s: float = DRIFT_MIN_DURATION_S,
+                    feature_s: float | None = None) -> OffsetResult:
     """Find the time offset of the measured record: global search, candidates, residual.
 
     1. *Grid*: the measured signal is correlated with the instrument-averaged simulation
@@ -591,6 +600,10 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
         Local maxima refined and compared (at least 2).
     drift_min_duration_s
         Shortest record on which the drift is estimated [s].
+    feature_s
+        How far [s] a candidate must lie from the winner to count as another alignment
+        (step 4); default one feature width (the window or period, at least two grid
+        steps). A smooth signal (velocities) has a broad peak: pass its width.
 
     Returns
     -------
@@ -641,7 +654,7 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
         found.append((lag, c, sig.rms(lag)))
     eligible = [f for f in found if f[1] >= min_correlation] or found
     offset, peak, rms = min(eligible, key=lambda f: (f[2], -f[1]))
-    far = max(2.0 * step, window_s, period)
+    far = max(2.0 * step, window_s, period, 0.0 if feature_s is None else float(feature_s))
     rivals = [f for f in found if abs(f[0] - offset) > far]
     rival = min(rivals, key=lambda f: (f[2], -f[1])) if rivals else None
     status, message = 'ok', (f'correlation {peak:.3f}, residual {rms:.3g} W RMS at offset '

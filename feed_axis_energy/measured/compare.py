@@ -42,7 +42,8 @@ from .motiondata import reconstruct_motion
 from .quantity import (measured_signal, omega_columns, pool_signal_metrics, predicted_signal,
                        quantity_of, sign_warnings, signal_metrics, SignalMetrics,
                        torque_per_unit)
-from .spatial import estimate_work_offset, WorkOffset
+from .spatial import (estimate_work_offset, measured_velocity, motion_anchor, refine_range_s,
+                      WorkOffset)
 from .states import residual_by_state, state_labels
 from .metrics import group_metrics, table1_metrics
 
@@ -325,18 +326,32 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         y_sim = (np.abs(sim_q) / scale).sum(axis=1)
     if offset_s is None:
         try:
-            found = estimate_offset(run.t, y_meas, t_sim, y_sim,
-                                    max_lag_s=max_lag_s, window_s=window, stamp=stamp,
+            anchor = _motion_anchor(spec, run, t_sim, vel, motion_axes, max_lag_s=max_lag_s,
                                     min_correlation=min_correlation)
+            if anchor is not None and anchor.status == 'ok':
+                found = _refined(anchor, run.t, y_meas, t_sim, y_sim, max_lag_s=max_lag_s,
+                                 window_s=window, period_s=period, stamp=stamp,
+                                 min_correlation=min_correlation)
+            else:
+                found = estimate_offset(run.t, y_meas, t_sim, y_sim,
+                                        max_lag_s=max_lag_s, window_s=window, stamp=stamp,
+                                        min_correlation=min_correlation)
+                if anchor is not None:
+                    found = replace(found, motion_s=anchor.offset_s, message=(
+                        f'{found.message} (the measured motion does not pin it: '
+                        f'{anchor.status}, {anchor.message})'))
         except DataError as err:
             msg = f'the time offset cannot be estimated: {err.reason}'
             raise DataError(msg, file=run.file, column=err.column) from err
-        used = 0.0 if found.status == 'weak' else found.offset_s
-        if found.status == 'weak':
+        # a weak power match: at the motion's offset where the motion pinned one, else at 0
+        used = found.offset_s if found.anchor == 'motion' else (
+            0.0 if found.status == 'weak' else found.offset_s)
+        if found.status == 'weak' and found.anchor != 'motion':
             found = replace(found, message=f'{found.message}; compared at offset 0')
     else:
         used = float(offset_s)
-        found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller')
+        found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller',
+                             anchor='given')
     labels = state_labels(t_sim, vel, run.t, period_s=period, offset_s=used)
     del vel
     work = _work_offset(spec, run, t_sim, sim_pos, motion_axes, used)
@@ -401,6 +416,60 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
                                            invert=spec.instrument.invert))),
         work_offset=work,
     )
+
+
+def _motion_anchor(spec: RunSpec, run: MeasuredRun, t_sim: np.ndarray, vel: np.ndarray,
+                   motion_axes: Sequence[str], *, max_lag_s: float,
+                   min_correlation: float) -> OffsetResult | None:
+    """The offset from the run's measured motion (:func:`.spatial.motion_anchor`) for a run
+    simulated from its program whose record maps velocities or positions of the axes the
+    motion has; else ``None``."""
+    if spec.motion_program is None:
+        return None
+    axes = [a for a in run.axes if a in motion_axes]
+    v_meas = measured_velocity(run, axes)
+    if v_meas is None:
+        return None
+    v_sim = np.column_stack([vel[:, list(motion_axes).index(a)] for a in axes])
+    return motion_anchor(run.t, v_meas, t_sim, v_sim, max_lag_s=max_lag_s,
+                         min_correlation=min_correlation)
+
+
+def _refined(anchor: OffsetResult, t_meas: np.ndarray, y_meas: np.ndarray, t_sim: np.ndarray,
+             y_sim: np.ndarray, *, max_lag_s: float, window_s: float, period_s: float,
+             stamp: str, min_correlation: float) -> OffsetResult:
+    """The power's offset searched near the motion anchor (docs/compare.md, "Alignment").
+
+    Within :func:`.spatial.refine_range_s` of the anchor: the meter's lag behind the motion
+    columns. The anchor's status, runner-up (another stroke) and drift stand; a refinement
+    that is weak or at the end of its range leaves the anchor's offset.
+    """
+    m = float(anchor.offset_s)
+    reach = min(refine_range_s(window_s, period_s), max_lag_s)
+    fine = estimate_offset(t_meas - m, y_meas, t_sim, y_sim, max_lag_s=reach,
+                           window_s=window_s, stamp=stamp, min_correlation=min_correlation)
+    head = (f'aligned on the measured motion at {m:+.4f} s (velocity correlation '
+            f'{anchor.peak_correlation:.3f})')
+    if fine.status in ('ok', 'ambiguous'):
+        offset, peak, rms = m + fine.offset_s, fine.peak_correlation, fine.rms_w
+        message = (f'{head}; the power refines it by {1e3 * fine.offset_s:+.1f} ms to '
+                   f'{offset:+.4f} s (correlation {peak:.3f})')
+    elif fine.status == 'edge':
+        offset, peak, rms = m, math.nan, math.nan
+        message = (f'{head}; the power fits best at the end of the +-{reach:.3g} s '
+                   'refinement, so the motion\'s offset is used')
+    else:
+        # the power does not match the prediction at the right time: a result ('weak'),
+        # compared at the motion's offset
+        return replace(anchor, status='weak', anchor='motion', motion_s=m, message=(
+            f'{head}, but the power correlates weakly there ({fine.message}); compared at '
+            'the motion\'s offset'), peak_correlation=fine.peak_correlation, rms_w=fine.rms_w,
+            runner_up_rms_w=math.nan)
+    return OffsetResult(offset, peak, 'ok', message, fine.lags_s + m, fine.correlation,
+                        rms_w=rms, runner_up_s=anchor.runner_up_s,
+                        runner_up_correlation=anchor.runner_up_correlation,
+                        drift_ppm=anchor.drift_ppm, drift_message=anchor.drift_message,
+                        anchor='motion', motion_s=m)
 
 
 def _work_offset(spec: RunSpec, run: MeasuredRun, t_sim: np.ndarray, pos: np.ndarray | None,

@@ -47,6 +47,8 @@ def offset_dict(offset: OffsetResult, *, used_s: float) -> dict[str, Any]:
         'runner_up': runner,
         'drift_ppm': offset.drift_ppm,
         'drift_message': offset.drift_message,
+        'anchor': offset.anchor,
+        'motion_s': offset.motion_s,
     }
 
 

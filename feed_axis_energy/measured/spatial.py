@@ -1,4 +1,17 @@
-"""Spatial alignment: the work offset between a trace's machine positions and the program's.
+"""Alignment on the measured motion: the time offset from the velocities, the work offset from
+the positions.
+
+**Time (the motion anchor).** A record that holds the axes' measured motion (actual or
+commanded velocity, or positions) beside its power or drive trace gives the time offset
+without any power model: the measured velocities are correlated with the simulated ones
+(:func:`motion_anchor`, point samples, each axis scaled by its measured RMS, signs kept). An
+effect the model lacks changes the power of a move, never when the move starts, stops or
+which way it goes, so this offset survives a large missing effect (the power correlation is
+pulled towards a lag that hides it), and the signs tell the up and down strokes of a
+periodic program apart. The power correlation then only refines it, within
+:func:`refine_range_s`: the meter's own lag behind the motion columns.
+
+**Space (the work offset).**
 
 A drive trace records positions in machine coordinates; a run simulated from its NC program
 moves in the program's coordinates plus whatever work offset the machine config declares
@@ -24,10 +37,19 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ['WorkOffset', 'estimate_work_offset', 'TOLERANCE_M']
+from .align import estimate_offset, OffsetResult
+from .run import MeasuredRun
+
+__all__ = ['WorkOffset', 'estimate_work_offset', 'TOLERANCE_M', 'motion_anchor',
+           'measured_velocity', 'refine_range_s', 'MIN_REFINE_S', 'MOTION_FEATURE_S']
 
 TOLERANCE_M = 1.0e-3
 """Spread [m] of the positions about the translation up to which it is ``'ok'``."""
+MIN_REFINE_S = 0.25
+"""Smallest half-width [s] of the power refinement around the motion anchor."""
+MOTION_FEATURE_S = 0.1
+"""Lags of the velocities closer than this [s] to the best are the same alignment (the
+shoulders of a broad peak: velocities are smooth), not a rival one."""
 
 
 @dataclass(frozen=True)
@@ -137,3 +159,72 @@ def estimate_work_offset(t_meas: np.ndarray, pos_meas: np.ndarray, t_sim: np.nda
                    'run as simulated at this time offset (a translation alone does not '
                    'explain the trace)')
     return WorkOffset(tuple(axes), tuple(found), tuple(spread), declared_m, status, message, n)
+
+
+def measured_velocity(run: MeasuredRun, axes: Sequence[str]) -> np.ndarray | None:
+    """The measured velocity [m/s] of ``axes``, ``(n, len(axes))``, or ``None``.
+
+    The actual velocity where mapped, else the commanded one, else the actual (then the
+    commanded) positions differentiated over the stamps; ``None`` when the run maps none of
+    these or an axis is not among its axes.
+    """
+    if not axes or any(a not in run.axes for a in axes):
+        return None
+    cols = [run.axes.index(a) for a in axes]
+    for vel in (run.velocity_m_s, run.command_velocity_m_s):
+        if vel is not None:
+            return np.asarray(vel[:, cols], dtype=float)
+    for pos in (run.position_m, run.command_position_m):
+        if pos is not None and run.t.size >= 2:
+            return np.gradient(np.asarray(pos[:, cols], dtype=float), run.t, axis=0)
+    return None
+
+
+def refine_range_s(window_s: float, period_s: float) -> float:
+    """Half-width [s] of the power refinement around the motion anchor.
+
+    The meter's lag behind the motion columns of the same record: a filter or an averaging
+    window, a few of its windows or periods at most; at least :data:`MIN_REFINE_S`.
+    """
+    return max(MIN_REFINE_S, 4.0 * float(window_s), 4.0 * float(period_s))
+
+
+def motion_anchor(t_meas: np.ndarray, v_meas: np.ndarray, t_sim: np.ndarray,
+                  v_sim: np.ndarray, *, max_lag_s: float,
+                  min_correlation: float = 0.5) -> OffsetResult | None:
+    """The time offset of a record from its measured velocities (module docstring).
+
+    Parameters
+    ----------
+    t_meas, v_meas
+        Measured stamps [s] ``(n,)`` and velocities [m/s] ``(n, k)``.
+    t_sim, v_sim
+        Simulated times [s] ``(m,)`` and velocities [m/s] ``(m, k)``, columns as ``v_meas``.
+    max_lag_s
+        Largest offset searched, in either direction [s].
+    min_correlation
+        Correlation below which the estimate is ``'weak'``.
+
+    Returns
+    -------
+    OffsetResult or None
+        The estimate on the velocities (``rms_w`` and ``runner_up_rms_w`` are residuals of
+        the scaled velocities, not watts), or ``None`` when no axis moves in the record or
+        in the simulation (nothing to align on).
+    """
+    v_meas = np.asarray(v_meas, dtype=float)
+    v_sim = np.asarray(v_sim, dtype=float)
+    finite = np.isfinite(v_meas).all(axis=1)
+    if finite.sum() < 4:
+        return None
+    rms = np.sqrt(np.mean(v_meas[finite] ** 2, axis=0))
+    sim_rms = np.sqrt(np.mean(v_sim ** 2, axis=0)) if v_sim.size else np.zeros(0)
+    use = [j for j in range(v_meas.shape[1]) if rms[j] > 0.0 and sim_rms[j] > 0.0]
+    if not use:
+        return None
+    y_meas = (v_meas[finite][:, use] / rms[use]).sum(axis=1)
+    y_sim = (v_sim[:, use] / rms[use]).sum(axis=1)
+    return estimate_offset(np.asarray(t_meas, dtype=float)[finite], y_meas,
+                           np.asarray(t_sim, dtype=float), y_sim, max_lag_s=max_lag_s,
+                           window_s=0.0, min_correlation=min_correlation,
+                           feature_s=MOTION_FEATURE_S)

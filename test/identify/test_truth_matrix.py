@@ -71,7 +71,10 @@ def test_verdicts(matrix):
     assert matrix.verdict('clean', ['standby'], []) == 'false'
 
 
-CI_CELLS = [('offset_force', 'large'), ('clean', 'smooth'), ('gravity', 'large')]
+# mass_error large: the power's own lags are pulled 25-74 ms by the missing mass; before the
+# motion anchor (issue 24 s1) 15 of 15 runs were misaligned and nothing was named
+CI_CELLS = [('offset_force', 'large'), ('clean', 'smooth'), ('gravity', 'large'),
+            ('mass_error', 'large')]
 
 
 @pytest.mark.parametrize('case, cls', CI_CELLS)

@@ -288,8 +288,11 @@ def test_a_wrong_stamp_position_is_reported_when_the_motion_comes_from_the_data(
 def test_a_weak_alignment_is_a_result_compared_at_offset_zero(campaign):
     run = {r.name: r for r in campaign[1].runs}['noise']
     assert run.offset.status == 'weak'
-    assert run.offset_used_s == 0.0
-    assert 'offset 0' in run.offset.message
+    # its record maps the motion: compared at the motion's offset (0 here), and says so
+    assert run.offset.anchor == 'motion'
+    assert run.offset_used_s == pytest.approx(run.offset.motion_s)
+    assert run.offset_used_s == pytest.approx(0.0, abs=0.002)
+    assert "compared at the motion's offset" in run.offset.message
     assert math.isfinite(run.metrics.avg_diff_error_w)
     assert any(w.startswith('noise: offset weak') for w in campaign[1].offset_warnings)
 
@@ -314,7 +317,8 @@ def test_to_dict_is_strict_json_with_units_in_keys(campaign):
     run = back['runs'][0]
     assert run['name'] == 'late' and run['role'] == 'validate'
     assert set(run['offset']) == {'found_s', 'used_s', 'correlation', 'rms_w', 'status',
-                                  'message', 'runner_up', 'drift_ppm', 'drift_message'}
+                                  'message', 'runner_up', 'drift_ppm', 'drift_message',
+                                  'anchor', 'motion_s'}
     assert set(run['metrics']) == {'total', 'X', 'Y'}
     assert {'avg_diff_error_w', 'avg_pct_error_pct', 'max_diff_error_w', 'max_pct_error_pct',
             'energy_error_j', 'energy_error_pct', 'rmse_w'} <= set(run['metrics']['total'])

@@ -1,0 +1,131 @@
+"""Alignment on the measured motion (issue 24 §1): the time offset from the record's velocity
+columns survives a large missing effect that pulls the power correlation, and ``analyze``
+uses the motion-anchored runs at one common meter lag.
+
+The records come from the independent truth (``bench/truth_model.py``: its own physics),
+written as ``bench/truth_matrix.py`` writes its campaigns: the paper's 15 runs, offsets up
+to two strokes, clock drift, a 50 ms power meter, position and velocity columns.
+"""
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from bench_modules import load_bench
+import pytest
+import yaml
+
+from feed_axis_energy.identify.pinning import at_common_lag, motion_lag_s
+from feed_axis_energy.machine import load_machine
+from feed_axis_energy.measured import compare_campaign, load_campaign
+from feed_axis_energy.measured.run import MeasuredRun
+from feed_axis_energy.measured.spatial import measured_velocity, motion_anchor
+
+TOL_S = 0.0125      # a quarter of the 50 ms meter period (the matrix's "misaligned")
+
+
+@pytest.fixture(scope='module')
+def matrix():
+    return load_bench('truth_matrix')
+
+
+def _campaign(matrix, tmp: Path, case: str, share: float, seed: int = 3):
+    tm, tt = matrix.tm, matrix.tt
+    axis = tm.read_axis(tt.MACHINE)
+    runs = tt.make_runs(axis)
+    base, extra = matrix.unit_powers(runs, axis, case)
+    offsets = matrix.write_campaign(tmp, case=case, amp=share * base / extra, runs=runs,
+                                    axis=axis, seed=seed, cls='large')
+    return tmp / 'manifest.yaml', offsets
+
+
+@pytest.fixture(scope='module')
+def heavy(matrix, tmp_path_factory):
+    """A moved mass the machine file lacks, worth 15 % of the energy."""
+    return _campaign(matrix, tmp_path_factory.mktemp('heavy'), 'mass_error', 0.15)
+
+
+def test_the_motion_pins_what_the_power_pulls_away(heavy):
+    manifest, truth = heavy
+    result = compare_campaign(load_campaign(manifest))
+    pulled = []
+    for run in result.runs:
+        o = run.offset
+        assert o.anchor == 'motion' and o.status == 'ok', o.message
+        assert abs(o.motion_s - truth[run.name]) < 1e-3, (run.name, o.motion_s)
+        assert 'aligned on the measured motion' in o.message
+        pulled.append(abs(o.offset_s - truth[run.name]))
+    # the case is a real one: the power refinement alone is pulled off by the missing mass
+    assert max(pulled) > TOL_S
+
+
+def test_a_record_without_motion_columns_is_aligned_on_its_power(heavy, tmp_path):
+    manifest, _ = heavy
+    doc = yaml.safe_load(manifest.read_text(encoding='utf-8'))
+    doc['defaults']['axes']['X'] = {'power': doc['defaults']['axes']['X']['power']}
+    for run in doc['runs']:
+        run['data'] = str(manifest.parent / run['data'])
+    doc['machine'] = str(manifest.parent / doc['machine'])
+    for run in doc['runs']:
+        run['motion']['program'] = str(manifest.parent / run['motion']['program'])
+    plain = tmp_path / 'manifest.yaml'
+    plain.write_text(yaml.safe_dump(doc, sort_keys=False), encoding='utf-8')
+    result = compare_campaign(load_campaign(plain), runs=[doc['runs'][0]['name']])
+    o = result.runs[0].offset
+    assert o.anchor == 'power' and math.isnan(o.motion_s)
+    # JSON contract: the keys are there, NaN as null
+    d = json.loads(json.dumps(result.to_dict(), allow_nan=False))
+    assert d['runs'][0]['offset']['anchor'] == 'power'
+    assert d['runs'][0]['offset']['motion_s'] is None
+
+
+def test_analyze_starts_at_the_motion_and_one_common_lag(heavy):
+    manifest, truth = heavy
+    campaign = load_campaign(manifest)
+    machine = load_machine(campaign.machine)
+    runs = compare_campaign(campaign, machine=machine).runs
+    # the power's own lags are pulled by the missing mass, all of them the same way
+    lags = [r.offset.offset_s - r.offset.motion_s for r in runs]
+    assert motion_lag_s(runs) == pytest.approx(float(np.median(lags)))
+    assert motion_lag_s(runs) < -TOL_S
+    # analyze's start: every run at its motion offset (lag 0), within 1 ms of the truth
+    start = at_common_lag(campaign, machine, runs, lag_s=0.0)
+    for before, after in zip(runs, start):
+        assert after.name == before.name
+        assert after.offset_used_s == pytest.approx(after.offset.motion_s, abs=1e-9)
+        assert abs(after.offset_used_s - truth[after.name]) < 1e-3
+        assert 'common meter lag' in after.offset.message
+    # a given lag moves them all by it
+    moved = at_common_lag(campaign, machine, runs[:2], lag_s=0.004)
+    for after in moved:
+        assert after.offset_used_s == pytest.approx(after.offset.motion_s + 0.004, abs=1e-9)
+
+
+def test_motion_anchor_on_arrays():
+    t_sim = np.arange(0.0, 12.0, 0.001)
+    back = np.where((t_sim > 7) & (t_sim < 10), -0.2, 0.0)
+    v_sim = np.where((t_sim > 2) & (t_sim < 5), 0.2, back)[:, None]
+    t_meas = np.arange(0.0, 15.0, 0.01)
+    v_meas = np.interp(t_meas - 1.234, t_sim, v_sim[:, 0])[:, None]
+    found = motion_anchor(t_meas, v_meas, t_sim, v_sim, max_lag_s=5.0)
+    assert found is not None and found.status == 'ok'
+    assert found.offset_s == pytest.approx(1.234, abs=2e-3)
+    # the signs tell the strokes apart: the down stroke 5 s later is no alternative
+    assert not (abs(found.runner_up_s - 1.234 - 5.0) < 0.05 and
+                found.runner_up_correlation > 0.9 * found.peak_correlation)
+    # nothing moves: nothing to align on
+    assert motion_anchor(t_meas, 0.0 * v_meas, t_sim, v_sim, max_lag_s=5.0) is None
+
+
+def test_measured_velocity_falls_back_to_positions():
+    t = np.arange(0.0, 1.0, 0.01)
+    pos = np.column_stack([0.3 * t, -0.1 * t])
+    run = MeasuredRun(name='r', file='f.csv', t=t, axes=('X', 'Y'), power_axes=('X',),
+                      power_w=np.zeros((t.size, 1)), load_kg=0.0, position_m=pos)
+    v = measured_velocity(run, ['Y'])
+    assert v is not None and v.shape == (t.size, 1)
+    np.testing.assert_allclose(v[:, 0], -0.1, atol=1e-12)
+    assert measured_velocity(run, ['Z']) is None
+    bare = MeasuredRun(name='r', file='f.csv', t=t, axes=('X',), power_axes=('X',),
+                       power_w=np.zeros((t.size, 1)), load_kg=0.0)
+    assert measured_velocity(bare, ['X']) is None
