@@ -26,14 +26,15 @@ the effect found on the pinned runs is what tells the stroke-off lags of the oth
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 import math
 
 import numpy as np
 
 from ..machine import Machine
-from ..measured import Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MotionCache, RunComparison
+from ..measured import (Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MeasuredRun, MotionCache,
+                        RunComparison)
 
 __all__ = ['PINNED_STATUSES', 'MAX_PIN_ROUNDS', 'PIN_MARGIN', 'LeftOut', 'split_pinned',
            'decisive', 'peak_tolerance_s', 'repin', 'left_out_text']
@@ -128,8 +129,9 @@ def peak_tolerance_s(run: RunComparison) -> float:
 def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparison],
           pinned: Sequence[RunComparison], left: Sequence[LeftOut], *,
           cache: MotionCache | None = None,
-          max_lag_s: float = DEFAULT_MAX_LAG_S) -> tuple[list[RunComparison], list[LeftOut],
-                                                         list[str]]:
+          max_lag_s: float = DEFAULT_MAX_LAG_S,
+          loaded: Mapping[str, MeasuredRun] | None = None,
+          ) -> tuple[list[RunComparison], list[LeftOut], list[str]]:
     """Pin runs at the offsets found with the effects in the model.
 
     Parameters
@@ -147,6 +149,8 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
         Motion cache shared by the comparisons.
     max_lag_s
         The offset search range of the comparisons [s].
+    loaded
+        Runs already loaded, by name (each CSV is parsed once per analysis).
 
     Returns
     -------
@@ -164,7 +168,7 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
         if (a is not None and decisive(a)
                 and abs(a.offset_used_s - run.offset_used_s) > peak_tolerance_s(run)):
             out.append(_at_offset(campaign, declared, run.name, a, cache, max_lag_s,
-                                  was=f'{run.offset_used_s:+.3f} s'))
+                                  was=f'{run.offset_used_s:+.3f} s', loaded=loaded))
             moved.append(run.name)
         else:
             out.append(run)
@@ -173,7 +177,7 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
         a = by_name.get(lo.name)
         if a is not None and decisive(a):
             out.append(_at_offset(campaign, declared, lo.name, a, cache, max_lag_s,
-                                  was=f'left out ({lo.status})'))
+                                  was=f'left out ({lo.status})', loaded=loaded))
             moved.append(lo.name)
         else:
             still.append(_left(a) if a is not None else lo)
@@ -181,11 +185,13 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
 
 
 def _at_offset(campaign: Campaign, declared: Machine, name: str, found: RunComparison,
-               cache: MotionCache, max_lag_s: float, *, was: str) -> RunComparison:
+               cache: MotionCache, max_lag_s: float, *, was: str,
+               loaded: Mapping[str, MeasuredRun] | None = None) -> RunComparison:
     """The declared model's comparison of a run at the offset ``found`` pinned."""
     cmp = compare_one_run(campaign.run(name), declared, cache, max_lag_s=max_lag_s,
                           window_s=None, offset_s=found.offset_used_s, min_correlation=0.5,
-                          floor_fraction=0.05, check_meter=False)
+                          floor_fraction=0.05, check_meter=False,
+                          measured=(loaded or {}).get(name))
     offset = replace(found.offset, message=(
         f'{found.offset.message}; pinned with the effects found in the model (was {was})'))
     return replace(cmp, offset=offset)
