@@ -8,8 +8,13 @@ For each length, a temporary directory (never the repository; ``--keep DIR`` wri
 instead and leaves it) gets a campaign of 15 runs, the paper's loads (0, 17.336,
 22.711 kg) x feeds (100 ... 500 mm/s):
 
-* per feed, the demonstrator's reciprocating program (400 mm strokes with a 1 s dwell after
-  each) repeated until it fills that many minutes;
+* per run, the demonstrator's reciprocating program as ``bench_compare_rate.py`` has it
+  (400 mm strokes with a 1 s dwell after each, out and back at one feed, the next cycle at
+  the next of the five feeds) until it fills that many minutes, each load's five runs
+  starting at a different feed (the "feed" of a run is its first; a program that repeats
+  every cycle would align one cycle off as well as right, and ``analyze`` fits only runs
+  whose offset is pinned down: on 10-minute records of one feed every offset estimate is
+  ``ambiguous`` by correlation);
 * per run, a "measured" power CSV at 1 kHz made by the independent truth model
   (``bench/truth_model.py``: its own seven-phase strokes and physics, nothing of the
   project's planner, dynamics or effect catalog) with one missing effect (``--effect``,
@@ -61,36 +66,45 @@ TAIL_S = 1.5              # and ends this long after it
 PERIOD_S = 1e-3
 
 
-def cycles_for(minutes: float, feed_mm_s: float, axis: tm.AxisData) -> int:
-    """Forward/back cycles of the stroke that fill ``minutes``."""
-    one = tm.stroke_timeline(feed_mm_s / 1000.0, axis=axis, stroke_m=STROKE_M, cycles=1,
-                             dwell_s=DWELL_S).duration - DWELL_S
-    return max(1, int(math.ceil((minutes * 60.0 - DWELL_S) / one)))
+def feed_cycle(minutes: float, first: int,
+               axis: tm.AxisData) -> tuple[list[float], tm.Timeline]:
+    """Feeds [mm/s] of the out-and-back cycles that fill ``minutes``, starting at the
+    feed ``FEEDS_MM_S[first]``, and their truth timeline (dwell first)."""
+    line = tm.Timeline()
+    line.dwell(DWELL_S)
+    feeds: list[float] = []
+    while line.duration < minutes * 60.0:
+        feed = FEEDS_MM_S[(first + len(feeds)) % len(FEEDS_MM_S)]
+        line.move(STROKE_M, v=feed / 1000.0, axis=axis)
+        line.dwell(DWELL_S)
+        line.move(-STROKE_M, v=feed / 1000.0, axis=axis)
+        line.dwell(DWELL_S)
+        feeds.append(feed)
+    return feeds, line
 
 
-def program_text(feed_mm_s: float, cycles: int) -> str:
+def program_text(feeds: list[float]) -> str:
     """The NC program of the strokes (what the declared model is simulated from)."""
-    lines = ['( bench: reciprocating stroke )', 'G21 G90 G94 G61', 'G0 X0', f'G4 P{DWELL_S:g}']
-    for _ in range(cycles):
-        lines += [f'G1 X{STROKE_M * 1000:g} F{feed_mm_s * 60:g}', f'G4 P{DWELL_S:g}', 'X0',
+    lines = ['( bench: reciprocating strokes )', 'G21 G90 G94 G61', 'G0 X0',
+             f'G4 P{DWELL_S:g}']
+    for feed in feeds:
+        lines += [f'G1 X{STROKE_M * 1000:g} F{feed * 60:g}', f'G4 P{DWELL_S:g}', 'X0',
                   f'G4 P{DWELL_S:g}']
     return '\n'.join(lines + ['M30']) + '\n'
 
 
 def truth_states(minutes: float, axis: tm.AxisData) -> list[tuple[str, float, float, tm.State,
-                                                                  float, int]]:
-    """Per run: name, feed [mm/s], load [kg], truth state, program end [s], cycles."""
+                                                                  float, list[float]]]:
+    """Per run: name, first feed [mm/s], load [kg], truth state, program end [s], feeds."""
     out = []
     for i, feed in enumerate(FEEDS_MM_S):
-        cycles = cycles_for(minutes, feed, axis)
-        line = tm.stroke_timeline(feed / 1000.0, axis=axis, stroke_m=STROKE_M, cycles=cycles,
-                                  dwell_s=DWELL_S)
+        feeds, line = feed_cycle(minutes, i, axis)
         base = tm.fine_state(line, axis=axis, load_kg=0.0, run_index=3 * i,
                              before_s=LEAD_S[1] + 0.5, after_s=TAIL_S + 0.5)
         for j, load in enumerate(LOADS_KG):
             state = replace(base, mass_kg=axis.table_kg + load, load_kg=load,
                             run_index=3 * i + j)
-            out.append((f'f{feed:g}_load{load:g}kg', feed, load, state, line.duration, cycles))
+            out.append((f'f{feed:g}_load{load:g}kg', feed, load, state, line.duration, feeds))
     return out
 
 
@@ -118,10 +132,10 @@ def build(root: Path, minutes: float, *, effect: str, share: float, noise_w: flo
     lines = ['name: rate', 'machine: machine.yaml', 'defaults:',
              '  time: {column: time_s, unit: s}',
              '  axes: {X: {power: {column: X_power_W, unit: W}}}', 'runs:']
-    for name, feed, load, state, end, cycles in runs:
+    for name, feed, load, state, end, feeds in runs:
         prog = f'f{feed:g}.nc'
         if not (root / prog).exists():
-            (root / prog).write_text(program_text(feed, cycles), encoding='utf-8')
+            (root / prog).write_text(program_text(feeds), encoding='utf-8')
         lead = float(rng.uniform(*LEAD_S))
         meter = tm.Meter(period_s=PERIOD_S, noise_w=noise_w, quantum_w=0.1,
                          drift_ppm=float(rng.uniform(-drift_ppm, drift_ppm)))
