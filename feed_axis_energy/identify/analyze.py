@@ -48,7 +48,7 @@ from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
-from .grid import Bins, bins_for
+from .grid import bin_windows, Bins, bins_for
 from .pinning import LeftOut, left_out_text, MAX_PIN_ROUNDS, repin, split_pinned
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
@@ -80,10 +80,15 @@ class _Run:
     bins: Bins                      # measured samples -> analysis grid (.grid)
     t: np.ndarray                   # (m,) bin stamps: the mean of the samples' stamps [s]
     kt: list[float] | None = None   # a current trace: kt per measured axis (.driveforms)
+    wide: tuple[np.ndarray, float] | None = None    # abutting windows: one per bin (.grid)
 
     def aligned(self, cols: np.ndarray) -> np.ndarray:
         """Align 1 kHz columns ``(n, c)`` onto the analysis grid: ``(m, c)`` (each bin the
         mean of the columns averaged onto its measured stamps, the instrument model)."""
+        if self.wide is not None:
+            ends, span = self.wide
+            return align_simulated(self.state.t, cols, ends, offset_s=self.cmp.offset_used_s,
+                                   window_s=span)
         return self.bins.mean(align_simulated(
             self.state.t, cols, self.cmp.t, offset_s=self.cmp.offset_used_s,
             window_s=self.cmp.window_s, stamp=self.cmp.stamp))
@@ -115,7 +120,9 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Mac
             residual = r.power_meas_w - r.power_sim_w
         bins = bins_for(r.t, period_s)
         run = _Run(cmp=r, state=state, sim_index=idx, residual=bins.mean(residual), states={},
-                   bins=bins, t=bins.mean(r.t), kt=kt)
+                   bins=bins, t=bins.mean(r.t), kt=kt,
+                   wide=bin_windows(r.t, bins, window_s=r.window_s,
+                                    shift_s=stamp_shift(r.window_s, r.stamp)))
         on = run.aligned(np.column_stack(cols))
         k = len(idx)
         # simulated time at the centre of each sample's window

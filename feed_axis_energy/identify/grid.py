@@ -24,10 +24,13 @@ import math
 
 import numpy as np
 
-__all__ = ['ANALYSIS_PERIOD_S', 'Bins', 'bins_for']
+__all__ = ['ABUT_TOLERANCE', 'ANALYSIS_PERIOD_S', 'Bins', 'bins_for', 'bin_windows']
 
 ANALYSIS_PERIOD_S = 0.05
 """Default analysis period [s]: the rig's and the paper's 50 ms meter period."""
+ABUT_TOLERANCE = 1e-6
+"""Largest difference between the window and a sample period, relative to the window, at
+which consecutive windows count as abutting (:func:`bin_windows`)."""
 
 
 @dataclass(frozen=True)
@@ -74,3 +77,43 @@ def bins_for(t: np.ndarray, period_s: float) -> Bins:
     if n // size < 2:
         size = 1
     return Bins(size=size, count=n // size, samples=n)
+
+
+def bin_windows(t: np.ndarray, bins: Bins, *, window_s: float,
+                shift_s: float) -> tuple[np.ndarray, float] | None:
+    """One wide window per bin, when the bin's sample windows abut.
+
+    A meter whose window equals its sample period (a 1 kHz drive trace averaging over 1 ms)
+    tiles the time axis: the mean of ``k`` consecutive window averages is then the average
+    over their union, one window ``(k - 1) h + w`` long ending where the last one ends. An
+    interval average per bin instead of per sample is the same to rounding (window and
+    periods agree within :data:`ABUT_TOLERANCE`) at ``1/k`` of the cost.
+
+    Parameters
+    ----------
+    t
+        Measured stamps [s], ``bins.samples`` long.
+    bins
+        The run's bins.
+    window_s
+        The instrument's window [s].
+    shift_s
+        How far after its stamp a sample's window ends [s] (:func:`..measured.stamp_shift`).
+
+    Returns
+    -------
+    (ends, span) or None
+        Per bin the end of the union of its windows [s] and the union's length [s]; ``None``
+        when the windows do not abut (point samples, windows shorter or longer than the
+        period, irregular stamps) or nothing is binned.
+    """
+    if bins.size == 1 or not window_s > 0.0:
+        return None
+    used = t[:bins.count * bins.size]
+    steps = np.diff(used)
+    if steps.size == 0 or float(np.max(np.abs(steps - window_s))) > ABUT_TOLERANCE * window_s:
+        return None
+    first = used[::bins.size]
+    last = used[bins.size - 1::bins.size]
+    span = float(np.median(last - first)) + window_s
+    return last + shift_s, span

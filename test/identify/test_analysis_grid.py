@@ -7,10 +7,11 @@ import pytest
 
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.identify.analyze import analyze_campaign
-from feed_axis_energy.identify.grid import bins_for
+from feed_axis_energy.identify.grid import bin_windows, bins_for
 from feed_axis_energy.identify.results import AnalyzeOptions
 from feed_axis_energy.identify.rig import Instrument, make_campaign, parse_effects, RigConfig
-from feed_axis_energy.measured import compare_one_run, load_run, MotionCache
+from feed_axis_energy.measured import (align_simulated, compare_one_run, load_run, MotionCache,
+                                       stamp_shift)
 from feed_axis_energy.measured.manifest import load_campaign
 from feed_axis_energy.machine import load_machine
 
@@ -104,3 +105,28 @@ def test_fast_data_are_analysed_on_bins_and_find_the_same_effect(tmp_path) -> No
     doc = binned.to_dict()
     assert doc['analysis_grid']['period_s'] == 0.05
     assert set(doc['analysis_grid']['samples_per_bin'].values()) == {5}
+
+
+@pytest.mark.parametrize('stamp', ['end', 'centre', 'start'])
+def test_abutting_windows_average_per_bin_as_the_mean_of_the_samples(stamp) -> None:
+    """A 1 ms meter on 1 ms stamps: one 50 ms window per bin equals the mean of the 50
+    window averages (to rounding); other meters are averaged sample by sample."""
+    t_sim = np.arange(0.0, 12.0, 0.001)
+    y_sim = np.column_stack([np.sin(3.0 * t_sim) + 0.3 * np.sign(np.sin(7.0 * t_sim)),
+                             t_sim ** 2])
+    t = 0.5 + 0.001 * np.arange(9000)
+    bins = bins_for(t, 0.05)
+    wide = bin_windows(t, bins, window_s=0.001, shift_s=stamp_shift(0.001, stamp))
+    assert wide is not None
+    ends, span = wide
+    assert span == pytest.approx(0.05, rel=1e-9)
+    fast = align_simulated(t_sim, y_sim, ends, offset_s=0.37, window_s=span)
+    slow = bins.mean(align_simulated(t_sim, y_sim, t, offset_s=0.37, window_s=0.001,
+                                     stamp=stamp))
+    assert_allclose(fast, slow, rtol=1e-9, atol=1e-12)
+    # point samples, a window longer than the period, irregular stamps: no wide window
+    assert bin_windows(t, bins, window_s=0.0, shift_s=0.0) is None
+    assert bin_windows(t, bins, window_s=0.002, shift_s=0.0) is None
+    jitter = t + np.random.default_rng(1).uniform(0, 2e-5, t.size)
+    assert bin_windows(jitter, bins_for(jitter, 0.05), window_s=0.001, shift_s=0.0) is None
+    assert bin_windows(t, bins_for(t, 0.001), window_s=0.001, shift_s=0.0) is None
