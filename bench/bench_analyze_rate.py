@@ -5,8 +5,8 @@ Usage: ``PYTHONPATH=. .venv/bin/python bench/bench_analyze_rate.py [--minutes 1,
 [--keep DIR]``
 
 For each length, a temporary directory (never the repository; ``--keep DIR`` writes there
-instead and leaves it) gets a campaign of 15 runs, the paper's loads (0, 17.336,
-22.711 kg) x feeds (100 ... 500 mm/s):
+instead and leaves it; a campaign of that length already there is analysed again) gets a
+campaign of 15 runs, the paper's loads (0, 17.336, 22.711 kg) x feeds (100 ... 500 mm/s):
 
 * per run, the demonstrator's reciprocating program as ``bench_compare_rate.py`` has it
   (400 mm strokes with a 1 s dwell after each, out and back at one feed, the next cycle at
@@ -157,7 +157,17 @@ def build(root: Path, minutes: float, *, effect: str, share: float, noise_w: flo
         entries.append(name)
     path = root / 'campaign.yaml'
     path.write_text('\n'.join(lines) + '\n', encoding='utf-8')
+    (root / 'truth.json').write_text(json.dumps({'rows': meter_rows, 'offsets': offsets}),
+                                     encoding='utf-8')
     return path, meter_rows, offsets
+
+
+def reuse(root: Path) -> tuple[Path, int, dict[str, float]] | None:
+    """A campaign :func:`build` left in ``root`` (``--keep``), or ``None``."""
+    if not (root / 'campaign.yaml').is_file() or not (root / 'truth.json').is_file():
+        return None
+    truth = json.loads((root / 'truth.json').read_text(encoding='utf-8'))
+    return root / 'campaign.yaml', int(truth['rows']), dict(truth['offsets'])
 
 
 def run_analyze(manifest: Path, timeout_s: float) -> tuple[float, float, int, dict | None,
@@ -200,7 +210,9 @@ def summary(res: dict, effect: str, offsets: dict[str, float]) -> str:
     errs = [abs(r['offset']['found_s'] - offsets[r['name']]) for r in res['before']['runs']]
     worst = 1e3 * max(errs) if errs else math.nan
     return (f'  {effect} named: {"yes" if hit else "NO"}  status {res["status"]}  '
-            f'named {named or "nothing"} ({shares or "-"})  left out {len(res["left_out"])}\n'
+            f'named {named or "nothing"} ({shares or "-"})  left out {len(res["left_out"])}  '
+            f'pin rounds {res["pin_rounds"]}  samples per bin '
+            f'{sorted(set(res["analysis_grid"]["samples_per_bin"].values()))}\n'
             f'  held-out energy error {before["energy_error_pct"]:+.3f} % -> '
             f'{after["energy_error_pct"]:+.3f} %, RMSE {before["rmse_w"]:.3f} W -> '
             f'{after["rmse_w"]:.3f} W; noise sigma '
@@ -223,7 +235,8 @@ def main() -> int:
     ap.add_argument('--timeout', type=float, default=1800.0,
                     help='kill an analyze after this many seconds (default: 1800)')
     ap.add_argument('--keep', type=Path, default=None,
-                    help='write the campaigns under this new directory and keep them')
+                    help='write the campaigns under this directory and keep them; a campaign '
+                         'of the same length already there is analysed again as it is')
     args = ap.parse_args()
     minutes = [float(m) for m in args.minutes.split(',') if m.strip()]
     print(f'load before: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} '
@@ -231,19 +244,21 @@ def main() -> int:
     first: tuple[float, float] | None = None
     ok = True
     if args.keep is not None:
-        args.keep.mkdir(parents=True)
+        args.keep.mkdir(parents=True, exist_ok=True)
     for m in minutes:
         with tempfile.TemporaryDirectory() as tmp:
             root = Path(tmp) if args.keep is None else args.keep / f'm{m:g}'
             root.mkdir(exist_ok=True)
             t0 = time.perf_counter()
-            manifest, rows, offsets = build(root, m, effect=args.effect, share=args.share,
-                                            noise_w=args.noise_w, seed=args.seed,
-                                            drift_ppm=args.drift_ppm)
+            kept = reuse(root) if args.keep is not None else None
+            manifest, rows, offsets = kept or build(
+                root, m, effect=args.effect, share=args.share, noise_w=args.noise_w,
+                seed=args.seed, drift_ppm=args.drift_ppm)
             size = sum(p.stat().st_size for p in root.glob('*.csv'))
             print(f'{m:g} min x 15 runs: {rows:,} rows at 1 kHz ({size / 1e6:.0f} MB CSV), '
-                  f'{args.effect} at {100 * args.share:g} % of the energy, generated in '
-                  f'{time.perf_counter() - t0:.1f} s', flush=True)
+                  f'{args.effect} at {100 * args.share:g} % of the energy, '
+                  + ('kept from before' if kept else
+                     f'generated in {time.perf_counter() - t0:.1f} s'), flush=True)
             wall, cpu, rss, res, errors = run_analyze(manifest, args.timeout)
         line = f'  analyze: wall {wall:.1f} s  CPU {cpu:.1f} s  peak RSS {rss / 2**20:.0f} MiB'
         if res is None:
