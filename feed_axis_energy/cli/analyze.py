@@ -72,9 +72,15 @@ def _print(res: AnalysisResult) -> None:
     noise = ', '.join(f'{a} {s:.3g} {res.residual_unit}'
                       for a, s in res.noise_sigma_w.items())
     print(f'held out  {res.holdout}; noise level {noise}')
+    sizes = sorted(set(res.samples_per_bin.values()))
+    per = 'per sample'
+    if sizes and sizes != [1]:
+        # fast data are analysed on bins (identify/grid.py): say what a level is per
+        per = (f'per bin of {"/".join(str(k) for k in sizes)} samples (analysis period '
+               f'{1000 * res.analysis_period_s:g} ms)')
     for a, n in res.noise.items():
         unit = res.residual_unit
-        print(f'  noise {a}: {n.sigma_w:.3g} {unit} per sample for every test '
+        print(f'  noise {a}: {n.sigma_w:.3g} {unit} {per} for every test '
               f'({_noise_method(n, unit)})')
     print()
     print(f'status: {res.status}: {res.message}')

@@ -42,13 +42,13 @@ from ..physics import state_from_simulation
 from ..machine import load_machine, Machine, machine_warnings, observed_range, RangeUse
 from ..errors import ConfigError
 from ..measured import (align_simulated, Campaign, CampaignComparison, compare_campaign,
-                        load_run, MotionCache, offset_dict, quantity_of, RunComparison,
-                        simulate_declared,
-                        stamp_shift)
+                        load_run, MeasuredRun, Metrics, MotionCache, offset_dict, quantity_of,
+                        RunComparison, simulate_declared, stamp_shift)
 from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
+from .grid import bin_windows, Bins, bins_for
 from .pinning import (at_common_lag, lag_tolerance_s, LeftOut, left_out_text, MAX_PIN_ROUNDS,
                       motion_lag_s, repin, split_pinned)
 from .realign import augmented_outcome, machine_with, realigned_runs
@@ -76,26 +76,35 @@ class _Run:
     cmp: RunComparison
     state: EffectState
     sim_index: list[int | None]     # measured axis j -> column of the simulation or None
-    residual: np.ndarray            # (m, k_meas)
-    states: dict[str, np.ndarray]   # name -> (m, k_meas) on the stamps
+    residual: np.ndarray            # (m, k_meas) on the analysis grid (bins)
+    states: dict[str, np.ndarray]   # name -> (m, k_meas) on the analysis grid
+    bins: Bins                      # measured samples -> analysis grid (.grid)
+    t: np.ndarray                   # (m,) bin stamps: the mean of the samples' stamps [s]
     kt: list[float] | None = None   # a current trace: kt per measured axis (.driveforms)
+    wide: tuple[np.ndarray, float] | None = None    # abutting windows: one per bin (.grid)
 
     def aligned(self, cols: np.ndarray) -> np.ndarray:
-        """Align 1 kHz columns ``(n, c)`` onto the measured stamps: ``(m, c)``."""
-        return align_simulated(self.state.t, cols, self.cmp.t,
-                               offset_s=self.cmp.offset_used_s, window_s=self.cmp.window_s,
-                               stamp=self.cmp.stamp)
+        """Align 1 kHz columns ``(n, c)`` onto the analysis grid: ``(m, c)`` (each bin the
+        mean of the columns averaged onto its measured stamps, the instrument model)."""
+        if self.wide is not None:
+            ends, span = self.wide
+            return align_simulated(self.state.t, cols, ends, offset_s=self.cmp.offset_used_s,
+                                   window_s=span)
+        return self.bins.mean(align_simulated(
+            self.state.t, cols, self.cmp.t, offset_s=self.cmp.offset_used_s,
+            window_s=self.cmp.window_s, stamp=self.cmp.stamp))
 
 
-def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
-             machine: Machine) -> list[_Run]:
+def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Machine, *,
+             loaded: Mapping[str, MeasuredRun], period_s: float) -> list[_Run]:
     cache = MotionCache(machine)
     out = []
     for r in cmp_runs:
         spec = campaign.run(r.name)
-        measured = load_run(spec)
+        measured = loaded[r.name] if r.name in loaded else load_run(spec)
         sim, _ = simulate_declared(spec, measured, machine, cache)
         state = state_from_simulation(sim)
+        del sim
         idx = [state.axes.index(a) if a in state.axes else None for a in r.axes]
         n = state.t.shape[0]
         cols = []
@@ -110,11 +119,16 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison],
             residual = r.signal_meas - r.signal_sim
         else:
             residual = r.power_meas_w - r.power_sim_w
-        run = _Run(cmp=r, state=state, sim_index=idx, residual=residual, states={}, kt=kt)
+        bins = bins_for(r.t, period_s)
+        run = _Run(cmp=r, state=state, sim_index=idx, residual=bins.mean(residual), states={},
+                   bins=bins, t=bins.mean(r.t), kt=kt,
+                   wide=bin_windows(r.t, bins, window_s=r.window_s,
+                                    shift_s=stamp_shift(r.window_s, r.stamp)))
         on = run.aligned(np.column_stack(cols))
         k = len(idx)
         # simulated time at the centre of each sample's window
-        mid = r.t - r.offset_used_s + stamp_shift(r.window_s, r.stamp) - 0.5 * r.window_s
+        mid = bins.mean(r.t - r.offset_used_s + stamp_shift(r.window_s, r.stamp)
+                        - 0.5 * r.window_s)
         run.states = {'velocity': on[:, 0::3], 'position': on[:, 1::3],
                       'acceleration': on[:, 2::3],
                       'kinetic_power': on[:, 0::3] * on[:, 2::3],
@@ -296,10 +310,19 @@ def declared_noise(campaign: Campaign, cmp_runs: Sequence[RunComparison]) -> flo
 
 def _noise(data: Sequence[_Run], residuals: Sequence[np.ndarray], options: AnalyzeOptions,
            *, stage: str) -> dict[str, NoiseLevel]:
-    """The noise level of each measured axis (:func:`.diagnostics.noise_level`)."""
+    """The noise level of each measured axis (:func:`.diagnostics.noise_level`) on the
+    analysis grid.
+
+    A declared level is per measured sample; on bins of ``k`` samples it is the white
+    noise's ``sigma / sqrt(k)``, pooled over the runs by their bin counts.
+    """
     axes = data[0].cmp.axes
+    declared = options.noise_w
+    if declared is not None and any(r.bins.size > 1 for r in data):
+        bins = sum(r.bins.count for r in data)
+        declared *= math.sqrt(sum(r.bins.count / r.bins.size for r in data) / bins)
     return {a: replace(noise_level(
-        [res[:, j] for res in residuals], declared_w=options.noise_w,
+        [res[:, j] for res in residuals], declared_w=declared,
         states=[np.column_stack([r.states['velocity'][:, j], r.states['acceleration'][:, j]])
                 for r in data]), residual=stage) for j, a in enumerate(axes)}
 
@@ -365,8 +388,11 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         if progress is not None:
             progress(x)
 
+    # every run is compared several times (baseline, each fold, the augmented machine, the
+    # pinning rounds): its data file is parsed once
+    loaded = {spec.name: load_run(spec) for spec in selected}
     cmp = compare_campaign(campaign, machine=machine, runs=runs,
-                           progress=lambda f: report(0.3 * f))
+                           progress=lambda f: report(0.3 * f), loaded=loaded)
     # runs aligned on their measured motion start at the motion's offset, the meter's lag
     # behind it found only with the effects in the model (:mod:`.pinning`); when that start
     # leaves the residual unsettled and the power's own lags say otherwise, the analysis is
@@ -375,10 +401,11 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     lag = motion_lag_s(cmp.runs)
     if lag is not None and _runs_differ(cmp.runs, lag):
         span = (0.3, 0.65)
-    result = _from_start(campaign, machine, machine_file, cmp, 0.0, ids, options, report, span)
+    result = _from_start(campaign, machine, machine_file, cmp, 0.0, ids, options, report, span,
+                         loaded)
     if span != (0.3, 1.0) and lag is not None and _unsettled(result):
         other = _from_start(campaign, machine, machine_file, cmp, lag, ids, options, report,
-                            (0.65, 1.0))
+                            (0.65, 1.0), loaded)
         a, b = _bic(result, 0.0), _bic(other, lag)
         if b < a:
             result = replace(other, message=(
@@ -414,9 +441,11 @@ def _bic(result: AnalysisResult, lag: float) -> float:
 def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
                 cmp: CampaignComparison, lag: float, ids: tuple[str, ...],
                 options: AnalyzeOptions, report: Callable[[float], None],
-                span: tuple[float, float]) -> AnalysisResult:
+                span: tuple[float, float],
+                loaded: Mapping[str, MeasuredRun]) -> AnalysisResult:
     """The analysis rounds with the motion-anchored runs starting at ``lag`` [s]."""
-    cmp = replace(cmp, runs=tuple(at_common_lag(campaign, machine, cmp.runs, lag_s=lag)))
+    cmp = replace(cmp, runs=tuple(at_common_lag(campaign, machine, cmp.runs, lag_s=lag,
+                                                loaded=loaded)))
     # only runs whose offset is pinned down are fitted; after each round the offsets are
     # estimated anew with the effects found (:mod:`.pinning`)
     pinned, left = split_pinned(cmp.runs, campaign=campaign)
@@ -430,11 +459,12 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
         def scaled(f: float, lo: float = lo, hi: float = hi) -> None:
             report(lo + (hi - lo) * f)
         result, augmented, full_machine = _analyze_round(
-            campaign, machine, machine_file, cmp, pinned, ids, options, scaled)
+            campaign, machine, machine_file, cmp, pinned, ids, options, scaled, loaded)
         if full_machine is machine or round_no + 1 == MAX_PIN_ROUNDS:
             break
-        extra = realigned_runs(campaign, full_machine, [r.name for r in left])
-        pinned, left, moved = repin(campaign, machine, list(augmented) + extra, pinned, left)
+        extra = realigned_runs(campaign, full_machine, [r.name for r in left], loaded=loaded)
+        pinned, left, moved = repin(campaign, machine, list(augmented) + extra, pinned, left,
+                                    loaded=loaded)
         if not moved:
             break
     if not left:
@@ -460,7 +490,7 @@ def _require_pinned(pinned: Sequence[RunComparison], left: Sequence[LeftOut], ho
 def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
                    cmp: CampaignComparison, cmp_runs: Sequence[RunComparison],
                    ids: tuple[str, ...], options: AnalyzeOptions,
-                   report: Callable[[float], None],
+                   report: Callable[[float], None], loaded: Mapping[str, MeasuredRun],
                    ) -> tuple[AnalysisResult, list[RunComparison], Machine]:
     """One analysis of the runs ``cmp_runs`` at their offsets; also returns the fresh
     comparisons with the effects found and the machine they were made with."""
@@ -468,7 +498,8 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     measures = common_measures(campaign.run(r.name).instrument.measures for r in cmp_runs)
     if options.noise_w is None:
         options = replace(options, noise_w=declared_noise(campaign, cmp_runs))
-    data = _prepare(campaign, cmp_runs, machine)
+    data = _prepare(campaign, cmp_runs, machine, loaded=loaded,
+                    period_s=options.analysis_period_s)
     axes = cmp_runs[0].axes
     if any(r.cmp.axes != axes for r in data):
         msg = 'analyze needs the same measured axes in every run'
@@ -564,7 +595,7 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
 
     # per-effect figures
     fitted: list[FittedEffect] = []
-    periods = [float(np.median(np.diff(r.cmp.t))) if r.cmp.t.size > 1 else 0.0 for r in data]
+    periods = [float(np.median(np.diff(r.t))) if r.t.size > 1 else 0.0 for r in data]
     energy_meas = sum(r.cmp.metrics.energy_meas_j for r in data)
     pos = 0
     for i, block in enumerate(blocks):
@@ -636,14 +667,19 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     full_machine = (machine_with(machine, blocks, theta, measures=measures) if options.realign
                     else machine)
     augmented = realigned_runs(campaign, full_machine, names,
-                               baseline=cmp_runs if full_machine is machine else ())
-    after_cmp = dict(enumerate(augmented))
+                               baseline=cmp_runs if full_machine is machine else (),
+                               loaded=loaded)
+    # what a run's *after* keeps of its comparison: metrics, offset, the binned simulation
+    # (a long run's fresh comparison is let go as soon as it is summed up)
+    after_of: dict[int, tuple[Metrics, dict[str, Any], np.ndarray]] = {
+        r: _after(c, data[r].bins) for r, c in enumerate(augmented)}
     for train, test in folds if options.realign else ():
         fold_machine = machine_with(machine, blocks, design.fit(cols, train),
                                     measures=measures)
         base = cmp_runs if fold_machine is machine else ()
-        after_cmp.update(zip(test, realigned_runs(campaign, fold_machine,
-                                                  [names[r] for r in test], baseline=base)))
+        for r, c in zip(test, realigned_runs(campaign, fold_machine, [names[r] for r in test],
+                                             baseline=base, loaded=loaded)):
+            after_of[r] = _after(c, data[r].bins)
     held = {r for _, test in folds for r in test}
     outcomes = []
     residual_after = []
@@ -651,14 +687,15 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
         m, k = run.residual.shape
         insample = design.predict(cols, theta, r).reshape(m, k)
         residual_after.append(run.residual - insample)
-        c, a = run.cmp, after_cmp[r]
+        c = run.cmp
+        after_metrics, after_offset, after_w = after_of[r]
         outcomes.append(RunOutcome(
             name=c.name, load_kg=c.load_kg, role=c.role, heldout=r in held, before=c.metrics,
-            after=a.metrics, t=c.t, meas_w=c.total_meas_w, sim_w=c.total_sim_w,
-            after_w=a.total_sim_w, residual_before_w=run.residual,
-            residual_after_w=residual_after[-1], states=run.states,
-            offset_before=offset_dict(c.offset, used_s=c.offset_used_s),
-            offset_after=offset_dict(a.offset, used_s=a.offset_used_s)))
+            after=after_metrics, t=run.t, meas_w=run.bins.mean(c.total_meas_w),
+            sim_w=run.bins.mean(c.total_sim_w), after_w=after_w,
+            residual_before_w=run.residual, residual_after_w=residual_after[-1],
+            states=run.states, offset_before=offset_dict(c.offset, used_s=c.offset_used_s),
+            offset_after=after_offset))
 
     unit = 'A' if measures == 'current' else 'W'
     diag_before, spectra_before = diagnose_runs(data, [r.residual for r in data], sigmas,
@@ -700,7 +737,15 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
         candidates=mark_groups(fates, groups), warnings=tuple(warnings),
         ambiguous=tuple(groups),
         calibrated={a: observed_range(u) for a, u in uses.items()}, rounds=chosen.rounds,
-        cap_reached=chosen.cap_reached, residual_unit=unit), augmented, full_machine
+        cap_reached=chosen.cap_reached, residual_unit=unit,
+        analysis_period_s=options.analysis_period_s,
+        samples_per_bin={r.cmp.name: r.bins.size for r in data}), augmented, full_machine
+
+
+def _after(cmp: RunComparison, bins: Bins) -> tuple[Metrics, dict[str, Any], np.ndarray]:
+    """A run's *after*: metrics, offset (``compare --json``'s) and binned simulated total."""
+    return (cmp.metrics, offset_dict(cmp.offset, used_s=cmp.offset_used_s),
+            bins.mean(cmp.total_sim_w))
 
 
 def _size_text(effects: Sequence[FittedEffect], min_share: float) -> str:

@@ -347,7 +347,8 @@ def diagnose_runs(runs: Sequence, residuals: Sequence[np.ndarray], sigmas: Mappi
                   *, names: Sequence[str], unit: str = 'W') -> tuple[list[Diagnostic], dict]:
     """Binned structure against each state of ``names`` and the spectrum, per measured axis.
 
-    ``runs`` carry ``cmp`` (``axes``, stamps ``t``) and ``states`` (``{name: (m, k)}``);
+    ``runs`` carry ``cmp`` (``axes``), the residuals' stamps ``t`` and ``states``
+    (``{name: (m, k)}``);
     ``residuals[r]`` is ``(m, k)`` in ``unit`` (``'W'``, ``'A'`` for a current trace).
     Returns the diagnostics and ``{axis: (f, psd)}``.
     """
@@ -361,7 +362,7 @@ def diagnose_runs(runs: Sequence, residuals: Sequence[np.ndarray], sigmas: Mappi
             out.append(binned_structure(y, x, sigma=sigmas[axis], name=name, axis=axis,
                                         unit=unit))
         # the sampling period (the window may be 0: point samples)
-        period = float(np.median([np.median(np.diff(r.cmp.t)) for r in runs]))
+        period = float(np.median([np.median(np.diff(r.t)) for r in runs]))
         out.append(spectrum_structure([res[:, j] for res in residuals], period_s=period,
                                       sigma=sigmas[axis], axis=axis, unit=unit))
         spectra[axis] = average_spectrum([res[:, j] for res in residuals], period)

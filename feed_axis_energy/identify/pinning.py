@@ -40,14 +40,15 @@ the effect found on the pinned runs is what tells the stroke-off lags of the oth
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 import math
 
 import numpy as np
 
 from ..machine import Machine
-from ..measured import Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MotionCache, RunComparison
+from ..measured import (Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MeasuredRun, MotionCache,
+                        RunComparison)
 
 __all__ = ['PINNED_STATUSES', 'MAX_PIN_ROUNDS', 'PIN_MARGIN', 'LeftOut', 'split_pinned',
            'decisive', 'peak_tolerance_s', 'repin', 'left_out_text', 'motion_lag_s',
@@ -143,8 +144,9 @@ def peak_tolerance_s(run: RunComparison) -> float:
 def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparison],
           pinned: Sequence[RunComparison], left: Sequence[LeftOut], *,
           cache: MotionCache | None = None,
-          max_lag_s: float = DEFAULT_MAX_LAG_S) -> tuple[list[RunComparison], list[LeftOut],
-                                                         list[str]]:
+          max_lag_s: float = DEFAULT_MAX_LAG_S,
+          loaded: Mapping[str, MeasuredRun] | None = None,
+          ) -> tuple[list[RunComparison], list[LeftOut], list[str]]:
     """Pin runs at the offsets found with the effects in the model.
 
     Parameters
@@ -162,6 +164,8 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
         Motion cache shared by the comparisons.
     max_lag_s
         The offset search range of the comparisons [s].
+    loaded
+        Runs already loaded, by name (each CSV is parsed once per analysis).
 
     Returns
     -------
@@ -183,7 +187,7 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
             if abs(target - run.offset_used_s) > lag_tolerance_s(run):
                 was = f'{run.offset_used_s:+.4f} s'
                 cmp = _at_offset(campaign, declared, run.name, a, cache, max_lag_s,
-                                 was=was, offset_s=target)
+                                 was=was, offset_s=target, loaded=loaded)
                 out.append(replace(cmp, offset=replace(cmp.offset, offset_s=target, message=(
                     f'{a.offset.message}; used at the common meter lag behind the motion '
                     f'found with the effects in the model, {1e3 * lag:+.1f} ms: '
@@ -195,7 +199,7 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
         if (a is not None and decisive(a)
                 and abs(a.offset_used_s - run.offset_used_s) > peak_tolerance_s(run)):
             out.append(_at_offset(campaign, declared, run.name, a, cache, max_lag_s,
-                                  was=f'{run.offset_used_s:+.3f} s'))
+                                  was=f'{run.offset_used_s:+.3f} s', loaded=loaded))
             moved.append(run.name)
         else:
             out.append(run)
@@ -204,7 +208,7 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
         a = by_name.get(lo.name)
         if a is not None and decisive(a):
             out.append(_at_offset(campaign, declared, lo.name, a, cache, max_lag_s,
-                                  was=f'left out ({lo.status})'))
+                                  was=f'left out ({lo.status})', loaded=loaded))
             moved.append(lo.name)
         else:
             still.append(_left(a) if a is not None else lo)
@@ -230,7 +234,8 @@ def lag_tolerance_s(run: RunComparison) -> float:
 
 def at_common_lag(campaign: Campaign, declared: Machine, runs: Sequence[RunComparison], *,
                   lag_s: float | None = None, cache: MotionCache | None = None,
-                  max_lag_s: float = DEFAULT_MAX_LAG_S) -> list[RunComparison]:
+                  max_lag_s: float = DEFAULT_MAX_LAG_S,
+                  loaded: Mapping[str, MeasuredRun] | None = None) -> list[RunComparison]:
     """The comparisons with every motion-anchored run at its anchor plus the common lag.
 
     Parameters
@@ -247,6 +252,8 @@ def at_common_lag(campaign: Campaign, declared: Machine, runs: Sequence[RunCompa
         Motion cache for the comparisons made anew.
     max_lag_s
         The offset search range of the comparisons [s].
+    loaded
+        Runs already read from their files, by name (each file is parsed once).
 
     Returns
     -------
@@ -269,7 +276,8 @@ def at_common_lag(campaign: Campaign, declared: Machine, runs: Sequence[RunCompa
             continue
         cmp = compare_one_run(campaign.run(run.name), declared, cache, max_lag_s=max_lag_s,
                               window_s=None, offset_s=target, min_correlation=0.5,
-                              floor_fraction=0.05, check_meter=False)
+                              floor_fraction=0.05, check_meter=False,
+                              measured=(loaded or {}).get(run.name))
         offset = replace(o, offset_s=target, message=(
             f'{o.message}; used at the campaign\'s common meter lag behind the motion, '
             f'{1e3 * lag:+.1f} ms: {target:+.4f} s'))
@@ -279,13 +287,15 @@ def at_common_lag(campaign: Campaign, declared: Machine, runs: Sequence[RunCompa
 
 def _at_offset(campaign: Campaign, declared: Machine, name: str, found: RunComparison,
                cache: MotionCache, max_lag_s: float, *, was: str,
-               offset_s: float | None = None) -> RunComparison:
+               offset_s: float | None = None,
+               loaded: Mapping[str, MeasuredRun] | None = None) -> RunComparison:
     """The declared model's comparison of a run at the offset ``found`` pinned (or at
     ``offset_s``)."""
     at = found.offset_used_s if offset_s is None else offset_s
     cmp = compare_one_run(campaign.run(name), declared, cache, max_lag_s=max_lag_s,
                           window_s=None, offset_s=at, min_correlation=0.5,
-                          floor_fraction=0.05, check_meter=False)
+                          floor_fraction=0.05, check_meter=False,
+                          measured=(loaded or {}).get(name))
     offset = replace(found.offset, message=(
         f'{found.offset.message}; pinned with the effects found in the model (was {was})'))
     return replace(cmp, offset=offset)

@@ -17,7 +17,7 @@ declared: the new offset estimate takes their place.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -25,7 +25,8 @@ import numpy as np
 
 from ..effects import get_effect
 from ..machine import DeclaredEffect, Machine
-from ..measured import Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MotionCache, RunComparison
+from ..measured import (Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MeasuredRun, MotionCache,
+                        RunComparison)
 from .drivecorr import declared_values, fold_corrections
 from .selection import Block
 
@@ -74,7 +75,8 @@ def machine_with(machine: Machine, blocks: Sequence[Block], theta: np.ndarray, *
 
 
 def realigned_runs(campaign: Campaign, machine: Machine, names: Sequence[str], *,
-                   baseline: Sequence[RunComparison] = ()) -> list[RunComparison]:
+                   baseline: Sequence[RunComparison] = (),
+                   loaded: Mapping[str, MeasuredRun] | None = None) -> list[RunComparison]:
     """Compare the named runs with ``machine``, offsets estimated anew, as ``compare`` does.
 
     Parameters
@@ -88,6 +90,8 @@ def realigned_runs(campaign: Campaign, machine: Machine, names: Sequence[str], *
     baseline
         Comparisons with the same machine already made (reused by name, bit for bit the
         same as a new one).
+    loaded
+        Runs already loaded, by name (each CSV is parsed once per analysis).
 
     Returns
     -------
@@ -105,7 +109,8 @@ def realigned_runs(campaign: Campaign, machine: Machine, names: Sequence[str], *
         # check (not part of the after figures) is left to the baseline
         out.append(compare_one_run(campaign.run(name), machine, cache, max_lag_s=DEFAULT_MAX_LAG_S,
                                    window_s=None, offset_s=None, min_correlation=0.5,
-                                   floor_fraction=0.05, check_meter=False))
+                                   floor_fraction=0.05, check_meter=False,
+                                   measured=(loaded or {}).get(name)))
     return out
 
 

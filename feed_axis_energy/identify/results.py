@@ -17,6 +17,7 @@ from ..measured import group_metrics, json_clean, Metrics
 from .ambiguity import AmbiguousGroup
 from .consistency import Fate
 from .diagnostics import Diagnostic, NoiseLevel
+from .grid import ANALYSIS_PERIOD_S
 from .pinning import LeftOut
 from .drivecorr import fold_corrections
 from .selection import Step
@@ -68,6 +69,11 @@ class AnalyzeOptions:
     noise_w
         A noise level declared by the user [W, per sample] for every test instead of the
         estimate (:func:`.diagnostics.noise_level`; the estimate is still reported).
+    analysis_period_s
+        Effects are selected on bins of the measured samples no longer than this [s]
+        (:mod:`.grid`): each bin the exact mean of the whole number of sample periods that
+        fit in it; data sampled at this period or slower are used sample by sample. Noise
+        levels, diagnostics and the series of :class:`RunOutcome` are on these bins.
     shape_grid_points
         Grid size of each shape parameter before the refinement.
     max_rounds
@@ -95,8 +101,13 @@ class AnalyzeOptions:
     max_rounds: int = 6
     realign: bool = True
     noise_w: float | None = None
+    analysis_period_s: float = ANALYSIS_PERIOD_S
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.analysis_period_s) and self.analysis_period_s > 0.0):
+            msg = (f'analysis_period_s must be a finite number > 0 s, got '
+                   f'{self.analysis_period_s!r}')
+            raise ConfigError(msg, key='analysis_period_s')
         if not 0.0 <= self.min_share < 1.0:
             msg = f'min_share must lie in [0, 1), got {self.min_share!r}'
             raise ConfigError(msg, key='min_share')
@@ -204,7 +215,9 @@ class FittedEffect:
 
 @dataclass(frozen=True)
 class RunOutcome:
-    """One run before and after (series on the measured stamps, sums of measured axes).
+    """One run before and after (series on the analysis grid of :mod:`.grid`: the measured
+    stamps, or bins of them for data sampled faster than the analysis period; sums of
+    measured axes).
 
     ``heldout`` is ``False`` for ``calibrate`` runs with ``holdout='roles'``: their
     ``after`` is in-sample and they are left out of the overall before/after.
@@ -266,6 +279,10 @@ class AnalysisResult:
         (:mod:`.driveforms`).
     pin_rounds
         Analysis rounds with offsets estimated anew after the effects found (1: none moved).
+    analysis_period_s, samples_per_bin
+        The analysis grid (:mod:`.grid`): the period asked for [s] and, per run name, how
+        many measured samples each bin averages (1: the samples themselves). Noise levels,
+        diagnostics and the series of ``runs`` are on these bins.
     noise
         Axis -> the noise level every test used and how it was found
         (:class:`.diagnostics.NoiseLevel`); ``noise_sigma_w`` holds its ``sigma_w``.
@@ -309,6 +326,8 @@ class AnalysisResult:
     left_out: tuple[LeftOut, ...] = ()
     pin_rounds: int = 1
     residual_unit: str = 'W'
+    analysis_period_s: float = ANALYSIS_PERIOD_S
+    samples_per_bin: dict[str, int] = field(default_factory=dict)
     noise: dict[str, NoiseLevel] = field(default_factory=dict)
     offered: tuple[FittedEffect, ...] = ()
     offered_gain_rel: float = math.nan
@@ -404,6 +423,8 @@ class AnalysisResult:
             'consistency': {'rounds': self.rounds, 'cap_reached': self.cap_reached},
             'left_out': [lo.to_dict() for lo in self.left_out],
             'pin_rounds': self.pin_rounds,
+            'analysis_grid': {'period_s': self.analysis_period_s,
+                              'samples_per_bin': dict(self.samples_per_bin)},
             'residual_unit': self.residual_unit,
             'warnings': list(self.warnings),
         })

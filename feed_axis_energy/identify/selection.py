@@ -116,6 +116,9 @@ class Design:
         self.n = np.array([v.size for v in self.y])
         self.yy = np.array([float(v @ v) for v in self.y])
         self.x: list[np.ndarray] = [np.zeros((v.size, 0)) for v in self.y]
+        # the columns live in buffers that grow by half when full: adding a block copies
+        # the columns already there only now and then, not every time
+        self._buf: list[np.ndarray] = [np.zeros((v.size, 0)) for v in self.y]
         self.gram: list[np.ndarray] = [np.zeros((0, 0)) for _ in self.y]
         self.xy: list[np.ndarray] = [np.zeros(0) for _ in self.y]
         self.blocks: list[Block] = []
@@ -153,7 +156,12 @@ class Design:
             g[start:, start:] = c.T @ c
             self.gram[r] = g
             self.xy[r] = np.concatenate([self.xy[r], c.T @ self.y[r]])
-            self.x[r] = np.hstack([old, c])
+            if self._buf[r].shape[1] < start + p:
+                buf = np.empty((self.n[r], max(start + p, (3 * (start + p)) // 2 + 8)))
+                buf[:, :start] = old
+                self._buf[r] = buf
+            self._buf[r][:, start:start + p] = c
+            self.x[r] = self._buf[r][:, :start + p]
         block = Block(key=key, shape=dict(shape), names=tuple(names),
                       cols=tuple(range(start, start + p)))
         self.blocks.append(block)

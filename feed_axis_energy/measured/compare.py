@@ -18,7 +18,7 @@ without a measured counterpart (e.g. a Z axis without a power column) are left o
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 import math
 from pathlib import Path
@@ -287,8 +287,11 @@ def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_M
 def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_lag_s: float,
                     window_s: float | None, offset_s: float | None, min_correlation: float,
                     floor_fraction: float, stamp: str | None = None,
-                    check_meter: bool = True) -> RunComparison:
-    run = load_run(spec)
+                    check_meter: bool = True, measured: MeasuredRun | None = None,
+                    ) -> RunComparison:
+    # ``measured``: the run already loaded from ``spec`` (analyze compares each run several
+    # times; a long CSV is parsed once)
+    run = load_run(spec) if measured is None else measured
     qty = quantity_of(spec.instrument.measures)
     axes = spec.measured_axes
     gains = (None if qty.is_power else
@@ -519,7 +522,8 @@ def compare_campaign(campaign: Campaign, *, machine: Machine | None = None,
                      runs: Sequence[str] | None = None, max_lag_s: float = DEFAULT_MAX_LAG_S,
                      window_s: float | None = None, min_correlation: float = 0.5,
                      floor_fraction: float = 0.05, stamp: str | None = None,
-                     progress: Callable[[float], None] | None = None) -> CampaignComparison:
+                     progress: Callable[[float], None] | None = None,
+                     loaded: Mapping[str, MeasuredRun] | None = None) -> CampaignComparison:
     """Compare every (or the named) run of a campaign with the simulation.
 
     Parameters
@@ -542,6 +546,8 @@ def compare_campaign(campaign: Campaign, *, machine: Machine | None = None,
         Floor of the percentual error, as a fraction of each run's peak measured power.
     progress
         Called with the finished fraction (0..1) after every run.
+    loaded
+        Runs already loaded (:func:`.csvload.load_run`), by name; the others are loaded here.
 
     Returns
     -------
@@ -580,7 +586,8 @@ def compare_campaign(campaign: Campaign, *, machine: Machine | None = None,
         results.append(compare_one_run(spec, machine, cache, max_lag_s=max_lag_s,
                                        window_s=window_s,
                                        offset_s=None, min_correlation=min_correlation,
-                                       floor_fraction=floor_fraction, stamp=stamp))
+                                       floor_fraction=floor_fraction, stamp=stamp,
+                                       measured=(loaded or {}).get(spec.name)))
         if progress is not None:
             progress((i + 1) / len(specs))
     return CampaignComparison(
