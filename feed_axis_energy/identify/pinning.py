@@ -30,9 +30,9 @@ motion-anchored run at the motion's offset itself (:func:`at_common_lag` with la
 instrument model's window and stamp already describe the meter's averaging), and estimates
 the meter's lag only with the effects found in the model: :func:`repin` moves these runs to
 their anchor plus the median lag of the comparisons with the effects
-(:func:`motion_lag_s`), by any amount above ten times :func:`lag_tolerance_s` (a hundredth
-of a sample period: smaller moves change nothing the fit can see). A lag the effects do
-not explain is the ``time_offset`` candidate in the meantime.
+(:func:`motion_lag_s`), by any amount above :func:`lag_tolerance_s` (a thousandth of a
+sample period: with a large effect in the model a fraction of a millisecond still decides
+whether a small passenger enters). A lag the effects do not explain is the ``time_offset`` candidate in the meantime.
 
 A candidate that explains the residual of wrongly aligned runs can only be selected from the
 pinned runs, so a stroke-off alignment cannot pull the selection toward a false effect; and
@@ -185,7 +185,7 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
         if (lag is not None and a is not None and run.offset.anchor == 'motion'
                 and a.offset.anchor == 'motion'):
             target = a.offset.motion_s + lag
-            if abs(target - run.offset_used_s) > 10.0 * lag_tolerance_s(run):
+            if abs(target - run.offset_used_s) > lag_tolerance_s(run):
                 was = f'{run.offset_used_s:+.4f} s'
                 cmp = _at_offset(campaign, declared, run.name, a, cache, max_lag_s,
                                  was=was, offset_s=target, loaded=loaded)

@@ -97,8 +97,12 @@ def test_fast_data_are_analysed_on_bins_and_find_the_same_effect(tmp_path) -> No
     for run_b, run_f in zip(binned.runs, fine.runs):
         assert run_b.residual_before_w.shape[0] == run_f.residual_before_w.shape[0] // 5
         assert run_b.t.shape == run_b.meas_w.shape == run_b.after_w.shape
-        # the Table-1 figures are the comparisons' own: not binned
-        assert run_b.before == run_f.before
+        # the Table-1 figures are the comparisons' own: not binned (the two analyses may
+        # pin a run at common meter lags a few microseconds apart: pinning.repin)
+        for name in ('avg_diff_error_w', 'max_diff_error_w', 'rmse_w', 'energy_error_j'):
+            assert getattr(run_b.before, name) == pytest.approx(
+                getattr(run_f.before, name), rel=1e-3, abs=1e-6), name
+        assert run_b.before.n_samples == run_f.before.n_samples
     # white noise of 1 W per sample is 1/sqrt(5) W per bin of 5
     assert binned.noise['X'].white_w == pytest.approx(1.0 / np.sqrt(5.0), rel=0.15)
     assert fine.noise['X'].white_w == pytest.approx(1.0, rel=0.1)
