@@ -24,8 +24,10 @@ figures), the noise estimate used, the held-out figures before/after and their r
 the filtered one: a noisy sensor instead of a controller output), ``power`` (the full stand's
 force times the measured velocity analysed as a shaft power: the rest samples are gone, so
 the offset force and the asymmetric Coulomb part are one shape and may be named as one
-group) and ``clean`` (a symmetric stand, the reference fit's own class: nothing may be
-named).
+group), ``loads`` (the full stand with a different load on the carriage in each run:
+a weight would follow the mass, the offset force does not, so ``offset_force`` must be told
+from ``gravity``) and ``clean`` (a symmetric stand, the reference fit's own class: nothing
+may be named).
 """
 from __future__ import annotations
 
@@ -56,9 +58,12 @@ VARIANTS = {
     'no_stribeck': replace(ts.StandTruth(), stribeck_n=0.0),
     'meter': ts.StandTruth(),
     'power': ts.StandTruth(),
+    'loads': ts.StandTruth(),
     'clean': replace(ts.StandTruth(), f_pos_n=26.0, f_neg_n=26.0, c_pos_n_s_m=55.0,
                      c_neg_n_s_m=55.0, stribeck_n=0.0, offset_n=0.0),
 }
+LOADS_KG = (0.0, 12.0, 25.0)
+"""Loads on the carriage of the ``loads`` variant, in turn over the runs [kg]."""
 METER_NOISE_N = 2.0
 """White noise [N] of the ``meter`` variant (per sample, unfiltered)."""
 FRICTION = ('coulomb', 'viscous_asymmetry', 'stribeck')
@@ -87,6 +92,8 @@ class CellScore:
     ref_energy_pct: float
     after_energy_pct: float
     seconds: float
+    params: dict[str, dict[str, float]]
+    """Fitted linear and shape parameters of every effect added (named or offered)."""
 
     @property
     def ratio(self) -> float:
@@ -123,11 +130,12 @@ def expected_terms(truth: ts.StandTruth, *, power: bool = False) -> tuple[str, .
 
 
 def write_campaign(out: Path, *, seed: int, truth: ts.StandTruth,
-                   meter_noise_n: float = 0.0) -> Path:
+                   meter_noise_n: float = 0.0, loads: bool = False) -> Path:
     """Machine (truth_stand's guess), manifest and CSVs of the calibration and held-out runs.
 
     The CSVs also hold ``F·v`` [W] (``power_w``); ``power.yaml`` beside the manifest is the
-    same campaign as a shaft power.
+    same campaign as a shaft power. ``loads``: run ``i`` carries ``LOADS_KG[i % 3]`` on the
+    carriage (the truth's mass grows by it, the manifest says ``load_kg``).
     """
     rng = np.random.default_rng(seed)
     (out / 'runs').mkdir(parents=True)
@@ -136,14 +144,15 @@ def write_campaign(out: Path, *, seed: int, truth: ts.StandTruth,
     entries = []
     programs = [(n, p, 'calibrate') for n, p in CALIBRATE.items()]
     programs += [(n, p, 'validate') for n, p in HELD_OUT.items()]
-    for name, (feed, targets), role in programs:
-        r = ts.record(name, feed, targets, truth, rng)
+    for i, (name, (feed, targets), role) in enumerate(programs):
+        load = LOADS_KG[i % len(LOADS_KG)] if loads else 0.0
+        r = ts.record(name, feed, targets, replace(truth, mass_kg=truth.mass_kg + load), rng)
         force = r['force'] + rng.normal(0.0, meter_noise_n, size=r['t'].size)
         rows = ['time_s,x_mm,v_mm_s,a_mm_s2,force_n,power_w']
         rows += [f'{t:.3f},{x * 1e3:.6f},{v * 1e3:.6f},{a * 1e3:.6f},{f:.5f},{f * v:.6f}'
                  for t, x, v, a, f in zip(r['t'], r['x'], r['v'], r['a'], force)]
         (out / 'runs' / f'{name}.csv').write_text('\n'.join(rows) + '\n', encoding='utf-8')
-        entries.append({'name': name, 'data': f'runs/{name}.csv', 'load_kg': 0.0,
+        entries.append({'name': name, 'data': f'runs/{name}.csv', 'load_kg': load,
                         'role': role})
     axis = {'position': {'column': 'x_mm', 'unit': 'mm'},
             'velocity': {'column': 'v_mm_s', 'unit': 'mm/s'},
@@ -207,15 +216,17 @@ def score(result, truth: ts.StandTruth, *, variant: str, seed: int,
     alone, grouped = named_terms(result)
     found = alone | grouped
     missed = []
+    # an incline's weight follows the moved mass: with loads that vary it is no alias
+    offset = ('offset_force',) if variant == 'loads' else OFFSET
     # on power, the asymmetric Coulomb part and the offset force are one shape
     joined = variant == 'power' and {'coulomb', 'offset_force'} <= set(expected)
     for term in expected:
-        group = OFFSET if term == 'offset_force' else (term,)
+        group = offset if term == 'offset_force' else (term,)
         if joined and term in ('coulomb', 'offset_force'):
             group = OFFSET + ('coulomb',)
         if not found & set(group):
             missed.append(term)
-    allowed = set(expected) | set(CORRECTIONS) | (set(OFFSET) if 'offset_force' in expected
+    allowed = set(expected) | set(CORRECTIONS) | (set(offset) if 'offset_force' in expected
                                                   else set())
     if truth.stribeck_n > 0.0:
         allowed |= {'coulomb', 'stribeck'}  # Stribeck, and the Coulomb level it moves
@@ -227,7 +238,9 @@ def score(result, truth: ts.StandTruth, *, variant: str, seed: int,
                      named=tuple(sorted(alone)) + tuple(f'[{g}]' for g in sorted(grouped)),
                      missed=tuple(missed), false=tuple(false), noise=noise,
                      ref_rmse_w=before[0], after_rmse_w=after[0], ref_energy_pct=before[1],
-                     after_energy_pct=after[1], seconds=seconds)
+                     after_energy_pct=after[1], seconds=seconds,
+                     params={e.id: {q.name: q.value for q in e.params}
+                             for e in result.effects + result.offered if e.axis == 'X'})
 
 
 def run_cell(variant: str, seed: int, work: Path, *, effects: tuple[str, ...] | None = None,
@@ -239,7 +252,8 @@ def run_cell(variant: str, seed: int, work: Path, *, effects: tuple[str, ...] | 
     truth = VARIANTS[variant]
     out = work / f'{variant}_{seed}'
     manifest = write_campaign(out, seed=seed, truth=truth,
-                              meter_noise_n=METER_NOISE_N if variant == 'meter' else 0.0)
+                              meter_noise_n=METER_NOISE_N if variant == 'meter' else 0.0,
+                              loads=variant == 'loads')
     ref_path = reference_machine(manifest, out / 'reference.yaml')
     reference = load_machine(ref_path)
     if variant == 'power':
