@@ -16,8 +16,11 @@
   grows by more than :data:`SLOW_GROWTH` in variance from one length to the next: a noise
   correlated over ``c`` samples needs blocks of several ``c`` before ``m · v_m`` settles (a
   controller output filtered at 5 ms at 1 kHz: 0.18, 0.43, 0.51-0.57 N at 4, 16, 64 samples
-  under a long-run level of 0.6 N), white noise stops at 16 (the level does not grow). The
-  longest length tried is reported (``block_samples``). The level every test uses is
+  under a long-run level of 0.6 N), white noise stops at 16 (the level does not grow). A
+  length whose step in variance is larger than the step before it is not used (and the
+  growth stops there): a noise's level settles with shrinking steps, a slow misfit of the
+  model (a lag the model lacks) makes them grow. The longest length used is reported
+  (``block_samples``). The level every test uses is
   ``sigma_slow`` when ``sigma_slow² > SLOW_MARGIN · sigma_white²``, else ``sigma_white``
   (below the margin the two agree within their scatter: white noise);
   ``correlation = sigma² / sigma_white²``.
@@ -188,6 +191,10 @@ def _slow(series: Sequence[np.ndarray]) -> tuple[float, int]:
             break
         # independent block means of variance v: var(second difference) = 6 v
         level = math.sqrt(m * (_mad_scale(d) ** 2) / 6.0)
+        if len(levels) >= 2 and level ** 2 * levels[-2] ** 2 > levels[-1] ** 4:
+            # the level grows faster than from the previous length: a correlated noise
+            # settles with shrinking steps, so this is structure on that scale, not noise
+            break
         levels.append(level)
         used = m
         best = level if not best >= level else best
