@@ -147,7 +147,7 @@ def _noise_method(n, unit: str = 'W') -> str:
     if n.method == 'declared':
         return f'declared; estimated {n.white_w:.3g} {unit} white, {n.slow_w:.3g} {unit} slow'
     what = ('sample-to-sample scatter' if n.method == 'white' else
-            'slow noise: block means vary as the data do')
+            f'slow noise: means of up to {n.block_samples} samples vary as the data do')
     slow = f'{n.slow_w:.3g} {unit}' if math.isfinite(n.slow_w) else '-'
     return (f'{what}; white {n.white_w:.3g} {unit}, slow {slow}, correlation '
             f'{n.correlation:.3g}')

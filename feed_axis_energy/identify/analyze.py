@@ -80,7 +80,7 @@ class _Run:
     states: dict[str, np.ndarray]   # name -> (m, k_meas) on the analysis grid
     bins: Bins                      # measured samples -> analysis grid (.grid)
     t: np.ndarray                   # (m,) bin stamps: the mean of the samples' stamps [s]
-    kt: list[float] | None = None   # a current trace: kt per measured axis (.driveforms)
+    kt: list[float] | None = None   # a drive trace: torque per unit per axis (.driveforms)
     wide: tuple[np.ndarray, float] | None = None    # abutting windows: one per bin (.grid)
 
     def aligned(self, cols: np.ndarray) -> np.ndarray:
@@ -112,9 +112,10 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Mac
             for arr in (state.velocity_m_s, state.position_m, state.acceleration_m_s2):
                 cols.append(arr[:, j] if j is not None else np.zeros(n))
         kt = None
-        if (r.measures == 'current' and r.torque_per_unit is not None
+        if (not quantity_of(r.measures).is_power and r.torque_per_unit is not None
                 and r.signal_meas is not None and r.signal_sim is not None):
-            # a current trace: the residual in A, the candidates in their current form
+            # a drive trace (current, torque, force): the residual in the trace's unit, the
+            # candidates in their force form (.driveforms)
             kt = [float(r.torque_per_unit[a]) for a in r.axes]
             residual = r.signal_meas - r.signal_sim
         else:
@@ -376,13 +377,6 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     for effect_id in ids:
         get_effect(effect_id)
     selected = campaign.runs if runs is None else [r for r in campaign.runs if r.name in runs]
-    for spec in selected:
-        if not quantity_of(spec.instrument.measures).is_power and \
-                spec.instrument.measures != 'current':
-            msg = (f'run {spec.name!r} measures {spec.instrument.measures}: analyze selects '
-                   'effects on power and current traces; compare and fit-loss --method '
-                   'samples work on torque and force traces')
-            raise ConfigError(msg, file=spec.manifest, key=f'{spec.key}.instrument.measures')
 
     def report(x: float) -> None:
         if progress is not None:
@@ -496,6 +490,13 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     comparisons with the effects found and the machine they were made with."""
     # copper and iron as corrections of declared drives (motor-terminal meters, .drivecorr)
     measures = common_measures(campaign.run(r.name).instrument.measures for r in cmp_runs)
+    drive = [r for r in cmp_runs if not quantity_of(r.measures).is_power]
+    if drive and measures is None:
+        # a residual in N beside one in W has no common noise level or unit
+        msg = (f'run {drive[0].name!r} measures {drive[0].measures}, other runs measure '
+               'something else: analyze needs one quantity for the runs of a drive trace '
+               '(current, torque or force); analyze them in separate manifests')
+        raise ConfigError(msg, file=str(campaign.file), key='instrument.measures')
     if options.noise_w is None:
         options = replace(options, noise_w=declared_noise(campaign, cmp_runs))
     data = _prepare(campaign, cmp_runs, machine, loaded=loaded,
@@ -508,7 +509,7 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     report(0.5)
 
     design = Design([r.residual.reshape(-1) for r in data])
-    if measures == 'current':
+    if measures is not None and not quantity_of(measures).is_power:
         ids = tuple(e for e in ids if has_current_form(e))
     for effect_id in ids:
         for j, axis in enumerate(axes):
@@ -697,11 +698,12 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
             states=run.states, offset_before=offset_dict(c.offset, used_s=c.offset_used_s),
             offset_after=after_offset))
 
-    unit = 'A' if measures == 'current' else 'W'
+    unit = 'W' if measures is None else quantity_of(measures).unit
+    coloured = {a: n.method == 'slow' for a, n in noise.items()}
     diag_before, spectra_before = diagnose_runs(data, [r.residual for r in data], sigmas,
-                                                names=STATE_NAMES, unit=unit)
+                                                names=STATE_NAMES, unit=unit, coloured=coloured)
     diag_after, spectra_after = diagnose_runs(data, residual_after, sigmas, names=STATE_NAMES,
-                                              unit=unit)
+                                              unit=unit, coloured=coloured)
     spectra = {a: (spectra_before[a][0], spectra_before[a][1], spectra_after[a][1])
                for a in axes}
     unexplained = list(rejected)

@@ -12,9 +12,18 @@
   removed) have variance ``6 · v_m`` when the block means are independent, and
   ``sigma_slow² = max over m of m · v_m`` (``v_m`` from the MAD, so the few blocks with a
   power edge count little): the per-sample level whose mean over a block varies as the
-  data's do. The level every test uses is ``sigma_slow`` when
-  ``sigma_slow² > SLOW_MARGIN · sigma_white²``, else ``sigma_white`` (below the margin the
-  two agree within their scatter: white noise); ``correlation = sigma² / sigma_white²``.
+  data's do. The block length grows (4, 16, 64, 256 samples) as long as the level still
+  grows by more than :data:`SLOW_GROWTH` in variance from one length to the next: a noise
+  correlated over ``c`` samples needs blocks of several ``c`` before ``m · v_m`` settles (a
+  controller output filtered at 5 ms at 1 kHz: 0.18, 0.43, 0.51-0.57 N at 4, 16, 64 samples
+  under a long-run level of 0.6 N), white noise stops at 16 (the level does not grow). A
+  length whose step in variance is larger than the step before it is not used (and the
+  growth stops there): a noise's level settles with shrinking steps, a slow misfit of the
+  model (a lag the model lacks) makes them grow. The longest length used is reported
+  (``block_samples``). The level every test uses is
+  ``sigma_slow`` when ``sigma_slow² > SLOW_MARGIN · sigma_white²``, else ``sigma_white``
+  (below the margin the two agree within their scatter: white noise);
+  ``correlation = sigma² / sigma_white²``.
   A level declared by the user replaces both.
   (Until issue 24 the level was ``1.4826 · MAD(diff(y)) / sqrt(2)`` only: on the 100 ms
   UMich power it read 0.02–0.06 W under a residual of 0.6–1.3 W RMS, and every test
@@ -26,7 +35,11 @@
   ``rms_w`` is the size of the structure, ``sqrt(sum n_b mean_b² / N)``.
 * Spectrum (:func:`spectrum_structure`): Welch periodograms of every run on a common
   segment length, averaged; the peak-to-median ratio of the averaged periodogram (without
-  the zero frequency) is about 1.5 for white noise.
+  the zero frequency) is about 1.5 for white noise. Coloured noise (the slow estimate set the
+  level: a filtered controller output) has no flat spectrum: its low frequencies stand far
+  above the global median with no peak in them, so there each frequency is compared with
+  the median of its neighbours (:data:`LOCAL_BINS` on either side, its own three bins left
+  out), which a peak still exceeds.
 
 A diagnostic is *structured* when it is significant (``p < alpha`` or ratio above
 ``max_ratio``) and large (``rms_w`` above ``min_rms_fraction · sigma``, or the peak's
@@ -42,13 +55,21 @@ import numpy as np
 from scipy import signal, stats
 
 __all__ = ['Diagnostic', 'NoiseLevel', 'binned_structure', 'noise_level', 'noise_sigma',
-           'spectrum_structure', 'diagnose_runs', 'average_spectrum', 'SLOW_BLOCKS',
-           'SLOW_MARGIN', 'STATE_BINS']
+           'spectrum_structure', 'diagnose_runs', 'average_spectrum', 'LOCAL_BINS',
+           'SLOW_BLOCKS', 'SLOW_GROWTH', 'SLOW_MARGIN', 'SLOW_MIN_DIFFS', 'STATE_BINS']
 
 STATE_BINS = 6
 """Quantile bins per state of the grid whose cell means are removed before the slow estimate."""
-SLOW_BLOCKS = (4, 16)
-"""Block lengths [samples] of the slow noise estimate."""
+SLOW_BLOCKS = (4, 16, 64, 256)
+"""Block lengths [samples] of the slow noise estimate, tried in turn (:data:`SLOW_GROWTH`)."""
+SLOW_GROWTH = 1.2
+"""The next block length is tried when the level's variance grew by more than this factor
+from the previous length to the last one (the first two are always tried)."""
+SLOW_MIN_DIFFS = 30
+"""Second differences of block means a level needs (pooled over runs)."""
+LOCAL_BINS = 8
+"""Neighbouring frequencies on either side whose median is a peak's reference in coloured
+noise (:func:`spectrum_structure`)."""
 SLOW_MARGIN = 1.5
 """The slow estimate replaces the white one when its variance is this many times larger
 (below, the two agree within the scatter of the estimates: white noise)."""
@@ -117,6 +138,8 @@ class NoiseLevel:
     residual
         Which residual it was estimated on (``analyze``: ``'baseline'`` or ``'after the
         effects found'``).
+    block_samples
+        Block length [samples] of the slow estimate (the longest one tried; 0: none).
     """
 
     sigma_w: float
@@ -125,6 +148,7 @@ class NoiseLevel:
     correlation: float
     method: str
     residual: str = ''
+    block_samples: int = 0
 
     def to_dict(self) -> dict:
         """Plain dict (keys in docs/analyze.md)."""
@@ -148,9 +172,13 @@ def _white(series: Sequence[np.ndarray]) -> float:
     return scale / math.sqrt(_CUBIC_VAR)
 
 
-def _slow(series: Sequence[np.ndarray]) -> float:
-    best = math.nan
+def _slow(series: Sequence[np.ndarray]) -> tuple[float, int]:
+    """The slow level and the longest block length tried (module docstring)."""
+    best, used = math.nan, 0
+    levels: list[float] = []
     for m in SLOW_BLOCKS:
+        if len(levels) >= 2 and not levels[-1] ** 2 > SLOW_GROWTH * levels[-2] ** 2:
+            break       # the level has settled: the blocks are longer than the correlation
         # means of m consecutive samples; their second differences remove a local line
         parts = []
         for y in series:
@@ -158,13 +186,19 @@ def _slow(series: Sequence[np.ndarray]) -> float:
             if n >= 3 * m:
                 b = y[:n].reshape(-1, m).mean(axis=1)
                 parts.append(b[:-2] - 2.0 * b[1:-1] + b[2:])
-        if not parts:
-            continue
-        d = np.concatenate(parts)
+        d = np.concatenate(parts) if parts else np.zeros(0)
+        if d.size < (SLOW_MIN_DIFFS if levels else 1):
+            break
         # independent block means of variance v: var(second difference) = 6 v
         level = math.sqrt(m * (_mad_scale(d) ** 2) / 6.0)
+        if len(levels) >= 2 and level ** 2 * levels[-2] ** 2 > levels[-1] ** 4:
+            # the level grows faster than from the previous length: a correlated noise
+            # settles with shrinking steps, so this is structure on that scale, not noise
+            break
+        levels.append(level)
+        used = m
         best = level if not best >= level else best
-    return best
+    return best, used
 
 
 def _state_bins(x: np.ndarray, bins: int) -> np.ndarray:
@@ -217,7 +251,7 @@ def noise_level(residuals: Sequence[np.ndarray], *, declared_w: float | None = N
     if states is not None:
         flat = [_without_state_means(series[n], np.asarray(states[i]), STATE_BINS)
                 for n, i in enumerate(keep)]
-    slow = _slow(flat)
+    slow, block = _slow(flat)
     if declared_w is not None:
         sigma, method = float(declared_w), 'declared'
     elif math.isfinite(slow) and slow ** 2 > SLOW_MARGIN * white ** 2:
@@ -226,7 +260,7 @@ def noise_level(residuals: Sequence[np.ndarray], *, declared_w: float | None = N
         sigma, method = white, 'white'
     corr = sigma ** 2 / white ** 2 if white > 0.0 and math.isfinite(sigma) else math.nan
     return NoiseLevel(sigma_w=sigma, white_w=white, slow_w=slow, correlation=corr,
-                      method=method)
+                      method=method, block_samples=block)
 
 
 def noise_sigma(residuals: Sequence[np.ndarray]) -> float:
@@ -291,7 +325,8 @@ def binned_structure(residual: np.ndarray, state: np.ndarray, *, sigma: float, n
 
 def spectrum_structure(residuals: Sequence[np.ndarray], *, period_s: float, sigma: float,
                        axis: str, nperseg: int = 256, max_ratio: float = 8.0,
-                       min_rms_fraction: float = 0.3, unit: str = 'W') -> Diagnostic:
+                       min_rms_fraction: float = 0.3, unit: str = 'W',
+                       coloured: bool = False) -> Diagnostic:
     """Peak-to-median ratio of the run-averaged Welch periodogram of the residual.
 
     Parameters
@@ -309,6 +344,9 @@ def spectrum_structure(residuals: Sequence[np.ndarray], *, period_s: float, sigm
     max_ratio, min_rms_fraction
         A peak is structure when its ratio exceeds ``max_ratio`` and the amplitude of the
         sine it represents exceeds ``min_rms_fraction · sigma``.
+    coloured
+        The noise is not white (its slow estimate set ``sigma``): each frequency is compared
+        with the median of its neighbours instead of the global median.
 
     Returns
     -------
@@ -329,9 +367,12 @@ def spectrum_structure(residuals: Sequence[np.ndarray], *, period_s: float, sigm
         weights.append(y.size)
     avg = np.average(np.array(psd), axis=0, weights=np.array(weights, dtype=float))
     inner = avg[1:]
-    k = int(np.argmax(inner))
-    median = float(np.median(inner))
-    ratio = float(inner[k] / median) if median > 0.0 else math.inf
+    base = _local_median(inner) if coloured else np.full(inner.size, np.median(inner))
+    with np.errstate(divide='ignore', invalid='ignore'):
+        ratios = np.where(base > 0.0, inner / np.where(base > 0.0, base, 1.0), math.inf)
+    k = int(np.argmax(ratios))
+    median = float(base[k])
+    ratio = float(ratios[k])
     # scaling='spectrum' gives the power of a sine, A²/2, spread over a few bins (Hann)
     lo, hi = max(k - 1, 0), min(k + 2, inner.size)
     amplitude = math.sqrt(2.0 * max(float(inner[lo:hi].sum()) - 3.0 * median, 0.0))
@@ -343,13 +384,27 @@ def spectrum_structure(residuals: Sequence[np.ndarray], *, period_s: float, sigm
     return Diagnostic('spectrum', axis, ratio, math.nan, amplitude, peak, structured, message)
 
 
+def _local_median(psd: np.ndarray) -> np.ndarray:
+    """Per frequency the median of its :data:`LOCAL_BINS` neighbours on either side, its own
+    bin and the two next to it left out (a windowed sine spreads over three bins)."""
+    out = np.empty(psd.size)
+    for i in range(psd.size):
+        near = [j for j in range(max(i - LOCAL_BINS, 0), min(i + LOCAL_BINS + 1, psd.size))
+                if abs(j - i) > 1]
+        out[i] = float(np.median(psd[near])) if near else float(psd[i])
+    return out
+
+
 def diagnose_runs(runs: Sequence, residuals: Sequence[np.ndarray], sigmas: Mapping[str, float],
-                  *, names: Sequence[str], unit: str = 'W') -> tuple[list[Diagnostic], dict]:
+                  *, names: Sequence[str], unit: str = 'W',
+                  coloured: Mapping[str, bool] | None = None) -> tuple[list[Diagnostic], dict]:
     """Binned structure against each state of ``names`` and the spectrum, per measured axis.
 
     ``runs`` carry ``cmp`` (``axes``), the residuals' stamps ``t`` and ``states``
     (``{name: (m, k)}``);
-    ``residuals[r]`` is ``(m, k)`` in ``unit`` (``'W'``, ``'A'`` for a current trace).
+    ``residuals[r]`` is ``(m, k)`` in ``unit`` (``'W'``; ``'A'``, ``'N·m'``, ``'N'`` for a
+    drive trace). ``coloured``: per axis, the noise is not white (the spectrum test compares
+    each frequency with its neighbours, :func:`spectrum_structure`).
     Returns the diagnostics and ``{axis: (f, psd)}``.
     """
     out: list[Diagnostic] = []
@@ -364,7 +419,8 @@ def diagnose_runs(runs: Sequence, residuals: Sequence[np.ndarray], sigmas: Mappi
         # the sampling period (the window may be 0: point samples)
         period = float(np.median([np.median(np.diff(r.t)) for r in runs]))
         out.append(spectrum_structure([res[:, j] for res in residuals], period_s=period,
-                                      sigma=sigmas[axis], axis=axis, unit=unit))
+                                      sigma=sigmas[axis], axis=axis, unit=unit,
+                                      coloured=bool((coloured or {}).get(axis, False))))
         spectra[axis] = average_spectrum([res[:, j] for res in residuals], period)
     return out, spectra
 

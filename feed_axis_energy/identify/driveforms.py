@@ -1,20 +1,27 @@
-"""The catalog's effects as motor current: what ``analyze`` selects on a current trace.
+"""The catalog's effects as drive traces: what ``analyze`` selects on current, torque, force.
 
 The catalog (:mod:`feed_axis_energy.effects`) gives every effect as the power ``P`` it adds to
-an axis. On a current trace the residual ``I_meas - I_sim`` [A] is fitted instead of a power,
+an axis. On a drive trace (current, torque or force, :mod:`feed_axis_energy.measured.quantity`)
+the residual ``q_meas - q_sim`` in the trace's unit [A, N·m, N] is fitted instead of a power,
 with each candidate in its *force form*: the force along the axis ``F = P / v`` while the axis
-moves, turned into current as the dynamics turn a force into motor torque,
-``I = F · (lead / 2·pi) / kt`` (screw efficiency 1: the candidates are small corrections).
-At rest an effect's force is what it holds there: the weight of an undeclared inclination
-(``gravity``: ``m·g·sin(theta)``, the holding current a vertical axis shows at every stop,
-which a power trace cannot see since ``omega = 0``), nothing for the frictions (static
-friction takes any value up to the breakaway force; the declared model's standstill hold is
-:mod:`feed_axis_energy.physics.standstill`).
+moves, turned into the trace's unit as the dynamics turn a force into motor torque and the
+torque into the trace, ``q = F · (lead / 2·pi) / g`` with ``g`` the torque per unit of the
+trace (:func:`~feed_axis_energy.measured.torque_per_unit`: ``kt`` for current, 1 for torque,
+``lead/(2·pi)`` for force, so that a force trace gets ``F`` itself; screw efficiency 1: the
+candidates are small corrections). At rest an effect's force is what it holds there: the
+weight of an undeclared inclination (``gravity``: ``m·g·sin(theta)``, the holding current a
+vertical axis shows at every stop, which a power trace cannot see since ``omega = 0``) and a
+constant force along the axis (``offset_force``: a cable carrier, a counterweight imbalance
+pull at rest as in motion), nothing for the frictions (static friction takes any value up to
+the breakaway force; the declared model's standstill hold is
+:mod:`feed_axis_energy.physics.standstill`). So on a drive trace ``offset_force`` and the
+asymmetric part of ``coulomb`` (the same power shape, :data:`~feed_axis_energy.effects.ALIASES`)
+separate by the samples at rest.
 
-Effects whose power is not a force along the axis have no current form and are not
-candidates on a current trace: a drive's standby draw, the motor's copper and iron losses
-(heat, or a current the torque-producing component does not carry), the braking rule, and
-a residual time offset (an artefact of alignment, its basis a power derivative).
+Effects whose power is not a force along the axis have no force form and are not candidates
+on a drive trace: a drive's standby draw, the motor's copper and iron losses (heat, or a
+current the torque-producing component does not carry), the braking rule, and a residual
+time offset (an artefact of alignment, its basis a power derivative).
 """
 from __future__ import annotations
 
@@ -26,20 +33,22 @@ from ..effects import EffectState
 from ..physics import REST_SPEED_M_S
 from ..units import GRAVITY_M_S2
 
-__all__ = ['NO_CURRENT_FORM', 'current_basis', 'has_current_form']
+__all__ = ['HELD_AT_REST', 'NO_CURRENT_FORM', 'current_basis', 'has_current_form']
 
 NO_CURRENT_FORM = ('standby', 'copper', 'iron', 'braking_loss', 'time_offset')
 """Effects that are not a force along the axis (see the module docstring)."""
+HELD_AT_REST = ('gravity', 'offset_force')
+"""Effects whose force acts at rest as in motion (see the module docstring)."""
 
 
 def has_current_form(effect_id: str) -> bool:
-    """Whether ``effect_id`` is a candidate on a current trace."""
+    """Whether ``effect_id`` is a candidate on a drive trace (current, torque, force)."""
     return effect_id not in NO_CURRENT_FORM
 
 
 def current_basis(effect_id: str, basis_w: np.ndarray, state: EffectState, j: int,
                   kt_nm_a: float) -> np.ndarray:
-    """The basis of an effect on simulated axis ``j`` as current [A per unit], ``(n, p)``.
+    """The basis of an effect on simulated axis ``j`` in a drive trace's unit, ``(n, p)``.
 
     Parameters
     ----------
@@ -52,12 +61,15 @@ def current_basis(effect_id: str, basis_w: np.ndarray, state: EffectState, j: in
     j
         Column of the axis in ``state``.
     kt_nm_a
-        The axis's torque constant [N·m/A].
+        The torque per unit of the trace (:func:`~feed_axis_energy.measured.torque_per_unit`):
+        the torque constant [N·m/A] of a current trace, 1 for torque, ``lead/(2·pi)`` [m]
+        for force.
 
     Returns
     -------
     numpy.ndarray
-        ``basis_w / v`` while moving, the held force at rest, times ``lead/(2·pi)/kt``.
+        ``basis_w / v`` while moving, the held force at rest (:data:`HELD_AT_REST`), times
+        ``lead/(2·pi)/kt_nm_a`` [A, N·m or N per unit of the effect's parameter].
     """
     v = state.velocity_m_s[:, j]
     moving = np.abs(v) > REST_SPEED_M_S
@@ -66,4 +78,7 @@ def current_basis(effect_id: str, basis_w: np.ndarray, state: EffectState, j: in
     if effect_id == 'gravity':
         # the weight is there whether the axis moves or not: m·g per unit of sin(theta)
         force[~moving] = float(state.mass_kg[j]) * GRAVITY_M_S2
+    elif effect_id == 'offset_force':
+        # a cable carrier or a counterweight pulls at rest too: 1 N per newton of F0
+        force[~moving] = 1.0
     return force * (float(state.lead_m[j]) / (2.0 * math.pi) / kt_nm_a)

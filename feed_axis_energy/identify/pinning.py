@@ -32,7 +32,8 @@ the meter's lag only with the effects found in the model: :func:`repin` moves th
 their anchor plus the median lag of the comparisons with the effects
 (:func:`motion_lag_s`), by any amount above :func:`lag_tolerance_s` (a thousandth of a
 sample period: with a large effect in the model a fraction of a millisecond still decides
-whether a small passenger enters). A lag the effects do not explain is the ``time_offset`` candidate in the meantime.
+whether a small passenger enters). A lag the effects do not explain is the ``time_offset``
+candidate in the meantime.
 
 A candidate that explains the residual of wrongly aligned runs can only be selected from the
 pinned runs, so a stroke-off alignment cannot pull the selection toward a false effect; and

@@ -28,9 +28,12 @@ Force on a linear test stand: with the rotary inertias 0 and the screw efficienc
 whatever lead the machine file gives; a real screw adds the rotor's inertia as equivalent
 mass, as a force computed from the motor's output does. A holding torque (a vertical axis at
 rest) is part of ``M``: the prediction is not zero at standstill. Declared effects, which the
-catalog gives as powers, enter the prediction as ``P_effect/omega`` while the axis moves and
-not at all at rest. At rest the prediction adds the force the drive keeps holding after a stop,
-in the last direction of motion (``axes.<A>.standstill_hold_n``,
+catalog gives as powers, enter the prediction as ``P_effect/omega`` while the axis moves; at
+rest only the constant forces along the axis (:data:`HELD_EFFECTS`: ``offset_force``'s
+``F0`` and ``gravity``'s ``m·g·sin(theta)``, which pull at rest as in motion, as ``analyze``
+fits them on a drive trace), the others nothing. At rest the prediction adds the force the
+drive keeps holding after a stop, in the last direction of motion
+(``axes.<A>.standstill_hold_n``,
 :mod:`feed_axis_energy.physics.standstill`), which ``fit-loss --method samples`` fits; on such
 an axis the held force replaces the kinetic friction at rest (``|v| <= REST_SPEED_M_S``:
 static friction holds it; ``F_c·sgn(v)`` of a measured velocity's noise would jump by
@@ -47,6 +50,7 @@ import numpy as np
 
 from ..errors import ConfigError, DataError
 from ..physics import AxisDynamics, holding_force, HoldState, REST_SPEED_M_S
+from ..units import GRAVITY_M_S2
 
 if TYPE_CHECKING:       # types only: the manifest reader imports this module, not the simulation
     from ..machine import Machine
@@ -55,11 +59,13 @@ if TYPE_CHECKING:       # types only: the manifest reader imports this module, n
 __all__ = ['Quantity', 'QUANTITIES', 'MEASURES', 'POWER_MEASURES', 'SignalMetrics',
            'quantity_of', 'measured_signal', 'torque_per_unit', 'predicted_signal',
            'omega_columns', 'signal_metrics', 'pool_signal_metrics', 'sign_warnings',
-           'ANTI_CORRELATION']
+           'ANTI_CORRELATION', 'HELD_EFFECTS']
 
 _OMEGA_EPS = 1.0e-9     # rad/s: below this an axis is at rest (no power -> torque)
 ANTI_CORRELATION = -0.3
 """A measured trace whose correlation with its prediction is below this has the wrong sign."""
+HELD_EFFECTS = ('offset_force', 'gravity')
+"""Declared effects that are a constant force along the axis, at rest as in motion."""
 
 
 @dataclass(frozen=True)
@@ -240,6 +246,21 @@ def _effects_torque(sim: SimulationResult, j: int) -> np.ndarray | None:
     return out
 
 
+def _held_effect_force(machine: Machine, axis: str, mass_kg: float) -> float:
+    """The constant force [N] of the declared :data:`HELD_EFFECTS` on ``axis`` (moved mass
+    ``mass_kg``), which acts at rest too."""
+    total = 0.0
+    for e in machine.effects:
+        if e.axis not in (None, axis) or e.id not in HELD_EFFECTS:
+            continue
+        values = e.values
+        if e.id == 'offset_force':
+            total += float(values.get('f0_n', 0.0))
+        else:
+            total += float(values.get('sin_theta', 0.0)) * mass_kg * GRAVITY_M_S2
+    return total
+
+
 def _loss_torque(dyn: AxisDynamics, j: int) -> np.ndarray:
     """The part of axis ``j``'s screw torque that overcomes its loss force [N·m], ``(n,)``.
 
@@ -331,6 +352,10 @@ def predicted_signal(measures: str, sim: SimulationResult, machine: Machine,
         extra = _effects_torque(sim, j)
         if extra is not None:
             torque += extra
+            held = _held_effect_force(machine, axis, float(dyn.mass_kg[j]))
+            if held != 0.0:
+                still = np.abs(dyn.omega_rad_s[:, j]) <= _OMEGA_EPS
+                torque[still] += held * float(dyn.lead_m[j]) / (2.0 * math.pi)
         hold = machine.axis(axis).standstill_hold_n
         if hold > 0.0:
             # at rest friction is static: the drive holds the force it kept after the stop

@@ -183,6 +183,30 @@ def test_holding_current_of_a_vertical_axis_is_predicted(tmp_path):
     assert run.signal_metrics['Y'].rmse == pytest.approx(0.01, rel=0.25)
 
 
+def test_a_declared_constant_force_is_predicted_at_rest_too(tmp_path):
+    # offset_force (a cable carrier) and gravity (an incline analyze found) pull at rest as in
+    # motion: a force trace shows F0 at every stop; a friction effect adds nothing at rest
+    from dataclasses import replace
+
+    from feed_axis_energy.machine import DeclaredEffect, moved_mass_kg
+    manifest, truth = write_drive_campaign(tmp_path, measures='force', noise=0.5)
+    machine = truth['machine']
+    plain = compare_campaign(load_campaign(manifest), machine=machine).runs[0]
+    j = plain.axes.index('X')
+    effects = (DeclaredEffect(id='offset_force', axis='X', params=(('f0_n', 12.0),)),
+               DeclaredEffect(id='gravity', axis='X', params=(('sin_theta', 0.1),)),
+               DeclaredEffect(id='viscous', axis='X', params=(('c_n_s_m', 50.0),)))
+    added = compare_campaign(load_campaign(manifest),
+                             machine=replace(machine, effects=effects)).runs[0]
+    # the record starts at rest: 12 N + 0.1·m·g more, the viscous force nothing
+    rest = added.signal_sim[:20, j] - plain.signal_sim[:20, j]
+    want = 12.0 + 0.1 * moved_mass_kg(machine, 'X', 0.0) * 9.80665
+    np.testing.assert_allclose(rest, want, rtol=1e-6)
+    assert 'Y' in added.axes
+    np.testing.assert_allclose(added.signal_sim[:20, added.axes.index('Y')],
+                               plain.signal_sim[:20, added.axes.index('Y')])
+
+
 def test_current_without_torque_constant_names_the_key(tmp_path):
     manifest, _ = write_drive_campaign(tmp_path, kt_in_manifest=False)
     with pytest.raises(ConfigError) as info:

@@ -270,12 +270,32 @@ def _fit_axis(cols: tuple[np.ndarray, ...], *, axis: str, machine: Machine, meas
         counterbalance_se=se['balance'] if fit_balance else None)
 
 
+def _correlation_time(res: np.ndarray, *, max_lag: int = 200) -> float:
+    """Integrated autocorrelation time of a residual series [samples] (1 for white noise):
+    ``1 + 2·sum rho_k`` over the lags until the autocorrelation first falls below 0.05."""
+    y = res - float(np.mean(res))
+    var = float(y @ y)
+    if y.size < 3 or var <= 0.0:
+        return 1.0
+    tau = 1.0
+    for k in range(1, min(max_lag, y.size - 1)):
+        rho = float(y[:-k] @ y[k:]) / var
+        if rho < 0.05:
+            break
+        tau += 2.0 * rho
+    return tau
+
+
 def _standstill_hold(d: np.ndarray, q: np.ndarray, weight: np.ndarray, *, spec, gain: float,
                      options: SampleFitOptions) -> tuple[float | None, float | None]:
     """The force held at rest after a move [N] (``>= 0``, in the last direction ``d``) and
     the resting samples' residual RMS, from ``q·g = M_weight + h·d·r`` at rest (``weight``:
     the weight the drive carries per sample [N]); ``(None, None)`` with fewer than
-    ``min_samples`` such samples or no move in either direction."""
+    ``min_samples`` such samples or no move in either direction; ``(None, RMS)`` when the
+    hold is within 2 standard errors of 0: a declared hold, however small, replaces the
+    kinetic friction at rest (:mod:`feed_axis_energy.physics.standstill`), so a hold the
+    data do not show is none (on a stand whose drive holds nothing a fitted 1e-4 N turned
+    the friction of the few samples slower than ``REST_SPEED_M_S`` into a 26 N residual)."""
     if d.size < options.min_samples:
         return None, None
     eta = spec.screw.efficiency
@@ -286,7 +306,16 @@ def _standstill_hold(d: np.ndarray, q: np.ndarray, weight: np.ndarray, *, spec, 
     coef, _ = nonnegative_lsq(x, y)
     hold = float(coef[0])
     res = q - (r * weight / eta + hold * d * r) / gain
-    return hold, math.sqrt(float(res @ res) / res.size)
+    rms = math.sqrt(float(res @ res) / res.size)
+    xx = float(x[:, 0] @ x[:, 0])
+    dof = res.size - 1
+    # standard error of h, the white-noise formula widened by the residual's correlation
+    # time (a filtered controller output wanders over several samples)
+    se = (math.sqrt(float((res * gain) @ (res * gain)) / dof / xx * _correlation_time(res))
+          if xx > 0.0 and dof > 0 else math.inf)
+    if not hold > 2.0 * se:
+        return None, rms
+    return hold, rms
 
 
 def fit_drive_samples(runs: Sequence[MeasuredRun], *, machine: Machine, measures: str,
