@@ -187,13 +187,12 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
                 and a.offset.anchor == 'motion'):
             target = a.offset.motion_s + lag
             if abs(target - run.offset_used_s) > lag_tolerance_s(run):
-                was = f'{run.offset_used_s:+.4f} s'
-                cmp = _at_offset(campaign, declared, run.name, a, cache, max_lag_s,
-                                 was=was, offset_s=target, loaded=loaded)
-                out.append(replace(cmp, offset=replace(cmp.offset, offset_s=target, message=(
+                cmp = _compared_at(campaign, declared, run.name, target, cache, max_lag_s,
+                                   loaded)
+                out.append(replace(cmp, offset=replace(a.offset, offset_s=target, message=(
                     f'{a.offset.message}; used at the common meter lag behind the motion '
                     f'found with the effects in the model, {1e3 * lag:+.1f} ms: '
-                    f'{target:+.4f} s (was {was})'))))
+                    f'{target:+.4f} s (was {run.offset_used_s:+.4f} s)'))))
                 moved.append(run.name)
             else:
                 out.append(run)
@@ -276,10 +275,7 @@ def at_common_lag(campaign: Campaign, declared: Machine, runs: Sequence[RunCompa
         if abs(run.offset_used_s - target) <= lag_tolerance_s(run):
             out.append(run)
             continue
-        cmp = compare_one_run(campaign.run(run.name), declared, cache, max_lag_s=max_lag_s,
-                              window_s=None, offset_s=target, min_correlation=0.5,
-                              floor_fraction=0.05, check_meter=False,
-                              measured=(loaded or {}).get(run.name))
+        cmp = _compared_at(campaign, declared, run.name, target, cache, max_lag_s, loaded)
         offset = replace(o, offset_s=target, message=(
             f'{o.message}; used at the campaign\'s common meter lag behind the motion, '
             f'{1e3 * lag:+.1f} ms: {target:+.4f} s'))
@@ -287,17 +283,22 @@ def at_common_lag(campaign: Campaign, declared: Machine, runs: Sequence[RunCompa
     return out
 
 
+def _compared_at(campaign: Campaign, declared: Machine, name: str, offset_s: float,
+                 cache: MotionCache, max_lag_s: float,
+                 loaded: Mapping[str, MeasuredRun] | None) -> RunComparison:
+    """The declared model's comparison of a run at a fixed offset (``compare``'s defaults;
+    the meter check is left to the baseline)."""
+    return compare_one_run(campaign.run(name), declared, cache, max_lag_s=max_lag_s,
+                           window_s=None, offset_s=offset_s, min_correlation=0.5,
+                           floor_fraction=0.05, check_meter=False,
+                           measured=(loaded or {}).get(name))
+
+
 def _at_offset(campaign: Campaign, declared: Machine, name: str, found: RunComparison,
                cache: MotionCache, max_lag_s: float, *, was: str,
-               offset_s: float | None = None,
                loaded: Mapping[str, MeasuredRun] | None = None) -> RunComparison:
-    """The declared model's comparison of a run at the offset ``found`` pinned (or at
-    ``offset_s``)."""
-    at = found.offset_used_s if offset_s is None else offset_s
-    cmp = compare_one_run(campaign.run(name), declared, cache, max_lag_s=max_lag_s,
-                          window_s=None, offset_s=at, min_correlation=0.5,
-                          floor_fraction=0.05, check_meter=False,
-                          measured=(loaded or {}).get(name))
+    """The declared model's comparison of a run at the offset ``found`` pinned."""
+    cmp = _compared_at(campaign, declared, name, found.offset_used_s, cache, max_lag_s, loaded)
     offset = replace(found.offset, message=(
         f'{found.offset.message}; pinned with the effects found in the model (was {was})'))
     return replace(cmp, offset=offset)
