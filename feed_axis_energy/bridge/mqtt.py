@@ -27,7 +27,7 @@ from .service import FINAL_STATES, JobService, LiveSample, ServiceEvent, StateCh
 from .topics import (power_payload, result_payload, state_payload, status_payload,
                      TopicTree)
 
-__all__ = ['MqttBridge', 'MqttSettings', 'tcp_no_delay']
+__all__ = ['MqttBridge', 'MqttSettings', 'new_client', 'tcp_no_delay']
 
 _log = logging.getLogger(__name__)
 
@@ -83,6 +83,20 @@ class MqttSettings:
                               f'{describe(self.max_rate_hz)}', file='<mqtt>', key='max_rate_hz')
 
 
+def new_client(client_id: str, *, max_queued: int, username: str | None,
+               password: str | None) -> paho.Client:
+    """A paho client (MQTT 3.1.1): its outgoing queue bounded by ``max_queued`` messages, the
+    credentials when ``username`` is given, Nagle's algorithm off (:func:`tcp_no_delay`);
+    the caller sets its will and callbacks."""
+    client = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id=client_id,
+                         protocol=paho.MQTTv311)
+    client.max_queued_messages_set(max_queued)
+    if username is not None:
+        client.username_pw_set(username, password)
+    client.on_socket_open = tcp_no_delay
+    return client
+
+
 def tcp_no_delay(client: paho.Client, userdata: Any, sock: Any) -> None:
     """paho's ``on_socket_open``: Nagle's algorithm off on the broker connection."""
     # without it Nagle's algorithm holds a small message back until the broker's delayed
@@ -128,18 +142,14 @@ class MqttBridge:
         self._connect_error = ''
         self._unsubscribe: Callable[[], None] | None = None
         client_id = self.settings.client_id or f'feed_axis_energy-{self.topics.machine}'
-        client = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id=client_id,
-                             protocol=paho.MQTTv311)
-        client.max_queued_messages_set(self.settings.max_queued)
-        if self.settings.username is not None:
-            client.username_pw_set(self.settings.username, self.settings.password)
+        client = new_client(client_id, max_queued=self.settings.max_queued,
+                            username=self.settings.username, password=self.settings.password)
         client.will_set(self.topics.status, status_payload(online=False, stamp_ns=0), qos=1,
                         retain=True)
         client.on_connect = self._on_connect
         client.on_subscribe = self._on_subscribe
         client.on_disconnect = self._on_disconnect
         client.on_message = self._on_message
-        client.on_socket_open = tcp_no_delay
         self._client = client
 
     def __enter__(self) -> MqttBridge:

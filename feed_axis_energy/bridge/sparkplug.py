@@ -37,7 +37,7 @@ import paho.mqtt.client as paho
 
 from ..errors import ConfigError, describe, FeedAxisError, RequestError
 from .logbound import BoundedLog
-from .mqtt import tcp_no_delay
+from .mqtt import new_client
 from .service import FINAL_STATES, JobService, LiveSample, ServiceEvent, StateChange
 from .sparkplug_payload import (decode_sparkplug, encode_sparkplug, SpDataType, SpMetric,
                                 SpPayload)
@@ -257,17 +257,13 @@ class SparkplugBridge:
         self._connect_error = ''
         self._unsubscribe: Callable[[], None] | None = None
         ids = f'{self.topics.group_id}-{self.topics.edge_node_id}'
-        client = paho.Client(paho.CallbackAPIVersion.VERSION2,
-                             client_id=settings.client_id or f'spb-{ids}'[:64],
-                             protocol=paho.MQTTv311)
-        client.max_queued_messages_set(settings.max_queued)
-        if settings.username is not None:
-            client.username_pw_set(settings.username, settings.password)
+        client = new_client(settings.client_id or f'spb-{ids}'[:64],
+                            max_queued=settings.max_queued, username=settings.username,
+                            password=settings.password)
         client.on_pre_connect = self._on_pre_connect
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
         client.on_message = self._on_message
-        client.on_socket_open = tcp_no_delay
         self._client = client
 
     def __enter__(self) -> SparkplugBridge:
