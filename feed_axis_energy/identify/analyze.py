@@ -42,8 +42,9 @@ from ..physics import state_from_simulation
 from ..machine import load_machine, Machine, machine_warnings, observed_range, RangeUse
 from ..errors import ConfigError
 from ..measured import (align_simulated, Campaign, CampaignComparison, compare_campaign,
-                        load_run, MeasuredRun, Metrics, MotionCache, offset_dict, quantity_of,
-                        RunComparison, simulate_declared, stamp_shift)
+                        first_order_lag, load_run, MeasuredRun, Metrics, MotionCache,
+                        offset_dict, quantity_of, RunComparison, simulate_declared,
+                        stamp_shift)
 from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
 from .consistency import heterogeneity, label, mark_groups, select_consistent
@@ -65,6 +66,9 @@ NOISE_CHANGE = 0.1
 """Relative change of the noise level that makes the selection run again."""
 POSITION_DIVISIONS = (15, 10, 6, 3)
 """Candidate resolutions of ``position_friction``: bump spacing = travelled span / n."""
+MIN_FILTER_PERIODS = 0.05
+"""A common lag behind the motion of at least this many sampling periods is also tried as a
+meter's first-order smoothing."""
 
 __all__ = ['analyze_campaign']
 
@@ -83,9 +87,12 @@ class _Run:
     kt: list[float] | None = None   # a drive trace: torque per unit per axis (.driveforms)
     wide: tuple[np.ndarray, float] | None = None    # abutting windows: one per bin (.grid)
 
-    def aligned(self, cols: np.ndarray) -> np.ndarray:
+    def aligned(self, cols: np.ndarray, *, filtered: bool = True) -> np.ndarray:
         """Align 1 kHz columns ``(n, c)`` onto the analysis grid: ``(m, c)`` (each bin the
-        mean of the columns averaged onto its measured stamps, the instrument model)."""
+        mean of the columns averaged onto its measured stamps, the instrument model; a
+        meter's first-order smoothing too unless ``filtered`` is false: the motion)."""
+        if filtered and self.cmp.filter_s:
+            cols = first_order_lag(self.state.t, cols, self.cmp.filter_s)
         if self.wide is not None:
             ends, span = self.wide
             return align_simulated(self.state.t, cols, ends, offset_s=self.cmp.offset_used_s,
@@ -125,7 +132,7 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Mac
                    bins=bins, t=bins.mean(r.t), kt=kt,
                    wide=bin_windows(r.t, bins, window_s=r.window_s,
                                     shift_s=stamp_shift(r.window_s, r.stamp)))
-        on = run.aligned(np.column_stack(cols))
+        on = run.aligned(np.column_stack(cols), filtered=False)
         k = len(idx)
         # simulated time at the centre of each sample's window
         mid = bins.mean(r.t - r.offset_used_s + stamp_shift(r.window_s, r.stamp)
@@ -390,23 +397,91 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     # runs aligned on their measured motion start at the motion's offset, the meter's lag
     # behind it found only with the effects in the model (:mod:`.pinning`); when that start
     # leaves the residual unsettled and the power's own lags say otherwise, the analysis is
-    # also run from their median lag and the better model of the data wins (BIC)
-    span = (0.3, 1.0)
+    # also run from their median lag; and a positive lag is also tried as a meter that
+    # smooths (a first-order filter). The best model of the data wins (BIC)
     lag = motion_lag_s(cmp.runs)
-    if lag is not None and _runs_differ(cmp.runs, lag):
-        span = (0.3, 0.65)
-    result = _from_start(campaign, machine, machine_file, cmp, 0.0, ids, options, report, span,
-                         loaded)
-    if span != (0.3, 1.0) and lag is not None and _unsettled(result):
+    differ = lag is not None and _runs_differ(cmp.runs, lag)
+    # progress: the first start, then the lag start and the filter start when they run
+    spans = [(0.3, 0.55), (0.55, 0.8), (0.8, 1.0)] if differ else [(0.3, 1.0)]
+    result = _from_start(campaign, machine, machine_file, cmp, 0.0, ids, options, report,
+                         spans[0], loaded)
+    a = _bic(result, 0)
+    # the filter's first guess: the lag the first start found with its effects in the model
+    # (a large missing effect pulls the power's own lags anywhere), else the power's own
+    tau = _fitted_lag_s(result) if lag is not None else None
+    tau = lag if tau is None else tau
+    smooth = differ and tau is not None and _may_filter(campaign, cmp.runs, tau)
+    if differ and lag is not None and _unsettled(result):
         other = _from_start(campaign, machine, machine_file, cmp, lag, ids, options, report,
-                            (0.65, 1.0), loaded)
-        a, b = _bic(result, 0.0), _bic(other, lag)
+                            spans[1], loaded)
+        b = _bic(other, 1)
         if b < a:
             result = replace(other, message=(
                 f'{other.message}; fitted at the common meter lag {1e3 * lag:+.1f} ms behind '
                 f'the measured motion (BIC {b:.1f} against {a:.1f} from the motion\'s offset)'))
+            a = b
+    if smooth and tau is not None:
+        # the lag as a meter that smooths (first-order, time constant = the lag) rather than
+        # one that delays: it also rounds every edge, which a pure delay leaves as structure
+        # that an inertia or a friction term would take
+        filtered = _with_filter(campaign, tau)
+        fcmp = compare_campaign(filtered, machine=machine, runs=runs, loaded=loaded)
+        other = _from_start(filtered, machine, machine_file, fcmp, 0.0, ids, options, report,
+                            spans[2], loaded, filter_s=tau)
+        c = _bic(other, 1)
+        if c < a:
+            result = replace(other, message=(
+                f'{other.message}; fitted with a meter that smooths the signal, a first-order '
+                f'filter of {1e3 * other.meter_filter_s:.1f} ms estimated from the power\'s '
+                f'lag behind the measured motion with the effects in the model (BIC {c:.1f} '
+                f'against {a:.1f} for a meter without it)'))
+        else:
+            result = replace(result, meter_filter_s=0.0)
     report(1.0)
     return result
+
+
+def _may_filter(campaign: Campaign, runs: Sequence[RunComparison], lag: float) -> bool:
+    """Whether the power's common lag behind the measured motion may be a meter's
+    first-order smoothing: no run declares a filter, the lag is positive (a filter only
+    delays) and at least :data:`MIN_FILTER_PERIODS` of a sampling period (a shorter one
+    hardly changes what a window of one period reads)."""
+    if any(campaign.run(r.name).instrument.filter_s for r in runs):
+        return False
+    periods = [float(np.median(np.diff(r.t))) for r in runs
+               if r.offset.anchor == 'motion' and r.t.size > 1]
+    return bool(periods) and lag >= MIN_FILTER_PERIODS * float(np.median(periods))
+
+
+def _fitted_lag_s(result: AnalysisResult) -> float | None:
+    """The lag behind the measured motion [s] an analysis ended at with its effects in the
+    model: the median over its motion-anchored runs of (offset used - motion's offset), plus
+    the ``time_offset`` fitted beside the effects; ``None`` when it named no effect (only
+    offers: losses that no effect claims may be what a wrong meter leaves, and they pull the
+    lag with them) or its runs never moved from the motion's offsets."""
+    lags = [float(o['used_s']) - float(o['motion_s']) for o in
+            (r.offset_before for r in result.runs)
+            if o is not None and o.get('anchor') == 'motion' and o.get('motion_s') is not None
+            and math.isfinite(float(o['motion_s'])) and o.get('used_s') is not None]
+    delay = _fitted_delay_s(result)
+    named = [e for e in result.effects if e.id != 'time_offset']
+    if not lags or not named or (result.pin_rounds < 2 and delay is None):
+        return None
+    return float(np.median(lags)) + (delay or 0.0)
+
+
+def _fitted_delay_s(result: AnalysisResult) -> float | None:
+    """The mean ``delta_s`` [s] of the ``time_offset`` effects named or offered, if any."""
+    deltas = [float(e.values()['delta_s']) for e in result.effects + result.offered
+              if e.id == 'time_offset']
+    return float(np.mean(deltas)) if deltas else None
+
+
+def _with_filter(campaign: Campaign, filter_s: float) -> Campaign:
+    """The campaign read through meters that smooth with a first-order ``filter_s`` [s]."""
+    return replace(campaign, runs=tuple(
+        replace(spec, instrument=replace(spec.instrument, filter_s=float(filter_s)))
+        for spec in campaign.runs))
 
 
 def _runs_differ(runs: Sequence[RunComparison], lag: float) -> bool:
@@ -419,16 +494,16 @@ def _unsettled(result: AnalysisResult) -> bool:
     return result.status in ('unexplained', 'partial') or bool(result.offered)
 
 
-def _bic(result: AnalysisResult, lag: float) -> float:
+def _bic(result: AnalysisResult, meter_params: int) -> float:
     """BIC of an analysis's in-sample model of the data: ``n ln(SSE/n) + k ln n`` over the
     fitted runs' residuals after its effects, ``k`` the effects' and offered losses'
-    parameters plus one for a meter lag other than 0."""
+    parameters plus ``meter_params`` (1 for a meter lag or filter estimated)."""
     res = [np.asarray(r.residual_after_w, dtype=float).ravel() for r in result.runs]
     n = sum(r.size for r in res)
     if n == 0:
         return math.inf
     sse = sum(float(np.sum(r * r)) for r in res)
-    k = sum(len(e.values()) for e in result.effects + result.offered) + (1 if lag else 0)
+    k = sum(len(e.values()) for e in result.effects + result.offered) + meter_params
     return n * math.log(max(sse, 1e-300) / n) + k * math.log(n)
 
 
@@ -436,8 +511,10 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
                 cmp: CampaignComparison, lag: float, ids: tuple[str, ...],
                 options: AnalyzeOptions, report: Callable[[float], None],
                 span: tuple[float, float],
-                loaded: Mapping[str, MeasuredRun]) -> AnalysisResult:
-    """The analysis rounds with the motion-anchored runs starting at ``lag`` [s]."""
+                loaded: Mapping[str, MeasuredRun], filter_s: float = 0.0) -> AnalysisResult:
+    """The analysis rounds with the motion-anchored runs starting at ``lag`` [s]; with
+    ``filter_s`` [s] (the campaign read through meters with that first-order filter) the
+    filter's time constant is estimated anew after each round instead of the lag."""
     cmp = replace(cmp, runs=tuple(at_common_lag(campaign, machine, cmp.runs, lag_s=lag,
                                                 loaded=loaded)))
     # only runs whose offset is pinned down are fitted; after each round the offsets are
@@ -454,16 +531,32 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
             report(lo + (hi - lo) * f)
         result, augmented, full_machine = _analyze_round(
             campaign, machine, machine_file, cmp, pinned, ids, options, scaled, loaded)
-        if full_machine is machine or round_no + 1 == MAX_PIN_ROUNDS:
+        if round_no + 1 == MAX_PIN_ROUNDS:
+            break
+        refresh = False
+        if filter_s:
+            # a meter that smooths: the lag left with the effects in the model goes into the
+            # filter's time constant (the time_offset fitted beside them, a least-squares
+            # delay, else the comparisons' median lag), the runs stay at the motion's offset
+            delta = _fitted_delay_s(result)
+            if delta is None and full_machine is not machine:
+                delta = motion_lag_s(augmented)
+            if delta is not None and pinned and abs(delta) > lag_tolerance_s(pinned[0]):
+                filter_s = max(filter_s + delta, 0.0)
+                campaign = _with_filter(campaign, filter_s)
+                refresh = True
+        if full_machine is machine and not refresh:
             break
         extra = realigned_runs(campaign, full_machine, [r.name for r in left], loaded=loaded)
         pinned, left, moved = repin(campaign, machine, list(augmented) + extra, pinned, left,
-                                    loaded=loaded)
+                                    loaded=loaded, lag_s=0.0 if filter_s else None,
+                                    refresh=refresh)
         if not moved:
             break
+    result = replace(result, pin_rounds=round_no + 1, meter_filter_s=filter_s)
     if not left:
-        return replace(result, pin_rounds=round_no + 1)
-    return replace(result, left_out=tuple(left), pin_rounds=round_no + 1,
+        return result
+    return replace(result, left_out=tuple(left),
                    message=f'{result.message}; {left_out_text(left)}')
 
 

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from .selection import Block, Design, forward_select, solve_normal, Step
+from .selection import Block, Design, forward_select, gain_text, solve_normal, Step
 
 __all__ = ['FATES', 'Fate', 'ConsistentSelection', 'select_consistent', 'prune',
            'heterogeneity', 'label', 'mark_groups']
@@ -347,7 +347,7 @@ def _fates(keys, design: Design, blocks, steps: Sequence[Step], stop: str,
                             f'round {n}: {found.reason}{pair}', gain, se))
         elif steps:
             out.append(Fate(key[0], key[1], 'rejected',
-                            f'round {n}: held-out gain {100 * gain:.2f} % +- {100 * se:.2f} %; '
+                            f'round {n}: {gain_text(gain, se)}; '
                             f'not tried: the round tries the {options.max_tries} best by '
                             'held-out error, then pairs of the '
                             f'{options.pair_pool} best', gain, se))

@@ -14,10 +14,14 @@ lie at the end of the search (``'edge'``). So:
 * After each analysis round, the offsets of every run are estimated anew against the
   declared model *plus the effects found* (:func:`repin`). A left-out run whose estimate is
   now decisive (:func:`decisive`: ``'ok'``, or a runner-up whose residual is clearly larger)
-  is pinned there; a pinned run whose offset moved to another peak (by more
-  than :func:`peak_tolerance_s`) is moved there. The declared model's residual at the new
-  offset then enters the next round. Rounds end when nothing moves (at most
-  :data:`MAX_PIN_ROUNDS`).
+  is pinned there; a pinned run whose decisive estimate moved (to another peak, or, for a
+  run simulated from its program, by more than :func:`lag_tolerance_s` within its peak) is
+  moved there. The declared model's
+  residual at the new offset then enters the next round. Rounds end when nothing moves (at
+  most :data:`MAX_PIN_ROUNDS`). The small moves matter: a power correlation against a model
+  that lacks an effect is pulled by it (a missing viscous drag or inertia shifts the best
+  lag by milliseconds), and that timing error is what a small passenger of the shape
+  ``dm·a·v`` then fits; with the effects in the model the lag is not pulled.
 
 **Runs aligned on their measured motion** (``offset.anchor == 'motion'``,
 :func:`.measured.spatial.motion_anchor`) are pinned by it: the motion tells the strokes
@@ -53,7 +57,7 @@ from ..measured import (Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MeasuredRu
                         RunComparison)
 
 __all__ = ['PINNED_STATUSES', 'MAX_PIN_ROUNDS', 'PIN_MARGIN', 'LeftOut', 'split_pinned',
-           'decisive', 'peak_tolerance_s', 'repin', 'left_out_text', 'motion_lag_s',
+           'decisive', 'repin', 'left_out_text', 'motion_lag_s',
            'at_common_lag', 'lag_tolerance_s']
 
 PINNED_STATUSES = ('ok', 'fixed')
@@ -132,13 +136,17 @@ def split_pinned(runs: Sequence[RunComparison], *, campaign: Campaign | None = N
     return pinned, left
 
 
-def peak_tolerance_s(run: RunComparison) -> float:
-    """How far a re-estimated offset may move and still be the same peak [s].
+def _move_tolerance_s(campaign: Campaign, run: RunComparison) -> float:
+    """How far a pinned, power-aligned run's re-estimated offset must move to be moved [s].
 
-    Adding an effect refines an offset by a fraction of a sample period; a move to another
-    correlation peak (another stroke) is at least a feature's width. Five sample periods,
-    at least 50 ms, separates the two.
+    A run simulated from its program: :func:`lag_tolerance_s` (its power's lag was pulled by
+    the missing effect, and is not with the effect in the model). A run simulated from its
+    own measured motion: another correlation peak only, five sample periods and at least
+    50 ms (its lag is the meter's between two channels of one record, not moved by what
+    the model lacks).
     """
+    if campaign.run(run.name).motion_program is not None:
+        return lag_tolerance_s(run)
     period = float(np.median(np.diff(run.t))) if run.t.size > 1 else 0.0
     return max(5.0 * period, 0.05)
 
@@ -148,6 +156,7 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
           cache: MotionCache | None = None,
           max_lag_s: float = DEFAULT_MAX_LAG_S,
           loaded: Mapping[str, MeasuredRun] | None = None,
+          lag_s: float | None = None, refresh: bool = False,
           ) -> tuple[list[RunComparison], list[LeftOut], list[str]]:
     """Pin runs at the offsets found with the effects in the model.
 
@@ -168,6 +177,13 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
         The offset search range of the comparisons [s].
     loaded
         Runs already loaded, by name (each CSV is parsed once per analysis).
+    lag_s
+        The common lag [s] behind the motion the motion-anchored runs are moved to; default
+        :func:`motion_lag_s` of ``augmented`` (``analyze`` gives 0 when it puts that lag
+        into a meter's filter instead).
+    refresh
+        Compare every motion-anchored run anew, moved or not (the campaign's instrument
+        changed).
 
     Returns
     -------
@@ -180,13 +196,13 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
     cache = MotionCache(declared) if cache is None else cache
     moved: list[str] = []
     out: list[RunComparison] = []
-    lag = motion_lag_s(augmented)
+    lag = motion_lag_s(augmented) if lag_s is None else lag_s
     for run in pinned:
         a = by_name.get(run.name)
         if (lag is not None and a is not None and run.offset.anchor == 'motion'
                 and a.offset.anchor == 'motion'):
             target = a.offset.motion_s + lag
-            if abs(target - run.offset_used_s) > lag_tolerance_s(run):
+            if refresh or abs(target - run.offset_used_s) > lag_tolerance_s(run):
                 cmp = _compared_at(campaign, declared, run.name, target, cache, max_lag_s,
                                    loaded)
                 out.append(replace(cmp, offset=replace(a.offset, offset_s=target, message=(
@@ -198,7 +214,7 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
                 out.append(run)
             continue
         if (a is not None and decisive(a)
-                and abs(a.offset_used_s - run.offset_used_s) > peak_tolerance_s(run)):
+                and abs(a.offset_used_s - run.offset_used_s) > _move_tolerance_s(campaign, run)):
             out.append(_at_offset(campaign, declared, run.name, a, cache, max_lag_s,
                                   was=f'{run.offset_used_s:+.3f} s', loaded=loaded))
             moved.append(run.name)

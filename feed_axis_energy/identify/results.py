@@ -296,6 +296,10 @@ class AnalysisResult:
         together, beside the named ones (NaN: none offered).
     min_share
         Share of the measured energy at which an effect matters in the report.
+    meter_filter_s
+        Time constant [s] of a first-order smoothing of the meter that ``analyze`` estimated
+        and fitted with (0: none estimated; a filter the manifest declares is the runs'
+        instrument, ``instrument.filter_s``).
     """
 
     status: str
@@ -325,6 +329,7 @@ class AnalysisResult:
     ambiguous: tuple[AmbiguousGroup, ...] = ()
     left_out: tuple[LeftOut, ...] = ()
     pin_rounds: int = 1
+    meter_filter_s: float = 0.0
     residual_unit: str = 'W'
     analysis_period_s: float = ANALYSIS_PERIOD_S
     samples_per_bin: dict[str, int] = field(default_factory=dict)
@@ -423,6 +428,7 @@ class AnalysisResult:
             'consistency': {'rounds': self.rounds, 'cap_reached': self.cap_reached},
             'left_out': [lo.to_dict() for lo in self.left_out],
             'pin_rounds': self.pin_rounds,
+            'meter_filter_s': self.meter_filter_s,
             'analysis_grid': {'period_s': self.analysis_period_s,
                               'samples_per_bin': dict(self.samples_per_bin)},
             'residual_unit': self.residual_unit,

@@ -34,8 +34,8 @@ import numpy as np
 from scipy import stats
 from scipy.optimize import lsq_linear
 
-__all__ = ['Block', 'Design', 'Step', 'SelectionResult', 'forward_select', 'loro_folds',
-           'solve_normal', 'at_bounds']
+__all__ = ['Block', 'Design', 'Step', 'SelectionResult', 'forward_select', 'gain_text',
+           'loro_folds', 'solve_normal', 'at_bounds']
 
 
 def solve_normal(g: np.ndarray, b: np.ndarray, lower: np.ndarray | None = None,
@@ -310,6 +310,16 @@ def _score(design: Design, cols: list[int], folds, base: dict[int, float]):
     return float(np.mean([mse[r] for r in runs])), gains
 
 
+def gain_text(gain: float, se: float) -> str:
+    """A mean relative held-out gain in words: ``'held-out gain 1.20 % +- 0.30 %'``; a
+    gain below -100 % as how many times the error without the effect it is (a fit that
+    blows up on unseen runs, e.g. two nearly collinear columns, is no percentage)."""
+    if gain > -1.0 or not math.isfinite(gain):
+        return f'held-out gain {100 * gain:.2f} % +- {100 * se:.2f} %'
+    return (f'held-out error {1.0 - gain:.3g} times the error without it on average (a fit '
+            'that does not carry over to unseen runs)')
+
+
 def _chi2_limit(alpha: float, tests: int, params: int) -> float:
     """Chi-square limit of an SSE drop [sigma²] at family level ``alpha`` over ``tests``."""
     return float(stats.chi2.isf(alpha / max(tests, 1), max(params, 1)))
@@ -344,8 +354,9 @@ def _judge(design: Design, cols: list[int], blocks: Sequence[Block], folds,
     if n_test < 2:
         ok, reason = False, 'fewer than 2 held-out runs: the gain has no standard error'
     elif not mean_gain > se_factor * se:
-        ok, reason = False, (f'held-out gain {100 * mean_gain:.2f} % is within '
-                             f'{se_factor:g} standard errors ({100 * se:.2f} %)')
+        ok, reason = False, (
+            f'held-out gain {100 * mean_gain:.2f} % is within {se_factor:g} standard errors '
+            f'({100 * se:.2f} %)' if mean_gain > -1.0 else gain_text(mean_gain, se))
     elif known and not chi2 > limit:
         ok, reason = False, (f'its drop of the residual is {chi2:.1f} sigma², not above '
                              f'{limit:.1f} (chi-square, {p} parameter(s), family level '

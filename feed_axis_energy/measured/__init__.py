@@ -11,7 +11,8 @@ Typical use::
     run = load_run(campaign.run('exp01'))
     result = compare_campaign(campaign, machine=machine)
 """
-from .align import align_simulated, estimate_offset, interval_average, OffsetResult, stamp_shift
+from .align import (align_simulated, estimate_offset, first_order_lag, interval_average,
+                    MAX_FILTER_S, OffsetResult, stamp_shift)
 from .campaign import Campaign, ColumnSpec, RowFilter, RunSpec, TimeWindow
 from .compare import (compare_campaign, compare_one_run, DEFAULT_MAX_LAG_S, MotionCache,
                       simulate_declared)
@@ -31,7 +32,8 @@ from .run import GAP_FACTOR, MeasuredRun
 __all__ = [
     'ALARM_KEYS', 'alarm_text', 'align_simulated', 'Campaign', 'campaign_from_dict',
     'CampaignComparison', 'ColumnSpec', 'compare_campaign', 'compare_one_run', 'COMPARISON_KEYS',
-    'comparison_text', 'DEFAULT_MAX_LAG_S', 'estimate_offset', 'GAP_FACTOR', 'group_metrics',
+    'comparison_text', 'DEFAULT_MAX_LAG_S', 'estimate_offset', 'first_order_lag', 'GAP_FACTOR',
+    'group_metrics', 'MAX_FILTER_S',
     'import_campaign', 'interval_average', 'json_clean', 'KINEMATICS', 'LiveComparison',
     'LiveMonitor', 'LiveMotionPredictor', 'LiveSettings', 'load_campaign', 'load_run',
     'measured_signal', 'MeasuredRun', 'MEASURES', 'Metrics', 'MotionCache', 'offset_dict',

@@ -6,7 +6,9 @@ at the window's end (``stamp='end'``: ``[t - window_s, t]``, the default), centr
 (``[t - window_s/2, t + window_s/2]``) or start (``[t, t + window_s]``); ``window_s = 0`` is a
 point sample at ``t``. The simulated signal is treated as piecewise linear between its
 samples and held at its first and last value outside its time range (the machine is at rest
-before and after a program).
+before and after a program). A meter may also smooth the signal before it averages
+(``filter_s``: a first-order lag, a PT1 filter with that time constant, as drive traces and
+filtered power meters do; :func:`first_order_lag`).
 
 Sign convention: ``offset_s`` is how much *later* the measured record is than the simulated
 one, i.e. ``y_meas(t) ~= mean of y_sim over [t - offset_s - window_s, t - offset_s]`` (stamp at
@@ -24,11 +26,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.fft import irfft, next_fast_len, rfft
 from scipy.optimize import minimize_scalar
+from scipy.signal import lfilter
 
 from ..errors import DataError
 
-__all__ = ['DRIFT_MIN_DURATION_S', 'STAMPS', 'OffsetResult', 'align_simulated',
-           'estimate_offset', 'interval_average', 'stamp_shift']
+__all__ = ['DRIFT_MIN_DURATION_S', 'MAX_FILTER_S', 'STAMPS', 'OffsetResult', 'align_simulated',
+           'estimate_offset', 'first_order_lag', 'interval_average', 'stamp_shift']
 
 _MAX_LAG_STEPS = 100_000
 _CHUNK_ELEMENTS = 2_000_000
@@ -40,6 +43,8 @@ STAMPS = ('end', 'centre', 'start')
 """Where in its averaging window the instrument stamps a sample."""
 DRIFT_MIN_DURATION_S = 60.0
 """Shortest record [s] on which a clock-rate difference is estimated (see ``_drift``)."""
+MAX_FILTER_S = 10.0
+"""Largest first-order time constant [s] of a meter's own smoothing accepted."""
 _MAX_DRIFT = 2e-3   # largest clock-rate difference searched (2000 ppm: a poor quartz is 100)
 
 
@@ -274,8 +279,58 @@ def stamp_shift(window_s: float, stamp: str) -> float:
     return {'end': 0.0, 'centre': 0.5, 'start': 1.0}[stamp] * window_s
 
 
+def first_order_lag(t: ArrayLike, y: ArrayLike, tau_s: float) -> np.ndarray:
+    """``y`` through a first-order lag (``tau·dz/dt = y - z``), started at rest on ``y[0]``.
+
+    Exact for a signal linear between its samples (the instrument model's reading of the
+    simulation): per step ``h``, with ``a = exp(-h/tau)`` and ``c = tau/h``,
+    ``z1 = a·z0 + (1 - c + a·c)·y1 + (c - a - a·c)·y0``. A uniform time base is filtered in
+    one pass (:func:`scipy.signal.lfilter`); an irregular one step by step in blocks of equal
+    steps. ``tau_s = 0`` returns ``y`` itself.
+
+    Parameters
+    ----------
+    t
+        Times [s], strictly increasing, ``(n,)``.
+    y
+        Signal ``(n,)`` or ``(n, c)`` (filtered along axis 0).
+    tau_s
+        Time constant [s], ``0 <= tau_s <=`` :data:`MAX_FILTER_S`.
+
+    Raises
+    ------
+    DataError
+        On malformed arrays or a time constant out of range.
+    """
+    t_a, y_a = _series(t, y, 'sim')
+    tau = float(tau_s)
+    if not (math.isfinite(tau) and 0.0 <= tau <= MAX_FILTER_S):
+        msg = f'filter_s must be a number in [0, {MAX_FILTER_S:g}] s, got {tau_s!r}'
+        raise DataError(msg, file='<arrays>', column='filter_s')
+    if tau == 0.0 or t_a.size < 2:
+        return y_a
+    h = np.diff(t_a)
+    # runs of equal steps (a simulation's time base has one, a measured one a few)
+    cut = np.flatnonzero(np.abs(np.diff(h)) > 1e-9 * np.maximum(h[1:], h[:-1])) + 1
+    out = np.empty_like(y_a, dtype=np.float64)
+    out[0] = y_a[0]
+    for a, b in zip(np.r_[0, cut], np.r_[cut, h.size]):
+        step = float(h[a])
+        k = math.exp(-step / tau)
+        c = tau / step
+        seg = y_a[a:b + 1]
+        # lfilter's state before the run of steps (transposed direct form):
+        # z1 = b0·y1 + zi with zi = k·z0 + b1·y0
+        b0, b1 = 1.0 - c + k * c, c - k - k * c
+        zi = np.asarray(k * out[a] + b1 * seg[0], dtype=np.float64)[None]
+        z, _ = lfilter([b0, b1], [1.0, -k], seg[1:], axis=0, zi=zi)
+        out[a + 1:b + 1] = z
+    return out
+
+
 def align_simulated(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
-                    offset_s: float, window_s: float, stamp: str = 'end') -> np.ndarray:
+                    offset_s: float, window_s: float, stamp: str = 'end',
+                    filter_s: float = 0.0) -> np.ndarray:
     """Simulated signal as the instrument would have recorded it, on the measured stamps.
 
     Parameters
@@ -290,18 +345,23 @@ def align_simulated(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
         Instrument averaging window [s] (0: point samples).
     stamp
         Where the instrument stamps its window: ``'end'``, ``'centre'`` or ``'start'``.
+    filter_s
+        Time constant [s] of the meter's own first-order smoothing before its window
+        (:func:`first_order_lag`; 0: none).
 
     Returns
     -------
     numpy.ndarray
-        ``interval_average(t_sim, y_sim, t_meas - offset_s + shift, window_s=window_s)``
-        with ``shift`` from :func:`stamp_shift`.
+        ``interval_average(t_sim, first_order_lag(t_sim, y_sim, filter_s), t_meas - offset_s
+        + shift, window_s=window_s)`` with ``shift`` from :func:`stamp_shift`.
     """
     shift = stamp_shift(window_s, stamp)
     t_sim, y_sim = _series(t_sim, y_sim, 'sim')
     if not (math.isfinite(window_s) and window_s >= 0.0):
         msg = f'window_s must be a finite number >= 0, got {window_s!r}'
         raise DataError(msg, file='<arrays>', column='window_s')
+    if filter_s:
+        y_sim = first_order_lag(t_sim, y_sim, filter_s)
     tau = np.asarray(t_meas, dtype=np.float64)
     out = _Prefix(t_sim, y_sim).average(tau.ravel(), float(window_s),
                                         moved=(float(offset_s), shift))

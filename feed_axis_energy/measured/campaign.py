@@ -72,6 +72,11 @@ class InstrumentSpec:
         The instrument's noise level per sample, in the unit of what it measures (W, A,
         N·m or N), when the manifest declares it (``instrument.noise``); ``analyze`` then
         uses it for every test instead of its estimate from the data.
+    filter_s
+        Time constant [s] of the meter's own first-order smoothing before its window
+        (``instrument.filter_s``; 0, the default: none). A filtered drive trace or power
+        meter lags the true signal by about that much and rounds its edges;
+        :func:`.align.first_order_lag`.
     """
 
     window_s: float | None = None
@@ -81,6 +86,7 @@ class InstrumentSpec:
     kt_nm_a: tuple[tuple[str, float], ...] = ()
     invert: tuple[str, ...] = ()
     noise: float | None = None
+    filter_s: float = 0.0
 
     @property
     def kt_by_axis(self) -> dict[str, float]:
@@ -96,6 +102,8 @@ class InstrumentSpec:
         w = self.window_for(period_s)
         text = ('point samples' if w == 0.0
                 else f'{1e3 * w:g} ms window stamped at its {self.stamp}')
+        if self.filter_s:
+            text = f'{text} after a {1e3 * self.filter_s:g} ms first-order filter'
         return text if self.declared else f'{text} (default)'
 
 

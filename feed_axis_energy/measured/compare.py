@@ -32,7 +32,7 @@ from ..machine import load_machine, Machine
 from ..plan import Motion, motion_from_samples, plan
 from ..sim import simulate_motion, simulate_stream, SimulationResult, streamable
 from ..physics import relative_sd_pct, UNCERTAINTY_KEY
-from .align import align_simulated, estimate_offset, OffsetResult
+from .align import align_simulated, estimate_offset, first_order_lag, OffsetResult
 from .csvload import load_run
 from .run import MeasuredRun
 from .campaign import Campaign, default_instrument, RunSpec
@@ -245,7 +245,7 @@ def simulate_trace(spec: RunSpec, run: MeasuredRun, machine: Machine, cache: Mot
 def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_MAX_LAG_S,
                 window_s: float | None = None, offset_s: float | None = None,
                 min_correlation: float = 0.5, floor_fraction: float = 0.05,
-                stamp: str | None = None) -> RunComparison:
+                stamp: str | None = None, filter_s: float | None = None) -> RunComparison:
     """Compare one measured run with its simulation.
 
     Parameters
@@ -263,6 +263,9 @@ def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_M
         Compare at this offset instead of estimating one (status ``'fixed'``).
     stamp
         Where the meter stamps its window; default: the run's instrument.
+    filter_s
+        Time constant [s] of the meter's first-order smoothing; default: the run's
+        instrument (``instrument.filter_s``, else 0).
     min_correlation
         Below this peak correlation the estimate is ``'weak'`` and offset 0 is used.
     floor_fraction
@@ -281,14 +284,14 @@ def compare_run(spec: RunSpec, machine: Machine, *, max_lag_s: float = DEFAULT_M
     """
     return compare_one_run(spec, machine, MotionCache(machine), max_lag_s=max_lag_s,
                            window_s=window_s, offset_s=offset_s, min_correlation=min_correlation,
-                           floor_fraction=floor_fraction, stamp=stamp)
+                           floor_fraction=floor_fraction, stamp=stamp, filter_s=filter_s)
 
 
 def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_lag_s: float,
                     window_s: float | None, offset_s: float | None, min_correlation: float,
                     floor_fraction: float, stamp: str | None = None,
                     check_meter: bool = True, measured: MeasuredRun | None = None,
-                    ) -> RunComparison:
+                    filter_s: float | None = None) -> RunComparison:
     # ``measured``: the run already loaded from ``spec`` (analyze compares each run several
     # times; a long CSV is parsed once)
     run = load_run(spec) if measured is None else measured
@@ -305,12 +308,19 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
     del sim
     meas_q = measured_signal(run, measures=qty.name, axes=axes, invert=spec.instrument.invert)
     meter = (spec.instrument if spec.instrument.declared
-             else default_instrument(spec.motion_from_data, qty.name))
+             else replace(default_instrument(spec.motion_from_data, qty.name),
+                          filter_s=spec.instrument.filter_s))
     period = float(np.median(np.diff(run.t), overwrite_input=True))
     window = meter.window_for(period) if window_s is None else float(window_s)
     stamp = meter.stamp if stamp is None else stamp
     if window_s is not None or stamp != meter.stamp:
         meter = replace(meter, window_s=window, stamp=stamp, declared=True)
+    if filter_s is not None and filter_s != meter.filter_s:
+        meter = replace(meter, filter_s=float(filter_s), declared=True)
+    if meter.filter_s:
+        # the meter's own smoothing: what it would read, on the simulation's time base (the
+        # offset search, the meter check and the comparison all see the filtered signal)
+        sim_q = first_order_lag(t_sim, sim_q, meter.filter_s)
     if not np.isfinite(sim_q).all():
         sample = int(np.flatnonzero(~np.isfinite(sim_q).all(axis=1))[0]) + 1
         msg = (f'the simulation of this run overflowed (simulated {qty.column} sample '
@@ -409,6 +419,7 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         power_meas_w=meas, power_sim_w=aligned, sim_duration_s=sim_duration,
         excluded_rows=int(run.extra.get('excluded_rows', 0)), stamp=stamp,
         instrument=meter.describe(period), meter_fits=fits, states=states,
+        filter_s=meter.filter_s,
         energy_sd_pct=energy_sd, measures=qty.name,
         signal_meas=meas_q, signal_sim=aligned_q, signal_metrics=signal,
         torque_per_unit=(None if gains is None

@@ -119,6 +119,9 @@ class RunComparison:
         ``None``.
     sign_warnings
         Axes whose trace is anti-correlated with its prediction (the wrong sign).
+    filter_s
+        Time constant [s] of the meter's first-order smoothing the simulation was put
+        through (:func:`.align.first_order_lag`; 0: none).
     work_offset
         A run simulated from its program whose data has positions: the translation from the
         simulated (program) to the measured (machine) positions at the time offset used
@@ -153,6 +156,7 @@ class RunComparison:
     torque_per_unit: dict[str, float] | None = None
     sign_warnings: tuple[str, ...] = ()
     work_offset: WorkOffset | None = None
+    filter_s: float = 0.0
 
     def quantity_dict(self) -> dict[str, Any]:
         """The ``quantity`` block of :meth:`to_dict` (docs/compare.md, "Measured quantity")."""
@@ -211,6 +215,7 @@ class RunComparison:
             'duration_sim_s': self.sim_duration_s,
             'excluded_rows': self.excluded_rows,
             'stamp': self.stamp,
+            'filter_s': self.filter_s,
             'instrument': self.instrument,
             'instrument_check': [f.to_dict() for f in self.meter_fits],
             'residual_by_state': [st.to_dict() for st in self.states],

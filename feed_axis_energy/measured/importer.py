@@ -349,6 +349,8 @@ def bag_manifest(campaign: Campaign, runs: Sequence[tuple[RunSpec, MeasuredRun, 
             entry.setdefault('instrument', {})['kt_nm_a'] = dict(meter.kt_nm_a)
         if meter.invert:
             entry.setdefault('instrument', {})['invert'] = list(meter.invert)
+        if meter.filter_s:
+            entry.setdefault('instrument', {})['filter_s'] = meter.filter_s
         entries.append(entry)
     return {
         'name': campaign.name,

@@ -45,7 +45,9 @@ power of the machine's declared drives, ``docs/electrical.md``; ``{measures: mot
 keeps the default window), or a drive quantity ``current``, ``torque``, ``force``
 (:mod:`.quantity`). With ``current``, ``kt_nm_a: {X: 1.1}`` declares torque constants
 [N·m/A] (else the machine file's ``axes.<A>.drive.kt_nm_a``); ``invert: [X]`` negates the
-traces of axes that count the other way than the model.
+traces of axes that count the other way than the model. ``filter_s`` (seconds, default 0)
+declares a meter that smooths with a first-order lag of that time constant before its window
+(a filtered drive trace; ``analyze`` estimates one when none is declared, docs/analyze.md).
 Without it: a period window stamped at its end for runs with an NC program, point samples
 for motion from the data (:func:`.campaign.default_instrument`). ``motion.reconstruct``
 (motion from data only): ``pulses`` (default) rebuilds data coarser than the simulation rate
@@ -67,6 +69,7 @@ from typing import Any
 from ..errors import ConfigError, describe, shorten
 from ..safeyaml import load_yaml_file
 from ..units import si_unit_of
+from .align import MAX_FILTER_S
 from .campaign import (AXIS_QUANTITIES, Campaign, ColumnSpec, FILTER_OPS, InstrumentSpec,
                        KINEMATIC_QUANTITIES, RECONSTRUCT, ROLES, RowFilter, RunSpec, STAMPS,
                        TimeWindow)
@@ -321,7 +324,7 @@ class _Ctx:
         if not isinstance(value, dict):
             self.fail(key, f'expected point or a mapping {{window_s, stamp}}, got {_kind(value)}')
         m = self.mapping(value, key, ('window_s', 'stamp', 'measures', 'kt_nm_a', 'invert',
-                                      'noise'))
+                                      'noise', 'filter_s'))
         measures = m.get('measures', 'shaft')
         if measures not in MEASURES:
             self.fail(f'{key}.measures',
@@ -355,10 +358,16 @@ class _Ctx:
         noise = None
         if m.get('noise') is not None:
             noise = self.number(m['noise'], f'{key}.noise', positive=True)
-        if m and not set(m) - {'measures', 'kt_nm_a', 'invert', 'noise'}:
+        filter_s = 0.0
+        if m.get('filter_s') is not None:
+            filter_s = self.number(m['filter_s'], f'{key}.filter_s', minimum=0.0)
+            if filter_s > MAX_FILTER_S:
+                self.fail(f'{key}.filter_s', f'a meter\'s first-order time constant lies in '
+                          f'[0, {MAX_FILTER_S:g}] s, got {filter_s:g}')
+        if m and not set(m) - {'measures', 'kt_nm_a', 'invert', 'noise', 'filter_s'}:
             # what is measured only: the window and stamp stay the default of the run
             return InstrumentSpec(declared=False, measures=measures, kt_nm_a=tuple(kt),
-                                  invert=tuple(invert), noise=noise)
+                                  invert=tuple(invert), noise=noise, filter_s=filter_s)
         window = m.get('window_s', 'period')
         if window != 'period':
             window = self.number(window, f'{key}.window_s', minimum=0.0)
@@ -367,7 +376,7 @@ class _Ctx:
             self.fail(f'{key}.stamp', f'expected one of {", ".join(STAMPS)}, got {_kind(stamp)}')
         return InstrumentSpec(window_s=None if window == 'period' else window, stamp=stamp,
                               measures=measures, kt_nm_a=tuple(kt), invert=tuple(invert),
-                              noise=noise)
+                              noise=noise, filter_s=filter_s)
 
     def window(self, value: Any, key: str) -> TimeWindow:
         w = self.mapping(value, key, _WINDOW_KEYS)

@@ -1,10 +1,13 @@
 """Alignment: exact interval averages and recovery of a known offset to a fraction of a period."""
+import math
+
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
 
 from feed_axis_energy.errors import DataError
-from feed_axis_energy.measured.align import align_simulated, estimate_offset, interval_average
+from feed_axis_energy.measured.align import (align_simulated, estimate_offset, first_order_lag,
+                                             interval_average)
 
 # piecewise-linear signal: 0 -> 2 on [0, 1], 2 on [1, 2], 2 -> -2 on [2, 4]
 T_PL = np.array([0.0, 1.0, 2.0, 4.0])
@@ -230,3 +233,56 @@ def test_uniform_fast_grid_equals_the_direct_correlation(period, q, window, stam
     jitter = t + rng.uniform(0.0, 0.2 * period, size=t.size)
     assert _Signals(jitter, y, t_sim, y_sim, window, 0.0).uniform_correlation(
         period / q, steps) is None
+
+
+def test_first_order_lag_is_exact_on_ramps_steps_and_sines():
+    tau = 0.02
+    t = np.arange(0.0, 1.0, 0.001)
+    # a ramp from rest: z = y - tau*slope*(1 - exp(-(t - t0)/tau)) after its start
+    y = np.where(t > 0.2, 3.0 * (t - 0.2), 0.0)
+    want = np.where(t > 0.2, 3.0 * (t - 0.2) - 3.0 * tau * (1.0 - np.exp(-(t - 0.2) / tau)),
+                    0.0)
+    assert_allclose(first_order_lag(t, y, tau), want, atol=1e-12)
+    # a sine in steady state: gain 1/sqrt(1 + (w tau)^2), phase -atan(w tau) (to the
+    # discretisation of a sine as straight lines between 1 ms samples)
+    w = 7.0
+    y2 = np.column_stack([np.sin(w * t), np.full(t.size, 4.0)])
+    z = first_order_lag(t, y2, tau)
+    late = t > 0.5
+    ss = np.sin(w * t - math.atan(w * tau)) / math.sqrt(1.0 + (w * tau) ** 2)
+    assert_allclose(z[late, 0], ss[late], atol=1e-5)
+    assert_allclose(z[:, 1], 4.0, rtol=1e-12)      # a signal at rest stays there
+    assert_allclose(first_order_lag(t, y, 0.0), y)
+
+
+def test_first_order_lag_on_an_irregular_time_base_matches_the_uniform_one():
+    tau = 0.01
+    t = np.arange(0.0, 1.0, 0.001)
+    y = np.where(t > 0.3, 2.0 * (t - 0.3), 0.0)
+    uneven = np.r_[np.arange(0.0, 0.5, 0.001), np.arange(0.5, 0.8, 0.0005),
+                   np.arange(0.8, 1.0, 0.002)]
+    y_uneven = np.interp(uneven, t, y)
+    inside = t <= uneven[-1]
+    got = np.interp(t[inside], uneven, first_order_lag(uneven, y_uneven, tau))
+    assert_allclose(got, first_order_lag(t, y, tau)[inside], atol=1e-10)
+
+
+@pytest.mark.parametrize('tau', [-0.001, math.nan, 11.0])
+def test_first_order_lag_refuses_a_time_constant_out_of_range(tau):
+    t = np.arange(0.0, 1.0, 0.1)
+    with pytest.raises(DataError, match='filter_s'):
+        first_order_lag(t, t, tau)
+
+
+def test_a_filtered_meter_is_read_through_its_filter_not_a_delay():
+    # measured = the true signal through a 20 ms first-order filter, point samples at 10 ms;
+    # align_simulated with filter_s reproduces it, the best pure delay does not
+    tau = 0.02
+    t = np.arange(0.0, 4.0, 0.001)
+    y = np.clip(np.sin(3.0 * t), -0.5, 0.5) + (t > 2.0)       # kinks and a steep edge
+    stamps = np.arange(0.5, 3.5, 0.01)
+    meas = np.interp(stamps, t, first_order_lag(t, y, tau))
+    filtered = align_simulated(t, y, stamps, offset_s=0.0, window_s=0.0, filter_s=tau)
+    assert_allclose(filtered, meas, atol=1e-12)
+    delayed = align_simulated(t, y, stamps, offset_s=tau, window_s=0.0)
+    assert np.sqrt(np.mean((delayed - meas) ** 2)) > 1e-3

@@ -18,6 +18,7 @@ from pathlib import Path
 import must_run
 import numpy as np
 import pytest
+from scipy import signal
 
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.gcode.load import load_gcode
@@ -90,7 +91,9 @@ def write_campaign(root: Path, runs: list[dict], *, seed: int = 7,
 
     Each run dict has ``name``, ``load_kg`` and optionally ``offset_ms`` (int, how much later
     the measured record is), ``factor`` (gain on the measured power), ``noise_w`` (sigma),
-    ``motion`` (``'program'`` or ``'actual'``) and ``role``.
+    ``motion`` (``'program'`` or ``'actual'``), ``role`` and ``filter_ms`` (the meter smooths
+    with a first-order lag of that time constant before it averages; simulated here with
+    scipy's continuous-time ``lsim``, the input linear between the 1 kHz samples).
     """
     root.mkdir(parents=True, exist_ok=True)
     (root / 'machine.yaml').write_text(MACHINE_YAML)
@@ -105,6 +108,13 @@ def write_campaign(root: Path, runs: list[dict], *, seed: int = 7,
         off = int(spec.get('offset_ms', 0))
         pad = 2000 + abs(off)
         power = np.pad(sim.power.power_w, ((pad, pad), (0, 0)), mode='edge')
+        if spec.get('filter_ms'):
+            tt = 1e-3 * np.arange(power.shape[0])
+            lag = signal.lti([1.0], [1e-3 * spec['filter_ms'], 1.0])
+            # at rest on the first value before the record (the deviation starts at 0)
+            power = np.column_stack([
+                power[0, j] + signal.lsim(lag, power[:, j] - power[0, j], tt, interp=True)[1]
+                for j in range(power.shape[1])])
         pos = np.pad(sim.motion.pos, ((pad, pad), (0, 0)), mode='edge')
         vel = np.pad(sim.motion.vel, ((pad, pad), (0, 0)), mode='edge')
         n_sim = sim.power.t.size
@@ -377,3 +387,29 @@ def test_umich_validate_runs_compare():
     # end, centre or start: no instrument warning
     assert result.instrument_warnings == []
     json.dumps(result.to_dict(), allow_nan=False)
+
+
+@pytest.fixture(scope='module')
+def smoothing(tmp_path_factory):
+    # a meter that smooths with a 20 ms first-order lag before its 50 ms window, the record
+    # 120 ms later than the simulation: declared, and the same data read as if it did not
+    root = tmp_path_factory.mktemp('smoothing')
+    runs = [{'name': 'declared', 'load_kg': 0.0, 'offset_ms': 120, 'noise_w': 0.05,
+             'filter_ms': 20, 'instrument': {'filter_s': 0.02}},
+            {'name': 'undeclared', 'load_kg': 0.0, 'offset_ms': 120, 'noise_w': 0.05,
+             'filter_ms': 20}]
+    c = load_campaign(write_campaign(root, runs))
+    return {r.name: r for r in compare_campaign(c, max_lag_s=1.0).runs}
+
+
+def test_a_declared_filter_is_the_instrument(smoothing):
+    good, plain = smoothing['declared'], smoothing['undeclared']
+    assert (good.filter_s, plain.filter_s) == (0.02, 0.0)
+    assert good.to_dict()['filter_s'] == 0.02
+    assert 'after a 20 ms first-order filter' in good.instrument
+    # read through its filter the record is found where it is; read as a plain window the
+    # filter's delay goes into the offset and its rounded edges stay in the residual
+    assert good.offset_used_s == pytest.approx(0.120, abs=0.001)
+    assert plain.offset_used_s > 0.130
+    assert good.metrics.rmse_w < 0.1
+    assert plain.metrics.rmse_w > 3.0 * good.metrics.rmse_w

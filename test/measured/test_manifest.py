@@ -107,6 +107,11 @@ def _edit(path, value):
      'end, centre, start'),
     (('runs', 0, 'instrument'), {'windows': 0.1}, 'runs[0].instrument.windows',
      'unknown key'),
+    (('runs', 0, 'instrument'), {'filter_s': -0.005}, 'runs[0].instrument.filter_s', '>= 0'),
+    (('runs', 0, 'instrument'), {'filter_s': 60}, 'runs[0].instrument.filter_s',
+     'lies in [0, 10] s'),
+    (('runs', 0, 'instrument'), {'filter_s': 'fast'}, 'runs[0].instrument.filter_s',
+     'expected a number'),
 ])
 def test_bad_values_name_file_and_dotted_key(tmp_path, path, value, key, text):
     d = _edit(path, value)
@@ -193,3 +198,19 @@ def test_unreadable_and_invalid_yaml(tmp_path):
     (tmp_path / 'list.yaml').write_text('- 1\n')
     with pytest.raises(ConfigError, match='expected a mapping'):
         load_campaign(tmp_path / 'list.yaml')
+
+
+def test_instrument_filter_declaration(tmp_path):
+    # a meter that smooths: the time constant is kept beside the window, alone it keeps the
+    # run's default window and stamp, and it is part of the meter's description
+    d = _edit(('runs', 0, 'instrument'), {'window_s': 0.01, 'filter_s': 0.005})
+    meter = campaign_from_dict(d, file=tmp_path / 'c.yaml', check_files=False).runs[0].instrument
+    assert (meter.window_s, meter.filter_s, meter.declared) == (0.01, 0.005, True)
+    text = '10 ms window stamped at its end after a 5 ms first-order filter'
+    assert meter.describe(0.01) == text
+    d = _edit(('runs', 0, 'instrument'), {'filter_s': 0.02})
+    meter = campaign_from_dict(d, file=tmp_path / 'c.yaml', check_files=False).runs[0].instrument
+    assert (meter.filter_s, meter.declared, meter.window_s) == (0.02, False, None)
+    run = campaign_from_dict(copy.deepcopy(BASE), file=tmp_path / 'c.yaml',
+                             check_files=False).runs[0]
+    assert run.instrument.filter_s == 0.0
