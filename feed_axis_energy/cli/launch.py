@@ -15,6 +15,7 @@ get SIGTERM and shut down as on Ctrl-C.
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 import json
 import math
 import os
@@ -243,6 +244,17 @@ def private_parameter_dir() -> Path:
     return Path(tempfile.mkdtemp(prefix=f'{_PRIVATE_PREFIX}{os.getpid()}-'))
 
 
+def _niced(arm: Callable[[], None], niceness: int) -> Callable[[], None]:
+    """``arm``, then the niceness raised by ``niceness`` (in the child, before exec)."""
+    if niceness <= 0:
+        return arm
+
+    def _arm() -> None:
+        arm()
+        os.nice(niceness)
+    return _arm
+
+
 class Supervisor:
     """Child processes of the graph: start, watch, stop.
 
@@ -254,13 +266,18 @@ class Supervisor:
         Names whose exit with code 0 means "done"; any other exit is a failure.
     env
         Environment of the children.
+    niceness
+        ``{name: n}``: children started with their scheduling niceness raised by ``n``
+        (before their program runs, so every thread of theirs has it).
     """
 
     FINISH_GRACE_S = 10.0
 
     def __init__(self, commands: dict[str, list[str]], *, finishers: set[str],
-                 env: dict[str, str], echo: bool = True) -> None:
+                 env: dict[str, str], echo: bool = True,
+                 niceness: dict[str, int] | None = None) -> None:
         self.commands = commands
+        self.niceness = dict(niceness or {})
         self.finishers = set(finishers)
         self.env = env
         self.echo = echo
@@ -280,7 +297,7 @@ class Supervisor:
         env[lifeline.ENV] = str(os.getpid())
         arm = lifeline.preexec(os.getpid())
         for name, cmd in self.commands.items():
-            self.procs[name] = self._spawn(cmd, env, arm)
+            self.procs[name] = self._spawn(cmd, env, _niced(arm, self.niceness.get(name, 0)))
         for name, proc in self.procs.items():
             thread = threading.Thread(target=self._pump, args=(name, proc), daemon=True)
             thread.start()

@@ -32,7 +32,7 @@ def test_help_names_every_option():
     assert done.returncode == 0, done.stderr
     for option in ('--program-root', '--machine', '--opcua-port', '--opcua-host', '--mqtt',
                    '--domain-id', '--opcua-cert', '--opcua-key', '--opcua-users', '--mode',
-                   '--measured-live', '--mqtt-sparkplug'):
+                   '--measured-live', '--mqtt-sparkplug', '--bridge-nice'):
         assert option in done.stdout
 
 
@@ -46,6 +46,15 @@ def test_program_root_missing(tmp_path):
     done = _serve('--program-root', str(tmp_path / 'nope'), '--opcua-port', str(_free_port()))
     assert done.returncode == 2
     assert 'nope: not a directory' in done.stderr and 'Traceback' not in done.stderr
+
+
+@pytest.mark.parametrize('value', ['-1', '20'])
+def test_bridge_nice_out_of_range(root, value):
+    done = _serve('--program-root', str(root), '--opcua-port', str(_free_port()),
+                  '--bridge-nice', value)
+    assert done.returncode == 2
+    assert f'--bridge-nice {value}: expected 0 ... 19' in done.stderr
+    assert 'Traceback' not in done.stderr
 
 
 def test_measured_live_needs_realtime(root):

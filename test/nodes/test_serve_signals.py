@@ -1,5 +1,6 @@
 """``serve`` stops cleanly on SIGTERM (exit 0) and stops everything with the failing node's
 own words when a node cannot start (exit 1)."""
+import os
 import signal
 import socket
 import subprocess
@@ -37,8 +38,17 @@ def test_sigterm_stops_every_process_with_exit_0(tmp_path, node_env):
         lines.append(line)
         if line.startswith('Ctrl-C'):
             break
-    children = [pid for pid, _ in child_processes(proc.pid)]
+    kids = child_processes(proc.pid)
+    children = [pid for pid, _ in kids]
     assert len(children) >= 4, (children, lines)     # the graph's three nodes + the bridge
+    # the bridge yields the CPU to the graph: every thread of it (DDS, asyncua, paho) runs
+    # at the launcher's niceness + 5 (serve --bridge-nice), the graph's nodes at the
+    # launcher's own
+    base = os.getpriority(os.PRIO_PROCESS, proc.pid)
+    for pid, cmd in kids:
+        want = base + 5 if 'nodes.opcua_bridge' in cmd else base
+        tasks = [int(t) for t in os.listdir(f'/proc/{pid}/task')]
+        assert {os.getpriority(os.PRIO_PROCESS, t) for t in tasks} == {min(want, 19)}, cmd
     proc.send_signal(signal.SIGTERM)
     out = ''.join(lines) + proc.communicate(timeout=60)[0]
     assert proc.returncode == 0, out
