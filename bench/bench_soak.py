@@ -435,6 +435,8 @@ def _round(label: str, n_ua: int | None, args: argparse.Namespace, root: Path, m
     else:
         cmd = base + ['serve'] + common + ['--opcua-port', str(_free_port()),
                                            '--mqtt', f'127.0.0.1:{mqtt_port}']
+        if args.bridge_nice is not None:
+            cmd += ['--bridge-nice', str(args.bridge_nice)]
         top = 'serve'
     extra = '' if n_ua is None else f' + MQTT subscriber + {n_ua} OPC UA subscriber(s)'
     print(f'\n== round {label}: {top}{extra} (domain {domain_id}; '
@@ -608,6 +610,8 @@ def main() -> None:
                         help='requested OPC UA publishing interval [ms] (default 10)')
     parser.add_argument('--domain-ids', default='180-189', metavar='LO-HI',
                         help='ROS domain ids, one per round (default 180-189)')
+    parser.add_argument('--bridge-nice', type=int, default=None, metavar='N',
+                        help="serve's --bridge-nice for the b rounds (default: serve's own)")
     parser.add_argument('--no-baseline', action='store_true',
                         help='skip round (a), the graph without bridges')
     parser.add_argument('--interleave', type=int, default=0, metavar='PAIRS',
