@@ -402,7 +402,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     lag = motion_lag_s(cmp.runs)
     differ = lag is not None and _runs_differ(cmp.runs, lag)
     # progress: the first start, then the lag start and the filter start when they run
-    spans = [(0.3, 0.55), (0.55, 0.8), (0.8, 1.0)] if differ else [(0.3, 1.0)]
+    spans = [(0.3, 0.55), (0.55, 0.8), (0.8, 1.0)] if lag is not None else [(0.3, 1.0)]
     result = _from_start(campaign, machine, machine_file, cmp, 0.0, ids, options, report,
                          spans[0], loaded)
     a = _bic(result, 0)
@@ -410,7 +410,9 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     # (a large missing effect pulls the power's own lags anywhere), else the power's own
     tau = _fitted_lag_s(result) if lag is not None else None
     tau = lag if tau is None else tau
-    smooth = differ and tau is not None and _may_filter(campaign, cmp.runs, tau)
+    # (the power's own lags may sit at the motion's offsets, pulled there by a missing
+    # effect, while the first start's lag with its effects says the meter lags)
+    smooth = tau is not None and _may_filter(campaign, cmp.runs, tau)
     if differ and lag is not None and _unsettled(result):
         other = _from_start(campaign, machine, machine_file, cmp, lag, ids, options, report,
                             spans[1], loaded)
