@@ -44,7 +44,6 @@ import math
 import os
 from pathlib import Path
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -52,6 +51,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from child_cli import run_cli  # noqa: E402
 import truth_model as tm  # noqa: E402
 
 from feed_axis_energy.paths import config_dir  # noqa: E402,I100
@@ -173,31 +173,13 @@ def reuse(root: Path) -> tuple[Path, int, dict[str, float]] | None:
 def run_analyze(manifest: Path, timeout_s: float) -> tuple[float, float, int, dict | None,
                                                            str]:
     """``analyze --json`` as a child: wall [s], CPU [s], peak RSS [bytes], JSON, stderr."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    t0 = time.perf_counter()
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen([sys.executable, '-m', 'feed_axis_energy', 'analyze',
-                                 str(manifest), '--json', '--quiet'], cwd=ROOT, env=env,
-                                stdout=out, stderr=err)
-        deadline = t0 + timeout_s
-        while True:
-            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-            if pid:
-                break
-            if time.perf_counter() > deadline:
-                proc.kill()
-                _, status, usage = os.wait4(proc.pid, 0)
-                break
-            time.sleep(0.05)
-        wall = time.perf_counter() - t0
-        code = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        text, errors = out.read(), err.read().decode(errors='replace')
-    result = json.loads(text) if code == 0 and text.strip() else None
-    if result is None and wall <= timeout_s:
-        errors = f'exit {code}: {errors[-800:]}'
-    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss * 1024, result, errors
+    child = run_cli(['analyze', str(manifest), '--json', '--quiet'], timeout_s=timeout_s)
+    errors = child.stderr
+    result = (json.loads(child.stdout) if child.code == 0 and child.stdout.strip()
+              else None)
+    if result is None and child.wall_s <= timeout_s:
+        errors = f'exit {child.code}: {errors[-800:]}'
+    return child.wall_s, child.cpu_s, child.peak_rss_bytes, result, errors
 
 
 def summary(res: dict, effect: str, offsets: dict[str, float]) -> str:

@@ -29,9 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 from pathlib import Path
-import subprocess
 import sys
 import tempfile
 import time
@@ -39,10 +37,13 @@ from typing import IO
 
 import numpy as np
 
-from feed_axis_energy.gcode import iter_moves
-from feed_axis_energy.machine import load_machine
-from feed_axis_energy.paths import config_dir
-from feed_axis_energy.sim import simulate_stream
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from child_cli import run_cli  # noqa: E402
+
+from feed_axis_energy.gcode import iter_moves  # noqa: E402,I100
+from feed_axis_energy.machine import load_machine  # noqa: E402
+from feed_axis_energy.paths import config_dir  # noqa: E402
+from feed_axis_energy.sim import simulate_stream  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 FEEDS_MM_S = (100, 200, 300, 400, 500)
@@ -118,31 +119,11 @@ def build(root: Path, minutes: float, *, offset_ms: int, noise_w: float) -> tupl
 
 def run_compare(manifest: Path, timeout_s: float) -> tuple[float, float, int, dict | None]:
     """``compare --json`` as a child: wall [s], CPU [s], peak RSS [bytes], the JSON or None."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    t0 = time.perf_counter()
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen([sys.executable, '-m', 'feed_axis_energy', 'compare',
-                                 str(manifest), '--json', '--quiet'], cwd=ROOT, env=env,
-                                stdout=out, stderr=err)
-        deadline = t0 + timeout_s
-        while True:
-            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
-            if pid:
-                break
-            if time.perf_counter() > deadline:
-                proc.kill()
-                _, status, usage = os.wait4(proc.pid, 0)
-                break
-            time.sleep(0.05)
-        wall = time.perf_counter() - t0
-        code = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        text = out.read()
-        if code != 0 and wall <= timeout_s:
-            sys.exit(f'compare exited {code}: {err.read().decode()[-800:]}')
-    result = json.loads(text) if code == 0 else None
-    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss * 1024, result
+    child = run_cli(['compare', str(manifest), '--json', '--quiet'], timeout_s=timeout_s)
+    if child.code != 0 and child.wall_s <= timeout_s:
+        sys.exit(f'compare exited {child.code}: {child.stderr[-800:]}')
+    result = json.loads(child.stdout) if child.code == 0 else None
+    return child.wall_s, child.cpu_s, child.peak_rss_bytes, result
 
 
 def main() -> int:
@@ -176,8 +157,11 @@ def main() -> int:
         off = r['offset']['found_s']
         truth = PAD_S + args.offset_ms / 1e3      # the record starts PAD_S before the program
         metrics = r['metrics']['total']
+        ppm = r['offset']['drift_ppm']
+        # a record shorter than the drift estimate needs has none (DRIFT_MIN_DURATION_S)
+        drift = 'drift not estimated' if ppm is None else f'drift {ppm:+.0f} ppm'
         line += (f'  offset {off:+.4f} s (error {1e3 * (off - truth):+.3f} ms, '
-                 f'{r["offset"]["status"]}, drift {r["offset"]["drift_ppm"]:+.0f} ppm)  '
+                 f'{r["offset"]["status"]}, {drift})  '
                  f'energy error {metrics["energy_error_pct"]:+.3f} %'
                  f'  RMSE {metrics["rmse_w"]:.3f} W')
         if first is None:
