@@ -42,9 +42,8 @@ from ..physics import state_from_simulation
 from ..machine import load_machine, Machine, machine_warnings, observed_range, RangeUse
 from ..errors import ConfigError
 from ..measured import (align_simulated, Campaign, CampaignComparison, compare_campaign,
-                        first_order_lag, load_run, MeasuredRun, Metrics, MotionCache,
-                        offset_dict, quantity_of, RunComparison, simulate_declared,
-                        stamp_shift)
+                        load_run, MeasuredRun, Metrics, MotionCache, offset_dict, quantity_of,
+                        RunComparison, simulate_declared, stamp_shift)
 from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
 from .consistency import heterogeneity, label, mark_groups, select_consistent
@@ -91,15 +90,14 @@ class _Run:
         """Align 1 kHz columns ``(n, c)`` onto the analysis grid: ``(m, c)`` (each bin the
         mean of the columns averaged onto its measured stamps, the instrument model; a
         meter's first-order smoothing too unless ``filtered`` is false: the motion)."""
-        if filtered and self.cmp.filter_s:
-            cols = first_order_lag(self.state.t, cols, self.cmp.filter_s)
+        filter_s = self.cmp.filter_s if filtered else 0.0
         if self.wide is not None:
             ends, span = self.wide
             return align_simulated(self.state.t, cols, ends, offset_s=self.cmp.offset_used_s,
-                                   window_s=span)
+                                   window_s=span, filter_s=filter_s)
         return self.bins.mean(align_simulated(
             self.state.t, cols, self.cmp.t, offset_s=self.cmp.offset_used_s,
-            window_s=self.cmp.window_s, stamp=self.cmp.stamp))
+            window_s=self.cmp.window_s, stamp=self.cmp.stamp, filter_s=filter_s))
 
 
 def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Machine, *,
@@ -437,8 +435,6 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
                 f'filter of {1e3 * other.meter_filter_s:.1f} ms estimated from the power\'s '
                 f'lag behind the measured motion with the effects in the model (BIC {c:.1f} '
                 f'against {a:.1f} for a meter without it)'))
-        else:
-            result = replace(result, meter_filter_s=0.0)
     report(1.0)
     return result
 

@@ -16,12 +16,12 @@ lie at the end of the search (``'edge'``). So:
   now decisive (:func:`decisive`: ``'ok'``, or a runner-up whose residual is clearly larger)
   is pinned there; a pinned run whose decisive estimate moved (to another peak, or, for a
   run simulated from its program, by more than :func:`lag_tolerance_s` within its peak) is
-  moved there. The declared model's
-  residual at the new offset then enters the next round. Rounds end when nothing moves (at
-  most :data:`MAX_PIN_ROUNDS`). The small moves matter: a power correlation against a model
-  that lacks an effect is pulled by it (a missing viscous drag or inertia shifts the best
-  lag by milliseconds), and that timing error is what a small passenger of the shape
-  ``dm·a·v`` then fits; with the effects in the model the lag is not pulled.
+  moved there. The declared model's residual at the new offset then enters the next round.
+  Rounds end when nothing moves (at most :data:`MAX_PIN_ROUNDS`). The small moves matter:
+  a power correlation against a model that lacks an effect is pulled by it (a missing
+  viscous drag or inertia shifts the best lag by milliseconds), and that timing error is
+  what a small passenger of the shape ``dm·a·v`` then fits; with the effects in the model
+  the lag is not pulled.
 
 **Runs aligned on their measured motion** (``offset.anchor == 'motion'``,
 :func:`.measured.spatial.motion_anchor`) are pinned by it: the motion tells the strokes
@@ -136,6 +136,11 @@ def split_pinned(runs: Sequence[RunComparison], *, campaign: Campaign | None = N
     return pinned, left
 
 
+def _period_s(run: RunComparison) -> float:
+    """A run's median sampling period [s] (0 for a single sample)."""
+    return float(np.median(np.diff(run.t))) if run.t.size > 1 else 0.0
+
+
 def _move_tolerance_s(campaign: Campaign, run: RunComparison) -> float:
     """How far a pinned, power-aligned run's re-estimated offset must move to be moved [s].
 
@@ -147,8 +152,7 @@ def _move_tolerance_s(campaign: Campaign, run: RunComparison) -> float:
     """
     if campaign.run(run.name).motion_program is not None:
         return lag_tolerance_s(run)
-    period = float(np.median(np.diff(run.t))) if run.t.size > 1 else 0.0
-    return max(5.0 * period, 0.05)
+    return max(5.0 * _period_s(run), 0.05)
 
 
 def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparison],
@@ -245,8 +249,7 @@ def lag_tolerance_s(run: RunComparison) -> float:
     """How far a motion-anchored run's offset may be from its target and stay [s]: a
     thousandth of its sample period (compared anew above that: a large missing effect
     turns a fraction of a period into structure the selection would fit)."""
-    period = float(np.median(np.diff(run.t))) if run.t.size > 1 else 0.0
-    return 1.0e-3 * period
+    return 1.0e-3 * _period_s(run)
 
 
 def at_common_lag(campaign: Campaign, declared: Machine, runs: Sequence[RunComparison], *,
