@@ -192,7 +192,8 @@ def trial(case: str, cls: str, runs: list[tt.Run], axis: tm.AxisData, seed: int,
             'misaligned': sorted(k for k, e in errors.items() if abs(e) > tol),
             'aligned_runs': len(errors), 'left_out': sorted(left),
             'largest_error_s': max((abs(e) for e in errors.values()), default=0.0),
-            'meter_filter_s': float(getattr(res, 'meter_filter_s', 0.0))}
+            'meter_filter_s': float(getattr(res, 'meter_filter_s', 0.0)),
+            'aligned_with': getattr(res, 'aligned_with', None)}
 
 
 def run_cells(cells: list[tuple[str, str]], seeds: range, *, log=None) -> list[dict]:

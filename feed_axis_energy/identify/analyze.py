@@ -42,15 +42,18 @@ from ..physics import state_from_simulation
 from ..machine import load_machine, Machine, machine_warnings, observed_range, RangeUse
 from ..errors import ConfigError
 from ..measured import (align_simulated, Campaign, CampaignComparison, compare_campaign,
-                        load_run, MeasuredRun, Metrics, MotionCache, offset_dict, quantity_of,
-                        RunComparison, simulate_declared, stamp_shift)
+                        first_order_lag, load_run, MeasuredRun, Metrics, MotionCache,
+                        offset_dict, predicted_signal, quantity_of, RunComparison,
+                        simulate_declared, stamp_shift)
 from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
 from .grid import bin_windows, Bins, bins_for
-from .pinning import (at_common_lag, lag_tolerance_s, LeftOut, left_out_text, MAX_PIN_ROUNDS,
-                      motion_lag_s, repin, split_pinned)
+from .jointalign import (JOINT_STEP_S, joint_screen, JointFit, MAX_SCREEN_COLUMNS,
+                         ScreenCandidate, ScreenRun, screen_span)
+from .pinning import (at_common_lag, at_offsets, lag_tolerance_s, LeftOut, left_out_text,
+                      MAX_PIN_ROUNDS, motion_lag_s, repin, split_pinned)
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -68,6 +71,13 @@ POSITION_DIVISIONS = (15, 10, 6, 3)
 MIN_FILTER_PERIODS = 0.05
 """A common lag behind the motion of at least this many sampling periods is also tried as a
 meter's first-order smoothing."""
+LAG_MIN_SHARE = 0.01
+"""Share of the baseline residual's sum of squares an effect must explain to be in the model
+the meter's lag behind the motion is estimated with (a passenger that explains less may be
+the trace of that very lag: a fraction of a millisecond has the shape of a moved mass)."""
+JOINT_MIN_GAIN = 0.05
+"""Relative drop of the screen's residual that makes a candidate's offsets a start of their
+own (:mod:`.jointalign`; with a median move of at least one coarse step)."""
 
 __all__ = ['analyze_campaign']
 
@@ -85,6 +95,7 @@ class _Run:
     t: np.ndarray                   # (m,) bin stamps: the mean of the samples' stamps [s]
     kt: list[float] | None = None   # a drive trace: torque per unit per axis (.driveforms)
     wide: tuple[np.ndarray, float] | None = None    # abutting windows: one per bin (.grid)
+    timing: EffectState | None = None   # the power time_offset shifts (_timing_state)
 
     def aligned(self, cols: np.ndarray, *, filtered: bool = True) -> np.ndarray:
         """Align 1 kHz columns ``(n, c)`` onto the analysis grid: ``(m, c)`` (each bin the
@@ -100,8 +111,26 @@ class _Run:
             window_s=self.cmp.window_s, stamp=self.cmp.stamp, filter_s=filter_s))
 
 
+def _timing_state(state: EffectState, prior: Sequence[FittedEffect]) -> EffectState | None:
+    """The state whose power ``time_offset`` shifts: the declared power plus the effects an
+    earlier round found (``None`` when there are none). A record a fraction of a millisecond
+    off shifts all of the power it holds; with a large effect found, the declared power's
+    derivative alone misses the effect's share, and what it misses has the shape of another
+    effect (``viscous``: ``d(c·v²)/dt = 2c·v·a``, a moved mass)."""
+    extra = np.zeros_like(state.power_w)
+    for e in prior:
+        if e.id == 'time_offset' or e.axis not in state.axes:
+            continue
+        j = state.axes.index(e.axis)
+        extra[:, j] += get_effect(e.id).power_w(state, e.values())[:, j]
+    if not prior or not np.any(extra):
+        return None
+    return replace(state, power_w=state.power_w + extra)
+
+
 def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Machine, *,
-             loaded: Mapping[str, MeasuredRun], period_s: float) -> list[_Run]:
+             loaded: Mapping[str, MeasuredRun], period_s: float,
+             prior: Sequence[FittedEffect] = ()) -> list[_Run]:
     cache = MotionCache(machine)
     out = []
     for r in cmp_runs:
@@ -128,6 +157,7 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Mac
         bins = bins_for(r.t, period_s)
         run = _Run(cmp=r, state=state, sim_index=idx, residual=bins.mean(residual), states={},
                    bins=bins, t=bins.mean(r.t), kt=kt,
+                   timing=_timing_state(state, prior) if kt is None else None,
                    wide=bin_windows(r.t, bins, window_s=r.window_s,
                                     shift_s=stamp_shift(r.window_s, r.stamp)))
         on = run.aligned(np.column_stack(cols), filtered=False)
@@ -151,7 +181,8 @@ def _columns(run: _Run, effect_id: str, axis_j: int, shape: Mapping[str, float])
     out = np.zeros((m, k, p))
     j = run.sim_index[axis_j]
     if j is not None:
-        basis = effect.basis(run.state, dict(shape))[:, j, :]
+        state = run.timing if effect_id == 'time_offset' and run.timing else run.state
+        basis = effect.basis(state, dict(shape))[:, j, :]
         if run.kt is not None:
             basis = current_basis(effect_id, basis, run.state, j, run.kt[axis_j])
         out[:, axis_j, :] = run.aligned(basis)
@@ -399,8 +430,11 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     # smooths (a first-order filter). The best model of the data wins (BIC)
     lag = motion_lag_s(cmp.runs)
     differ = lag is not None and _runs_differ(cmp.runs, lag)
-    # progress: the first start, then the lag start and the filter start when they run
-    spans = [(0.3, 0.55), (0.55, 0.8), (0.8, 1.0)] if lag is not None else [(0.3, 1.0)]
+    # progress: the first start, then the lag start and the filter start when they run (or
+    # the start from a candidate's offsets, on records of the power alone)
+    joint = _joint_eligible(campaign, cmp.runs)
+    spans = ([(0.3, 0.55), (0.55, 0.8), (0.8, 1.0)] if lag is not None else
+             [(0.3, 0.75), (0.75, 1.0)] if joint else [(0.3, 1.0)])
     result = _from_start(campaign, machine, machine_file, cmp, 0.0, ids, options, report,
                          spans[0], loaded)
     a = _bic(result, 0)
@@ -435,8 +469,99 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
                 f'filter of {1e3 * other.meter_filter_s:.1f} ms estimated from the power\'s '
                 f'lag behind the measured motion with the effects in the model (BIC {c:.1f} '
                 f'against {a:.1f} for a meter without it)'))
+            a = c
+    if joint and _unsettled(result):
+        # records of the power alone: a large missing effect pulls the power's lags, and at
+        # the pulled lags nothing it could be is supported; the offsets each run would have
+        # with a candidate in the model start an analysis of their own
+        start = _joint_start(campaign, machine, cmp, ids, options, loaded)
+        if start is not None:
+            jcmp, fit = start
+            other = _from_start(campaign, machine, machine_file, jcmp, 0.0, ids, options,
+                                report, spans[1], loaded)
+            d = _bic(other, 1)
+            if d < a:
+                result = replace(other, aligned_with={
+                    'effect': fit.key[0], 'axis': fit.key[1],
+                    'median_move_s': fit.median_move_s}, message=(
+                    f'{other.message}; fitted from the offsets each run has with '
+                    f'{label(fit.key)} in the model (the power\'s own lags against the '
+                    f'declared model were pulled by a median {1e3 * fit.median_move_s:.1f} '
+                    f'ms; BIC {d:.1f} against {a:.1f} from those lags)'))
     report(1.0)
     return result
+
+
+def _joint_eligible(campaign: Campaign, runs: Sequence[RunComparison]) -> bool:
+    """Records of the power alone simulated from their programs (:mod:`.jointalign`): no
+    run aligned on measured motion, every run a power trace with a program."""
+    return bool(runs) and all(
+        r.offset.anchor != 'motion' and quantity_of(r.measures).is_power
+        and campaign.run(r.name).motion_program is not None for r in runs)
+
+
+def _screen_items(campaign: Campaign, machine: Machine, runs: Sequence[RunComparison],
+                  candidates: Sequence[ScreenCandidate], loaded: Mapping[str, MeasuredRun]):
+    """Per run, what :func:`.jointalign.joint_screen` reads: the run (its first stretch,
+    the simulation cropped to what that stretch sees) and every candidate's basis there."""
+    cache = MotionCache(machine)
+    for r in runs:
+        spec = campaign.run(r.name)
+        measured = loaded[r.name] if r.name in loaded else load_run(spec)
+        sim, _ = simulate_declared(spec, measured, machine, cache)
+        total = predicted_signal(spec.instrument.measures, sim, machine, r.axes,
+                                 manifest=spec.manifest, key=spec.key,
+                                 start_direction=measured.extra.get('direction_before'),
+                                 ).sum(axis=1)
+        state = state_from_simulation(sim)
+        del sim
+        n, lo, hi = screen_span(r.t, r.offset_used_s, r.window_s)
+        a = max(int(np.searchsorted(state.t, lo, side='right')) - 1, 0)
+        b = min(int(np.searchsorted(state.t, hi, side='left')) + 1, state.t.size)
+        t_sim = state.t[a:b]
+        bases = []
+        for c in candidates:
+            j = state.axes.index(c.key[1]) if c.key[1] in state.axes else None
+            p = len(get_effect(c.key[0]).linear_params())
+            if j is None:
+                bases.append(np.zeros((b - a, p)))
+                continue
+            basis = get_effect(c.key[0]).basis(state, dict(c.shape))[:, j, :]
+            # the meter's filter runs from the record's start: filter, then crop
+            bases.append((first_order_lag(state.t, basis, r.filter_s) if r.filter_s
+                          else basis)[a:b])
+        y_sim = (first_order_lag(state.t, total, r.filter_s) if r.filter_s else total)[a:b]
+        yield ScreenRun(r.name, r.t[:n], r.total_meas_w[:n], t_sim, y_sim, r.offset_used_s,
+                        r.window_s, r.stamp), bases
+
+
+def _joint_start(campaign: Campaign, machine: Machine, cmp: CampaignComparison,
+                 ids: tuple[str, ...], options: AnalyzeOptions,
+                 loaded: Mapping[str, MeasuredRun],
+                 ) -> tuple[CampaignComparison, JointFit] | None:
+    """The comparisons with the pinned runs at the offsets the best screened candidate gives
+    them (:func:`.jointalign.joint_screen`), when moving there cuts the screen's residual by
+    :data:`JOINT_MIN_GAIN` and the median move is at least a coarse step; else ``None``."""
+    pinned, _ = split_pinned(cmp.runs, campaign=campaign)
+    if len(pinned) < 2:
+        return None
+    axes = pinned[0].axes
+    candidates = [ScreenCandidate((e, axis), shape)
+                  for e in ids if e not in ('time_offset', 'standby')
+                  and len(get_effect(e).linear_params()) <= MAX_SCREEN_COLUMNS
+                  for axis in axes
+                  for shape in _shape_grid(e, (), 0, options.shape_grid_points)]
+    if not candidates:
+        return None
+    fits = joint_screen(_screen_items(campaign, machine, pinned, candidates, loaded),
+                        candidates)
+    best = fits[0]
+    if best.gain < JOINT_MIN_GAIN or best.median_move_s < JOINT_STEP_S:
+        return None
+    moved = dict(zip([r.name for r in pinned], best.offsets_s))
+    runs = at_offsets(campaign, machine, cmp.runs, moved, loaded=loaded, why=(
+        f'the offset with {label(best.key)} in the model (jointly searched)'))
+    return replace(cmp, runs=tuple(runs)), best
 
 
 def _may_filter(campaign: Campaign, runs: Sequence[RunComparison], lag: float) -> bool:
@@ -463,7 +588,9 @@ def _fitted_lag_s(result: AnalysisResult) -> float | None:
             and math.isfinite(float(o['motion_s'])) and o.get('used_s') is not None]
     delay = _fitted_delay_s(result)
     named = [e for e in result.effects if e.id != 'time_offset']
-    if not lags or not named or (result.pin_rounds < 2 and delay is None):
+    # (runs kept within their tolerance of the motion's offset sit a microsecond or less
+    # off it: not moved)
+    if not lags or not named or (delay is None and max(abs(x) for x in lags) <= 1e-6):
         return None
     return float(np.median(lags)) + (delay or 0.0)
 
@@ -521,6 +648,7 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
     w = span[1] - span[0]
     spans = [(span[0], span[0] + 0.7 * w), (span[0] + 0.7 * w, span[0] + 0.9 * w),
              (span[0] + 0.9 * w, span[1])]
+    prior: list[FittedEffect] = []
     for round_no in range(MAX_PIN_ROUNDS):
         lo, hi = spans[min(round_no, len(spans) - 1)]
         _require_pinned(pinned, left, options.holdout, str(campaign.file))
@@ -528,7 +656,8 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
         def scaled(f: float, lo: float = lo, hi: float = hi) -> None:
             report(lo + (hi - lo) * f)
         result, augmented, full_machine = _analyze_round(
-            campaign, machine, machine_file, cmp, pinned, ids, options, scaled, loaded)
+            campaign, machine, machine_file, cmp, pinned, ids, options, scaled, loaded,
+            prior=prior)
         if round_no + 1 == MAX_PIN_ROUNDS:
             break
         refresh = False
@@ -547,15 +676,42 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
             break
         extra = realigned_runs(campaign, full_machine, [r.name for r in left], loaded=loaded)
         pinned, left, moved = repin(campaign, machine, list(augmented) + extra, pinned, left,
-                                    loaded=loaded, lag_s=0.0 if filter_s else None,
+                                    loaded=loaded,
+                                    lag_s=0.0 if filter_s else _meter_lag_s(
+                                        campaign, result, pinned, loaded),
                                     refresh=refresh)
-        if not moved:
+        # the next round's time_offset shifts the power with these effects in it; when
+        # nothing moved, one more round gives it that chance (a record a fraction of a
+        # millisecond off shifts the effects' power too, and the declared power's
+        # derivative alone leaves that share to a passenger of the effect's derivative)
+        found = [e for e in result.effects + result.offered if e.id != 'time_offset']
+        if not moved and (prior or not found):
             break
+        prior = found
     result = replace(result, pin_rounds=round_no + 1, meter_filter_s=filter_s)
     if not left:
         return result
     return replace(result, left_out=tuple(left),
                    message=f'{result.message}; {left_out_text(left)}')
+
+
+def _meter_lag_s(campaign: Campaign, result: AnalysisResult,
+                 pinned: Sequence[RunComparison],
+                 loaded: Mapping[str, MeasuredRun]) -> float | None:
+    """The meter's lag behind the motion [s] with only the effects that explain at least
+    :data:`LAG_MIN_SHARE` of the baseline residual in the model, when the round also found
+    smaller ones and motion-anchored runs are pinned; else ``None`` (:func:`.pinning.repin`
+    then takes the lag of the comparisons with every effect found)."""
+    anchored = [r.name for r in pinned if r.offset.anchor == 'motion']
+    every = result.effects + result.offered
+    big = tuple(e for e in every if e.share_of_residual >= LAG_MIN_SHARE)
+    if not anchored or len(big) == len(every):
+        return None
+    keep = {id(e) for e in big}
+    machine = replace(result, effects=tuple(e for e in result.effects if id(e) in keep),
+                      offered=tuple(e for e in result.offered if id(e) in keep),
+                      ).augmented_machine()
+    return motion_lag_s(realigned_runs(campaign, machine, anchored, loaded=loaded))
 
 
 def _require_pinned(pinned: Sequence[RunComparison], left: Sequence[LeftOut], holdout: str,
@@ -567,8 +723,10 @@ def _require_pinned(pinned: Sequence[RunComparison], left: Sequence[LeftOut], ho
     if enough or not left:
         return      # enough runs, or nothing left out: _folds says what is missing
     msg = (f'too few runs whose time offset is pinned down for holdout "{holdout}" '
-           f'({len(pinned)} pinned); {left_out_text(left)}. Declare each run\'s offset_s in '
-           'the manifest, or record the program\'s start and end')
+           f'({len(pinned)} pinned); {left_out_text(left)}. Record the program\'s start and '
+           'end, or map the axes\' velocity or position columns in the manifest (the '
+           'measured motion pins the offset; docs/compare.md, "Aligned on the measured '
+           'motion")')
     raise ConfigError(msg, file=file, key='runs')
 
 
@@ -576,9 +734,12 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
                    cmp: CampaignComparison, cmp_runs: Sequence[RunComparison],
                    ids: tuple[str, ...], options: AnalyzeOptions,
                    report: Callable[[float], None], loaded: Mapping[str, MeasuredRun],
+                   prior: Sequence[FittedEffect] = (),
                    ) -> tuple[AnalysisResult, list[RunComparison], Machine]:
     """One analysis of the runs ``cmp_runs`` at their offsets; also returns the fresh
-    comparisons with the effects found and the machine they were made with."""
+    comparisons with the effects found and the machine they were made with. ``prior``: the
+    effects the previous round found (the power ``time_offset`` shifts, :func:`_timing_state`).
+    """
     # copper and iron as corrections of declared drives (motor-terminal meters, .drivecorr)
     measures = common_measures(campaign.run(r.name).instrument.measures for r in cmp_runs)
     drive = [r for r in cmp_runs if not quantity_of(r.measures).is_power]
@@ -591,7 +752,7 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     if options.noise_w is None:
         options = replace(options, noise_w=declared_noise(campaign, cmp_runs))
     data = _prepare(campaign, cmp_runs, machine, loaded=loaded,
-                    period_s=options.analysis_period_s)
+                    period_s=options.analysis_period_s, prior=prior)
     axes = cmp_runs[0].axes
     if any(r.cmp.axes != axes for r in data):
         msg = 'analyze needs the same measured axes in every run'

@@ -58,7 +58,7 @@ from ..measured import (Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MeasuredRu
 
 __all__ = ['PINNED_STATUSES', 'MAX_PIN_ROUNDS', 'PIN_MARGIN', 'LeftOut', 'split_pinned',
            'decisive', 'repin', 'left_out_text', 'motion_lag_s',
-           'at_common_lag', 'lag_tolerance_s']
+           'at_common_lag', 'at_offsets', 'lag_tolerance_s']
 
 PINNED_STATUSES = ('ok', 'fixed')
 """Offset statuses a fit may use."""
@@ -208,7 +208,7 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
             target = a.offset.motion_s + lag
             if refresh or abs(target - run.offset_used_s) > lag_tolerance_s(run):
                 cmp = _compared_at(campaign, declared, run.name, target, cache, max_lag_s,
-                                   loaded)
+                                   loaded, clock_ppm=a.clock_ppm)
                 out.append(replace(cmp, offset=replace(a.offset, offset_s=target, message=(
                     f'{a.offset.message}; used at the common meter lag behind the motion '
                     f'found with the effects in the model, {1e3 * lag:+.1f} ms: '
@@ -294,7 +294,8 @@ def at_common_lag(campaign: Campaign, declared: Machine, runs: Sequence[RunCompa
         if abs(run.offset_used_s - target) <= lag_tolerance_s(run):
             out.append(run)
             continue
-        cmp = _compared_at(campaign, declared, run.name, target, cache, max_lag_s, loaded)
+        cmp = _compared_at(campaign, declared, run.name, target, cache, max_lag_s, loaded,
+                           clock_ppm=run.clock_ppm)
         offset = replace(o, offset_s=target, message=(
             f'{o.message}; used at the campaign\'s common meter lag behind the motion, '
             f'{1e3 * lag:+.1f} ms: {target:+.4f} s'))
@@ -302,22 +303,49 @@ def at_common_lag(campaign: Campaign, declared: Machine, runs: Sequence[RunCompa
     return out
 
 
+def at_offsets(campaign: Campaign, declared: Machine, runs: Sequence[RunComparison],
+               offsets: Mapping[str, float], *, why: str,
+               cache: MotionCache | None = None, max_lag_s: float = DEFAULT_MAX_LAG_S,
+               loaded: Mapping[str, MeasuredRun] | None = None) -> list[RunComparison]:
+    """The comparisons with the runs named in ``offsets`` moved to those offsets [s].
+
+    A moved run keeps its offset estimate's status and anchor (it stays pinned); its offset
+    becomes the new one and its message says ``why``. Runs not named, or within
+    :func:`lag_tolerance_s` of their new offset, are returned as they are (same order).
+    """
+    cache = MotionCache(declared) if cache is None else cache
+    out = []
+    for run in runs:
+        target = offsets.get(run.name)
+        if target is None or abs(target - run.offset_used_s) <= lag_tolerance_s(run):
+            out.append(run)
+            continue
+        cmp = _compared_at(campaign, declared, run.name, float(target), cache, max_lag_s,
+                           loaded, clock_ppm=run.clock_ppm)
+        out.append(replace(cmp, offset=replace(run.offset, offset_s=float(target), message=(
+            f'{run.offset.message}; used at {float(target):+.4f} s, {why}'))))
+    return out
+
+
 def _compared_at(campaign: Campaign, declared: Machine, name: str, offset_s: float,
                  cache: MotionCache, max_lag_s: float,
-                 loaded: Mapping[str, MeasuredRun] | None) -> RunComparison:
+                 loaded: Mapping[str, MeasuredRun] | None, *,
+                 clock_ppm: float = 0.0) -> RunComparison:
     """The declared model's comparison of a run at a fixed offset (``compare``'s defaults;
-    the meter check is left to the baseline)."""
+    the meter check is left to the baseline), its stamps on the clock an earlier comparison
+    of it corrected (``clock_ppm``)."""
     return compare_one_run(campaign.run(name), declared, cache, max_lag_s=max_lag_s,
                            window_s=None, offset_s=offset_s, min_correlation=0.5,
                            floor_fraction=0.05, check_meter=False,
-                           measured=(loaded or {}).get(name))
+                           measured=(loaded or {}).get(name), clock_ppm=clock_ppm)
 
 
 def _at_offset(campaign: Campaign, declared: Machine, name: str, found: RunComparison,
                cache: MotionCache, max_lag_s: float, *, was: str,
                loaded: Mapping[str, MeasuredRun] | None = None) -> RunComparison:
     """The declared model's comparison of a run at the offset ``found`` pinned."""
-    cmp = _compared_at(campaign, declared, name, found.offset_used_s, cache, max_lag_s, loaded)
+    cmp = _compared_at(campaign, declared, name, found.offset_used_s, cache, max_lag_s, loaded,
+                       clock_ppm=found.clock_ppm)
     offset = replace(found.offset, message=(
         f'{found.offset.message}; pinned with the effects found in the model (was {was})'))
     return replace(cmp, offset=offset)

@@ -278,7 +278,9 @@ class AnalysisResult:
         (``noise_sigma_w``) and of the diagnostics: ``'W'``, or ``'A'`` on current traces
         (:mod:`.driveforms`).
     pin_rounds
-        Analysis rounds with offsets estimated anew after the effects found (1: none moved).
+        Analysis rounds with offsets estimated anew after the effects found (1: none moved
+        and none found; a round that found effects and moved nothing is followed by one
+        whose ``time_offset`` shifts the power with them in it).
     analysis_period_s, samples_per_bin
         The analysis grid (:mod:`.grid`): the period asked for [s] and, per run name, how
         many measured samples each bin averages (1: the samples themselves). Noise levels,
@@ -300,6 +302,11 @@ class AnalysisResult:
         Time constant [s] of a first-order smoothing of the meter that ``analyze`` estimated
         and fitted with (0: none estimated; a filter the manifest declares is the runs'
         instrument, ``instrument.filter_s``).
+    aligned_with
+        When the analysis started from the offsets the runs have with one candidate effect
+        in the model (records of the power alone, :mod:`.jointalign`): ``{'effect', 'axis',
+        'median_move_s'}`` (the median distance [s] from the power's own lags); else
+        ``None``.
     """
 
     status: str
@@ -330,6 +337,7 @@ class AnalysisResult:
     left_out: tuple[LeftOut, ...] = ()
     pin_rounds: int = 1
     meter_filter_s: float = 0.0
+    aligned_with: dict[str, Any] | None = None
     residual_unit: str = 'W'
     analysis_period_s: float = ANALYSIS_PERIOD_S
     samples_per_bin: dict[str, int] = field(default_factory=dict)
@@ -429,6 +437,7 @@ class AnalysisResult:
             'left_out': [lo.to_dict() for lo in self.left_out],
             'pin_rounds': self.pin_rounds,
             'meter_filter_s': self.meter_filter_s,
+            'aligned_with': None if self.aligned_with is None else dict(self.aligned_with),
             'analysis_grid': {'period_s': self.analysis_period_s,
                               'samples_per_bin': dict(self.samples_per_bin)},
             'residual_unit': self.residual_unit,

@@ -12,7 +12,7 @@ Typical use::
     result = compare_campaign(campaign, machine=machine)
 """
 from .align import (align_simulated, estimate_offset, first_order_lag, interval_average,
-                    MAX_FILTER_S, OffsetResult, stamp_shift)
+                    MAX_FILTER_S, OffsetResult, ShiftedAverage, stamp_shift)
 from .campaign import Campaign, ColumnSpec, RowFilter, RunSpec, TimeWindow
 from .compare import (compare_campaign, compare_one_run, DEFAULT_MAX_LAG_S, MotionCache,
                       simulate_declared)
@@ -39,7 +39,8 @@ __all__ = [
     'measured_signal', 'MeasuredRun', 'MEASURES', 'Metrics', 'MotionCache', 'offset_dict',
     'OffsetResult', 'parse_job_live', 'parse_live', 'POWER_MEASURES', 'predicted_signal',
     'QUANTITIES', 'Quantity',
-    'quantity_of', 'RowFilter', 'RunComparison', 'RunSpec', 'signal_metrics', 'SignalMetrics',
-    'simulate_declared', 'SOURCES', 'stamp_shift', 'table1_metrics', 'ThreadedLag',
+    'quantity_of', 'RowFilter', 'RunComparison', 'RunSpec', 'ShiftedAverage',
+    'signal_metrics', 'SignalMetrics', 'simulate_declared', 'SOURCES', 'stamp_shift',
+    'table1_metrics', 'ThreadedLag',
     'TimeWindow', 'torque_per_unit',
 ]

@@ -30,8 +30,9 @@ from scipy.signal import lfilter
 
 from ..errors import DataError
 
-__all__ = ['DRIFT_MIN_DURATION_S', 'MAX_FILTER_S', 'STAMPS', 'OffsetResult', 'align_simulated',
-           'estimate_offset', 'first_order_lag', 'interval_average', 'stamp_shift']
+__all__ = ['DRIFT_MIN_DURATION_S', 'MAX_FILTER_S', 'STAMPS', 'OffsetResult', 'ShiftedAverage',
+           'align_simulated', 'clock_corrected', 'estimate_offset', 'first_order_lag',
+           'interval_average', 'stamp_shift']
 
 _MAX_LAG_STEPS = 100_000
 _CHUNK_ELEMENTS = 2_000_000
@@ -265,6 +266,19 @@ def interval_average(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
     return out.reshape(tau.shape + y_sim.shape[1:])
 
 
+def clock_corrected(t: np.ndarray, drift_ppm: float) -> np.ndarray:
+    """Measured stamps [s] put on the simulation's clock: a record whose offset grows by
+    ``drift_ppm`` parts per million of its time (a meter clock that runs fast by that much,
+    :func:`estimate_offset`'s ``drift_ppm``) has the stamps
+    ``t - 1e-6·drift_ppm·(t - t_mid)``, equal at the middle ``t_mid`` of the record, so that
+    one offset, the one at the middle, then holds for the whole record."""
+    t = np.asarray(t, dtype=np.float64)
+    if not drift_ppm or t.size == 0:
+        return t
+    mid = 0.5 * (float(t[0]) + float(t[-1]))
+    return t - 1e-6 * float(drift_ppm) * (t - mid)
+
+
 def stamp_shift(window_s: float, stamp: str) -> float:
     """How far after its stamp a sample's window ends [s] (0 for ``'end'``).
 
@@ -366,6 +380,43 @@ def align_simulated(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
     out = _Prefix(t_sim, y_sim).average(tau.ravel(), float(window_s),
                                         moved=(float(offset_s), shift))
     return out.reshape(tau.shape + y_sim.shape[1:])
+
+
+class ShiftedAverage:
+    """A simulated series read by the instrument at any offset, its running integral built
+    once: :func:`align_simulated` for many offsets of the same series at O(stamps) each.
+
+    Parameters
+    ----------
+    t_sim, y_sim
+        Simulated series, as for :func:`interval_average` (``y_sim`` ``(m,)`` or ``(m, c)``;
+        put it through :func:`first_order_lag` first for a meter that smooths).
+    window_s
+        Instrument averaging window [s] (0: point samples).
+    stamp
+        Where the instrument stamps its window (:data:`STAMPS`).
+
+    Raises
+    ------
+    DataError
+        On malformed arrays, a negative window or an unknown stamp.
+    """
+
+    def __init__(self, t_sim: ArrayLike, y_sim: ArrayLike, *, window_s: float,
+                 stamp: str = 'end'):
+        t, y = _series(t_sim, y_sim, 'sim')
+        if not (math.isfinite(window_s) and window_s >= 0.0):
+            msg = f'window_s must be a finite number >= 0, got {window_s!r}'
+            raise DataError(msg, file='<arrays>', column='window_s')
+        self._shift = stamp_shift(window_s, stamp)
+        self._window = float(window_s)
+        self._prefix = _Prefix(t, y)
+
+    def at(self, t_meas: np.ndarray, offset_s: float) -> np.ndarray:
+        """The series on the stamps ``t_meas`` (1-D) at ``offset_s`` [s]: ``(n,)`` or
+        ``(n, c)``, equal to :func:`align_simulated` with the same instrument."""
+        return self._prefix.average(np.asarray(t_meas, dtype=np.float64), self._window,
+                                    moved=(float(offset_s), self._shift))
 
 
 def _correlation(y: np.ndarray, model: np.ndarray) -> np.ndarray:
@@ -744,6 +795,25 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
                         drift_ppm=drift, drift_message=drift_message)
 
 
+def _information_centre(sig: _Signals, sel: slice, lag: float) -> float:
+    """Where on the record a stretch's offset is measured [s]: its stamps weighted by the
+    squared slope of the aligned model (a lag is told by the edges, not by flat stretches;
+    the plain mean of the stamps would put a half whose edges bunch at one end in the
+    wrong place, and the rate between two halves would come out too small)."""
+    t = sig.t_meas[sel]
+    num = den = 0.0
+    for a in range(0, t.size, _EVAL_CHUNK):
+        part = t[a:a + _EVAL_CHUNK + 1]
+        if part.size < 2:
+            break
+        m = sig.prefix.average(part - lag + sig.shift_s, sig.window_s)
+        w = (np.diff(m) / np.diff(part)) ** 2
+        mid = 0.5 * (part[1:] + part[:-1])
+        num += float(np.sum(w * mid))
+        den += float(np.sum(w))
+    return num / den if den > 0.0 else float(np.mean(t))
+
+
 def _drift(sig: _Signals, offset: float, *, step: float, period: float,
            min_duration_s: float, min_correlation: float) -> tuple[float, str]:
     """Clock-rate difference from the offsets of the two halves of the record (ppm)."""
@@ -770,7 +840,7 @@ def _drift(sig: _Signals, offset: float, *, step: float, period: float,
             return math.nan, (f'not estimable: the {name} half correlates only {c:.3f} '
                               f'(below {min_correlation:g})')
         offsets.append(lag)
-        centres.append(float(np.mean(t[sel])))
+        centres.append(_information_centre(sig, sel, lag))
     rate = (offsets[1] - offsets[0]) / (centres[1] - centres[0])
     return 1e6 * rate, (f'{1e6 * rate:+.0f} ppm from the offsets of the two halves '
                         f'({offsets[0]:+.4f} s, {offsets[1]:+.4f} s over '

@@ -32,7 +32,8 @@ from ..machine import load_machine, Machine
 from ..plan import Motion, motion_from_samples, plan
 from ..sim import simulate_motion, simulate_stream, SimulationResult, streamable
 from ..physics import relative_sd_pct, UNCERTAINTY_KEY
-from .align import align_simulated, estimate_offset, first_order_lag, OffsetResult
+from .align import (align_simulated, clock_corrected, estimate_offset, first_order_lag,
+                    OffsetResult)
 from .csvload import load_run
 from .run import MeasuredRun
 from .campaign import Campaign, default_instrument, RunSpec
@@ -51,6 +52,13 @@ __all__ = ['DEFAULT_MAX_LAG_S', 'compare_campaign', 'compare_run']
 
 DEFAULT_MAX_LAG_S = 5.0
 """Largest time offset searched by default, in either direction [s]."""
+MAX_CLOCK_PPM = 500.0
+"""Largest clock rate [ppm] the measured motion's estimate corrects: a meter's quartz is
+within about 100 ppm; a larger rate says the machine ran the program at another pace than
+planned (an override, another planner), which is reported, not hidden in the stamps."""
+MIN_CLOCK_PERIODS = 0.25
+"""A clock rate is corrected only when it moves the stamps at the record's ends by more than
+this many sampling periods: below that the record's own time resolution hides it."""
 
 
 class MotionCache:
@@ -291,9 +299,11 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
                     window_s: float | None, offset_s: float | None, min_correlation: float,
                     floor_fraction: float, stamp: str | None = None,
                     check_meter: bool = True, measured: MeasuredRun | None = None,
-                    filter_s: float | None = None) -> RunComparison:
+                    filter_s: float | None = None,
+                    clock_ppm: float | None = None) -> RunComparison:
     # ``measured``: the run already loaded from ``spec`` (analyze compares each run several
-    # times; a long CSV is parsed once)
+    # times; a long CSV is parsed once). ``clock_ppm``: with a given offset, the clock rate
+    # to correct the stamps for (an earlier comparison's ``clock_ppm``)
     run = load_run(spec) if measured is None else measured
     qty = quantity_of(spec.instrument.measures)
     axes = spec.measured_axes
@@ -311,6 +321,10 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
              else replace(default_instrument(spec.motion_from_data, qty.name),
                           filter_s=spec.instrument.filter_s))
     period = float(np.median(np.diff(run.t), overwrite_input=True))
+    # the stamps on the simulation's clock (the file's, unless the measured motion times a
+    # meter clock that runs fast or slow)
+    t_meas = run.t
+    clock = 0.0
     window = meter.window_for(period) if window_s is None else float(window_s)
     stamp = meter.stamp if stamp is None else stamp
     if window_s is not None or stamp != meter.stamp:
@@ -342,7 +356,11 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
             anchor = _motion_anchor(spec, run, t_sim, vel, motion_axes, max_lag_s=max_lag_s,
                                     min_correlation=min_correlation)
             if anchor is not None and anchor.status == 'ok':
-                found = _refined(anchor, run.t, y_meas, t_sim, y_sim, max_lag_s=max_lag_s,
+                anchor, clock = _on_clock(anchor, spec, run, t_sim, vel, motion_axes,
+                                          max_lag_s=max_lag_s, min_correlation=min_correlation,
+                                          period_s=period)
+                t_meas = clock_corrected(run.t, clock)
+                found = _refined(anchor, t_meas, y_meas, t_sim, y_sim, max_lag_s=max_lag_s,
                                  window_s=window, period_s=period, stamp=stamp,
                                  min_correlation=min_correlation)
             else:
@@ -365,17 +383,19 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         used = float(offset_s)
         found = OffsetResult(used, math.nan, 'fixed', f'offset {used:+.4f} s given by the caller',
                              anchor='given')
-    labels = state_labels(t_sim, vel, run.t, period_s=period, offset_s=used)
+        clock = float(clock_ppm or 0.0)
+        t_meas = clock_corrected(run.t, clock)
+    labels = state_labels(t_sim, vel, t_meas, period_s=period, offset_s=used)
     del vel
-    work = _work_offset(spec, run, t_sim, sim_pos, motion_axes, used)
+    work = _work_offset(spec, run, t_meas, t_sim, sim_pos, motion_axes, used)
     del sim_pos
     try:
         fits: tuple[MeterFit, ...] = ()
         if qty.is_power and check_meter and offset_s is None and found.status != 'weak':
-            fits = check_instrument(run.t, y_meas, t_sim, y_sim,
+            fits = check_instrument(t_meas, y_meas, t_sim, y_sim,
                                     offset_s=used, window_s=window, stamp=stamp,
                                     same_clock=spec.motion_program is None)
-        aligned_q = align_simulated(t_sim, sim_q, run.t, offset_s=used, window_s=window,
+        aligned_q = align_simulated(t_sim, sim_q, t_meas, offset_s=used, window_s=window,
                                     stamp=stamp)
         if qty.is_power:
             meas, aligned = meas_q, aligned_q
@@ -383,7 +403,7 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
             # Table-1 figures of a drive trace: q·g·omega [W] (I·kt·omega for current), both
             # sides with the simulated speed, so that they weigh the unit figures by omega
             assert omega_sim is not None    # a drive trace takes the whole-record path
-            omega = align_simulated(t_sim, omega_sim, run.t, offset_s=used, window_s=window,
+            omega = align_simulated(t_sim, omega_sim, t_meas, offset_s=used, window_s=window,
                                     stamp=stamp)
             g = np.array(gains, dtype=float)
             meas, aligned = meas_q * g * omega, aligned_q * g * omega
@@ -400,12 +420,12 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
     aligned_total = _total(aligned)
     states = residual_by_state(labels, meas_total - aligned_total)
     del labels
-    total = table1_metrics(run.t, meas_total, aligned_total,
+    total = table1_metrics(t_meas, meas_total, aligned_total,
                            columns=('time', f'measured total {word}', f'simulated total {word}'),
                            **where)
     # one measured axis is the total: the same arrays, the same metrics
     per_axis = ({axes[0]: total} if meas.shape[1] == 1 else
-                {a: table1_metrics(run.t, meas[:, j], aligned[:, j],
+                {a: table1_metrics(t_meas, meas[:, j], aligned[:, j],
                                    columns=('time', f'measured {a} {word}',
                                             f'simulated {a} {word}'), **where)
                  for j, a in enumerate(axes)})
@@ -415,7 +435,7 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
     return RunComparison(
         name=spec.name, role=spec.role, load_kg=spec.load_kg, data_file=run.file,
         motion_source=source, axes=axes, window_s=window, offset=found,
-        offset_used_s=used, metrics=total, axis_metrics=per_axis, t=run.t,
+        offset_used_s=used, metrics=total, axis_metrics=per_axis, t=t_meas,
         power_meas_w=meas, power_sim_w=aligned, sim_duration_s=sim_duration,
         excluded_rows=int(run.extra.get('excluded_rows', 0)), stamp=stamp,
         instrument=meter.describe(period), meter_fits=fits, states=states,
@@ -428,16 +448,18 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         sign_warnings=(() if qty.is_power else
                        tuple(sign_warnings(signal, quantity=qty,
                                            invert=spec.instrument.invert))),
-        work_offset=work,
+        work_offset=work, clock_ppm=clock,
     )
 
 
 def _motion_anchor(spec: RunSpec, run: MeasuredRun, t_sim: np.ndarray, vel: np.ndarray,
                    motion_axes: Sequence[str], *, max_lag_s: float,
-                   min_correlation: float) -> OffsetResult | None:
+                   min_correlation: float, t_meas: np.ndarray | None = None,
+                   ) -> OffsetResult | None:
     """The offset from the run's measured motion (:func:`.spatial.motion_anchor`) for a run
     simulated from its program whose record maps velocities or positions of the axes the
-    motion has; else ``None``."""
+    motion has; else ``None``. ``t_meas``: the stamps on a corrected clock (default the
+    file's)."""
     if spec.motion_program is None:
         return None
     axes = [a for a in run.axes if a in motion_axes]
@@ -445,8 +467,42 @@ def _motion_anchor(spec: RunSpec, run: MeasuredRun, t_sim: np.ndarray, vel: np.n
     if v_meas is None:
         return None
     v_sim = np.column_stack([vel[:, list(motion_axes).index(a)] for a in axes])
-    return motion_anchor(run.t, v_meas, t_sim, v_sim, max_lag_s=max_lag_s,
-                         min_correlation=min_correlation)
+    return motion_anchor(run.t if t_meas is None else t_meas, v_meas, t_sim, v_sim,
+                         max_lag_s=max_lag_s, min_correlation=min_correlation)
+
+
+def _on_clock(anchor: OffsetResult, spec: RunSpec, run: MeasuredRun, t_sim: np.ndarray,
+              vel: np.ndarray, motion_axes: Sequence[str], *, max_lag_s: float,
+              min_correlation: float, period_s: float) -> tuple[OffsetResult, float]:
+    """The motion anchor on the simulation's clock, and the clock rate corrected [ppm].
+
+    The measured motion's two halves time the record's clock (:data:`.spatial.
+    MOTION_DRIFT_MIN_S`); a rate within :data:`MAX_CLOCK_PPM` that moves the stamps at the
+    record's ends by more than :data:`MIN_CLOCK_PERIODS` sampling periods is corrected
+    (:func:`.align.clock_corrected`) and the anchor estimated again on the corrected
+    stamps (its offset is the one at the record's middle). Else the anchor as it is, 0.
+    """
+    rate = anchor.drift_ppm
+    if not (math.isfinite(rate) and rate != 0.0):
+        return anchor, 0.0
+    moved = 0.5e-6 * abs(rate) * float(run.t[-1] - run.t[0])
+    if moved <= MIN_CLOCK_PERIODS * period_s:
+        return replace(anchor, drift_message=(
+            f'{anchor.drift_message}; not corrected: it moves the stamps at the record\'s '
+            f'ends by {1e3 * moved:.2f} ms, within {MIN_CLOCK_PERIODS:g} of a sampling '
+            'period')), 0.0
+    if abs(rate) > MAX_CLOCK_PPM:
+        return replace(anchor, drift_message=(
+            f'{anchor.drift_message}; not corrected: beyond {MAX_CLOCK_PPM:g} ppm, no meter '
+            'clock is that far off (the program ran at another pace than planned?)')), 0.0
+    again = _motion_anchor(spec, run, t_sim, vel, motion_axes, max_lag_s=max_lag_s,
+                           min_correlation=min_correlation,
+                           t_meas=clock_corrected(run.t, rate))
+    if again is None or again.status != 'ok':
+        return anchor, 0.0
+    return replace(again, drift_ppm=rate, drift_message=(
+        f'{anchor.drift_message}; corrected: the stamps are put on the simulation\'s clock '
+        f'(measured time - {rate:+.1f} ppm of the time from the record\'s middle)')), rate
 
 
 def _refined(anchor: OffsetResult, t_meas: np.ndarray, y_meas: np.ndarray, t_sim: np.ndarray,
@@ -486,8 +542,9 @@ def _refined(anchor: OffsetResult, t_meas: np.ndarray, y_meas: np.ndarray, t_sim
                         anchor='motion', motion_s=m)
 
 
-def _work_offset(spec: RunSpec, run: MeasuredRun, t_sim: np.ndarray, pos: np.ndarray | None,
-                 motion_axes: Sequence[str], offset_s: float) -> WorkOffset | None:
+def _work_offset(spec: RunSpec, run: MeasuredRun, t_meas: np.ndarray, t_sim: np.ndarray,
+                 pos: np.ndarray | None, motion_axes: Sequence[str],
+                 offset_s: float) -> WorkOffset | None:
     """The work offset of a run simulated from its program whose data has positions
     (machine coordinates) of axes the motion has (:mod:`.spatial`), else ``None``."""
     if spec.motion_program is None or pos is None:
@@ -500,7 +557,7 @@ def _work_offset(spec: RunSpec, run: MeasuredRun, t_sim: np.ndarray, pos: np.nda
         return None
     meas = np.column_stack([measured[:, run.axes.index(a)] for a in axes])
     sim = np.column_stack([pos[:, list(motion_axes).index(a)] for a in axes])
-    return estimate_work_offset(run.t, meas, t_sim, sim, axes=axes, offset_s=offset_s,
+    return estimate_work_offset(t_meas, meas, t_sim, sim, axes=axes, offset_s=offset_s,
                                 declared=dict(spec.work_offset_m) or None)
 
 

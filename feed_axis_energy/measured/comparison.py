@@ -86,7 +86,7 @@ class RunComparison:
     axis_metrics
         Table-1 metrics per axis of ``axes``.
     t
-        Measured stamps [s], shape ``(n,)``.
+        Measured stamps [s], shape ``(n,)``, on the simulation's clock (``clock_ppm``).
     power_meas_w, power_sim_w
         Measured and aligned, interval-averaged simulated power [W], shape ``(n, len(axes))``;
         of a drive trace its power equivalent ``q·g·omega`` with the simulated ``omega``.
@@ -126,6 +126,10 @@ class RunComparison:
         A run simulated from its program whose data has positions: the translation from the
         simulated (program) to the measured (machine) positions at the time offset used
         (:mod:`.spatial`), else ``None``.
+    clock_ppm
+        The record's clock rate [ppm] the stamps ``t`` are corrected for
+        (:func:`.align.clock_corrected`: timed by the measured motion, ``offset.drift_ppm``);
+        0 when the stamps are the file's.
     """
 
     name: str
@@ -157,6 +161,7 @@ class RunComparison:
     sign_warnings: tuple[str, ...] = ()
     work_offset: WorkOffset | None = None
     filter_s: float = 0.0
+    clock_ppm: float = 0.0
 
     def quantity_dict(self) -> dict[str, Any]:
         """The ``quantity`` block of :meth:`to_dict` (docs/compare.md, "Measured quantity")."""
@@ -216,6 +221,7 @@ class RunComparison:
             'excluded_rows': self.excluded_rows,
             'stamp': self.stamp,
             'filter_s': self.filter_s,
+            'clock_ppm': self.clock_ppm,
             'instrument': self.instrument,
             'instrument_check': [f.to_dict() for f in self.meter_fits],
             'residual_by_state': [st.to_dict() for st in self.states],

@@ -9,7 +9,10 @@ effect the model lacks changes the power of a move, never when the move starts, 
 which way it goes, so this offset survives a large missing effect (the power correlation is
 pulled towards a lag that hides it), and the signs tell the up and down strokes of a
 periodic program apart. The power correlation then only refines it, within
-:func:`refine_range_s`: the meter's own lag behind the motion columns.
+:func:`refine_range_s`: the meter's own lag behind the motion columns. The same velocities
+also time the record's clock: the offsets of its two halves differ by the clock's rate
+(``drift_ppm``, on records of at least :data:`MOTION_DRIFT_MIN_S`), which ``compare`` then
+corrects (:func:`.align.clock_corrected`).
 
 **Space (the work offset).**
 
@@ -41,7 +44,8 @@ from .align import estimate_offset, OffsetResult
 from .run import MeasuredRun
 
 __all__ = ['WorkOffset', 'estimate_work_offset', 'TOLERANCE_M', 'motion_anchor',
-           'measured_velocity', 'refine_range_s', 'MIN_REFINE_S', 'MOTION_FEATURE_S']
+           'measured_velocity', 'refine_range_s', 'MIN_REFINE_S', 'MOTION_DRIFT_MIN_S',
+           'MOTION_FEATURE_S']
 
 TOLERANCE_M = 1.0e-3
 """Spread [m] of the positions about the translation up to which it is ``'ok'``."""
@@ -50,6 +54,11 @@ MIN_REFINE_S = 0.25
 MOTION_FEATURE_S = 0.1
 """Lags of the velocities closer than this [s] to the best are the same alignment (the
 shoulders of a broad peak: velocities are smooth), not a rival one."""
+MOTION_DRIFT_MIN_S = 4.0
+"""Shortest record [s] whose clock rate the measured motion estimates (two halves of 2 s:
+a missing effect does not move the velocities, and their edges time them to a few
+microseconds, so a few seconds tell tens of ppm; the power's own estimate needs a minute,
+:data:`.align.DRIFT_MIN_DURATION_S`)."""
 
 
 @dataclass(frozen=True)
@@ -227,4 +236,4 @@ def motion_anchor(t_meas: np.ndarray, v_meas: np.ndarray, t_sim: np.ndarray,
     return estimate_offset(np.asarray(t_meas, dtype=float)[finite], y_meas,
                            np.asarray(t_sim, dtype=float), y_sim, max_lag_s=max_lag_s,
                            window_s=0.0, min_correlation=min_correlation,
-                           feature_s=MOTION_FEATURE_S)
+                           feature_s=MOTION_FEATURE_S, drift_min_duration_s=MOTION_DRIFT_MIN_S)

@@ -50,7 +50,7 @@ def test_json_keys_and_values(manifest, capsys):
     run_b = out['runs'][1]
     assert set(run_b) == {'name', 'role', 'load_kg', 'data_file', 'motion_source', 'axes',
                           'window_s', 'duration_meas_s', 'duration_sim_s', 'excluded_rows',
-                          'stamp', 'filter_s', 'instrument', 'instrument_check',
+                          'stamp', 'filter_s', 'clock_ppm', 'instrument', 'instrument_check',
                           'residual_by_state',
                           'offset', 'work_offset', 'metrics', 'quantity'}
     # positions written from the program's own simulation: no work offset between them

@@ -6,8 +6,8 @@ from numpy.testing import assert_allclose
 import pytest
 
 from feed_axis_energy.errors import DataError
-from feed_axis_energy.measured.align import (align_simulated, estimate_offset, first_order_lag,
-                                             interval_average)
+from feed_axis_energy.measured.align import (align_simulated, clock_corrected, estimate_offset,
+                                             first_order_lag, interval_average)
 
 # piecewise-linear signal: 0 -> 2 on [0, 1], 2 on [1, 2], 2 -> -2 on [2, 4]
 T_PL = np.array([0.0, 1.0, 2.0, 4.0])
@@ -175,6 +175,29 @@ def test_clock_drift_is_estimated_on_a_long_record(ppm):
     y_meas = interval_average(t_sim, y_sim, t_meas - 0.4 - rate * t_meas, window_s=0.05)
     res = estimate_offset(t_meas, y_meas, t_sim, y_sim, max_lag_s=1.0, window_s=0.05)
     assert res.drift_ppm == pytest.approx(ppm, abs=20.0), res.drift_message
+
+
+def test_the_drift_is_timed_where_the_edges_are():
+    # the first half's strokes bunch at its start, the second's at its end: the halves'
+    # offsets are measured 108 s apart, not the 64 s between their mean stamps (which read
+    # +82 ppm for the 50 ppm here)
+    t_sim = np.arange(0.0, 130.0, 0.001)
+    y_sim = (sum(_profile(t_sim - 2.5 * k) for k in range(8))
+             + sum(_profile(t_sim - 106.0 - 2.5 * k) for k in range(8)))
+    t_meas = np.arange(0.0, 128.0, 0.05)
+    rate = 50e-6
+    y_meas = interval_average(t_sim, y_sim, t_meas - 0.4 - rate * t_meas, window_s=0.05)
+    res = estimate_offset(t_meas, y_meas, t_sim, y_sim, max_lag_s=1.0, window_s=0.05)
+    assert res.drift_ppm == pytest.approx(50.0, abs=2.0), res.drift_message
+
+
+def test_clock_corrected_stamps_keep_the_middle_and_undo_the_rate():
+    t = np.arange(0.0, 20.0, 0.05)      # 400 stamps: the middle is 9.975 s
+    c = clock_corrected(t, 100.0)
+    assert 0.5 * (c[0] + c[-1]) == pytest.approx(9.975, abs=1e-12)
+    assert c[0] == pytest.approx(9.975e-4, abs=1e-12)    # 100 ppm of 9.975 s later
+    assert (c[-1] - c[0]) == pytest.approx((t[-1] - t[0]) * (1.0 - 1e-4), rel=1e-12)
+    assert np.array_equal(clock_corrected(t, 0.0), t)
 
 
 def test_drift_on_a_short_record_is_not_estimable():

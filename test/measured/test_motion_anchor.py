@@ -17,7 +17,7 @@ import yaml
 
 from feed_axis_energy.identify.pinning import at_common_lag, motion_lag_s
 from feed_axis_energy.machine import load_machine
-from feed_axis_energy.measured import compare_campaign, load_campaign
+from feed_axis_energy.measured import compare_campaign, load_campaign, load_run
 from feed_axis_energy.measured.run import MeasuredRun
 from feed_axis_energy.measured.spatial import measured_velocity, motion_anchor
 
@@ -129,3 +129,49 @@ def test_measured_velocity_falls_back_to_positions():
     bare = MeasuredRun(name='r', file='f.csv', t=t, axes=('X',), power_axes=('X',),
                        power_w=np.zeros((t.size, 1)), load_kg=0.0)
     assert measured_velocity(bare, ['X']) is None
+
+
+def test_the_motion_times_the_clock_and_compare_corrects_it(matrix, tmp_path, monkeypatch):
+    # clocks up to 400 ppm off on the smooth class's 10 ms meter: the velocities of each
+    # record's halves time its clock; a rate that moves the stamps at the record's ends by
+    # more than a quarter period is corrected (the stamps put on the simulation's clock,
+    # the offset the one at the record's middle), a smaller one reported only
+    tm, tt = matrix.tm, matrix.tt
+    monkeypatch.setattr(tt, 'DRIFT_PPM', 400.0)
+    rates = []
+    record = tm.record
+
+    def spy(state, power, *, meter, **kw):
+        rates.append(meter.drift_ppm)
+        return record(state, power, meter=meter, **kw)
+    monkeypatch.setattr(tm, 'record', spy)
+    axis = tm.read_axis(tt.MACHINE)
+    runs = tt.make_runs(axis)
+    truth = matrix.write_campaign(tmp_path, case='clean', amp=1.0, runs=runs, axis=axis,
+                                  seed=5, cls='smooth')
+    manifest = tmp_path / 'manifest.yaml'
+    result = compare_campaign(load_campaign(manifest))
+    corrected = 0
+    for run, rate in zip(result.runs, rates):
+        assert run.offset.drift_ppm == pytest.approx(rate, rel=0.02, abs=2.0), \
+            run.offset.drift_message
+        raw = load_run(load_campaign(manifest).run(run.name)).t
+        moved = 0.5e-6 * abs(rate) * (raw[-1] - raw[0])
+        if moved > 0.25 * 0.01 + 1e-4:
+            corrected += 1
+            assert run.clock_ppm == run.offset.drift_ppm, run.name
+            assert 'corrected: the stamps' in run.offset.drift_message
+            # the stamps are the file's, moved by the rate times their distance from the
+            # middle, and the motion's offset is the truth's at the record's middle (the
+            # truth's offset includes the meter's 5 ms lag, which the motion does not see)
+            mid = 0.5 * (raw[0] + raw[-1])
+            np.testing.assert_allclose(run.t, raw - 1e-6 * run.clock_ppm * (raw - mid),
+                                       rtol=0.0, atol=1e-12)
+            lag = matrix.SMOOTH.lag_s
+            assert abs(run.offset.motion_s - (truth[run.name] - lag)) < 1e-5, run.name
+        elif moved < 0.25 * 0.01 - 1e-4:
+            assert run.clock_ppm == 0.0 and 'not corrected' in run.offset.drift_message
+            assert np.array_equal(run.t, raw)
+    assert corrected >= 2, rates
+    d = json.loads(json.dumps(result.to_dict(), allow_nan=False))
+    assert [r['clock_ppm'] for r in d['runs']] == [r.clock_ppm for r in result.runs]
