@@ -95,7 +95,6 @@ class _Run:
     t: np.ndarray                   # (m,) bin stamps: the mean of the samples' stamps [s]
     kt: list[float] | None = None   # a drive trace: torque per unit per axis (.driveforms)
     wide: tuple[np.ndarray, float] | None = None    # abutting windows: one per bin (.grid)
-    timing: EffectState | None = None   # the power time_offset shifts (_timing_state)
 
     def aligned(self, cols: np.ndarray, *, filtered: bool = True) -> np.ndarray:
         """Align 1 kHz columns ``(n, c)`` onto the analysis grid: ``(m, c)`` (each bin the
@@ -111,26 +110,8 @@ class _Run:
             window_s=self.cmp.window_s, stamp=self.cmp.stamp, filter_s=filter_s))
 
 
-def _timing_state(state: EffectState, prior: Sequence[FittedEffect]) -> EffectState | None:
-    """The state whose power ``time_offset`` shifts: the declared power plus the effects an
-    earlier round found (``None`` when there are none). A record a fraction of a millisecond
-    off shifts all of the power it holds; with a large effect found, the declared power's
-    derivative alone misses the effect's share, and what it misses has the shape of another
-    effect (``viscous``: ``d(c·v²)/dt = 2c·v·a``, a moved mass)."""
-    extra = np.zeros_like(state.power_w)
-    for e in prior:
-        if e.id == 'time_offset' or e.axis not in state.axes:
-            continue
-        j = state.axes.index(e.axis)
-        extra[:, j] += get_effect(e.id).power_w(state, e.values())[:, j]
-    if not prior or not np.any(extra):
-        return None
-    return replace(state, power_w=state.power_w + extra)
-
-
 def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Machine, *,
-             loaded: Mapping[str, MeasuredRun], period_s: float,
-             prior: Sequence[FittedEffect] = ()) -> list[_Run]:
+             loaded: Mapping[str, MeasuredRun], period_s: float) -> list[_Run]:
     cache = MotionCache(machine)
     out = []
     for r in cmp_runs:
@@ -157,7 +138,6 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Mac
         bins = bins_for(r.t, period_s)
         run = _Run(cmp=r, state=state, sim_index=idx, residual=bins.mean(residual), states={},
                    bins=bins, t=bins.mean(r.t), kt=kt,
-                   timing=_timing_state(state, prior) if kt is None else None,
                    wide=bin_windows(r.t, bins, window_s=r.window_s,
                                     shift_s=stamp_shift(r.window_s, r.stamp)))
         on = run.aligned(np.column_stack(cols), filtered=False)
@@ -181,8 +161,7 @@ def _columns(run: _Run, effect_id: str, axis_j: int, shape: Mapping[str, float])
     out = np.zeros((m, k, p))
     j = run.sim_index[axis_j]
     if j is not None:
-        state = run.timing if effect_id == 'time_offset' and run.timing else run.state
-        basis = effect.basis(state, dict(shape))[:, j, :]
+        basis = effect.basis(run.state, dict(shape))[:, j, :]
         if run.kt is not None:
             basis = current_basis(effect_id, basis, run.state, j, run.kt[axis_j])
         out[:, axis_j, :] = run.aligned(basis)
@@ -648,7 +627,6 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
     w = span[1] - span[0]
     spans = [(span[0], span[0] + 0.7 * w), (span[0] + 0.7 * w, span[0] + 0.9 * w),
              (span[0] + 0.9 * w, span[1])]
-    prior: list[FittedEffect] = []
     for round_no in range(MAX_PIN_ROUNDS):
         lo, hi = spans[min(round_no, len(spans) - 1)]
         _require_pinned(pinned, left, options.holdout, str(campaign.file))
@@ -656,8 +634,7 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
         def scaled(f: float, lo: float = lo, hi: float = hi) -> None:
             report(lo + (hi - lo) * f)
         result, augmented, full_machine = _analyze_round(
-            campaign, machine, machine_file, cmp, pinned, ids, options, scaled, loaded,
-            prior=prior)
+            campaign, machine, machine_file, cmp, pinned, ids, options, scaled, loaded)
         if round_no + 1 == MAX_PIN_ROUNDS:
             break
         refresh = False
@@ -680,14 +657,8 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
                                     lag_s=0.0 if filter_s else _meter_lag_s(
                                         campaign, result, pinned, loaded),
                                     refresh=refresh)
-        # the next round's time_offset shifts the power with these effects in it; when
-        # nothing moved, one more round gives it that chance (a record a fraction of a
-        # millisecond off shifts the effects' power too, and the declared power's
-        # derivative alone leaves that share to a passenger of the effect's derivative)
-        found = [e for e in result.effects + result.offered if e.id != 'time_offset']
-        if not moved and (prior or not found):
+        if not moved:
             break
-        prior = found
     result = replace(result, pin_rounds=round_no + 1, meter_filter_s=filter_s)
     if not left:
         return result
@@ -734,12 +705,9 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
                    cmp: CampaignComparison, cmp_runs: Sequence[RunComparison],
                    ids: tuple[str, ...], options: AnalyzeOptions,
                    report: Callable[[float], None], loaded: Mapping[str, MeasuredRun],
-                   prior: Sequence[FittedEffect] = (),
                    ) -> tuple[AnalysisResult, list[RunComparison], Machine]:
     """One analysis of the runs ``cmp_runs`` at their offsets; also returns the fresh
-    comparisons with the effects found and the machine they were made with. ``prior``: the
-    effects the previous round found (the power ``time_offset`` shifts, :func:`_timing_state`).
-    """
+    comparisons with the effects found and the machine they were made with."""
     # copper and iron as corrections of declared drives (motor-terminal meters, .drivecorr)
     measures = common_measures(campaign.run(r.name).instrument.measures for r in cmp_runs)
     drive = [r for r in cmp_runs if not quantity_of(r.measures).is_power]
@@ -752,7 +720,7 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     if options.noise_w is None:
         options = replace(options, noise_w=declared_noise(campaign, cmp_runs))
     data = _prepare(campaign, cmp_runs, machine, loaded=loaded,
-                    period_s=options.analysis_period_s, prior=prior)
+                    period_s=options.analysis_period_s)
     axes = cmp_runs[0].axes
     if any(r.cmp.axes != axes for r in data):
         msg = 'analyze needs the same measured axes in every run'

@@ -278,9 +278,7 @@ class AnalysisResult:
         (``noise_sigma_w``) and of the diagnostics: ``'W'``, or ``'A'`` on current traces
         (:mod:`.driveforms`).
     pin_rounds
-        Analysis rounds with offsets estimated anew after the effects found (1: none moved
-        and none found; a round that found effects and moved nothing is followed by one
-        whose ``time_offset`` shifts the power with them in it).
+        Analysis rounds with offsets estimated anew after the effects found (1: none moved).
     analysis_period_s, samples_per_bin
         The analysis grid (:mod:`.grid`): the period asked for [s] and, per run name, how
         many measured samples each bin averages (1: the samples themselves). Noise levels,
