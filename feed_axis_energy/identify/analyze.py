@@ -674,14 +674,13 @@ def _meter_lag_s(campaign: Campaign, result: AnalysisResult,
     smaller ones and motion-anchored runs are pinned; else ``None`` (:func:`.pinning.repin`
     then takes the lag of the comparisons with every effect found)."""
     anchored = [r.name for r in pinned if r.offset.anchor == 'motion']
-    every = result.effects + result.offered
-    big = tuple(e for e in every if e.share_of_residual >= LAG_MIN_SHARE)
-    if not anchored or len(big) == len(every):
+
+    def big(found: Sequence[FittedEffect]) -> tuple[FittedEffect, ...]:
+        return tuple(e for e in found if e.share_of_residual >= LAG_MIN_SHARE)
+    effects, offered = big(result.effects), big(result.offered)
+    if not anchored or len(effects) + len(offered) == len(result.effects + result.offered):
         return None
-    keep = {id(e) for e in big}
-    machine = replace(result, effects=tuple(e for e in result.effects if id(e) in keep),
-                      offered=tuple(e for e in result.offered if id(e) in keep),
-                      ).augmented_machine()
+    machine = replace(result, effects=effects, offered=offered).augmented_machine()
     return motion_lag_s(realigned_runs(campaign, machine, anchored, loaded=loaded))
 
 

@@ -207,12 +207,11 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
                 and a.offset.anchor == 'motion'):
             target = a.offset.motion_s + lag
             if refresh or abs(target - run.offset_used_s) > lag_tolerance_s(run):
-                cmp = _compared_at(campaign, declared, run.name, target, cache, max_lag_s,
-                                   loaded, clock_ppm=a.clock_ppm)
-                out.append(replace(cmp, offset=replace(a.offset, offset_s=target, message=(
-                    f'{a.offset.message}; used at the common meter lag behind the motion '
-                    f'found with the effects in the model, {1e3 * lag:+.1f} ms: '
-                    f'{target:+.4f} s (was {run.offset_used_s:+.4f} s)'))))
+                out.append(_moved(
+                    campaign, declared, a, target, cache, max_lag_s, loaded,
+                    note=(f'used at the common meter lag behind the motion found with the '
+                          f'effects in the model, {1e3 * lag:+.1f} ms: {target:+.4f} s (was '
+                          f'{run.offset_used_s:+.4f} s)')))
                 moved.append(run.name)
             else:
                 out.append(run)
@@ -294,12 +293,9 @@ def at_common_lag(campaign: Campaign, declared: Machine, runs: Sequence[RunCompa
         if abs(run.offset_used_s - target) <= lag_tolerance_s(run):
             out.append(run)
             continue
-        cmp = _compared_at(campaign, declared, run.name, target, cache, max_lag_s, loaded,
-                           clock_ppm=run.clock_ppm)
-        offset = replace(o, offset_s=target, message=(
-            f'{o.message}; used at the campaign\'s common meter lag behind the motion, '
-            f'{1e3 * lag:+.1f} ms: {target:+.4f} s'))
-        out.append(replace(cmp, offset=offset))
+        out.append(_moved(campaign, declared, run, target, cache, max_lag_s, loaded, note=(
+            f'used at the campaign\'s common meter lag behind the motion, '
+            f'{1e3 * lag:+.1f} ms: {target:+.4f} s')))
     return out
 
 
@@ -320,10 +316,8 @@ def at_offsets(campaign: Campaign, declared: Machine, runs: Sequence[RunComparis
         if target is None or abs(target - run.offset_used_s) <= lag_tolerance_s(run):
             out.append(run)
             continue
-        cmp = _compared_at(campaign, declared, run.name, float(target), cache, max_lag_s,
-                           loaded, clock_ppm=run.clock_ppm)
-        out.append(replace(cmp, offset=replace(run.offset, offset_s=float(target), message=(
-            f'{run.offset.message}; used at {float(target):+.4f} s, {why}'))))
+        out.append(_moved(campaign, declared, run, float(target), cache, max_lag_s, loaded,
+                          note=f'used at {float(target):+.4f} s, {why}'))
     return out
 
 
@@ -338,6 +332,17 @@ def _compared_at(campaign: Campaign, declared: Machine, name: str, offset_s: flo
                            window_s=None, offset_s=offset_s, min_correlation=0.5,
                            floor_fraction=0.05, check_meter=False,
                            measured=(loaded or {}).get(name), clock_ppm=clock_ppm)
+
+
+def _moved(campaign: Campaign, declared: Machine, run: RunComparison, target: float,
+           cache: MotionCache, max_lag_s: float,
+           loaded: Mapping[str, MeasuredRun] | None, *, note: str) -> RunComparison:
+    """The declared model's comparison of ``run`` at ``target`` [s] (on its clock), its
+    offset estimate kept with ``offset_s`` the target and ``note`` added to its message."""
+    cmp = _compared_at(campaign, declared, run.name, target, cache, max_lag_s, loaded,
+                       clock_ppm=run.clock_ppm)
+    return replace(cmp, offset=replace(run.offset, offset_s=target,
+                                       message=f'{run.offset.message}; {note}'))
 
 
 def _at_offset(campaign: Campaign, declared: Machine, name: str, found: RunComparison,

@@ -369,17 +369,11 @@ def align_simulated(t_sim: ArrayLike, y_sim: ArrayLike, t_meas: ArrayLike, *,
         ``interval_average(t_sim, first_order_lag(t_sim, y_sim, filter_s), t_meas - offset_s
         + shift, window_s=window_s)`` with ``shift`` from :func:`stamp_shift`.
     """
-    shift = stamp_shift(window_s, stamp)
-    t_sim, y_sim = _series(t_sim, y_sim, 'sim')
-    if not (math.isfinite(window_s) and window_s >= 0.0):
-        msg = f'window_s must be a finite number >= 0, got {window_s!r}'
-        raise DataError(msg, file='<arrays>', column='window_s')
     if filter_s:
         y_sim = first_order_lag(t_sim, y_sim, filter_s)
     tau = np.asarray(t_meas, dtype=np.float64)
-    out = _Prefix(t_sim, y_sim).average(tau.ravel(), float(window_s),
-                                        moved=(float(offset_s), shift))
-    return out.reshape(tau.shape + y_sim.shape[1:])
+    series = ShiftedAverage(t_sim, y_sim, window_s=window_s, stamp=stamp)
+    return series.at(tau.ravel(), offset_s).reshape(tau.shape + np.shape(y_sim)[1:])
 
 
 class ShiftedAverage:
