@@ -193,7 +193,9 @@ def trial(case: str, cls: str, runs: list[tt.Run], axis: tm.AxisData, seed: int,
             'aligned_runs': len(errors), 'left_out': sorted(left),
             'largest_error_s': max((abs(e) for e in errors.values()), default=0.0),
             'meter_filter_s': float(getattr(res, 'meter_filter_s', 0.0)),
-            'aligned_with': getattr(res, 'aligned_with', None)}
+            'aligned_with': getattr(res, 'aligned_with', None),
+            'sim_rate_hz': float(getattr(res, 'sim_rate_hz', 0.0)),
+            'augmented_rate_hz': float(res.augmented_machine().planner.rate_hz)}
 
 
 def run_cells(cells: list[tuple[str, str]], seeds: range, *, log=None) -> list[dict]:

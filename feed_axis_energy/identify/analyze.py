@@ -42,8 +42,8 @@ from ..physics import state_from_simulation
 from ..machine import load_machine, Machine, machine_warnings, observed_range, RangeUse
 from ..errors import ConfigError
 from ..measured import (align_simulated, Campaign, CampaignComparison, compare_campaign,
-                        first_order_lag, load_run, MeasuredRun, Metrics, MotionCache,
-                        offset_dict, predicted_signal, quantity_of, RunComparison,
+                        first_order_lag, load_run, MAX_FILTER_S, MeasuredRun, Metrics,
+                        MotionCache, offset_dict, predicted_signal, quantity_of, RunComparison,
                         simulate_declared, stamp_shift)
 from .alternatives import check_alternatives
 from .ambiguity import find_groups, found_text
@@ -52,8 +52,8 @@ from .diagnostics import diagnose_runs, noise_level, NoiseLevel
 from .grid import bin_windows, Bins, bins_for
 from .jointalign import (JOINT_STEP_S, joint_screen, JointFit, MAX_SCREEN_COLUMNS,
                          ScreenCandidate, ScreenRun, screen_span)
-from .pinning import (at_common_lag, at_offsets, lag_tolerance_s, LeftOut, left_out_text,
-                      MAX_PIN_ROUNDS, motion_lag_s, repin, split_pinned)
+from .pinning import (at_common_lag, at_motion_offsets, at_offsets, lag_tolerance_s, LeftOut,
+                      left_out_text, MAX_PIN_ROUNDS, motion_lag_s, repin, split_pinned)
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -78,6 +78,22 @@ the trace of that very lag: a fraction of a millisecond has the shape of a moved
 JOINT_MIN_GAIN = 0.05
 """Relative drop of the screen's residual that makes a candidate's offsets a start of their
 own (:mod:`.jointalign`; with a median move of at least one coarse step)."""
+
+STEP_MAX_CHI2 = 4.0
+"""The most the simulation's sampling may put into the campaign's residual, as a sum of
+squares over the noise variance (:func:`_sim_rate`): below the one-parameter tests' limits,
+so that no candidate can be fitted to the simulation's own numerics."""
+FILTER_TOLERANCE = 0.1
+"""A meter filter's time constant is estimated anew after a round when its step
+(:func:`_filter_step`) exceeds this share of a run's offset tolerance
+(:func:`.pinning.lag_tolerance_s`: a thousandth of a sampling period): a filter a few
+microseconds off leaves the derivative of the found effects' power, the shape of a moved
+mass on a large speed-dependent loss."""
+MAX_OVERSAMPLING = 8
+"""Largest factor by which the analysis raises the planner's ``rate_hz``."""
+MAX_SIM_SAMPLES = 1_000_000
+"""Largest number of simulated samples per run the raised rate may give (memory and time
+stay those of a drive trace at the planner's rate)."""
 
 __all__ = ['analyze_campaign']
 
@@ -402,6 +418,13 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     loaded = {spec.name: load_run(spec) for spec in selected}
     cmp = compare_campaign(campaign, machine=machine, runs=runs,
                            progress=lambda f: report(0.3 * f), loaded=loaded)
+    declared = machine
+    factor, chi2 = _sim_rate(cmp.runs, machine)
+    if factor > 1:
+        # data this precise resolve the simulation's sampling: the analysis simulates finer
+        machine = replace(machine, planner=replace(
+            machine.planner, rate_hz=factor * machine.planner.rate_hz))
+        cmp = compare_campaign(campaign, machine=machine, runs=runs, loaded=loaded)
     # runs aligned on their measured motion start at the motion's offset, the meter's lag
     # behind it found only with the effects in the model (:mod:`.pinning`); when that start
     # leaves the residual unsettled and the power's own lags say otherwise, the analysis is
@@ -468,7 +491,46 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
                     f'declared model were pulled by a median {1e3 * fit.median_move_s:.1f} '
                     f'ms; BIC {d:.1f} against {a:.1f} from those lags)'))
     report(1.0)
+    result = replace(result, machine=declared, sim_rate_hz=machine.planner.rate_hz)
+    if factor > 1:
+        result = replace(result, message=(
+            f'{result.message}; simulated at {machine.planner.rate_hz:g} Hz, {factor} times '
+            f'the planner\'s rate_hz: at {declared.planner.rate_hz:g} Hz its sampling would '
+            f'put a sum of squares of {chi2:.3g} noise variances into the residual, which '
+            'these data resolve'))
     return result
+
+
+def _sim_rate(runs: Sequence[RunComparison], machine: Machine) -> tuple[int, float]:
+    """The factor by which the analysis raises the planner's rate, and the residual sum of
+    squares over the noise variance that the declared rate's sampling gives.
+
+    Each run's comparison estimates what the sampling puts into the meter's readings
+    (``step_error``, falling with the square of the step); against each axis's white noise
+    (:func:`.diagnostics.noise_level` of its baseline residual) it adds
+    ``n·(step_error/sigma)²``. The factor is the smallest power of two that brings the sum
+    to :data:`STEP_MAX_CHI2` (the sum falls with its fourth power), at most
+    :data:`MAX_OVERSAMPLING` and :data:`MAX_SIM_SAMPLES` per run.
+    """
+    chi2 = 0.0
+    for r in runs:
+        meas = r.power_meas_w if r.signal_meas is None else r.signal_meas
+        sim = r.power_sim_w if r.signal_sim is None else r.signal_sim
+        for j, axis in enumerate(r.axes):
+            err = float(r.step_error.get(axis, 0.0))
+            if not (err > 0.0 and math.isfinite(err)):
+                continue
+            sigma = noise_level([meas[:, j] - sim[:, j]]).white_w
+            if not math.isfinite(sigma):
+                continue
+            chi2 += meas.shape[0] * (err / max(sigma, 1e-12 * err)) ** 2
+    rate = machine.planner.rate_hz
+    longest = max((r.sim_duration_s for r in runs), default=0.0)
+    factor = 1
+    while (chi2 / factor ** 4 > STEP_MAX_CHI2 and 2 * factor <= MAX_OVERSAMPLING
+           and 2 * factor * rate * longest <= MAX_SIM_SAMPLES):
+        factor *= 2
+    return factor, chi2
 
 
 def _joint_eligible(campaign: Campaign, runs: Sequence[RunComparison]) -> bool:
@@ -581,6 +643,29 @@ def _fitted_delay_s(result: AnalysisResult) -> float | None:
     return float(np.mean(deltas)) if deltas else None
 
 
+def _filter_step(runs: Sequence[RunComparison], filter_s: float) -> float | None:
+    """The change of a meter filter's time constant [s] that the comparisons' residuals ask
+    for: one Gauss-Newton step, least squares over the motion-anchored runs (each run's mean
+    free) on the derivative of what the meter reads with respect to the time constant.
+
+    The meter reads ``A[F_tau P]`` (window ``A``, first-order filter ``F_tau``); since
+    ``dF_tau/dtau = -s·F_tau²``, that derivative is ``-d/dt F_tau[A F_tau P]``: the aligned
+    simulated trace through the filter once more, differentiated on the stamps. ``None``
+    without a motion-anchored run of three stamps or with a flat trace."""
+    num = den = 0.0
+    for r in runs:
+        if r.offset.anchor != 'motion' or r.t.size < 3:
+            continue
+        y = r.total_sim_w
+        basis = -np.gradient(first_order_lag(r.t, y, filter_s), r.t)
+        res = r.total_meas_w - y
+        basis = basis - basis.mean()
+        res = res - res.mean()
+        num += float(basis @ res)
+        den += float(basis @ basis)
+    return num / den if den > 0.0 else None
+
+
 def _with_filter(campaign: Campaign, filter_s: float) -> Campaign:
     """The campaign read through meters that smooth with a first-order ``filter_s`` [s]."""
     return replace(campaign, runs=tuple(
@@ -639,14 +724,17 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
             break
         refresh = False
         if filter_s:
-            # a meter that smooths: the lag left with the effects in the model goes into the
-            # filter's time constant (the time_offset fitted beside them, a least-squares
-            # delay, else the comparisons' median lag), the runs stay at the motion's offset
-            delta = _fitted_delay_s(result)
-            if delta is None and full_machine is not machine:
-                delta = motion_lag_s(augmented)
-            if delta is not None and pinned and abs(delta) > lag_tolerance_s(pinned[0]):
-                filter_s = max(filter_s + delta, 0.0)
+            # a meter that smooths: its time constant is estimated anew with the effects in
+            # the model (a Gauss-Newton step on the comparisons at the motion's offsets:
+            # a delay fitted beside the effects, on the derivative of the declared power
+            # alone, overshot by a fifth and left passengers), the runs stay at the motion's
+            # offsets
+            model = _timing_model(result) or full_machine
+            delta = _filter_step(at_motion_offsets(campaign, model, pinned, loaded=loaded),
+                                 filter_s)
+            if (delta is not None and pinned
+                    and abs(delta) > FILTER_TOLERANCE * lag_tolerance_s(pinned[0])):
+                filter_s = min(max(filter_s + delta, 0.0), MAX_FILTER_S)
                 campaign = _with_filter(campaign, filter_s)
                 refresh = True
         if full_machine is machine and not refresh:
@@ -670,18 +758,29 @@ def _meter_lag_s(campaign: Campaign, result: AnalysisResult,
                  pinned: Sequence[RunComparison],
                  loaded: Mapping[str, MeasuredRun]) -> float | None:
     """The meter's lag behind the motion [s] with only the effects that explain at least
-    :data:`LAG_MIN_SHARE` of the baseline residual in the model, when the round also found
-    smaller ones and motion-anchored runs are pinned; else ``None`` (:func:`.pinning.repin`
-    then takes the lag of the comparisons with every effect found)."""
+    :data:`LAG_MIN_SHARE` of the baseline residual in the model (:func:`_timing_model`),
+    when the round also found smaller ones and motion-anchored runs are pinned; else
+    ``None`` (:func:`.pinning.repin` then takes the lag of the comparisons with every
+    effect found)."""
     anchored = [r.name for r in pinned if r.offset.anchor == 'motion']
+    machine = _timing_model(result)
+    if not anchored or machine is None:
+        return None
+    return motion_lag_s(realigned_runs(campaign, machine, anchored, loaded=loaded))
 
+
+def _timing_model(result: AnalysisResult) -> Machine | None:
+    """The augmented machine with only the effects and offers that explain at least
+    :data:`LAG_MIN_SHARE` of the baseline residual: what the meter's timing (its lag, its
+    filter) is estimated with, since a passenger that explains less may be the trace of
+    that very timing (a fraction of a millisecond has the shape of a moved mass); ``None``
+    when every effect found is that large (the round's augmented machine is the model)."""
     def big(found: Sequence[FittedEffect]) -> tuple[FittedEffect, ...]:
         return tuple(e for e in found if e.share_of_residual >= LAG_MIN_SHARE)
     effects, offered = big(result.effects), big(result.offered)
-    if not anchored or len(effects) + len(offered) == len(result.effects + result.offered):
+    if len(effects) + len(offered) == len(result.effects + result.offered):
         return None
-    machine = replace(result, effects=effects, offered=offered).augmented_machine()
-    return motion_lag_s(realigned_runs(campaign, machine, anchored, loaded=loaded))
+    return replace(result, effects=effects, offered=offered).augmented_machine()
 
 
 def _require_pinned(pinned: Sequence[RunComparison], left: Sequence[LeftOut], holdout: str,

@@ -58,7 +58,7 @@ from ..measured import (Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MeasuredRu
 
 __all__ = ['PINNED_STATUSES', 'MAX_PIN_ROUNDS', 'PIN_MARGIN', 'LeftOut', 'split_pinned',
            'decisive', 'repin', 'left_out_text', 'motion_lag_s',
-           'at_common_lag', 'at_offsets', 'lag_tolerance_s']
+           'at_common_lag', 'at_motion_offsets', 'at_offsets', 'lag_tolerance_s']
 
 PINNED_STATUSES = ('ok', 'fixed')
 """Offset statuses a fit may use."""
@@ -319,6 +319,20 @@ def at_offsets(campaign: Campaign, declared: Machine, runs: Sequence[RunComparis
         out.append(_moved(campaign, declared, run, float(target), cache, max_lag_s, loaded,
                           note=f'used at {float(target):+.4f} s, {why}'))
     return out
+
+
+def at_motion_offsets(campaign: Campaign, machine: Machine, runs: Sequence[RunComparison], *,
+                      loaded: Mapping[str, MeasuredRun] | None = None) -> list[RunComparison]:
+    """``machine``'s comparisons of the motion-anchored ``runs`` at exactly their motion's
+    offsets (on their clocks), every one made anew; other runs are left out.
+
+    What a meter's own timing is estimated on (a comparison kept within
+    :func:`lag_tolerance_s` of its target may still be a few microseconds off it)."""
+    cache = MotionCache(machine)
+    return [_moved(campaign, machine, run, float(run.offset.motion_s), cache,
+                   DEFAULT_MAX_LAG_S, loaded, note='compared at the motion\'s offset')
+            for run in runs
+            if run.offset.anchor == 'motion' and math.isfinite(run.offset.motion_s)]
 
 
 def _compared_at(campaign: Campaign, declared: Machine, name: str, offset_s: float,

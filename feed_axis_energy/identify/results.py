@@ -305,6 +305,10 @@ class AnalysisResult:
         in the model (records of the power alone, :mod:`.jointalign`): ``{'effect', 'axis',
         'median_move_s'}`` (the median distance [s] from the power's own lags); else
         ``None``.
+    sim_rate_hz
+        The rate [Hz] the analysis simulated at: the planner's ``rate_hz``, or a multiple of
+        it when the data resolve what the simulation's sampling changes in the meter's
+        readings (:func:`.analyze._sim_rate`); 0 when not set.
     """
 
     status: str
@@ -336,6 +340,7 @@ class AnalysisResult:
     pin_rounds: int = 1
     meter_filter_s: float = 0.0
     aligned_with: dict[str, Any] | None = None
+    sim_rate_hz: float = 0.0
     residual_unit: str = 'W'
     analysis_period_s: float = ANALYSIS_PERIOD_S
     samples_per_bin: dict[str, int] = field(default_factory=dict)
@@ -436,6 +441,7 @@ class AnalysisResult:
             'pin_rounds': self.pin_rounds,
             'meter_filter_s': self.meter_filter_s,
             'aligned_with': None if self.aligned_with is None else dict(self.aligned_with),
+            'sim_rate_hz': self.sim_rate_hz,
             'analysis_grid': {'period_s': self.analysis_period_s,
                               'samples_per_bin': dict(self.samples_per_bin)},
             'residual_unit': self.residual_unit,

@@ -33,7 +33,7 @@ from ..plan import Motion, motion_from_samples, plan
 from ..sim import simulate_motion, simulate_stream, SimulationResult, streamable
 from ..physics import relative_sd_pct, UNCERTAINTY_KEY
 from .align import (align_simulated, clock_corrected, estimate_offset, first_order_lag,
-                    OffsetResult)
+                    OffsetResult, step_error_rms)
 from .csvload import load_run
 from .run import MeasuredRun
 from .campaign import Campaign, default_instrument, RunSpec
@@ -56,9 +56,10 @@ MAX_CLOCK_PPM = 500.0
 """Largest clock rate [ppm] the measured motion's estimate corrects: a meter's quartz is
 within about 100 ppm; a larger rate says the machine ran the program at another pace than
 planned (an override, another planner), which is reported, not hidden in the stamps."""
-MIN_CLOCK_PERIODS = 0.25
+MIN_CLOCK_PERIODS = 1.0e-3
 """A clock rate is corrected only when it moves the stamps at the record's ends by more than
-this many sampling periods: below that the record's own time resolution hides it."""
+this many sampling periods (the tolerance a motion-anchored offset is kept to): below that
+no comparison can tell."""
 
 
 class MotionCache:
@@ -331,6 +332,9 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         meter = replace(meter, window_s=window, stamp=stamp, declared=True)
     if filter_s is not None and filter_s != meter.filter_s:
         meter = replace(meter, filter_s=float(filter_s), declared=True)
+    # every second simulated sample, unfiltered: the same simulation at half its rate, to
+    # estimate what the simulation's own sampling changes in what the meter reads
+    t_half, q_half = t_sim[::2], sim_q[::2]
     if meter.filter_s:
         # the meter's own smoothing: what it would read, on the simulation's time base (the
         # offset search, the meter check and the comparison all see the filtered signal)
@@ -397,6 +401,9 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
                                     same_clock=spec.motion_program is None)
         aligned_q = align_simulated(t_sim, sim_q, t_meas, offset_s=used, window_s=window,
                                     stamp=stamp)
+        step_error = step_error_rms(t_half, q_half, t_meas, aligned_q, offset_s=used,
+                                    window_s=window, stamp=stamp, filter_s=meter.filter_s)
+        del t_half, q_half
         if qty.is_power:
             meas, aligned = meas_q, aligned_q
         else:
@@ -449,6 +456,7 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
                        tuple(sign_warnings(signal, quantity=qty,
                                            invert=spec.instrument.invert))),
         work_offset=work, clock_ppm=clock,
+        step_error={a: float(e) for a, e in zip(axes, step_error)},
     )
 
 

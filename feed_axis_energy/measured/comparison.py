@@ -130,6 +130,10 @@ class RunComparison:
         The record's clock rate [ppm] the stamps ``t`` are corrected for
         (:func:`.align.clock_corrected`: timed by the measured motion, ``offset.drift_ppm``);
         0 when the stamps are the file's.
+    step_error
+        Per measured axis, the estimated RMS error that the simulation's sampling step puts
+        into what the meter reads, in the trace's unit (:func:`.align.step_error_rms`; it
+        shrinks with the square of the step, ``planner.rate_hz``).
     """
 
     name: str
@@ -162,6 +166,7 @@ class RunComparison:
     work_offset: WorkOffset | None = None
     filter_s: float = 0.0
     clock_ppm: float = 0.0
+    step_error: dict[str, float] = field(default_factory=dict)
 
     def quantity_dict(self) -> dict[str, Any]:
         """The ``quantity`` block of :meth:`to_dict` (docs/compare.md, "Measured quantity")."""
@@ -222,6 +227,7 @@ class RunComparison:
             'stamp': self.stamp,
             'filter_s': self.filter_s,
             'clock_ppm': self.clock_ppm,
+            'sim_step_error': dict(self.step_error),
             'instrument': self.instrument,
             'instrument_check': [f.to_dict() for f in self.meter_fits],
             'residual_by_state': [st.to_dict() for st in self.states],

@@ -50,6 +50,11 @@ def test_json_out_machine_and_report(manifest, tmp_path, capsys) -> None:
     assert len(d['before']['runs']) == 4
     m = load_machine(out_machine)
     assert m.effects[0].id == 'load_friction'
+    # the rate the analysis simulated at (a power-of-two multiple of the planner's); the
+    # augmented machine keeps the declared rate
+    declared = load_machine(manifest.parent / 'machine.yaml').planner.rate_hz
+    assert d['sim_rate_hz'] / declared in (1, 2, 4, 8)
+    assert m.planner.rate_hz == declared
     assert d['out_machine'] == str(out_machine)
     index = Path(d['report'])
     html = index.read_text()

@@ -50,9 +50,16 @@ def test_json_keys_and_values(manifest, capsys):
     run_b = out['runs'][1]
     assert set(run_b) == {'name', 'role', 'load_kg', 'data_file', 'motion_source', 'axes',
                           'window_s', 'duration_meas_s', 'duration_sim_s', 'excluded_rows',
-                          'stamp', 'filter_s', 'clock_ppm', 'instrument', 'instrument_check',
+                          'stamp', 'filter_s', 'clock_ppm', 'sim_step_error', 'instrument',
+                          'instrument_check',
                           'residual_by_state',
                           'offset', 'work_offset', 'metrics', 'quantity'}
+    # what the planner's sampling changes in the meter's readings, per axis [W]: small
+    # against the signal, never NaN
+    step = run_b['sim_step_error']
+    assert set(step) == set(run_b['axes']) == {'X', 'Y'}
+    for axis, err in step.items():
+        assert 0.0 <= err < 0.01 * run_b['metrics'][axis]['rmse_w'] + 0.01, (axis, err)
     # positions written from the program's own simulation: no work offset between them
     w = run_b['work_offset']
     assert w['status'] == 'ok' and w['declared_m'] is None

@@ -7,7 +7,8 @@ import pytest
 
 from feed_axis_energy.errors import DataError
 from feed_axis_energy.measured.align import (align_simulated, clock_corrected, estimate_offset,
-                                             first_order_lag, interval_average)
+                                             first_order_lag, interval_average,
+                                             step_error_rms)
 
 # piecewise-linear signal: 0 -> 2 on [0, 1], 2 on [1, 2], 2 -> -2 on [2, 4]
 T_PL = np.array([0.0, 1.0, 2.0, 4.0])
@@ -309,3 +310,32 @@ def test_a_filtered_meter_is_read_through_its_filter_not_a_delay():
     assert_allclose(filtered, meas, atol=1e-12)
     delayed = align_simulated(t, y, stamps, offset_s=tau, window_s=0.0)
     assert np.sqrt(np.mean((delayed - meas) ** 2)) > 1e-3
+
+
+@pytest.mark.parametrize('filter_s', [0.0, 0.005])
+@pytest.mark.parametrize('window_s', [0.01, 0.05])
+def test_step_error_estimate_matches_the_error_against_a_fine_simulation(filter_s, window_s):
+    # a smooth part, kinks between the samples (|sin|) and curvature: what the 1 ms
+    # sampling changes in the meter's readings, against the same signal sampled 64 times
+    # finer; the estimate is the half-rate reading's difference / 3 (the error goes with h^2)
+    def sig(t):
+        return (40 * np.sin(2 * np.pi * 1.3 * t) + 25 * np.abs(np.sin(2 * np.pi * 0.77 * t + 0.1))
+                + 3 * t ** 2)
+    h = 1e-3
+    t_sim = np.arange(0.0, 6.0 + h / 2, h)
+    t_fine = np.arange(0.0, 6.0 + h / 128, h / 64)
+    t_meas = np.arange(0.2, 5.8, 0.01) + 0.0037
+    kw = {'offset_s': 0.0, 'window_s': window_s, 'filter_s': filter_s}
+    full = align_simulated(t_sim, sig(t_sim), t_meas, **kw)
+    truth = align_simulated(t_fine, sig(t_fine), t_meas, **kw)
+    actual = float(np.sqrt(np.mean((full - truth) ** 2)))
+    est = step_error_rms(t_sim[::2], sig(t_sim)[::2], t_meas, full, **kw)
+    assert est.shape == () and actual > 1e-4
+    assert float(est) == pytest.approx(actual, rel=0.1)
+    # columns, and a straight line, which the samples carry exactly
+    line = np.column_stack([2.0 * t_sim, sig(t_sim)])
+    both = align_simulated(t_sim, line, t_meas, **kw)
+    est2 = step_error_rms(t_sim[::2], line[::2], t_meas, both, **kw)
+    assert est2.shape == (2,) and est2[0] < 1e-9 and est2[1] == pytest.approx(float(est))
+    # nothing to estimate from: zeros, not NaN
+    assert step_error_rms(t_sim[:1], line[:1], t_meas, both, **kw).tolist() == [0.0, 0.0]
