@@ -56,6 +56,10 @@ MAX_CLOCK_PPM = 500.0
 """Largest clock rate [ppm] the measured motion's estimate corrects: a meter's quartz is
 within about 100 ppm; a larger rate says the machine ran the program at another pace than
 planned (an override, another planner), which is reported, not hidden in the stamps."""
+STEP_SAMPLES = 1_000_000
+"""Simulated samples (from the run's start) over which a comparison estimates what the
+simulation's sampling changes in the meter's readings (``RunComparison.step_error``): an
+RMS over a representative stretch, its memory bounded for runs of any length."""
 MIN_CLOCK_PERIODS = 1.0e-3
 """A clock rate is corrected only when it moves the stamps at the record's ends by more than
 this many sampling periods (the tolerance a motion-anchored offset is kept to): below that
@@ -332,9 +336,11 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         meter = replace(meter, window_s=window, stamp=stamp, declared=True)
     if filter_s is not None and filter_s != meter.filter_s:
         meter = replace(meter, filter_s=float(filter_s), declared=True)
-    # every second simulated sample, unfiltered: the same simulation at half its rate, to
-    # estimate what the simulation's own sampling changes in what the meter reads
-    t_half, q_half = t_sim[::2], sim_q[::2]
+    # every second simulated sample, unfiltered, over at most STEP_SAMPLES of them: the same
+    # simulation at half its rate, to estimate what the simulation's own sampling changes in
+    # what the meter reads (copies: a long run's full trace is not kept for it)
+    step_end = min(t_sim.size, STEP_SAMPLES)
+    t_half, q_half = t_sim[:step_end:2].copy(), sim_q[:step_end:2].copy()
     if meter.filter_s:
         # the meter's own smoothing: what it would read, on the simulation's time base (the
         # offset search, the meter check and the comparison all see the filtered signal)
@@ -401,9 +407,14 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
                                     same_clock=spec.motion_program is None)
         aligned_q = align_simulated(t_sim, sim_q, t_meas, offset_s=used, window_s=window,
                                     stamp=stamp)
-        step_error = step_error_rms(t_half, q_half, t_meas, aligned_q, offset_s=used,
-                                    window_s=window, stamp=stamp, filter_s=meter.filter_s)
-        del t_half, q_half
+        # the stamps whose readings lie inside that stretch of the simulation
+        inside = (((t_meas - used >= t_half[0] + 2.0 * window + meter.filter_s)
+                   & (t_meas - used <= t_half[-1] - 2.0 * window)) if t_half.size > 1
+                  else np.zeros(t_meas.shape, dtype=bool))
+        step_error = step_error_rms(t_half, q_half, t_meas[inside], aligned_q[inside],
+                                    offset_s=used, window_s=window, stamp=stamp,
+                                    filter_s=meter.filter_s)
+        del t_half, q_half, inside
         if qty.is_power:
             meas, aligned = meas_q, aligned_q
         else:

@@ -111,9 +111,11 @@ def table1_metrics(t: ArrayLike, p_meas: ArrayLike, p_sim: ArrayLike, *,
     t = np.asarray(t, dtype=np.float64)
     pm = np.asarray(p_meas, dtype=np.float64)
     ps = np.asarray(p_sim, dtype=np.float64)
-    row_of = np.arange(1, t.size + 1) if rows is None else np.asarray(rows).reshape(-1)
-    if row_of.shape != t.shape:
-        row_of = np.arange(1, t.size + 1)
+    given = None if rows is None else np.asarray(rows).reshape(-1)
+
+    def row_of(i: int) -> int:
+        # the file's data row of sample i (1-based sample numbers when rows do not fit)
+        return int(given[i]) if given is not None and given.shape == t.shape else i + 1
     for name, arr in zip(columns, (t, pm, ps)):
         if arr.ndim != 1 or arr.shape != t.shape or arr.size < 2:
             msg = f'expected shape ({t.size},) with at least 2 samples, got {arr.shape}'
@@ -121,18 +123,24 @@ def table1_metrics(t: ArrayLike, p_meas: ArrayLike, p_sim: ArrayLike, *,
         bad = np.flatnonzero(~np.isfinite(arr))
         if bad.size:
             raise DataError('not a finite number', file=file, column=name,
-                            row=int(row_of[bad[0]]))
+                            row=row_of(int(bad[0])))
     bad = np.flatnonzero(np.diff(t) <= 0.0)
     if bad.size:
         raise DataError('time must increase strictly', file=file, column=columns[0],
-                        row=int(row_of[bad[0] + 1]))
+                        row=row_of(int(bad[0]) + 1))
     if not (0.0 < floor_fraction < 1.0):
         msg = f'floor_fraction must lie in (0, 1), got {floor_fraction!r}'
         raise DataError(msg, file=file, column='floor_fraction')
-    err = np.abs(pm - ps)
-    floor = floor_fraction * float(np.max(np.abs(pm)))
-    above = (np.abs(pm) >= floor) & (np.abs(pm) > 0.0)
-    pct = 100.0 * err[above] / np.abs(pm[above])
+    # in place where it can be: a long run's temporaries are the size of the run
+    err = pm - ps
+    np.abs(err, out=err)
+    size = np.abs(pm)
+    floor = floor_fraction * float(np.max(size))
+    above = (size >= floor) & (size > 0.0)
+    pct = err[above]
+    pct /= size[above]
+    pct *= 100.0
+    del size, above
     e_meas = float(np.trapezoid(pm, t))
     e_sim = float(np.trapezoid(ps, t))
     return Metrics(
@@ -143,7 +151,7 @@ def table1_metrics(t: ArrayLike, p_meas: ArrayLike, p_sim: ArrayLike, *,
         max_diff_error_w=float(err.max()),
         avg_pct_error_pct=float(pct.mean()) if pct.size else math.nan,
         max_pct_error_pct=float(pct.max()) if pct.size else math.nan,
-        rmse_w=float(np.sqrt(np.mean(err * err))),
+        rmse_w=math.sqrt(float(err @ err) / err.size),
         energy_meas_j=e_meas,
         energy_sim_j=e_sim,
         energy_error_j=e_sim - e_meas,

@@ -435,16 +435,22 @@ def signal_metrics(meas: np.ndarray, sim: np.ndarray, *, quantity: Quantity) -> 
         raise DataError('a value is not finite', file='<metrics>')
     err = sim - meas
     ss_res = float(err @ err)
+    bias = float(err.mean())
+    np.abs(err, out=err)
+    mae, max_abs = float(err.mean()), float(err.max())
+    del err         # a long run's temporaries are the size of the run: one or two at a time
     dm = meas - meas.mean()
     ss_tot = float(dm @ dm)
     ds = sim - sim.mean()
-    den = math.sqrt(ss_tot * float(ds @ ds))
+    ss_sim = float(ds @ ds)
+    cross = float(dm @ ds)
+    del dm, ds
+    den = math.sqrt(ss_tot * ss_sim)
     return SignalMetrics(
         unit=quantity.unit, key=quantity.key, n_samples=int(meas.size),
-        rmse=math.sqrt(ss_res / meas.size), mae=float(np.mean(np.abs(err))),
-        max_abs_error=float(np.max(np.abs(err))), bias=float(err.mean()),
+        rmse=math.sqrt(ss_res / meas.size), mae=mae, max_abs_error=max_abs, bias=bias,
         r2=1.0 - ss_res / ss_tot if ss_tot > 0.0 else math.nan,
-        correlation=float(dm @ ds) / den if den > 0.0 else math.nan,
+        correlation=cross / den if den > 0.0 else math.nan,
         rms_meas=math.sqrt(float(meas @ meas) / meas.size), ss_res=ss_res, ss_tot=ss_tot)
 
 
