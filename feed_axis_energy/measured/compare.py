@@ -408,9 +408,9 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         aligned_q = align_simulated(t_sim, sim_q, t_meas, offset_s=used, window_s=window,
                                     stamp=stamp)
         # the stamps whose readings lie inside that stretch of the simulation
-        inside = (((t_meas - used >= t_half[0] + 2.0 * window + meter.filter_s)
-                   & (t_meas - used <= t_half[-1] - 2.0 * window)) if t_half.size > 1
-                  else np.zeros(t_meas.shape, dtype=bool))
+        # (a simulation has a first sample: sim_duration above reads it)
+        inside = ((t_meas - used >= t_half[0] + 2.0 * window + meter.filter_s)
+                  & (t_meas - used <= t_half[-1] - 2.0 * window))
         step_error = step_error_rms(t_half, q_half, t_meas[inside], aligned_q[inside],
                                     offset_s=used, window_s=window, stamp=stamp,
                                     filter_s=meter.filter_s)

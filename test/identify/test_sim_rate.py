@@ -83,7 +83,8 @@ def test_one_filter_step_takes_a_time_constant_most_of_the_way():
     assert step is not None and abs(guess + step - truth) < 0.15 * 30e-6, step
     guess += step
     assert abs(guess + _filter_step(runs_at(guess), guess) - truth) < 1e-6
-    meas, sim = runs_at(guess)[0].total_meas_w, runs_at(guess)[0].total_sim_w
+    last = runs_at(guess)[0]
+    meas, sim = last.total_meas_w, last.total_sim_w
     # runs aligned on the power only: nothing to step on
     power = [SimpleNamespace(offset=SimpleNamespace(anchor='power'), t=t_meas,
                              total_sim_w=sim, total_meas_w=meas)]
