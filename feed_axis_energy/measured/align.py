@@ -695,7 +695,8 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
                     min_correlation: float = 0.5, ambiguity_margin: float = 0.1,
                     grid_step_s: float | None = None, candidates: int = 8,
                     drift_min_duration_s: float = DRIFT_MIN_DURATION_S,
-                    feature_s: float | None = None) -> OffsetResult:
+                    feature_s: float | None = None,
+                    period_s: float | None = None) -> OffsetResult:
     """Find the time offset of the measured record: global search, candidates, residual.
 
     1. *Grid*: the measured signal is correlated with the instrument-averaged simulation
@@ -749,6 +750,9 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
         How far [s] a candidate must lie from the winner to count as another alignment
         (step 4); default one feature width (the window or period, at least two grid
         steps). A smooth signal (velocities) has a broad peak: pass its width.
+    period_s
+        The median step of ``t_meas`` [s] when the caller knows it already (a long record's
+        steps are then not formed again); default computed.
 
     Returns
     -------
@@ -773,8 +777,12 @@ def estimate_offset(t_meas: ArrayLike, y_meas: ArrayLike, t_sim: ArrayLike, y_si
     if grid_step_s is not None and not (math.isfinite(grid_step_s) and grid_step_s > 0.0):
         msg = f'grid_step_s must be a finite number > 0, got {grid_step_s!r}'
         raise DataError(msg, file='<arrays>', column='grid_step_s')
+    if period_s is not None and not (math.isfinite(period_s) and period_s > 0.0):
+        msg = f'period_s must be a finite number > 0, got {period_s!r}'
+        raise DataError(msg, file='<arrays>', column='period_s')
     # the steps' median in place (no second copy), before the prefix sums are built
-    period = float(np.median(np.diff(t_meas), overwrite_input=True))
+    period = (float(np.median(np.diff(t_meas), overwrite_input=True)) if period_s is None
+              else float(period_s))
     sig = _Signals(t_meas, y_meas, t_sim, y_sim, float(window_s), stamp_shift(window_s, stamp))
     width = min(period, window_s) if window_s > 0.0 else period
     step = 0.25 * width if grid_step_s is None else float(grid_step_s)

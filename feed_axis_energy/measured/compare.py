@@ -158,7 +158,15 @@ def _whole_trace(spec: RunSpec, run: MeasuredRun, machine: Machine, cache: Motio
              else omega_columns(sim, spec.measured_axes))
     return SimTrace(sim.power.t, _predicted(spec, sim, machine, gains, run), omega,
                     sim.motion.vel, source, relative_sd_pct(sim, spec.measured_axes),
-                    pos=sim.motion.pos, motion_axes=tuple(sim.motion.axes))
+                    pos=sim.motion.pos if _records_position(run) else None,
+                    motion_axes=tuple(sim.motion.axes))
+
+
+def _records_position(run: MeasuredRun) -> bool:
+    """Whether the record has positions for :func:`_work_offset` to compare the simulated
+    ones with: else a trace does not keep them (a long run's positions are as large as its
+    velocities)."""
+    return run.position_m is not None or run.command_position_m is not None
 
 
 class _Growing:
@@ -187,12 +195,13 @@ class _Growing:
 
 
 def _streamed_trace(spec: RunSpec, program: Path, machine: Machine,
-                    expected_s: float) -> SimTrace:
+                    expected_s: float, keep_pos: bool = True) -> SimTrace:
     """The run's program simulated chunk by chunk, keeping only what :class:`SimTrace` holds.
 
     Equal to the whole-record simulation (``simulate_stream``'s contract) in a fraction of
     its memory: a whole simulation holds some 30 arrays per sample, the trace 2 + 2 per axis.
-    ``expected_s`` (the measured record's length) sizes the buffers.
+    ``expected_s`` (the measured record's length) sizes the buffers; ``keep_pos``: whether
+    the positions are kept (only a record with positions uses them).
     """
     capacity = int(machine.planner.rate_hz * (expected_s + 60.0)) + 1
     t = _Growing(capacity, ())
@@ -207,10 +216,11 @@ def _streamed_trace(spec: RunSpec, program: Path, machine: Machine,
         p.add(_predicted(spec, chunk, machine, None))
         if v is None or x is None:
             v = _Growing(capacity, chunk.motion.vel.shape[1:])
-            x = _Growing(capacity, chunk.motion.pos.shape[1:])
+            x = _Growing(capacity if keep_pos else 0, chunk.motion.pos.shape[1:])
             names.append(tuple(chunk.motion.axes))
         v.add(chunk.motion.vel)
-        x.add(chunk.motion.pos)
+        if keep_pos:
+            x.add(chunk.motion.pos)
 
     moves = iter_moves(program, start=spec.motion_start_m or (0.0, 0.0, 0.0),
                        **machine.gcode_keywords())
@@ -221,7 +231,8 @@ def _streamed_trace(spec: RunSpec, program: Path, machine: Machine,
         raise DataError(msg, file=str(program))
     return SimTrace(t.array(), p.array(), None, v.array(), str(program),
                     _summary_sd_pct(summary, spec.measured_axes),
-                    pos=None if x is None else x.array(), motion_axes=names[0])
+                    pos=x.array() if keep_pos and x is not None else None,
+                    motion_axes=names[0])
 
 
 def _summary_sd_pct(summary: dict[str, Any], axes: Sequence[str]) -> float:
@@ -251,7 +262,7 @@ def simulate_trace(spec: RunSpec, run: MeasuredRun, machine: Machine, cache: Mot
     if (quantity_of(spec.instrument.measures).is_power and spec.motion_program is not None
             and streamable(machine)):
         return _streamed_trace(spec, spec.motion_program, machine,
-                               float(run.t[-1] - run.t[0]))
+                               float(run.t[-1] - run.t[0]), keep_pos=_records_position(run))
     return _whole_trace(spec, run, machine, cache, gains)
 
 
@@ -376,7 +387,7 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
             else:
                 found = estimate_offset(run.t, y_meas, t_sim, y_sim,
                                         max_lag_s=max_lag_s, window_s=window, stamp=stamp,
-                                        min_correlation=min_correlation)
+                                        min_correlation=min_correlation, period_s=period)
                 if anchor is not None:
                     found = replace(found, motion_s=anchor.offset_s, message=(
                         f'{found.message} (the measured motion does not pin it: '
@@ -404,17 +415,19 @@ def compare_one_run(spec: RunSpec, machine: Machine, cache: MotionCache, *, max_
         if qty.is_power and check_meter and offset_s is None and found.status != 'weak':
             fits = check_instrument(t_meas, y_meas, t_sim, y_sim,
                                     offset_s=used, window_s=window, stamp=stamp,
-                                    same_clock=spec.motion_program is None)
+                                    same_clock=spec.motion_program is None,
+                                    period_s=period)
         aligned_q = align_simulated(t_sim, sim_q, t_meas, offset_s=used, window_s=window,
                                     stamp=stamp)
-        # the stamps whose readings lie inside that stretch of the simulation
-        # (a simulation has a first sample: sim_duration above reads it)
-        inside = ((t_meas - used >= t_half[0] + 2.0 * window + meter.filter_s)
-                  & (t_meas - used <= t_half[-1] - 2.0 * window))
-        step_error = step_error_rms(t_half, q_half, t_meas[inside], aligned_q[inside],
+        # the stamps whose readings lie inside that stretch of the simulation (a simulation
+        # has a first sample: sim_duration above reads it); the stamps increase, so the
+        # stretch is one slice (views: no run-sized mask or copies)
+        first = int(np.searchsorted(t_meas, used + t_half[0] + 2.0 * window + meter.filter_s))
+        stop = int(np.searchsorted(t_meas, used + t_half[-1] - 2.0 * window, side='right'))
+        step_error = step_error_rms(t_half, q_half, t_meas[first:stop], aligned_q[first:stop],
                                     offset_s=used, window_s=window, stamp=stamp,
                                     filter_s=meter.filter_s)
-        del t_half, q_half, inside
+        del t_half, q_half
         if qty.is_power:
             meas, aligned = meas_q, aligned_q
         else:
@@ -536,7 +549,8 @@ def _refined(anchor: OffsetResult, t_meas: np.ndarray, y_meas: np.ndarray, t_sim
     m = float(anchor.offset_s)
     reach = min(refine_range_s(window_s, period_s), max_lag_s)
     fine = estimate_offset(t_meas - m, y_meas, t_sim, y_sim, max_lag_s=reach,
-                           window_s=window_s, stamp=stamp, min_correlation=min_correlation)
+                           window_s=window_s, stamp=stamp, min_correlation=min_correlation,
+                           period_s=period_s)
     head = (f'aligned on the measured motion at {m:+.4f} s (velocity correlation '
             f'{anchor.peak_correlation:.3f})')
     if fine.status in ('ok', 'ambiguous'):

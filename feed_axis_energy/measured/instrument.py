@@ -88,7 +88,8 @@ class MeterFit:
 
 def check_instrument(t_meas: np.ndarray, y_meas: np.ndarray, t_sim: np.ndarray,
                      y_sim: np.ndarray, *, offset_s: float, window_s: float,
-                     stamp: str, same_clock: bool = False) -> tuple[MeterFit, ...]:
+                     stamp: str, same_clock: bool = False,
+                     period_s: float | None = None) -> tuple[MeterFit, ...]:
     """Fit the declared meter and the alternatives near ``offset_s`` (or near 0).
 
     Parameters
@@ -105,13 +106,16 @@ def check_instrument(t_meas: np.ndarray, y_meas: np.ndarray, t_sim: np.ndarray,
         The simulation runs on the data's own stamps (motion from the data): offsets are
         searched within :data:`SAME_CLOCK_REACH` periods of zero and the stamp positions of
         :data:`SAME_CLOCK_ALTERNATIVES` are tried.
+    period_s
+        The median step of ``t_meas`` [s] when the caller knows it; default computed.
 
     Returns
     -------
     tuple of MeterFit
         The declared meter first, then the alternatives that differ from it.
     """
-    period = float(np.median(np.diff(t_meas)))
+    period = (float(np.median(np.diff(t_meas), overwrite_input=True)) if period_s is None
+              else float(period_s))
     meters = [('declared', float(window_s), stamp)]
     for label, periods, s in (SAME_CLOCK_ALTERNATIVES if same_clock else ALTERNATIVES):
         w = periods * period
@@ -121,12 +125,14 @@ def check_instrument(t_meas: np.ndarray, y_meas: np.ndarray, t_sim: np.ndarray,
             continue
         meters.append((label, w, s))
     centre = 0.0 if same_clock else offset_s
+    # the stamps about the centre, once for every meter (a long record's copy)
+    t_centred = t_meas - centre if centre else t_meas
     out = []
     for label, w, s in meters:
         reach = SAME_CLOCK_REACH * period if same_clock else 2.0 * period + w
-        res = estimate_offset(t_meas - centre, y_meas, t_sim, y_sim, max_lag_s=reach,
+        res = estimate_offset(t_centred, y_meas, t_sim, y_sim, max_lag_s=reach,
                               window_s=w, stamp=s, candidates=2,
-                              drift_min_duration_s=math.inf)
+                              drift_min_duration_s=math.inf, period_s=period)
         out.append(MeterFit(label, w, s, centre + res.offset_s, res.rms_w,
                             int(t_meas.size), reach, same_clock))
     return tuple(out)

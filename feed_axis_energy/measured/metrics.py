@@ -28,7 +28,10 @@ from numpy.typing import ArrayLike
 
 from ..errors import DataError
 
-__all__ = ['Metrics', 'group_metrics', 'table1_metrics']
+__all__ = ['CHUNK', 'Metrics', 'group_metrics', 'table1_metrics']
+
+CHUNK = 1 << 18
+"""Samples a metric evaluates at once: a long run's temporaries are this size, not the run's."""
 
 
 @dataclass(frozen=True)
@@ -120,38 +123,57 @@ def table1_metrics(t: ArrayLike, p_meas: ArrayLike, p_sim: ArrayLike, *,
         if arr.ndim != 1 or arr.shape != t.shape or arr.size < 2:
             msg = f'expected shape ({t.size},) with at least 2 samples, got {arr.shape}'
             raise DataError(msg, file=file, column=name)
-        bad = np.flatnonzero(~np.isfinite(arr))
-        if bad.size:
-            raise DataError('not a finite number', file=file, column=name,
-                            row=row_of(int(bad[0])))
-    bad = np.flatnonzero(np.diff(t) <= 0.0)
-    if bad.size:
-        raise DataError('time must increase strictly', file=file, column=columns[0],
-                        row=row_of(int(bad[0]) + 1))
     if not (0.0 < floor_fraction < 1.0):
         msg = f'floor_fraction must lie in (0, 1), got {floor_fraction!r}'
         raise DataError(msg, file=file, column='floor_fraction')
-    # in place where it can be: a long run's temporaries are the size of the run
-    err = pm - ps
-    np.abs(err, out=err)
-    size = np.abs(pm)
-    floor = floor_fraction * float(np.max(size))
-    above = (size >= floor) & (size > 0.0)
-    pct = err[above]
-    pct /= size[above]
-    pct *= 100.0
-    del size, above
-    e_meas = float(np.trapezoid(pm, t))
-    e_sim = float(np.trapezoid(ps, t))
+    n = t.size
+    # two passes of bounded chunks: a long run's temporaries are a chunk, not the run
+    peak = 0.0
+    for a in range(0, n, CHUNK):
+        for name, arr in zip(columns, (t, pm, ps)):
+            bad = np.flatnonzero(~np.isfinite(arr[a:a + CHUNK]))
+            if bad.size:
+                raise DataError('not a finite number', file=file, column=name,
+                                row=row_of(a + int(bad[0])))
+        # a chunk's steps and the one into it from the chunk before
+        bad = np.flatnonzero(np.diff(t[max(a - 1, 0):a + CHUNK]) <= 0.0)
+        if bad.size:
+            raise DataError('time must increase strictly', file=file, column=columns[0],
+                            row=row_of(max(a - 1, 0) + int(bad[0]) + 1))
+        peak = max(peak, float(np.max(np.abs(pm[a:a + CHUNK]))))
+    floor = floor_fraction * peak
+    n_pct = 0
+    err_sum = err_max = err_sq = pct_sum = 0.0
+    pct_max = -math.inf
+    e_meas = e_sim = 0.0
+    for a in range(0, n, CHUNK):
+        err = pm[a:a + CHUNK] - ps[a:a + CHUNK]
+        np.abs(err, out=err)
+        err_sum += float(err.sum())
+        err_max = max(err_max, float(err.max()))
+        err_sq += float(err @ err)
+        size = np.abs(pm[a:a + CHUNK])
+        above = (size >= floor) & (size > 0.0)
+        pct = err[above]
+        pct /= size[above]
+        pct *= 100.0
+        if pct.size:
+            n_pct += int(pct.size)
+            pct_sum += float(pct.sum())
+            pct_max = max(pct_max, float(pct.max()))
+        # the trapezoids up to the next chunk's first sample
+        part = slice(a, min(a + CHUNK + 1, n))
+        e_meas += float(np.trapezoid(pm[part], t[part]))
+        e_sim += float(np.trapezoid(ps[part], t[part]))
     return Metrics(
-        n_samples=int(t.size),
-        n_pct_samples=int(pct.size),
+        n_samples=int(n),
+        n_pct_samples=n_pct,
         duration_s=float(t[-1] - t[0]),
-        avg_diff_error_w=float(err.mean()),
-        max_diff_error_w=float(err.max()),
-        avg_pct_error_pct=float(pct.mean()) if pct.size else math.nan,
-        max_pct_error_pct=float(pct.max()) if pct.size else math.nan,
-        rmse_w=math.sqrt(float(err @ err) / err.size),
+        avg_diff_error_w=err_sum / n,
+        max_diff_error_w=err_max,
+        avg_pct_error_pct=pct_sum / n_pct if n_pct else math.nan,
+        max_pct_error_pct=pct_max if n_pct else math.nan,
+        rmse_w=math.sqrt(err_sq / n),
         energy_meas_j=e_meas,
         energy_sim_j=e_sim,
         energy_error_j=e_sim - e_meas,

@@ -51,6 +51,7 @@ import numpy as np
 from ..errors import ConfigError, DataError
 from ..physics import AxisDynamics, holding_force, HoldState, REST_SPEED_M_S
 from ..units import GRAVITY_M_S2
+from .metrics import CHUNK
 
 if TYPE_CHECKING:       # types only: the manifest reader imports this module, not the simulation
     from ..machine import Machine
@@ -139,6 +140,12 @@ def measured_signal(run: Any, *, measures: str, axes: Sequence[str],
     invert
         Axes whose trace counts the other way (``instrument.invert``): negated.
 
+    Returns
+    -------
+    numpy.ndarray
+        A new array; or, when the trace is the run's own power columns as they are, a
+        read-only view of them (a long run is not copied).
+
     Raises
     ------
     DataError
@@ -155,6 +162,14 @@ def measured_signal(run: Any, *, measures: str, axes: Sequence[str],
     if missing:
         msg = f'run {run.name!r} has no {q.column} column for axis {missing[0]}'
         raise DataError(msg, file=run.file)
+    if (q.is_power and axes and not missing and not any(a in invert for a in axes)
+            and isinstance(run.power_w, np.ndarray) and run.power_w.dtype == np.float64):
+        index = [run.power_axes.index(a) for a in axes]
+        if index == list(range(index[0], index[0] + len(index))):
+            # the run's own columns: a read-only view, no copy of a long run
+            view = run.power_w[:, index[0]:index[0] + len(index)]
+            view.flags.writeable = False
+            return view
     out = np.column_stack([np.asarray(c, dtype=float) for c in cols])
     for j, a in enumerate(axes):
         if a in invert:
@@ -431,27 +446,38 @@ def signal_metrics(meas: np.ndarray, sim: np.ndarray, *, quantity: Quantity) -> 
     if meas.shape != sim.shape or meas.ndim != 1 or meas.size < 2:
         msg = f'expected two equal (n,) arrays, n >= 2; got {meas.shape} and {sim.shape}'
         raise DataError(msg, file='<metrics>')
-    if not (np.isfinite(meas).all() and np.isfinite(sim).all()):
-        raise DataError('a value is not finite', file='<metrics>')
-    err = sim - meas
-    ss_res = float(err @ err)
-    bias = float(err.mean())
-    np.abs(err, out=err)
-    mae, max_abs = float(err.mean()), float(err.max())
-    del err         # a long run's temporaries are the size of the run: one or two at a time
-    dm = meas - meas.mean()
-    ss_tot = float(dm @ dm)
-    ds = sim - sim.mean()
-    ss_sim = float(ds @ ds)
-    cross = float(dm @ ds)
-    del dm, ds
+    n = meas.size
+    # two passes of bounded chunks (a long run's temporaries are a chunk, not the run): the
+    # means, then the sums about them
+    sum_m = sum_s = 0.0
+    for a in range(0, n, CHUNK):
+        m, s = meas[a:a + CHUNK], sim[a:a + CHUNK]
+        if not (np.isfinite(m).all() and np.isfinite(s).all()):
+            raise DataError('a value is not finite', file='<metrics>')
+        sum_m += float(m.sum())
+        sum_s += float(s.sum())
+    mean_m, mean_s = sum_m / n, sum_s / n
+    ss_res = bias = mae = max_abs = ss_tot = ss_sim = cross = ss_meas = 0.0
+    for a in range(0, n, CHUNK):
+        m, s = meas[a:a + CHUNK], sim[a:a + CHUNK]
+        err = s - m
+        ss_res += float(err @ err)
+        bias += float(err.sum())
+        np.abs(err, out=err)
+        mae += float(err.sum())
+        max_abs = max(max_abs, float(err.max()))
+        ss_meas += float(m @ m)
+        dm, ds = m - mean_m, s - mean_s
+        ss_tot += float(dm @ dm)
+        ss_sim += float(ds @ ds)
+        cross += float(dm @ ds)
     den = math.sqrt(ss_tot * ss_sim)
     return SignalMetrics(
-        unit=quantity.unit, key=quantity.key, n_samples=int(meas.size),
-        rmse=math.sqrt(ss_res / meas.size), mae=mae, max_abs_error=max_abs, bias=bias,
+        unit=quantity.unit, key=quantity.key, n_samples=int(n),
+        rmse=math.sqrt(ss_res / n), mae=mae / n, max_abs_error=max_abs, bias=bias / n,
         r2=1.0 - ss_res / ss_tot if ss_tot > 0.0 else math.nan,
         correlation=cross / den if den > 0.0 else math.nan,
-        rms_meas=math.sqrt(float(meas @ meas) / meas.size), ss_res=ss_res, ss_tot=ss_tot)
+        rms_meas=math.sqrt(ss_meas / n), ss_res=ss_res, ss_tot=ss_tot)
 
 
 def pool_signal_metrics(items: Sequence[SignalMetrics]) -> SignalMetrics:

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from feed_axis_energy.errors import DataError
-from feed_axis_energy.measured.metrics import group_metrics, table1_metrics
+from feed_axis_energy.measured.metrics import CHUNK, group_metrics, table1_metrics
 
 T1 = [0.0, 1.0, 2.0, 3.0]
 MEAS1 = [0.0, 100.0, 200.0, 100.0]
@@ -83,3 +83,47 @@ def test_bad_arrays_are_named(t, meas, sim, column, row):
     with pytest.raises(DataError) as info:
         table1_metrics(t, meas, sim)
     assert info.value.column == column and info.value.row == row
+
+
+def _long_run(seed=3):
+    # two and a half chunks of irregular stamps: the sums cross chunk boundaries
+    rng = np.random.default_rng(seed)
+    n = 2 * CHUNK + CHUNK // 2
+    t = np.cumsum(rng.uniform(0.5e-3, 1.5e-3, n))
+    meas = 200.0 * np.sin(3.0 * t) + rng.normal(0.0, 5.0, n)
+    sim = meas + rng.normal(1.0, 3.0, n)
+    return t, meas, sim
+
+
+def test_chunked_sums_equal_whole_array_formulas():
+    t, meas, sim = _long_run()
+    m = table1_metrics(t, meas, sim)
+    err = np.abs(meas - sim)
+    floor = 0.05 * np.max(np.abs(meas))
+    above = np.abs(meas) >= floor
+    pct = 100.0 * err[above] / np.abs(meas[above])
+    assert m.n_samples == t.size and m.n_pct_samples == int(above.sum())
+    assert m.avg_diff_error_w == pytest.approx(err.mean(), rel=1e-12)
+    assert m.max_diff_error_w == err.max()
+    assert m.rmse_w == pytest.approx(np.sqrt(np.mean(err ** 2)), rel=1e-12)
+    assert m.avg_pct_error_pct == pytest.approx(pct.mean(), rel=1e-12)
+    assert m.max_pct_error_pct == pytest.approx(pct.max(), rel=1e-14)
+    # the trapezoids bridging the chunks are counted once each
+    assert m.energy_meas_j == pytest.approx(np.trapezoid(meas, t), rel=1e-12, abs=1e-9)
+    assert m.energy_sim_j == pytest.approx(np.trapezoid(sim, t), rel=1e-12, abs=1e-9)
+
+
+@pytest.mark.parametrize('where', ['inside', 'boundary'])
+def test_a_late_bad_sample_names_its_row(where):
+    t, meas, sim = _long_run()
+    i = 2 * CHUNK + 17 if where == 'inside' else 2 * CHUNK
+    t[i] = t[i - 1]                                  # a repeated stamp
+    rows = np.arange(t.size) + 10
+    with pytest.raises(DataError) as info:
+        table1_metrics(t, meas, sim, rows=rows)
+    assert info.value.column == 't' and info.value.row == i + 10
+    t, meas, sim = _long_run()
+    sim[i] = np.inf
+    with pytest.raises(DataError) as info:
+        table1_metrics(t, meas, sim, rows=rows)
+    assert info.value.column == 'p_sim' and info.value.row == i + 10

@@ -17,11 +17,14 @@ import numpy as np
 import pytest
 
 from feed_axis_energy.cli import main
-from feed_axis_energy.errors import ConfigError
+from feed_axis_energy.errors import ConfigError, DataError
 from feed_axis_energy.gcode.load import load_gcode
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.measured.compare import compare_campaign
 from feed_axis_energy.measured.manifest import campaign_from_dict, load_campaign
+from feed_axis_energy.measured.metrics import CHUNK
+from feed_axis_energy.measured.quantity import measured_signal, quantity_of, signal_metrics
+from feed_axis_energy.measured.run import MeasuredRun
 from feed_axis_energy.sim.simulate import simulate_program
 
 MACHINE_YAML = """\
@@ -360,3 +363,41 @@ def test_force_of_a_linear_stand_is_the_axis_force_whatever_the_lead(tmp_path, l
     force = predicted_signal('force', sim, stand, ('X', 'Y'), gains=gains)
     np.testing.assert_allclose(force, sim.dynamics.force_n, rtol=1e-9, atol=1e-9)
     assert np.abs(force[:, 1]).max() > 8.0 * 9.80665 * 0.5 * 0.99     # gravity on Y at 30°
+
+
+def test_signal_metrics_over_several_chunks_equal_whole_array_formulas():
+    rng = np.random.default_rng(5)
+    n = 2 * CHUNK + 1001
+    meas = 3.0 + np.sin(np.linspace(0.0, 40.0, n)) + rng.normal(0.0, 0.1, n)
+    sim = 0.9 * meas + rng.normal(0.2, 0.05, n)
+    m = signal_metrics(meas, sim, quantity=quantity_of('current'))
+    err = sim - meas
+    assert m.n_samples == n and m.unit == 'A'
+    assert m.rmse == pytest.approx(np.sqrt(np.mean(err ** 2)), rel=1e-12)
+    assert m.bias == pytest.approx(err.mean(), rel=1e-10)
+    assert m.mae == pytest.approx(np.abs(err).mean(), rel=1e-12)
+    assert m.max_abs_error == np.abs(err).max()
+    assert m.r2 == pytest.approx(1.0 - np.sum(err ** 2) / np.sum((meas - meas.mean()) ** 2),
+                                 rel=1e-12)
+    assert m.correlation == pytest.approx(np.corrcoef(meas, sim)[0, 1], rel=1e-12)
+    assert m.rms_meas == pytest.approx(np.sqrt(np.mean(meas ** 2)), rel=1e-12)
+    sim[n - 5] = np.nan
+    with pytest.raises(DataError, match='not finite'):
+        signal_metrics(meas, sim, quantity=quantity_of('current'))
+
+
+def test_measured_power_is_a_read_only_view_unless_it_must_change():
+    t = np.arange(5) * 1e-3
+    power = np.arange(15.0).reshape(5, 3)
+    run = MeasuredRun(name='r', file='r.csv', t=t, axes=('X', 'Y', 'Z'),
+                      power_axes=('X', 'Y', 'Z'), power_w=power, load_kg=0.0)
+    view = measured_signal(run, measures='shaft', axes=('Y', 'Z'))
+    assert np.shares_memory(view, power) and not view.flags.writeable
+    np.testing.assert_array_equal(view, power[:, 1:])
+    # out of order or inverted: a new array, the run untouched
+    swapped = measured_signal(run, measures='shaft', axes=('Z', 'X'))
+    assert not np.shares_memory(swapped, power)
+    np.testing.assert_array_equal(swapped, power[:, [2, 0]])
+    inverted = measured_signal(run, measures='shaft', axes=('X',), invert=('X',))
+    np.testing.assert_array_equal(inverted[:, 0], -power[:, 0])
+    assert power[1, 0] == 3.0
