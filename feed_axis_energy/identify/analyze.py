@@ -89,6 +89,14 @@ FILTER_TOLERANCE = 0.1
 (:func:`.pinning.lag_tolerance_s`: a thousandth of a sampling period): a filter a few
 microseconds off leaves the derivative of the found effects' power, the shape of a moved
 mass on a large speed-dependent loss."""
+FILTER_EXTRA_ROUNDS = 2
+"""Rounds a start with a meter filter may take beyond :data:`.pinning.MAX_PIN_ROUNDS` while
+the filter still moves: the filter and the effects fitted with it converge by turns (each
+round's step leaves some fifth of the filter's error, with alternating sign)."""
+FILTER_MAX_RATIO = 0.5
+"""Largest ratio of two successive filter steps (:func:`_filter_next`) that is taken as the
+rate of that convergence and extrapolated; above it (or of a step that was itself
+extrapolated) the plain step is taken."""
 MAX_OVERSAMPLING = 8
 """Largest factor by which the analysis raises the planner's ``rate_hz``."""
 MAX_SIM_SAMPLES = 1_000_000
@@ -666,6 +674,22 @@ def _filter_step(runs: Sequence[RunComparison], filter_s: float) -> float | None
     return num / den if den > 0.0 else None
 
 
+def _filter_next(delta: float, last: float | None) -> tuple[float, float | None]:
+    """The filter's change [s] from this round's step ``delta`` and the previous plain step
+    ``last``, and the plain step to remember.
+
+    Two plain steps whose ratio ``rho`` lies within (-1, :data:`FILTER_MAX_RATIO`] are taken
+    as a linear convergence (each round leaves ``rho`` of the error): the limit is
+    ``delta / (1 - rho)`` away (Aitken's extrapolation). An extrapolated step is not a
+    plain one: the next step is taken as it is, and the one after may be extrapolated
+    again."""
+    if last is not None and last != 0.0:
+        rho = delta / last
+        if -1.0 < rho <= FILTER_MAX_RATIO:
+            return delta / (1.0 - rho), None
+    return delta, delta
+
+
 def _with_filter(campaign: Campaign, filter_s: float) -> Campaign:
     """The campaign read through meters that smooth with a first-order ``filter_s`` [s]."""
     return replace(campaign, runs=tuple(
@@ -712,7 +736,10 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
     w = span[1] - span[0]
     spans = [(span[0], span[0] + 0.7 * w), (span[0] + 0.7 * w, span[0] + 0.9 * w),
              (span[0] + 0.9 * w, span[1])]
-    for round_no in range(MAX_PIN_ROUNDS):
+    # (a start with a filter may take a few more rounds while only the filter moves)
+    rounds = MAX_PIN_ROUNDS + (FILTER_EXTRA_ROUNDS if filter_s else 0)
+    last_step: float | None = None      # the previous plain filter step, for extrapolation
+    for round_no in range(rounds):
         lo, hi = spans[min(round_no, len(spans) - 1)]
         _require_pinned(pinned, left, options.holdout, str(campaign.file))
 
@@ -720,7 +747,7 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
             report(lo + (hi - lo) * f)
         result, augmented, full_machine = _analyze_round(
             campaign, machine, machine_file, cmp, pinned, ids, options, scaled, loaded)
-        if round_no + 1 == MAX_PIN_ROUNDS:
+        if round_no + 1 == rounds:
             break
         refresh = False
         if filter_s:
@@ -734,9 +761,12 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
                                  filter_s)
             if (delta is not None and pinned
                     and abs(delta) > FILTER_TOLERANCE * lag_tolerance_s(pinned[0])):
-                filter_s = min(max(filter_s + delta, 0.0), MAX_FILTER_S)
+                step, last_step = _filter_next(delta, last_step)
+                filter_s = min(max(filter_s + step, 0.0), MAX_FILTER_S)
                 campaign = _with_filter(campaign, filter_s)
                 refresh = True
+        if round_no + 1 >= MAX_PIN_ROUNDS and not refresh:
+            break       # the rounds beyond MAX_PIN_ROUNDS are the filter's
         if full_machine is machine and not refresh:
             break
         extra = realigned_runs(campaign, full_machine, [r.name for r in left], loaded=loaded)

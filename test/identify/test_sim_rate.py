@@ -89,3 +89,27 @@ def test_one_filter_step_takes_a_time_constant_most_of_the_way():
     power = [SimpleNamespace(offset=SimpleNamespace(anchor='power'), t=t_meas,
                              total_sim_w=sim, total_meas_w=meas)]
     assert _filter_step(power, guess) is None
+
+
+def test_filter_steps_that_converge_by_turns_are_extrapolated_to_their_limit():
+    # the filter and the effects fitted with it converge by turns: each round's plain step
+    # leaves rho of the error (about -0.2 on the smooth class); two plain steps give rho,
+    # and the extrapolated step lands on the limit
+    from feed_axis_energy.identify.analyze import _filter_next, FILTER_MAX_RATIO
+    limit, tau, rho = 0.005, 0.0027, -0.23
+    error = tau - limit
+    first = -(1.0 - rho) * error                     # the round's step: to rho * error
+    step, last = _filter_next(first, None)
+    assert step == first and last == first           # nothing to extrapolate from yet
+    tau += step
+    error = tau - limit
+    second = -(1.0 - rho) * error
+    step, last = _filter_next(second, last)
+    assert last is None and tau + step == pytest.approx(limit, abs=1e-12)
+    # after an extrapolated step the next one is taken as it is
+    assert _filter_next(1e-6, None) == (1e-6, 1e-6)
+    # steps that do not shrink, or shrink too slowly to extrapolate safely: as they are
+    assert _filter_next(2e-6, 1e-6) == (2e-6, 2e-6)
+    assert _filter_next(-1e-6, 1e-6) == (-1e-6, -1e-6)
+    slow = (FILTER_MAX_RATIO + 0.1) * 1e-6
+    assert _filter_next(slow, 1e-6) == (slow, slow)
