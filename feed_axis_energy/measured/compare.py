@@ -158,15 +158,15 @@ def _whole_trace(spec: RunSpec, run: MeasuredRun, machine: Machine, cache: Motio
              else omega_columns(sim, spec.measured_axes))
     return SimTrace(sim.power.t, _predicted(spec, sim, machine, gains, run), omega,
                     sim.motion.vel, source, relative_sd_pct(sim, spec.measured_axes),
-                    pos=sim.motion.pos if _records_position(run) else None,
+                    pos=sim.motion.pos if _record_positions(run) is not None else None,
                     motion_axes=tuple(sim.motion.axes))
 
 
-def _records_position(run: MeasuredRun) -> bool:
-    """Whether the record has positions for :func:`_work_offset` to compare the simulated
-    ones with: else a trace does not keep them (a long run's positions are as large as its
-    velocities)."""
-    return run.position_m is not None or run.command_position_m is not None
+def _record_positions(run: MeasuredRun) -> np.ndarray | None:
+    """The record's positions that :func:`_work_offset` compares the simulated ones with
+    (actual, else commanded), or ``None``: then a trace does not keep the simulated ones (a
+    long run's positions are as large as its velocities)."""
+    return run.position_m if run.position_m is not None else run.command_position_m
 
 
 class _Growing:
@@ -214,12 +214,13 @@ def _streamed_trace(spec: RunSpec, program: Path, machine: Machine,
         nonlocal v, x
         t.add(chunk.power.t)
         p.add(_predicted(spec, chunk, machine, None))
-        if v is None or x is None:
+        if v is None:
             v = _Growing(capacity, chunk.motion.vel.shape[1:])
-            x = _Growing(capacity if keep_pos else 0, chunk.motion.pos.shape[1:])
+            if keep_pos:
+                x = _Growing(capacity, chunk.motion.pos.shape[1:])
             names.append(tuple(chunk.motion.axes))
         v.add(chunk.motion.vel)
-        if keep_pos:
+        if x is not None:
             x.add(chunk.motion.pos)
 
     moves = iter_moves(program, start=spec.motion_start_m or (0.0, 0.0, 0.0),
@@ -231,8 +232,7 @@ def _streamed_trace(spec: RunSpec, program: Path, machine: Machine,
         raise DataError(msg, file=str(program))
     return SimTrace(t.array(), p.array(), None, v.array(), str(program),
                     _summary_sd_pct(summary, spec.measured_axes),
-                    pos=x.array() if keep_pos and x is not None else None,
-                    motion_axes=names[0])
+                    pos=None if x is None else x.array(), motion_axes=names[0])
 
 
 def _summary_sd_pct(summary: dict[str, Any], axes: Sequence[str]) -> float:
@@ -262,7 +262,8 @@ def simulate_trace(spec: RunSpec, run: MeasuredRun, machine: Machine, cache: Mot
     if (quantity_of(spec.instrument.measures).is_power and spec.motion_program is not None
             and streamable(machine)):
         return _streamed_trace(spec, spec.motion_program, machine,
-                               float(run.t[-1] - run.t[0]), keep_pos=_records_position(run))
+                               float(run.t[-1] - run.t[0]),
+                               keep_pos=_record_positions(run) is not None)
     return _whole_trace(spec, run, machine, cache, gains)
 
 
@@ -582,7 +583,7 @@ def _work_offset(spec: RunSpec, run: MeasuredRun, t_meas: np.ndarray, t_sim: np.
     (machine coordinates) of axes the motion has (:mod:`.spatial`), else ``None``."""
     if spec.motion_program is None or pos is None:
         return None
-    measured = run.position_m if run.position_m is not None else run.command_position_m
+    measured = _record_positions(run)
     if measured is None:
         return None
     axes = [a for a in run.axes if a in motion_axes]

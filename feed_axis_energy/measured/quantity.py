@@ -162,7 +162,7 @@ def measured_signal(run: Any, *, measures: str, axes: Sequence[str],
     if missing:
         msg = f'run {run.name!r} has no {q.column} column for axis {missing[0]}'
         raise DataError(msg, file=run.file)
-    if (q.is_power and axes and not missing and not any(a in invert for a in axes)
+    if (q.is_power and axes and not any(a in invert for a in axes)
             and isinstance(run.power_w, np.ndarray) and run.power_w.dtype == np.float64):
         index = [run.power_axes.index(a) for a in axes]
         if index == list(range(index[0], index[0] + len(index))):
