@@ -188,6 +188,7 @@ def trial(case: str, cls: str, runs: list[tt.Run], axis: tm.AxisData, seed: int,
         errors[r.name] = (float(used['found_s']) + float(getattr(res, 'meter_filter_s', 0.0))
                           - offsets[r.name])
     return {'case': case, 'cls': cls, 'seed': seed, 'share': share, 'named': named,
+            'offered': sorted(e.id for e in getattr(res, 'offered', ())),
             'status': res.status, 'verdict': verdict(case, named, groups),
             'misaligned': sorted(k for k, e in errors.items() if abs(e) > tol),
             'aligned_runs': len(errors), 'left_out': sorted(left),

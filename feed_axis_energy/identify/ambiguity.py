@@ -24,7 +24,22 @@ Forms of one or two candidates are searched (pairs only of candidates that do no
 alone, each with its best shape variant); ``iron`` = ``coulomb`` + ``viscous`` is such a
 pair. Selected effects that appear in each other's forms are merged into one
 :class:`AmbiguousGroup`: one finding, "a loss of this shape", with its fitted power and
-energy, never one member named by chance.
+energy, never one member named by chance. Two selected effects on one axis whose fitted
+powers mostly cancel (the norm of their sum below :data:`CANCEL_RATIO` of the larger one's)
+are one finding too, a form with no members: only their sum is determined (a flat part of
+``position_friction``'s node forces against ``iron``'s ``|omega|`` term).
+
+A group whose members cover at least half of the catalog's candidates on its axis (and at
+least :data:`SHAPELESS_MIN` of them) has no shape the data single out: almost any loss
+reproduces its power within the noise (typically a fitted power far below the noise riding
+beside a real effect). It is *shapeless* (:attr:`AmbiguousGroup.shapeless`): ``analyze``
+offers its loss with the augmented machine and names nothing of it.
+
+``time_offset`` takes no part in the groups (it describes the alignment, not the machine),
+but a selected effect whose power a shift of the records reproduces by the same test
+(:func:`timing_forms`) cannot be told from a sub-millisecond error of the alignment: a
+0.25 ms delay of a large viscous loss ``c·v²`` leaves ``2cδ·v·a``, the shape of a moved
+mass. ``analyze`` offers such an effect, and names it only when its own shape is evidence.
 """
 from __future__ import annotations
 
@@ -40,13 +55,20 @@ from scipy import stats
 from ..effects import EFFECTS, get_effect
 from .selection import Block, Design, solve_normal
 
-__all__ = ['EQUIVALENCE_ALPHA', 'MAX_FORM_SIZE', 'EquivalentForm', 'AmbiguousGroup',
+__all__ = ['EQUIVALENCE_ALPHA', 'MAX_FORM_SIZE', 'CANCEL_RATIO', 'SHAPELESS_SHARE',
+           'SHAPELESS_MIN', 'EquivalentForm', 'AmbiguousGroup', 'timing_forms',
            'find_groups', 'form_text', 'found_text', 'plausible_bounds']
 
 EQUIVALENCE_ALPHA = 1e-3
 """Probability below which a projection residual counts as evidence for the effect's shape."""
 MAX_FORM_SIZE = 2
 """Most candidates in one equivalent form."""
+CANCEL_RATIO = 0.5
+"""Two selected powers whose sum's norm is below this share of the larger one cancel."""
+SHAPELESS_SHARE = 0.5
+"""Share of an axis's candidates whose forms make a group shapeless (module docstring)."""
+SHAPELESS_MIN = 6
+"""Fewest members of a shapeless group (a short catalog's groups are shapes, not noise)."""
 
 
 def _label(key: tuple[str, str]) -> str:
@@ -107,6 +129,9 @@ class AmbiguousGroup:
     power_rms_w, power_mean_w, energy_j
         RMS and mean of the group's fitted power over every measured sample of the campaign
         [W], and its energy summed over the runs [J].
+    candidates
+        How many catalog candidates on the axis were tested (``time_offset`` left out);
+        0 when unknown.
     """
 
     axis: str
@@ -116,6 +141,13 @@ class AmbiguousGroup:
     power_rms_w: float
     power_mean_w: float
     energy_j: float
+    candidates: int = 0
+
+    @property
+    def shapeless(self) -> bool:
+        """Whether most of the catalog reproduces the group's power (module docstring)."""
+        need = max(SHAPELESS_MIN, math.ceil(SHAPELESS_SHARE * self.candidates))
+        return self.candidates > 0 and len(self.members) >= need
 
     @property
     def message(self) -> str:
@@ -130,7 +162,8 @@ class AmbiguousGroup:
         return {'axis': self.axis, 'selected': list(self.selected),
                 'members': list(self.members), 'forms': [f.to_dict() for f in self.forms],
                 'power_rms_w': self.power_rms_w, 'power_mean_w': self.power_mean_w,
-                'energy_j': self.energy_j, 'message': self.message}
+                'energy_j': self.energy_j, 'candidates': self.candidates,
+                'message': self.message}
 
 
 def form_text(group: AmbiguousGroup) -> str:
@@ -139,8 +172,12 @@ def form_text(group: AmbiguousGroup) -> str:
         return ' + '.join(label.rsplit('@', 1)[0] for label in labels)
     parts: dict[tuple[str, ...], list[str]] = {}
     for f in group.forms:
-        parts.setdefault(f.replaces, []).append(short(f.members))
-    return '; '.join(' = '.join([short(rep)] + alts) for rep, alts in parts.items())
+        parts.setdefault(f.replaces, []).extend(
+            [short(f.members)] if f.members else [])
+    cancel = {f.replaces for f in group.forms if not f.members}
+    return '; '.join(' = '.join([short(rep)] + alts)
+                     + (' (fitted powers that cancel)' if rep in cancel else '')
+                     for rep, alts in parts.items())
 
 
 def found_text(effects: Sequence[Any], groups: Sequence[AmbiguousGroup]) -> str:
@@ -313,6 +350,19 @@ def find_groups(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
         own[i] = float(th @ gram[np.ix_(b.cols, b.cols)] @ th)
     testable = [i for i, b in enumerate(blocks) if b.key[0] not in skip and own[i] > 0.0]
     forms: list[tuple[tuple[int, ...], EquivalentForm]] = []
+    for i, j in itertools.combinations(testable, 2):
+        # two fitted powers that mostly cancel: only their sum is determined (a flat part
+        # of position_friction against iron's |omega| part)
+        if blocks[i].key[1] != blocks[j].key[1]:
+            continue
+        th_i = theta[starts[i]:starts[i] + len(blocks[i].cols)]
+        th_j = theta[starts[j]:starts[j] + len(blocks[j].cols)]
+        cross = float(th_i @ gram[np.ix_(blocks[i].cols, blocks[j].cols)] @ th_j)
+        ratio = math.sqrt(max(own[i] + own[j] + 2.0 * cross, 0.0) / max(own[i], own[j]))
+        if ratio < CANCEL_RATIO:
+            forms.append(((i, j), EquivalentForm(
+                replaces=(_label(blocks[i].key), _label(blocks[j].key)), members=(),
+                parameters={}, relative_residual=ratio, limit=CANCEL_RATIO)))
     for size in range(1, len(testable) + 1):
         for subset in itertools.combinations(testable, size):
             if len({blocks[i].key[1] for i in subset}) > 1:
@@ -338,12 +388,59 @@ def find_groups(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
                     limit=math.sqrt(limit_ss / own_ss), data_increase=inc / sigma2,
                     data_limit=limit_ss / sigma2)))
     return _merge(design, blocks, theta, starts, forms, keys=keys, periods_s=periods_s,
-                  axes=axes)
+                  axes=axes, skip=skip)
+
+
+def timing_forms(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
+                 sigma2: float, keys: Sequence[tuple[str, str]],
+                 alpha: float = EQUIVALENCE_ALPHA,
+                 timing: str = 'time_offset') -> dict[str, EquivalentForm]:
+    """Selected effects whose power a shift of the records reproduces within the noise.
+
+    For every selected block but ``timing`` ones, the candidate ``timing`` block of its
+    axis (when the design has one and it is not selected) is tried as a one-member form
+    beside the other selected effects, with :func:`find_groups`' test and limit.
+
+    Returns
+    -------
+    dict
+        ``{effect@axis: the qualifying form}``; empty when none qualifies or ``sigma2`` is
+        not a positive number.
+    """
+    blocks = list(blocks)
+    if not blocks or not (math.isfinite(sigma2) and sigma2 > 0.0):
+        return {}
+    gram = cast(np.ndarray, sum(design.gram[r] for r in range(design.runs)))
+    cols_s = [c for b in blocks for c in b.cols]
+    target = gram[:, cols_s] @ theta
+    target_ss = float(theta @ gram[np.ix_(cols_s, cols_s)] @ theta)
+    taken = {b.key for b in blocks}
+    lower, upper = plausible_bounds(design)
+    data = _Data(design, gram, cols_s, theta)
+    others = tuple({b.key[0] for b in design.blocks} - {timing})
+    out = {}
+    at = 0
+    for i, b in enumerate(blocks):
+        th, at = theta[at:at + len(b.cols)], at + len(b.cols)
+        own_ss = float(th @ gram[np.ix_(b.cols, b.cols)] @ th)
+        if b.key[0] == timing or own_ss <= 0.0:
+            continue
+        rest = [c for k, o in enumerate(blocks) if k != i for c in o.cols]
+        limit_ss = sigma2 * float(stats.chi2.ppf(1.0 - alpha, len(b.cols)))
+        for _, params, ss, inc in _best_forms(gram, target, target_ss, design, rest, [b],
+                                              taken, keys, limit_ss, 1, others, lower,
+                                              upper, data):
+            out[_label(b.key)] = EquivalentForm(
+                replaces=(_label(b.key),), members=(_label((timing, b.key[1])),),
+                parameters=params, relative_residual=math.sqrt(ss / own_ss),
+                limit=math.sqrt(limit_ss / own_ss), data_increase=inc / sigma2,
+                data_limit=limit_ss / sigma2)
+    return out
 
 
 def _merge(design: Design, blocks: list[Block], theta: np.ndarray, starts: list[int],
            forms: list[tuple[tuple[int, ...], EquivalentForm]], *, keys, periods_s,
-           axes) -> list[AmbiguousGroup]:
+           axes, skip=()) -> list[AmbiguousGroup]:
     """Selected effects replaced together, or named in each other's forms, become one group."""
     labels = [_label(b.key) for b in blocks]
     parent = list(range(len(blocks)))
@@ -382,5 +479,7 @@ def _merge(design: Design, blocks: list[Block], theta: np.ndarray, starts: list[
         groups.append(AmbiguousGroup(
             axis=blocks[idx[0]].key[1], selected=selected, members=members, forms=tuple(fs),
             power_rms_w=math.sqrt(ss / count) if count else 0.0,
-            power_mean_w=energy / duration if duration > 0.0 else 0.0, energy_j=energy))
+            power_mean_w=energy / duration if duration > 0.0 else 0.0, energy_j=energy,
+            candidates=sum(1 for k in keys if k[1] == blocks[idx[0]].key[1]
+                           and k[0] not in skip)))
     return groups

@@ -46,7 +46,7 @@ from ..measured import (align_simulated, Campaign, CampaignComparison, compare_c
                         MotionCache, offset_dict, predicted_signal, quantity_of, RunComparison,
                         simulate_declared, stamp_shift)
 from .alternatives import check_alternatives
-from .ambiguity import find_groups, found_text
+from .ambiguity import AmbiguousGroup, EquivalentForm, find_groups, found_text, timing_forms
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
 from .grid import bin_windows, Bins, bins_for
@@ -996,18 +996,36 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
             heterogeneity=heterogeneity(design, blocks, i, sigma2)[0],
             aliases=tuple(aliases), energy_j=energy, energy_share=share,
             matters=bool(share >= options.min_share), attributed=i < n_claimed))
-    fitted, offered_fx = fitted[:n_claimed], fitted[n_claimed:]
-    offered_gain = math.nan
-    if offered_fx:
-        # what the offered loss as a whole does to the held-out error, beside the named ones
-        mse_named = design.heldout_mse([c for b in blocks[:n_claimed] for c in b.cols], folds)
-        offered_gain = float(np.mean([1.0 - mse_full[r] / mse_named[r] for r in mse_full
-                                      if mse_named[r] > 0.0]))
-
     # selected effects whose power other candidates reproduce within the noise: one finding
     n_cols = sum(len(b.cols) for b in blocks[:n_claimed])
     groups = find_groups(design, blocks[:n_claimed], theta[:n_cols], sigma2=sigma2,
                          keys=[(e, a) for e in ids for a in axes], periods_s=periods, axes=axes)
+    # a finding most of the catalog reproduces has no shape to name, and an effect a shift
+    # of the records reproduces cannot be told from the alignment: their losses are offered
+    unnamed: dict[str, str] = {m: _shapeless_text(g) for g in groups if g.shapeless
+                               for m in g.selected}
+    timed = timing_forms(design, blocks[:n_claimed], theta[:n_cols], sigma2=sigma2,
+                         keys=[(e, a) for e in ids for a in axes])
+    unnamed.update({m: _timing_text(f) for m, f in timed.items() if m not in unnamed})
+    for g in groups:
+        # a finding goes with any of its selected effects (one fitted power)
+        hit = next((unnamed[m] for m in g.selected if m in unnamed), None)
+        if hit is not None:
+            for m in g.selected:
+                unnamed.setdefault(m, hit)
+    groups = [g for g in groups if not set(g.selected) & set(unnamed)]
+    named = [i for i in range(n_claimed) if label(blocks[i].key) not in unnamed]
+    moved = [replace(fitted[i], attributed=False) for i in range(n_claimed)
+             if label(blocks[i].key) in unnamed]
+    fitted, offered_fx = [fitted[i] for i in named], moved + fitted[n_claimed:]
+    fates = tuple(replace(f, fate='offered', reason=unnamed[lab])
+                  if (lab := label((f.effect, f.axis))) in unnamed else f for f in fates)
+    offered_gain = math.nan
+    if offered_fx:
+        # what the offered loss as a whole does to the held-out error, beside the named ones
+        mse_named = design.heldout_mse([c for i in named for c in blocks[i].cols], folds)
+        offered_gain = float(np.mean([1.0 - mse_full[r] / mse_named[r] for r in mse_full
+                                      if mse_named[r] > 0.0]))
 
     # in-sample residual after (diagnostics, at the baseline offset); the before/after
     # figures are fresh comparisons with the effects declared, offsets estimated anew
@@ -1096,6 +1114,21 @@ def _after(cmp: RunComparison, bins: Bins) -> tuple[Metrics, dict[str, Any], np.
     """A run's *after*: metrics, offset (``compare --json``'s) and binned simulated total."""
     return (cmp.metrics, offset_dict(cmp.offset, used_s=cmp.offset_used_s),
             bins.mean(cmp.total_sim_w))
+
+
+def _shapeless_text(group: AmbiguousGroup) -> str:
+    """Why the selected effects of a shapeless finding are offered, not named."""
+    return (f'its fitted power ({group.power_rms_w:.3g} W RMS) is reproduced within the noise '
+            f'by {len(group.members)} of the {group.candidates} catalog candidates on '
+            f'{group.axis}: no shape these data single out; offered as a loss, not named')
+
+
+def _timing_text(form: EquivalentForm) -> str:
+    """Why an effect that a shift of the records reproduces is offered, not named."""
+    delta = next(iter(form.parameters.values()), {}).get('delta_s', math.nan)
+    return (f'its power is what a shift of the records by {1e3 * delta:+.2g} ms gives '
+            f'({form.members[0]} reproduces it within the noise): a loss and an error of '
+            'the alignment these data cannot tell apart; offered as a loss, not named')
 
 
 def _size_text(effects: Sequence[FittedEffect], min_share: float) -> str:
