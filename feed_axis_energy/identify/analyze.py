@@ -493,11 +493,13 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
             if d < a:
                 result = replace(other, aligned_with={
                     'effect': fit.key[0], 'axis': fit.key[1],
-                    'median_move_s': fit.median_move_s}, message=(
+                    'median_move_s': fit.median_move_s,
+                    'largest_move_s': fit.largest_move_s}, message=(
                     f'{other.message}; fitted from the offsets each run has with '
                     f'{label(fit.key)} in the model (the power\'s own lags against the '
                     f'declared model were pulled by a median {1e3 * fit.median_move_s:.1f} '
-                    f'ms; BIC {d:.1f} against {a:.1f} from those lags)'))
+                    f'ms, at most {1e3 * fit.largest_move_s:.1f} ms; BIC {d:.1f} against '
+                    f'{a:.1f} from those lags)'))
     report(1.0)
     result = replace(result, machine=declared, sim_rate_hz=machine.planner.rate_hz)
     if factor > 1:
@@ -590,7 +592,8 @@ def _joint_start(campaign: Campaign, machine: Machine, cmp: CampaignComparison,
                  ) -> tuple[CampaignComparison, JointFit] | None:
     """The comparisons with the pinned runs at the offsets the best screened candidate gives
     them (:func:`.jointalign.joint_screen`), when moving there cuts the screen's residual by
-    :data:`JOINT_MIN_GAIN` and the median move is at least a coarse step; else ``None``."""
+    :data:`JOINT_MIN_GAIN` and some run moves by at least a coarse step (a large effect
+    may pull only the slow runs, where it weighs most); else ``None``."""
     pinned, _ = split_pinned(cmp.runs, campaign=campaign)
     if len(pinned) < 2:
         return None
@@ -605,7 +608,7 @@ def _joint_start(campaign: Campaign, machine: Machine, cmp: CampaignComparison,
     fits = joint_screen(_screen_items(campaign, machine, pinned, candidates, loaded),
                         candidates)
     best = fits[0]
-    if best.gain < JOINT_MIN_GAIN or best.median_move_s < JOINT_STEP_S:
+    if best.gain < JOINT_MIN_GAIN or best.largest_move_s < JOINT_STEP_S:
         return None
     moved = dict(zip([r.name for r in pinned], best.offsets_s))
     runs = at_offsets(campaign, machine, cmp.runs, moved, loaded=loaded, why=(

@@ -132,6 +132,11 @@ class JointFit:
         """Median absolute move [s]."""
         return float(np.median(np.abs(self.moves_s))) if self.moves_s else 0.0
 
+    @property
+    def largest_move_s(self) -> float:
+        """Largest absolute move [s]."""
+        return float(np.max(np.abs(self.moves_s))) if self.moves_s else 0.0
+
 
 def _sse(e: np.ndarray, x: np.ndarray) -> float:
     """Residual sum of squares of ``e`` after its mean and the columns ``x`` (least squares,

@@ -303,8 +303,8 @@ class AnalysisResult:
     aligned_with
         When the analysis started from the offsets the runs have with one candidate effect
         in the model (records of the power alone, :mod:`.jointalign`): ``{'effect', 'axis',
-        'median_move_s'}`` (the median distance [s] from the power's own lags); else
-        ``None``.
+        'median_move_s', 'largest_move_s'}`` (the median and the largest distance [s] from
+        the power's own lags); else ``None``.
     sim_rate_hz
         The rate [Hz] the analysis simulated at: the planner's ``rate_hz``, or a multiple of
         it when the data resolve what the simulation's sampling changes in the meter's
