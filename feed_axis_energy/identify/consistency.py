@@ -19,8 +19,8 @@ from scipy import stats
 
 from .selection import Block, Design, forward_select, gain_text, solve_normal, Step
 
-__all__ = ['FATES', 'Fate', 'ConsistentSelection', 'select_consistent', 'prune',
-           'heterogeneity', 'label', 'mark_groups']
+__all__ = ['FATES', 'Fate', 'ConsistentSelection', 'select_consistent', 'noise_floor_ss',
+           'WEAK_Z', 'prune', 'heterogeneity', 'label', 'mark_groups']
 
 FATES = ('accepted', 'offered', 'rejected', 'dropped_in_pruning', 'excluded_inconsistent',
          'not_claimed', 'not_tried', 'round_cap', 'no_basis', 'equivalent')
@@ -198,6 +198,23 @@ def _inconsistent(block: Block, share: float, options) -> dict[str, Any]:
                         'effect')}
 
 
+WEAK_Z = 3.0
+"""Standard deviations of the noise's own sum of squares that structure left must exceed."""
+
+
+def noise_floor_ss(noise_ss: float, sigma2: float, z: float = WEAK_Z) -> float:
+    """The least residual sum of squares beyond the noise's that is structure [W²].
+
+    The residual's sum of squares over ``n`` samples of white noise fluctuates by
+    ``sigma²·sqrt(2n)``, and the noise estimate it is compared with by about as much: a
+    remainder within ``z·sigma²·sqrt(4n)`` of the noise's is no evidence of structure, and
+    no share of it can be "unexplained" (0 when ``sigma2`` is unknown).
+    """
+    if not (math.isfinite(sigma2) and sigma2 > 0.0 and noise_ss > 0.0):
+        return 0.0
+    return z * sigma2 * math.sqrt(4.0 * noise_ss / sigma2)
+
+
 def select_consistent(design: Design, folds, options, *, keys: Sequence[tuple[str, str]],
                       structured0: float, noise_ss: float, sigma2: float,
                       refine: Callable[[Block, list[int]], Block]) -> ConsistentSelection:
@@ -281,8 +298,9 @@ def select_consistent(design: Design, folds, options, *, keys: Sequence[tuple[st
     offered: list[Block] = []
     if blocks and structured0 > 0.0:
         cols = [c for b in blocks for c in b.cols]
-        share = 1.0 - (design.total_sse(cols) - noise_ss) / structured0
-        if share < options.min_explained:
+        left = design.total_sse(cols) - noise_ss
+        share = 1.0 - left / structured0
+        if share < options.min_explained and left > noise_floor_ss(noise_ss, sigma2):
             # a real improvement of the held-out error is never dropped: it is offered as a
             # loss of this shape, not attributed to these effects
             msg = (f'{", ".join(label(b.key) for b in blocks)} would explain only '

@@ -64,8 +64,9 @@ class AnalyzeOptions:
         decides how effects are ranked and marked, never whether they exist.
     min_explained
         The selected effects together must explain at least this share of the structured
-        baseline residual to be named; otherwise they are *offered* as a loss of their
-        shape (``offered``, in the augmented machine), not attributed.
+        baseline residual to be named, unless what they leave is within the noise's own
+        scatter (:func:`.consistency.noise_floor_ss`); otherwise they are *offered* as a
+        loss of their shape (``offered``, in the augmented machine), not attributed.
     noise_w
         A noise level declared by the user [W, per sample] for every test instead of the
         estimate (:func:`.diagnostics.noise_level`; the estimate is still reported).

@@ -9,7 +9,7 @@ import pytest
 
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.identify import AnalyzeOptions
-from feed_axis_energy.identify.consistency import select_consistent
+from feed_axis_energy.identify.consistency import noise_floor_ss, select_consistent
 from feed_axis_energy.identify.diagnostics import binned_structure, noise_level
 from feed_axis_energy.identify.selection import Design, forward_select, loro_folds
 
@@ -158,3 +158,31 @@ def test_a_weakly_attributed_improvement_is_offered_not_dropped() -> None:
     assert [b.key for b in chosen.offered] == [('steady', 'X')]
     assert chosen.fates[0].fate == 'offered'
     assert [r['diagnostic'] for r in chosen.rejected] == ['weak_attribution']
+
+
+def test_structure_left_within_the_noise_estimates_own_scatter_is_not_weak() -> None:
+    # a small effect in unit noise; the noise estimate reads 5 % low, so the "structured
+    # residual" holds as much noise as effect and the effect explains about half of it. What
+    # is left is within the scatter of a sum of squares of 2400 noisy samples: named. With
+    # the estimate 20 % low, what is left is structure by that measure: offered
+    runs, n = 6, 400
+    parts = {'steady': (lambda rng, r, n: np.sin(np.linspace(0.0, 6.0, n)), [0.3] * runs)}
+    design = _design(11, parts, runs=runs, n=n)
+    sse0 = float(design.yy.sum())
+    for low, named in ((0.05, True), (0.20, False)):
+        noise_ss = (1.0 - low) * runs * n
+        chosen = select_consistent(
+            design, loro_folds(runs), AnalyzeOptions(), keys=[('steady', 'X')],
+            structured0=sse0 - noise_ss, noise_ss=noise_ss, sigma2=noise_ss / (runs * n),
+            refine=lambda block, others: block)
+        left = design.total_sse(list(design.blocks[0].cols)) - noise_ss
+        share = 1.0 - left / (sse0 - noise_ss)
+        assert share < 0.5 or not named, share      # below the share to name it either way
+        assert (left <= noise_floor_ss(noise_ss, noise_ss / (runs * n))) is named
+        assert bool(chosen.blocks) is named and bool(chosen.offered) is not named
+
+
+def test_the_noise_floor_of_a_sum_of_squares() -> None:
+    # 3 standard deviations of (residual SS - noise estimate): 3 * sigma² * sqrt(4 n)
+    assert noise_floor_ss(2400.0 * 4.0, 4.0) == pytest.approx(3.0 * 4.0 * math.sqrt(9600.0))
+    assert noise_floor_ss(100.0, math.nan) == 0.0 and noise_floor_ss(0.0, 1.0) == 0.0
