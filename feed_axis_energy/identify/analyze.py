@@ -50,10 +50,11 @@ from .ambiguity import AmbiguousGroup, EquivalentForm, find_groups, found_text, 
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
 from .grid import bin_windows, Bins, bins_for
-from .jointalign import (JOINT_STEP_S, joint_screen, JointFit, MAX_SCREEN_COLUMNS,
-                         ScreenCandidate, ScreenRun, screen_span)
-from .pinning import (at_common_lag, at_motion_offsets, at_offsets, lag_tolerance_s, LeftOut,
-                      left_out_text, MAX_PIN_ROUNDS, motion_lag_s, repin, split_pinned)
+from .timing import (at_common_lag, at_motion_offsets, at_offsets, FILTER_EXTRA_ROUNDS,
+                     FILTER_TOLERANCE, filter_next, filter_step, JOINT_STEP_S, joint_screen,
+                     JointFit, lag_tolerance_s, LeftOut, left_out_text, MAX_PIN_ROUNDS,
+                     MAX_SCREEN_COLUMNS, may_filter, motion_lag_s, repin, runs_differ,
+                     ScreenCandidate, ScreenRun, screen_span, split_pinned, with_filter)
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -68,35 +69,18 @@ NOISE_CHANGE = 0.1
 """Relative change of the noise level that makes the selection run again."""
 POSITION_DIVISIONS = (15, 10, 6, 3)
 """Candidate resolutions of ``position_friction``: bump spacing = travelled span / n."""
-MIN_FILTER_PERIODS = 0.05
-"""A common lag behind the motion of at least this many sampling periods is also tried as a
-meter's first-order smoothing."""
 LAG_MIN_SHARE = 0.01
 """Share of the baseline residual's sum of squares an effect must explain to be in the model
 the meter's lag behind the motion is estimated with (a passenger that explains less may be
 the trace of that very lag: a fraction of a millisecond has the shape of a moved mass)."""
 JOINT_MIN_GAIN = 0.05
 """Relative drop of the screen's residual that makes a candidate's offsets a start of their
-own (:mod:`.jointalign`; with a median move of at least one coarse step)."""
+own (:mod:`.timing.jointalign`; with a median move of at least one coarse step)."""
 
 STEP_MAX_CHI2 = 4.0
 """The most the simulation's sampling may put into the campaign's residual, as a sum of
 squares over the noise variance (:func:`_sim_rate`): below the one-parameter tests' limits,
 so that no candidate can be fitted to the simulation's own numerics."""
-FILTER_TOLERANCE = 0.1
-"""A meter filter's time constant is estimated anew after a round when its step
-(:func:`_filter_step`) exceeds this share of a run's offset tolerance
-(:func:`.pinning.lag_tolerance_s`: a thousandth of a sampling period): a filter a few
-microseconds off leaves the derivative of the found effects' power, the shape of a moved
-mass on a large speed-dependent loss."""
-FILTER_EXTRA_ROUNDS = 2
-"""Rounds a start with a meter filter may take beyond :data:`.pinning.MAX_PIN_ROUNDS` while
-the filter still moves: the filter and the effects fitted with it converge by turns (each
-round's step leaves some fifth of the filter's error, with alternating sign)."""
-FILTER_MAX_RATIO = 0.5
-"""Largest ratio of two successive filter steps (:func:`_filter_next`) that is taken as the
-rate of that convergence and extrapolated; above it (or of a step that was itself
-extrapolated) the plain step is taken."""
 MAX_OVERSAMPLING = 8
 """Largest factor by which the analysis raises the planner's ``rate_hz``."""
 MAX_SIM_SAMPLES = 1_000_000
@@ -434,12 +418,12 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
             machine.planner, rate_hz=factor * machine.planner.rate_hz))
         cmp = compare_campaign(campaign, machine=machine, runs=runs, loaded=loaded)
     # runs aligned on their measured motion start at the motion's offset, the meter's lag
-    # behind it found only with the effects in the model (:mod:`.pinning`); when that start
+    # behind it found only with the effects in the model (:mod:`.timing.pinning`); when that start
     # leaves the residual unsettled and the power's own lags say otherwise, the analysis is
     # also run from their median lag; and a positive lag is also tried as a meter that
     # smooths (a first-order filter). The best model of the data wins (BIC)
     lag = motion_lag_s(cmp.runs)
-    differ = lag is not None and _runs_differ(cmp.runs, lag)
+    differ = lag is not None and runs_differ(cmp.runs, lag)
     # progress: the first start, then the lag start and the filter start when they run (or
     # the start from a candidate's offsets, on records of the power alone)
     joint = _joint_eligible(campaign, cmp.runs)
@@ -454,7 +438,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     tau = lag if tau is None else tau
     # (the power's own lags may sit at the motion's offsets, pulled there by a missing
     # effect, while the first start's lag with its effects says the meter lags)
-    smooth = tau is not None and _may_filter(campaign, cmp.runs, tau)
+    smooth = tau is not None and may_filter(campaign, cmp.runs, tau)
     if differ and lag is not None and _unsettled(result):
         other = _from_start(campaign, machine, machine_file, cmp, lag, ids, options, report,
                             spans[1], loaded)
@@ -468,7 +452,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         # the lag as a meter that smooths (first-order, time constant = the lag) rather than
         # one that delays: it also rounds every edge, which a pure delay leaves as structure
         # that an inertia or a friction term would take
-        filtered = _with_filter(campaign, tau)
+        filtered = with_filter(campaign, tau)
         fcmp = compare_campaign(filtered, machine=machine, runs=runs, loaded=loaded)
         other = _from_start(filtered, machine, machine_file, fcmp, 0.0, ids, options, report,
                             spans[2], loaded, filter_s=tau)
@@ -544,7 +528,7 @@ def _sim_rate(runs: Sequence[RunComparison], machine: Machine) -> tuple[int, flo
 
 
 def _joint_eligible(campaign: Campaign, runs: Sequence[RunComparison]) -> bool:
-    """Records of the power alone simulated from their programs (:mod:`.jointalign`): no
+    """Records of the power alone simulated from their programs (:mod:`.timing.jointalign`): no
     run aligned on measured motion, every run a power trace with a program."""
     return bool(runs) and all(
         r.offset.anchor != 'motion' and quantity_of(r.measures).is_power
@@ -553,7 +537,7 @@ def _joint_eligible(campaign: Campaign, runs: Sequence[RunComparison]) -> bool:
 
 def _screen_items(campaign: Campaign, machine: Machine, runs: Sequence[RunComparison],
                   candidates: Sequence[ScreenCandidate], loaded: Mapping[str, MeasuredRun]):
-    """Per run, what :func:`.jointalign.joint_screen` reads: the run (its first stretch,
+    """Per run, what :func:`.timing.jointalign.joint_screen` reads: the run (its first stretch,
     the simulation cropped to what that stretch sees) and every candidate's basis there."""
     cache = MotionCache(machine)
     for r in runs:
@@ -591,7 +575,7 @@ def _joint_start(campaign: Campaign, machine: Machine, cmp: CampaignComparison,
                  loaded: Mapping[str, MeasuredRun],
                  ) -> tuple[CampaignComparison, JointFit] | None:
     """The comparisons with the pinned runs at the offsets the best screened candidate gives
-    them (:func:`.jointalign.joint_screen`), when moving there cuts the screen's residual by
+    them (:func:`.timing.jointalign.joint_screen`), when moving there cuts the screen's residual by
     :data:`JOINT_MIN_GAIN` and some run moves by at least a coarse step (a large effect
     may pull only the slow runs, where it weighs most); else ``None``."""
     pinned, _ = split_pinned(cmp.runs, campaign=campaign)
@@ -614,18 +598,6 @@ def _joint_start(campaign: Campaign, machine: Machine, cmp: CampaignComparison,
     runs = at_offsets(campaign, machine, cmp.runs, moved, loaded=loaded, why=(
         f'the offset with {label(best.key)} in the model (jointly searched)'))
     return replace(cmp, runs=tuple(runs)), best
-
-
-def _may_filter(campaign: Campaign, runs: Sequence[RunComparison], lag: float) -> bool:
-    """Whether the power's common lag behind the measured motion may be a meter's
-    first-order smoothing: no run declares a filter, the lag is positive (a filter only
-    delays) and at least :data:`MIN_FILTER_PERIODS` of a sampling period (a shorter one
-    hardly changes what a window of one period reads)."""
-    if any(campaign.run(r.name).instrument.filter_s for r in runs):
-        return False
-    periods = [float(np.median(np.diff(r.t))) for r in runs
-               if r.offset.anchor == 'motion' and r.t.size > 1]
-    return bool(periods) and lag >= MIN_FILTER_PERIODS * float(np.median(periods))
 
 
 def _fitted_lag_s(result: AnalysisResult) -> float | None:
@@ -652,57 +624,6 @@ def _fitted_delay_s(result: AnalysisResult) -> float | None:
     deltas = [float(e.values()['delta_s']) for e in result.effects + result.offered
               if e.id == 'time_offset']
     return float(np.mean(deltas)) if deltas else None
-
-
-def _filter_step(runs: Sequence[RunComparison], filter_s: float) -> float | None:
-    """The change of a meter filter's time constant [s] that the comparisons' residuals ask
-    for: one Gauss-Newton step, least squares over the motion-anchored runs (each run's mean
-    free) on the derivative of what the meter reads with respect to the time constant.
-
-    The meter reads ``A[F_tau P]`` (window ``A``, first-order filter ``F_tau``); since
-    ``dF_tau/dtau = -s·F_tau²``, that derivative is ``-d/dt F_tau[A F_tau P]``: the aligned
-    simulated trace through the filter once more, differentiated on the stamps. ``None``
-    without a motion-anchored run of three stamps or with a flat trace."""
-    num = den = 0.0
-    for r in runs:
-        if r.offset.anchor != 'motion' or r.t.size < 3:
-            continue
-        y = r.total_sim_w
-        basis = -np.gradient(first_order_lag(r.t, y, filter_s), r.t)
-        res = r.total_meas_w - y
-        basis = basis - basis.mean()
-        res = res - res.mean()
-        num += float(basis @ res)
-        den += float(basis @ basis)
-    return num / den if den > 0.0 else None
-
-
-def _filter_next(delta: float, last: float | None) -> tuple[float, float | None]:
-    """The filter's change [s] from this round's step ``delta`` and the previous plain step
-    ``last``, and the plain step to remember.
-
-    Two plain steps whose ratio ``rho`` lies within (-1, :data:`FILTER_MAX_RATIO`] are taken
-    as a linear convergence (each round leaves ``rho`` of the error): the limit is
-    ``delta / (1 - rho)`` away (Aitken's extrapolation). An extrapolated step is not a
-    plain one: the next step is taken as it is, and the one after may be extrapolated
-    again."""
-    if last is not None and last != 0.0:
-        rho = delta / last
-        if -1.0 < rho <= FILTER_MAX_RATIO:
-            return delta / (1.0 - rho), None
-    return delta, delta
-
-
-def _with_filter(campaign: Campaign, filter_s: float) -> Campaign:
-    """The campaign read through meters that smooth with a first-order ``filter_s`` [s]."""
-    return replace(campaign, runs=tuple(
-        replace(spec, instrument=replace(spec.instrument, filter_s=float(filter_s)))
-        for spec in campaign.runs))
-
-
-def _runs_differ(runs: Sequence[RunComparison], lag: float) -> bool:
-    """Whether a motion-anchored run's offset at ``lag`` differs from its motion's offset."""
-    return any(r.offset.anchor == 'motion' and abs(lag) > lag_tolerance_s(r) for r in runs)
 
 
 def _unsettled(result: AnalysisResult) -> bool:
@@ -734,7 +655,7 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
     cmp = replace(cmp, runs=tuple(at_common_lag(campaign, machine, cmp.runs, lag_s=lag,
                                                 loaded=loaded)))
     # only runs whose offset is pinned down are fitted; after each round the offsets are
-    # estimated anew with the effects found (:mod:`.pinning`)
+    # estimated anew with the effects found (:mod:`.timing.pinning`)
     pinned, left = split_pinned(cmp.runs, campaign=campaign)
     w = span[1] - span[0]
     spans = [(span[0], span[0] + 0.7 * w), (span[0] + 0.7 * w, span[0] + 0.9 * w),
@@ -760,13 +681,13 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
             # alone, overshot by a fifth and left passengers), the runs stay at the motion's
             # offsets
             model = _timing_model(result) or full_machine
-            delta = _filter_step(at_motion_offsets(campaign, model, pinned, loaded=loaded),
-                                 filter_s)
+            delta = filter_step(at_motion_offsets(campaign, model, pinned, loaded=loaded),
+                                filter_s)
             if (delta is not None and pinned
                     and abs(delta) > FILTER_TOLERANCE * lag_tolerance_s(pinned[0])):
-                step, last_step = _filter_next(delta, last_step)
+                step, last_step = filter_next(delta, last_step)
                 filter_s = min(max(filter_s + step, 0.0), MAX_FILTER_S)
-                campaign = _with_filter(campaign, filter_s)
+                campaign = with_filter(campaign, filter_s)
                 refresh = True
         if round_no + 1 >= MAX_PIN_ROUNDS and not refresh:
             break       # the rounds beyond MAX_PIN_ROUNDS are the filter's
@@ -793,7 +714,7 @@ def _meter_lag_s(campaign: Campaign, result: AnalysisResult,
     """The meter's lag behind the motion [s] with only the effects that explain at least
     :data:`LAG_MIN_SHARE` of the baseline residual in the model (:func:`_timing_model`),
     when the round also found smaller ones and motion-anchored runs are pinned; else
-    ``None`` (:func:`.pinning.repin` then takes the lag of the comparisons with every
+    ``None`` (:func:`.timing.pinning.repin` then takes the lag of the comparisons with every
     effect found)."""
     anchored = [r.name for r in pinned if r.offset.anchor == 'motion']
     machine = _timing_model(result)

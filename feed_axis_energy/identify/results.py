@@ -18,7 +18,7 @@ from .ambiguity import AmbiguousGroup
 from .consistency import Fate
 from .diagnostics import Diagnostic, NoiseLevel
 from .grid import ANALYSIS_PERIOD_S
-from .pinning import LeftOut
+from .timing import LeftOut
 from .drivecorr import fold_corrections
 from .selection import Step
 
@@ -273,7 +273,7 @@ class AnalysisResult:
         effects whose power other candidates reproduce within the noise, with their forms.
     left_out
         Runs not fitted because their time offset could not be pinned down, not even with
-        the effects found (:mod:`.pinning`).
+        the effects found (:mod:`.timing.pinning`).
     residual_unit
         Unit of the residual the effects were selected on, of the noise levels
         (``noise_sigma_w``) and of the diagnostics: ``'W'``, or ``'A'`` on current traces
@@ -303,7 +303,7 @@ class AnalysisResult:
         instrument, ``instrument.filter_s``).
     aligned_with
         When the analysis started from the offsets the runs have with one candidate effect
-        in the model (records of the power alone, :mod:`.jointalign`): ``{'effect', 'axis',
+        in the model (records of the power alone, :mod:`.timing.jointalign`): ``{'effect', 'axis',
         'median_move_s', 'largest_move_s'}`` (the median and the largest distance [s] from
         the power's own lags); else ``None``.
     sim_rate_hz

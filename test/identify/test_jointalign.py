@@ -2,8 +2,7 @@
 import numpy as np
 import pytest
 
-from feed_axis_energy.identify.jointalign import (joint_screen, ScreenCandidate, ScreenRun,
-                                                  screen_span)
+from feed_axis_energy.identify.timing import joint_screen, ScreenCandidate, ScreenRun, screen_span
 from feed_axis_energy.measured import align_simulated, estimate_offset
 
 RATE = 1000.0

@@ -58,7 +58,7 @@ def test_one_filter_step_takes_a_time_constant_most_of_the_way():
     # a meter that smooths with 5 ms reads strokes through a 10 ms window; compared through
     # a filter 30 us off, Gauss-Newton steps on the residual converge on it (docs/analyze.md,
     # "Starts, and a meter that smooths")
-    from feed_axis_energy.identify.analyze import _filter_step
+    from feed_axis_energy.identify.timing import filter_step
     from feed_axis_energy.measured import align_simulated
     t_sim = np.arange(0.0, 8.0, 1e-4)
     speed = np.clip(np.sin(2 * np.pi * 0.4 * t_sim) * 3.0, -1.0, 1.0)
@@ -77,39 +77,39 @@ def test_one_filter_step_takes_a_time_constant_most_of_the_way():
                                        total_sim_w=sim, total_meas_w=meas))
         return out
     guess = truth + 30e-6
-    step = _filter_step(runs_at(guess), guess)
+    step = filter_step(runs_at(guess), guess)
     # the derivative is taken on the 10 ms stamps: one step lands within 15 % of the error,
     # the next within a microsecond
     assert step is not None and abs(guess + step - truth) < 0.15 * 30e-6, step
     guess += step
-    assert abs(guess + _filter_step(runs_at(guess), guess) - truth) < 1e-6
+    assert abs(guess + filter_step(runs_at(guess), guess) - truth) < 1e-6
     last = runs_at(guess)[0]
     meas, sim = last.total_meas_w, last.total_sim_w
     # runs aligned on the power only: nothing to step on
     power = [SimpleNamespace(offset=SimpleNamespace(anchor='power'), t=t_meas,
                              total_sim_w=sim, total_meas_w=meas)]
-    assert _filter_step(power, guess) is None
+    assert filter_step(power, guess) is None
 
 
 def test_filter_steps_that_converge_by_turns_are_extrapolated_to_their_limit():
     # the filter and the effects fitted with it converge by turns: each round's plain step
     # leaves rho of the error (about -0.2 on the smooth class); two plain steps give rho,
     # and the extrapolated step lands on the limit
-    from feed_axis_energy.identify.analyze import _filter_next, FILTER_MAX_RATIO
+    from feed_axis_energy.identify.timing import filter_next, FILTER_MAX_RATIO
     limit, tau, rho = 0.005, 0.0027, -0.23
     error = tau - limit
     first = -(1.0 - rho) * error                     # the round's step: to rho * error
-    step, last = _filter_next(first, None)
+    step, last = filter_next(first, None)
     assert step == first and last == first           # nothing to extrapolate from yet
     tau += step
     error = tau - limit
     second = -(1.0 - rho) * error
-    step, last = _filter_next(second, last)
+    step, last = filter_next(second, last)
     assert last is None and tau + step == pytest.approx(limit, abs=1e-12)
     # after an extrapolated step the next one is taken as it is
-    assert _filter_next(1e-6, None) == (1e-6, 1e-6)
+    assert filter_next(1e-6, None) == (1e-6, 1e-6)
     # steps that do not shrink, or shrink too slowly to extrapolate safely: as they are
-    assert _filter_next(2e-6, 1e-6) == (2e-6, 2e-6)
-    assert _filter_next(-1e-6, 1e-6) == (-1e-6, -1e-6)
+    assert filter_next(2e-6, 1e-6) == (2e-6, 2e-6)
+    assert filter_next(-1e-6, 1e-6) == (-1e-6, -1e-6)
     slow = (FILTER_MAX_RATIO + 0.1) * 1e-6
-    assert _filter_next(slow, 1e-6) == (slow, slow)
+    assert filter_next(slow, 1e-6) == (slow, slow)

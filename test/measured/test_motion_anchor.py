@@ -15,7 +15,7 @@ from bench_modules import load_bench
 import pytest
 import yaml
 
-from feed_axis_energy.identify.pinning import at_common_lag, motion_lag_s
+from feed_axis_energy.identify.timing import at_common_lag, motion_lag_s
 from feed_axis_energy.machine import load_machine
 from feed_axis_energy.measured import compare_campaign, load_campaign, load_run
 from feed_axis_energy.measured.run import MeasuredRun

@@ -38,7 +38,7 @@ import math
 
 import numpy as np
 
-from ..measured import ShiftedAverage
+from ...measured import ShiftedAverage
 
 __all__ = ['JOINT_REACH_S', 'JOINT_STEP_S', 'JointFit', 'MAX_SCREEN_COLUMNS',
            'MAX_SCREEN_SAMPLES', 'MAX_SCREEN_SPAN_S', 'ScreenCandidate', 'ScreenRun',

@@ -52,9 +52,9 @@ import math
 
 import numpy as np
 
-from ..machine import Machine
-from ..measured import (Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MeasuredRun, MotionCache,
-                        RunComparison)
+from ...machine import Machine
+from ...measured import (Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MeasuredRun,
+                         MotionCache, RunComparison)
 
 __all__ = ['PINNED_STATUSES', 'MAX_PIN_ROUNDS', 'PIN_MARGIN', 'LeftOut', 'split_pinned',
            'decisive', 'repin', 'left_out_text', 'motion_lag_s',
@@ -172,7 +172,7 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
         The declared machine: the next round's residuals are against it.
     augmented
         Fresh comparisons of the pinned *and* the left-out runs (any order) with the machine
-        plus the effects found (:func:`.realign.realigned_runs`).
+        plus the effects found (:func:`..realign.realigned_runs`).
     pinned, left
         This round's split.
     cache
