@@ -336,13 +336,9 @@ def find_groups(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
     blocks = list(blocks)
     if not blocks or not (math.isfinite(sigma2) and sigma2 > 0.0):
         return []
-    gram = cast(np.ndarray, sum(design.gram[r] for r in range(design.runs)))
-    cols_s = [c for b in blocks for c in b.cols]
-    target = gram[:, cols_s] @ theta
-    target_ss = float(theta @ gram[np.ix_(cols_s, cols_s)] @ theta)
+    gram, target, target_ss, data = _pooled(design, blocks, theta)
     taken = {b.key for b in blocks}
     lower, upper = plausible_bounds(design)
-    data = _Data(design, gram, cols_s, theta)
     starts = list(np.cumsum([0] + [len(b.cols) for b in blocks[:-1]]))
     own = {}
     for i, b in enumerate(blocks):
@@ -391,6 +387,17 @@ def find_groups(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
                   axes=axes, skip=skip)
 
 
+def _pooled(design: Design, blocks: Sequence[Block], theta: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray, float, _Data]:
+    """The selection's fitted power pooled over every run: the Gram matrix of every design
+    column, ``X' p_S``, ``|p_S|²`` and the data's cross products (:class:`_Data`)."""
+    gram = cast(np.ndarray, sum(design.gram[r] for r in range(design.runs)))
+    cols_s = [c for b in blocks for c in b.cols]
+    target = gram[:, cols_s] @ theta
+    target_ss = float(theta @ gram[np.ix_(cols_s, cols_s)] @ theta)
+    return gram, target, target_ss, _Data(design, gram, cols_s, theta)
+
+
 def timing_forms(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
                  sigma2: float, keys: Sequence[tuple[str, str]],
                  alpha: float = EQUIVALENCE_ALPHA,
@@ -410,13 +417,9 @@ def timing_forms(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
     blocks = list(blocks)
     if not blocks or not (math.isfinite(sigma2) and sigma2 > 0.0):
         return {}
-    gram = cast(np.ndarray, sum(design.gram[r] for r in range(design.runs)))
-    cols_s = [c for b in blocks for c in b.cols]
-    target = gram[:, cols_s] @ theta
-    target_ss = float(theta @ gram[np.ix_(cols_s, cols_s)] @ theta)
+    gram, target, target_ss, data = _pooled(design, blocks, theta)
     taken = {b.key for b in blocks}
     lower, upper = plausible_bounds(design)
-    data = _Data(design, gram, cols_s, theta)
     others = tuple({b.key[0] for b in design.blocks} - {timing})
     out = {}
     at = 0
