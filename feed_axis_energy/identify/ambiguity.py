@@ -376,15 +376,23 @@ def find_groups(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
             found = _best_forms(gram, target, target_ss, design, rest, replaced, taken, keys,
                                 limit_ss, max_size if size == 1 else 1, skip, lower, upper,
                                 data)
-            for combo, params, ss, inc in found:
-                forms.append((subset, EquivalentForm(
-                    replaces=tuple(_label(b.key) for b in replaced),
-                    members=tuple(_label(k) for k in combo), parameters=params,
-                    relative_residual=math.sqrt(ss / own_ss),
-                    limit=math.sqrt(limit_ss / own_ss), data_increase=inc / sigma2,
-                    data_limit=limit_ss / sigma2)))
+            forms.extend((subset, _form(replaced, f, own_ss=own_ss, limit_ss=limit_ss,
+                                        sigma2=sigma2)) for f in found)
     return _merge(design, blocks, theta, starts, forms, keys=keys, periods_s=periods_s,
                   axes=axes, skip=skip)
+
+
+def _form(replaced: Sequence[Block], found, *, own_ss: float, limit_ss: float,
+          sigma2: float) -> EquivalentForm:
+    """An equivalent form of ``replaced`` from one :func:`_best_forms` result
+    ``(candidates, parameters, projection residual, data increase)``; ``own_ss`` is the
+    replaced part's own fitted power ``|p_T|²``, ``limit_ss`` the limit of both tests."""
+    combo, params, ss, inc = found
+    return EquivalentForm(
+        replaces=tuple(_label(b.key) for b in replaced),
+        members=tuple(_label(k) for k in combo), parameters=params,
+        relative_residual=math.sqrt(ss / own_ss), limit=math.sqrt(limit_ss / own_ss),
+        data_increase=inc / sigma2, data_limit=limit_ss / sigma2)
 
 
 def _pooled(design: Design, blocks: Sequence[Block], theta: np.ndarray
@@ -430,14 +438,10 @@ def timing_forms(design: Design, blocks: Sequence[Block], theta: np.ndarray, *,
             continue
         rest = [c for k, o in enumerate(blocks) if k != i for c in o.cols]
         limit_ss = sigma2 * float(stats.chi2.ppf(1.0 - alpha, len(b.cols)))
-        for _, params, ss, inc in _best_forms(gram, target, target_ss, design, rest, [b],
-                                              taken, keys, limit_ss, 1, others, lower,
-                                              upper, data):
-            out[_label(b.key)] = EquivalentForm(
-                replaces=(_label(b.key),), members=(_label((timing, b.key[1])),),
-                parameters=params, relative_residual=math.sqrt(ss / own_ss),
-                limit=math.sqrt(limit_ss / own_ss), data_increase=inc / sigma2,
-                data_limit=limit_ss / sigma2)
+        for found in _best_forms(gram, target, target_ss, design, rest, [b], taken, keys,
+                                 limit_ss, 1, others, lower, upper, data):
+            out[_label(b.key)] = _form([b], found, own_ss=own_ss, limit_ss=limit_ss,
+                                       sigma2=sigma2)
     return out
 
 

@@ -75,7 +75,7 @@ the meter's lag behind the motion is estimated with (a passenger that explains l
 the trace of that very lag: a fraction of a millisecond has the shape of a moved mass)."""
 JOINT_MIN_GAIN = 0.05
 """Relative drop of the screen's residual that makes a candidate's offsets a start of their
-own (:mod:`.timing.jointalign`; with a median move of at least one coarse step)."""
+own (:mod:`.timing.jointalign`; with some run moved by at least one coarse step)."""
 
 STEP_MAX_CHI2 = 4.0
 """The most the simulation's sampling may put into the campaign's residual, as a sum of
@@ -801,6 +801,7 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     noise = _noise(data, [r.residual for r in data], options, stage='baseline')
     n_total = float(design.n.sum())
     sse0 = float(design.yy.sum())
+    keys = [(e, a) for e in ids for a in axes]      # every candidate, in catalog order
     for noise_pass in range(NOISE_PASSES):
         sigmas = {a: n.sigma_w for a, n in noise.items()}
         noise_ss = sum(sigmas[a] ** 2 * sum(r.residual.shape[0] for r in data) for a in axes)
@@ -808,8 +809,8 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
         # one noise variance for the whole design (axes pooled by their sample counts)
         sigma2 = noise_ss / n_total if n_total > 0 else math.nan
         chosen = select_consistent(
-            design, folds, options, keys=[(e, a) for e in ids for a in axes],
-            structured0=structured0, noise_ss=noise_ss, sigma2=sigma2,
+            design, folds, options, keys=keys, structured0=structured0, noise_ss=noise_ss,
+            sigma2=sigma2,
             refine=lambda block, others: _refine_shape(design, data, block, others))
         found = [c for b in chosen.blocks + chosen.offered for c in b.cols]
         if options.noise_w is not None or not found or noise_pass + 1 == NOISE_PASSES:
@@ -923,13 +924,13 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     # selected effects whose power other candidates reproduce within the noise: one finding
     n_cols = sum(len(b.cols) for b in blocks[:n_claimed])
     groups = find_groups(design, blocks[:n_claimed], theta[:n_cols], sigma2=sigma2,
-                         keys=[(e, a) for e in ids for a in axes], periods_s=periods, axes=axes)
+                         keys=keys, periods_s=periods, axes=axes)
     # a finding most of the catalog reproduces has no shape to name, and an effect a shift
     # of the records reproduces cannot be told from the alignment: their losses are offered
     unnamed: dict[str, str] = {m: _shapeless_text(g) for g in groups if g.shapeless
                                for m in g.selected}
     timed = timing_forms(design, blocks[:n_claimed], theta[:n_cols], sigma2=sigma2,
-                         keys=[(e, a) for e in ids for a in axes])
+                         keys=keys)
     unnamed.update({m: _timing_text(f) for m, f in timed.items() if m not in unnamed})
     for g in groups:
         # a finding goes with any of its selected effects (one fitted power)
