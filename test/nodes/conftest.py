@@ -66,8 +66,10 @@ child_only = pytest.mark.skipif(not IN_CHILD, reason='runs in its own interprete
 """Mark of tests that create rclpy contexts in the test process: they run in a child."""
 
 
-def run_module_in_child(module: str) -> None:
-    """Run the ``child_only`` tests of ``module`` (a file path) in a fresh interpreter.
+def run_module_in_child(module: str, tests: tuple[str, ...] = ()) -> None:
+    """Run the ``child_only`` tests of ``module`` (a file path) in a fresh interpreter;
+    only the test functions named in ``tests`` when given (the module's other tests run in
+    the suite's own process and need not run twice).
 
     In-process rclpy tests create and destroy contexts and nodes in the pytest process; a
     crash there (one segmentation fault in a full suite run after several in-process
@@ -75,7 +77,8 @@ def run_module_in_child(module: str) -> None:
     """
     env = dict(os.environ, FAE_NODE_TEST_CHILD='1', PYTHONUNBUFFERED='1')
     proc = subprocess.run([sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider',
-                           module], cwd=ROOT, env=env, capture_output=True, text=True,
+                           *([f'{module}::{name}' for name in tests] or [module])],
+                          cwd=ROOT, env=env, capture_output=True, text=True,
                           timeout=300)
     assert proc.returncode == 0, (f'exit {proc.returncode}\n{proc.stdout[-4000:]}\n'
                                   f'{proc.stderr[-2000:]}')

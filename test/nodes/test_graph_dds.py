@@ -12,6 +12,8 @@ import pytest
 
 must_run.import_or_skip('rclpy', 'rclpy')
 
+from conftest import child_only, IN_CHILD, run_module_in_child  # noqa: E402
+
 from feed_axis_energy import lifeline  # noqa: E402
 from feed_axis_energy.record import bagio, StreamBagWriter  # noqa: E402
 from feed_axis_energy.physics.energy import energy_by_line  # noqa: E402
@@ -38,6 +40,7 @@ def _node(name, params, env, **kw):
                             text=True, **kw)
 
 
+@child_only
 def test_launch_recording_equals_offline_simulation(tmp_path, short_program, node_env,
                                                     domain_id):
     bag = tmp_path / 'record.crashsafe'
@@ -251,6 +254,7 @@ def test_replay_of_two_topics_into_recorder_exits_at_end(tmp_path, node_env, dom
     assert bagio.bag_topics(bag)['/program/end'][1] == 1
 
 
+@child_only
 def test_recorder_survives_sigkill(tmp_path, node_env, domain_id):
     import rclpy
     from rclpy.context import Context
@@ -342,3 +346,12 @@ def test_launcher_stops_everything_when_a_node_dies(tmp_path, node_env, domain_i
     for pid, _ in kids:
         assert not Path(f'/proc/{pid}').exists() or 'Z' in Path(
             f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
+
+
+@pytest.mark.skipif(IN_CHILD, reason='the wrapper itself')
+def test_in_a_child_process():
+    """The tests above that create rclpy contexts in the test process, in their own
+    interpreter (see conftest.run_module_in_child: a crash there fails this test, not the
+    whole suite)."""
+    run_module_in_child(__file__, ('test_launch_recording_equals_offline_simulation',
+                                   'test_recorder_survives_sigkill'))

@@ -19,6 +19,8 @@ import pytest
 
 must_run.import_or_skip('rclpy', 'rclpy')
 
+from conftest import child_only, IN_CHILD, run_module_in_child  # noqa: E402
+
 from feed_axis_energy.record import bagio  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'record'))
@@ -101,6 +103,7 @@ def _record_and_kill(bag, node_env, domain_id, *, mode, kill_after_s):
     return sent, acks, t_kill
 
 
+@child_only
 @pytest.mark.parametrize('mode', ['fast', 'realtime'])
 def test_sigkill_loses_at_most_the_documented_bound(tmp_path, node_env, domain_id, mode):
     rng = random.Random({'fast': 11, 'realtime': 12}[mode])
@@ -126,3 +129,11 @@ def test_sigkill_loses_at_most_the_documented_bound(tmp_path, node_env, domain_i
         assert len(stamps) >= n_old, (mode, len(stamps), n_old)
         lost = n_acked - len(stamps)
         assert lost < CHUNK_MESSAGES + ACK_EVERY, (mode, n_acked, len(stamps))
+
+
+@pytest.mark.skipif(IN_CHILD, reason='the wrapper itself')
+def test_in_a_child_process():
+    """The tests above that create rclpy contexts in the test process, in their own
+    interpreter (see conftest.run_module_in_child: a crash there fails this test, not the
+    whole suite)."""
+    run_module_in_child(__file__)
