@@ -42,19 +42,19 @@ from ..physics import state_from_simulation
 from ..machine import load_machine, Machine, machine_warnings, observed_range, RangeUse
 from ..errors import ConfigError
 from ..measured import (align_simulated, Campaign, CampaignComparison, compare_campaign,
-                        first_order_lag, load_run, MAX_FILTER_S, MeasuredRun, Metrics,
-                        MotionCache, offset_dict, predicted_signal, quantity_of, RunComparison,
-                        simulate_declared, stamp_shift)
+                        load_run, MAX_FILTER_S, MeasuredRun, Metrics, MotionCache, offset_dict,
+                        quantity_of, RunComparison, simulate_declared, stamp_shift)
 from .alternatives import check_alternatives
 from .ambiguity import AmbiguousGroup, EquivalentForm, find_groups, found_text, timing_forms
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
 from .grid import bin_windows, Bins, bins_for
-from .timing import (at_common_lag, at_motion_offsets, at_offsets, FILTER_EXTRA_ROUNDS,
-                     FILTER_TOLERANCE, filter_next, filter_step, JOINT_STEP_S, joint_screen,
-                     JointFit, lag_tolerance_s, LeftOut, left_out_text, MAX_PIN_ROUNDS,
-                     MAX_SCREEN_COLUMNS, may_filter, motion_lag_s, repin, runs_differ,
-                     ScreenCandidate, ScreenRun, screen_span, split_pinned, with_filter)
+from .simrate import sim_rate
+from .timing import (at_common_lag, at_motion_offsets, FILTER_EXTRA_ROUNDS, FILTER_TOLERANCE,
+                     filter_next, filter_step, joint_eligible, joint_start, lag_tolerance_s,
+                     LeftOut, left_out_text, MAX_PIN_ROUNDS, MAX_SCREEN_COLUMNS, may_filter,
+                     motion_lag_s, repin, runs_differ, ScreenCandidate, split_pinned,
+                     with_filter)
 from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
@@ -73,19 +73,7 @@ LAG_MIN_SHARE = 0.01
 """Share of the baseline residual's sum of squares an effect must explain to be in the model
 the meter's lag behind the motion is estimated with (a passenger that explains less may be
 the trace of that very lag: a fraction of a millisecond has the shape of a moved mass)."""
-JOINT_MIN_GAIN = 0.05
-"""Relative drop of the screen's residual that makes a candidate's offsets a start of their
-own (:mod:`.timing.jointalign`; with some run moved by at least one coarse step)."""
 
-STEP_MAX_CHI2 = 4.0
-"""The most the simulation's sampling may put into the campaign's residual, as a sum of
-squares over the noise variance (:func:`_sim_rate`): below the one-parameter tests' limits,
-so that no candidate can be fitted to the simulation's own numerics."""
-MAX_OVERSAMPLING = 8
-"""Largest factor by which the analysis raises the planner's ``rate_hz``."""
-MAX_SIM_SAMPLES = 1_000_000
-"""Largest number of simulated samples per run the raised rate may give (memory and time
-stay those of a drive trace at the planner's rate)."""
 
 __all__ = ['analyze_campaign']
 
@@ -411,7 +399,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     cmp = compare_campaign(campaign, machine=machine, runs=runs,
                            progress=lambda f: report(0.3 * f), loaded=loaded)
     declared = machine
-    factor, chi2 = _sim_rate(cmp.runs, machine)
+    factor, chi2 = sim_rate(cmp.runs, machine)
     if factor > 1:
         # data this precise resolve the simulation's sampling: the analysis simulates finer
         machine = replace(machine, planner=replace(
@@ -426,7 +414,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     differ = lag is not None and runs_differ(cmp.runs, lag)
     # progress: the first start, then the lag start and the filter start when they run (or
     # the start from a candidate's offsets, on records of the power alone)
-    joint = _joint_eligible(campaign, cmp.runs)
+    joint = joint_eligible(campaign, cmp.runs)
     spans = ([(0.3, 0.55), (0.55, 0.8), (0.8, 1.0)] if lag is not None else
              [(0.3, 0.75), (0.75, 1.0)] if joint else [(0.3, 1.0)])
     result = _from_start(campaign, machine, machine_file, cmp, 0.0, ids, options, report,
@@ -468,7 +456,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         # records of the power alone: a large missing effect pulls the power's lags, and at
         # the pulled lags nothing it could be is supported; the offsets each run would have
         # with a candidate in the model start an analysis of their own
-        start = _joint_start(campaign, machine, cmp, ids, options, loaded)
+        start = joint_start(campaign, machine, cmp, _screen_candidates(ids, options), loaded)
         if start is not None:
             jcmp, fit = start
             other = _from_start(campaign, machine, machine_file, jcmp, 0.0, ids, options,
@@ -495,109 +483,18 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     return result
 
 
-def _sim_rate(runs: Sequence[RunComparison], machine: Machine) -> tuple[int, float]:
-    """The factor by which the analysis raises the planner's rate, and the residual sum of
-    squares over the noise variance that the declared rate's sampling gives.
-
-    Each run's comparison estimates what the sampling puts into the meter's readings
-    (``step_error``, falling with the square of the step); against each axis's white noise
-    (:func:`.diagnostics.noise_level` of its baseline residual) it adds
-    ``n·(step_error/sigma)²``. The factor is the smallest power of two that brings the sum
-    to :data:`STEP_MAX_CHI2` (the sum falls with its fourth power), at most
-    :data:`MAX_OVERSAMPLING` and :data:`MAX_SIM_SAMPLES` per run.
-    """
-    chi2 = 0.0
-    for r in runs:
-        meas = r.power_meas_w if r.signal_meas is None else r.signal_meas
-        sim = r.power_sim_w if r.signal_sim is None else r.signal_sim
-        for j, axis in enumerate(r.axes):
-            err = float(r.step_error.get(axis, 0.0))
-            if not (err > 0.0 and math.isfinite(err)):
-                continue
-            sigma = noise_level([meas[:, j] - sim[:, j]]).white_w
-            if not math.isfinite(sigma):
-                continue
-            chi2 += meas.shape[0] * (err / max(sigma, 1e-12 * err)) ** 2
-    rate = machine.planner.rate_hz
-    longest = max((r.sim_duration_s for r in runs), default=0.0)
-    factor = 1
-    while (chi2 / factor ** 4 > STEP_MAX_CHI2 and 2 * factor <= MAX_OVERSAMPLING
-           and 2 * factor * rate * longest <= MAX_SIM_SAMPLES):
-        factor *= 2
-    return factor, chi2
-
-
-def _joint_eligible(campaign: Campaign, runs: Sequence[RunComparison]) -> bool:
-    """Records of the power alone simulated from their programs (:mod:`.timing.jointalign`): no
-    run aligned on measured motion, every run a power trace with a program."""
-    return bool(runs) and all(
-        r.offset.anchor != 'motion' and quantity_of(r.measures).is_power
-        and campaign.run(r.name).motion_program is not None for r in runs)
-
-
-def _screen_items(campaign: Campaign, machine: Machine, runs: Sequence[RunComparison],
-                  candidates: Sequence[ScreenCandidate], loaded: Mapping[str, MeasuredRun]):
-    """Per run, what :func:`.timing.jointalign.joint_screen` reads: the run (its first stretch,
-    the simulation cropped to what that stretch sees) and every candidate's basis there."""
-    cache = MotionCache(machine)
-    for r in runs:
-        spec = campaign.run(r.name)
-        measured = loaded[r.name] if r.name in loaded else load_run(spec)
-        sim, _ = simulate_declared(spec, measured, machine, cache)
-        total = predicted_signal(spec.instrument.measures, sim, machine, r.axes,
-                                 manifest=spec.manifest, key=spec.key,
-                                 start_direction=measured.extra.get('direction_before'),
-                                 ).sum(axis=1)
-        state = state_from_simulation(sim)
-        del sim
-        n, lo, hi = screen_span(r.t, r.offset_used_s, r.window_s)
-        a = max(int(np.searchsorted(state.t, lo, side='right')) - 1, 0)
-        b = min(int(np.searchsorted(state.t, hi, side='left')) + 1, state.t.size)
-        t_sim = state.t[a:b]
-        bases = []
-        for c in candidates:
-            j = state.axes.index(c.key[1]) if c.key[1] in state.axes else None
-            p = len(get_effect(c.key[0]).linear_params())
-            if j is None:
-                bases.append(np.zeros((b - a, p)))
-                continue
-            basis = get_effect(c.key[0]).basis(state, dict(c.shape))[:, j, :]
-            # the meter's filter runs from the record's start: filter, then crop
-            bases.append((first_order_lag(state.t, basis, r.filter_s) if r.filter_s
-                          else basis)[a:b])
-        y_sim = (first_order_lag(state.t, total, r.filter_s) if r.filter_s else total)[a:b]
-        yield ScreenRun(r.name, r.t[:n], r.total_meas_w[:n], t_sim, y_sim, r.offset_used_s,
-                        r.window_s, r.stamp), bases
-
-
-def _joint_start(campaign: Campaign, machine: Machine, cmp: CampaignComparison,
-                 ids: tuple[str, ...], options: AnalyzeOptions,
-                 loaded: Mapping[str, MeasuredRun],
-                 ) -> tuple[CampaignComparison, JointFit] | None:
-    """The comparisons with the pinned runs at the offsets the best screened candidate gives
-    them (:func:`.timing.jointalign.joint_screen`), when moving there cuts the screen's residual by
-    :data:`JOINT_MIN_GAIN` and some run moves by at least a coarse step (a large effect
-    may pull only the slow runs, where it weighs most); else ``None``."""
-    pinned, _ = split_pinned(cmp.runs, campaign=campaign)
-    if len(pinned) < 2:
-        return None
-    axes = pinned[0].axes
-    candidates = [ScreenCandidate((e, axis), shape)
-                  for e in ids if e not in ('time_offset', 'standby')
-                  and len(get_effect(e).linear_params()) <= MAX_SCREEN_COLUMNS
-                  for axis in axes
-                  for shape in _shape_grid(e, (), 0, options.shape_grid_points)]
-    if not candidates:
-        return None
-    fits = joint_screen(_screen_items(campaign, machine, pinned, candidates, loaded),
-                        candidates)
-    best = fits[0]
-    if best.gain < JOINT_MIN_GAIN or best.largest_move_s < JOINT_STEP_S:
-        return None
-    moved = dict(zip([r.name for r in pinned], best.offsets_s))
-    runs = at_offsets(campaign, machine, cmp.runs, moved, loaded=loaded, why=(
-        f'the offset with {label(best.key)} in the model (jointly searched)'))
-    return replace(cmp, runs=tuple(runs)), best
+def _screen_candidates(ids: tuple[str, ...], options: AnalyzeOptions,
+                       ) -> Callable[[Sequence[str]], list[ScreenCandidate]]:
+    """The candidates a joint start screens on given axes (:func:`.timing.joint_start`): every
+    catalog effect of ``ids`` but the record's own timing and standby, with at most
+    :data:`.timing.MAX_SCREEN_COLUMNS` columns, at each point of its shape grid."""
+    def on(axes: Sequence[str]) -> list[ScreenCandidate]:
+        return [ScreenCandidate((e, axis), shape)
+                for e in ids if e not in ('time_offset', 'standby')
+                and len(get_effect(e).linear_params()) <= MAX_SCREEN_COLUMNS
+                for axis in axes
+                for shape in _shape_grid(e, (), 0, options.shape_grid_points)]
+    return on
 
 
 def _fitted_lag_s(result: AnalysisResult) -> float | None:

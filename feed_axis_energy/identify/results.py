@@ -309,7 +309,7 @@ class AnalysisResult:
     sim_rate_hz
         The rate [Hz] the analysis simulated at: the planner's ``rate_hz``, or a multiple of
         it when the data resolve what the simulation's sampling changes in the meter's
-        readings (:func:`.analyze._sim_rate`); 0 when not set.
+        readings (:func:`.simrate.sim_rate`); 0 when not set.
     """
 
     status: str

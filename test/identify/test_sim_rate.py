@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from feed_axis_energy.identify.analyze import (_sim_rate, MAX_OVERSAMPLING, MAX_SIM_SAMPLES,
+from feed_axis_energy.identify.simrate import (MAX_OVERSAMPLING, MAX_SIM_SAMPLES, sim_rate,
                                                STEP_MAX_CHI2)
 from feed_axis_energy.machine import load_machine
 from feed_axis_energy.paths import config_dir
@@ -32,26 +32,26 @@ def machine():
 
 def test_a_power_meter_s_noise_hides_the_sampling(machine):
     # 1.5 W of noise, 5 mW of sampling error over 45 000 stamps: chi2 0.5
-    factor, chi2 = _sim_rate(_runs(1.5, 0.005), machine)
+    factor, chi2 = sim_rate(_runs(1.5, 0.005), machine)
     assert factor == 1 and chi2 == pytest.approx(15 * 3000 * (0.005 / 1.5) ** 2, rel=0.05)
 
 
 def test_precise_data_get_the_smallest_factor_that_hides_it(machine):
     # 0.05 W: chi2 about 450; a factor f divides it by f^4: 2 leaves 28, 4 leaves 1.8
-    factor, chi2 = _sim_rate(_runs(0.05, 0.005), machine)
+    factor, chi2 = sim_rate(_runs(0.05, 0.005), machine)
     assert chi2 == pytest.approx(450.0, rel=0.05)
     assert factor == 4 and chi2 / 4 ** 4 <= STEP_MAX_CHI2 < chi2 / 2 ** 4
 
 
 def test_the_factor_is_capped_and_a_noiseless_trace_gives_no_nan(machine):
-    factor, chi2 = _sim_rate(_runs(0.0, 0.005), machine)
+    factor, chi2 = sim_rate(_runs(0.0, 0.005), machine)
     assert factor == MAX_OVERSAMPLING and np.isfinite(chi2)
     # long records keep the planner's rate: 10 minutes at 2 kHz would exceed the budget
     long = _runs(0.05, 0.005, duration_s=600.0)
     assert 2 * machine.planner.rate_hz * 600.0 > MAX_SIM_SAMPLES
-    assert _sim_rate(long, machine)[0] == 1
+    assert sim_rate(long, machine)[0] == 1
     # nothing estimated: nothing raised
-    assert _sim_rate(_runs(0.05, 0.0), machine) == (1, 0.0)
+    assert sim_rate(_runs(0.05, 0.0), machine) == (1, 0.0)
 
 
 def test_one_filter_step_takes_a_time_constant_most_of_the_way():

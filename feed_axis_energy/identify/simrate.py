@@ -1,0 +1,61 @@
+"""The rate the analysis simulates at: finer than the planner's where the data resolve its
+sampling.
+
+A simulation sampled at the planner's ``rate_hz`` and read through the meter's windows differs
+from the continuous motion by a sampling error (each comparison's ``step_error``). On precise
+data (a drive trace at 1 kHz, a smooth controller output) that error can be larger than the
+noise, and a candidate effect would then be fitted to the simulation's own numerics.
+:func:`sim_rate` says by which power of two ``analyze`` raises the rate so that it cannot.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+import math
+
+from ..machine import Machine
+from ..measured import RunComparison
+from .diagnostics import noise_level
+
+__all__ = ['MAX_OVERSAMPLING', 'MAX_SIM_SAMPLES', 'sim_rate', 'STEP_MAX_CHI2']
+
+STEP_MAX_CHI2 = 4.0
+"""The most the simulation's sampling may put into the campaign's residual, as a sum of
+squares over the noise variance (:func:`sim_rate`): below the one-parameter tests' limits,
+so that no candidate can be fitted to the simulation's own numerics."""
+MAX_OVERSAMPLING = 8
+"""Largest factor by which the analysis raises the planner's ``rate_hz``."""
+MAX_SIM_SAMPLES = 1_000_000
+"""Largest number of simulated samples per run the raised rate may give (memory and time
+stay those of a drive trace at the planner's rate)."""
+
+
+def sim_rate(runs: Sequence[RunComparison], machine: Machine) -> tuple[int, float]:
+    """The factor by which the analysis raises the planner's rate, and the residual sum of
+    squares over the noise variance that the declared rate's sampling gives.
+
+    Each run's comparison estimates what the sampling puts into the meter's readings
+    (``step_error``, falling with the square of the step); against each axis's white noise
+    (:func:`.diagnostics.noise_level` of its baseline residual) it adds
+    ``n·(step_error/sigma)²``. The factor is the smallest power of two that brings the sum
+    to :data:`STEP_MAX_CHI2` (the sum falls with its fourth power), at most
+    :data:`MAX_OVERSAMPLING` and :data:`MAX_SIM_SAMPLES` per run.
+    """
+    chi2 = 0.0
+    for r in runs:
+        meas = r.power_meas_w if r.signal_meas is None else r.signal_meas
+        sim = r.power_sim_w if r.signal_sim is None else r.signal_sim
+        for j, axis in enumerate(r.axes):
+            err = float(r.step_error.get(axis, 0.0))
+            if not (err > 0.0 and math.isfinite(err)):
+                continue
+            sigma = noise_level([meas[:, j] - sim[:, j]]).white_w
+            if not math.isfinite(sigma):
+                continue
+            chi2 += meas.shape[0] * (err / max(sigma, 1e-12 * err)) ** 2
+    rate = machine.planner.rate_hz
+    longest = max((r.sim_duration_s for r in runs), default=0.0)
+    factor = 1
+    while (chi2 / factor ** 4 > STEP_MAX_CHI2 and 2 * factor <= MAX_OVERSAMPLING
+           and 2 * factor * rate * longest <= MAX_SIM_SAMPLES):
+        factor *= 2
+    return factor, chi2
