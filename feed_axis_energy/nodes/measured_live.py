@@ -9,8 +9,9 @@ node only routes messages to it. The comparison's lag estimates run on a worker 
 never waits for one.
 
 ``source``: ``job_live`` compares with the running job's predicted power (``job/live``,
-wall-clock stamps: the graph in real-time mode), one comparison per job, final when the job
-ends; ``live_motion`` predicts from the stream's own kinematics (runs without an NC program),
+wall-clock stamps: the graph in real-time mode), one comparison per job, final
+``final_after_s`` after the job ends (measured samples still on their way are used);
+``live_motion`` predicts from the stream's own kinematics (runs without an NC program),
 one comparison per stretch of stream, final after ``end_after_s`` without samples.
 """
 from __future__ import annotations
@@ -93,6 +94,10 @@ class MeasuredLive(Node):
         self.end_after_s = float(declare(self, 'end_after_s', 10.0,
                                          'live_motion: the comparison is final after this '
                                          'long without samples [s]'))
+        self.final_after_s = float(declare(self, 'final_after_s', 1.0,
+                                           'job_live: the comparison is final this long after '
+                                           'its job ends; samples still on their way are used '
+                                           '[s] (0: at once)'))
         rate = float(declare(self, 'publish_rate_hz', 2.0, 'measured/comparison rate [Hz]'))
         d = LiveSettings()
         options = {
@@ -121,9 +126,10 @@ class MeasuredLive(Node):
                                          "live_motion on a calibrated machine (loss_covariance): "
                                          'band = this many standard uncertainties of the '
                                          'predicted energy (0: band_pct)'))
-        if not rate > 0.0 or not self.end_after_s > 0.0 or not self.band_sigmas >= 0.0:
+        if (not rate > 0.0 or not self.end_after_s > 0.0 or not self.band_sigmas >= 0.0
+                or not (math.isfinite(self.final_after_s) and self.final_after_s >= 0.0)):
             raise StartupError('parameters publish_rate_hz and end_after_s must be > 0, '
-                               'band_sigmas >= 0')
+                               'band_sigmas and final_after_s finite and >= 0')
         try:
             self.kt_nm_a = _constants(kt_text)
             if self.source != 'live_motion' and self.measures not in POWER_MEASURES:
@@ -143,6 +149,8 @@ class MeasuredLive(Node):
         self.outside_job = 0
         self.prediction_clock = 0
         self.finals = 0
+        self._final_at: float | None = None     # job_live: when the ended job's comparison
+        #                                         becomes final (monotonic clock)
         self._last_sample = time.monotonic()
         self._dirty = False
         self._alarm_active = False
@@ -183,8 +191,14 @@ class MeasuredLive(Node):
             self._finish()
             self.job_id = job_id
             self.monitor = self._new_monitor(job_id)
-        elif state in _FINAL_STATES and job_id == self.job_id and self.monitor is not None:
-            self._finish()
+        elif (state in _FINAL_STATES and job_id == self.job_id and self.monitor is not None
+              and self._final_at is None):
+            # the drive data of the job's last moments may still be on their way (fieldbus,
+            # bridge, DDS): the comparison is final a little later (_tick), or at once when
+            # the next job starts
+            self._final_at = time.monotonic() + self.final_after_s
+            if self.final_after_s == 0.0:
+                self._finish()
 
     def _on_job_live(self, msg: String) -> None:
         if self.source != 'job_live' or self.monitor is None:
@@ -234,6 +248,7 @@ class MeasuredLive(Node):
                   f'{json.loads(alarm_text(comparison))}')
 
     def _finish(self) -> None:
+        self._final_at = None
         if self.monitor is None:
             return
         monitor, self.monitor = self.monitor, None
@@ -253,7 +268,10 @@ class MeasuredLive(Node):
             f'{total:+.3f} %, lag {final["lag"]["lag_s"]:+.4f} s ({final["lag"]["status"]})')
 
     def destroy_node(self) -> None:
-        """Let the running comparison's lag worker go, then the node."""
+        """Publish an ended job's comparison still waiting for ``final_after_s``, let the
+        running comparison's lag worker go, then the node."""
+        if self._final_at is not None:
+            self._finish()
         if self.monitor is not None:
             self.monitor.close()
         super().destroy_node()
@@ -262,6 +280,8 @@ class MeasuredLive(Node):
         try:
             if (self.source == 'live_motion' and self.monitor is not None
                     and time.monotonic() - self._last_sample > self.end_after_s):
+                self._finish()
+            elif self._final_at is not None and time.monotonic() >= self._final_at:
                 self._finish()
             elif self.monitor is not None and self._dirty:
                 self._dirty = False

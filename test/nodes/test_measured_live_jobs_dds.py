@@ -1,7 +1,8 @@
 """``measured_live`` in a job graph (``launch --program-root --mode realtime --measured-live``):
 a cell client echoes each ``job/live`` prediction back as measured data, 1.1 times the
 predicted power, on ``measured/live``; the job's final comparison names the job and shows the
--9.1 % error (1 / 1.1 - 1), with every row used."""
+-9.1 % error (1 / 1.1 - 1), with the rows echoed (those of the job's last moments too: the
+comparison is final ``final_after_s`` after the job ends)."""
 import json
 import subprocess
 import sys
