@@ -289,6 +289,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--cases', default=None, help='comma-separated cases (default: all + clean)')
     p.add_argument('--classes', default='large,small,smooth,power',
                    help='comma-separated classes (default: large,small,smooth,power)')
+    p.add_argument('--truth-hz', type=float, default=tm.RATE_HZ,
+                   help=f'sample rate of the truth model [Hz] (default {tm.RATE_HZ:g}; its '
+                   'meter integrates on that grid by the rectangle rule)')
     p.add_argument('--from-log', nargs='+', type=Path, default=None, metavar='FILE',
                    help='print the table of earlier runs from their progress lines (stderr)')
     args = p.parse_args(argv)
@@ -308,6 +311,9 @@ def main(argv: list[str] | None = None) -> int:
         c for c in classes if c not in CLASSES]
     if bad or args.seeds < 1:
         p.error(f'unknown case or class: {", ".join(bad)}' if bad else '--seeds must be >= 1')
+    if not 1000.0 <= args.truth_hz <= 200_000.0:
+        p.error(f'--truth-hz must be within 1000 and 200000 Hz, got {args.truth_hz:g}')
+    tm.RATE_HZ = float(args.truth_hz)
     cells = [(case, cls) for case in cases for cls in classes
              if not (case == 'clean' and cls == 'small')]
     seeds = range(args.first_seed, args.first_seed + args.seeds)

@@ -150,3 +150,18 @@ def test_a_large_stribeck_that_pulls_only_the_slow_runs_starts_from_its_offsets(
     assert r['misaligned'] == [] and r['left_out'] == [], r
     assert r['aligned_with']['effect'] == 'stribeck', r
     assert r['aligned_with']['median_move_s'] < 0.005 < r['aligned_with']['largest_move_s'], r
+
+
+def test_the_truth_rate_option_is_checked_and_set(matrix, capsys, monkeypatch):
+    with pytest.raises(SystemExit) as exit_info:
+        matrix.main(['--truth-hz', '10', '--cases', 'clean', '--classes', 'smooth'])
+    assert exit_info.value.code == 2
+    assert '--truth-hz must be within' in capsys.readouterr().err
+    tm = matrix.tm      # the truth model the matrix itself runs
+    seen = []
+    monkeypatch.setattr(matrix, 'run_cells', lambda *a, **k: seen.append(tm.RATE_HZ) or [])
+    monkeypatch.setattr(matrix, 'print_table', lambda *a, **k: None)
+    monkeypatch.setattr(tm, 'RATE_HZ', tm.RATE_HZ)      # restored after the test
+    assert matrix.main(['--truth-hz', '20000', '--cases', 'clean', '--classes', 'smooth',
+                        '--seeds', '1']) == 0
+    assert seen == [20000.0]
