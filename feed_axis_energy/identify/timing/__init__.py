@@ -11,7 +11,7 @@ from the best screened candidate's offsets. ``analyze``
 from .jointalign import (JOINT_REACH_S, JOINT_STEP_S, joint_screen, JointFit,
                          MAX_SCREEN_COLUMNS, MAX_SCREEN_SAMPLES, MAX_SCREEN_SPAN_S,
                          ScreenCandidate, ScreenRun, screen_span)
-from .jointstart import JOINT_MIN_GAIN, joint_eligible, joint_start, screen_items
+from .jointstart import JOINT_MIN_GAIN, joint_eligible, joint_start
 from .meter import (FILTER_EXTRA_ROUNDS, FILTER_MAX_RATIO, FILTER_TOLERANCE, filter_next,
                     filter_step, may_filter, MIN_FILTER_PERIODS, runs_differ, with_filter)
 from .pinning import (at_common_lag, at_motion_offsets, at_offsets, decisive, lag_tolerance_s,
@@ -24,6 +24,6 @@ __all__ = [
     'JOINT_MIN_GAIN', 'JOINT_REACH_S', 'joint_start', 'JOINT_STEP_S', 'joint_screen', 'JointFit',
     'lag_tolerance_s', 'left_out_text', 'LeftOut', 'MAX_PIN_ROUNDS', 'MAX_SCREEN_COLUMNS',
     'MAX_SCREEN_SAMPLES', 'MAX_SCREEN_SPAN_S', 'may_filter', 'MIN_FILTER_PERIODS', 'motion_lag_s',
-    'PIN_MARGIN', 'PINNED_STATUSES', 'repin', 'runs_differ', 'ScreenCandidate', 'screen_items',
-    'ScreenRun', 'screen_span', 'split_pinned', 'with_filter',
+    'PIN_MARGIN', 'PINNED_STATUSES', 'repin', 'runs_differ', 'ScreenCandidate', 'ScreenRun',
+    'screen_span', 'split_pinned', 'with_filter',
 ]

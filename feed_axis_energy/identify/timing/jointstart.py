@@ -24,7 +24,7 @@ from .jointalign import (JOINT_STEP_S, joint_screen, JointFit, ScreenCandidate, 
                          screen_span)
 from .pinning import at_offsets, split_pinned
 
-__all__ = ['JOINT_MIN_GAIN', 'joint_eligible', 'joint_start', 'screen_items']
+__all__ = ['JOINT_MIN_GAIN', 'joint_eligible', 'joint_start']
 
 JOINT_MIN_GAIN = 0.05
 """Relative drop of the screen's residual that makes a candidate's offsets a start of their
@@ -39,9 +39,9 @@ def joint_eligible(campaign: Campaign, runs: Sequence[RunComparison]) -> bool:
         and campaign.run(r.name).motion_program is not None for r in runs)
 
 
-def screen_items(campaign: Campaign, machine: Machine, runs: Sequence[RunComparison],
-                 candidates: Sequence[ScreenCandidate], loaded: Mapping[str, MeasuredRun],
-                 ) -> Iterator[tuple[ScreenRun, list[np.ndarray]]]:
+def _screen_items(campaign: Campaign, machine: Machine, runs: Sequence[RunComparison],
+                  candidates: Sequence[ScreenCandidate], loaded: Mapping[str, MeasuredRun],
+                  ) -> Iterator[tuple[ScreenRun, list[np.ndarray]]]:
     """Per run, what :func:`.jointalign.joint_screen` reads: the run (its first stretch,
     the simulation cropped to what that stretch sees) and every candidate's basis there."""
     cache = MotionCache(machine)
@@ -90,7 +90,7 @@ def joint_start(campaign: Campaign, machine: Machine, cmp: CampaignComparison,
     candidates = candidates_for(pinned[0].axes)
     if not candidates:
         return None
-    fits = joint_screen(screen_items(campaign, machine, pinned, candidates, loaded),
+    fits = joint_screen(_screen_items(campaign, machine, pinned, candidates, loaded),
                         candidates)
     best = fits[0]
     if best.gain < JOINT_MIN_GAIN or best.largest_move_s < JOINT_STEP_S:
