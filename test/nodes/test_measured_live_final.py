@@ -1,6 +1,7 @@
 """``measured_live`` (``source: job_live``): a job's comparison is final ``final_after_s``
 after the job ends, so that drive data still on their way are compared (docs/nodes.md,
 "measured_live")."""
+from contextlib import contextmanager
 import json
 import time
 
@@ -26,6 +27,16 @@ def _node(context, final_after_s):
     sent = []
     node.pub.publish = lambda msg: sent.append(json.loads(msg.data))
     return node, sent
+
+
+@contextmanager
+def _live(context, final_after_s):
+    """``(node, sent)`` for the block, the node destroyed after it."""
+    node, sent = _node(context, final_after_s)
+    try:
+        yield node, sent
+    finally:
+        node.destroy_node()
 
 
 def _state(node, state):
@@ -56,8 +67,7 @@ def _run_job(node):
 
 @child_only
 def test_samples_arriving_after_the_end_are_compared(context):
-    node, sent = _node(context, 0.8)
-    try:
+    with _live(context, 0.8) as (node, sent):
         late = _run_job(node)
         assert not any(m['final'] for m in sent)        # not final at the job's end
         _measured(node, late)
@@ -76,33 +86,25 @@ def test_samples_arriving_after_the_end_are_compared(context):
         # samples after the final comparison count as outside any job
         _measured(node, [late[-1] + 0.1])
         assert node.outside_job == 1
-    finally:
-        node.destroy_node()
 
 
 @child_only
 def test_zero_makes_it_final_at_the_end_and_the_late_samples_are_outside(context):
-    node, sent = _node(context, 0.0)
-    try:
+    with _live(context, 0.0) as (node, sent):
         late = _run_job(node)
         finals = [m for m in sent if m['final']]
         assert len(finals) == 1
         assert finals[0]['counters']['measured']['rows'] < int(RUN_S * RATE_HZ) + 1
         _measured(node, late)
         assert node.outside_job == len(late)
-    finally:
-        node.destroy_node()
 
 
 @child_only
 def test_the_next_job_or_the_node_stopping_makes_it_final_at_once(context):
-    node, sent = _node(context, 30.0)
-    try:
+    with _live(context, 30.0) as (node, sent):
         _run_job(node)
         node._on_job_state(String(data=json.dumps({'state': 'running', 'job_id': 'j2'})))
         assert [m['job_id'] for m in sent if m['final']] == ['j1']
-    finally:
-        node.destroy_node()
     node, sent = _node(context, 30.0)
     _run_job(node)
     node.destroy_node()
