@@ -37,6 +37,11 @@ from scipy.optimize import lsq_linear
 __all__ = ['Block', 'Design', 'Step', 'SelectionResult', 'forward_select', 'gain_text',
            'loro_folds', 'solve_normal', 'at_bounds']
 
+# column sets whose per-run cross products a design keeps at once (a few MB at most)
+_SUBS_KEPT = 64
+# every run's Gram matrix and X'y on a set of columns, and the diagonal summed over runs
+_Sub = tuple[list[np.ndarray], list[np.ndarray], np.ndarray]
+
 
 def solve_normal(g: np.ndarray, b: np.ndarray, lower: np.ndarray | None = None,
                  upper: np.ndarray | None = None) -> np.ndarray:
@@ -62,10 +67,17 @@ def solve_normal(g: np.ndarray, b: np.ndarray, lower: np.ndarray | None = None,
         return theta
     # g = V S V': A = S^(1/2) V' and t = S^(-1/2) V' b give |A u - t|^2 = u'g u - 2 b'u + c
     w, v = np.linalg.eigh(0.5 * (gs + gs.T))
-    keep = w > 1e-10 * max(float(w.max()), 1e-300)
+    floor = 1e-10 * max(float(w.max()), 1e-300)
+    keep = w > floor
     root = np.sqrt(w[keep])
     a = root[:, None] * v[:, keep].T
     t = (v[:, keep].T @ bs) / root
+    if not keep.all():
+        # collinear columns: the data leave a direction free, and a bounded solver would stop
+        # anywhere along it (huge values of opposite sign that cancel); a penalty at the
+        # rank threshold on that direction alone takes the smallest solution, as lstsq does
+        a = np.vstack([a, math.sqrt(floor) * v[:, ~keep].T])
+        t = np.concatenate([t, np.zeros(int((~keep).sum()))])
     res = lsq_linear(a, t, bounds=(lo * d, hi * d), method='bvls')
     return np.clip(res.x / d, lo, hi)
 
@@ -124,6 +136,9 @@ class Design:
         self.blocks: list[Block] = []
         self.lower = np.zeros(0)
         self.upper = np.zeros(0)
+        # each run's cross products restricted to a set of columns, by the columns: a
+        # held-out score fits the same columns on many folds (cleared when columns are added)
+        self._subs: dict[tuple[int, ...], _Sub] = {}
 
     @property
     def runs(self) -> int:
@@ -165,7 +180,22 @@ class Design:
         block = Block(key=key, shape=dict(shape), names=tuple(names),
                       cols=tuple(range(start, start + p)))
         self.blocks.append(block)
+        self._subs.clear()
         return block
+
+    def _sub(self, cols: list[int]) -> _Sub:
+        """Every run's Gram matrix and ``X'y`` on ``cols``, and their summed diagonal."""
+        key = tuple(cols)
+        found = self._subs.get(key)
+        if found is None:
+            idx = np.ix_(cols, cols)
+            grams = [g[idx] for g in self.gram]
+            every = cast(np.ndarray, sum(g.diagonal()[cols] for g in self.gram))
+            found = (grams, [v[cols] for v in self.xy], every)
+            if len(self._subs) >= _SUBS_KEPT:
+                self._subs.pop(next(iter(self._subs)))
+            self._subs[key] = found
+        return found
 
     def fit(self, cols: Sequence[int], runs: Sequence[int]) -> np.ndarray:
         """Bounded least-squares coefficients of ``cols`` on the pooled ``runs``.
@@ -176,14 +206,13 @@ class Design:
         cols = list(cols)
         if not cols:
             return np.zeros(0)
-        idx = np.ix_(cols, cols)
-        g = cast(np.ndarray, sum(self.gram[r][idx] for r in runs))     # runs is not empty
-        b = cast(np.ndarray, sum(self.xy[r][cols] for r in runs))
+        grams, xys, every = self._sub(cols)
+        g = cast(np.ndarray, sum(grams[r] for r in runs))     # runs is not empty
+        b = cast(np.ndarray, sum(xys[r] for r in runs))
         # A column (almost) absent from these runs, though present in others (a position
         # bump the training runs barely touch), is not fitted here: unit-norm scaling would
         # blow its coefficient up to meaningless sizes. Its value stays 0 (inside every
         # physical bound).
-        every = sum(self.gram[r].diagonal()[cols] for r in range(self.runs))
         strong = np.diag(g) > 1e-12 * every
         theta = np.zeros(len(cols))
         if np.any(strong):
@@ -197,9 +226,8 @@ class Design:
         cols = list(cols)
         if not cols:
             return float(self.yy[run])
-        idx = np.ix_(cols, cols)
-        g = self.gram[run][idx]
-        b = self.xy[run][cols]
+        grams, xys, _ = self._sub(cols)
+        g, b = grams[run], xys[run]
         return max(0.0, float(self.yy[run] - 2.0 * theta @ b + theta @ g @ theta))
 
     def predict(self, cols: Sequence[int], theta: np.ndarray, run: int) -> np.ndarray:

@@ -48,6 +48,24 @@ def test_bounded_solve_clips_a_negative_coefficient_to_zero() -> None:
         'lower', None]
 
 
+def test_bounded_solve_of_collinear_columns_takes_the_smallest_solution() -> None:
+    # iron's eddy term k_e ω² and viscous c v² are the same column on a screw axis (ω = 2π v
+    # / lead), computed differently; iron's hysteresis k_h |ω| is bounded at 0 and the data
+    # push it below, so the bounded solver runs. Without a rule for the free direction it
+    # stopped anywhere along it: k_e and c of 1e12 and opposite signs (seen on a truth cell)
+    rng = np.random.default_rng(0)
+    lower, upper = np.array([0.0, 0.0, -math.inf]), np.full(3, math.inf)
+    for _ in range(50):
+        v = rng.uniform(-0.5, 0.5, 2000)
+        x = np.column_stack([np.abs(v), v * v, (2.0 * math.pi * v / 0.01) ** 2])
+        y = 3.0 * v * v - 0.1 * np.abs(v) + rng.normal(0.0, 0.01, v.size)
+        theta = solve_normal(x.T @ x, x.T @ y, lower, upper)
+        assert theta[0] == pytest.approx(0.0, abs=1e-9)
+        assert np.max(np.abs(theta)) < 10.0, theta
+        best = np.linalg.lstsq(x[:, 1:], y, rcond=None)[0]
+        np.testing.assert_allclose(x @ theta, x[:, 1:] @ best, atol=1e-6)
+
+
 def test_design_fit_respects_the_block_bounds() -> None:
     rng = np.random.default_rng(1)
     cols = [rng.normal(size=(50, 1)) for _ in range(3)]
