@@ -30,6 +30,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from scipy.signal import lfilter
 import yaml
 
 G = 9.80665
@@ -377,11 +378,8 @@ def _lowpass(t: np.ndarray, p: np.ndarray, tau: float) -> np.ndarray:
     if tau <= 0.0:
         return p
     alpha = 1.0 - math.exp(-(t[1] - t[0]) / tau)
-    out = np.empty_like(p)
-    acc = p[0]
-    for i, value in enumerate(p):
-        acc += alpha * (value - acc)
-        out[i] = acc
+    # acc_i = acc_(i-1) + alpha (p_i - acc_(i-1)) from acc_(-1) = p_0, as one recursive filter
+    out, _ = lfilter([alpha], [1.0, alpha - 1.0], p, zi=[(1.0 - alpha) * p[0]])
     return out
 
 
