@@ -413,7 +413,8 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     notes = ([f'at {declared.planner.rate_hz:g} Hz its sampling would put a sum of squares '
               f'of {chi2:.3g} noise variances into the residual, which these data resolve']
              if factor > 1 else [])
-    more, chi2_found = _rate_with_effects(campaign, result, machine, loaded)
+    more, chi2_found = ((1, 0.0) if factor >= MAX_OVERSAMPLING else
+                        _rate_with_effects(campaign, result, machine, loaded))
     more = min(more, MAX_OVERSAMPLING // factor)
     if more > 1:
         # the effects found have power the declared model lacks (the spikes of a large
