@@ -49,7 +49,7 @@ from .ambiguity import AmbiguousGroup, EquivalentForm, find_groups, found_text, 
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
 from .grid import bin_windows, Bins, bins_for
-from .simrate import MAX_OVERSAMPLING, sim_rate
+from .simrate import at_rate, MAX_OVERSAMPLING, rate_with_effects, sim_rate
 from .timing import (at_common_lag, at_motion_offsets, FILTER_EXTRA_ROUNDS, FILTER_TOLERANCE,
                      filter_next, filter_step, joint_eligible, joint_start, lag_tolerance_s,
                      LeftOut, left_out_text, MAX_PIN_ROUNDS, MAX_SCREEN_COLUMNS, may_filter,
@@ -77,7 +77,7 @@ the trace of that very lag: a fraction of a millisecond has the shape of a moved
 
 RATE_CHECK_FROM = 0.95
 """Progress fraction the first analysis ends at: the rest is the analysis run again at a
-finer simulation rate when the effects it found need one (:func:`_rate_with_effects`)."""
+finer simulation rate when the effects it found need one (:func:`.simrate.rate_with_effects`)."""
 
 __all__ = ['analyze_campaign']
 
@@ -406,7 +406,7 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
     factor, chi2 = sim_rate(cmp.runs, machine)
     if factor > 1:
         # data this precise resolve the simulation's sampling: the analysis simulates finer
-        machine = _at_rate(declared, factor)
+        machine = at_rate(declared, factor)
         cmp = compare_campaign(campaign, machine=machine, runs=runs, loaded=loaded)
     result = _analysis(campaign, machine, machine_file, cmp, ids, options,
                        lambda f: report(min(f, RATE_CHECK_FROM)), loaded, runs)
@@ -414,14 +414,14 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
               f'of {chi2:.3g} noise variances into the residual, which these data resolve']
              if factor > 1 else [])
     more, chi2_found = ((1, 0.0) if factor >= MAX_OVERSAMPLING else
-                        _rate_with_effects(campaign, result, machine, loaded))
+                        rate_with_effects(campaign, result, machine, loaded))
     more = min(more, MAX_OVERSAMPLING // factor)
     if more > 1:
         # the effects found have power the declared model lacks (the spikes of a large
         # Stribeck friction): their own sampling at this rate is resolved by these data too,
         # and a candidate would be fitted to it; the analysis runs again finer
         factor *= more
-        machine = _at_rate(declared, factor)
+        machine = at_rate(declared, factor)
         cmp = compare_campaign(campaign, machine=machine, runs=runs, loaded=loaded)
         result = _analysis(campaign, machine, machine_file, cmp, ids, options,
                            lambda f: report(RATE_CHECK_FROM + (1.0 - RATE_CHECK_FROM)
@@ -436,30 +436,6 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
             f'{result.message}; simulated at {machine.planner.rate_hz:g} Hz, {factor} times '
             f'the planner\'s rate_hz: {"; ".join(notes)}'))
     return result
-
-
-def _at_rate(machine: Machine, factor: int) -> Machine:
-    """``machine`` with its planner's rate raised ``factor`` times."""
-    return replace(machine, planner=replace(machine.planner,
-                                            rate_hz=factor * machine.planner.rate_hz))
-
-
-def _rate_with_effects(campaign: Campaign, result: AnalysisResult, machine: Machine,
-                       loaded: Mapping[str, MeasuredRun]) -> tuple[int, float]:
-    """:func:`.simrate.sim_rate` of the campaign compared with the effects ``result`` found
-    (and offered) in ``machine``, at its rate and through its meter filter: by what further
-    factor the rate must rise so that the found effects' own sampling cannot be fitted, and
-    the sum of squares over the noise variance it gives at this rate. ``(1, 0)`` when
-    nothing was found (the model is the one whose rate was chosen)."""
-    if not (result.effects or result.offered):
-        return 1, 0.0
-    model = replace(replace(result, machine=machine).augmented_machine(),
-                    planner=machine.planner)
-    filtered = (with_filter(campaign, result.meter_filter_s) if result.meter_filter_s
-                else campaign)
-    fcmp = compare_campaign(filtered, machine=model, runs=[r.name for r in result.runs],
-                            loaded=loaded)
-    return sim_rate(fcmp.runs, model)
 
 
 def _analysis(campaign: Campaign, machine: Machine, machine_file: str, cmp: CampaignComparison,

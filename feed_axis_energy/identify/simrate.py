@@ -5,18 +5,25 @@ A simulation sampled at the planner's ``rate_hz`` and read through the meter's w
 from the continuous motion by a sampling error (each comparison's ``step_error``). On precise
 data (a drive trace at 1 kHz, a smooth controller output) that error can be larger than the
 noise, and a candidate effect would then be fitted to the simulation's own numerics.
-:func:`sim_rate` says by which power of two ``analyze`` raises the rate so that it cannot.
+:func:`sim_rate` says by which power of two ``analyze`` raises the rate so that it cannot;
+:func:`rate_with_effects` asks it again with the effects an analysis found in the model (their
+own power may need a finer rate, and without the missing effect in the residual the noise
+level is the meter's own).
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
 import math
 
 from ..machine import Machine
-from ..measured import RunComparison
+from ..measured import Campaign, compare_campaign, MeasuredRun, RunComparison
 from .diagnostics import noise_level
+from .results import AnalysisResult
+from .timing import with_filter
 
-__all__ = ['MAX_OVERSAMPLING', 'MAX_SIM_SAMPLES', 'sim_rate', 'STEP_MAX_CHI2']
+__all__ = ['at_rate', 'MAX_OVERSAMPLING', 'MAX_SIM_SAMPLES', 'rate_with_effects', 'sim_rate',
+           'STEP_MAX_CHI2']
 
 STEP_MAX_CHI2 = 4.0
 """The most the simulation's sampling may put into the campaign's residual, as a sum of
@@ -59,3 +66,27 @@ def sim_rate(runs: Sequence[RunComparison], machine: Machine) -> tuple[int, floa
            and 2 * factor * rate * longest <= MAX_SIM_SAMPLES):
         factor *= 2
     return factor, chi2
+
+
+def at_rate(machine: Machine, factor: int) -> Machine:
+    """``machine`` with its planner's rate raised ``factor`` times."""
+    return replace(machine, planner=replace(machine.planner,
+                                            rate_hz=factor * machine.planner.rate_hz))
+
+
+def rate_with_effects(campaign: Campaign, result: AnalysisResult, machine: Machine,
+                      loaded: Mapping[str, MeasuredRun]) -> tuple[int, float]:
+    """:func:`sim_rate` of the campaign compared with the effects ``result`` found
+    (and offered) in ``machine``, at its rate and through its meter filter: by what further
+    factor the rate must rise so that the found effects' own sampling cannot be fitted, and
+    the sum of squares over the noise variance it gives at this rate. ``(1, 0)`` when
+    nothing was found (the model is the one whose rate was chosen)."""
+    if not (result.effects or result.offered):
+        return 1, 0.0
+    model = replace(replace(result, machine=machine).augmented_machine(),
+                    planner=machine.planner)
+    filtered = (with_filter(campaign, result.meter_filter_s) if result.meter_filter_s
+                else campaign)
+    fcmp = compare_campaign(filtered, machine=model, runs=[r.name for r in result.runs],
+                            loaded=loaded)
+    return sim_rate(fcmp.runs, model)
