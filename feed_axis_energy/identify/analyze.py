@@ -61,6 +61,7 @@ from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, Pa
 from .drivecorr import common_measures, correction_bounds, declared_values, describe_correction
 from .driveforms import current_basis, has_current_form
 from .selection import at_bounds, Block, Design, loro_folds, solve_normal
+from .statestore import StateStore
 from .summed import offer_summed
 
 NOISE_PASSES = 2
@@ -87,7 +88,8 @@ __all__ = ['analyze_campaign']
 @dataclass
 class _Run:
     cmp: RunComparison
-    state: EffectState
+    store: StateStore               # the 1 kHz simulation of the declared model: .state
+    key: int
     sim_index: list[int | None]     # measured axis j -> column of the simulation or None
     residual: np.ndarray            # (m, k_meas) on the analysis grid (bins)
     states: dict[str, np.ndarray]   # name -> (m, k_meas) on the analysis grid
@@ -95,6 +97,11 @@ class _Run:
     t: np.ndarray                   # (m,) bin stamps: the mean of the samples' stamps [s]
     kt: list[float] | None = None   # a drive trace: torque per unit per axis (.driveforms)
     wide: tuple[np.ndarray, float] | None = None    # abutting windows: one per bin (.grid)
+
+    @property
+    def state(self) -> EffectState:
+        """The run's simulation of the declared model (held or memory-mapped: .statestore)."""
+        return self.store.get(self.key)
 
     def aligned(self, cols: np.ndarray, *, filtered: bool = True) -> np.ndarray:
         """Align 1 kHz columns ``(n, c)`` onto the analysis grid: ``(m, c)`` (each bin the
@@ -111,7 +118,8 @@ class _Run:
 
 
 def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Machine, *,
-             loaded: Mapping[str, MeasuredRun], period_s: float) -> list[_Run]:
+             loaded: Mapping[str, MeasuredRun], period_s: float,
+             store: StateStore) -> list[_Run]:
     cache = MotionCache(machine)
     out = []
     for r in cmp_runs:
@@ -136,8 +144,8 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Mac
         else:
             residual = r.power_meas_w - r.power_sim_w
         bins = bins_for(r.t, period_s)
-        run = _Run(cmp=r, state=state, sim_index=idx, residual=bins.mean(residual), states={},
-                   bins=bins, t=bins.mean(r.t), kt=kt,
+        run = _Run(cmp=r, store=store, key=store.put(state), sim_index=idx,
+                   residual=bins.mean(residual), states={}, bins=bins, t=bins.mean(r.t), kt=kt,
                    wide=bin_windows(r.t, bins, window_s=r.window_s,
                                     shift_s=stamp_shift(r.window_s, r.stamp)))
         on = run.aligned(np.column_stack(cols), filtered=False)
@@ -688,6 +696,18 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
                    ) -> tuple[AnalysisResult, list[RunComparison], Machine]:
     """One analysis of the runs ``cmp_runs`` at their offsets; also returns the fresh
     comparisons with the effects found and the machine they were made with."""
+    # each run's simulation within a memory budget, the rest memory-mapped (.statestore);
+    # the store's files are gone when the round ends, also on an error
+    with StateStore(options.state_memory_bytes) as store:
+        return _analyze_round_in(campaign, machine, machine_file, cmp, cmp_runs, ids, options,
+                                 report, loaded, store)
+
+
+def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
+                      cmp: CampaignComparison, cmp_runs: Sequence[RunComparison],
+                      ids: tuple[str, ...], options: AnalyzeOptions,
+                      report: Callable[[float], None], loaded: Mapping[str, MeasuredRun],
+                      store: StateStore) -> tuple[AnalysisResult, list[RunComparison], Machine]:
     # copper and iron as corrections of declared drives (motor-terminal meters, .drivecorr)
     measures = common_measures(campaign.run(r.name).instrument.measures for r in cmp_runs)
     drive = [r for r in cmp_runs if not quantity_of(r.measures).is_power]
@@ -700,7 +720,7 @@ def _analyze_round(campaign: Campaign, machine: Machine, machine_file: str,
     if options.noise_w is None:
         options = replace(options, noise_w=declared_noise(campaign, cmp_runs))
     data = _prepare(campaign, cmp_runs, machine, loaded=loaded,
-                    period_s=options.analysis_period_s)
+                    period_s=options.analysis_period_s, store=store)
     axes = cmp_runs[0].axes
     if any(r.cmp.axes != axes for r in data):
         msg = 'analyze needs the same measured axes in every run'

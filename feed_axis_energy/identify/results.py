@@ -18,6 +18,7 @@ from .ambiguity import AmbiguousGroup
 from .consistency import Fate
 from .diagnostics import Diagnostic, NoiseLevel
 from .grid import ANALYSIS_PERIOD_S
+from .statestore import STATE_MEMORY_BYTES
 from .timing import LeftOut
 from .drivecorr import fold_corrections
 from .selection import Step
@@ -85,6 +86,10 @@ class AnalyzeOptions:
         and ``augmented`` are then the baseline comparison, unchanged. The findings are the
         same; for studies that need only them (``bench/detection_power.py``), a third less
         work.
+    state_memory_bytes
+        Budget [bytes] of the runs' simulations held in memory during a round; the states
+        beyond it are written to a private temporary directory and memory-mapped when used
+        (:mod:`.statestore`; the same results, bit for bit). ``0`` maps every state.
     """
 
     holdout: str = 'loro'
@@ -103,8 +108,12 @@ class AnalyzeOptions:
     realign: bool = True
     noise_w: float | None = None
     analysis_period_s: float = ANALYSIS_PERIOD_S
+    state_memory_bytes: int = STATE_MEMORY_BYTES
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.state_memory_bytes, int) and self.state_memory_bytes >= 0):
+            msg = f'state_memory_bytes must be an integer >= 0, got {self.state_memory_bytes!r}'
+            raise ConfigError(msg, key='state_memory_bytes')
         if not (math.isfinite(self.analysis_period_s) and self.analysis_period_s > 0.0):
             msg = (f'analysis_period_s must be a finite number > 0 s, got '
                    f'{self.analysis_period_s!r}')
