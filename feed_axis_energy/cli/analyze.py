@@ -61,6 +61,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--noise-w', type=float, metavar='W',
                    help='noise level per sample [W] for every test, instead of the estimate '
                         'from the data (which is still printed)')
+    p.add_argument('--state-memory', type=float, metavar='MIB',
+                   default=AnalyzeOptions.state_memory_bytes / 2 ** 20,
+                   help='memory [MiB] for the runs\' simulations during the analysis '
+                        '(default %(default)g MiB); those beyond it are written to a private '
+                        'temporary directory (TMPDIR) and read back memory-mapped: the same '
+                        'result, less memory on long runs at high rates')
     add_quiet_option(p)
     p.set_defaults(run=run)
 
@@ -240,9 +246,13 @@ def run(args: argparse.Namespace) -> int:
     if args.noise_w is not None and not (math.isfinite(args.noise_w) and args.noise_w > 0.0):
         msg = f'--noise-w must be a level > 0 W, got {args.noise_w:g}'
         raise ConfigError(msg, file='command line', key='noise-w')
+    if not (math.isfinite(args.state_memory) and args.state_memory >= 0.0):
+        msg = f'--state-memory must be a size >= 0 MiB, got {args.state_memory:g}'
+        raise ConfigError(msg, file='command line', key='state-memory')
     machine = load_machine(args.machine) if args.machine is not None else None
     options = AnalyzeOptions(holdout=args.holdout, min_share=args.min_share / 100.0,
-                             noise_w=args.noise_w)
+                             noise_w=args.noise_w,
+                             state_memory_bytes=int(args.state_memory * 2 ** 20))
     progress = Progress('analyze', enabled=not args.quiet)
     result = analyze_campaign(campaign, machine=machine, runs=names, options=options,
                               progress=progress)

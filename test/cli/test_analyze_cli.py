@@ -10,6 +10,7 @@ import pytest
 
 from feed_axis_energy.cli import main
 from feed_axis_energy.effects.catalog import get_effect
+from feed_axis_energy.identify import statestore
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.identify.rig import Instrument, parse_effects
 from feed_axis_energy.identify.rig import make_campaign, RigConfig
@@ -31,7 +32,7 @@ def test_help_lists_the_options() -> None:
                           cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0
     for option in ('--json', '--report', '--out-machine', '--runs', '--quiet', '--holdout',
-                   '--min-share', '--noise-w'):
+                   '--min-share', '--noise-w', '--state-memory'):
         assert option in proc.stdout
 
 
@@ -174,7 +175,30 @@ def test_min_share_marks_size_and_the_noise_is_stated(manifest, capsys) -> None:
 @pytest.mark.parametrize('args, key', [(['--min-share', '100'], '--min-share'),
                                        (['--min-share', '-1'], '--min-share'),
                                        (['--noise-w', '0'], '--noise-w'),
-                                       (['--noise-w', 'nan'], '--noise-w')])
+                                       (['--noise-w', 'nan'], '--noise-w'),
+                                       (['--state-memory', '-1'], '--state-memory'),
+                                       (['--state-memory', 'nan'], '--state-memory')])
 def test_bad_min_share_or_noise_is_refused(manifest, capsys, args, key) -> None:
     assert main(['analyze', str(manifest), '--quiet'] + args) == 1
     assert key in capsys.readouterr().err
+
+
+def test_state_memory_reaches_the_store_and_keeps_the_result(manifest, capsys,
+                                                             monkeypatch) -> None:
+
+    budgets = []
+    real = statestore.StateStore.__init__
+
+    def init(self, budget_bytes=statestore.STATE_MEMORY_BYTES):
+        budgets.append(budget_bytes)
+        real(self, budget_bytes)
+
+    monkeypatch.setattr(statestore.StateStore, '__init__', init)
+    assert main(['analyze', str(manifest), '--quiet', '--json']) == 0
+    held = json.loads(capsys.readouterr().out)
+    assert budgets and set(budgets) == {statestore.STATE_MEMORY_BYTES}
+    budgets.clear()
+    assert main(['analyze', str(manifest), '--quiet', '--json', '--state-memory', '0']) == 0
+    mapped = json.loads(capsys.readouterr().out)
+    assert budgets and set(budgets) == {0}
+    assert mapped == held
