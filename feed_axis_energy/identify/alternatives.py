@@ -23,7 +23,7 @@ one of the catalog's: ``analyze`` claims nothing and reports it in ``unexplained
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 import math
 from typing import Any
 
@@ -146,7 +146,7 @@ def _fit(design: Design, blocks: Sequence[Block],
 
 
 def check_alternatives(design: Design, blocks: Sequence[Block],
-                       runs: Sequence[tuple[Any, Sequence[int | None], Callable]], *,
+                       runs: Iterable[tuple[Any, Sequence[int | None], Callable]], *,
                        axes: Sequence[str]) -> dict[str, Any] | None:
     """The best alternative, as an entry, when it fits at least as well as the selection.
 
@@ -158,7 +158,9 @@ def check_alternatives(design: Design, blocks: Sequence[Block],
         The selected effects.
     runs
         Per run ``(state, sim_index, aligned)``: the 1 kHz :class:`..effects.EffectState`
-        of the declared model, measured axis -> its column, and the instrument model.
+        of the declared model, measured axis -> its column, and the instrument model. It is
+        iterated once per alternative and only one state is used at a time, so it may
+        produce each state when iterated (memory-mapped: :mod:`.statestore`).
     axes
         The measured axes.
 

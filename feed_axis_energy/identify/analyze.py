@@ -29,7 +29,7 @@ parameters are found by a profile search and carry no uncertainty (``None``).
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 import math
 from typing import Any
@@ -115,6 +115,18 @@ class _Run:
         return self.bins.mean(align_simulated(
             self.state.t, cols, self.cmp.t, offset_s=self.cmp.offset_used_s,
             window_s=self.cmp.window_s, stamp=self.cmp.stamp, filter_s=filter_s))
+
+
+class _StatesOf:
+    """``(state, sim_index, aligned)`` of each run, each state fetched when iterated to (one
+    run's simulation in memory at a time, not every run's: .statestore)."""
+
+    def __init__(self, runs: Sequence[_Run]) -> None:
+        self._runs = runs
+
+    def __iter__(self) -> Iterator[tuple[EffectState, list[int | None], Callable]]:
+        for r in self._runs:
+            yield r.state, r.sim_index, r.aligned
 
 
 def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Machine, *,
@@ -786,8 +798,7 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
         why = dict(reasons)
         fates = tuple(replace(f, fate='offered', reason=why[(f.effect, f.axis)])
                       if (f.effect, f.axis) in why else f for f in fates)
-    alt = check_alternatives(design, blocks, [(r.state, r.sim_index, r.aligned) for r in data],
-                             axes=axes)
+    alt = check_alternatives(design, blocks, _StatesOf(data), axes=axes)
     if alt is not None:
         # something outside the catalog fits as well: no catalog effect is named; what the
         # selection improves is offered as a loss of that shape, not dropped
