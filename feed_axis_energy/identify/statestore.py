@@ -11,7 +11,9 @@ computed from them. The result is the same bit for bit: the arrays are stored, n
 
 The directory is made by :func:`tempfile.mkdtemp` (mode 0700, under ``TMPDIR``), each file
 is created exclusively and not through a link, and :meth:`StateStore.close` (or leaving the
-``with`` block, also on an error) removes it and everything in it.
+``with`` block, also on an error) removes it and everything in it. A directory that cannot
+be made or filled (no space, no permission) is an :class:`~feed_axis_energy.errors.OutputError`
+naming it.
 """
 from __future__ import annotations
 
@@ -25,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..effects import EffectState
+from ..errors import OutputError
 
 __all__ = ['STATE_MEMORY_BYTES', 'StateStore']
 
@@ -83,16 +86,24 @@ class StateStore:
             return key
         files: dict[str, Path] = {}
         small: dict[str, Any] = {}
-        folder = self._folder()
-        for f in dataclasses.fields(state):
-            value = getattr(state, f.name)
-            if isinstance(value, np.ndarray) and value.nbytes >= _SPILL_FROM:
-                path = folder / f'{key}-{f.name}.npy'
-                _write_new(path, value)
-                files[f.name] = path
-                small[f.name] = None
-            else:
-                small[f.name] = value
+        try:
+            folder = self._folder()
+            for f in dataclasses.fields(state):
+                value = getattr(state, f.name)
+                if isinstance(value, np.ndarray) and value.nbytes >= _SPILL_FROM:
+                    path = folder / f'{key}-{f.name}.npy'
+                    _write_new(path, value)
+                    files[f.name] = path
+                    small[f.name] = None
+                else:
+                    small[f.name] = value
+        except OSError as err:
+            # a full or unwritable temporary directory: the store's files go with close()
+            where = self._dir if self._dir is not None else tempfile.gettempdir()
+            msg = (f'cannot keep a run\'s simulation ({size / 2 ** 20:.1f} MiB) on disk: '
+                   f'{err.strerror or err}; give the analysis more memory '
+                   '(analyze --state-memory MIB) or another temporary directory (TMPDIR)')
+            raise OutputError(msg, path=where, option='TMPDIR') from err
         self._held.append(None)
         self._files.append(files)
         self._small.append(dataclasses.replace(state, **small))

@@ -9,7 +9,7 @@ from numpy.testing import assert_array_equal
 import pytest
 
 from feed_axis_energy.effects import EffectState
-from feed_axis_energy.errors import ConfigError
+from feed_axis_energy.errors import ConfigError, OutputError
 from feed_axis_energy.identify.analyze import analyze_campaign
 from feed_axis_energy.identify.results import AnalyzeOptions
 from feed_axis_energy.identify.rig import Instrument, make_campaign, parse_effects, RigConfig
@@ -89,6 +89,35 @@ def test_the_spill_folder_is_private_and_gone_after_close_and_after_an_error() -
             folder = other._dir
             raise RuntimeError('boom')
     assert folder is not None and not folder.exists()
+
+
+def test_a_temporary_directory_that_cannot_be_used_is_named(tmp_path, monkeypatch) -> None:
+    missing = tmp_path / 'no-such-dir'
+    monkeypatch.setattr('tempfile.tempdir', str(missing))     # what TMPDIR would give
+    with StateStore(0) as store:
+        with pytest.raises(OutputError, match='no-such-dir') as err:
+            store.put(_state(2000, 6))
+        assert 'TMPDIR' in str(err.value) and '--state-memory' in str(err.value)
+        assert len(store) == 0
+    # a full disk while writing: the partial files are gone with the store
+    monkeypatch.setattr('tempfile.tempdir', str(tmp_path))
+    store = StateStore(0)
+    calls = []
+
+    def full(path, value):
+        calls.append(path)
+        if len(calls) == 3:
+            raise OSError(28, 'No space left on device')
+        with open(path, 'wb') as fh:
+            np.save(fh, value)
+
+    monkeypatch.setattr('feed_axis_energy.identify.statestore._write_new', full)
+    with pytest.raises(OutputError, match='No space left on device'):
+        store.put(_state(2000, 7))
+    folder = store._dir
+    assert folder is not None and folder.parent == tmp_path
+    store.close()
+    assert not folder.exists()
 
 
 def test_a_negative_budget_is_refused() -> None:
