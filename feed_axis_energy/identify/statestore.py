@@ -39,6 +39,12 @@ _SPILL_FROM = 4096
 """Arrays smaller than this [bytes] (masses, leads) stay in memory with a spilled state."""
 
 
+@dataclasses.dataclass(frozen=True)
+class _Spilled:
+    small: EffectState              # the fields kept in memory; the spilled ones None
+    files: dict[str, Path]          # spilled field -> its .npy file
+
+
 class StateStore:
     """Per-run :class:`EffectState` objects within a memory budget.
 
@@ -54,10 +60,8 @@ class StateStore:
             raise ValueError(f'budget_bytes must be >= 0, got {budget_bytes}')
         self.budget_bytes = int(budget_bytes)
         self.held_bytes = 0
-        self.spilled_bytes = 0
-        self._held: list[EffectState | None] = []
-        self._files: list[dict[str, Path] | None] = []
-        self._small: list[EffectState | None] = []
+        # per key: the state itself, or a spilled one as (its small fields, its files)
+        self._entries: list[EffectState | _Spilled] = []
         self._dir: Path | None = None
 
     def __enter__(self) -> StateStore:
@@ -67,25 +71,22 @@ class StateStore:
         self.close()
 
     def __len__(self) -> int:
-        return len(self._held)
+        return len(self._entries)
 
     @property
     def spilled(self) -> int:
         """How many states are on disk."""
-        return sum(f is not None for f in self._files)
+        return sum(isinstance(e, _Spilled) for e in self._entries)
 
     def put(self, state: EffectState) -> int:
         """Keep ``state``; returns its key for :meth:`get`."""
         size = _nbytes(state)
-        key = len(self._held)
+        key = len(self._entries)
         if self.held_bytes + size <= self.budget_bytes:
-            self._held.append(state)
-            self._files.append(None)
-            self._small.append(None)
+            self._entries.append(state)
             self.held_bytes += size
             return key
         files: dict[str, Path] = {}
-        small: dict[str, Any] = {}
         try:
             folder = self._folder()
             for f in dataclasses.fields(state):
@@ -94,9 +95,6 @@ class StateStore:
                     path = folder / f'{key}-{f.name}.npy'
                     _write_new(path, value)
                     files[f.name] = path
-                    small[f.name] = None
-                else:
-                    small[f.name] = value
         except OSError as err:
             # a full or unwritable temporary directory: the store's files go with close()
             where = self._dir if self._dir is not None else tempfile.gettempdir()
@@ -104,31 +102,24 @@ class StateStore:
                    f'{err.strerror or err}; give the analysis more memory '
                    '(analyze --state-memory MIB) or another temporary directory (TMPDIR)')
             raise OutputError(msg, path=where, option='TMPDIR') from err
-        self._held.append(None)
-        self._files.append(files)
-        self._small.append(dataclasses.replace(state, **small))
-        self.spilled_bytes += size
+        blank: dict[str, Any] = {name: None for name in files}
+        self._entries.append(_Spilled(dataclasses.replace(state, **blank), files))
         return key
 
     def get(self, key: int) -> EffectState:
         """The state stored under ``key`` (spilled arrays as read-only memory maps)."""
-        held = self._held[key]
-        if held is not None:
-            return held
-        files, small = self._files[key], self._small[key]
-        if files is None or small is None:
-            raise KeyError(key)
+        entry = self._entries[key]
+        if not isinstance(entry, _Spilled):
+            return entry
         if self._dir is None:
             raise RuntimeError('the state store is closed')
-        return dataclasses.replace(small, **{name: np.load(path, mmap_mode='r',
-                                                           allow_pickle=False)
-                                             for name, path in files.items()})
+        return dataclasses.replace(entry.small, **{
+            name: np.load(path, mmap_mode='r', allow_pickle=False)
+            for name, path in entry.files.items()})
 
     def close(self) -> None:
         """Forget every state and remove the temporary directory."""
-        self._held.clear()
-        self._files.clear()
-        self._small.clear()
+        self._entries.clear()
         if self._dir is not None:
             shutil.rmtree(self._dir, ignore_errors=True)
             self._dir = None

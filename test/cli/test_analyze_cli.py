@@ -185,7 +185,6 @@ def test_bad_min_share_or_noise_is_refused(manifest, capsys, args, key) -> None:
 
 def test_state_memory_reaches_the_store_and_keeps_the_result(manifest, capsys,
                                                              monkeypatch) -> None:
-
     budgets = []
     real = statestore.StateStore.__init__
 
