@@ -17,7 +17,7 @@ them and an identification fits within them (:meth:`Effect.linear_bounds`).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from typing import ClassVar, TypeVar
 
@@ -121,10 +121,21 @@ class EffectState:
     power_w: np.ndarray
     load_normal_force_n: np.ndarray | None = None
 
+    SAMPLE_FIELDS: ClassVar[tuple[str, ...]] = (
+        't', 'position_m', 'velocity_m_s', 'acceleration_m_s2', 'angle_rad', 'omega_rad_s',
+        'force_n', 'torque_nm', 'mechanical_w', 'power_w')
+    """The fields with one row per sample (the rest are per axis or scalars)."""
+
     @property
     def shape(self) -> tuple[int, int]:
         """``(n, k)``: samples and axes."""
         return (int(self.t.shape[0]), len(self.axes))
+
+    def rows(self, start: int, stop: int) -> EffectState:
+        """The samples ``start:stop`` (views; the per-axis fields as they are). A
+        sample-local effect's power and basis on them are those rows of the whole state's."""
+        return replace(self, **{name: getattr(self, name)[start:stop]
+                                for name in self.SAMPLE_FIELDS})
 
 
 class Effect:

@@ -43,7 +43,7 @@ from ..machine import load_machine, Machine, machine_warnings, observed_range, R
 from ..errors import ConfigError
 from ..measured import (align_simulated, Campaign, CampaignComparison, compare_campaign,
                         load_run, MAX_FILTER_S, MeasuredRun, Metrics, MotionCache, offset_dict,
-                        quantity_of, RunComparison, simulate_declared, stamp_shift)
+                        quantity_of, RunComparison, simulate_declared_chunks, stamp_shift)
 from .alternatives import check_alternatives
 from .ambiguity import AmbiguousGroup, EquivalentForm, find_groups, found_text, timing_forms
 from .consistency import heterogeneity, label, mark_groups, select_consistent
@@ -76,6 +76,13 @@ the meter's lag behind the motion is estimated with (a passenger that explains l
 the trace of that very lag: a fraction of a millisecond has the shape of a moved mass)."""
 
 
+ALIGN_CHUNK_BYTES = 16 * 2 ** 20
+"""Size [bytes] of the simulated columns aligned at once: a wide candidate's columns (the
+bumps of ``position_friction``) go through the meter model a few at a time, so its filter
+and running integral hold a few columns of the run's samples, not all of them (the columns
+are independent: the same values)."""
+BASIS_CHUNK_SAMPLES = 2 ** 16
+"""Simulated samples a sample-local candidate's basis is computed on at a time."""
 RATE_CHECK_FROM = 0.95
 """Progress fraction the first analysis ends at: the rest is the analysis run again at a
 finer simulation rate when the effects it found need one (:func:`.simrate.rate_with_effects`)."""
@@ -106,7 +113,12 @@ class _Run:
     def aligned(self, cols: np.ndarray, *, filtered: bool = True) -> np.ndarray:
         """Align 1 kHz columns ``(n, c)`` onto the analysis grid: ``(m, c)`` (each bin the
         mean of the columns averaged onto its measured stamps, the instrument model; a
-        meter's first-order smoothing too unless ``filtered`` is false: the motion)."""
+        meter's first-order smoothing too unless ``filtered`` is false: the motion), at most
+        :data:`ALIGN_CHUNK_BYTES` of columns at a time."""
+        width = max(1, ALIGN_CHUNK_BYTES // max(8 * int(cols.shape[0]), 1))
+        if cols.ndim == 2 and cols.shape[1] > width:
+            return np.concatenate([self.aligned(cols[:, a:a + width], filtered=filtered)
+                                   for a in range(0, cols.shape[1], width)], axis=1)
         filter_s = self.cmp.filter_s if filtered else 0.0
         if self.wide is not None:
             ends, span = self.wide
@@ -137,9 +149,13 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Mac
     for r in cmp_runs:
         spec = campaign.run(r.name)
         measured = loaded[r.name] if r.name in loaded else load_run(spec)
-        sim, _ = simulate_declared(spec, measured, machine, cache)
-        state = state_from_simulation(sim)
-        del sim
+        # the simulation comes in chunks (a long run's is never whole in memory), each
+        # kept as a piece of the run's state within the store's budget
+        writer = store.writer()
+        simulate_declared_chunks(spec, measured, machine, cache,
+                                 lambda sim: writer.add(state_from_simulation(sim)))
+        key = writer.finish()
+        state = store.get(key)
         idx = [state.axes.index(a) if a in state.axes else None for a in r.axes]
         n = state.t.shape[0]
         cols = []
@@ -156,7 +172,7 @@ def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Mac
         else:
             residual = r.power_meas_w - r.power_sim_w
         bins = bins_for(r.t, period_s)
-        run = _Run(cmp=r, store=store, key=store.put(state), sim_index=idx,
+        run = _Run(cmp=r, store=store, key=key, sim_index=idx,
                    residual=bins.mean(residual), states={}, bins=bins, t=bins.mean(r.t), kt=kt,
                    wide=bin_windows(r.t, bins, window_s=r.window_s,
                                     shift_s=stamp_shift(r.window_s, r.stamp)))
@@ -181,11 +197,32 @@ def _columns(run: _Run, effect_id: str, axis_j: int, shape: Mapping[str, float])
     out = np.zeros((m, k, p))
     j = run.sim_index[axis_j]
     if j is not None:
-        basis = effect.basis(run.state, dict(shape))[:, j, :]
-        if run.kt is not None:
-            basis = current_basis(effect_id, basis, run.state, j, run.kt[axis_j])
-        out[:, axis_j, :] = run.aligned(basis)
+        kt = None if run.kt is None else run.kt[axis_j]
+        out[:, axis_j, :] = run.aligned(_axis_basis(effect_id, run.state, j, shape, kt))
     return out.reshape(m * k, p)
+
+
+def _axis_basis(effect_id: str, state: EffectState, j: int, shape: Mapping[str, float],
+                kt: float | None) -> np.ndarray:
+    """The basis of one effect on simulated axis ``j`` at the simulation's samples,
+    ``(n, p)``, in a drive trace's unit when ``kt`` is given (.driveforms). A sample-local
+    effect's is computed :data:`BASIS_CHUNK_SAMPLES` rows at a time into one array (the
+    whole state's basis of every axis and its columns' list are never held at once: the
+    same values, each row depends on its own sample only)."""
+    effect = get_effect(effect_id)
+
+    def on(part: EffectState) -> np.ndarray:
+        basis = effect.basis(part, dict(shape))[:, j, :]
+        return basis if kt is None else current_basis(effect_id, basis, part, j, kt)
+
+    n = state.t.shape[0]
+    if not effect.sample_local or n <= BASIS_CHUNK_SAMPLES:
+        return on(state)
+    out = np.empty((n, len(effect.linear_params())))
+    for a in range(0, n, BASIS_CHUNK_SAMPLES):
+        b = min(a + BASIS_CHUNK_SAMPLES, n)
+        out[a:b] = on(state.rows(a, b))
+    return out
 
 
 def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,

@@ -8,6 +8,10 @@ rate. A :class:`StateStore` keeps the states in memory while their total stays w
 budget; the states beyond it are written once to a private temporary directory and read back
 memory-mapped (read-only, so nothing can change them) one run at a time, when a column is
 computed from them. The result is the same bit for bit: the arrays are stored, not converted.
+A state may also arrive in pieces (:meth:`StateStore.writer`, one simulated chunk after the
+other): pieces are kept in memory while the budget allows and, from the first piece that
+would exceed it, every piece is appended to the state's files, so a long run's simulation is
+never whole in memory.
 
 The directory is made by :func:`tempfile.mkdtemp` (mode 0700, under ``TMPDIR``), each file
 is created exclusively and not through a link, and :meth:`StateStore.close` (or leaving the
@@ -22,27 +26,35 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
 from ..effects import EffectState
 from ..errors import OutputError
 
-__all__ = ['STATE_MEMORY_BYTES', 'StateStore']
+__all__ = ['STATE_MEMORY_BYTES', 'StateStore', 'StateWriter']
 
 STATE_MEMORY_BYTES = 64 * 2 ** 20
 """Default budget [bytes] of the states held in memory; the rest are memory-mapped files."""
 
 _PREFIX = 'fae-states-'
-_SPILL_FROM = 4096
-"""Arrays smaller than this [bytes] (masses, leads) stay in memory with a spilled state."""
+SAMPLE_FIELDS = EffectState.SAMPLE_FIELDS
+"""The fields a state's pieces are joined along and a spilled state keeps on disk (the rest,
+masses and leads per axis, stay in memory)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class _File:
+    path: Path
+    dtype: np.dtype
+    shape: tuple[int, ...]
 
 
 @dataclasses.dataclass(frozen=True)
 class _Spilled:
     small: EffectState              # the fields kept in memory; the spilled ones None
-    files: dict[str, Path]          # spilled field -> its .npy file
+    files: dict[str, _File]         # spilled field -> its raw file
 
 
 class StateStore:
@@ -62,6 +74,7 @@ class StateStore:
         self.held_bytes = 0
         # per key: the state itself, or a spilled one as (its small fields, its files)
         self._entries: list[EffectState | _Spilled] = []
+        self._serial = 0                    # writers made, for unique file names
         self._dir: Path | None = None
 
     def __enter__(self) -> StateStore:
@@ -80,31 +93,13 @@ class StateStore:
 
     def put(self, state: EffectState) -> int:
         """Keep ``state``; returns its key for :meth:`get`."""
-        size = _nbytes(state)
-        key = len(self._entries)
-        if self.held_bytes + size <= self.budget_bytes:
-            self._entries.append(state)
-            self.held_bytes += size
-            return key
-        files: dict[str, Path] = {}
-        try:
-            folder = self._folder()
-            for f in dataclasses.fields(state):
-                value = getattr(state, f.name)
-                if isinstance(value, np.ndarray) and value.nbytes >= _SPILL_FROM:
-                    path = folder / f'{key}-{f.name}.npy'
-                    _write_new(path, value)
-                    files[f.name] = path
-        except OSError as err:
-            # a full or unwritable temporary directory: the store's files go with close()
-            where = self._dir if self._dir is not None else tempfile.gettempdir()
-            msg = (f'cannot keep a run\'s simulation ({size / 2 ** 20:.1f} MiB) on disk: '
-                   f'{err.strerror or err}; give the analysis more memory '
-                   '(analyze --state-memory MIB) or another temporary directory (TMPDIR)')
-            raise OutputError(msg, path=where, option='TMPDIR') from err
-        blank: dict[str, Any] = {name: None for name in files}
-        self._entries.append(_Spilled(dataclasses.replace(state, **blank), files))
-        return key
+        writer = self.writer()
+        writer.add(state)
+        return writer.finish()
+
+    def writer(self) -> StateWriter:
+        """A :class:`StateWriter` that takes one state in pieces; its ``finish`` gives the key."""
+        return StateWriter(self)
 
     def get(self, key: int) -> EffectState:
         """The state stored under ``key`` (spilled arrays as read-only memory maps)."""
@@ -113,9 +108,8 @@ class StateStore:
             return entry
         if self._dir is None:
             raise RuntimeError('the state store is closed')
-        return dataclasses.replace(entry.small, **{
-            name: np.load(path, mmap_mode='r', allow_pickle=False)
-            for name, path in entry.files.items()})
+        mapped: dict[str, Any] = {name: _mapped(f) for name, f in entry.files.items()}
+        return dataclasses.replace(entry.small, **mapped)
 
     def close(self) -> None:
         """Forget every state and remove the temporary directory."""
@@ -130,13 +124,142 @@ class StateStore:
         return self._dir
 
 
-def _nbytes(state: EffectState) -> int:
-    return sum(int(v.nbytes) for f in dataclasses.fields(state)
-               if isinstance(v := getattr(state, f.name), np.ndarray))
+class StateWriter:
+    """One run's state, taken in pieces along the samples (:meth:`StateStore.writer`).
+
+    The pieces must come in order, with the same axes and per-axis fields (the same run).
+    They are kept in memory while the store's held states and these pieces together stay
+    within the budget, and joined by :meth:`finish`; from the first piece that would exceed
+    it, the pieces so far and every later one are appended to the state's files.
+    """
+
+    def __init__(self, store: StateStore) -> None:
+        self._store = store
+        self._serial = store._serial        # names the files (keys are given by finish)
+        store._serial += 1
+        self._first: EffectState | None = None
+        self._pieces: list[dict[str, np.ndarray]] = []
+        self._bytes = 0
+        self._files: dict[str, tuple[BinaryIO, _File]] | None = None
+        self._rows = 0
+        self._done = False
+
+    def add(self, piece: EffectState) -> None:
+        """Append the samples of ``piece``."""
+        if self._done:
+            raise RuntimeError('the state is finished')
+        rows = {name: getattr(piece, name) for name in SAMPLE_FIELDS}
+        if self._first is None:
+            self._first = piece
+        for name, value in rows.items():
+            like = getattr(self._first, name)
+            if value.dtype != like.dtype or value.shape[1:] != like.shape[1:]:
+                raise ValueError(f'a piece\'s {name} is {value.dtype} {value.shape}, the '
+                                 f'state\'s {like.dtype} (n,) + {like.shape[1:]}')
+        size = sum(int(a.nbytes) for a in rows.values())
+        self._rows += int(piece.t.shape[0])
+        store = self._store
+        if (self._files is None
+                and store.held_bytes + self._bytes + size <= store.budget_bytes):
+            self._pieces.append(rows)
+            self._bytes += size
+            return
+        try:
+            if self._files is None:
+                self._files = self._open(rows)
+                for kept in self._pieces:
+                    self._append(kept)
+                self._pieces.clear()
+            self._append(rows)
+        except OSError as err:
+            raise self._failed(err) from err
+
+    def finish(self) -> int:
+        """End the state; returns its key for :meth:`StateStore.get`."""
+        if self._first is None:
+            raise ValueError('a state needs at least one piece')
+        if self._done:
+            raise RuntimeError('the state is finished')
+        self._done = True
+        store = self._store
+        if self._files is None:
+            # one piece is the state as it came (no copy); more are joined
+            state = self._first
+            if len(self._pieces) > 1:
+                joined: dict[str, Any] = {name: np.concatenate([p[name] for p in self._pieces])
+                                          for name in SAMPLE_FIELDS}
+                state = dataclasses.replace(self._first, **joined)
+            self._pieces.clear()
+            store._entries.append(state)
+            store.held_bytes += self._bytes
+            return len(store._entries) - 1
+        files = {name: dataclasses.replace(f, shape=(self._rows,) + f.shape[1:])
+                 for name, (_, f) in self._files.items()}
+        try:
+            self._close_files()
+        except OSError as err:
+            raise self._failed(err) from err
+        blank: dict[str, Any] = {name: None for name in SAMPLE_FIELDS}
+        store._entries.append(_Spilled(dataclasses.replace(self._first, **blank), files))
+        return len(store._entries) - 1
+
+    def _failed(self, err: OSError) -> OutputError:
+        """The error of a full or unwritable temporary directory; the writer is finished
+        and its files go with the store's :meth:`~StateStore.close`."""
+        self._done = True
+        try:
+            self._close_files()
+        except OSError:
+            pass
+        store = self._store
+        where = store._dir if store._dir is not None else tempfile.gettempdir()
+        msg = (f'cannot keep a run\'s simulation on disk: {err.strerror or err}; give the '
+               'analysis more memory (analyze --state-memory MIB) or another temporary '
+               'directory (TMPDIR)')
+        return OutputError(msg, path=where, option='TMPDIR')
+
+    def _open(self, rows: dict[str, np.ndarray]) -> dict[str, tuple[BinaryIO, _File]]:
+        folder = self._store._folder()
+        out: dict[str, tuple[BinaryIO, _File]] = {}
+        try:
+            for name, value in rows.items():
+                path = folder / f'{self._serial}-{name}.raw'
+                out[name] = (_open_new(path), _File(path, value.dtype, value.shape))
+        except OSError:
+            for fh, _ in out.values():
+                fh.close()
+            raise
+        return out
+
+    def _append(self, rows: dict[str, np.ndarray]) -> None:
+        assert self._files is not None
+        for name, value in rows.items():
+            if value.size:
+                self._files[name][0].write(np.ascontiguousarray(value).data)
+
+    def _close_files(self) -> None:
+        files, self._files = self._files, None
+        if files is not None:
+            errors = []
+            for fh, _ in files.values():
+                try:
+                    fh.close()
+                except OSError as err:
+                    errors.append(err)
+            if errors:
+                raise errors[0]
 
 
-def _write_new(path: Path, value: np.ndarray) -> None:
+def _mapped(f: _File) -> np.ndarray:
+    if 0 in f.shape:
+        empty = np.empty(f.shape, dtype=f.dtype)     # nothing to map
+        empty.flags.writeable = False
+        return empty
+    return np.memmap(f.path, dtype=f.dtype, mode='r', shape=f.shape)
+
+
+def _open_new(path: Path) -> BinaryIO:
+    """``path`` created for writing: exclusively (never an existing file), not through a
+    link, readable by the owner only."""
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, 'O_NOFOLLOW', 0)
-    fd = os.open(path, flags, 0o600)
-    with os.fdopen(fd, 'wb') as fh:
-        np.save(fh, value, allow_pickle=False)
+    return os.fdopen(os.open(path, flags, 0o600), 'wb')

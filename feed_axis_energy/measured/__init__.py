@@ -15,7 +15,7 @@ from .align import (align_simulated, estimate_offset, first_order_lag, interval_
                     MAX_FILTER_S, OffsetResult, ShiftedAverage, stamp_shift)
 from .campaign import Campaign, ColumnSpec, RowFilter, RunSpec, TimeWindow
 from .compare import (compare_campaign, compare_one_run, DEFAULT_MAX_LAG_S, MotionCache,
-                      simulate_declared)
+                      simulate_declared, simulate_declared_chunks)
 from .comparison import CampaignComparison, json_clean, offset_dict, RunComparison
 from .csvload import load_run
 from .importer import import_campaign
@@ -40,7 +40,8 @@ __all__ = [
     'OffsetResult', 'parse_job_live', 'parse_live', 'POWER_MEASURES', 'predicted_signal',
     'QUANTITIES', 'Quantity',
     'quantity_of', 'RowFilter', 'RunComparison', 'RunSpec', 'ShiftedAverage',
-    'signal_metrics', 'SignalMetrics', 'simulate_declared', 'SOURCES', 'stamp_shift',
+    'signal_metrics', 'SignalMetrics', 'simulate_declared', 'simulate_declared_chunks',
+    'SOURCES', 'stamp_shift',
     'table1_metrics', 'ThreadedLag',
     'TimeWindow', 'torque_per_unit',
 ]

@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import ConfigError, DataError
 from ..gcode import iter_moves, load_gcode
 from ..machine import load_machine, Machine
-from ..plan import Motion, motion_from_samples, plan
+from ..plan import DEFAULT_CHUNK_SAMPLES, Motion, motion_from_samples, plan
 from ..sim import simulate_motion, simulate_stream, SimulationResult, streamable
 from ..physics import relative_sd_pct, UNCERTAINTY_KEY
 from .align import (align_simulated, clock_corrected, estimate_offset, first_order_lag,
@@ -48,7 +48,7 @@ from .spatial import (estimate_work_offset, measured_velocity, motion_anchor, re
 from .states import residual_by_state, state_labels
 from .metrics import group_metrics, table1_metrics
 
-__all__ = ['DEFAULT_MAX_LAG_S', 'compare_campaign', 'compare_run']
+__all__ = ['DEFAULT_MAX_LAG_S', 'compare_campaign', 'compare_run', 'simulate_declared_chunks']
 
 DEFAULT_MAX_LAG_S = 5.0
 """Largest time offset searched by default, in either direction [s]."""
@@ -103,6 +103,45 @@ def simulate_declared(spec: RunSpec, run: MeasuredRun, machine: Machine,
                                          source=where, vel=vel, acc=acc)
         source = f'data:{kind}'
     return simulate_motion(motion, machine, load_kg=spec.load_kg), source
+
+
+def simulate_declared_chunks(spec: RunSpec, run: MeasuredRun, machine: Machine,
+                             cache: MotionCache, on_chunk: Callable[[SimulationResult], None],
+                             *, chunk_samples: int = DEFAULT_CHUNK_SAMPLES) -> str:
+    """The run's simulation of the declared model handed to ``on_chunk`` piece by piece.
+
+    A run driven by an NC program on a machine whose declared effects are all sample-local
+    is simulated chunk by chunk (``simulate_stream``, every sample at the full rate, equal
+    to the whole-record simulation), so a long run at a drive-trace rate never holds the
+    whole simulation (some 30 arrays per sample); any other run is simulated whole
+    (:func:`simulate_declared`) and handed over in one piece. ``chunk_samples``: samples
+    per chunk. Returns the motion source (``RunComparison.motion_source``).
+
+    Raises
+    ------
+    DataError
+        The program has no motion to simulate.
+    """
+    if spec.motion_program is None or not streamable(machine):
+        sim, source = simulate_declared(spec, run, machine, cache)
+        on_chunk(sim)
+        return source
+    program = spec.motion_program
+    moved = False
+
+    def forward(chunk: SimulationResult) -> None:
+        nonlocal moved
+        moved = True
+        on_chunk(chunk)
+
+    moves = iter_moves(program, start=spec.motion_start_m or (0.0, 0.0, 0.0),
+                       **machine.gcode_keywords())
+    simulate_stream(moves, machine, file=str(program), load_kg=spec.load_kg, on_chunk=forward,
+                    chunk_samples=chunk_samples)
+    if not moved:
+        msg = 'the program has no motion to simulate'
+        raise DataError(msg, file=str(program))
+    return str(program)
 
 
 @dataclass(frozen=True)

@@ -320,6 +320,25 @@ def test_state_from_simulation_uses_moved_mass_and_declared_power() -> None:
     assert_allclose(extra, 0.1 * mass * GRAVITY_M_S2 * np.abs(result.motion.vel))
 
 
+@pytest.mark.parametrize('effect_id', sorted(i for i, c in EFFECTS.items() if c.sample_local))
+def test_a_sample_local_basis_on_rows_is_those_rows_of_the_basis(effect_id: str) -> None:
+    # what analyze relies on when it computes a long run's candidate columns in slices
+    machine = load_machine(ROOT / 'config' / 'demonstrator.yaml')
+    program = parse_gcode('G21 G90 G94 G61\nG1 X100 F12000\nG4 P0.2\nX0 F3000\nM30\n')
+    state = state_from_simulation(simulate_program(program, machine, load_kg=17.336))
+    effect = get_effect(effect_id)
+    params = {name: value for name, value in HAND[effect_id][0].items()
+              if name not in effect.linear_params()}
+    whole = effect.basis(state, params)
+    n = state.t.shape[0]
+    cuts = [0, 1, n // 3, n // 3, n - 7, n]
+    parts = [effect.basis(state.rows(a, b), params) for a, b in zip(cuts[:-1], cuts[1:])]
+    assert_allclose(np.concatenate(parts), whole, rtol=0.0, atol=0.0)
+    view = state.rows(5, 9)
+    assert view.t.shape == (4,) and np.shares_memory(view.power_w, state.power_w)
+    assert view.mass_kg is state.mass_kg
+
+
 def _doc_rows() -> dict[str, str]:
     text = (ROOT / 'docs' / 'effects.md').read_text(encoding='utf-8')
     rows = {}

@@ -10,10 +10,12 @@ import pytest
 
 from feed_axis_energy.effects import EffectState
 from feed_axis_energy.errors import ConfigError, OutputError
+from feed_axis_energy.identify import analyze as analyze_module
 from feed_axis_energy.identify.analyze import analyze_campaign
 from feed_axis_energy.identify.results import AnalyzeOptions
 from feed_axis_energy.identify.rig import Instrument, make_campaign, parse_effects, RigConfig
-from feed_axis_energy.identify.statestore import StateStore
+from feed_axis_energy.identify import statestore
+from feed_axis_energy.identify.statestore import SAMPLE_FIELDS, StateStore
 from feed_axis_energy.measured.manifest import load_campaign
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -103,21 +105,84 @@ def test_a_temporary_directory_that_cannot_be_used_is_named(tmp_path, monkeypatc
     monkeypatch.setattr('tempfile.tempdir', str(tmp_path))
     store = StateStore(0)
     calls = []
+    real = statestore._open_new
 
-    def full(path, value):
+    def full(path):
         calls.append(path)
         if len(calls) == 3:
             raise OSError(28, 'No space left on device')
-        with open(path, 'wb') as fh:
-            np.save(fh, value)
+        return real(path)
 
-    monkeypatch.setattr('feed_axis_energy.identify.statestore._write_new', full)
+    monkeypatch.setattr(statestore, '_open_new', full)
     with pytest.raises(OutputError, match='No space left on device'):
         store.put(_state(2000, 7))
     folder = store._dir
     assert folder is not None and folder.parent == tmp_path
+    assert len(list(folder.iterdir())) == 2         # the two files made before the third
+    assert len(store) == 0
     store.close()
     assert not folder.exists()
+
+
+def _pieces(state: EffectState, cuts: list[int]) -> list[EffectState]:
+    edges = [0, *cuts, state.t.shape[0]]
+    return [dataclasses.replace(state, **{name: getattr(state, name)[a:b]
+                                          for name in SAMPLE_FIELDS})
+            for a, b in zip(edges[:-1], edges[1:])]
+
+
+def test_sample_fields_are_the_per_sample_arrays() -> None:
+    s = _state(7, 1)        # 7 samples, 2 axes: a per-axis array has 2 rows
+    per_sample = {f.name for f in dataclasses.fields(EffectState)
+                  if isinstance(getattr(s, f.name), np.ndarray)
+                  and getattr(s, f.name).shape[0] == 7}
+    assert per_sample == set(SAMPLE_FIELDS)
+
+
+@pytest.mark.parametrize('budget_states', [10.0, 0.0, 0.5, 1.2])
+def test_a_state_written_in_pieces_is_the_state_joined(budget_states) -> None:
+    # a state of a third of the size held first, then one of four pieces (one of them
+    # empty): in memory (room for 10), spilled from its first piece (0), from its second
+    # piece (0.5: the piece before goes to the files first), from its last (1.2)
+    first, whole = _state(1000, 2), _state(3000, 3)
+    size = sum(getattr(whole, n).nbytes for n in SAMPLE_FIELDS)
+    with StateStore(int(budget_states * size)) as store:
+        keys = []
+        for state, cuts in ((first, [400]), (whole, [1, 1200, 1200, 2999])):
+            writer = store.writer()
+            for piece in _pieces(state, cuts):
+                writer.add(piece)
+            keys.append(writer.finish())
+        back = store.get(keys[1])
+        _equal(whole, back)
+        _equal(first, store.get(keys[0]))
+        assert isinstance(back.t, np.memmap) == (budget_states < 2.0)
+        assert store.spilled == {10.0: 0, 0.0: 2, 0.5: 1, 1.2: 1}[budget_states]
+
+
+def test_writers_open_at_once_keep_their_states_apart() -> None:
+    a, b = _state(600, 8), _state(900, 9)
+    with StateStore(0) as store:
+        wa, wb = store.writer(), store.writer()
+        for pa, pb in zip(_pieces(a, [300]), _pieces(b, [450])):
+            wa.add(pa)
+            wb.add(pb)
+        kb, ka = wb.finish(), wa.finish()
+        assert ka != kb
+        _equal(a, store.get(ka))
+        _equal(b, store.get(kb))
+
+
+def test_a_writer_refuses_misuse() -> None:
+    s = _state(100, 4)
+    with StateStore(0) as store:
+        writer = store.writer()
+        with pytest.raises(ValueError, match='at least one piece'):
+            writer.finish()
+        writer.add(s)
+        bad = dataclasses.replace(s, power_w=s.power_w[:, :1])      # another run's shape
+        with pytest.raises(ValueError, match='power_w'):
+            writer.add(bad)
 
 
 def test_a_negative_budget_is_refused() -> None:
@@ -135,20 +200,39 @@ def test_analyze_with_every_state_spilled_gives_the_same_result(tmp_path, monkey
                     instrument=Instrument(noise_w=1.0), seed=1)
     campaign = load_campaign(make_campaign(tmp_path / 'rig', cfg))
     spilled = []
-    real = StateStore.put
+    real = statestore.StateWriter.finish
 
-    def put(self, state):
-        before = self.spilled
-        key = real(self, state)
-        spilled.append(self.spilled > before)
+    def finish(self):
+        before = self._store.spilled
+        key = real(self)
+        spilled.append(self._store.spilled > before)
         return key
 
-    monkeypatch.setattr(StateStore, 'put', put)
+    monkeypatch.setattr(statestore.StateWriter, 'finish', finish)
     held = analyze_campaign(campaign)
     assert spilled and not any(spilled)
     spilled.clear()
+    # and the other memory savers at their extremes: the simulation in chunks of 500
+    # samples (each run in several pieces), the candidates' bases computed 300 samples at a
+    # time and their columns aligned one at a time
+    pieces = []
+
+    def chunks(*args, **kwargs):
+        kwargs['chunk_samples'] = 500
+        return real_chunks(*args, **kwargs)
+
+    def counted(writer, piece):
+        pieces.append(piece.t.shape[0])
+        return real_add(writer, piece)
+
+    real_chunks, real_add = analyze_module.simulate_declared_chunks, statestore.StateWriter.add
+    monkeypatch.setattr(analyze_module, 'simulate_declared_chunks', chunks)
+    monkeypatch.setattr(statestore.StateWriter, 'add', counted)
+    monkeypatch.setattr(analyze_module, 'ALIGN_CHUNK_BYTES', 1)
+    monkeypatch.setattr(analyze_module, 'BASIS_CHUNK_SAMPLES', 300)
     mapped = analyze_campaign(campaign, options=AnalyzeOptions(state_memory_bytes=0))
     assert spilled and all(spilled)
+    assert len(pieces) > 3 * len(spilled) and max(pieces) <= 500
     assert 'thermal_drift' in {e.id for e in held.effects}, held.message
     assert (json.dumps(mapped.to_dict(), sort_keys=True)
             == json.dumps(held.to_dict(), sort_keys=True))

@@ -8,16 +8,20 @@ memory are measured by bench/bench_compare_rate.py, not here.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numpy.testing import assert_allclose
 import pytest
 
 from feed_axis_energy import csvtable
 from feed_axis_energy.errors import DataError
+from feed_axis_energy.machine import DeclaredEffect
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.measured import align
 from feed_axis_energy.measured import compare as cmp
 from feed_axis_energy.measured import states
+from feed_axis_energy.physics import state_from_simulation
 from feed_axis_energy.measured.csvload import load_run
 from feed_axis_energy.measured.manifest import load_campaign
 
@@ -55,6 +59,36 @@ def test_streamed_simulation_equals_the_whole_record(small):
     assert_allclose(streamed.vel, whole.vel, rtol=1e-12, atol=1e-12)
     assert np.isfinite(whole.energy_sd_pct) and whole.energy_sd_pct > 0.0
     assert streamed.energy_sd_pct == pytest.approx(whole.energy_sd_pct, rel=1e-9)
+
+
+def _joined(states):
+    return {name: np.concatenate([getattr(s, name) for s in states])
+            for name in ('t', 'position_m', 'velocity_m_s', 'acceleration_m_s2', 'angle_rad',
+                         'omega_rad_s', 'force_n', 'torque_nm', 'mechanical_w', 'power_w')}
+
+
+def test_the_declared_simulation_in_chunks_equals_the_whole_run(small):
+    # what analyze keeps of each run (its EffectState) from chunks of 1000 samples
+    spec = small.run('a')
+    machine = load_machine(small.machine)
+    run = load_run(spec)
+    sim, source = cmp.simulate_declared(spec, run, machine, cmp.MotionCache(machine))
+    whole = state_from_simulation(sim)
+    pieces = []
+    got = cmp.simulate_declared_chunks(spec, run, machine, cmp.MotionCache(machine),
+                                       lambda c: pieces.append(state_from_simulation(c)),
+                                       chunk_samples=1000)
+    assert got == source and len(pieces) > 3
+    for name, value in _joined(pieces).items():
+        assert_allclose(value, getattr(whole, name), rtol=1e-12, atol=1e-12, err_msg=name)
+    assert all(np.array_equal(p.mass_kg, whole.mass_kg) for p in pieces)
+    # a declared effect that needs neighbouring samples: the whole run, in one piece
+    drift = replace(machine, effects=(DeclaredEffect('time_offset', 'X',
+                                                     (('delta_s', 0.002),)),))
+    pieces.clear()
+    cmp.simulate_declared_chunks(spec, run, drift, cmp.MotionCache(drift),
+                                 lambda c: pieces.append(c), chunk_samples=1000)
+    assert len(pieces) == 1 and pieces[0].power.t.shape == whole.t.shape
 
 
 def test_trace_buffers_grow_beyond_the_expected_length(small):
