@@ -11,15 +11,17 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
-from ...effects import get_effect
+from ...effects import EffectState, get_effect
 from ...machine import Machine
 from ...measured import (Campaign, CampaignComparison, first_order_lag, load_run, MeasuredRun,
-                         MotionCache, predicted_signal, quantity_of, RunComparison,
-                         simulate_declared)
+                         MotionCache, predicted_signal, quantity_of, RunComparison, RunSpec,
+                         simulate_declared_chunks)
 from ...physics import state_from_simulation
+from ...sim import SimulationResult
 from .jointalign import (JOINT_STEP_S, joint_screen, JointFit, ScreenCandidate, ScreenRun,
                          screen_span)
 from .pinning import at_offsets, split_pinned
@@ -48,14 +50,28 @@ def _screen_items(campaign: Campaign, machine: Machine, runs: Sequence[RunCompar
     for r in runs:
         spec = campaign.run(r.name)
         measured = loaded[r.name] if r.name in loaded else load_run(spec)
-        sim, _ = simulate_declared(spec, measured, machine, cache)
-        total = predicted_signal(spec.instrument.measures, sim, machine, r.axes,
-                                 manifest=spec.manifest, key=spec.key,
-                                 start_direction=measured.extra.get('direction_before'),
-                                 ).sum(axis=1)
-        state = state_from_simulation(sim)
-        del sim
         n, lo, hi = screen_span(r.t, r.offset_used_s, r.window_s)
+        # the simulation up to what the screen sees (chunk by chunk where it streams: a
+        # long run's later chunks are let go as they come; the filter runs from the start)
+        states: list[EffectState] = []
+        totals: list[np.ndarray] = []
+
+        def keep(sim: SimulationResult, r: RunComparison = r, spec: RunSpec = spec,
+                 measured: MeasuredRun = measured, hi: float = hi,
+                 states: list[EffectState] = states, totals: list[np.ndarray] = totals,
+                 ) -> None:
+            if states and float(states[-1].t[-1]) > hi:
+                return
+            totals.append(predicted_signal(
+                spec.instrument.measures, sim, machine, r.axes, manifest=spec.manifest,
+                key=spec.key, start_direction=measured.extra.get('direction_before'),
+            ).sum(axis=1))
+            states.append(state_from_simulation(sim))
+
+        simulate_declared_chunks(spec, measured, machine, cache, keep)
+        state = _joined(states)
+        total = totals[0] if len(totals) == 1 else np.concatenate(totals)
+        del states[:], totals[:]
         a = max(int(np.searchsorted(state.t, lo, side='right')) - 1, 0)
         b = min(int(np.searchsorted(state.t, hi, side='left')) + 1, state.t.size)
         t_sim = state.t[a:b]
@@ -73,6 +89,15 @@ def _screen_items(campaign: Campaign, machine: Machine, runs: Sequence[RunCompar
         y_sim = (first_order_lag(state.t, total, r.filter_s) if r.filter_s else total)[a:b]
         yield ScreenRun(r.name, r.t[:n], r.total_meas_w[:n], t_sim, y_sim, r.offset_used_s,
                         r.window_s, r.stamp), bases
+
+
+def _joined(states: Sequence[EffectState]) -> EffectState:
+    """One state of consecutive pieces of a run's (:attr:`EffectState.SAMPLE_FIELDS` joined)."""
+    if len(states) == 1:
+        return states[0]
+    joined: dict[str, Any] = {name: np.concatenate([getattr(s, name) for s in states])
+                              for name in EffectState.SAMPLE_FIELDS}
+    return replace(states[0], **joined)
 
 
 def joint_start(campaign: Campaign, machine: Machine, cmp: CampaignComparison,
