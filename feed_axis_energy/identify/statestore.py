@@ -41,7 +41,7 @@ STATE_MEMORY_BYTES = 64 * 2 ** 20
 _PREFIX = 'fae-states-'
 SAMPLE_FIELDS = EffectState.SAMPLE_FIELDS
 """The fields a state's pieces are joined along and a spilled state keeps on disk (the rest,
-masses and leads per axis, stay in memory)."""
+masses and leads per axis, stay in memory): :attr:`EffectState.SAMPLE_FIELDS`."""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -15,7 +15,7 @@ from feed_axis_energy.identify.analyze import analyze_campaign
 from feed_axis_energy.identify.results import AnalyzeOptions
 from feed_axis_energy.identify.rig import Instrument, make_campaign, parse_effects, RigConfig
 from feed_axis_energy.identify import statestore
-from feed_axis_energy.identify.statestore import SAMPLE_FIELDS, StateStore
+from feed_axis_energy.identify.statestore import StateStore
 from feed_axis_energy.measured.manifest import load_campaign
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -122,6 +122,9 @@ def test_a_temporary_directory_that_cannot_be_used_is_named(tmp_path, monkeypatc
     assert len(store) == 0
     store.close()
     assert not folder.exists()
+
+
+SAMPLE_FIELDS = EffectState.SAMPLE_FIELDS
 
 
 def _pieces(state: EffectState, cuts: list[int]) -> list[EffectState]:

@@ -51,27 +51,7 @@ def _screen_items(campaign: Campaign, machine: Machine, runs: Sequence[RunCompar
         spec = campaign.run(r.name)
         measured = loaded[r.name] if r.name in loaded else load_run(spec)
         n, lo, hi = screen_span(r.t, r.offset_used_s, r.window_s)
-        # the simulation up to what the screen sees (chunk by chunk where it streams: a
-        # long run's later chunks are let go as they come; the filter runs from the start)
-        states: list[EffectState] = []
-        totals: list[np.ndarray] = []
-
-        def keep(sim: SimulationResult, r: RunComparison = r, spec: RunSpec = spec,
-                 measured: MeasuredRun = measured, hi: float = hi,
-                 states: list[EffectState] = states, totals: list[np.ndarray] = totals,
-                 ) -> None:
-            if states and float(states[-1].t[-1]) > hi:
-                return
-            totals.append(predicted_signal(
-                spec.instrument.measures, sim, machine, r.axes, manifest=spec.manifest,
-                key=spec.key, start_direction=measured.extra.get('direction_before'),
-            ).sum(axis=1))
-            states.append(state_from_simulation(sim))
-
-        simulate_declared_chunks(spec, measured, machine, cache, keep)
-        state = _joined(states)
-        total = totals[0] if len(totals) == 1 else np.concatenate(totals)
-        del states[:], totals[:]
+        state, total = _simulated_to(spec, measured, machine, cache, r.axes, hi)
         a = max(int(np.searchsorted(state.t, lo, side='right')) - 1, 0)
         b = min(int(np.searchsorted(state.t, hi, side='left')) + 1, state.t.size)
         t_sim = state.t[a:b]
@@ -89,6 +69,26 @@ def _screen_items(campaign: Campaign, machine: Machine, runs: Sequence[RunCompar
         y_sim = (first_order_lag(state.t, total, r.filter_s) if r.filter_s else total)[a:b]
         yield ScreenRun(r.name, r.t[:n], r.total_meas_w[:n], t_sim, y_sim, r.offset_used_s,
                         r.window_s, r.stamp), bases
+
+
+def _simulated_to(spec: RunSpec, measured: MeasuredRun, machine: Machine, cache: MotionCache,
+                  axes: Sequence[str], hi: float) -> tuple[EffectState, np.ndarray]:
+    """The run's declared state and predicted total from its start to the first chunk past
+    ``hi`` [s] (simulated time): chunk by chunk where the run streams, the later chunks let
+    go as they come (the meter's filter runs from the start, so the start is kept)."""
+    states: list[EffectState] = []
+    totals: list[np.ndarray] = []
+
+    def keep(sim: SimulationResult) -> None:
+        if states and float(states[-1].t[-1]) > hi:
+            return
+        totals.append(predicted_signal(
+            spec.instrument.measures, sim, machine, axes, manifest=spec.manifest,
+            key=spec.key, start_direction=measured.extra.get('direction_before')).sum(axis=1))
+        states.append(state_from_simulation(sim))
+
+    simulate_declared_chunks(spec, measured, machine, cache, keep)
+    return _joined(states), totals[0] if len(totals) == 1 else np.concatenate(totals)
 
 
 def _joined(states: Sequence[EffectState]) -> EffectState:
