@@ -113,16 +113,20 @@ def simulate_declared_chunks(spec: RunSpec, run: MeasuredRun, machine: Machine,
     A run driven by an NC program on a machine whose declared effects are all sample-local
     is simulated chunk by chunk (``simulate_stream``, every sample at the full rate, equal
     to the whole-record simulation), so a long run at a drive-trace rate never holds the
-    whole simulation (some 30 arrays per sample); any other run is simulated whole
-    (:func:`simulate_declared`) and handed over in one piece. ``chunk_samples``: samples
-    per chunk. Returns the motion source (``RunComparison.motion_source``).
+    whole simulation (some 30 arrays per sample); any other run, and one whose record spans
+    no more than one chunk at the planner's rate (one piece either way, without the streamed
+    path's buffers), is simulated whole (:func:`simulate_declared`) and handed over in one
+    piece. ``chunk_samples``: samples per chunk. Returns the motion source
+    (``RunComparison.motion_source``).
 
     Raises
     ------
     DataError
         The program has no motion to simulate.
     """
-    if spec.motion_program is None or not streamable(machine):
+    span = float(run.t[-1] - run.t[0]) if run.t.size else 0.0
+    if (spec.motion_program is None or not streamable(machine)
+            or span * machine.planner.rate_hz <= chunk_samples):
         sim, source = simulate_declared(spec, run, machine, cache)
         on_chunk(sim)
         return source

@@ -82,6 +82,11 @@ def test_the_declared_simulation_in_chunks_equals_the_whole_run(small):
     for name, value in _joined(pieces).items():
         assert_allclose(value, getattr(whole, name), rtol=1e-12, atol=1e-12, err_msg=name)
     assert all(np.array_equal(p.mass_kg, whole.mass_kg) for p in pieces)
+    # a record no longer than one chunk: the whole run, in one piece
+    pieces.clear()
+    cmp.simulate_declared_chunks(spec, run, machine, cmp.MotionCache(machine),
+                                 lambda c: pieces.append(c), chunk_samples=10 ** 7)
+    assert len(pieces) == 1 and pieces[0].power.t.shape == whole.t.shape
     # a declared effect that needs neighbouring samples: the whole run, in one piece
     drift = replace(machine, effects=(DeclaredEffect('time_offset', 'X',
                                                      (('delta_s', 0.002),)),))
