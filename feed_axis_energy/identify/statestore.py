@@ -138,6 +138,7 @@ class StateWriter:
         self._serial = store._serial        # names the files (keys are given by finish)
         store._serial += 1
         self._first: EffectState | None = None
+        self._like: dict[str, tuple[np.dtype, tuple[int, ...]]] = {}     # per field
         self._pieces: list[dict[str, np.ndarray]] = []
         self._bytes = 0
         self._files: dict[str, tuple[BinaryIO, _File]] | None = None
@@ -151,11 +152,12 @@ class StateWriter:
         rows = {name: getattr(piece, name) for name in SAMPLE_FIELDS}
         if self._first is None:
             self._first = piece
+            self._like = {name: (value.dtype, value.shape[1:]) for name, value in rows.items()}
         for name, value in rows.items():
-            like = getattr(self._first, name)
-            if value.dtype != like.dtype or value.shape[1:] != like.shape[1:]:
+            dtype, tail = self._like[name]
+            if value.dtype != dtype or value.shape[1:] != tail:
                 raise ValueError(f'a piece\'s {name} is {value.dtype} {value.shape}, the '
-                                 f'state\'s {like.dtype} (n,) + {like.shape[1:]}')
+                                 f'state\'s {dtype} (n,) + {tail}')
         size = sum(int(a.nbytes) for a in rows.values())
         self._rows += int(piece.t.shape[0])
         store = self._store
@@ -170,6 +172,9 @@ class StateWriter:
                 for kept in self._pieces:
                     self._append(kept)
                 self._pieces.clear()
+                # from now on only the per-axis fields of the first piece are needed
+                blank: dict[str, Any] = {name: None for name in SAMPLE_FIELDS}
+                self._first = dataclasses.replace(self._first, **blank)
             self._append(rows)
         except OSError as err:
             raise self._failed(err) from err
