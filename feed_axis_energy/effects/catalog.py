@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 import math
-from typing import ClassVar, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
@@ -136,6 +136,18 @@ class EffectState:
         sample-local effect's power and basis on them are those rows of the whole state's."""
         return replace(self, **{name: getattr(self, name)[start:stop]
                                 for name in self.SAMPLE_FIELDS})
+
+    @staticmethod
+    def joined(pieces: Sequence[EffectState]) -> EffectState:
+        """Consecutive pieces of one run's state as one (:meth:`rows` undone): the per-sample
+        fields concatenated, the rest the first piece's; one piece is returned as it is."""
+        if not pieces:
+            raise ValueError('a state needs at least one piece')
+        if len(pieces) == 1:
+            return pieces[0]
+        joined: dict[str, Any] = {name: np.concatenate([getattr(p, name) for p in pieces])
+                                  for name in EffectState.SAMPLE_FIELDS}
+        return replace(pieces[0], **joined)
 
 
 class Effect:

@@ -137,9 +137,9 @@ class StateWriter:
         self._store = store
         self._serial = store._serial        # names the files (keys are given by finish)
         store._serial += 1
-        self._first: EffectState | None = None
+        self._small: EffectState | None = None     # the first piece's per-axis fields
         self._like: dict[str, tuple[np.dtype, tuple[int, ...]]] = {}     # per field
-        self._pieces: list[dict[str, np.ndarray]] = []
+        self._pieces: list[EffectState] = []       # held while the budget allows
         self._bytes = 0
         self._files: dict[str, tuple[BinaryIO, _File]] | None = None
         self._rows = 0
@@ -150,8 +150,9 @@ class StateWriter:
         if self._done:
             raise RuntimeError('the state is finished')
         rows = {name: getattr(piece, name) for name in SAMPLE_FIELDS}
-        if self._first is None:
-            self._first = piece
+        if self._small is None:
+            blank: dict[str, Any] = {name: None for name in SAMPLE_FIELDS}
+            self._small = dataclasses.replace(piece, **blank)
             self._like = {name: (value.dtype, value.shape[1:]) for name, value in rows.items()}
         for name, value in rows.items():
             dtype, tail = self._like[name]
@@ -163,7 +164,7 @@ class StateWriter:
         store = self._store
         if (self._files is None
                 and store.held_bytes + self._bytes + size <= store.budget_bytes):
-            self._pieces.append(rows)
+            self._pieces.append(piece)
             self._bytes += size
             return
         try:
@@ -172,16 +173,13 @@ class StateWriter:
                 for kept in self._pieces:
                     self._append(kept)
                 self._pieces.clear()
-                # from now on only the per-axis fields of the first piece are needed
-                blank: dict[str, Any] = {name: None for name in SAMPLE_FIELDS}
-                self._first = dataclasses.replace(self._first, **blank)
-            self._append(rows)
+            self._append(piece)
         except OSError as err:
             raise self._failed(err) from err
 
     def finish(self) -> int:
         """End the state; returns its key for :meth:`StateStore.get`."""
-        if self._first is None:
+        if self._small is None:
             raise ValueError('a state needs at least one piece')
         if self._done:
             raise RuntimeError('the state is finished')
@@ -189,13 +187,8 @@ class StateWriter:
         store = self._store
         if self._files is None:
             # one piece is the state as it came (no copy); more are joined
-            state = self._first
-            if len(self._pieces) > 1:
-                joined: dict[str, Any] = {name: np.concatenate([p[name] for p in self._pieces])
-                                          for name in SAMPLE_FIELDS}
-                state = dataclasses.replace(self._first, **joined)
+            store._entries.append(EffectState.joined(self._pieces))
             self._pieces.clear()
-            store._entries.append(state)
             store.held_bytes += self._bytes
             return len(store._entries) - 1
         files = {name: dataclasses.replace(f, shape=(self._rows,) + f.shape[1:])
@@ -204,8 +197,7 @@ class StateWriter:
             self._close_files()
         except OSError as err:
             raise self._failed(err) from err
-        blank: dict[str, Any] = {name: None for name in SAMPLE_FIELDS}
-        store._entries.append(_Spilled(dataclasses.replace(self._first, **blank), files))
+        store._entries.append(_Spilled(self._small, files))
         return len(store._entries) - 1
 
     def _failed(self, err: OSError) -> OutputError:
@@ -236,11 +228,12 @@ class StateWriter:
             raise
         return out
 
-    def _append(self, rows: dict[str, np.ndarray]) -> None:
+    def _append(self, piece: EffectState) -> None:
         assert self._files is not None
-        for name, value in rows.items():
+        for name, (fh, _) in self._files.items():
+            value = getattr(piece, name)
             if value.size:
-                self._files[name][0].write(np.ascontiguousarray(value).data)
+                fh.write(np.ascontiguousarray(value).data)
 
     def _close_files(self) -> None:
         files, self._files = self._files, None

@@ -130,7 +130,21 @@ def simulate_declared_chunks(spec: RunSpec, run: MeasuredRun, machine: Machine,
         sim, source = simulate_declared(spec, run, machine, cache)
         on_chunk(sim)
         return source
-    program = spec.motion_program
+    _stream_program(spec, spec.motion_program, machine, on_chunk, chunk_samples=chunk_samples)
+    return str(spec.motion_program)
+
+
+def _stream_program(spec: RunSpec, program: Path, machine: Machine,
+                    on_chunk: Callable[[SimulationResult], None], *,
+                    chunk_samples: int = DEFAULT_CHUNK_SAMPLES) -> dict[str, Any]:
+    """``program`` simulated chunk by chunk for the run ``spec`` (its start position and
+    load), every chunk to ``on_chunk``; returns ``simulate_stream``'s summary.
+
+    Raises
+    ------
+    DataError
+        The program has no motion to simulate.
+    """
     moved = False
 
     def forward(chunk: SimulationResult) -> None:
@@ -140,12 +154,12 @@ def simulate_declared_chunks(spec: RunSpec, run: MeasuredRun, machine: Machine,
 
     moves = iter_moves(program, start=spec.motion_start_m or (0.0, 0.0, 0.0),
                        **machine.gcode_keywords())
-    simulate_stream(moves, machine, file=str(program), load_kg=spec.load_kg, on_chunk=forward,
-                    chunk_samples=chunk_samples)
+    summary, _ = simulate_stream(moves, machine, file=str(program), load_kg=spec.load_kg,
+                                 on_chunk=forward, chunk_samples=chunk_samples)
     if not moved:
         msg = 'the program has no motion to simulate'
         raise DataError(msg, file=str(program))
-    return str(program)
+    return summary
 
 
 @dataclass(frozen=True)
@@ -266,13 +280,8 @@ def _streamed_trace(spec: RunSpec, program: Path, machine: Machine,
         if x is not None:
             x.add(chunk.motion.pos)
 
-    moves = iter_moves(program, start=spec.motion_start_m or (0.0, 0.0, 0.0),
-                       **machine.gcode_keywords())
-    summary, _ = simulate_stream(moves, machine, file=str(program), load_kg=spec.load_kg,
-                                 on_chunk=keep)
-    if v is None:
-        msg = 'the program has no motion to simulate'
-        raise DataError(msg, file=str(program))
+    summary = _stream_program(spec, program, machine, keep)
+    assert v is not None        # _stream_program raised if no chunk came
     return SimTrace(t.array(), p.array(), None, v.array(), str(program),
                     _summary_sd_pct(summary, spec.measured_axes),
                     pos=None if x is None else x.array(), motion_axes=names[0])

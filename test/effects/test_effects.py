@@ -334,6 +334,12 @@ def test_a_sample_local_basis_on_rows_is_those_rows_of_the_basis(effect_id: str)
     cuts = [0, 1, n // 3, n // 3, n - 7, n]
     parts = [effect.basis(state.rows(a, b), params) for a, b in zip(cuts[:-1], cuts[1:])]
     assert_allclose(np.concatenate(parts), whole, rtol=0.0, atol=0.0)
+    back = EffectState.joined([state.rows(a, b) for a, b in zip(cuts[:-1], cuts[1:])])
+    for name in EffectState.SAMPLE_FIELDS:
+        assert_allclose(getattr(back, name), getattr(state, name), rtol=0.0, atol=0.0)
+    assert EffectState.joined([state]) is state
+    with pytest.raises(ValueError, match='at least one piece'):
+        EffectState.joined([])
     view = state.rows(5, 9)
     assert view.t.shape == (4,) and np.shares_memory(view.power_w, state.power_w)
     assert view.mass_kg is state.mass_kg

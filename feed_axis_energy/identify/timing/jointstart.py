@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 
@@ -88,16 +87,7 @@ def _simulated_to(spec: RunSpec, measured: MeasuredRun, machine: Machine, cache:
         states.append(state_from_simulation(sim))
 
     simulate_declared_chunks(spec, measured, machine, cache, keep)
-    return _joined(states), totals[0] if len(totals) == 1 else np.concatenate(totals)
-
-
-def _joined(states: Sequence[EffectState]) -> EffectState:
-    """One state of consecutive pieces of a run's (:attr:`EffectState.SAMPLE_FIELDS` joined)."""
-    if len(states) == 1:
-        return states[0]
-    joined: dict[str, Any] = {name: np.concatenate([getattr(s, name) for s in states])
-                              for name in EffectState.SAMPLE_FIELDS}
-    return replace(states[0], **joined)
+    return EffectState.joined(states), totals[0] if len(totals) == 1 else np.concatenate(totals)
 
 
 def joint_start(campaign: Campaign, machine: Machine, cmp: CampaignComparison,
