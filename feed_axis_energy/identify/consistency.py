@@ -257,7 +257,8 @@ def select_consistent(design: Design, folds, options, *, keys: Sequence[tuple[st
         sel = forward_select(design, folds, exclude=excluded, se_factor=options.se_factor,
                              sigma2=sigma2, alpha=options.alpha,
                              max_effects=options.max_effects, max_tries=options.max_tries,
-                             pair_pool=options.pair_pool)
+                             pair_pool=options.pair_pool,
+                             min_bic_drop=options.min_bic_drop)
         steps, stop = sel.steps, sel.stop
         blocks = list(sel.blocks)
         for i in range(len(blocks)):

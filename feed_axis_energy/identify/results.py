@@ -50,6 +50,9 @@ class AnalyzeOptions:
         standard errors, and the drop of the residual above the chi-square limit at family
         level ``alpha`` over the candidates of a round (see
         :func:`.selection.forward_select`).
+    min_bic_drop
+        ... and the BIC must drop by more than this (default 2: positive evidence on the
+        scale of Kass & Raftery 1995; ``0``: any drop).
     max_effects
         Most effects added.
     max_tries, pair_pool
@@ -96,6 +99,7 @@ class AnalyzeOptions:
     effects: tuple[str, ...] | None = None
     se_factor: float = 2.0
     alpha: float = 0.05
+    min_bic_drop: float = 2.0
     max_effects: int = 4
     max_tries: int = 8
     pair_pool: int = 4
@@ -128,6 +132,9 @@ class AnalyzeOptions:
         if not 0.0 < self.alpha < 1.0:
             msg = f'alpha must lie in (0, 1), got {self.alpha!r}'
             raise ConfigError(msg, key='alpha')
+        if not (math.isfinite(self.min_bic_drop) and self.min_bic_drop >= 0.0):
+            msg = f'min_bic_drop must be a finite number >= 0, got {self.min_bic_drop!r}'
+            raise ConfigError(msg, key='min_bic_drop')
 
 
 @dataclass(frozen=True)

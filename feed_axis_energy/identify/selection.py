@@ -17,7 +17,10 @@ must exceed ``se_factor`` standard errors of the mean; the drop of the in-sample
 sum of squares, in units of the noise variance (:func:`.diagnostics.noise_level`, the
 level every test of ``analyze`` uses), must exceed the chi-square limit of the candidate's
 parameters at ``alpha / m`` for ``m`` candidates tried in the round (Bonferroni: the
-multiple-testing control for false attributions); and the BIC must drop. How large the
+multiple-testing control for false attributions); and the BIC must drop by at least
+``min_bic_drop`` (2 by default: "positive" evidence on the scale of Kass & Raftery, *Bayes
+Factors*, JASA 90 (1995), 773-795; a drop below 2 is "not worth more than a bare mention").
+How large the
 effect is (its share of the energy) decides how the report ranks it, never whether it
 exists. A round does not end at a rejected best candidate: the next ones are tried, then
 pairs of the best few (bounded, deterministic).
@@ -368,7 +371,7 @@ class _Trial:
 
 def _judge(design: Design, cols: list[int], blocks: Sequence[Block], folds,
            base: dict[int, float], *, n_test: int, se_factor: float, sigma2: float,
-           alpha: float, tests: int, bic_before: float) -> _Trial:
+           alpha: float, tests: int, bic_before: float, min_bic_drop: float) -> _Trial:
     """Is adding ``blocks`` beside ``cols`` statistically supported? (module docstring)."""
     new = cols + [c for b in blocks for c in b.cols]
     _, gains = _score(design, new, folds, base)
@@ -389,8 +392,12 @@ def _judge(design: Design, cols: list[int], blocks: Sequence[Block], folds,
         ok, reason = False, (f'its drop of the residual is {chi2:.1f} sigma², not above '
                              f'{limit:.1f} (chi-square, {p} parameter(s), family level '
                              f'{alpha:g} over {tests} tests)')
-    elif not bic_after < bic_before:
-        ok, reason = False, f'BIC does not drop ({bic_before:.1f} -> {bic_after:.1f})'
+    elif not bic_after < bic_before - min_bic_drop:
+        ok, reason = False, (f'BIC does not drop ({bic_before:.1f} -> {bic_after:.1f})'
+                             if not bic_after < bic_before else
+                             f'BIC drops by {bic_before - bic_after:.1f} ({bic_before:.1f} -> '
+                             f'{bic_after:.1f}), not by the {min_bic_drop:g} of positive '
+                             'evidence')
     elif known and len(blocks) > 1 and (passenger := _passenger(
             design, cols, blocks, sigma2=sigma2, alpha=alpha, tests=tests)):
         ok, reason = False, passenger
@@ -424,7 +431,8 @@ def _passenger(design: Design, cols: list[int], blocks: Sequence[Block], *, sigm
 def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence[int]]], *,
                    exclude: Sequence[tuple[str, str]] = (), se_factor: float = 2.0,
                    sigma2: float = math.nan, alpha: float = 0.05, max_effects: int = 4,
-                   max_tries: int = 8, pair_pool: int = 4) -> SelectionResult:
+                   max_tries: int = 8, pair_pool: int = 4,
+                   min_bic_drop: float = 2.0) -> SelectionResult:
     """Add candidates while each is statistically supported on held-out runs.
 
     Per round the candidates are tried in the order of their held-out error (the best
@@ -456,6 +464,8 @@ def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence
         Stop after this many.
     max_tries, pair_pool
         Bounds of the search of one round (above).
+    min_bic_drop
+        The BIC must drop by more than this (module docstring); ``0``: any drop.
 
     Returns
     -------
@@ -497,7 +507,7 @@ def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence
         def judge(blocks: list[Block], tests: int) -> _Trial:
             return _judge(design, cols, blocks, folds, base, n_test=n_test,
                           se_factor=se_factor, sigma2=sigma2, alpha=alpha, tests=tests,
-                          bic_before=bic_before)
+                          bic_before=bic_before, min_bic_drop=min_bic_drop)
         trials = [judge([best[k][1]], len(best)) for k in order[:max_tries]]
         passed = next((t for t in trials if t.ok), None)
         if passed is None and n_test >= 2:

@@ -186,3 +186,39 @@ def test_the_noise_floor_of_a_sum_of_squares() -> None:
     # 3 standard deviations of (residual SS - noise estimate): 3 * sigma² * sqrt(4 n)
     assert noise_floor_ss(2400.0 * 4.0, 4.0) == pytest.approx(3.0 * 4.0 * math.sqrt(9600.0))
     assert noise_floor_ss(100.0, math.nan) == 0.0 and noise_floor_ss(0.0, 1.0) == 0.0
+
+
+def _bic_window_design(runs: int = 6, n: int = 400) -> tuple[Design, float]:
+    """One candidate whose in-sample drop passes the chi-square test (one candidate, one
+    parameter: 3.84 sigma²) and lowers the BIC by exactly 1: ``y = s·c + e`` with ``e``
+    orthogonal to ``c`` in every run, so the fit is ``s`` on any runs."""
+    rng = np.random.default_rng(11)
+    cs = [np.sin(np.linspace(0.0, 7.0 + r, n)) for r in range(runs)]
+    es = []
+    for c in cs:
+        e = rng.normal(0.0, 1.0, n)
+        es.append(e - c * (c @ e) / (c @ c))
+    big_n = runs * n
+    sse1 = sum(float(e @ e) for e in es)
+    # N ln(SSE0 / SSE1) - ln N = 1
+    sse0 = sse1 * math.exp((math.log(big_n) + 1.0) / big_n)
+    s = math.sqrt((sse0 - sse1) / sum(float(c @ c) for c in cs))
+    design = Design([s * c + e for c, e in zip(cs, es)])
+    design.add_block(('weak', 'X'), {}, ('a',), [c[:, None] for c in cs])
+    return design, sse1 / big_n
+
+
+def test_a_bic_drop_below_positive_evidence_is_not_enough() -> None:
+    design, sigma2 = _bic_window_design()
+    bic0, bic1 = design.bic([]), design.bic(design.blocks[0].cols)
+    assert bic0 - bic1 == pytest.approx(1.0, abs=1e-6)
+    sel = forward_select(design, loro_folds(6), sigma2=sigma2)
+    assert sel.blocks == ()
+    (step,) = sel.steps
+    assert 'BIC drops by 1.0' in step.reason and 'positive evidence' in step.reason
+    assert step.chi2 > step.chi2_limit and step.mean_gain > 2.0 * step.se_gain
+    # the same data with any drop allowed (the rule before issue 24's 0-false target)
+    loose = forward_select(design, loro_folds(6), sigma2=sigma2, min_bic_drop=0.0)
+    assert [b.key for b in loose.blocks] == [('weak', 'X')]
+    with pytest.raises(ConfigError, match='min_bic_drop'):
+        AnalyzeOptions(min_bic_drop=-1.0)
