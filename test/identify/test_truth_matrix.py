@@ -89,13 +89,15 @@ def test_ci_subset_no_false_attribution_no_misaligned_run(matrix, case, cls):
         assert r['sim_rate_hz'] == 1000.0, r
 
 
-def test_a_passenger_most_of_the_catalog_reproduces_is_offered_not_named(matrix):
+def test_a_passenger_the_bic_barely_supports_is_not_added(matrix):
     # standby small, seed 19: beside standby (1.1 % of the energy) viscous_asymmetry passed
     # the selection (chi-square 9.3 > 8.6) with a power 14 of 16 catalog candidates
-    # reproduce within the noise; it was named, a false attribution. Shapeless: offered
+    # reproduce within the noise; it was named, a false attribution, then offered as
+    # shapeless (test_ambiguity.py tests that rule on its own). Its BIC drop is below the 2
+    # of positive evidence: it is not added at all
     (r,) = matrix.run_cells([('standby', 'small')], range(19, 20))
     assert r['verdict'] == 'right' and r['named'] == ['standby'], r
-    assert r['offered'] == ['viscous_asymmetry'], r
+    assert r['offered'] == [], r
     assert r['misaligned'] == [], r
 
 
