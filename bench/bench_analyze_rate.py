@@ -28,7 +28,9 @@ campaign of 15 runs, the paper's loads (0, 17.336, 22.711 kg) x feeds (100 ... 5
 
 ``python -m feed_axis_energy analyze MANIFEST --json --quiet`` then runs as a child
 process (process start included); it is reaped with ``os.wait4`` for its own peak RSS
-(``ru_maxrss``) and CPU time. Printed per length: samples, wall and CPU time, peak RSS,
+(``ru_maxrss``) and CPU time, and its anonymous memory is sampled every 50 ms (``RssAnon``:
+the part that must fit in RAM; the peak RSS also counts memory-mapped files' pages, which
+the kernel may drop and read again). Printed per length: samples, wall and CPU time, peak RSS,
 whether the hidden effect was named (and what else was), the status, the energy share the
 tool gives the effect, and the held-out figures before and after (energy error and RMSE,
 pooled over held-out runs), the worst offset error, and the cost relative to the first
@@ -170,16 +172,17 @@ def reuse(root: Path) -> tuple[Path, int, dict[str, float]] | None:
     return root / 'campaign.yaml', int(truth['rows']), dict(truth['offsets'])
 
 
-def run_analyze(manifest: Path, timeout_s: float) -> tuple[float, float, int, dict | None,
-                                                           str]:
-    """``analyze --json`` as a child: wall [s], CPU [s], peak RSS [bytes], JSON, stderr."""
+def run_analyze(manifest: Path, timeout_s: float) -> tuple[float, float, int, int,
+                                                           dict | None, str]:
+    """``analyze --json`` as a child: wall [s], CPU [s], peak RSS and peak anonymous RSS
+    [bytes], JSON, stderr."""
     child = run_cli(['analyze', str(manifest), '--json', '--quiet'], timeout_s=timeout_s)
     errors = child.stderr
     result = (json.loads(child.stdout) if child.code == 0 and child.stdout.strip()
               else None)
     if result is None and child.wall_s <= timeout_s:
         errors = f'exit {child.code}: {errors[-800:]}'
-    return child.wall_s, child.cpu_s, child.peak_rss_bytes, result, errors
+    return child.wall_s, child.cpu_s, child.peak_rss_bytes, child.peak_anon_bytes, result, errors
 
 
 def summary(res: dict, effect: str, offsets: dict[str, float]) -> str:
@@ -241,8 +244,9 @@ def main() -> int:
                   f'{args.effect} at {100 * args.share:g} % of the energy, '
                   + ('kept from before' if kept else
                      f'generated in {time.perf_counter() - t0:.1f} s'), flush=True)
-            wall, cpu, rss, res, errors = run_analyze(manifest, args.timeout)
-        line = f'  analyze: wall {wall:.1f} s  CPU {cpu:.1f} s  peak RSS {rss / 2**20:.0f} MiB'
+            wall, cpu, rss, anon, res, errors = run_analyze(manifest, args.timeout)
+        line = (f'  analyze: wall {wall:.1f} s  CPU {cpu:.1f} s  peak RSS {rss / 2**20:.0f} MiB'
+                f' (anonymous {anon / 2**20:.0f} MiB)')
         if res is None:
             why = f'(killed after {args.timeout:g} s)' if wall > args.timeout else errors
             print(f'{line}  NOT FINISHED {why}', flush=True)

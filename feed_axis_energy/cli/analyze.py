@@ -63,10 +63,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'from the data (which is still printed)')
     p.add_argument('--state-memory', type=float, metavar='MIB',
                    default=AnalyzeOptions.state_memory_bytes / 2 ** 20,
-                   help='memory [MiB] for the runs\' simulations during the analysis '
-                        '(default %(default)g MiB); those beyond it are written to a private '
-                        'temporary directory (TMPDIR) and read back memory-mapped: the same '
-                        'result, less memory on long runs at high rates')
+                   help='memory [MiB] for the runs\' simulations during the analysis, '
+                        'and as much again for their measured records (default %(default)g '
+                        'MiB each); what is beyond it is written to a private temporary '
+                        'directory (TMPDIR) and read back memory-mapped: the same result, '
+                        'less memory on long runs at high rates')
     add_quiet_option(p)
     p.set_defaults(run=run)
 

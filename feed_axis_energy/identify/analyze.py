@@ -454,19 +454,69 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         if progress is not None:
             progress(x)
 
-    # every run is compared several times (baseline, each fold, the augmented machine, the
-    # pinning rounds): its data file is parsed once
-    loaded = {spec.name: load_run(spec) for spec in selected}
-    cmp = compare_campaign(campaign, machine=machine, runs=runs,
-                           progress=lambda f: report(0.3 * f), loaded=loaded)
+    with StateStore(options.state_memory_bytes) as records:
+        # every run is compared several times (baseline, each fold, the augmented machine,
+        # the pinning rounds): its data file is parsed once and its arrays held within the
+        # budget, the rest memory-mapped (one run's samples in memory at a time when read)
+        loaded = {spec.name: _held(load_run(spec), records) for spec in selected}
+        return _analyze_loaded(campaign, machine, machine_file, ids, options, report, loaded,
+                               runs, records)
+
+
+def _held(run: MeasuredRun, store: StateStore) -> MeasuredRun:
+    """``run`` with its sample arrays held by ``store`` (in memory or memory-mapped)."""
+    arrays: dict[str, Any] = {
+        name: store.hold(value) for name in _RECORD_FIELDS
+        if isinstance(value := getattr(run, name), np.ndarray)}
+    extra = {key: (store.hold(value) if isinstance(value, np.ndarray) else
+                   {a: store.hold(v) for a, v in value.items()}
+                   if isinstance(value, dict) and value
+                   and all(isinstance(v, np.ndarray) for v in value.values()) else value)
+             for key, value in run.extra.items()}
+    return replace(run, extra=extra, **arrays)
+
+
+def _held_comparison(cmp: CampaignComparison, store: StateStore) -> CampaignComparison:
+    """``cmp`` with its runs' sample arrays held by ``store`` (an array two fields share,
+    the measured power of a power trace, held once)."""
+    runs = []
+    for r in cmp.runs:
+        memo: dict[int, np.ndarray] = {}
+
+        def hold(a: np.ndarray) -> np.ndarray:
+            if id(a) not in memo:
+                memo[id(a)] = store.hold(a)
+            return memo[id(a)]
+
+        runs.append(replace(r, t=hold(r.t), power_meas_w=hold(r.power_meas_w),
+                            power_sim_w=hold(r.power_sim_w),
+                            signal_meas=None if r.signal_meas is None else hold(r.signal_meas),
+                            signal_sim=None if r.signal_sim is None else hold(r.signal_sim)))
+    return replace(cmp, runs=tuple(runs))
+
+
+_RECORD_FIELDS = ('t', 'power_w', 'position_m', 'velocity_m_s', 'acceleration_m_s2',
+                  'command_position_m', 'command_velocity_m_s', 'command_acceleration_m_s2')
+
+
+def _analyze_loaded(campaign: Campaign, machine: Machine, machine_file: str,
+                    ids: tuple[str, ...], options: AnalyzeOptions,
+                    report: Callable[[float], None], loaded: Mapping[str, MeasuredRun],
+                    runs: Sequence[str] | None, store: StateStore) -> AnalysisResult:
+    """:func:`analyze_campaign` on runs already loaded; ``store`` holds the records and the
+    comparisons at the declared model (each set's arrays beyond its budget memory-mapped)."""
     declared = machine
+    cmp = _held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
+                                            progress=lambda f: report(0.3 * f), loaded=loaded),
+                           store)
     factor, chi2 = sim_rate(cmp.runs, machine)
     if factor > 1:
         # data this precise resolve the simulation's sampling: the analysis simulates finer
         machine = at_rate(declared, factor)
-        cmp = compare_campaign(campaign, machine=machine, runs=runs, loaded=loaded)
+        cmp = _held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
+                                                loaded=loaded), store)
     result = _analysis(campaign, machine, machine_file, cmp, ids, options,
-                       lambda f: report(min(f, RATE_CHECK_FROM)), loaded, runs)
+                       lambda f: report(min(f, RATE_CHECK_FROM)), loaded, runs, store)
     notes = ([f'at {declared.planner.rate_hz:g} Hz its sampling would put a sum of squares '
               f'of {chi2:.3g} noise variances into the residual, which these data resolve']
              if factor > 1 else [])
@@ -479,10 +529,12 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         # and a candidate would be fitted to it; the analysis runs again finer
         factor *= more
         machine = at_rate(declared, factor)
-        cmp = compare_campaign(campaign, machine=machine, runs=runs, loaded=loaded)
+        cmp = _held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
+                                                loaded=loaded), store)
         result = _analysis(campaign, machine, machine_file, cmp, ids, options,
                            lambda f: report(RATE_CHECK_FROM + (1.0 - RATE_CHECK_FROM)
-                                            * max(f - 0.3, 0.0) / 0.7), loaded, runs)
+                                            * max(f - 0.3, 0.0) / 0.7), loaded, runs,
+                           store)
         notes.append(f'with the effects first found in the model, its sampling at '
                      f'{machine.planner.rate_hz / more:g} Hz would put {chi2_found:.3g} noise '
                      'variances into the residual')
@@ -498,9 +550,10 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
 def _analysis(campaign: Campaign, machine: Machine, machine_file: str, cmp: CampaignComparison,
               ids: tuple[str, ...], options: AnalyzeOptions, report: Callable[[float], None],
               loaded: Mapping[str, MeasuredRun],
-              runs: Sequence[str] | None) -> AnalysisResult:
+              runs: Sequence[str] | None, store: StateStore) -> AnalysisResult:
     """The starts of the analysis (:func:`_from_start`) at the rate of ``machine``, with
-    the baseline comparisons ``cmp``, the best by BIC (progress from 0.3 to 1)."""
+    the baseline comparisons ``cmp``, the best by BIC (progress from 0.3 to 1); ``store``
+    holds each start's comparisons."""
     # runs aligned on their measured motion start at the motion's offset, the meter's lag
     # behind it found only with the effects in the model (:mod:`.timing.pinning`); when that start
     # leaves the residual unsettled and the power's own lags say otherwise, the analysis is
@@ -514,7 +567,7 @@ def _analysis(campaign: Campaign, machine: Machine, machine_file: str, cmp: Camp
     spans = ([(0.3, 0.55), (0.55, 0.8), (0.8, 1.0)] if lag is not None else
              [(0.3, 0.75), (0.75, 1.0)] if joint else [(0.3, 1.0)])
     result = _from_start(campaign, machine, machine_file, cmp, 0.0, ids, options, report,
-                         spans[0], loaded)
+                         spans[0], loaded, store)
     a = _bic(result, 0)
     # the filter's first guess: the lag the first start found with its effects in the model
     # (a large missing effect pulls the power's own lags anywhere), else the power's own
@@ -525,7 +578,7 @@ def _analysis(campaign: Campaign, machine: Machine, machine_file: str, cmp: Camp
     smooth = tau is not None and may_filter(campaign, cmp.runs, tau)
     if differ and lag is not None and _unsettled(result):
         other = _from_start(campaign, machine, machine_file, cmp, lag, ids, options, report,
-                            spans[1], loaded)
+                            spans[1], loaded, store)
         b = _bic(other, 1)
         if b < a:
             result = replace(other, message=(
@@ -537,9 +590,10 @@ def _analysis(campaign: Campaign, machine: Machine, machine_file: str, cmp: Camp
         # one that delays: it also rounds every edge, which a pure delay leaves as structure
         # that an inertia or a friction term would take
         filtered = with_filter(campaign, tau)
-        fcmp = compare_campaign(filtered, machine=machine, runs=runs, loaded=loaded)
+        fcmp = _held_comparison(compare_campaign(filtered, machine=machine, runs=runs,
+                                                 loaded=loaded), store)
         other = _from_start(filtered, machine, machine_file, fcmp, 0.0, ids, options, report,
-                            spans[2], loaded, filter_s=tau)
+                            spans[2], loaded, store, filter_s=tau)
         c = _bic(other, 1)
         if c < a:
             result = replace(other, message=(
@@ -556,7 +610,7 @@ def _analysis(campaign: Campaign, machine: Machine, machine_file: str, cmp: Camp
         if start is not None:
             jcmp, fit = start
             other = _from_start(campaign, machine, machine_file, jcmp, 0.0, ids, options,
-                                report, spans[1], loaded)
+                                report, spans[1], loaded, store)
             d = _bic(other, 1)
             if d < a:
                 result = replace(other, aligned_with={
@@ -633,12 +687,14 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
                 cmp: CampaignComparison, lag: float, ids: tuple[str, ...],
                 options: AnalyzeOptions, report: Callable[[float], None],
                 span: tuple[float, float],
-                loaded: Mapping[str, MeasuredRun], filter_s: float = 0.0) -> AnalysisResult:
+                loaded: Mapping[str, MeasuredRun], store: StateStore,
+                filter_s: float = 0.0) -> AnalysisResult:
     """The analysis rounds with the motion-anchored runs starting at ``lag`` [s]; with
     ``filter_s`` [s] (the campaign read through meters with that first-order filter) the
-    filter's time constant is estimated anew after each round instead of the lag."""
-    cmp = replace(cmp, runs=tuple(at_common_lag(campaign, machine, cmp.runs, lag_s=lag,
-                                                loaded=loaded)))
+    filter's time constant is estimated anew after each round instead of the lag.
+    ``store`` holds the comparisons the rounds start from."""
+    cmp = _held_comparison(replace(cmp, runs=tuple(at_common_lag(
+        campaign, machine, cmp.runs, lag_s=lag, loaded=loaded))), store)
     # only runs whose offset is pinned down are fitted; after each round the offsets are
     # estimated anew with the effects found (:mod:`.timing.pinning`)
     pinned, left = split_pinned(cmp.runs, campaign=campaign)

@@ -92,7 +92,10 @@ class AnalyzeOptions:
     state_memory_bytes
         Budget [bytes] of the runs' simulations held in memory during a round; the states
         beyond it are written to a private temporary directory and memory-mapped when used
-        (:mod:`.statestore`; the same results, bit for bit). ``0`` maps every state.
+        (:mod:`.statestore`; the same results, bit for bit). ``0`` maps every state. The
+        same budget again holds the runs' measured records for the whole analysis (their
+        stamps, traces and file rows: those beyond it memory-mapped, :meth:`.statestore.
+        StateStore.hold`).
     """
 
     holdout: str = 'loro'

@@ -11,7 +11,10 @@ computed from them. The result is the same bit for bit: the arrays are stored, n
 A state may also arrive in pieces (:meth:`StateStore.writer`, one simulated chunk after the
 other): pieces are kept in memory while the budget allows and, from the first piece that
 would exceed it, every piece is appended to the state's files, so a long run's simulation is
-never whole in memory.
+never whole in memory. :meth:`StateStore.hold` does the same for any array read many times
+and never changed (a measured record, a comparison's simulated power): itself within the
+budget, else a read-only memory map of a copy whose file is removed as soon as it is mapped
+(the map keeps the data until its last view goes; nothing is left behind, even on a crash).
 
 The directory is made by :func:`tempfile.mkdtemp` (mode 0700, under ``TMPDIR``), each file
 is created exclusively and not through a link, and :meth:`StateStore.close` (or leaving the
@@ -96,6 +99,34 @@ class StateStore:
         writer = self.writer()
         writer.add(state)
         return writer.finish()
+
+    def hold(self, array: np.ndarray) -> np.ndarray:
+        """``array`` itself while the budget allows, else a read-only memory map of a copy on
+        disk (a measured record, a comparison's columns: data read many times, never
+        changed). The copy's file is removed as soon as it is mapped: the map keeps the data
+        until the last view of it goes, and nothing is left behind. A memory map is returned
+        as it is (no second copy)."""
+        size = int(array.nbytes)
+        if isinstance(array, np.memmap) and array.filename is not None:
+            return array
+        if self.held_bytes + size <= self.budget_bytes or size == 0:
+            self.held_bytes += size
+            return array
+        serial, self._serial = self._serial, self._serial + 1
+        try:
+            path = self._folder() / f'{serial}-held.raw'
+            try:
+                with _open_new(path) as fh:
+                    fh.write(np.ascontiguousarray(array).data)
+                return np.memmap(path, dtype=array.dtype, mode='r', shape=array.shape)
+            finally:
+                path.unlink(missing_ok=True)
+        except OSError as err:
+            msg = (f'cannot keep a run\'s data on disk: {err.strerror or err}; give the '
+                   'analysis more memory (analyze --state-memory MIB) or another temporary '
+                   'directory (TMPDIR)')
+            raise OutputError(msg, path=self._dir or tempfile.gettempdir(),
+                              option='TMPDIR') from err
 
     def writer(self) -> StateWriter:
         """A :class:`StateWriter` that takes one state in pieces; its ``finish`` gives the key."""

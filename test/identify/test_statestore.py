@@ -233,9 +233,63 @@ def test_analyze_with_every_state_spilled_gives_the_same_result(tmp_path, monkey
     monkeypatch.setattr(statestore.StateWriter, 'add', counted)
     monkeypatch.setattr(analyze_module, 'ALIGN_CHUNK_BYTES', 1)
     monkeypatch.setattr(analyze_module, 'BASIS_CHUNK_SAMPLES', 300)
+    held_arrays = []
+    real_hold = statestore.StateStore.hold
+
+    def hold(store, array):
+        out = real_hold(store, array)
+        held_arrays.append(out)
+        return out
+
+    monkeypatch.setattr(statestore.StateStore, 'hold', hold)
     mapped = analyze_campaign(campaign, options=AnalyzeOptions(state_memory_bytes=0))
     assert spilled and all(spilled)
+    # every run's record (stamps, power, file rows) memory-mapped as well
+    assert len(held_arrays) >= 3 * len(campaign.runs)
+    assert all(isinstance(a, np.memmap) for a in held_arrays if a.size)
     assert len(pieces) > 3 * len(spilled) and max(pieces) <= 500
     assert 'thermal_drift' in {e.id for e in held.effects}, held.message
     assert (json.dumps(mapped.to_dict(), sort_keys=True)
             == json.dumps(held.to_dict(), sort_keys=True))
+
+
+def test_held_arrays_beyond_the_budget_are_maps_of_gone_files(tmp_path, monkeypatch) -> None:
+    monkeypatch.setattr('tempfile.tempdir', str(tmp_path))
+    small, big = np.arange(10.0), np.arange(3000.0).reshape(1000, 3)
+    with StateStore(small.nbytes) as store:
+        assert store.hold(small) is small                   # within the budget: itself
+        mapped = store.hold(big)
+        assert isinstance(mapped, np.memmap) and not mapped.flags.writeable
+        assert_array_equal(mapped, big)
+        assert store.hold(mapped) is mapped                 # a map is not copied again
+        assert store.hold(np.asarray(mapped)[::2].copy()) is not mapped
+        folder = store._dir
+        assert folder is not None and list(folder.iterdir()) == []   # unlinked at once
+    assert not folder.exists()
+    assert_array_equal(mapped, big)                         # the map outlives the store
+    # a directory that cannot be made, or a disk that fails: our error, nothing left
+    monkeypatch.setattr('tempfile.tempdir', str(tmp_path / 'no-such-dir'))
+    with StateStore(0) as store:
+        with pytest.raises(OutputError, match='no-such-dir') as err:
+            store.hold(big)
+        assert 'TMPDIR' in str(err.value)
+    monkeypatch.setattr('tempfile.tempdir', str(tmp_path))
+
+    class Full:
+        def __init__(self, path):
+            self.fh = open(path, 'xb')
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.fh.close()
+
+        def write(self, data):
+            raise OSError(28, 'No space left on device')
+
+    monkeypatch.setattr(statestore, '_open_new', Full)
+    with StateStore(0) as store:
+        with pytest.raises(OutputError, match='No space left on device'):
+            store.hold(big)
+        assert store._dir is not None and list(store._dir.iterdir()) == []
