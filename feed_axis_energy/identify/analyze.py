@@ -477,10 +477,15 @@ def _held(run: MeasuredRun, store: StateStore) -> MeasuredRun:
 
 
 def _held_comparison(cmp: CampaignComparison, store: StateStore) -> CampaignComparison:
-    """``cmp`` with its runs' sample arrays held by ``store`` (an array two fields share,
-    the measured power of a power trace, held once)."""
-    runs = []
-    for r in cmp.runs:
+    """``cmp`` with its runs' sample arrays held by ``store`` (:func:`_held_runs`)."""
+    return replace(cmp, runs=tuple(_held_runs(cmp.runs, store)))
+
+
+def _held_runs(runs: Sequence[RunComparison], store: StateStore) -> list[RunComparison]:
+    """``runs`` with their sample arrays held by ``store`` (an array two fields share, the
+    measured power of a power trace, held once)."""
+    out = []
+    for r in runs:
         memo: dict[int, np.ndarray] = {}
 
         def hold(a: np.ndarray) -> np.ndarray:
@@ -488,11 +493,11 @@ def _held_comparison(cmp: CampaignComparison, store: StateStore) -> CampaignComp
                 memo[id(a)] = store.hold(a)
             return memo[id(a)]
 
-        runs.append(replace(r, t=hold(r.t), power_meas_w=hold(r.power_meas_w),
-                            power_sim_w=hold(r.power_sim_w),
-                            signal_meas=None if r.signal_meas is None else hold(r.signal_meas),
-                            signal_sim=None if r.signal_sim is None else hold(r.signal_sim)))
-    return replace(cmp, runs=tuple(runs))
+        out.append(replace(r, t=hold(r.t), power_meas_w=hold(r.power_meas_w),
+                           power_sim_w=hold(r.power_sim_w),
+                           signal_meas=None if r.signal_meas is None else hold(r.signal_meas),
+                           signal_sim=None if r.signal_sim is None else hold(r.signal_sim)))
+    return out
 
 
 _RECORD_FIELDS = ('t', 'power_w', 'position_m', 'velocity_m_s', 'acceleration_m_s2',
@@ -742,6 +747,7 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
                                     refresh=refresh)
         if not moved:
             break
+        pinned = _held_runs(pinned, store)
     result = replace(result, pin_rounds=round_no + 1, meter_filter_s=filter_s)
     if not left:
         return result

@@ -30,6 +30,7 @@ import shutil
 import tempfile
 from pathlib import Path
 from typing import Any, BinaryIO
+import weakref
 
 import numpy as np
 
@@ -79,6 +80,8 @@ class StateStore:
         self._entries: list[EffectState | _Spilled] = []
         self._serial = 0                    # writers made, for unique file names
         self._dir: Path | None = None
+        # arrays hold() kept in memory, by id while they live (counted once in held_bytes)
+        self._kept: weakref.WeakValueDictionary[int, np.ndarray] = weakref.WeakValueDictionary()
 
     def __enter__(self) -> StateStore:
         return self
@@ -109,8 +112,11 @@ class StateStore:
         size = int(array.nbytes)
         if isinstance(array, np.memmap) and array.filename is not None:
             return array
+        if self._kept.get(id(array)) is array:
+            return array                    # held before: counted once
         if self.held_bytes + size <= self.budget_bytes or size == 0:
             self.held_bytes += size
+            self._kept[id(array)] = array
             return array
         serial, self._serial = self._serial, self._serial + 1
         try:

@@ -258,6 +258,7 @@ def test_held_arrays_beyond_the_budget_are_maps_of_gone_files(tmp_path, monkeypa
     small, big = np.arange(10.0), np.arange(3000.0).reshape(1000, 3)
     with StateStore(small.nbytes) as store:
         assert store.hold(small) is small                   # within the budget: itself
+        assert store.hold(small) is small and store.held_bytes == small.nbytes  # counted once
         mapped = store.hold(big)
         assert isinstance(mapped, np.memmap) and not mapped.flags.writeable
         assert_array_equal(mapped, big)
