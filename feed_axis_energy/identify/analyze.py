@@ -1016,9 +1016,10 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
     names = [r.cmp.name for r in data]
     full_machine = (machine_with(machine, blocks, theta, measures=measures) if options.realign
                     else machine)
-    augmented = realigned_runs(campaign, full_machine, names,
-                               baseline=cmp_runs if full_machine is machine else (),
-                               loaded=loaded)
+    # (held by the round's store: the next round re-pins its runs from them)
+    augmented = _held_runs(realigned_runs(campaign, full_machine, names,
+                                          baseline=cmp_runs if full_machine is machine else (),
+                                          loaded=loaded), store)
     # what a run's *after* keeps of its comparison: metrics, offset, the binned simulation
     # (a long run's fresh comparison is let go as soon as it is summed up)
     after_of: dict[int, tuple[Metrics, dict[str, Any], np.ndarray]] = {
