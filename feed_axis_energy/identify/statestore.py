@@ -114,6 +114,8 @@ class StateStore:
             return array
         if self._kept.get(id(array)) is array:
             return array                    # held before: counted once
+        if array.dtype.hasobject:
+            return array                    # references, not data: nothing to map
         if self.held_bytes + size <= self.budget_bytes or size == 0:
             self.held_bytes += size
             self._kept[id(array)] = array

@@ -263,6 +263,8 @@ def test_held_arrays_beyond_the_budget_are_maps_of_gone_files(tmp_path, monkeypa
         assert isinstance(mapped, np.memmap) and not mapped.flags.writeable
         assert_array_equal(mapped, big)
         assert store.hold(mapped) is mapped                 # a map is not copied again
+        labels = np.array(['a', None], dtype=object)
+        assert store.hold(labels) is labels                 # references stay in memory
         assert store.hold(np.asarray(mapped)[::2].copy()) is not mapped
         folder = store._dir
         assert folder is not None and list(folder.iterdir()) == []   # unlinked at once
