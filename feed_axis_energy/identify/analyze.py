@@ -458,9 +458,34 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         # every run is compared several times (baseline, each fold, the augmented machine,
         # the pinning rounds): its data file is parsed once and its arrays held within the
         # budget, the rest memory-mapped (one run's samples in memory at a time when read)
-        loaded = {spec.name: _held(load_run(spec), records) for spec in selected}
+        loaded = _Records({spec.name: _held(load_run(spec), records) for spec in selected},
+                          records)
         return _analyze_loaded(campaign, machine, machine_file, ids, options, report, loaded,
                                runs, records)
+
+
+class _Records(Mapping[str, MeasuredRun]):
+    """The loaded runs by name. Each lookup first lets the pages of the store's maps go
+    (:meth:`.statestore.StateStore.drop_pages`): a pass over the runs (a comparison of each,
+    the preparation of each) keeps about one run's mapped data in memory, not every run's
+    read so far."""
+
+    def __init__(self, runs: dict[str, MeasuredRun], store: StateStore) -> None:
+        self._runs = runs
+        self._store = store
+
+    def __getitem__(self, name: str) -> MeasuredRun:
+        self._store.drop_pages()
+        return self._runs[name]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._runs
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._runs)
+
+    def __len__(self) -> int:
+        return len(self._runs)
 
 
 def _held(run: MeasuredRun, store: StateStore) -> MeasuredRun:

@@ -25,6 +25,7 @@ naming it.
 from __future__ import annotations
 
 import dataclasses
+import mmap
 import os
 import shutil
 import tempfile
@@ -82,6 +83,7 @@ class StateStore:
         self._dir: Path | None = None
         # arrays hold() kept in memory, by id while they live (counted once in held_bytes)
         self._kept: weakref.WeakValueDictionary[int, np.ndarray] = weakref.WeakValueDictionary()
+        self._maps: list[weakref.ref[mmap.mmap]] = []     # the maps hold() made, while alive
 
     def __enter__(self) -> StateStore:
         return self
@@ -110,8 +112,8 @@ class StateStore:
         until the last view of it goes, and nothing is left behind. A memory map is returned
         as it is (no second copy)."""
         size = int(array.nbytes)
-        if isinstance(array, np.memmap) and array.filename is not None:
-            return array
+        if _map_of(array) is not None:
+            return array                    # a map (or a view of one): no second copy
         if self._kept.get(id(array)) is array:
             return array                    # held before: counted once
         if array.dtype.hasobject:
@@ -126,7 +128,11 @@ class StateStore:
             try:
                 with _open_new(path) as fh:
                     fh.write(np.ascontiguousarray(array).data)
-                return np.memmap(path, dtype=array.dtype, mode='r', shape=array.shape)
+                fd = os.open(path, os.O_RDONLY | getattr(os, 'O_NOFOLLOW', 0))
+                try:
+                    mm = mmap.mmap(fd, size, access=mmap.ACCESS_READ)
+                finally:
+                    os.close(fd)
             finally:
                 path.unlink(missing_ok=True)
         except OSError as err:
@@ -135,6 +141,22 @@ class StateStore:
                    'directory (TMPDIR)')
             raise OutputError(msg, path=self._dir or tempfile.gettempdir(),
                               option='TMPDIR') from err
+        self._maps = [m for m in self._maps if m() is not None]
+        self._maps.append(weakref.ref(mm))
+        return np.frombuffer(mm, dtype=array.dtype, count=array.size).reshape(array.shape)
+
+    def drop_pages(self) -> None:
+        """Let the pages of every map :meth:`hold` made leave this process's memory
+        (``madvise(MADV_DONTNEED)``): they are read again from the page cache or the disk
+        when next used. The data stay the same; what the process holds in RAM between two
+        passes over the runs is what the next pass touches, not everything read before."""
+        advice = getattr(mmap, 'MADV_DONTNEED', None)
+        if advice is None:
+            return
+        for ref in self._maps:
+            mm = ref()
+            if mm is not None and not mm.closed:
+                mm.madvise(advice)
 
     def writer(self) -> StateWriter:
         """A :class:`StateWriter` that takes one state in pieces; its ``finish`` gives the key."""
@@ -300,3 +322,13 @@ def _open_new(path: Path) -> BinaryIO:
     link, readable by the owner only."""
     flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, 'O_NOFOLLOW', 0)
     return os.fdopen(os.open(path, flags, 0o600), 'wb')
+
+
+def _map_of(array: np.ndarray) -> mmap.mmap | None:
+    """The memory map ``array`` is a view of (:meth:`StateStore.hold`'s), if any."""
+    base: Any = array
+    while base is not None:
+        if isinstance(base, mmap.mmap):
+            return base
+        base = base.obj if isinstance(base, memoryview) else getattr(base, 'base', None)
+    return None
