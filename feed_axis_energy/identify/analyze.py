@@ -49,7 +49,7 @@ from .ambiguity import AmbiguousGroup, EquivalentForm, find_groups, found_text, 
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
 from .grid import bin_windows, Bins, bins_for
-from .simrate import at_rate, MAX_OVERSAMPLING, rate_with_effects, sim_rate
+from .simrate import at_rate, MAX_OVERSAMPLING, rate_with_effects, sim_rate, STEP_MAX_CHI2
 from .timing import (at_common_lag, at_motion_offsets, FILTER_EXTRA_ROUNDS, FILTER_TOLERANCE,
                      filter_next, filter_step, joint_eligible, joint_start, lag_tolerance_s,
                      LeftOut, left_out_text, MAX_PIN_ROUNDS, MAX_SCREEN_COLUMNS, may_filter,
@@ -464,6 +464,13 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
                                runs, records)
 
 
+def _sampling_left(chi2: float) -> float:
+    """What the simulation's sampling still puts into the residual at the rate used [noise
+    variances], when it exceeds :data:`.simrate.STEP_MAX_CHI2` (the rate reached its cap);
+    else 0: the selection's limits then need no margin for it."""
+    return chi2 if math.isfinite(chi2) and chi2 > STEP_MAX_CHI2 else 0.0
+
+
 class _Records(Mapping[str, MeasuredRun]):
     """The loaded runs by name. Each lookup first lets the pages of the store's maps go
     (:meth:`.statestore.StateStore.drop_pages`): a pass over the runs (a comparison of each,
@@ -545,7 +552,9 @@ def _analyze_loaded(campaign: Campaign, machine: Machine, machine_file: str,
         machine = at_rate(declared, factor)
         cmp = _held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
                                                 loaded=loaded), store)
-    result = _analysis(campaign, machine, machine_file, cmp, ids, options,
+    left = _sampling_left(chi2 / factor ** 4)
+    result = _analysis(campaign, machine, machine_file, cmp, ids,
+                       replace(options, sampling_chi2=left),
                        lambda f: report(min(f, RATE_CHECK_FROM)), loaded, runs, store)
     notes = ([f'at {declared.planner.rate_hz:g} Hz its sampling would put a sum of squares '
               f'of {chi2:.3g} noise variances into the residual, which these data resolve']
@@ -561,13 +570,20 @@ def _analyze_loaded(campaign: Campaign, machine: Machine, machine_file: str,
         machine = at_rate(declared, factor)
         cmp = _held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
                                                 loaded=loaded), store)
-        result = _analysis(campaign, machine, machine_file, cmp, ids, options,
+        left = _sampling_left(max(chi2 / factor ** 4, chi2_found / more ** 4))
+        result = _analysis(campaign, machine, machine_file, cmp, ids,
+                           replace(options, sampling_chi2=left),
                            lambda f: report(RATE_CHECK_FROM + (1.0 - RATE_CHECK_FROM)
                                             * max(f - 0.3, 0.0) / 0.7), loaded, runs,
                            store)
         notes.append(f'with the effects first found in the model, its sampling at '
                      f'{machine.planner.rate_hz / more:g} Hz would put {chi2_found:.3g} noise '
                      'variances into the residual')
+    if left:
+        notes.append(f'at {machine.planner.rate_hz:g} Hz, the finest it simulates at, its '
+                     f'sampling still puts about {left:.3g} noise variances into the '
+                     'residual: a candidate had to drop the residual by that much beyond its '
+                     'chi-square limit')
     report(1.0)
     result = replace(result, machine=declared, sim_rate_hz=machine.planner.rate_hz)
     if factor > 1:

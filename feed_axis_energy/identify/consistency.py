@@ -138,7 +138,8 @@ def prune(design: Design, blocks: list[Block], folds, options,
                   else math.inf)
             mean = float(np.mean(gains))
             chi2 = (design.total_sse(without) - sse_full) / sigma2 if known else math.inf
-            limit = float(stats.chi2.isf(options.alpha / tests, len(blocks[i].cols)))
+            limit = (float(stats.chi2.isf(options.alpha / tests, len(blocks[i].cols)))
+                     + options.sampling_chi2)
             keep = mean > options.se_factor * se and chi2 > limit
             score = mean - options.se_factor * se
             if not keep and score < worst_score:
@@ -258,7 +259,8 @@ def select_consistent(design: Design, folds, options, *, keys: Sequence[tuple[st
                              sigma2=sigma2, alpha=options.alpha,
                              max_effects=options.max_effects, max_tries=options.max_tries,
                              pair_pool=options.pair_pool,
-                             min_bic_drop=options.min_bic_drop)
+                             min_bic_drop=options.min_bic_drop,
+                             floor_chi2=options.sampling_chi2)
         steps, stop = sel.steps, sel.stop
         blocks = list(sel.blocks)
         for i in range(len(blocks)):

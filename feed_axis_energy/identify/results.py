@@ -53,6 +53,12 @@ class AnalyzeOptions:
     min_bic_drop
         ... and the BIC must drop by more than this (default 2: positive evidence on the
         scale of Kass & Raftery 1995; ``0``: any drop).
+    sampling_chi2
+        Set by the analysis itself, not a user's setting: what the simulation's sampling still
+        puts into the residual at the finest rate it simulates at [noise variances]
+        (:mod:`.simrate`; 0 when the rate brings it below ``STEP_MAX_CHI2``). Every
+        chi-square limit of the selection and the pruning is raised by it: a drop that small
+        may be the simulation's own numerics.
     max_effects
         Most effects added.
     max_tries, pair_pool
@@ -103,6 +109,7 @@ class AnalyzeOptions:
     se_factor: float = 2.0
     alpha: float = 0.05
     min_bic_drop: float = 2.0
+    sampling_chi2: float = 0.0
     max_effects: int = 4
     max_tries: int = 8
     pair_pool: int = 4

@@ -371,7 +371,8 @@ class _Trial:
 
 def _judge(design: Design, cols: list[int], blocks: Sequence[Block], folds,
            base: dict[int, float], *, n_test: int, se_factor: float, sigma2: float,
-           alpha: float, tests: int, bic_before: float, min_bic_drop: float) -> _Trial:
+           alpha: float, tests: int, bic_before: float, min_bic_drop: float,
+           floor_chi2: float) -> _Trial:
     """Is adding ``blocks`` beside ``cols`` statistically supported? (module docstring)."""
     new = cols + [c for b in blocks for c in b.cols]
     _, gains = _score(design, new, folds, base)
@@ -381,7 +382,7 @@ def _judge(design: Design, cols: list[int], blocks: Sequence[Block], folds,
     known = math.isfinite(sigma2) and sigma2 > 0.0
     chi2 = drop / sigma2 if known else math.nan
     p = sum(len(b.cols) for b in blocks)
-    limit = _chi2_limit(alpha, tests, p)
+    limit = _chi2_limit(alpha, tests, p) + floor_chi2
     if n_test < 2:
         ok, reason = False, 'fewer than 2 held-out runs: the gain has no standard error'
     elif not mean_gain > se_factor * se:
@@ -399,7 +400,8 @@ def _judge(design: Design, cols: list[int], blocks: Sequence[Block], folds,
                              f'{bic_after:.1f}), not by the {min_bic_drop:g} of positive '
                              'evidence')
     elif known and len(blocks) > 1 and (passenger := _passenger(
-            design, cols, blocks, sigma2=sigma2, alpha=alpha, tests=tests)):
+            design, cols, blocks, sigma2=sigma2, alpha=alpha, tests=tests,
+            floor_chi2=floor_chi2)):
         ok, reason = False, passenger
     else:
         drop_text = f', residual drop {chi2:.1f} sigma² > {limit:.1f}' if known else ''
@@ -409,7 +411,7 @@ def _judge(design: Design, cols: list[int], blocks: Sequence[Block], folds,
 
 
 def _passenger(design: Design, cols: list[int], blocks: Sequence[Block], *, sigma2: float,
-               alpha: float, tests: int) -> str:
+               alpha: float, tests: int, floor_chi2: float = 0.0) -> str:
     """Why a member of a set tried together adds nothing beside the others ('' if none).
 
     A pair is accepted only when each member, added last beside the other, drops the
@@ -421,7 +423,7 @@ def _passenger(design: Design, cols: list[int], blocks: Sequence[Block], *, sigm
     for block in blocks:
         without = [c for c in every if c not in block.cols]
         chi2 = (design.total_sse(without) - sse) / sigma2
-        limit = _chi2_limit(alpha, tests, len(block.cols))
+        limit = _chi2_limit(alpha, tests, len(block.cols)) + floor_chi2
         if not chi2 > limit:
             return (f'{block.key[0]}@{block.key[1]} adds {chi2:.1f} sigma² beside the other, '
                     f'not above {limit:.1f}: tried together, it would ride on the other')
@@ -432,7 +434,7 @@ def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence
                    exclude: Sequence[tuple[str, str]] = (), se_factor: float = 2.0,
                    sigma2: float = math.nan, alpha: float = 0.05, max_effects: int = 4,
                    max_tries: int = 8, pair_pool: int = 4,
-                   min_bic_drop: float = 2.0) -> SelectionResult:
+                   min_bic_drop: float = 2.0, floor_chi2: float = 0.0) -> SelectionResult:
     """Add candidates while each is statistically supported on held-out runs.
 
     Per round the candidates are tried in the order of their held-out error (the best
@@ -466,6 +468,9 @@ def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence
         Bounds of the search of one round (above).
     min_bic_drop
         The BIC must drop by more than this (module docstring); ``0``: any drop.
+    floor_chi2
+        Added to every chi-square limit [noise variances]: what the simulation's own
+        sampling still puts into the residual (``AnalyzeOptions.sampling_chi2``).
 
     Returns
     -------
@@ -507,7 +512,8 @@ def forward_select(design: Design, folds: Sequence[tuple[Sequence[int], Sequence
         def judge(blocks: list[Block], tests: int) -> _Trial:
             return _judge(design, cols, blocks, folds, base, n_test=n_test,
                           se_factor=se_factor, sigma2=sigma2, alpha=alpha, tests=tests,
-                          bic_before=bic_before, min_bic_drop=min_bic_drop)
+                          bic_before=bic_before, min_bic_drop=min_bic_drop,
+                          floor_chi2=floor_chi2)
         trials = [judge([best[k][1]], len(best)) for k in order[:max_tries]]
         passed = next((t for t in trials if t.ok), None)
         if passed is None and n_test >= 2:

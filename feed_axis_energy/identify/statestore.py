@@ -14,7 +14,9 @@ would exceed it, every piece is appended to the state's files, so a long run's s
 never whole in memory. :meth:`StateStore.hold` does the same for any array read many times
 and never changed (a measured record, a comparison's simulated power): itself within the
 budget, else a read-only memory map of a copy whose file is removed as soon as it is mapped
-(the map keeps the data until its last view goes; nothing is left behind, even on a crash).
+(the map keeps the data until its last view goes; nothing is left behind, even on a crash);
+:meth:`StateStore.drop_pages` lets the pages of those maps leave the process's memory between
+two passes over the runs (the kernel reads them again when they are next used).
 
 The directory is made by :func:`tempfile.mkdtemp` (mode 0700, under ``TMPDIR``), each file
 is created exclusively and not through a link, and :meth:`StateStore.close` (or leaving the
