@@ -49,7 +49,7 @@ from .ambiguity import AmbiguousGroup, EquivalentForm, find_groups, found_text, 
 from .consistency import heterogeneity, label, mark_groups, select_consistent
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
 from .grid import bin_windows, Bins, bins_for
-from .simrate import at_rate, MAX_OVERSAMPLING, rate_with_effects, sim_rate, STEP_MAX_CHI2
+from .simrate import at_rate, MAX_OVERSAMPLING, rate_with_effects, sampling_left, sim_rate
 from .timing import (at_common_lag, at_motion_offsets, FILTER_EXTRA_ROUNDS, FILTER_TOLERANCE,
                      filter_next, filter_step, joint_eligible, joint_start, lag_tolerance_s,
                      LeftOut, left_out_text, MAX_PIN_ROUNDS, MAX_SCREEN_COLUMNS, may_filter,
@@ -464,13 +464,6 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
                                runs, records)
 
 
-def _sampling_left(chi2: float) -> float:
-    """What the simulation's sampling still puts into the residual at the rate used [noise
-    variances], when it exceeds :data:`.simrate.STEP_MAX_CHI2` (the rate reached its cap);
-    else 0: the selection's limits then need no margin for it."""
-    return chi2 if math.isfinite(chi2) and chi2 > STEP_MAX_CHI2 else 0.0
-
-
 class _Records(Mapping[str, MeasuredRun]):
     """The loaded runs by name. Each lookup first lets the pages of the store's maps go
     (:meth:`.statestore.StateStore.drop_pages`): a pass over the runs (a comparison of each,
@@ -500,12 +493,19 @@ def _held(run: MeasuredRun, store: StateStore) -> MeasuredRun:
     arrays: dict[str, Any] = {
         name: store.hold(value) for name in _RECORD_FIELDS
         if isinstance(value := getattr(run, name), np.ndarray)}
-    extra = {key: (store.hold(value) if isinstance(value, np.ndarray) else
-                   {a: store.hold(v) for a, v in value.items()}
-                   if isinstance(value, dict) and value
-                   and all(isinstance(v, np.ndarray) for v in value.values()) else value)
-             for key, value in run.extra.items()}
+    extra = {key: _held_extra(value, store) for key, value in run.extra.items()}
     return replace(run, extra=extra, **arrays)
+
+
+def _held_extra(value: Any, store: StateStore) -> Any:
+    """A record's ``extra`` entry held by ``store``: an array (the file rows), or a dict of
+    arrays per axis (currents, torques); anything else as it is."""
+    if isinstance(value, np.ndarray):
+        return store.hold(value)
+    if (isinstance(value, dict) and value
+            and all(isinstance(v, np.ndarray) for v in value.values())):
+        return {axis: store.hold(v) for axis, v in value.items()}
+    return value
 
 
 def _held_comparison(cmp: CampaignComparison, store: StateStore) -> CampaignComparison:
@@ -552,7 +552,9 @@ def _analyze_loaded(campaign: Campaign, machine: Machine, machine_file: str,
         machine = at_rate(declared, factor)
         cmp = _held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
                                                 loaded=loaded), store)
-    left = _sampling_left(chi2 / factor ** 4)
+    # what the sampling still leaves at the rate used (the rate at its cap): the selection's
+    # chi-square limits rise by it
+    left = sampling_left(chi2, factor)
     result = _analysis(campaign, machine, machine_file, cmp, ids,
                        replace(options, sampling_chi2=left),
                        lambda f: report(min(f, RATE_CHECK_FROM)), loaded, runs, store)
@@ -570,7 +572,7 @@ def _analyze_loaded(campaign: Campaign, machine: Machine, machine_file: str,
         machine = at_rate(declared, factor)
         cmp = _held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
                                                 loaded=loaded), store)
-        left = _sampling_left(max(chi2 / factor ** 4, chi2_found / more ** 4))
+        left = max(sampling_left(chi2, factor), sampling_left(chi2_found, more))
         result = _analysis(campaign, machine, machine_file, cmp, ids,
                            replace(options, sampling_chi2=left),
                            lambda f: report(RATE_CHECK_FROM + (1.0 - RATE_CHECK_FROM)

@@ -22,8 +22,8 @@ from .diagnostics import noise_level
 from .results import AnalysisResult
 from .timing import with_filter
 
-__all__ = ['at_rate', 'MAX_OVERSAMPLING', 'MAX_SIM_SAMPLES', 'rate_with_effects', 'sim_rate',
-           'STEP_MAX_CHI2']
+__all__ = ['at_rate', 'MAX_OVERSAMPLING', 'MAX_SIM_SAMPLES', 'rate_with_effects',
+           'sampling_left', 'sim_rate', 'STEP_MAX_CHI2']
 
 STEP_MAX_CHI2 = 4.0
 """The most the simulation's sampling may put into the campaign's residual, as a sum of
@@ -62,10 +62,18 @@ def sim_rate(runs: Sequence[RunComparison], machine: Machine) -> tuple[int, floa
     rate = machine.planner.rate_hz
     longest = max((r.sim_duration_s for r in runs), default=0.0)
     factor = 1
-    while (chi2 / factor ** 4 > STEP_MAX_CHI2 and 2 * factor <= MAX_OVERSAMPLING
+    while (sampling_left(chi2, factor) and 2 * factor <= MAX_OVERSAMPLING
            and 2 * factor * rate * longest <= MAX_SIM_SAMPLES):
         factor *= 2
     return factor, chi2
+
+
+def sampling_left(chi2: float, factor: int) -> float:
+    """What a sampling that puts ``chi2`` noise variances into the residual still puts
+    there with the rate raised ``factor`` times (it falls with the fourth power), when that
+    exceeds :data:`STEP_MAX_CHI2` (the rate could not be raised far enough); else 0."""
+    left = chi2 / factor ** 4
+    return left if math.isfinite(left) and left > STEP_MAX_CHI2 else 0.0
 
 
 def at_rate(machine: Machine, factor: int) -> Machine:

@@ -6,8 +6,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from feed_axis_energy.identify.simrate import (MAX_OVERSAMPLING, MAX_SIM_SAMPLES, sim_rate,
-                                               STEP_MAX_CHI2)
+from feed_axis_energy.identify.simrate import (MAX_OVERSAMPLING, MAX_SIM_SAMPLES,
+                                               sampling_left, sim_rate, STEP_MAX_CHI2)
 from feed_axis_energy.machine import load_machine
 from feed_axis_energy.paths import config_dir
 
@@ -113,3 +113,10 @@ def test_filter_steps_that_converge_by_turns_are_extrapolated_to_their_limit():
     assert filter_next(-1e-6, 1e-6) == (-1e-6, -1e-6)
     slow = (FILTER_MAX_RATIO + 0.1) * 1e-6
     assert filter_next(slow, 1e-6) == (slow, slow)
+
+
+def test_sampling_left_falls_with_the_fourth_power_and_counts_only_above_the_limit() -> None:
+    assert sampling_left(1.03e5, 4) == pytest.approx(1.03e5 / 256)
+    assert sampling_left(STEP_MAX_CHI2 * 16, 2) == 0.0          # exactly at the limit
+    assert sampling_left(29.0, 2) == 0.0
+    assert sampling_left(float('nan'), 1) == 0.0
