@@ -934,7 +934,9 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
         summed = offer_summed(design, folds, axes=axes, kept=blocks + offered,
                               effects=[e for e in ids if _summable(e)], sigma2=sigma2,
                               se_factor=options.se_factor, alpha=options.alpha,
-                              max_effects=options.max_effects)
+                              max_effects=options.max_effects,
+                              min_bic_drop=options.min_bic_drop,
+                              floor_chi2=options.sampling_chi2)
         reasons = {(b.key, s.reason) for s in summed for b in s.blocks}
         offered.extend(b for s in summed for b in s.blocks)
         why = dict(reasons)

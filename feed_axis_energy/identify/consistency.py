@@ -17,7 +17,8 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from .selection import Block, Design, forward_select, gain_text, solve_normal, Step
+from .selection import (Block, chi2_limit, Design, forward_select, gain_text, solve_normal,
+                        Step)
 
 __all__ = ['FATES', 'Fate', 'ConsistentSelection', 'select_consistent', 'noise_floor_ss',
            'WEAK_Z', 'prune', 'heterogeneity', 'label', 'mark_groups']
@@ -138,8 +139,8 @@ def prune(design: Design, blocks: list[Block], folds, options,
                   else math.inf)
             mean = float(np.mean(gains))
             chi2 = (design.total_sse(without) - sse_full) / sigma2 if known else math.inf
-            limit = (float(stats.chi2.isf(options.alpha / tests, len(blocks[i].cols)))
-                     + options.sampling_chi2)
+            limit = chi2_limit(options.alpha, tests, len(blocks[i].cols),
+                               options.sampling_chi2)
             keep = mean > options.se_factor * se and chi2 > limit
             score = mean - options.se_factor * se
             if not keep and score < worst_score:

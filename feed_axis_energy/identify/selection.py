@@ -37,8 +37,8 @@ import numpy as np
 from scipy import stats
 from scipy.optimize import lsq_linear
 
-__all__ = ['Block', 'Design', 'Step', 'SelectionResult', 'forward_select', 'gain_text',
-           'loro_folds', 'solve_normal', 'at_bounds']
+__all__ = ['Block', 'Design', 'Step', 'SelectionResult', 'chi2_limit', 'forward_select',
+           'gain_text', 'loro_folds', 'solve_normal', 'at_bounds']
 
 # column sets whose per-run cross products a design keeps at once (a few MB at most)
 _SUBS_KEPT = 64
@@ -351,9 +351,12 @@ def gain_text(gain: float, se: float) -> str:
             'that does not carry over to unseen runs)')
 
 
-def _chi2_limit(alpha: float, tests: int, params: int) -> float:
-    """Chi-square limit of an SSE drop [sigma²] at family level ``alpha`` over ``tests``."""
-    return float(stats.chi2.isf(alpha / max(tests, 1), max(params, 1)))
+def chi2_limit(alpha: float, tests: int, params: int, floor_chi2: float = 0.0) -> float:
+    """Limit of a residual drop [sigma²] for ``params`` new columns, at family level
+    ``alpha`` over ``tests`` (Bonferroni), raised by ``floor_chi2`` (what the simulation's
+    own sampling leaves in the residual, :func:`.simrate.sampling_left`). Every test of a
+    residual drop in ``analyze`` (entry, pruning, offers on the summed power) uses it."""
+    return float(stats.chi2.isf(alpha / max(tests, 1), max(params, 1))) + floor_chi2
 
 
 @dataclass(frozen=True)
@@ -382,7 +385,7 @@ def _judge(design: Design, cols: list[int], blocks: Sequence[Block], folds,
     known = math.isfinite(sigma2) and sigma2 > 0.0
     chi2 = drop / sigma2 if known else math.nan
     p = sum(len(b.cols) for b in blocks)
-    limit = _chi2_limit(alpha, tests, p) + floor_chi2
+    limit = chi2_limit(alpha, tests, p, floor_chi2)
     if n_test < 2:
         ok, reason = False, 'fewer than 2 held-out runs: the gain has no standard error'
     elif not mean_gain > se_factor * se:
@@ -423,7 +426,7 @@ def _passenger(design: Design, cols: list[int], blocks: Sequence[Block], *, sigm
     for block in blocks:
         without = [c for c in every if c not in block.cols]
         chi2 = (design.total_sse(without) - sse) / sigma2
-        limit = _chi2_limit(alpha, tests, len(block.cols)) + floor_chi2
+        limit = chi2_limit(alpha, tests, len(block.cols), floor_chi2)
         if not chi2 > limit:
             return (f'{block.key[0]}@{block.key[1]} adds {chi2:.1f} sigma² beside the other, '
                     f'not above {limit:.1f}: tried together, it would ride on the other')

@@ -15,7 +15,9 @@ yet, all of them at once, beside what the selection kept and offered. It must pa
 selection's tests with the held-out error of the summed power in place of the per-axis
 one: mean relative held-out gain above ``se_factor`` standard errors, the drop of the
 (per-axis) residual above the chi-square limit at ``alpha / m`` for the ``m`` effects tried
-(Bonferroni), and a lower BIC. What passes is *offered* (in the augmented machine, in
+(Bonferroni) plus what the simulation's own sampling leaves there (``floor_chi2``), and
+a BIC lower by at least ``min_bic_drop`` (:func:`.selection.chi2_limit`, the same rules as
+the selection's). What passes is *offered* (in the augmented machine, in
 ``offered``), never attributed: the data show that it predicts unseen runs better, not
 which axis carries it. The best one is added, and the search is repeated beside it, while
 the model holds fewer than ``max_effects`` effects (an offer on several axes counts once
@@ -29,9 +31,8 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from scipy import stats
 
-from .selection import Block, Design
+from .selection import Block, chi2_limit, Design
 
 __all__ = ['SummedOffer', 'offer_summed', 'summed_heldout_mse']
 
@@ -92,7 +93,8 @@ def _gains(new: dict[int, float], base: dict[int, float]) -> tuple[float, float]
 def offer_summed(design: Design, folds: Sequence[tuple[Sequence[int], Sequence[int]]], *,
                  axes: Sequence[str], kept: Sequence[Block], effects: Sequence[str],
                  sigma2: float, se_factor: float = 2.0, alpha: float = 0.05,
-                 max_effects: int = 4) -> list[SummedOffer]:
+                 max_effects: int = 4, min_bic_drop: float = 2.0,
+                 floor_chi2: float = 0.0) -> list[SummedOffer]:
     """Effects on every measured axis that the summed power of unseen runs supports.
 
     Parameters
@@ -109,8 +111,9 @@ def offer_summed(design: Design, folds: Sequence[tuple[Sequence[int], Sequence[i
         Catalog ids to try: effects that describe the machine, without shape parameters.
     sigma2
         Noise variance per sample [W²] (the level every test of ``analyze`` uses).
-    se_factor, alpha, max_effects
-        As :func:`.selection.forward_select`; ``max_effects`` counts ``kept`` too.
+    se_factor, alpha, max_effects, min_bic_drop, floor_chi2
+        As :func:`.selection.forward_select` (the same held-out, chi-square and BIC rules);
+        ``max_effects`` counts ``kept`` too.
 
     Returns
     -------
@@ -149,10 +152,10 @@ def offer_summed(design: Design, folds: Sequence[tuple[Sequence[int], Sequence[i
         added = None
         for mean, effect, blocks, new, se in trials:
             p = len(new) - len(cols)
-            limit = float(stats.chi2.isf(alpha / max(len(groups), 1), max(p, 1)))
+            limit = chi2_limit(alpha, len(groups), p, floor_chi2)
             chi2 = (sse0 - design.total_sse(new)) / sigma2 if known else math.nan
             if not (mean > se_factor * se and known and chi2 > limit
-                    and design.bic(new) < bic0):
+                    and design.bic(new) < bic0 - min_bic_drop):
                 continue
             on = ', '.join(b.key[1] for b in blocks)
             together = ' together' if len(blocks) > 1 else ''

@@ -93,3 +93,22 @@ def test_one_axis_or_an_effect_already_in_the_model() -> None:
                           effects=['mass_error', 'copper'], sigma2=9.0)
     # only the axis where it is not in the model yet is tried
     assert all(b.key != ('mass_error', 'X') for o in offers for b in o.blocks)
+
+
+def test_the_selections_floor_and_bic_rule_hold_for_offers() -> None:
+    # the offer of seed 6 (both axes' mass_error) passes by a known margin; the sampling
+    # floor and the BIC drop that analyze asks of every candidate take it away beyond it
+    design, axes = _design(6, effect=0.3, shared=2.0, noise=0.1)
+    folds = loro_folds(RUNS)
+    args = dict(axes=axes, kept=[], effects=['mass_error'], sigma2=4.0)
+    offer, = offer_summed(design, folds, **args, min_bic_drop=0.0)
+    margin = offer.chi2 - offer.chi2_limit
+    assert margin > 2.0
+    near, = offer_summed(design, folds, **args, min_bic_drop=0.0, floor_chi2=margin - 1.0)
+    assert near.chi2_limit == pytest.approx(offer.chi2_limit + margin - 1.0)
+    assert offer_summed(design, folds, **args, min_bic_drop=0.0, floor_chi2=margin + 1.0) == []
+    cols = [c for b in offer.blocks for c in b.cols]
+    drop = design.bic([]) - design.bic(cols)
+    assert drop > 1.0
+    assert offer_summed(design, folds, **args, min_bic_drop=drop - 1.0) != []
+    assert offer_summed(design, folds, **args, min_bic_drop=drop + 1.0) == []
