@@ -61,7 +61,7 @@ from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, Pa
 from .drivecorr import common_measures, correction_bounds, declared_values, describe_correction
 from .driveforms import current_basis, has_current_form
 from .selection import at_bounds, Block, Design, loro_folds, solve_normal
-from .statestore import StateStore
+from .statestore import held_comparison, held_record, held_runs, HeldRecords, StateStore
 from .summed import offer_summed
 
 NOISE_PASSES = 2
@@ -458,82 +458,10 @@ def analyze_campaign(campaign: Campaign, *, machine: Machine | None = None,
         # every run is compared several times (baseline, each fold, the augmented machine,
         # the pinning rounds): its data file is parsed once and its arrays held within the
         # budget, the rest memory-mapped (one run's samples in memory at a time when read)
-        loaded = _Records({spec.name: _held(load_run(spec), records) for spec in selected},
-                          records)
+        loaded = HeldRecords({spec.name: held_record(load_run(spec), records)
+                              for spec in selected}, records)
         return _analyze_loaded(campaign, machine, machine_file, ids, options, report, loaded,
                                runs, records)
-
-
-class _Records(Mapping[str, MeasuredRun]):
-    """The loaded runs by name. Each lookup first lets the pages of the store's maps go
-    (:meth:`.statestore.StateStore.drop_pages`): a pass over the runs (a comparison of each,
-    the preparation of each) keeps about one run's mapped data in memory, not every run's
-    read so far."""
-
-    def __init__(self, runs: dict[str, MeasuredRun], store: StateStore) -> None:
-        self._runs = runs
-        self._store = store
-
-    def __getitem__(self, name: str) -> MeasuredRun:
-        self._store.drop_pages()
-        return self._runs[name]
-
-    def __contains__(self, name: object) -> bool:
-        return name in self._runs
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._runs)
-
-    def __len__(self) -> int:
-        return len(self._runs)
-
-
-def _held(run: MeasuredRun, store: StateStore) -> MeasuredRun:
-    """``run`` with its sample arrays held by ``store`` (in memory or memory-mapped)."""
-    arrays: dict[str, Any] = {
-        name: store.hold(value) for name in _RECORD_FIELDS
-        if isinstance(value := getattr(run, name), np.ndarray)}
-    extra = {key: _held_extra(value, store) for key, value in run.extra.items()}
-    return replace(run, extra=extra, **arrays)
-
-
-def _held_extra(value: Any, store: StateStore) -> Any:
-    """A record's ``extra`` entry held by ``store``: an array (the file rows), or a dict of
-    arrays per axis (currents, torques); anything else as it is."""
-    if isinstance(value, np.ndarray):
-        return store.hold(value)
-    if (isinstance(value, dict) and value
-            and all(isinstance(v, np.ndarray) for v in value.values())):
-        return {axis: store.hold(v) for axis, v in value.items()}
-    return value
-
-
-def _held_comparison(cmp: CampaignComparison, store: StateStore) -> CampaignComparison:
-    """``cmp`` with its runs' sample arrays held by ``store`` (:func:`_held_runs`)."""
-    return replace(cmp, runs=tuple(_held_runs(cmp.runs, store)))
-
-
-def _held_runs(runs: Sequence[RunComparison], store: StateStore) -> list[RunComparison]:
-    """``runs`` with their sample arrays held by ``store`` (an array two fields share, the
-    measured power of a power trace, held once)."""
-    out = []
-    for r in runs:
-        memo: dict[int, np.ndarray] = {}
-
-        def hold(a: np.ndarray) -> np.ndarray:
-            if id(a) not in memo:
-                memo[id(a)] = store.hold(a)
-            return memo[id(a)]
-
-        out.append(replace(r, t=hold(r.t), power_meas_w=hold(r.power_meas_w),
-                           power_sim_w=hold(r.power_sim_w),
-                           signal_meas=None if r.signal_meas is None else hold(r.signal_meas),
-                           signal_sim=None if r.signal_sim is None else hold(r.signal_sim)))
-    return out
-
-
-_RECORD_FIELDS = ('t', 'power_w', 'position_m', 'velocity_m_s', 'acceleration_m_s2',
-                  'command_position_m', 'command_velocity_m_s', 'command_acceleration_m_s2')
 
 
 def _analyze_loaded(campaign: Campaign, machine: Machine, machine_file: str,
@@ -543,15 +471,15 @@ def _analyze_loaded(campaign: Campaign, machine: Machine, machine_file: str,
     """:func:`analyze_campaign` on runs already loaded; ``store`` holds the records and the
     comparisons at the declared model (each set's arrays beyond its budget memory-mapped)."""
     declared = machine
-    cmp = _held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
-                                            progress=lambda f: report(0.3 * f), loaded=loaded),
-                           store)
+    cmp = held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
+                                           progress=lambda f: report(0.3 * f), loaded=loaded),
+                          store)
     factor, chi2 = sim_rate(cmp.runs, machine)
     if factor > 1:
         # data this precise resolve the simulation's sampling: the analysis simulates finer
         machine = at_rate(declared, factor)
-        cmp = _held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
-                                                loaded=loaded), store)
+        cmp = held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
+                                               loaded=loaded), store)
     # what the sampling still leaves at the rate used (the rate at its cap): the selection's
     # chi-square limits rise by it
     left = sampling_left(chi2, factor)
@@ -570,8 +498,8 @@ def _analyze_loaded(campaign: Campaign, machine: Machine, machine_file: str,
         # and a candidate would be fitted to it; the analysis runs again finer
         factor *= more
         machine = at_rate(declared, factor)
-        cmp = _held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
-                                                loaded=loaded), store)
+        cmp = held_comparison(compare_campaign(campaign, machine=machine, runs=runs,
+                                               loaded=loaded), store)
         left = max(sampling_left(chi2, factor), sampling_left(chi2_found, more))
         result = _analysis(campaign, machine, machine_file, cmp, ids,
                            replace(options, sampling_chi2=left),
@@ -638,8 +566,8 @@ def _analysis(campaign: Campaign, machine: Machine, machine_file: str, cmp: Camp
         # one that delays: it also rounds every edge, which a pure delay leaves as structure
         # that an inertia or a friction term would take
         filtered = with_filter(campaign, tau)
-        fcmp = _held_comparison(compare_campaign(filtered, machine=machine, runs=runs,
-                                                 loaded=loaded), store)
+        fcmp = held_comparison(compare_campaign(filtered, machine=machine, runs=runs,
+                                                loaded=loaded), store)
         other = _from_start(filtered, machine, machine_file, fcmp, 0.0, ids, options, report,
                             spans[2], loaded, store, filter_s=tau)
         c = _bic(other, 1)
@@ -741,7 +669,7 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
     ``filter_s`` [s] (the campaign read through meters with that first-order filter) the
     filter's time constant is estimated anew after each round instead of the lag.
     ``store`` holds the comparisons the rounds start from."""
-    cmp = _held_comparison(replace(cmp, runs=tuple(at_common_lag(
+    cmp = held_comparison(replace(cmp, runs=tuple(at_common_lag(
         campaign, machine, cmp.runs, lag_s=lag, loaded=loaded))), store)
     # only runs whose offset is pinned down are fitted; after each round the offsets are
     # estimated anew with the effects found (:mod:`.timing.pinning`)
@@ -790,7 +718,7 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
                                     refresh=refresh)
         if not moved:
             break
-        pinned = _held_runs(pinned, store)
+        pinned = held_runs(pinned, store)
     result = replace(result, pin_rounds=round_no + 1, meter_filter_s=filter_s)
     if not left:
         return result
@@ -1062,9 +990,9 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
     full_machine = (machine_with(machine, blocks, theta, measures=measures) if options.realign
                     else machine)
     # (held by the round's store: the next round re-pins its runs from them)
-    augmented = _held_runs(realigned_runs(campaign, full_machine, names,
-                                          baseline=cmp_runs if full_machine is machine else (),
-                                          loaded=loaded), store)
+    augmented = held_runs(realigned_runs(campaign, full_machine, names,
+                                         baseline=cmp_runs if full_machine is machine else (),
+                                         loaded=loaded), store)
     # what a run's *after* keeps of its comparison: metrics, offset, the binned simulation
     # (a long run's fresh comparison is let go as soon as it is summed up)
     after_of: dict[int, tuple[Metrics, dict[str, Any], np.ndarray]] = {

@@ -17,6 +17,10 @@ budget, else a read-only memory map of a copy whose file is removed as soon as i
 (the map keeps the data until its last view goes; nothing is left behind, even on a crash);
 :meth:`StateStore.drop_pages` lets the pages of those maps leave the process's memory between
 two passes over the runs (the kernel reads them again when they are next used).
+``analyze`` holds its measured data the same way, for the whole analysis: each run's record
+(:func:`held_record`, the loaded runs as a :class:`HeldRecords` mapping whose every lookup
+drops the pages first, so a pass over the runs keeps about one run's mapped data resident)
+and the comparisons it keeps across a round (:func:`held_comparison`, :func:`held_runs`).
 
 The directory is made by :func:`tempfile.mkdtemp` (mode 0700, under ``TMPDIR``), each file
 is created exclusively and not through a link, and :meth:`StateStore.close` (or leaving the
@@ -32,6 +36,7 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, BinaryIO
 import weakref
 
@@ -39,8 +44,10 @@ import numpy as np
 
 from ..effects import EffectState
 from ..errors import OutputError
+from ..measured import CampaignComparison, MeasuredRun, RunComparison
 
-__all__ = ['STATE_MEMORY_BYTES', 'StateStore', 'StateWriter']
+__all__ = ['HeldRecords', 'STATE_MEMORY_BYTES', 'StateStore', 'StateWriter', 'held_comparison',
+           'held_record', 'held_runs']
 
 STATE_MEMORY_BYTES = 64 * 2 ** 20
 """Default budget [bytes] of the states held in memory; the rest are memory-mapped files."""
@@ -334,3 +341,76 @@ def _map_of(array: np.ndarray) -> mmap.mmap | None:
             return base
         base = base.obj if isinstance(base, memoryview) else getattr(base, 'base', None)
     return None
+
+
+class HeldRecords(Mapping[str, MeasuredRun]):
+    """The loaded runs by name. Each lookup first lets the pages of the store's maps go
+    (:meth:`StateStore.drop_pages`): a pass over the runs (a comparison of each,
+    the preparation of each) keeps about one run's mapped data in memory, not every run's
+    read so far."""
+
+    def __init__(self, runs: dict[str, MeasuredRun], store: StateStore) -> None:
+        self._runs = runs
+        self._store = store
+
+    def __getitem__(self, name: str) -> MeasuredRun:
+        self._store.drop_pages()
+        return self._runs[name]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._runs
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._runs)
+
+    def __len__(self) -> int:
+        return len(self._runs)
+
+
+_RECORD_FIELDS = ('t', 'power_w', 'position_m', 'velocity_m_s', 'acceleration_m_s2',
+                  'command_position_m', 'command_velocity_m_s', 'command_acceleration_m_s2')
+"""The sample arrays of a :class:`~feed_axis_energy.measured.MeasuredRun` that are held."""
+
+
+def held_record(run: MeasuredRun, store: StateStore) -> MeasuredRun:
+    """``run`` with its sample arrays held by ``store`` (in memory or memory-mapped)."""
+    arrays: dict[str, Any] = {
+        name: store.hold(value) for name in _RECORD_FIELDS
+        if isinstance(value := getattr(run, name), np.ndarray)}
+    extra = {key: _held_extra(value, store) for key, value in run.extra.items()}
+    return dataclasses.replace(run, extra=extra, **arrays)
+
+
+def _held_extra(value: Any, store: StateStore) -> Any:
+    """A record's ``extra`` entry held by ``store``: an array (the file rows), or a dict of
+    arrays per axis (currents, torques); anything else as it is."""
+    if isinstance(value, np.ndarray):
+        return store.hold(value)
+    if (isinstance(value, dict) and value
+            and all(isinstance(v, np.ndarray) for v in value.values())):
+        return {axis: store.hold(v) for axis, v in value.items()}
+    return value
+
+
+def held_comparison(cmp: CampaignComparison, store: StateStore) -> CampaignComparison:
+    """``cmp`` with its runs' sample arrays held by ``store`` (:func:`held_runs`)."""
+    return dataclasses.replace(cmp, runs=tuple(held_runs(cmp.runs, store)))
+
+
+def held_runs(runs: Sequence[RunComparison], store: StateStore) -> list[RunComparison]:
+    """``runs`` with their sample arrays held by ``store`` (an array two fields share, the
+    measured power of a power trace, held once)."""
+    out = []
+    for r in runs:
+        memo: dict[int, np.ndarray] = {}
+
+        def hold(a: np.ndarray) -> np.ndarray:
+            if id(a) not in memo:
+                memo[id(a)] = store.hold(a)
+            return memo[id(a)]
+
+        out.append(dataclasses.replace(
+            r, t=hold(r.t), power_meas_w=hold(r.power_meas_w), power_sim_w=hold(r.power_sim_w),
+            signal_meas=None if r.signal_meas is None else hold(r.signal_meas),
+            signal_sim=None if r.signal_sim is None else hold(r.signal_sim)))
+    return out
