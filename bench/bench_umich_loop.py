@@ -41,11 +41,19 @@ directory (env ``FAE_SHARED``, else ``../shared`` beside the repository; see
    the selection scores) and on the summed power (as ``compare``, ``fit-loss`` and
    ``analyze``'s *after* report).
 
+4. *Runs no method saw*: experiments 04, 05 and 07 (stopped early, so left out of the
+   campaign; the same program, machine and meter, 46–57 s each) compared with the guessed
+   machine, with ``analyze``'s augmented machine (default options, all five runs) and with
+   ``fit-loss --method samples`` fitted on all five runs: energy error [%] and RMSE [W] per
+   run, and the energy each machine misses per axis and speed band [J], since these records
+   hold axis speeds that no campaign run reaches (Y at 40–50 mm/s).
+
 CPU time at the end (``time.process_time``).
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 import itertools
 import time
 from typing import Any
@@ -296,8 +304,82 @@ def print_selection_study(campaign: Campaign) -> None:
                   + f'   mean {gains.mean():+.1f} +- {se:.1f}')
 
 
+UNSEEN = (('exp04', 'experiment_04.csv'), ('exp05', 'experiment_05.csv'),
+          ('exp07', 'experiment_07.csv'))
+"""Runs of the data set that stopped early (``train.csv``: machining not finalized)."""
+
+SPEED_BANDS_MM_S = (0.5, 4.0, 12.0, 25.0, 40.0, 60.0)
+"""Edges of the speed bands of part 4 [mm/s] (below the first: standing still)."""
+
+
+def unseen_campaign(campaign: Campaign) -> Campaign:
+    """The campaign's settings on the runs of :data:`UNSEEN` (their files beside the others)."""
+    first = campaign.runs[0]
+    return replace(campaign, runs=tuple(
+        replace(first, name=name, data=first.data.parent / file, role='validate')
+        for name, file in UNSEEN))
+
+
+def print_unseen(campaign: Campaign) -> None:
+    """Part 4: the runs no method saw, compared with each method's machine."""
+    unseen = unseen_campaign(campaign)
+    guessed = load_machine(campaign.machine)
+    specs = list(campaign.runs)
+    fitted = machine_with_sample_fits(guessed, fit_loss_samples(
+        [load_run(s) for s in specs], machine=guessed,
+        velocity=[s.motion_from_data or 'auto' for s in specs]))
+    res = analyze_campaign(campaign, options=AnalyzeOptions())
+    machines = (('guessed machine', guessed), ('analyze (all five runs)',
+                                               res.augmented_machine()),
+                ('fit-loss samples (all five runs)', fitted))
+    names = [name for name, _ in UNSEEN]
+    records = {s.name: load_run(s) for s in unseen.runs}
+    print(f'{"machine":34}' + ''.join(f'{n:>17}' for n in names) + f'{"pooled":>9}')
+    print(f'{"":34}' + ''.join(f'{"dE [%] RMSE [W]":>17}' for _ in names) + f'{"RMSE [W]":>9}')
+    missed: dict[str, dict[tuple[str, int], float]] = {}
+    for label, machine in machines:
+        cmp = compare_campaign(unseen, machine=machine)
+        cells = ''.join(f'{r.metrics.energy_error_pct:+9.2f} {r.metrics.rmse_w:6.3f} '
+                        for r in cmp.runs)
+        print(f'{label:34}{cells}{group_metrics([r.metrics for r in cmp.runs]).rmse_w:9.3f}')
+        band = missed.setdefault(label, {})
+        for r in cmp.runs:
+            rec = records[r.name]
+            if r.signal_meas is None or r.signal_sim is None:
+                continue
+            dt = np.gradient(r.t)
+            for j, axis in enumerate(rec.axes[:r.signal_meas.shape[1]]):
+                speed = 1e3 * np.abs(rec.velocity_m_s[:, j])
+                k = np.searchsorted(SPEED_BANDS_MM_S, speed, side='right')
+                gap = (r.signal_meas[:, j] - r.signal_sim[:, j]) * dt
+                for b in range(len(SPEED_BANDS_MM_S)):
+                    band[(axis, b)] = band.get((axis, b), 0.0) + float(gap[k == b].sum())
+    pairs = zip(SPEED_BANDS_MM_S, SPEED_BANDS_MM_S[1:])
+    edges = ('still',) + tuple(f'{lo:g}-{hi:g}' for lo, hi in pairs)
+    print('energy the machine misses (measured - simulated) [J], runs pooled, by axis and '
+          'speed band [mm/s]')
+    axes = sorted({a for b in missed.values() for a, _ in b})
+    print(f'{"machine":34}' + ''.join(f'{a + " " + e:>11}' for a in axes for e in edges))
+    for label, band in missed.items():
+        print(f'{label:34}' + ''.join(f'{band.get((a, b), 0.0):+11.1f}' for a in axes
+                                      for b in range(len(edges))))
+    for label, c in (('the campaign runs', campaign), ('the unseen runs', unseen)):
+        print(f'fastest measured axis speed in {label} [mm/s]: '
+              + ', '.join(f'{a} {v:.1f}' for a, v in sorted(fastest(c).items())))
+
+
+def fastest(campaign: Campaign) -> dict[str, float]:
+    """The fastest absolute measured speed of each axis over the campaign's runs [mm/s]."""
+    top: dict[str, float] = {}
+    for spec in campaign.runs:
+        rec = load_run(spec)
+        for j, axis in enumerate(rec.axes):
+            top[axis] = max(top.get(axis, 0.0), 1e3 * float(np.abs(rec.velocity_m_s[:, j]).max()))
+    return top
+
+
 def main() -> int:
-    """Print both parts."""
+    """Print the four parts."""
     c0 = time.process_time()
     campaign = umich_campaign()
     if campaign is None:
@@ -318,6 +400,8 @@ def main() -> int:
     print_floor([load_run(s) for s in campaign.runs], validate)
     print('\n3. why the selection does not name the inertia')
     print_selection_study(campaign)
+    print('\n4. runs no method saw (stopped early, not in the campaign)')
+    print_unseen(campaign)
     print(f'CPU time {time.process_time() - c0:.1f} s')
     return 0
 
