@@ -5,12 +5,13 @@
 1. *Baseline*: :func:`.measured.compare.compare_campaign` (simulation, offset, interval
    averaging, Table-1 metrics); the residual of each run is measured minus aligned simulated
    power per measured axis.
-2. *Candidates*: for every catalog effect and measured axis, the effect's basis is computed
-   on the 1 kHz simulated state of each run and aligned onto the measured stamps with the
-   run's offset and window (:func:`.measured.align.align_simulated`, the same instrument
-   model). Shape parameters (Stribeck speed, warm-up time constant, spacing of the
-   position-friction bumps) get a grid of variants; a single shape parameter is refined by
-   a bounded 1-D search. Every linear parameter is fitted within its physical bounds.
+2. *Candidates* (:mod:`.design.columns`): for every catalog effect and measured axis, the
+   effect's basis is computed on the 1 kHz simulated state of each run and aligned onto the
+   measured stamps with the run's offset and window (:func:`.measured.align.align_simulated`,
+   the same instrument model). Shape parameters (Stribeck speed, warm-up time constant,
+   spacing of the position-friction bumps) get a grid of variants; a single shape parameter
+   is refined by a bounded 1-D search. Every linear parameter is fitted within its physical
+   bounds.
 3. *Selection* (:mod:`.selection`): forward selection scored by held-out error
    (leave-one-run-out, or the manifest's calibrate/validate roles) together with BIC.
 4. *Honesty* (:mod:`.consistency`): a selected effect must be consistent across runs (its
@@ -29,26 +30,25 @@ parameters are found by a profile search and carry no uncertainty (``None``).
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
 import math
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
-from ..effects import EFFECTS, EffectState, get_effect
-from ..physics import state_from_simulation
+from ..effects import EFFECTS, get_effect
 from ..machine import load_machine, Machine, machine_warnings, observed_range, RangeUse
 from ..errors import ConfigError
-from ..measured import (align_simulated, Campaign, CampaignComparison, compare_campaign,
-                        load_run, MAX_FILTER_S, MeasuredRun, Metrics, MotionCache, offset_dict,
-                        quantity_of, RunComparison, simulate_declared_chunks, stamp_shift)
+from ..measured import (Campaign, CampaignComparison, compare_campaign, load_run, MAX_FILTER_S,
+                        MeasuredRun, Metrics, offset_dict, quantity_of, RunComparison)
 from .alternatives import check_alternatives
 from .ambiguity import AmbiguousGroup, EquivalentForm, find_groups, found_text, timing_forms
 from .consistency import heterogeneity, label, mark_groups, select_consistent
+from .design import (Bins, candidate_block, held_comparison, held_record, held_runs,
+                     HeldRecords, prepare_runs, refine_shape, RunData, shape_grid, StateStore,
+                     StatesOf)
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
-from .grid import bin_windows, Bins, bins_for
 from .simrate import at_rate, MAX_OVERSAMPLING, rate_with_effects, sampling_left, sim_rate
 from .timing import (at_common_lag, at_motion_offsets, FILTER_EXTRA_ROUNDS, FILTER_TOLERANCE,
                      filter_next, filter_step, joint_eligible, joint_start, lag_tolerance_s,
@@ -59,30 +59,20 @@ from .realign import augmented_outcome, machine_with, realigned_runs
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
 from .drivecorr import common_measures, correction_bounds, declared_values, describe_correction
-from .driveforms import current_basis, has_current_form
-from .selection import at_bounds, Block, Design, loro_folds, solve_normal
-from .statestore import held_comparison, held_record, held_runs, HeldRecords, StateStore
+from .driveforms import has_current_form
+from .selection import at_bounds, Design, loro_folds
 from .summed import offer_summed
 
 NOISE_PASSES = 2
 """Selections at most: on the baseline's noise level, then on the level left by its effects."""
 NOISE_CHANGE = 0.1
 """Relative change of the noise level that makes the selection run again."""
-POSITION_DIVISIONS = (15, 10, 6, 3)
-"""Candidate resolutions of ``position_friction``: bump spacing = travelled span / n."""
 LAG_MIN_SHARE = 0.01
 """Share of the baseline residual's sum of squares an effect must explain to be in the model
 the meter's lag behind the motion is estimated with (a passenger that explains less may be
 the trace of that very lag: a fraction of a millisecond has the shape of a moved mass)."""
 
 
-ALIGN_CHUNK_BYTES = 16 * 2 ** 20
-"""Size [bytes] of the simulated columns aligned at once: a wide candidate's columns (the
-bumps of ``position_friction``) go through the meter model a few at a time, so its filter
-and running integral hold a few columns of the run's samples, not all of them (the columns
-are independent: the same values)."""
-BASIS_CHUNK_SAMPLES = 2 ** 16
-"""Simulated samples a sample-local candidate's basis is computed on at a time."""
 RATE_CHECK_FROM = 0.95
 """Progress fraction the first analysis ends at: the rest is the analysis run again at a
 finer simulation rate when the effects it found need one (:func:`.simrate.rate_with_effects`)."""
@@ -90,189 +80,7 @@ finer simulation rate when the effects it found need one (:func:`.simrate.rate_w
 __all__ = ['analyze_campaign']
 
 
-# ----------------------------------------------------------------------------- run data
-
-@dataclass
-class _Run:
-    cmp: RunComparison
-    store: StateStore               # the 1 kHz simulation of the declared model: .state
-    key: int
-    sim_index: list[int | None]     # measured axis j -> column of the simulation or None
-    residual: np.ndarray            # (m, k_meas) on the analysis grid (bins)
-    states: dict[str, np.ndarray]   # name -> (m, k_meas) on the analysis grid
-    bins: Bins                      # measured samples -> analysis grid (.grid)
-    t: np.ndarray                   # (m,) bin stamps: the mean of the samples' stamps [s]
-    kt: list[float] | None = None   # a drive trace: torque per unit per axis (.driveforms)
-    wide: tuple[np.ndarray, float] | None = None    # abutting windows: one per bin (.grid)
-
-    @property
-    def state(self) -> EffectState:
-        """The run's simulation of the declared model (held or memory-mapped: .statestore)."""
-        return self.store.get(self.key)
-
-    def aligned(self, cols: np.ndarray, *, filtered: bool = True) -> np.ndarray:
-        """Align 1 kHz columns ``(n, c)`` onto the analysis grid: ``(m, c)`` (each bin the
-        mean of the columns averaged onto its measured stamps, the instrument model; a
-        meter's first-order smoothing too unless ``filtered`` is false: the motion), at most
-        :data:`ALIGN_CHUNK_BYTES` of columns at a time."""
-        width = max(1, ALIGN_CHUNK_BYTES // max(8 * int(cols.shape[0]), 1))
-        if cols.ndim == 2 and cols.shape[1] > width:
-            return np.concatenate([self.aligned(cols[:, a:a + width], filtered=filtered)
-                                   for a in range(0, cols.shape[1], width)], axis=1)
-        filter_s = self.cmp.filter_s if filtered else 0.0
-        if self.wide is not None:
-            ends, span = self.wide
-            return align_simulated(self.state.t, cols, ends, offset_s=self.cmp.offset_used_s,
-                                   window_s=span, filter_s=filter_s)
-        return self.bins.mean(align_simulated(
-            self.state.t, cols, self.cmp.t, offset_s=self.cmp.offset_used_s,
-            window_s=self.cmp.window_s, stamp=self.cmp.stamp, filter_s=filter_s))
-
-
-class _StatesOf:
-    """``(state, sim_index, aligned)`` of each run, each state fetched when iterated to (one
-    run's simulation in memory at a time, not every run's: .statestore)."""
-
-    def __init__(self, runs: Sequence[_Run]) -> None:
-        self._runs = runs
-
-    def __iter__(self) -> Iterator[tuple[EffectState, list[int | None], Callable]]:
-        for r in self._runs:
-            yield r.state, r.sim_index, r.aligned
-
-
-def _prepare(campaign: Campaign, cmp_runs: Sequence[RunComparison], machine: Machine, *,
-             loaded: Mapping[str, MeasuredRun], period_s: float,
-             store: StateStore) -> list[_Run]:
-    cache = MotionCache(machine)
-    out = []
-    for r in cmp_runs:
-        spec = campaign.run(r.name)
-        measured = loaded[r.name] if r.name in loaded else load_run(spec)
-        # the simulation comes in chunks (a long run's is never whole in memory), each
-        # kept as a piece of the run's state within the store's budget
-        writer = store.writer()
-        simulate_declared_chunks(spec, measured, machine, cache,
-                                 lambda sim: writer.add(state_from_simulation(sim)))
-        key = writer.finish()
-        state = store.get(key)
-        idx = [state.axes.index(a) if a in state.axes else None for a in r.axes]
-        n = state.t.shape[0]
-        cols = []
-        for j in idx:
-            for arr in (state.velocity_m_s, state.position_m, state.acceleration_m_s2):
-                cols.append(arr[:, j] if j is not None else np.zeros(n))
-        kt = None
-        if (not quantity_of(r.measures).is_power and r.torque_per_unit is not None
-                and r.signal_meas is not None and r.signal_sim is not None):
-            # a drive trace (current, torque, force): the residual in the trace's unit, the
-            # candidates in their force form (.driveforms)
-            kt = [float(r.torque_per_unit[a]) for a in r.axes]
-            residual = r.signal_meas - r.signal_sim
-        else:
-            residual = r.power_meas_w - r.power_sim_w
-        bins = bins_for(r.t, period_s)
-        run = _Run(cmp=r, store=store, key=key, sim_index=idx,
-                   residual=bins.mean(residual), states={}, bins=bins, t=bins.mean(r.t), kt=kt,
-                   wide=bin_windows(r.t, bins, window_s=r.window_s,
-                                    shift_s=stamp_shift(r.window_s, r.stamp)))
-        on = run.aligned(np.column_stack(cols), filtered=False)
-        k = len(idx)
-        # simulated time at the centre of each sample's window
-        mid = bins.mean(r.t - r.offset_used_s + stamp_shift(r.window_s, r.stamp)
-                        - 0.5 * r.window_s)
-        run.states = {'velocity': on[:, 0::3], 'position': on[:, 1::3],
-                      'acceleration': on[:, 2::3],
-                      'kinetic_power': on[:, 0::3] * on[:, 2::3],
-                      'time': np.repeat(mid[:, None], k, axis=1)}
-        out.append(run)
-    return out
-
-
-def _columns(run: _Run, effect_id: str, axis_j: int, shape: Mapping[str, float]) -> np.ndarray:
-    """Aligned basis of one effect on measured axis ``axis_j``, flattened: ``(m*k, p)``."""
-    effect = get_effect(effect_id)
-    p = len(effect.linear_params())
-    m, k = run.residual.shape
-    out = np.zeros((m, k, p))
-    j = run.sim_index[axis_j]
-    if j is not None:
-        kt = None if run.kt is None else run.kt[axis_j]
-        out[:, axis_j, :] = run.aligned(_axis_basis(effect_id, run.state, j, shape, kt))
-    return out.reshape(m * k, p)
-
-
-def _axis_basis(effect_id: str, state: EffectState, j: int, shape: Mapping[str, float],
-                kt: float | None) -> np.ndarray:
-    """The basis of one effect on simulated axis ``j`` at the simulation's samples,
-    ``(n, p)``, in a drive trace's unit when ``kt`` is given (.driveforms). A sample-local
-    effect's is computed :data:`BASIS_CHUNK_SAMPLES` rows at a time into one array (the
-    whole state's basis of every axis and its columns' list are never held at once: the
-    same values, each row depends on its own sample only)."""
-    effect = get_effect(effect_id)
-
-    def on(part: EffectState) -> np.ndarray:
-        basis = effect.basis(part, dict(shape))[:, j, :]
-        return basis if kt is None else current_basis(effect_id, basis, part, j, kt)
-
-    n = state.t.shape[0]
-    if not effect.sample_local or n <= BASIS_CHUNK_SAMPLES:
-        return on(state)
-    out = np.empty((n, len(effect.linear_params())))
-    for a in range(0, n, BASIS_CHUNK_SAMPLES):
-        b = min(a + BASIS_CHUNK_SAMPLES, n)
-        out[a:b] = on(state.rows(a, b))
-    return out
-
-
-def _shape_grid(effect_id: str, runs: Sequence[_Run], axis_j: int,
-                points: int) -> list[dict[str, float]]:
-    effect = get_effect(effect_id)
-    shapes = [p for p in effect.params if not p.linear]
-    if not shapes:
-        return [{}]
-    if effect_id == 'position_friction':
-        # bumps from the lowest travelled position; the spacing (the resolution) is one of
-        # a few candidates, chosen by the held-out error like any other variant
-        pos = [r.states['position'][:, axis_j] for r in runs]
-        lo = min(float(np.min(x)) for x in pos if x.size) if any(x.size for x in pos) else 0.0
-        hi = max(float(np.max(x)) for x in pos if x.size) if any(x.size for x in pos) else 0.0
-        span = hi - lo if hi > lo else 0.4
-        return [{'x0_m': lo, 'spacing_m': span / n} for n in POSITION_DIVISIONS]
-    # the first shape parameter is searched, further ones (stribeck's delta) stay at default
-    # here (the selected variant tries their other forms: _refine_shape)
-    par = shapes[0]
-    rest = {p.name: p.default for p in shapes[1:]}
-    grid = list(np.geomspace(max(par.low, 1e-12), par.high, points))
-    if par.default > par.high:
-        grid.append(par.default)    # thermal_drift: the linear limit (tau = 1e9 s)
-    return [{par.name: float(v)} | rest for v in np.unique(grid)]
-
-
-def _block(runs: Sequence[_Run], effect_id: str, axis_j: int, shape: Mapping[str, float]):
-    """Names, per-run columns and physical bounds of one candidate.
-
-    Columns that are zero, or whose largest value is below 1 % of the strongest column of
-    the block *in the same unit* (the far tail of a position bump), are left out: they
-    carry no information, and a fit on them would give huge, meaningless coefficients.
-    Columns in different units are not compared: ``iron``'s ``|omega|`` column is about
-    ``1/omega`` of its ``omega²`` column and carries half of the effect.
-    """
-    effect = get_effect(effect_id)
-    cols = [_columns(r, effect_id, axis_j, shape) for r in runs]
-    p = len(effect.linear_params())
-    peak = np.array([max((float(np.max(np.abs(c[:, i]))) if c.shape[0] else 0.0)
-                         for c in cols) for i in range(p)]) if cols else np.zeros(p)
-    units = [next(q.unit for q in effect.params if q.name == n)
-             for n in effect.linear_params()]
-    top = {u: max(float(peak[i]) for i in range(p) if units[i] == u) for u in set(units)}
-    used = [i for i in range(p) if peak[i] > 0.0 and peak[i] >= 0.01 * top[units[i]]]
-    lo, hi = effect.linear_bounds()
-    names = tuple(effect.linear_params()[i] for i in used)
-    return names, [c[:, used] for c in cols], (lo[used], hi[used])
-
-
-def _folds(runs: Sequence[_Run], holdout: str, file: str) -> list[tuple[list[int], list[int]]]:
+def _folds(runs: Sequence[RunData], holdout: str, file: str) -> list[tuple[list[int], list[int]]]:
     if holdout == 'loro':
         if len(runs) < 2:
             msg = (f'holdout "loro" (leave one run out) needs at least 2 runs, got '
@@ -291,86 +99,6 @@ def _folds(runs: Sequence[_Run], holdout: str, file: str) -> list[tuple[list[int
     raise ConfigError(msg, file=file, key='holdout')
 
 
-# ----------------------------------------------------------------------------- fitting
-
-def _sse_with(design: Design, cols: list[int], extra: Sequence[np.ndarray],
-              bounds: tuple[np.ndarray, np.ndarray]) -> float:
-    """In-sample SSE of ``cols`` plus extra per-run columns (bounded), pooled over runs."""
-    g_parts, b_parts = [], []
-    for r, c in enumerate(extra):
-        x = np.hstack([design.x[r][:, cols], c])
-        g_parts.append(x.T @ x)
-        b_parts.append(x.T @ design.y[r])
-    g, b = sum(g_parts), sum(b_parts)
-    theta = solve_normal(g, b, np.concatenate([design.lower[cols], bounds[0]]),
-                         np.concatenate([design.upper[cols], bounds[1]]))
-    return float(design.yy.sum() - 2.0 * theta @ b + theta @ g @ theta)
-
-
-def _other_forms(shapes: Sequence[Any], shape: Mapping[str, float]) -> list[dict[str, float]]:
-    """The further shape parameters as selected, then each in its other form: the geometric
-    middle of its range (stribeck's delta: 2 is the Gaussian decay, 1 the exponential)."""
-    fixed = {p.name: float(shape[p.name]) for p in shapes[1:] if p.name in shape}
-    forms = [fixed]
-    for q in shapes[1:]:
-        if q.name in fixed and q.low > 0.0 and q.high > q.low:
-            middle = float(math.sqrt(q.low * q.high))
-            if abs(middle - fixed[q.name]) > 1e-9 * max(abs(middle), 1.0):
-                forms.append(fixed | {q.name: middle})
-    return forms
-
-
-def _refine_shape(design: Design, runs: Sequence[_Run], block: Block,
-                  others: list[int]) -> Block:
-    """1-D bounded search of a selected block's first shape parameter around its grid value,
-    for the further shape parameters as selected and in their other forms
-    (:func:`_other_forms`): the best fit wins. Only a selected effect gets the other forms,
-    so that they do not widen what the candidates can take on."""
-    effect = get_effect(block.key[0])
-    shapes = [p for p in effect.params if not p.linear]
-    if not shapes or effect.id == 'position_friction':
-        return block
-    par = shapes[0]
-    axis_j = _axis_index(runs, block.key[1])
-    grid = sorted(float(b.shape[par.name]) for b in design.blocks if b.key == block.key)
-    value = float(block.shape[par.name])
-    i = grid.index(value)
-    lo = grid[i - 1] if i > 0 else max(par.low, value / 2.0)
-    hi = grid[i + 1] if i + 1 < len(grid) else min(par.high, value * 2.0)
-    if not hi > lo:
-        return block
-
-    used = [effect.linear_params().index(n) for n in block.names]
-    bounds = (design.lower[list(block.cols)], design.upper[list(block.cols)])
-
-    def columns(value: float, fixed: dict[str, float]) -> list[np.ndarray]:
-        return [_columns(r, block.key[0], axis_j, {par.name: value} | fixed)[:, used]
-                for r in runs]
-
-    best_sse = _sse_with(design, others, [design.x[r][:, list(block.cols)]
-                                          for r in range(design.runs)], bounds)
-    best: tuple[float, dict[str, float]] | None = None
-    for k, fixed in enumerate(_other_forms(shapes, block.shape)):
-        # another form of the decay moves the best first parameter: a wider bracket
-        a, b = ((lo, hi) if k == 0 else
-                (max(par.low, value / 4.0), min(par.high, value * 4.0)))
-        if not b > a:
-            continue
-
-        def cost(log_v: float, fixed: dict[str, float] = fixed) -> float:
-            return _sse_with(design, others, columns(math.exp(log_v), fixed), bounds)
-
-        res = minimize_scalar(cost, bounds=(math.log(a), math.log(b)), method='bounded',
-                              options={'xatol': 1e-3, 'maxiter': 30})
-        if float(res.fun) < best_sse:
-            best_sse, best = float(res.fun), (math.exp(float(res.x)), fixed)
-    if best is None:
-        return block
-    v, fixed = best
-    return design.add_block(block.key, {par.name: v} | fixed, block.names, columns(v, fixed),
-                            bounds=bounds)
-
-
 def declared_noise(campaign: Campaign, cmp_runs: Sequence[RunComparison]) -> float | None:
     """The noise level the manifest declares for the analysed runs (``instrument.noise``,
     in the trace's unit), the largest where runs differ; ``None`` unless every run declares
@@ -381,7 +109,7 @@ def declared_noise(campaign: Campaign, cmp_runs: Sequence[RunComparison]) -> flo
     return max(float(v) for v in levels if v is not None)
 
 
-def _noise(data: Sequence[_Run], residuals: Sequence[np.ndarray], options: AnalyzeOptions,
+def _noise(data: Sequence[RunData], residuals: Sequence[np.ndarray], options: AnalyzeOptions,
            *, stage: str) -> dict[str, NoiseLevel]:
     """The noise level of each measured axis (:func:`.diagnostics.noise_level`) on the
     analysis grid.
@@ -404,10 +132,6 @@ def _summable(effect_id: str) -> bool:
     """An effect of the machine without shape parameters (:func:`.summed.offer_summed`)."""
     effect = get_effect(effect_id)
     return bool(effect.machine_property) and all(p.linear for p in effect.params)
-
-
-def _axis_index(runs: Sequence[_Run], axis: str) -> int:
-    return list(runs[0].cmp.axes).index(axis)
 
 
 # ----------------------------------------------------------------------------- main
@@ -611,7 +335,7 @@ def _screen_candidates(ids: tuple[str, ...], options: AnalyzeOptions,
                 for e in ids if e not in ('time_offset', 'standby')
                 and len(get_effect(e).linear_params()) <= MAX_SCREEN_COLUMNS
                 for axis in axes
-                for shape in _shape_grid(e, (), 0, options.shape_grid_points)]
+                for shape in shape_grid(e, (), 0, options.shape_grid_points)]
     return on
 
 
@@ -801,8 +525,8 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
         raise ConfigError(msg, file=str(campaign.file), key='instrument.measures')
     if options.noise_w is None:
         options = replace(options, noise_w=declared_noise(campaign, cmp_runs))
-    data = _prepare(campaign, cmp_runs, machine, loaded=loaded,
-                    period_s=options.analysis_period_s, store=store)
+    data = prepare_runs(campaign, cmp_runs, machine, loaded=loaded,
+                        period_s=options.analysis_period_s, store=store)
     axes = cmp_runs[0].axes
     if any(r.cmp.axes != axes for r in data):
         msg = 'analyze needs the same measured axes in every run'
@@ -815,8 +539,8 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
         ids = tuple(e for e in ids if has_current_form(e))
     for effect_id in ids:
         for j, axis in enumerate(axes):
-            for shape in _shape_grid(effect_id, data, j, options.shape_grid_points):
-                names, cols, bounds = _block(data, effect_id, j, shape)
+            for shape in shape_grid(effect_id, data, j, options.shape_grid_points):
+                names, cols, bounds = candidate_block(data, effect_id, j, shape)
                 bounds = correction_bounds(names, bounds, declared_values(
                     machine, axis, effect_id, measures))
                 if names:
@@ -841,7 +565,7 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
         chosen = select_consistent(
             design, folds, options, keys=keys, structured0=structured0, noise_ss=noise_ss,
             sigma2=sigma2,
-            refine=lambda block, others: _refine_shape(design, data, block, others))
+            refine=lambda block, others: refine_shape(design, data, block, others))
         found = [c for b in chosen.blocks + chosen.offered for c in b.cols]
         if options.noise_w is not None or not found or noise_pass + 1 == NOISE_PASSES:
             break
@@ -870,7 +594,7 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
         why = dict(reasons)
         fates = tuple(replace(f, fate='offered', reason=why[(f.effect, f.axis)])
                       if (f.effect, f.axis) in why else f for f in fates)
-    alt = check_alternatives(design, blocks, _StatesOf(data), axes=axes)
+    alt = check_alternatives(design, blocks, StatesOf(data), axes=axes)
     if alt is not None:
         # something outside the catalog fits as well: no catalog effect is named; what the
         # selection improves is offered as a loss of that shape, not dropped

@@ -17,8 +17,7 @@ from ..measured import group_metrics, json_clean, Metrics
 from .ambiguity import AmbiguousGroup
 from .consistency import Fate
 from .diagnostics import Diagnostic, NoiseLevel
-from .grid import ANALYSIS_PERIOD_S
-from .statestore import STATE_MEMORY_BYTES
+from .design import ANALYSIS_PERIOD_S, STATE_MEMORY_BYTES
 from .timing import LeftOut
 from .drivecorr import fold_corrections
 from .selection import Step
@@ -82,7 +81,7 @@ class AnalyzeOptions:
         estimate (:func:`.diagnostics.noise_level`; the estimate is still reported).
     analysis_period_s
         Effects are selected on bins of the measured samples no longer than this [s]
-        (:mod:`.grid`): each bin the exact mean of the whole number of sample periods that
+        (:mod:`.design.grid`): each bin the exact mean of the whole number of sample periods that
         fit in it; data sampled at this period or slower are used sample by sample. Noise
         levels, diagnostics and the series of :class:`RunOutcome` are on these bins.
     shape_grid_points
@@ -98,9 +97,9 @@ class AnalyzeOptions:
     state_memory_bytes
         Budget [bytes] of the runs' simulations held in memory during a round; the states
         beyond it are written to a private temporary directory and memory-mapped when used
-        (:mod:`.statestore`; the same results, bit for bit). ``0`` maps every state. The
+        (:mod:`.design.statestore`; the same results, bit for bit). ``0`` maps every state. The
         same budget again holds the runs' measured records for the whole analysis (their
-        stamps, traces and file rows: those beyond it memory-mapped, :meth:`.statestore.
+        stamps, traces and file rows: those beyond it memory-mapped, :meth:`.design.statestore.
         StateStore.hold`).
     """
 
@@ -242,7 +241,7 @@ class FittedEffect:
 
 @dataclass(frozen=True)
 class RunOutcome:
-    """One run before and after (series on the analysis grid of :mod:`.grid`: the measured
+    """One run before and after (series on the analysis grid of :mod:`.design.grid`: the measured
     stamps, or bins of them for data sampled faster than the analysis period; sums of
     measured axes).
 
@@ -307,7 +306,7 @@ class AnalysisResult:
     pin_rounds
         Analysis rounds with offsets estimated anew after the effects found (1: none moved).
     analysis_period_s, samples_per_bin
-        The analysis grid (:mod:`.grid`): the period asked for [s] and, per run name, how
+        The analysis grid (:mod:`.design.grid`): the period asked for [s] and, per run name, how
         many measured samples each bin averages (1: the samples themselves). Noise levels,
         diagnostics and the series of ``runs`` are on these bins.
     noise

@@ -10,7 +10,7 @@ import pytest
 
 from feed_axis_energy.cli import main
 from feed_axis_energy.effects.catalog import get_effect
-from feed_axis_energy.identify import statestore
+from feed_axis_energy.identify.design import statestore
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.identify.rig import Instrument, parse_effects
 from feed_axis_energy.identify.rig import make_campaign, RigConfig

@@ -1,4 +1,4 @@
-"""The analysis grid (identify/grid.py): fast data are analysed on exact bin means."""
+"""The analysis grid (identify/design/grid.py): fast data are analysed on exact bin means."""
 from pathlib import Path
 
 import numpy as np
@@ -7,7 +7,7 @@ import pytest
 
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.identify.analyze import analyze_campaign
-from feed_axis_energy.identify.grid import bin_windows, bins_for
+from feed_axis_energy.identify.design import bin_windows, bins_for
 from feed_axis_energy.identify.results import AnalyzeOptions
 from feed_axis_energy.identify.rig import Instrument, make_campaign, parse_effects, RigConfig
 from feed_axis_energy.measured import (align_simulated, compare_one_run, load_run, MotionCache,

@@ -1,4 +1,5 @@
-"""The runs' simulations within a memory budget (identify/statestore.py), and analyze on it."""
+"""The runs' simulations within a memory budget (identify/design/statestore.py), and analyze
+on it."""
 import dataclasses
 import json
 from pathlib import Path
@@ -10,12 +11,12 @@ import pytest
 
 from feed_axis_energy.effects import EffectState
 from feed_axis_energy.errors import ConfigError, OutputError
-from feed_axis_energy.identify import analyze as analyze_module
 from feed_axis_energy.identify.analyze import analyze_campaign
 from feed_axis_energy.identify.results import AnalyzeOptions
 from feed_axis_energy.identify.rig import Instrument, make_campaign, parse_effects, RigConfig
-from feed_axis_energy.identify import statestore
-from feed_axis_energy.identify.statestore import StateStore
+from feed_axis_energy.identify.design import columns as columns_module
+from feed_axis_energy.identify.design import statestore
+from feed_axis_energy.identify.design import StateStore
 from feed_axis_energy.measured.manifest import load_campaign
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -228,11 +229,11 @@ def test_analyze_with_every_state_spilled_gives_the_same_result(tmp_path, monkey
         pieces.append(piece.t.shape[0])
         return real_add(writer, piece)
 
-    real_chunks, real_add = analyze_module.simulate_declared_chunks, statestore.StateWriter.add
-    monkeypatch.setattr(analyze_module, 'simulate_declared_chunks', chunks)
+    real_chunks, real_add = columns_module.simulate_declared_chunks, statestore.StateWriter.add
+    monkeypatch.setattr(columns_module, 'simulate_declared_chunks', chunks)
     monkeypatch.setattr(statestore.StateWriter, 'add', counted)
-    monkeypatch.setattr(analyze_module, 'ALIGN_CHUNK_BYTES', 1)
-    monkeypatch.setattr(analyze_module, 'BASIS_CHUNK_SAMPLES', 300)
+    monkeypatch.setattr(columns_module, 'ALIGN_CHUNK_BYTES', 1)
+    monkeypatch.setattr(columns_module, 'BASIS_CHUNK_SAMPLES', 300)
     held_arrays = []
     real_hold = statestore.StateStore.hold
 

@@ -42,9 +42,9 @@ import weakref
 
 import numpy as np
 
-from ..effects import EffectState
-from ..errors import OutputError
-from ..measured import CampaignComparison, MeasuredRun, RunComparison
+from ...effects import EffectState
+from ...errors import OutputError
+from ...measured import CampaignComparison, MeasuredRun, RunComparison
 
 __all__ = ['HeldRecords', 'STATE_MEMORY_BYTES', 'StateStore', 'StateWriter', 'held_comparison',
            'held_record', 'held_runs']
