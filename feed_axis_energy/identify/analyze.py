@@ -55,7 +55,7 @@ from .timing import (at_common_lag, at_motion_offsets, FILTER_EXTRA_ROUNDS, FILT
                      LeftOut, left_out_text, MAX_PIN_ROUNDS, MAX_SCREEN_COLUMNS, may_filter,
                      motion_lag_s, repin, runs_differ, ScreenCandidate, split_pinned,
                      with_filter)
-from .realign import augmented_outcome, machine_with, realigned_runs
+from .realign import augmented_outcome, iter_realigned, machine_with
 from .results import (AnalysisResult, AnalyzeOptions, FittedEffect, HOLDOUTS, ParamEstimate,
                       RunOutcome, STATE_NAMES)
 from .drivecorr import common_measures, correction_bounds, declared_values, describe_correction
@@ -434,7 +434,8 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
             break       # the rounds beyond MAX_PIN_ROUNDS are the filter's
         if full_machine is machine and not refresh:
             break
-        extra = realigned_runs(campaign, full_machine, [r.name for r in left], loaded=loaded)
+        extra = [held_runs([c], store)[0] for c in iter_realigned(
+            campaign, full_machine, [r.name for r in left], loaded=loaded)]
         pinned, left, moved = repin(campaign, machine, list(augmented) + extra, pinned, left,
                                     loaded=loaded,
                                     lag_s=0.0 if filter_s else _meter_lag_s(
@@ -462,7 +463,11 @@ def _meter_lag_s(campaign: Campaign, result: AnalysisResult,
     machine = _timing_model(result)
     if not anchored or machine is None:
         return None
-    return motion_lag_s(realigned_runs(campaign, machine, anchored, loaded=loaded))
+    # each comparison is let go once its offsets are read (one run's at a time)
+    return motion_lag_s([replace(c, t=c.t[:0], power_meas_w=c.power_meas_w[:0],
+                                 power_sim_w=c.power_sim_w[:0], signal_meas=None,
+                                 signal_sim=None)
+                         for c in iter_realigned(campaign, machine, anchored, loaded=loaded)])
 
 
 def _timing_model(result: AnalysisResult) -> Machine | None:
@@ -713,10 +718,10 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
     names = [r.cmp.name for r in data]
     full_machine = (machine_with(machine, blocks, theta, measures=measures) if options.realign
                     else machine)
-    # (held by the round's store: the next round re-pins its runs from them)
-    augmented = held_runs(realigned_runs(campaign, full_machine, names,
-                                         baseline=cmp_runs if full_machine is machine else (),
-                                         loaded=loaded), store)
+    # (held by the round's store as each is made: the next round re-pins its runs from them)
+    augmented = [held_runs([c], store)[0] for c in iter_realigned(
+        campaign, full_machine, names, baseline=cmp_runs if full_machine is machine else (),
+        loaded=loaded)]
     # what a run's *after* keeps of its comparison: metrics, offset, the binned simulation
     # (a long run's fresh comparison is let go as soon as it is summed up)
     after_of: dict[int, tuple[Metrics, dict[str, Any], np.ndarray]] = {
@@ -725,7 +730,7 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
         fold_machine = machine_with(machine, blocks, design.fit(cols, train),
                                     measures=measures)
         base = cmp_runs if fold_machine is machine else ()
-        for r, c in zip(test, realigned_runs(campaign, fold_machine, [names[r] for r in test],
+        for r, c in zip(test, iter_realigned(campaign, fold_machine, [names[r] for r in test],
                                              baseline=base, loaded=loaded)):
             after_of[r] = _after(c, data[r].bins)
     held = {r for _, test in folds for r in test}

@@ -17,7 +17,7 @@ declared: the new offset estimate takes their place.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -30,7 +30,7 @@ from ..measured import (Campaign, compare_one_run, DEFAULT_MAX_LAG_S, MeasuredRu
 from .drivecorr import declared_values, fold_corrections
 from .selection import Block
 
-__all__ = ['augmented_outcome', 'machine_with', 'realigned_runs']
+__all__ = ['augmented_outcome', 'iter_realigned', 'machine_with']
 
 
 def machine_with(machine: Machine, blocks: Sequence[Block], theta: np.ndarray, *,
@@ -74,10 +74,13 @@ def machine_with(machine: Machine, blocks: Sequence[Block], theta: np.ndarray, *
     return replace(machine, effects=machine.effects + tuple(added))
 
 
-def realigned_runs(campaign: Campaign, machine: Machine, names: Sequence[str], *,
+def iter_realigned(campaign: Campaign, machine: Machine, names: Sequence[str], *,
                    baseline: Sequence[RunComparison] = (),
-                   loaded: Mapping[str, MeasuredRun] | None = None) -> list[RunComparison]:
-    """Compare the named runs with ``machine``, offsets estimated anew, as ``compare`` does.
+                   loaded: Mapping[str, MeasuredRun] | None = None,
+                   ) -> Iterator[RunComparison]:
+    """Compare the named runs with ``machine``, offsets estimated anew, as ``compare`` does,
+    one run at a time: a caller that keeps only part of each comparison (or holds it in a
+    memory-mapped store) never has every run's comparison in memory at once.
 
     Parameters
     ----------
@@ -93,25 +96,23 @@ def realigned_runs(campaign: Campaign, machine: Machine, names: Sequence[str], *
     loaded
         Runs already loaded, by name (each CSV is parsed once per analysis).
 
-    Returns
-    -------
-    list of RunComparison
+    Yields
+    ------
+    RunComparison
         One per name, in order.
     """
     known = {c.name: c for c in baseline}
     cache = MotionCache(machine)
-    out = []
     for name in names:
         if name in known:
-            out.append(known[name])
+            yield known[name]
             continue
         # compare_campaign's defaults: analyze compares its baseline with them; the meter
         # check (not part of the after figures) is left to the baseline
-        out.append(compare_one_run(campaign.run(name), machine, cache, max_lag_s=DEFAULT_MAX_LAG_S,
-                                   window_s=None, offset_s=None, min_correlation=0.5,
-                                   floor_fraction=0.05, check_meter=False,
-                                   measured=(loaded or {}).get(name)))
-    return out
+        yield compare_one_run(campaign.run(name), machine, cache, max_lag_s=DEFAULT_MAX_LAG_S,
+                              window_s=None, offset_s=None, min_correlation=0.5,
+                              floor_fraction=0.05, check_meter=False,
+                              measured=(loaded or {}).get(name))
 
 
 def augmented_outcome(cmp: RunComparison) -> dict[str, Any]:

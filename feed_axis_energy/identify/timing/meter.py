@@ -9,7 +9,7 @@ by turns (:func:`filter_next`). :func:`with_filter` reads a campaign through suc
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -51,7 +51,7 @@ def may_filter(campaign: Campaign, runs: Sequence[RunComparison], lag: float) ->
     return bool(periods) and lag >= MIN_FILTER_PERIODS * float(np.median(periods))
 
 
-def filter_step(runs: Sequence[RunComparison], filter_s: float) -> float | None:
+def filter_step(runs: Iterable[RunComparison], filter_s: float) -> float | None:
     """The change of a meter filter's time constant [s] that the comparisons' residuals ask
     for: one Gauss-Newton step, least squares over the motion-anchored runs (each run's mean
     free) on the derivative of what the meter reads with respect to the time constant.

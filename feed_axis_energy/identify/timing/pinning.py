@@ -46,7 +46,7 @@ the effect found on the pinned runs is what tells the stroke-off lags of the oth
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 import math
 
@@ -172,7 +172,7 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
         The declared machine: the next round's residuals are against it.
     augmented
         Fresh comparisons of the pinned *and* the left-out runs (any order) with the machine
-        plus the effects found (:func:`..realign.realigned_runs`).
+        plus the effects found (:func:`..realign.iter_realigned`).
     pinned, left
         This round's split.
     cache
@@ -322,17 +322,19 @@ def at_offsets(campaign: Campaign, declared: Machine, runs: Sequence[RunComparis
 
 
 def at_motion_offsets(campaign: Campaign, machine: Machine, runs: Sequence[RunComparison], *,
-                      loaded: Mapping[str, MeasuredRun] | None = None) -> list[RunComparison]:
+                      loaded: Mapping[str, MeasuredRun] | None = None,
+                      ) -> Iterator[RunComparison]:
     """``machine``'s comparisons of the motion-anchored ``runs`` at exactly their motion's
-    offsets (on their clocks), every one made anew; other runs are left out.
+    offsets (on their clocks), every one made anew, one at a time (a caller that sums them
+    up holds one run's comparison, not every run's); other runs are left out.
 
     What a meter's own timing is estimated on (a comparison kept within
     :func:`lag_tolerance_s` of its target may still be a few microseconds off it)."""
     cache = MotionCache(machine)
-    return [_moved(campaign, machine, run, float(run.offset.motion_s), cache,
-                   DEFAULT_MAX_LAG_S, loaded, note='compared at the motion\'s offset')
-            for run in runs
-            if run.offset.anchor == 'motion' and math.isfinite(run.offset.motion_s)]
+    for run in runs:
+        if run.offset.anchor == 'motion' and math.isfinite(run.offset.motion_s):
+            yield _moved(campaign, machine, run, float(run.offset.motion_s), cache,
+                         DEFAULT_MAX_LAG_S, loaded, note='compared at the motion\'s offset')
 
 
 def _compared_at(campaign: Campaign, declared: Machine, name: str, offset_s: float,
