@@ -63,3 +63,25 @@ def test_a_machine_cannot_declare_an_alignment_effect(tmp_path):
     with pytest.raises(ConfigError, match='line up') as err:
         load_machine(path)
     assert err.value.key == 'effects[0].id' and err.value.file == str(path)
+
+
+def test_fresh_comparisons_come_one_run_at_a_time(monkeypatch):
+    # analyze holds each fresh comparison as it is made: the next run is compared only when
+    # the caller asks for it, and a comparison already made with the same machine is reused
+    from feed_axis_energy.identify import realign
+    made = []
+
+    def compare(spec, machine, cache, **kwargs):
+        made.append(spec)
+        return SimpleNamespace(name=spec)
+
+    monkeypatch.setattr(realign, 'compare_one_run', compare)
+    monkeypatch.setattr(realign, 'MotionCache', lambda machine: None)
+    campaign = SimpleNamespace(run=lambda name: name)
+    known = SimpleNamespace(name='b')
+    runs = realign.iter_realigned(campaign, None, ['a', 'b', 'c'], baseline=[known])
+    assert made == []
+    assert next(runs).name == 'a' and made == ['a']
+    assert next(runs) is known and made == ['a']
+    assert next(runs).name == 'c' and made == ['a', 'c']
+    assert next(runs, None) is None
