@@ -65,6 +65,7 @@ from feed_axis_energy.identify import analyze as analyze_module
 from feed_axis_energy.identify.analyze import analyze_campaign
 from feed_axis_energy.identify.selection import Block, Design
 from feed_axis_energy.identify.fit.samplefit import fit_loss_samples, machine_with_sample_fits
+from feed_axis_energy.machine import Machine
 from feed_axis_energy.machine.file import load_machine
 from feed_axis_energy.measured.campaign import Campaign
 from feed_axis_energy.measured.compare import compare_campaign
@@ -91,15 +92,20 @@ def analyze_rows(campaign: Campaign, holdout: str) -> Row:
     return {r.name: r.after for r in res.runs if r.heldout}
 
 
+def fit_loss_machine(campaign: Campaign, names: Sequence[str]) -> Machine:
+    """``fit-loss --method samples`` on the named runs: the guessed machine refitted."""
+    guessed = load_machine(campaign.machine)
+    specs = [campaign.run(n) for n in names]
+    fits = fit_loss_samples([load_run(s) for s in specs], machine=guessed,
+                            velocity=[s.motion_from_data or 'auto' for s in specs])
+    return machine_with_sample_fits(guessed, fits)
+
+
 def fit_loss_rows(campaign: Campaign, folds: Sequence[tuple[list[str], list[str]]]) -> Row:
     """``fit-loss --method samples`` on each fold's train runs, compared on its test runs."""
-    guessed = load_machine(campaign.machine)
     out: Row = {}
     for train, test in folds:
-        specs = [campaign.run(n) for n in train]
-        fits = fit_loss_samples([load_run(s) for s in specs], machine=guessed,
-                                velocity=[s.motion_from_data or 'auto' for s in specs])
-        machine = machine_with_sample_fits(guessed, fits)
+        machine = fit_loss_machine(campaign, train)
         for r in compare_campaign(campaign, machine=machine, runs=test).runs:
             out[r.name] = r.metrics
     return out
@@ -324,10 +330,7 @@ def print_unseen(campaign: Campaign) -> None:
     """Part 4: the runs no method saw, compared with each method's machine."""
     unseen = unseen_campaign(campaign)
     guessed = load_machine(campaign.machine)
-    specs = list(campaign.runs)
-    fitted = machine_with_sample_fits(guessed, fit_loss_samples(
-        [load_run(s) for s in specs], machine=guessed,
-        velocity=[s.motion_from_data or 'auto' for s in specs]))
+    fitted = fit_loss_machine(campaign, [s.name for s in campaign.runs])
     res = analyze_campaign(campaign, options=AnalyzeOptions())
     machines = (('guessed machine', guessed), ('analyze (all five runs)',
                                                res.augmented_machine()),

@@ -45,7 +45,7 @@ from ..measured import (Campaign, CampaignComparison, compare_campaign, load_run
 from .alternatives import check_alternatives
 from .ambiguity import AmbiguousGroup, EquivalentForm, find_groups, found_text, timing_forms
 from .consistency import heterogeneity, label, mark_groups, select_consistent
-from .design import (Bins, candidate_block, held_comparison, held_record, held_runs,
+from .design import (Bins, candidate_block, held_comparison, held_record, held_run, held_runs,
                      HeldRecords, prepare_runs, refine_shape, RunData, shape_grid, StateStore,
                      StatesOf)
 from .diagnostics import diagnose_runs, noise_level, NoiseLevel
@@ -434,7 +434,7 @@ def _from_start(campaign: Campaign, machine: Machine, machine_file: str,
             break       # the rounds beyond MAX_PIN_ROUNDS are the filter's
         if full_machine is machine and not refresh:
             break
-        extra = [held_runs([c], store)[0] for c in iter_realigned(
+        extra = [held_run(c, store) for c in iter_realigned(
             campaign, full_machine, [r.name for r in left], loaded=loaded)]
         pinned, left, moved = repin(campaign, machine, list(augmented) + extra, pinned, left,
                                     loaded=loaded,
@@ -464,10 +464,7 @@ def _meter_lag_s(campaign: Campaign, result: AnalysisResult,
     if not anchored or machine is None:
         return None
     # each comparison is let go once its offsets are read (one run's at a time)
-    return motion_lag_s([replace(c, t=c.t[:0], power_meas_w=c.power_meas_w[:0],
-                                 power_sim_w=c.power_sim_w[:0], signal_meas=None,
-                                 signal_sim=None)
-                         for c in iter_realigned(campaign, machine, anchored, loaded=loaded)])
+    return motion_lag_s(iter_realigned(campaign, machine, anchored, loaded=loaded))
 
 
 def _timing_model(result: AnalysisResult) -> Machine | None:
@@ -719,7 +716,7 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
     full_machine = (machine_with(machine, blocks, theta, measures=measures) if options.realign
                     else machine)
     # (held by the round's store as each is made: the next round re-pins its runs from them)
-    augmented = [held_runs([c], store)[0] for c in iter_realigned(
+    augmented = [held_run(c, store) for c in iter_realigned(
         campaign, full_machine, names, baseline=cmp_runs if full_machine is machine else (),
         loaded=loaded)]
     # what a run's *after* keeps of its comparison: metrics, offset, the binned simulation

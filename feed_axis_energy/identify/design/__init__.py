@@ -11,13 +11,13 @@ from .columns import (ALIGN_CHUNK_BYTES, axis_basis, axis_index, BASIS_CHUNK_SAM
                       candidate_block, effect_columns, POSITION_DIVISIONS, prepare_runs,
                       refine_shape, RunData, shape_grid, StatesOf)
 from .grid import ANALYSIS_PERIOD_S, bin_windows, Bins, bins_for
-from .statestore import (held_comparison, held_record, held_runs, HeldRecords,
+from .statestore import (held_comparison, held_record, held_run, held_runs, HeldRecords,
                          STATE_MEMORY_BYTES, StateStore, StateWriter)
 
 __all__ = [
     'ALIGN_CHUNK_BYTES', 'ANALYSIS_PERIOD_S', 'axis_basis', 'axis_index', 'BASIS_CHUNK_SAMPLES',
     'bin_windows', 'Bins', 'bins_for', 'candidate_block', 'effect_columns', 'held_comparison',
-    'held_record', 'held_runs', 'HeldRecords', 'POSITION_DIVISIONS', 'prepare_runs',
+    'held_record', 'held_run', 'held_runs', 'HeldRecords', 'POSITION_DIVISIONS', 'prepare_runs',
     'refine_shape', 'RunData', 'shape_grid', 'STATE_MEMORY_BYTES', 'StateStore', 'StatesOf',
     'StateWriter',
 ]

@@ -20,7 +20,8 @@ two passes over the runs (the kernel reads them again when they are next used).
 ``analyze`` holds its measured data the same way, for the whole analysis: each run's record
 (:func:`held_record`, the loaded runs as a :class:`HeldRecords` mapping whose every lookup
 drops the pages first, so a pass over the runs keeps about one run's mapped data resident)
-and the comparisons it keeps across a round (:func:`held_comparison`, :func:`held_runs`).
+and the comparisons it keeps across a round (:func:`held_comparison`, :func:`held_runs`,
+:func:`held_run`).
 
 The directory is made by :func:`tempfile.mkdtemp` (mode 0700, under ``TMPDIR``), each file
 is created exclusively and not through a link, and :meth:`StateStore.close` (or leaving the
@@ -47,7 +48,7 @@ from ...errors import OutputError
 from ...measured import CampaignComparison, MeasuredRun, RunComparison
 
 __all__ = ['HeldRecords', 'STATE_MEMORY_BYTES', 'StateStore', 'StateWriter', 'held_comparison',
-           'held_record', 'held_runs']
+           'held_record', 'held_run', 'held_runs']
 
 STATE_MEMORY_BYTES = 64 * 2 ** 20
 """Default budget [bytes] of the states held in memory; the rest are memory-mapped files."""
@@ -398,19 +399,22 @@ def held_comparison(cmp: CampaignComparison, store: StateStore) -> CampaignCompa
 
 
 def held_runs(runs: Sequence[RunComparison], store: StateStore) -> list[RunComparison]:
-    """``runs`` with their sample arrays held by ``store`` (an array two fields share, the
+    """``runs``, each with its sample arrays held by ``store`` (:func:`held_run`)."""
+    return [held_run(r, store) for r in runs]
+
+
+def held_run(run: RunComparison, store: StateStore) -> RunComparison:
+    """``run`` with its sample arrays held by ``store`` (an array two fields share, the
     measured power of a power trace, held once)."""
-    out = []
-    for r in runs:
-        memo: dict[int, np.ndarray] = {}
+    memo: dict[int, np.ndarray] = {}
 
-        def hold(a: np.ndarray) -> np.ndarray:
-            if id(a) not in memo:
-                memo[id(a)] = store.hold(a)
-            return memo[id(a)]
+    def hold(a: np.ndarray) -> np.ndarray:
+        if id(a) not in memo:
+            memo[id(a)] = store.hold(a)
+        return memo[id(a)]
 
-        out.append(dataclasses.replace(
-            r, t=hold(r.t), power_meas_w=hold(r.power_meas_w), power_sim_w=hold(r.power_sim_w),
-            signal_meas=None if r.signal_meas is None else hold(r.signal_meas),
-            signal_sim=None if r.signal_sim is None else hold(r.signal_sim)))
-    return out
+    return dataclasses.replace(
+        run, t=hold(run.t), power_meas_w=hold(run.power_meas_w),
+        power_sim_w=hold(run.power_sim_w),
+        signal_meas=None if run.signal_meas is None else hold(run.signal_meas),
+        signal_sim=None if run.signal_sim is None else hold(run.signal_sim))

@@ -46,7 +46,7 @@ the effect found on the pinned runs is what tells the stroke-off lags of the oth
 """
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 import math
 
@@ -235,9 +235,10 @@ def repin(campaign: Campaign, declared: Machine, augmented: Sequence[RunComparis
     return out, still, moved
 
 
-def motion_lag_s(runs: Sequence[RunComparison]) -> float | None:
+def motion_lag_s(runs: Iterable[RunComparison]) -> float | None:
     """The campaign's meter lag behind the motion columns [s]: the median over the
-    motion-anchored runs of (offset found - motion anchor); ``None`` when there is none."""
+    motion-anchored runs of (offset found - motion anchor); ``None`` when there is none.
+    ``runs`` is read once (an iterator of fresh comparisons keeps one of them at a time)."""
     lags = [r.offset.offset_s - r.offset.motion_s for r in runs
             if r.offset.anchor == 'motion' and math.isfinite(r.offset.motion_s)
             and math.isfinite(r.offset.offset_s)]
