@@ -134,7 +134,7 @@ def _fit(design: Design, blocks: Sequence[Block],
     record_cols = [c for b in blocks if not get_effect(b.key[0]).machine_property
                    for c in b.cols]
     runs = range(design.runs)
-    x = [np.hstack([np.asarray(columns[r], dtype=float), design.x[r][:, record_cols]])
+    x = [np.hstack([np.asarray(columns[r], dtype=float), design.columns(r, record_cols)])
          for r in runs]
     gram = sum(a.T @ a for a in x)
     rhs = sum(a.T @ design.y[r] for r, a in zip(runs, x))

@@ -536,7 +536,7 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
     folds = _folds(data, options.holdout, str(campaign.file))
     report(0.5)
 
-    design = Design([r.residual.reshape(-1) for r in data])
+    design = Design([r.residual.reshape(-1) for r in data], store=store)
     if measures is not None and not quantity_of(measures).is_power:
         ids = tuple(e for e in ids if has_current_form(e))
     for effect_id in ids:
@@ -547,6 +547,8 @@ def _analyze_round_in(campaign: Campaign, machine: Machine, machine_file: str,
                     machine, axis, effect_id, measures))
                 if names:
                     design.add_block((effect_id, axis), shape, names, cols, bounds=bounds)
+    # the cross products read every column held before; what is read next is a few at a time
+    store.drop_pages()
     report(0.7)
 
     # one noise level per axis for every test: the bin and spectrum tests, the selection's

@@ -173,8 +173,8 @@ def heterogeneity(design: Design, blocks: Sequence[Block], which: int,
     rest = [i for i in range(len(cols)) if i not in pos]
     pooled = free = none = 0.0
     for r in range(design.runs):
-        base = design.y[r] - design.x[r][:, [cols[i] for i in rest]] @ theta[rest]
-        xe = design.x[r][:, own]
+        base = design.y[r] - design.columns(r, [cols[i] for i in rest]) @ theta[rest]
+        xe = design.columns(r, own)
         none += float(base @ base)
         pooled_res = base - xe @ theta[pos]
         pooled += float(pooled_res @ pooled_res)

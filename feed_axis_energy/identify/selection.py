@@ -31,13 +31,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 import itertools
 import math
-from typing import cast
+from typing import cast, Protocol
 
 import numpy as np
 from scipy import stats
 from scipy.optimize import lsq_linear
 
-__all__ = ['Block', 'Design', 'Step', 'SelectionResult', 'chi2_limit', 'forward_select',
+__all__ = ['Block', 'Design', 'Holder', 'Step', 'SelectionResult', 'chi2_limit', 'forward_select',
            'gain_text', 'loro_folds', 'solve_normal', 'at_bounds']
 
 # column sets whose per-run cross products a design keeps at once (a few MB at most)
@@ -117,6 +117,14 @@ class Block:
     cols: tuple[int, ...]
 
 
+class Holder(Protocol):
+    """Where :class:`Design` keeps its columns: ``hold(array)`` returns the array itself or
+    an equal read-only copy it owns (:class:`.design.statestore.StateStore`: in memory
+    within its budget, else memory-mapped)."""
+
+    def hold(self, array: np.ndarray) -> np.ndarray: ...
+
+
 class Design:
     """Per-run cross products of the residual and every candidate column.
 
@@ -124,16 +132,22 @@ class Design:
     ----------
     y
         Residual of each run, flattened, ``[(n_r,), ...]``.
+    store
+        Keeps each block's columns (:class:`Holder`); without one they stay in memory.
+        The cross products are always in memory (a few numbers per pair of columns); the
+        columns themselves (grid points x columns of every run, 120 MiB for 15 runs of 10
+        minutes) are read only to refine a shape, check consistency or predict, one run
+        at a time.
     """
 
-    def __init__(self, y: Sequence[np.ndarray]) -> None:
+    def __init__(self, y: Sequence[np.ndarray], store: Holder | None = None) -> None:
         self.y = [np.asarray(v, dtype=float) for v in y]
         self.n = np.array([v.size for v in self.y])
         self.yy = np.array([float(v @ v) for v in self.y])
-        self.x: list[np.ndarray] = [np.zeros((v.size, 0)) for v in self.y]
-        # the columns live in buffers that grow by half when full: adding a block copies
-        # the columns already there only now and then, not every time
-        self._buf: list[np.ndarray] = [np.zeros((v.size, 0)) for v in self.y]
+        self._store = store
+        # per run, each block's columns (n_r, p_b), held by the store
+        self._x: list[list[np.ndarray]] = [[] for _ in self.y]
+        self._where: list[tuple[int, int]] = []     # column -> (block, column in it)
         self.gram: list[np.ndarray] = [np.zeros((0, 0)) for _ in self.y]
         self.xy: list[np.ndarray] = [np.zeros(0) for _ in self.y]
         self.blocks: list[Block] = []
@@ -162,11 +176,11 @@ class Design:
                   else (np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)))
         self.lower = np.concatenate([self.lower, lo])
         self.upper = np.concatenate([self.upper, hi])
-        start = self.x[0].shape[1]
+        start = len(self._where)
         for r, c in enumerate(columns):
-            c = np.asarray(c, dtype=float).reshape(self.n[r], p)
-            old = self.x[r]
-            cross = old.T @ c
+            c = np.ascontiguousarray(np.asarray(c, dtype=float).reshape(self.n[r], p))
+            cross = (np.concatenate([b.T @ c for b in self._x[r]]) if self._x[r]
+                     else np.zeros((0, p)))
             g = np.zeros((start + p, start + p))
             g[:start, :start] = self.gram[r]
             g[:start, start:] = cross
@@ -174,17 +188,30 @@ class Design:
             g[start:, start:] = c.T @ c
             self.gram[r] = g
             self.xy[r] = np.concatenate([self.xy[r], c.T @ self.y[r]])
-            if self._buf[r].shape[1] < start + p:
-                buf = np.empty((self.n[r], max(start + p, (3 * (start + p)) // 2 + 8)))
-                buf[:, :start] = old
-                self._buf[r] = buf
-            self._buf[r][:, start:start + p] = c
-            self.x[r] = self._buf[r][:, :start + p]
+            self._x[r].append(c if self._store is None else self._store.hold(c))
+        b_index = len(self.blocks)
+        self._where += [(b_index, i) for i in range(p)]
         block = Block(key=key, shape=dict(shape), names=tuple(names),
                       cols=tuple(range(start, start + p)))
         self.blocks.append(block)
         self._subs.clear()
         return block
+
+    def columns(self, run: int, cols: Sequence[int]) -> np.ndarray:
+        """The columns ``cols`` of ``run``, ``(n_r, len(cols))`` (a new array; a view of
+        one block's columns when they are all of it, in order)."""
+        cols = list(cols)
+        blocks = self._x[run]
+        if not cols:
+            return np.zeros((self.n[run], 0))
+        b0, i0 = self._where[cols[0]]
+        if all(self._where[c] == (b0, i0 + k) for k, c in enumerate(cols)):
+            return blocks[b0][:, i0:i0 + len(cols)]
+        out = np.empty((self.n[run], len(cols)))
+        for k, c in enumerate(cols):
+            b, i = self._where[c]
+            out[:, k] = blocks[b][:, i]
+        return out
 
     def _sub(self, cols: list[int]) -> _Sub:
         """Every run's Gram matrix and ``X'y`` on ``cols``, and their summed diagonal."""
@@ -238,7 +265,7 @@ class Design:
         cols = list(cols)
         if not cols:
             return np.zeros(self.n[run])
-        return self.x[run][:, cols] @ theta
+        return self.columns(run, cols) @ theta
 
     def heldout_mse(self, cols: Sequence[int],
                     folds: Sequence[tuple[Sequence[int], Sequence[int]]]) -> dict[int, float]:

@@ -235,3 +235,45 @@ def test_a_drop_within_the_simulations_own_sampling_error_is_not_enough() -> Non
                              floor_chi2=10.0).steps
     assert not step.accepted and step.chi2_limit == pytest.approx(3.84 + 10.0, abs=0.01)
     assert 'not above 13.8' in step.reason
+
+
+def test_a_design_whose_columns_are_on_disk_fits_predicts_and_reads_them_equal() -> None:
+    """The selection's columns held by a store that keeps none in memory (every block a
+    read-only map of a gone file) give the same cross products, fits, held-out errors,
+    predictions and columns as columns kept in memory; a column set within one block is read
+    as it is, across blocks it is gathered in the order asked."""
+    from feed_axis_energy.identify.design import StateStore
+
+    rng = np.random.default_rng(7)
+    n = [400, 350, 500]
+    blocks = [[rng.normal(size=(k, p)) for k in n] for p in (1, 3, 2)]
+    ys = [rng.normal(size=k) + blocks[1][r] @ np.array([0.5, -0.2, 0.1]) for r, k in
+          enumerate(n)]
+
+    def built(store):
+        d = Design(ys, store=store)
+        for b, cols in enumerate(blocks):
+            names = [f'p{i}' for i in range(cols[0].shape[1])]
+            d.add_block((f'e{b}', 'X'), {}, names, cols)
+        return d
+
+    with StateStore(0) as store:
+        disk = built(store)
+        mem = built(None)
+        assert all(not np.shares_memory(disk.columns(r, [1, 2, 3]), blocks[1][r])
+                   for r in range(3))
+        assert disk.columns(0, [1, 2, 3]).flags.writeable is False      # a map, as it is
+        for r in range(3):
+            assert_allclose(disk.gram[r], mem.gram[r], rtol=1e-12, atol=1e-12)
+            assert_allclose(disk.columns(r, [5, 0, 2]),
+                            np.column_stack([blocks[2][r][:, 1], blocks[0][r][:, 0],
+                                             blocks[1][r][:, 1]]))
+        cols = [0, 1, 2, 3, 4, 5]
+        theta = disk.fit(cols, range(3))
+        assert_allclose(theta, mem.fit(cols, range(3)), rtol=1e-10)
+        assert_allclose(theta[1:4], [0.5, -0.2, 0.1], atol=0.15)
+        folds = loro_folds(3)
+        assert disk.heldout_mse(cols, folds) == pytest.approx(mem.heldout_mse(cols, folds))
+        for r in range(3):
+            assert_allclose(disk.predict(cols, theta, r), mem.predict(cols, theta, r))
+        assert disk.columns(1, []).shape == (350, 0)

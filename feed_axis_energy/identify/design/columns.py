@@ -244,7 +244,7 @@ def _sse_with(design: Design, cols: list[int], extra: Sequence[np.ndarray],
     """In-sample SSE of ``cols`` plus extra per-run columns (bounded), pooled over runs."""
     g_parts, b_parts = [], []
     for r, c in enumerate(extra):
-        x = np.hstack([design.x[r][:, cols], c])
+        x = np.hstack([design.columns(r, cols), c])
         g_parts.append(x.T @ x)
         b_parts.append(x.T @ design.y[r])
     g, b = sum(g_parts), sum(b_parts)
@@ -293,7 +293,7 @@ def refine_shape(design: Design, runs: Sequence[RunData], block: Block,
         return [effect_columns(r, block.key[0], axis_j, {par.name: value} | fixed)[:, used]
                 for r in runs]
 
-    best_sse = _sse_with(design, others, [design.x[r][:, list(block.cols)]
+    best_sse = _sse_with(design, others, [design.columns(r, block.cols)
                                           for r in range(design.runs)], bounds)
     best: tuple[float, dict[str, float]] | None = None
     for k, fixed in enumerate(_other_forms(shapes, block.shape)):
