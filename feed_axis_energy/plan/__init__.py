@@ -5,16 +5,18 @@ or trapezoidal profiles (:mod:`.profiles`), the phase table and its sampling (:m
 standstill (:mod:`.standstill`). The entrance is the streaming planner :func:`iter_motion`
 (:mod:`.stream`, bounded chunks); :func:`plan` (:mod:`.trajectory`) plans a whole program at
 once. Its output is :class:`Motion` (:mod:`.motion`), also built from sampled positions
-(:mod:`.fromsamples`).
+(:mod:`.fromsamples`). :func:`iter_nodes` (:mod:`.nodes`) gives the motion at the
+quadrature nodes of the planned phases instead of on a sample grid.
 """
 from .fromsamples import motion_from_samples
 from .motion import Motion
+from .nodes import iter_nodes, NodeChunk
 from .segments import line_speed_limits
 from .standstill import grid_interval_counts
 from .stream import DEFAULT_CHUNK_SAMPLES, estimate_plan, iter_motion
 from .trajectory import plan
 
 __all__ = [
-    'DEFAULT_CHUNK_SAMPLES', 'estimate_plan', 'grid_interval_counts', 'iter_motion',
-    'line_speed_limits', 'Motion', 'motion_from_samples', 'plan',
+    'DEFAULT_CHUNK_SAMPLES', 'estimate_plan', 'grid_interval_counts', 'iter_motion', 'iter_nodes',
+    'line_speed_limits', 'Motion', 'motion_from_samples', 'NodeChunk', 'plan',
 ]
