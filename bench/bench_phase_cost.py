@@ -123,12 +123,13 @@ def spread(values: list[float], unit: str, fmt: str = '.2f') -> str:
             f'{max(values):{fmt}} {unit} (min / median / max of {len(values)})')
 
 
-def demonstrator(tmp: Path, hours: float, runs: int) -> None:
-    text = demonstrator_program(hours)
-    prog = tmp / 'demonstrator.nc'
-    prog.write_text(text)
-    machine = ROOT / 'config' / 'demonstrator.yaml'
-    walls, cpus, rss, floors = [], [], [], []
+Runs = tuple[dict, list[float], list[float], list[float]]
+
+
+def simulated(prog: Path, machine: Path, runs: int) -> Runs:
+    """``simulate --json`` of ``prog`` ``runs`` times: the summary, walls [s], CPU times [s]
+    and peak RSS [MiB]."""
+    walls, cpus, rss = [], [], []
     summary: dict = {}
     for _ in range(runs):
         wall, cpu, peak, out = child_usage(['simulate', str(prog), '--machine', str(machine),
@@ -137,6 +138,16 @@ def demonstrator(tmp: Path, hours: float, runs: int) -> None:
         walls.append(wall)
         cpus.append(cpu)
         rss.append(peak / 2 ** 20)
+    return summary, walls, cpus, rss
+
+
+def demonstrator(tmp: Path, hours: float, runs: int) -> None:
+    text = demonstrator_program(hours)
+    prog = tmp / 'demonstrator.nc'
+    prog.write_text(text)
+    summary, walls, cpus, rss = simulated(prog, ROOT / 'config' / 'demonstrator.yaml', runs)
+    floors = []
+    for _ in range(runs):
         f, e = floor_seconds(text, int(summary['samples']), rate_hz=1000.0, amax=2.5,
                              mass_kg=40.0, coulomb_n=20.0, viscous_ns_m=200.0)
         floors.append(f)
@@ -155,16 +166,7 @@ def contour(tmp: Path, hours: float, runs: int) -> None:
     prog = tmp / 'contour.nc'
     prog.write_text(text)
     lines = len(text.splitlines())
-    machine = ROOT / 'config' / 'three_axis_mill.yaml'
-    walls, cpus, rss = [], [], []
-    summary: dict = {}
-    for _ in range(runs):
-        wall, cpu, peak, out = child_usage(['simulate', str(prog), '--machine', str(machine),
-                                            '--json', '--quiet'])
-        summary = json.loads(out)
-        walls.append(wall)
-        cpus.append(cpu)
-        rss.append(peak / 2 ** 20)
+    summary, walls, cpus, rss = simulated(prog, ROOT / 'config' / 'three_axis_mill.yaml', runs)
     per_line = [w / lines * 1e6 for w in walls]
     print(f'contour       {lines:,} lines, {summary["duration_s"] / 3600:.2f} h, '
           f'{summary["samples"]:,} samples, energy {summary["energy_j"]["total"]:.6g} J')
