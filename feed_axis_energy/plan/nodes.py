@@ -15,10 +15,13 @@ the trapezoid's sample interval).
 
 The cost grows with the moves (pieces x order), not with duration x sample rate.
 
+Where an axis stops and turns inside an arc (its speed changes sign: Coulomb friction
+jumps there) the piece is cut as well (:func:`_arc_turns`).
+
 Not yet covered here (issue 23, to come): the velocity steps of non-tangent corners passed at
-speed (the sampled grid spreads each over one sample, :func:`.phases.corner_steps`), where a
-piece's integrand has a kink inside (a sign change of an axis's speed on an arc, braking power
-cut at zero) and the error bound of the rule.
+speed (the sampled grid spreads each over one sample, :func:`.phases.corner_steps`; the
+steps are given with the nodes), a kink of the integrand that the motion does not show
+(braking power cut at zero), and the error bound of the rule.
 """
 from __future__ import annotations
 
@@ -33,7 +36,7 @@ from ..machine import AxisLimits, PlannerOptions
 from .motion import Motion
 from .phases import (BlockLocator, corner_terms, junction_times, PlannedWindow,
                      sample_phases)
-from .segments import PLAN_AXES
+from .segments import ARC, PLAN_AXES
 from .trajectory import limits_array
 from .stream import iter_plan
 
@@ -96,7 +99,8 @@ def window_nodes(win: PlannedWindow, axes: tuple[str, ...], *, order: int = DEFA
     t_j, v_j = junction_times(win.groups, win.t_start, win.groups.v_junction, win.phases)
     corner_t, corner_dv = _corners(win, t_j, v_j, cols)
     inside = t_j[(t_j > win.t_begin) & (t_j < win.t_end)]
-    cuts = np.unique(np.concatenate((t0, t0 + dur, inside, [win.t_begin, win.t_end])))
+    turns = _arc_turns(win, cols)
+    cuts = np.unique(np.concatenate((t0, t0 + dur, inside, turns, [win.t_begin, win.t_end])))
     cuts = cuts[(cuts >= win.t_begin) & (cuts <= win.t_end)]
     a, b = cuts[:-1], cuts[1:]
     keep = b > a
@@ -119,6 +123,76 @@ def window_nodes(win: PlannedWindow, axes: tuple[str, ...], *, order: int = DEFA
     motion = Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=lines[mi], source=file)
     return NodeChunk(motion=motion, weight_s=weight, piece=piece, t_begin=win.t_begin,
                      t_end=win.t_end, corner_t=corner_t, corner_dv=corner_dv)
+
+
+def _arc_turns(win: PlannedWindow, cols: list[int]) -> np.ndarray:
+    """Times at which an axis moving on an arc of the window stops and turns (its speed
+    changes sign inside the block: a kink of anything with the sign of the speed, Coulomb
+    friction): the pieces are cut there too."""
+    geo, seg = win.geo, win.seg
+    arcs = np.nonzero((seg.kind == ARC) & (geo.length > 0.0))[0]
+    if arcs.size == 0:
+        return np.zeros(0)
+    lo = np.minimum(geo.theta0[arcs], geo.theta0[arcs] + geo.sweep[arcs])
+    hi = np.maximum(geo.theta0[arcs], geo.theta0[arcs] + geo.sweep[arcs])
+    found_block, found_theta = [], []
+    # in-plane a: d(pos)/d(theta) = kr cos - r sin (zero near k pi); b: kr sin + r cos (zero
+    # near pi/2 + k pi); a spiral (kr != 0) moves the zeros a little: Newton from there
+    for shift, role in ((0.0, 0), (0.5 * np.pi, 1)):
+        axis = geo.perm[arcs, role]
+        moving = np.isin(axis, cols)
+        if not np.any(moving):
+            continue
+        k_lo = np.floor((lo - shift) / np.pi) - 1
+        count = (np.ceil((hi - shift) / np.pi) + 1 - k_lo).astype(np.int64) + 1
+        which = np.repeat(np.arange(arcs.size), count)
+        k = np.repeat(k_lo, count) + (np.arange(which.size)
+                                      - np.repeat(np.cumsum(count) - count, count))
+        th = shift + k * np.pi
+        b = arcs[which]
+        r0, kr, th0 = geo.r0[b], geo.kr[b], geo.theta0[b]
+        for _ in range(4):
+            r = r0 + kr * (th - th0)
+            if role == 0:
+                f = kr * np.cos(th) - r * np.sin(th)
+                df = -2.0 * kr * np.sin(th) - r * np.cos(th)
+            else:
+                f = kr * np.sin(th) + r * np.cos(th)
+                df = 2.0 * kr * np.cos(th) - r * np.sin(th)
+            th = th - np.where(df != 0.0, f / np.where(df != 0.0, df, 1.0), 0.0)
+        keep = moving[which] & (th > lo[which]) & (th < hi[which])
+        found_block.append(b[keep])
+        found_theta.append(th[keep])
+    block = np.concatenate(found_block) if found_block else np.zeros(0, np.int64)
+    if block.size == 0:
+        return np.zeros(0)
+    theta = np.concatenate(found_theta)
+    s_block = (theta - geo.theta0[block]) * geo.length[block] / geo.sweep[block]
+    grp = win.groups
+    return _times_at(grp.group_of[block], grp.offset[block] + s_block, win.phases)
+
+
+def _times_at(group: np.ndarray, target: np.ndarray,
+              phases: tuple[np.ndarray, ...]) -> np.ndarray:
+    """Times at which group ``group`` reaches its path length ``target`` (monotone ``s(t)``
+    inside the group: bisection in the phase that holds it)."""
+    t0, dur, s0, v0, a0, jk, owner = phases
+    lo_ph = np.searchsorted(owner, group, side='left')
+    hi_ph = np.searchsorted(owner, group, side='right')
+    k = lo_ph.copy()
+    for _ in range(7):
+        nxt = k + 1
+        step = (nxt < hi_ph) & (np.take(s0, np.minimum(nxt, s0.size - 1)) <= target)
+        k = np.where(step, nxt, k)
+    tau_lo = np.zeros(target.size)
+    tau_hi = dur[k].copy()
+    sk, vk, ak, jj = s0[k], v0[k], a0[k], jk[k]
+    for _ in range(60):
+        mid = 0.5 * (tau_lo + tau_hi)
+        below = sk + (vk + (0.5 * ak + jj * mid / 6.0) * mid) * mid < target
+        tau_lo = np.where(below, mid, tau_lo)
+        tau_hi = np.where(below, tau_hi, mid)
+    return t0[k] + 0.5 * (tau_lo + tau_hi)
 
 
 def _corners(win: PlannedWindow, t_j: np.ndarray, v_j: np.ndarray,
