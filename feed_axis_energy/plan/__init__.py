@@ -10,13 +10,15 @@ quadrature nodes of the planned phases instead of on a sample grid.
 """
 from .fromsamples import motion_from_samples
 from .motion import Motion
-from .nodes import iter_nodes, NodeChunk
+from .nodes import (gauss_legendre, iter_nodes, motion_at, NodeChunk, window_nodes,
+                    window_pieces)
 from .segments import line_speed_limits
 from .standstill import grid_interval_counts
-from .stream import DEFAULT_CHUNK_SAMPLES, estimate_plan, iter_motion
+from .stream import DEFAULT_CHUNK_SAMPLES, estimate_plan, iter_motion, iter_plan
 from .trajectory import plan
 
 __all__ = [
-    'DEFAULT_CHUNK_SAMPLES', 'estimate_plan', 'grid_interval_counts', 'iter_motion', 'iter_nodes',
-    'line_speed_limits', 'Motion', 'motion_from_samples', 'NodeChunk', 'plan',
+    'DEFAULT_CHUNK_SAMPLES', 'estimate_plan', 'gauss_legendre', 'grid_interval_counts',
+    'iter_motion', 'iter_nodes', 'iter_plan', 'line_speed_limits', 'Motion', 'motion_at',
+    'motion_from_samples', 'NodeChunk', 'plan', 'window_nodes', 'window_pieces',
 ]

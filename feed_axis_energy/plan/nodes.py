@@ -40,7 +40,8 @@ from .segments import ARC, PLAN_AXES
 from .trajectory import limits_array
 from .stream import iter_plan
 
-__all__ = ['DEFAULT_ORDER', 'NodeChunk', 'gauss_legendre', 'iter_nodes', 'window_nodes']
+__all__ = ['DEFAULT_ORDER', 'NodeChunk', 'gauss_legendre', 'iter_nodes', 'motion_at',
+           'window_nodes', 'window_pieces']
 
 DEFAULT_ORDER = 5
 """Gauss-Legendre nodes per piece: exact for polynomials of degree 9 in time."""
@@ -90,26 +91,32 @@ class NodeChunk:
     corner_dv: np.ndarray
 
 
-def window_nodes(win: PlannedWindow, axes: tuple[str, ...], *, order: int = DEFAULT_ORDER,
-                 file: str = '', first_piece: int = 0) -> NodeChunk:
-    """The quadrature nodes of one planned window (:func:`.stream.iter_plan`)."""
-    x, w = gauss_legendre(order)
+def window_pieces(win: PlannedWindow, axes: tuple[str, ...],
+                  cuts: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end times [s] of the window's pieces: its phases cut at the block junctions,
+    where an axis turns on an arc, and at the times ``cuts`` (the caller's own, e.g. where a
+    force changes sign)."""
     cols = [PLAN_AXES.index(a) for a in axes]
     t0, dur = win.phases[0], win.phases[1]
-    t_j, v_j = junction_times(win.groups, win.t_start, win.groups.v_junction, win.phases)
-    corner_t, corner_dv = _corners(win, t_j, v_j, cols)
-    inside = t_j[(t_j > win.t_begin) & (t_j < win.t_end)]
-    turns = _arc_turns(win, cols)
-    cuts = np.unique(np.concatenate((t0, t0 + dur, inside, turns, [win.t_begin, win.t_end])))
-    cuts = cuts[(cuts >= win.t_begin) & (cuts <= win.t_end)]
-    a, b = cuts[:-1], cuts[1:]
+    t_j, _ = junction_times(win.groups, win.t_start, win.groups.v_junction, win.phases)
+    extra = [t0, t0 + dur, t_j, _arc_turns(win, cols), np.array([win.t_begin, win.t_end])]
+    if cuts is not None:
+        extra.append(np.asarray(cuts, dtype=float))
+    edges = np.unique(np.concatenate(extra))
+    edges = edges[(edges >= win.t_begin) & (edges <= win.t_end)]
+    a, b = edges[:-1], edges[1:]
     keep = b > a
-    a, b = a[keep], b[keep]
-    h = b - a
-    t = (a[:, None] + h[:, None] * x[None, :]).ravel()
-    weight = (h[:, None] * w[None, :]).ravel()
-    piece = np.repeat(np.arange(first_piece, first_piece + a.size), order)
-    # each node belongs to the phase it lies in (phases are sorted by start time)
+    return a[keep], b[keep]
+
+
+def motion_at(win: PlannedWindow, axes: tuple[str, ...], t: np.ndarray, *,
+              file: str = '') -> Motion:
+    """The motion of the window at the times ``t`` (sorted, inside the window), evaluated as
+    the sample grid is (:func:`.phases.sample_phases`)."""
+    cols = [PLAN_AXES.index(a) for a in axes]
+    t = np.asarray(t, dtype=float)
+    t0 = win.phases[0]
+    # each time belongs to the phase it lies in (phases are sorted by start time)
     k = np.clip(np.searchsorted(t0, t, side='right') - 1, 0, max(t0.size - 1, 0))
     n = t.size
     pos = np.empty((n, len(cols)), order='F')
@@ -120,9 +127,26 @@ def window_nodes(win: PlannedWindow, axes: tuple[str, ...], *, order: int = DEFA
                        win.geo.u[:, cols], out=(pos, vel, acc))
     lines = np.fromiter((mv.line for mv in win.seg.move), dtype=np.int32,
                         count=len(win.seg.move))
-    motion = Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=lines[mi], source=file)
-    return NodeChunk(motion=motion, weight_s=weight, piece=piece, t_begin=win.t_begin,
-                     t_end=win.t_end, corner_t=corner_t, corner_dv=corner_dv)
+    return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=lines[mi], source=file)
+
+
+def window_nodes(win: PlannedWindow, axes: tuple[str, ...], *, order: int = DEFAULT_ORDER,
+                 file: str = '', first_piece: int = 0,
+                 cuts: np.ndarray | None = None) -> NodeChunk:
+    """The quadrature nodes of one planned window (:func:`.stream.iter_plan`), its pieces
+    cut also at ``cuts`` [s] (:func:`window_pieces`)."""
+    x, w = gauss_legendre(order)
+    cols = [PLAN_AXES.index(a) for a in axes]
+    a, b = window_pieces(win, axes, cuts)
+    h = b - a
+    t = (a[:, None] + h[:, None] * x[None, :]).ravel()
+    weight = (h[:, None] * w[None, :]).ravel()
+    piece = np.repeat(np.arange(first_piece, first_piece + a.size), order)
+    t_j, v_j = junction_times(win.groups, win.t_start, win.groups.v_junction, win.phases)
+    corner_t, corner_dv = _corners(win, t_j, v_j, cols)
+    return NodeChunk(motion=motion_at(win, axes, t, file=file), weight_s=weight, piece=piece,
+                     t_begin=win.t_begin, t_end=win.t_end, corner_t=corner_t,
+                     corner_dv=corner_dv)
 
 
 def _arc_turns(win: PlannedWindow, cols: list[int]) -> np.ndarray:
