@@ -34,7 +34,7 @@ import numpy as np
 from ..gcode import Move
 from ..machine import AxisLimits, PlannerOptions
 from .motion import Motion
-from .phases import (BlockLocator, corner_terms, junction_times, PlannedWindow,
+from .phases import (BlockLocator, corner_terms, junction_times, path_times, PlannedWindow,
                      sample_phases)
 from .segments import ARC, PLAN_AXES
 from .trajectory import limits_array
@@ -193,30 +193,7 @@ def _arc_turns(win: PlannedWindow, cols: list[int]) -> np.ndarray:
     theta = np.concatenate(found_theta)
     s_block = (theta - geo.theta0[block]) * geo.length[block] / geo.sweep[block]
     grp = win.groups
-    return _times_at(grp.group_of[block], grp.offset[block] + s_block, win.phases)
-
-
-def _times_at(group: np.ndarray, target: np.ndarray,
-              phases: tuple[np.ndarray, ...]) -> np.ndarray:
-    """Times at which group ``group`` reaches its path length ``target`` (monotone ``s(t)``
-    inside the group: bisection in the phase that holds it)."""
-    t0, dur, s0, v0, a0, jk, owner = phases
-    lo_ph = np.searchsorted(owner, group, side='left')
-    hi_ph = np.searchsorted(owner, group, side='right')
-    k = lo_ph.copy()
-    for _ in range(7):
-        nxt = k + 1
-        step = (nxt < hi_ph) & (np.take(s0, np.minimum(nxt, s0.size - 1)) <= target)
-        k = np.where(step, nxt, k)
-    tau_lo = np.zeros(target.size)
-    tau_hi = dur[k].copy()
-    sk, vk, ak, jj = s0[k], v0[k], a0[k], jk[k]
-    for _ in range(60):
-        mid = 0.5 * (tau_lo + tau_hi)
-        below = sk + (vk + (0.5 * ak + jj * mid / 6.0) * mid) * mid < target
-        tau_lo = np.where(below, mid, tau_lo)
-        tau_hi = np.where(below, tau_hi, mid)
-    return t0[k] + 0.5 * (tau_lo + tau_hi)
+    return path_times(grp.group_of[block], grp.offset[block] + s_block, win.phases)[0]
 
 
 def _corners(win: PlannedWindow, t_j: np.ndarray, v_j: np.ndarray,

@@ -113,12 +113,18 @@ def junction_times(grp: BlockGroups, t_start: np.ndarray, gv: np.ndarray,
     inner = np.nonzero(grp.through)[0] + 1          # blocks that start inside their group
     if inner.size == 0:
         return t_j, v_j
+    t_j[inner - 1], v_j[inner - 1] = path_times(grp.group_of[inner], grp.offset[inner], phases)
+    return t_j, v_j
+
+
+def path_times(group: np.ndarray, target: np.ndarray,
+               phases: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Time and path speed at which group ``group`` reaches its path length ``target``: the
+    group's ``s(t)`` is monotone, so by vectorised bisection inside the phase holding it."""
     t0, dur, s0, v0, a0, jk, owner = phases
-    target = grp.offset[inner]
-    gi = grp.group_of[inner]
     # phases are sorted by (group, s): search on a combined key (group, then s)
-    lo_ph = np.searchsorted(owner, gi, side='left')
-    hi_ph = np.searchsorted(owner, gi, side='right')
+    lo_ph = np.searchsorted(owner, group, side='left')
+    hi_ph = np.searchsorted(owner, group, side='right')
     k = lo_ph.copy()
     # the last phase of the group that starts at or before the target: a short loop over
     # the (at most 7) phases of a group
@@ -126,7 +132,7 @@ def junction_times(grp: BlockGroups, t_start: np.ndarray, gv: np.ndarray,
         nxt = k + 1
         step = (nxt < hi_ph) & (np.take(s0, np.minimum(nxt, s0.size - 1)) <= target)
         k = np.where(step, nxt, k)
-    tau_lo = np.zeros(inner.size)
+    tau_lo = np.zeros(target.size)
     tau_hi = dur[k].copy()
     sk, vk, ak, jj = s0[k], v0[k], a0[k], jk[k]
     for _ in range(_JUNCTION_BISECT):
@@ -136,9 +142,7 @@ def junction_times(grp: BlockGroups, t_start: np.ndarray, gv: np.ndarray,
         tau_lo = np.where(below, mid, tau_lo)
         tau_hi = np.where(below, tau_hi, mid)
     tau = 0.5 * (tau_lo + tau_hi)
-    t_j[inner - 1] = t0[k] + tau
-    v_j[inner - 1] = vk + (ak + 0.5 * jj * tau) * tau
-    return t_j, v_j
+    return t0[k] + tau, vk + (ak + 0.5 * jj * tau) * tau
 
 
 def corner_terms(t_junction: np.ndarray, v_junction: np.ndarray, tan_in: np.ndarray,
