@@ -5,13 +5,13 @@ energy chunk by chunk in bounded memory, with its summary (:mod:`.summary`) and 
 operation, tool and axis (:mod:`.rollup`); :func:`simulate_program` (:mod:`.simulate`) is the
 whole-record form for small programs and tests. Tables out (:mod:`.exports`), what-if sweeps
 (:mod:`.sweep`) and campaigns of many runs (:mod:`.batch`, :mod:`.batchspec`) are built on it.
-:func:`phase_energy` (:mod:`.phase_energy`) integrates the energy on the planned phases
+:func:`phase_energy` (:mod:`.quadrature`) integrates the energy on the planned phases
 instead of on samples (issue 23: so far per axis, without declared effects or drives).
 """
 from .batch import BatchJob, JobResult, MAX_JOBS, run_batch
 from .batchspec import expand_programs, load_batch_file, make_jobs
 from .exports import EXPORT_MARKER, require_pyarrow, SeriesExporter, write_blocks, write_rollups
-from .phase_energy import phase_energy, PhaseEnergy
+from .quadrature import phase_energy, PhaseEnergy
 from .simulate import (declared_effects_power_w, line_table, simulate_motion, simulate_program,
                        SimulationResult, summarize)
 from .stream import expand_gaps, simulate_stream, streamable

@@ -1,4 +1,4 @@
-"""Energy by phase (sim/phase_energy.py, issue 23 part 1): quadrature on the planned phases
+"""Energy by phase (sim/quadrature.py, issue 23 part 1): quadrature on the planned phases
 is what the sampled trapezoid sums converge to."""
 from dataclasses import replace
 from pathlib import Path
@@ -8,7 +8,7 @@ import pytest
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.gcode.load import load_gcode, parse_gcode
 from feed_axis_energy.machine.file import load_machine
-from feed_axis_energy.sim.phase_energy import phase_energy
+from feed_axis_energy.sim.quadrature import phase_energy
 from feed_axis_energy.sim.stream import simulate_stream
 
 REPO = Path(__file__).resolve().parents[2]

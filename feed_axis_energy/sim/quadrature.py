@@ -7,7 +7,7 @@ a piece: the screw's efficiency, applied one way where the motor drives (``F v >
 the other way where the load drives it back, and the braking rule ``'dissipated'``, which
 cuts negative ``M omega`` at zero. Both happen where a sign changes: the power is evaluated at
 each piece's ends and quadrature nodes, and where the sign of ``F v`` or ``M omega`` of an
-axis changes between two of these points the time of the change is found by bisection and
+axis changes between two of these points the time of the change is found (regula falsi) and
 the piece is cut there too. On every piece the energy is then the Gauss-Legendre sum of the
 same per-sample dynamics (:func:`feed_axis_energy.physics.compute_dynamics`, the braking
 rule) at its nodes. The rule of ``order`` nodes is compared with the rule of ``order - 2``
@@ -40,7 +40,7 @@ __all__ = ['PhaseEnergy', 'phase_energy', 'PHASE_ORDER']
 PHASE_ORDER = 8
 """Gauss-Legendre nodes per piece (exact for polynomials of degree 15 in time)."""
 
-_BISECT = 52            # halvings of a sign change's bracket: to the rounding of the time
+_ROOT_STEPS = 60        # at most, to find where a sign changes (usually about ten)
 
 
 @dataclass(frozen=True)
@@ -121,16 +121,20 @@ def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.
                        nodes=nodes, sign_cuts=cuts_added)
 
 
-def _signs(machine: Machine, load_kg: float, motion) -> np.ndarray:
-    """Signs of ``F v`` and ``M omega`` per axis at the rows of ``motion``: ``(n, 2 k)``."""
+def _values(machine: Machine, load_kg: float, motion) -> np.ndarray:
+    """``F v`` and ``M omega`` per axis at the rows of ``motion``: ``(n, 2 k)`` [W]."""
     dyn = compute_dynamics(motion, machine, load_kg=load_kg)
-    return np.sign(np.hstack((dyn.force_n * dyn.velocity_m_s,
-                              dyn.torque_nm * dyn.omega_rad_s)))
+    return np.hstack((dyn.force_n * dyn.velocity_m_s, dyn.torque_nm * dyn.omega_rad_s))
 
 
 def _sign_cuts(win, axes: tuple[str, ...], machine: Machine, load_kg: float, order: int,
                file: str) -> np.ndarray:
-    """Times inside the window's pieces where ``F v`` or ``M omega`` of an axis changes sign."""
+    """Times inside the window's pieces where ``F v`` or ``M omega`` of an axis changes sign.
+
+    Both are continuous inside a piece (the efficiency switches where ``F v`` is zero, so
+    ``M omega`` is zero on both sides of the switch): the bracket between two probes of
+    opposite sign is narrowed by regula falsi with the Illinois modification (superlinear;
+    a bisection step where it stalls) to the rounding of the time."""
     a, b = window_pieces(win, axes)
     if a.size == 0:
         return np.zeros(0)
@@ -138,22 +142,35 @@ def _sign_cuts(win, axes: tuple[str, ...], machine: Machine, load_kg: float, ord
     # probes: each piece's ends and nodes (the ends a hair inside, on the piece's own side)
     frac = np.concatenate(([1e-9], x, [1.0 - 1e-9]))
     t = (a[:, None] + (b - a)[:, None] * frac[None, :])
-    s = _signs(machine, load_kg, motion_at(win, axes, t.ravel(), file=file))
-    s = s.reshape(a.size, frac.size, -1)
-    change = s[:, :-1, :] * s[:, 1:, :] < 0.0          # a strict change between two probes
+    g = _values(machine, load_kg, motion_at(win, axes, t.ravel(), file=file))
+    g = g.reshape(a.size, frac.size, -1)
+    change = g[:, :-1, :] * g[:, 1:, :] < 0.0          # a strict change between two probes
     piece, step, col = np.nonzero(change)
     if piece.size == 0:
         return np.zeros(0)
-    lo = t[piece, step]
-    hi = t[piece, step + 1]
-    first = s[piece, step, col]
+    lo, hi = t[piece, step], t[piece, step + 1]
+    g_lo, g_hi = g[piece, step, col], g[piece, step + 1, col]
     order_rows = np.argsort(lo, kind='stable')
-    lo, hi, first, col = lo[order_rows], hi[order_rows], first[order_rows], col[order_rows]
+    lo, hi, g_lo, g_hi, col = (lo[order_rows], hi[order_rows], g_lo[order_rows],
+                               g_hi[order_rows], col[order_rows])
     rows = np.arange(lo.size)
-    for _ in range(_BISECT):
-        mid = 0.5 * (lo + hi)
-        sm = _signs(machine, load_kg, motion_at(win, axes, mid, file=file))[rows, col]
-        same = sm * first > 0.0
-        lo = np.where(same, mid, lo)
-        hi = np.where(same, hi, mid)
+    side = np.zeros(lo.size, dtype=np.int8)      # which end moved last (Illinois)
+    for i in range(_ROOT_STEPS):
+        width = hi - lo
+        open_ = width > 4.0 * np.finfo(float).eps * np.maximum(np.abs(hi), 1.0)
+        if not np.any(open_):
+            break
+        falsi = hi - g_hi * width / (g_hi - g_lo)
+        mid = np.where((i % 8 == 7) | ~np.isfinite(falsi) | (falsi <= lo) | (falsi >= hi),
+                       0.5 * (lo + hi), falsi)
+        gm = _values(machine, load_kg, motion_at(win, axes, mid, file=file))[rows, col]
+        left = gm * g_lo > 0.0                        # the root is in (mid, hi)
+        hit = gm == 0.0
+        lo = np.where(hit, mid, np.where(left, mid, lo))
+        hi = np.where(hit, mid, np.where(left, hi, mid))
+        g_hi = np.where(left & (side == 1), 0.5 * g_hi, g_hi)
+        g_lo = np.where(~left & (side == -1), 0.5 * g_lo, g_lo)
+        g_lo = np.where(left, gm, g_lo)
+        g_hi = np.where(left, g_hi, gm)
+        side = np.where(left, 1, -1).astype(np.int8)
     return np.unique(0.5 * (lo + hi))
