@@ -17,10 +17,10 @@ reported beside the energy.
 The cost grows with the pieces (a handful per move), not with duration x sample rate.
 
 Covered so far: the model of :func:`~feed_axis_energy.physics.compute_dynamics` (rigid-body
-dynamics, passive resistances, screw efficiency, gravity) and the braking rule, per axis.
-Not yet (the sampled pipeline, :mod:`.stream`, gives them): declared effects, the electrical
-side, the velocity steps of corners passed at speed, energy per block and per cause. A
-machine that declares effects or drives is refused with a :class:`ConfigError`.
+dynamics, passive resistances, screw efficiency, gravity) and the braking rule, per axis and
+per source line. Not yet (the sampled pipeline, :mod:`.stream`, gives them): declared
+effects, the electrical side, the velocity steps of corners passed at speed (G64), energy per
+cause. A machine that declares effects or drives is refused with a :class:`ConfigError`.
 """
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..gcode import Move
 from ..machine import Machine, PlannerOptions
-from ..physics import apply_braking, compute_dynamics
+from ..physics import apply_braking, compute_dynamics, LineEnergy
 from ..plan import gauss_legendre, iter_plan, motion_at, window_nodes, window_pieces
 
 __all__ = ['PhaseEnergy', 'phase_energy', 'PHASE_ORDER']
@@ -60,6 +60,10 @@ class PhaseEnergy:
         rule with two nodes fewer on the same pieces.
     duration_s
         Time covered [s].
+    by_line
+        Energy (after the braking rule, summed over the axes), time and energy per axis of
+        every source line that has time (:class:`~feed_axis_energy.physics.LineEnergy`):
+        each piece lies in one block, so the attribution is exact.
     pieces, nodes, sign_cuts
         Pieces integrated, nodes evaluated (both rules), cuts added where a sign changes.
     """
@@ -69,6 +73,7 @@ class PhaseEnergy:
     mechanical_j: np.ndarray
     error_j: np.ndarray
     duration_s: float
+    by_line: LineEnergy
     pieces: int
     nodes: int
     sign_cuts: int
@@ -103,6 +108,7 @@ def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.
     mech = np.zeros(k)
     duration = 0.0
     pieces = nodes = cuts_added = 0
+    lines = _ByLine(k)
     for win in iter_plan(moves, limits, options=options, file=file):
         cuts = _sign_cuts(win, axes, machine, load_kg, order, file)
         cuts_added += cuts.size
@@ -110,15 +116,45 @@ def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.
             chunk = window_nodes(win, axes, order=rule, file=file, cuts=cuts)
             dyn = compute_dynamics(chunk.motion, machine, load_kg=load_kg)
             m = dyn.torque_nm * dyn.omega_rad_s
-            into += chunk.weight_s @ apply_braking(m, braking=machine.braking)
+            drawn = apply_braking(m, braking=machine.braking)
+            into += chunk.weight_s @ drawn
             nodes += chunk.weight_s.size
             if rule == order:
                 mech += chunk.weight_s @ m
                 pieces += int(chunk.piece.size // order)
+                lines.add(chunk.motion.line, chunk.weight_s, drawn)
         duration += win.t_end - win.t_begin
     return PhaseEnergy(axes=axes, energy_j=energy, mechanical_j=mech,
-                       error_j=np.abs(energy - low), duration_s=duration, pieces=pieces,
+                       error_j=np.abs(energy - low), duration_s=duration,
+                       by_line=lines.result(axes), pieces=pieces,
                        nodes=nodes, sign_cuts=cuts_added)
+
+
+class _ByLine:
+    """Time and energy per axis summed by source line number (arrays grown as lines come)."""
+
+    def __init__(self, k: int) -> None:
+        self.time = np.zeros(1024)
+        self.energy = np.zeros((1024, k))
+
+    def add(self, line: np.ndarray, weight: np.ndarray, power: np.ndarray) -> None:
+        top = int(line.max()) + 1 if line.size else 0
+        if top > self.time.size:
+            size = max(top, 2 * self.time.size)
+            self.time = np.concatenate((self.time, np.zeros(size - self.time.size)))
+            self.energy = np.vstack((self.energy,
+                                     np.zeros((size - self.energy.shape[0],
+                                               self.energy.shape[1]))))
+        self.time += np.bincount(line, weights=weight, minlength=self.time.size)
+        for j in range(power.shape[1]):
+            self.energy[:, j] += np.bincount(line, weights=weight * power[:, j],
+                                             minlength=self.time.size)
+
+    def result(self, axes: tuple[str, ...]) -> LineEnergy:
+        seen = np.nonzero(self.time > 0.0)[0]
+        by_axis = self.energy[seen]
+        return LineEnergy(seen.astype(np.int64), by_axis.sum(axis=1), self.time[seen],
+                          axes=axes, by_axis_j=by_axis)
 
 
 def _values(machine: Machine, load_kg: float, motion) -> np.ndarray:

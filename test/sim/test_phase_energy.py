@@ -74,3 +74,26 @@ def test_what_is_not_covered_yet_is_refused_not_guessed() -> None:
         phase_energy(moves, load_machine(REPO / 'config' / 'three_axis_mill_drives.yaml'))
     with pytest.raises(ConfigError, match='at least 3 nodes'):
         phase_energy(moves, load_machine(MILL), order=2)
+
+
+def test_energy_per_source_line_is_exact_and_the_samples_approach_it() -> None:
+    """Each piece lies in one block: the energy and time per line add up to the totals, and
+    the sampled per-line sums (an interval at a junction goes to one of the two lines, an
+    error of up to P T per junction) approach them as the rate rises."""
+    machine = replace(load_machine(MILL), braking='dissipated')
+    got = phase_energy(parse_gcode(PROGRAM, file='t.nc').moves, machine, file='t.nc')
+    by = got.by_line
+    assert list(by.lines) == [2, 3, 4, 5, 6, 7]
+    assert by.energy_j.sum() == pytest.approx(got.energy_j.sum(), rel=1e-12)
+    assert by.by_axis_j.sum(axis=0) == pytest.approx(got.energy_j, rel=1e-12, abs=1e-12)
+    assert by.duration_s.sum() == pytest.approx(got.duration_s, rel=1e-12)
+    assert by.duration_s[list(by.lines).index(5)] == pytest.approx(0.2, rel=1e-9)   # G4 P0.2
+    errors = []
+    for rate in (1e3, 1e5):
+        m = replace(machine, planner=replace(machine.planner, rate_hz=rate))
+        _, line_energy = simulate_stream(parse_gcode(PROGRAM, file='t.nc').moves, m, file='t.nc')
+        sampled = dict(zip(line_energy.lines.tolist(), line_energy.energy_j.tolist()))
+        errors.append(max(abs(e - sampled.get(int(line), 0.0))
+                          for line, e in zip(by.lines, by.energy_j)))
+    assert errors[1] < errors[0] / 1000          # second order: the blocks stop (G61)
+    assert errors[1] < 1e-6
