@@ -171,8 +171,13 @@ def _sign_cuts(win, axes: tuple[str, ...], machine: Machine, load_kg: float, ord
     ``M omega`` is zero on both sides of the switch): the bracket between two probes of
     opposite sign is narrowed by regula falsi with the Illinois modification (superlinear;
     a bisection step where it stalls) to the rounding of the time."""
+    # only a sign that switches something is a kink: F v where the screw's efficiency is
+    # not 1 (divided or multiplied by it), M omega where braking power is cut at zero
+    k = len(axes)
+    eta = np.array([machine.axis(a).screw.efficiency for a in axes])
+    watch = np.concatenate((eta != 1.0, np.full(k, machine.braking == 'dissipated')))
     a, b = window_pieces(win, axes)
-    if a.size == 0:
+    if a.size == 0 or not np.any(watch):
         return np.zeros(0)
     x, _ = gauss_legendre(order)
     # probes: each piece's ends and nodes (the ends a hair inside, on the piece's own side)
@@ -180,7 +185,7 @@ def _sign_cuts(win, axes: tuple[str, ...], machine: Machine, load_kg: float, ord
     t = (a[:, None] + (b - a)[:, None] * frac[None, :])
     g = _values(machine, load_kg, motion_at(win, axes, t.ravel(), file=file))
     g = g.reshape(a.size, frac.size, -1)
-    change = g[:, :-1, :] * g[:, 1:, :] < 0.0          # a strict change between two probes
+    change = (g[:, :-1, :] * g[:, 1:, :] < 0.0) & watch    # a strict change between probes
     piece, step, col = np.nonzero(change)
     if piece.size == 0:
         return np.zeros(0)
