@@ -18,9 +18,10 @@ The cost grows with the pieces (a handful per move), not with duration x sample 
 
 Covered so far: the model of :func:`~feed_axis_energy.physics.compute_dynamics` (rigid-body
 dynamics, passive resistances, screw efficiency, gravity) and the braking rule, per axis and
-per source line. Not yet (the sampled pipeline, :mod:`.stream`, gives them): declared
-effects, the electrical side, the velocity steps of corners passed at speed (G64), energy per
-cause. A machine that declares effects or drives is refused with a :class:`ConfigError`.
+per source line and per cause (net). Not yet (the sampled pipeline, :mod:`.stream`, gives
+them): declared effects, the electrical side, the velocity steps of corners passed at speed
+(G64), the gross energy per cause. A machine that declares effects or drives is refused
+with a :class:`ConfigError`.
 """
 from __future__ import annotations
 
@@ -32,7 +33,8 @@ import numpy as np
 from ..errors import ConfigError
 from ..gcode import Move
 from ..machine import Machine, PlannerOptions
-from ..physics import apply_braking, compute_dynamics, LineEnergy
+from ..physics import (apply_braking, cause_names, cause_powers, compute_dynamics,
+                       LineEnergy)
 from ..plan import gauss_legendre, iter_plan, motion_at, window_nodes, window_pieces
 
 __all__ = ['PhaseEnergy', 'phase_energy', 'PHASE_ORDER']
@@ -60,6 +62,9 @@ class PhaseEnergy:
         rule with two nodes fewer on the same pieces.
     duration_s
         Time covered [s].
+    causes, by_cause_j
+        Cause names (:func:`~feed_axis_energy.physics.cause_names`) and the net energy of
+        each cause per axis [J], ``(c, k)``: they add up to ``energy_j``.
     by_line
         Energy (after the braking rule, summed over the axes), time and energy per axis of
         every source line that has time (:class:`~feed_axis_energy.physics.LineEnergy`):
@@ -73,6 +78,8 @@ class PhaseEnergy:
     mechanical_j: np.ndarray
     error_j: np.ndarray
     duration_s: float
+    causes: tuple[str, ...]
+    by_cause_j: np.ndarray
     by_line: LineEnergy
     pieces: int
     nodes: int
@@ -109,6 +116,8 @@ def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.
     duration = 0.0
     pieces = nodes = cuts_added = 0
     lines = _ByLine(k)
+    causes = cause_names()
+    by_cause = np.zeros((len(causes), k))
     for win in iter_plan(moves, limits, options=options, file=file):
         cuts = _sign_cuts(win, axes, machine, load_kg, order, file)
         cuts_added += cuts.size
@@ -123,10 +132,11 @@ def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.
                 mech += chunk.weight_s @ m
                 pieces += int(chunk.piece.size // order)
                 lines.add(chunk.motion.line, chunk.weight_s, drawn)
+                by_cause += cause_powers(dyn, m, braking=machine.braking) @ chunk.weight_s
         duration += win.t_end - win.t_begin
     return PhaseEnergy(axes=axes, energy_j=energy, mechanical_j=mech,
-                       error_j=np.abs(energy - low), duration_s=duration,
-                       by_line=lines.result(axes), pieces=pieces,
+                       error_j=np.abs(energy - low), duration_s=duration, causes=causes,
+                       by_cause_j=by_cause, by_line=lines.result(axes), pieces=pieces,
                        nodes=nodes, sign_cuts=cuts_added)
 
 

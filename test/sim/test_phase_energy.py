@@ -97,3 +97,23 @@ def test_energy_per_source_line_is_exact_and_the_samples_approach_it() -> None:
                           for line, e in zip(by.lines, by.energy_j)))
     assert errors[1] < errors[0] / 1000          # second order: the blocks stop (G61)
     assert errors[1] < 1e-6
+
+
+@pytest.mark.parametrize('braking', ['regenerative', 'dissipated'])
+def test_energy_per_cause_adds_up_and_is_what_the_samples_converge_to(braking) -> None:
+    machine = replace(load_machine(MILL), braking=braking)
+    got = phase_energy(parse_gcode(PROGRAM, file='t.nc').moves, machine, file='t.nc')
+    assert got.by_cause_j.sum(axis=0) == pytest.approx(got.energy_j, rel=1e-12, abs=1e-12)
+    fine = _sampled(parse_gcode(PROGRAM, file='t.nc').moves, machine, 1e5)
+    coarse = _sampled(parse_gcode(PROGRAM, file='t.nc').moves, machine, 1e3)
+    assert set(fine['energy_by_cause_j']) == set(got.causes)
+    nonzero = 0
+    for i, cause in enumerate(got.causes):
+        for j, axis in enumerate(got.axes):
+            e = float(got.by_cause_j[i, j])
+            f = fine['energy_by_cause_j'][cause][axis]
+            c = coarse['energy_by_cause_j'][cause][axis]
+            assert e == pytest.approx(f, rel=1e-7, abs=1e-7), (cause, axis)
+            assert abs(e - f) <= abs(e - c) + 1e-9, (cause, axis)
+            nonzero += abs(e) > 1e-3
+    assert nonzero >= 5          # friction, screw, gravity, inertia on several axes
