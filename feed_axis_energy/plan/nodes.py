@@ -16,12 +16,13 @@ the trapezoid's sample interval).
 The cost grows with the moves (pieces x order), not with duration x sample rate.
 
 Where an axis stops and turns inside an arc (its speed changes sign: Coulomb friction
-jumps there) the piece is cut as well (:func:`_arc_turns`).
+jumps there) the piece is cut as well (:func:`_arc_turns`); a kink the motion does not show
+(a force changing sign under a screw efficiency, braking power cut at zero) is the caller's
+to find and pass as ``cuts`` (:mod:`feed_axis_energy.sim.quadrature` does).
 
 Not yet covered here (issue 23, to come): the velocity steps of non-tangent corners passed at
 speed (the sampled grid spreads each over one sample, :func:`.phases.corner_steps`; the
-steps are given with the nodes), a kink of the integrand that the motion does not show
-(braking power cut at zero), and the error bound of the rule.
+steps are given with the nodes) and the error bound of the rule.
 """
 from __future__ import annotations
 
@@ -33,15 +34,14 @@ import numpy as np
 
 from ..gcode import Move
 from ..machine import AxisLimits, PlannerOptions
+from .chunks import WindowSampler
 from .motion import Motion
-from .phases import (BlockLocator, corner_terms, junction_times, path_times, PlannedWindow,
-                     sample_phases)
+from .phases import (corner_terms, junction_times, path_times, PlannedWindow, sample_phases,
+                     window_corners)
 from .segments import ARC, PLAN_AXES
-from .trajectory import limits_array
 from .stream import iter_plan
 
-__all__ = ['DEFAULT_ORDER', 'NodeChunk', 'gauss_legendre', 'iter_nodes', 'motion_at',
-           'window_nodes', 'window_pieces']
+__all__ = ['DEFAULT_ORDER', 'NodeChunk', 'gauss_legendre', 'iter_nodes', 'WindowMotion']
 
 DEFAULT_ORDER = 5
 """Gauss-Legendre nodes per piece: exact for polynomials of degree 9 in time."""
@@ -91,62 +91,73 @@ class NodeChunk:
     corner_dv: np.ndarray
 
 
-def window_pieces(win: PlannedWindow, axes: tuple[str, ...],
-                  cuts: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Start and end times [s] of the window's pieces: its phases cut at the block junctions,
-    where an axis turns on an arc, and at the times ``cuts`` (the caller's own, e.g. where a
-    force changes sign)."""
-    cols = [PLAN_AXES.index(a) for a in axes]
-    t0, dur = win.phases[0], win.phases[1]
-    t_j, _ = junction_times(win.groups, win.t_start, win.groups.v_junction, win.phases)
-    extra = [t0, t0 + dur, t_j, _arc_turns(win, cols), np.array([win.t_begin, win.t_end])]
-    if cuts is not None:
-        extra.append(np.asarray(cuts, dtype=float))
-    edges = np.unique(np.concatenate(extra))
-    edges = edges[(edges >= win.t_begin) & (edges <= win.t_end)]
-    a, b = edges[:-1], edges[1:]
-    keep = b > a
-    return a[keep], b[keep]
+class WindowMotion:
+    """One planned window's motion at any times, its pieces and their quadrature nodes.
 
+    The grid sampler's per-window setup (:class:`.chunks.WindowSampler`: block lines, block
+    locator, directions) and the window's junctions, arc turns and corners are made once and
+    reused by every evaluation (probes, root finding, rules of several orders).
+    """
 
-def motion_at(win: PlannedWindow, axes: tuple[str, ...], t: np.ndarray, *,
-              file: str = '') -> Motion:
-    """The motion of the window at the times ``t`` (sorted, inside the window), evaluated as
-    the sample grid is (:func:`.phases.sample_phases`)."""
-    cols = [PLAN_AXES.index(a) for a in axes]
-    t = np.asarray(t, dtype=float)
-    t0 = win.phases[0]
-    # each time belongs to the phase it lies in (phases are sorted by start time)
-    k = np.clip(np.searchsorted(t0, t, side='right') - 1, 0, max(t0.size - 1, 0))
-    n = t.size
-    pos = np.empty((n, len(cols)), order='F')
-    vel = np.empty((n, len(cols)), order='F')
-    acc = np.empty((n, len(cols)), order='F')
-    locate = BlockLocator(win.groups, win.geo.length, path_start_m=win.path_start_m)
-    mi = sample_phases(t, k, win.phases, locate, win.seg, win.geo, cols, win.seg.p0[:, cols],
-                       win.geo.u[:, cols], out=(pos, vel, acc))
-    lines = np.fromiter((mv.line for mv in win.seg.move), dtype=np.int32,
-                        count=len(win.seg.move))
-    return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=lines[mi], source=file)
+    def __init__(self, win: PlannedWindow, axes: tuple[str, ...], *, file: str = '') -> None:
+        self.win = win
+        self.axes = axes
+        self.file = file
+        self.cols = [PLAN_AXES.index(a) for a in axes]
+        self._sampler = WindowSampler(win, self.cols)
+        self._junctions = junction_times(win.groups, win.t_start, win.groups.v_junction,
+                                         win.phases)
+        t0, dur = win.phases[0], win.phases[1]
+        # the edges every piece set has: phases, block junctions, arc turns, the window
+        self._edges = np.concatenate((t0, t0 + dur, self._junctions[0],
+                                      _arc_turns(win, self.cols),
+                                      np.array([win.t_begin, win.t_end])))
 
+    def at(self, t: np.ndarray) -> Motion:
+        """The motion at the times ``t`` (inside the window), evaluated as the sample grid is
+        (:func:`.phases.sample_phases`)."""
+        sampler, win = self._sampler, self.win
+        t = np.asarray(t, dtype=float)
+        t0 = sampler.t0
+        # each time belongs to the phase it lies in (phases are sorted by start time)
+        k = np.clip(np.searchsorted(t0, t, side='right') - 1, 0, max(t0.size - 1, 0))
+        n = t.size
+        pos = np.empty((n, len(self.cols)), order='F')
+        vel = np.empty((n, len(self.cols)), order='F')
+        acc = np.empty((n, len(self.cols)), order='F')
+        mi = sample_phases(t, k, win.phases, sampler.locate, win.seg, win.geo, self.cols,
+                           sampler.p0c, sampler.uc, out=(pos, vel, acc))
+        return Motion(t=t, axes=self.axes, pos=pos, vel=vel, acc=acc, line=sampler.lines[mi],
+                      source=self.file)
 
-def window_nodes(win: PlannedWindow, axes: tuple[str, ...], *, order: int = DEFAULT_ORDER,
-                 file: str = '', first_piece: int = 0,
-                 cuts: np.ndarray | None = None) -> NodeChunk:
-    """The quadrature nodes of one planned window (:func:`.stream.iter_plan`), its pieces
-    cut also at ``cuts`` [s] (:func:`window_pieces`)."""
-    x, w = gauss_legendre(order)
-    cols = [PLAN_AXES.index(a) for a in axes]
-    a, b = window_pieces(win, axes, cuts)
-    h = b - a
-    t = (a[:, None] + h[:, None] * x[None, :]).ravel()
-    weight = (h[:, None] * w[None, :]).ravel()
-    piece = np.repeat(np.arange(first_piece, first_piece + a.size), order)
-    t_j, v_j = junction_times(win.groups, win.t_start, win.groups.v_junction, win.phases)
-    corner_t, corner_dv = _corners(win, t_j, v_j, cols)
-    return NodeChunk(motion=motion_at(win, axes, t, file=file), weight_s=weight, piece=piece,
-                     t_begin=win.t_begin, t_end=win.t_end, corner_t=corner_t,
-                     corner_dv=corner_dv)
+    def pieces(self, cuts: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Start and end times [s] of the pieces: the phases cut at the block junctions,
+        where an axis turns on an arc, and at the times ``cuts`` (the caller's own, e.g.
+        where a force changes sign)."""
+        win = self.win
+        edges = (self._edges if cuts is None else
+                 np.concatenate((self._edges, np.asarray(cuts, dtype=float))))
+        edges = np.unique(edges)
+        edges = edges[(edges >= win.t_begin) & (edges <= win.t_end)]
+        a, b = edges[:-1], edges[1:]
+        keep = b > a
+        return a[keep], b[keep]
+
+    def nodes(self, order: int = DEFAULT_ORDER, *,
+              pieces: tuple[np.ndarray, np.ndarray] | None = None,
+              first_piece: int = 0) -> NodeChunk:
+        """The quadrature nodes of ``order`` points on ``pieces`` (default: :meth:`pieces`)."""
+        x, w = gauss_legendre(order)
+        a, b = self.pieces() if pieces is None else pieces
+        h = b - a
+        t = (a[:, None] + h[:, None] * x[None, :]).ravel()
+        weight = (h[:, None] * w[None, :]).ravel()
+        piece = np.repeat(np.arange(first_piece, first_piece + a.size), order)
+        t_j, v_j, tan_in, tan_out = window_corners(self.win, *self._junctions)
+        _, corner_t, corner_dv = corner_terms(t_j, v_j, tan_in, tan_out, self.cols, 1.0)
+        return NodeChunk(motion=self.at(t), weight_s=weight, piece=piece,
+                         t_begin=self.win.t_begin, t_end=self.win.t_end, corner_t=corner_t,
+                         corner_dv=corner_dv)
 
 
 def _arc_turns(win: PlannedWindow, cols: list[int]) -> np.ndarray:
@@ -196,21 +207,6 @@ def _arc_turns(win: PlannedWindow, cols: list[int]) -> np.ndarray:
     return path_times(grp.group_of[block], grp.offset[block] + s_block, win.phases)[0]
 
 
-def _corners(win: PlannedWindow, t_j: np.ndarray, v_j: np.ndarray,
-             cols: list[int]) -> tuple[np.ndarray, np.ndarray]:
-    """Time and per-axis step of the window's corners (the junction with the previous
-    window's last block included), as :func:`.stream.iter_motion` puts them on the grid."""
-    geo = win.geo
-    tan_in, tan_out = geo.tan1[:-1], geo.tan0[1:]
-    if win.tan_entry is not None:
-        t_j = np.concatenate(([win.t_begin], t_j))
-        v_j = np.concatenate(([float(win.groups.v_junction[0])], v_j))
-        tan_in = np.vstack((win.tan_entry[None, :], tan_in))
-        tan_out = np.vstack((geo.tan0[:1], tan_out))
-    _, tc, dv = corner_terms(t_j, v_j, tan_in, tan_out, cols, 1.0)
-    return tc, dv
-
-
 def iter_nodes(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
                options: PlannerOptions = PlannerOptions(), file: str = '',
                order: int = DEFAULT_ORDER) -> Iterator[NodeChunk]:
@@ -222,11 +218,10 @@ def iter_nodes(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
     PlanningError
         As :func:`.stream.iter_plan`.
     """
-    limits_array(limits, file)
     axes = tuple(limits)
     pieces = 0
     for win in iter_plan(moves, limits, options=options, file=file):
-        chunk = window_nodes(win, axes, order=order, file=file, first_piece=pieces)
+        chunk = WindowMotion(win, axes, file=file).nodes(order, first_piece=pieces)
         if chunk.piece.size:
             pieces = int(chunk.piece[-1]) + 1
         yield chunk

@@ -296,3 +296,18 @@ class PlannedWindow:
     def t_end(self) -> float:
         """End of the window [s]."""
         return float(self.t_start[-1])
+
+
+def window_corners(win: PlannedWindow, t_j: np.ndarray,
+                   v_j: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The window's junctions ``(t, v, tangent in, tangent out)`` for :func:`corner_terms`:
+    those of :func:`junction_times` (``t_j``, ``v_j``), after the junction with the previous
+    window's last block when there is one (at the window's start)."""
+    geo = win.geo
+    tan_in, tan_out = geo.tan1[:-1], geo.tan0[1:]
+    if win.tan_entry is not None:
+        t_j = np.concatenate(([win.t_begin], t_j))
+        v_j = np.concatenate(([float(win.groups.v_junction[0])], v_j))
+        tan_in = np.vstack((win.tan_entry[None, :], tan_in))
+        tan_out = np.vstack((geo.tan0[:1], tan_out))
+    return t_j, v_j, tan_in, tan_out

@@ -39,7 +39,8 @@ import numpy as np
 
 from .lookahead import BlockGroups, group_blocks, path_cumsum, through_acceleration
 from .motion import Motion
-from .phases import corner_terms, junction_times, phase_table, PlannedWindow
+from .phases import (corner_terms, junction_times, phase_table, PlannedWindow,
+                     window_corners)
 from .profiles import plan_profiles, reach_speed
 from ..gcode import Move
 from .chunks import Chunk, GridCursor, WindowSampler
@@ -279,15 +280,8 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
     for win in iter_plan(source, limits, options=options, file=file,
                          window_blocks=window_blocks, on_move=on_move):
         any_window = True
-        geo, grp = win.geo, win.groups
-        gv = grp.v_junction
-        t_j, v_j = junction_times(grp, win.t_start, gv, win.phases)
-        tan_in, tan_out = geo.tan1[:-1], geo.tan0[1:]
-        if win.tan_entry is not None:
-            t_j = np.concatenate(([win.t_begin], t_j))
-            v_j = np.concatenate(([float(gv[0])], v_j))
-            tan_in = np.vstack((win.tan_entry[None, :], tan_in))
-            tan_out = np.vstack((geo.tan0[:1], tan_out))
+        t_j, v_j, tan_in, tan_out = window_corners(
+            win, *junction_times(win.groups, win.t_start, win.groups.v_junction, win.phases))
         idx, tc, dv = corner_terms(t_j, v_j, tan_in, tan_out, cols, sample_s)
         steps = (np.concatenate((steps[0], idx)), np.concatenate((steps[1], tc)),
                  np.concatenate((steps[2], dv)))

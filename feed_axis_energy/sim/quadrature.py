@@ -1,7 +1,7 @@
 """Energy by phase: each axis's energy as quadrature on the planned phases (issue 23, part 1).
 
 The planner's phases (constant jerk) are cut into pieces where the motion is one smooth
-function of time (:func:`feed_axis_energy.plan.nodes.window_pieces`: phases, block junctions,
+function of time (:meth:`feed_axis_energy.plan.WindowMotion.pieces`: phases, block junctions,
 an axis turning on an arc). Two things the motion does not show make the power kink inside
 a piece: the screw's efficiency, applied one way where the motor drives (``F v >= 0``) and
 the other way where the load drives it back, and the braking rule ``'dissipated'``, which
@@ -35,7 +35,7 @@ from ..gcode import Move
 from ..machine import Machine, PlannerOptions
 from ..physics import (apply_braking, cause_names, cause_powers, compute_dynamics,
                        LineEnergy)
-from ..plan import gauss_legendre, iter_plan, motion_at, window_nodes, window_pieces
+from ..plan import gauss_legendre, iter_plan, WindowMotion
 
 __all__ = ['PhaseEnergy', 'phase_energy', 'PHASE_ORDER']
 
@@ -118,11 +118,19 @@ def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.
     lines = _ByLine(k)
     causes = cause_names()
     by_cause = np.zeros((len(causes), k))
+    # only a sign that switches something is a kink: F v where the screw's efficiency is
+    # not 1 (divided or multiplied by it), M omega where braking power is cut at zero
+    eta = np.array([machine.axis(a).screw.efficiency for a in axes])
+    watch = np.concatenate((eta != 1.0, np.full(k, machine.braking == 'dissipated')))
     for win in iter_plan(moves, limits, options=options, file=file):
-        cuts = _sign_cuts(win, axes, machine, load_kg, order, file)
+        at = WindowMotion(win, axes, file=file)
+        cut = at.pieces()
+        cuts = _sign_cuts(at, cut, watch, machine, load_kg, order)
+        if cuts.size:
+            cut = at.pieces(cuts)
         cuts_added += cuts.size
         for rule, into in ((order, energy), (order - 2, low)):
-            chunk = window_nodes(win, axes, order=rule, file=file, cuts=cuts)
+            chunk = at.nodes(rule, pieces=cut)
             dyn = compute_dynamics(chunk.motion, machine, load_kg=load_kg)
             m = dyn.torque_nm * dyn.omega_rad_s
             drawn = apply_braking(m, braking=machine.braking)
@@ -130,7 +138,7 @@ def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.
             nodes += chunk.weight_s.size
             if rule == order:
                 mech += chunk.weight_s @ m
-                pieces += int(chunk.piece.size // order)
+                pieces += cut[0].size
                 lines.add(chunk.motion.line, chunk.weight_s, drawn)
                 by_cause += cause_powers(dyn, m, braking=machine.braking) @ chunk.weight_s
         duration += win.t_end - win.t_begin
@@ -173,27 +181,23 @@ def _values(machine: Machine, load_kg: float, motion) -> np.ndarray:
     return np.hstack((dyn.force_n * dyn.velocity_m_s, dyn.torque_nm * dyn.omega_rad_s))
 
 
-def _sign_cuts(win, axes: tuple[str, ...], machine: Machine, load_kg: float, order: int,
-               file: str) -> np.ndarray:
-    """Times inside the window's pieces where ``F v`` or ``M omega`` of an axis changes sign.
+def _sign_cuts(at: WindowMotion, pieces: tuple[np.ndarray, np.ndarray], watch: np.ndarray,
+               machine: Machine, load_kg: float, order: int) -> np.ndarray:
+    """Times inside ``pieces`` where ``F v`` or ``M omega`` of an axis changes sign, for the
+    columns ``watch`` (``F v`` of each axis, then ``M omega``).
 
     Both are continuous inside a piece (the efficiency switches where ``F v`` is zero, so
     ``M omega`` is zero on both sides of the switch): the bracket between two probes of
     opposite sign is narrowed by regula falsi with the Illinois modification (superlinear;
     a bisection step where it stalls) to the rounding of the time."""
-    # only a sign that switches something is a kink: F v where the screw's efficiency is
-    # not 1 (divided or multiplied by it), M omega where braking power is cut at zero
-    k = len(axes)
-    eta = np.array([machine.axis(a).screw.efficiency for a in axes])
-    watch = np.concatenate((eta != 1.0, np.full(k, machine.braking == 'dissipated')))
-    a, b = window_pieces(win, axes)
+    a, b = pieces
     if a.size == 0 or not np.any(watch):
         return np.zeros(0)
     x, _ = gauss_legendre(order)
     # probes: each piece's ends and nodes (the ends a hair inside, on the piece's own side)
     frac = np.concatenate(([1e-9], x, [1.0 - 1e-9]))
     t = (a[:, None] + (b - a)[:, None] * frac[None, :])
-    g = _values(machine, load_kg, motion_at(win, axes, t.ravel(), file=file))
+    g = _values(machine, load_kg, at.at(t.ravel()))
     g = g.reshape(a.size, frac.size, -1)
     change = (g[:, :-1, :] * g[:, 1:, :] < 0.0) & watch    # a strict change between probes
     piece, step, col = np.nonzero(change)
@@ -214,7 +218,7 @@ def _sign_cuts(win, axes: tuple[str, ...], machine: Machine, load_kg: float, ord
         falsi = hi - g_hi * width / (g_hi - g_lo)
         mid = np.where((i % 8 == 7) | ~np.isfinite(falsi) | (falsi <= lo) | (falsi >= hi),
                        0.5 * (lo + hi), falsi)
-        gm = _values(machine, load_kg, motion_at(win, axes, mid, file=file))[rows, col]
+        gm = _values(machine, load_kg, at.at(mid))[rows, col]
         left = gm * g_lo > 0.0                        # the root is in (mid, hi)
         hit = gm == 0.0
         lo = np.where(hit, mid, np.where(left, mid, lo))
