@@ -10,7 +10,7 @@ quadrature nodes of the planned phases instead of on a sample grid.
 """
 from .fromsamples import motion_from_samples
 from .motion import Motion
-from .nodes import gauss_legendre, iter_nodes, NodeChunk, WindowMotion
+from .nodes import gauss_legendre, iter_nodes, iter_window_motions, NodeChunk, WindowMotion
 from .segments import line_speed_limits
 from .standstill import grid_interval_counts
 from .stream import DEFAULT_CHUNK_SAMPLES, estimate_plan, iter_motion, iter_plan
@@ -18,6 +18,6 @@ from .trajectory import plan
 
 __all__ = [
     'DEFAULT_CHUNK_SAMPLES', 'estimate_plan', 'gauss_legendre', 'grid_interval_counts',
-    'iter_motion', 'iter_nodes', 'iter_plan', 'line_speed_limits', 'Motion',
+    'iter_motion', 'iter_nodes', 'iter_plan', 'iter_window_motions', 'line_speed_limits', 'Motion',
     'motion_from_samples', 'NodeChunk', 'plan', 'WindowMotion',
 ]

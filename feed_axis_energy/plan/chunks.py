@@ -10,10 +10,49 @@ from __future__ import annotations
 
 import numpy as np
 
-from .motion import Motion
-from .phases import apply_steps, BlockLocator, PlannedWindow, sample_phases
+from typing import NamedTuple
 
-__all__ = ['Chunk', 'GridCursor', 'WindowSampler']
+from .motion import Motion
+from .phases import apply_steps, BlockLocator, PlannedWindow, sample_phases, step_index
+
+__all__ = ['Chunk', 'GridCursor', 'PendingSteps', 'WindowSampler']
+
+
+class PendingSteps(NamedTuple):
+    """Corner velocity steps not yet (wholly) put into rows: the grid indices ``lo..hi`` of
+    the samples that carry each (:func:`.phases.step_rows`), its junction time ``tc`` [s],
+    per-axis step ``dv`` [m/s] and the first grid index ``next`` not yet given its share."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    tc: np.ndarray
+    dv: np.ndarray
+    next: np.ndarray
+
+    @classmethod
+    def none(cls, k: int) -> 'PendingSteps':
+        e = np.zeros(0, np.int64)
+        return cls(e, e, np.zeros(0), np.zeros((0, k)), e)
+
+    def join(self, lo: np.ndarray, hi: np.ndarray, tc: np.ndarray,
+             dv: np.ndarray) -> 'PendingSteps':
+        """These steps and new ones."""
+        return PendingSteps(np.concatenate((self.lo, lo)), np.concatenate((self.hi, hi)),
+                            np.concatenate((self.tc, tc)), np.concatenate((self.dv, dv)),
+                            np.concatenate((self.next, lo)))
+
+    def clip(self, top: int) -> 'PendingSteps':
+        """Steps that reach beyond grid index ``top`` (the program's last sample) end
+        there."""
+        return PendingSteps(np.minimum(self.lo, top), np.minimum(self.hi, top), self.tc,
+                            self.dv, np.minimum(self.next, top))
+
+    def touch(self, a: int, b: int) -> bool:
+        """True when a step still has a sample to give its share to in ``[a, b]``."""
+        return bool(np.any((self.next <= b) & (self.hi >= a)))
+
+    def select(self, keep: np.ndarray) -> 'PendingSteps':
+        return PendingSteps(*(x[keep] for x in self))
 
 
 class Chunk:
@@ -51,22 +90,30 @@ class Chunk:
         self.fill = r1
         return slice(r0, r1), self.t[r0:r1]
 
-    def apply(self, steps, sample_s: float):
-        """Add the velocity steps that fall on rows held here; return the steps left."""
-        idx = steps[0]
-        if idx.size == 0 or self.fill == 0:
+    def apply(self, steps: PendingSteps, sample_s: float) -> PendingSteps:
+        """Give the velocity steps their share in the rows held here; return what is left
+        (the shares of samples not yet held)."""
+        if steps.lo.size == 0 or self.fill == 0:
             return steps
         held = self.index[:self.fill]
-        ready = idx <= held[-1]
+        last = held[-1]
+        ready = steps.next <= last
         if not np.any(ready):
             return steps
         sel = np.nonzero(ready)[0]
-        rows = np.searchsorted(held, idx[sel])
+        upto = np.minimum(steps.hi[sel], last)
+        part, index = step_index(steps.next[sel], upto)
+        rows = np.minimum(np.searchsorted(held, index), self.fill - 1)
+        here = held[rows] == index            # a sample left out (standstill) carries nothing
+        s = sel[part[here]]
         fill = self.fill
-        apply_steps(self.t[:fill], rows, steps[1][sel], steps[2][sel], sample_s,
-                    vel=self.vel[:fill], acc=self.acc[:fill])
-        keep = np.nonzero(~ready)[0]
-        return (idx[keep], steps[1][keep], steps[2][keep])
+        apply_steps(self.t[:fill], rows[here], index[here], steps.lo[s], steps.hi[s],
+                    steps.tc[s], steps.dv[s], sample_s, vel=self.vel[:fill],
+                    acc=self.acc[:fill])
+        moved = steps.next.copy()
+        moved[sel] = upto + 1
+        left = PendingSteps(steps.lo, steps.hi, steps.tc, steps.dv, moved)
+        return left.select(moved <= steps.hi)
 
     def take(self, count: int, axes: tuple[str, ...], file: str) -> Motion:
         """The first ``count`` rows as a Motion; the rows after them start a new chunk."""

@@ -20,9 +20,14 @@ jumps there) the piece is cut as well (:func:`_arc_turns`); a kink the motion do
 (a force changing sign under a screw efficiency, braking power cut at zero) is the caller's
 to find and pass as ``cuts`` (:mod:`feed_axis_energy.sim.quadrature` does).
 
-Not yet covered here (issue 23, to come): the velocity steps of non-tangent corners passed at
-speed (the sampled grid spreads each over one sample, :func:`.phases.corner_steps`; the
-steps are given with the nodes) and the error bound of the rule.
+A non-tangent junction passed at speed changes the axis velocities by ``dv`` within one
+interpolation cycle ``T`` centred on it (:mod:`.trajectory`, *Corners*): here as a ramp, the
+velocity going linearly from before to after over ``[t_c - T/2, t_c + T/2]`` with ``dv / T``
+added to the acceleration (the position's bump of at most ``|dv| T / 8`` is left out, as in
+the samples); the pieces are cut at both ends of the ramp. A ramp can reach into the
+neighbouring window: :func:`iter_window_motions` gives every window the ramps of its
+neighbours as well. The sampled grid at rates above ``1 / T`` spreads the step over the same
+cycle (:func:`.phases.apply_steps`) and converges to this.
 """
 from __future__ import annotations
 
@@ -41,7 +46,8 @@ from .phases import (corner_terms, junction_times, path_times, PlannedWindow, sa
 from .segments import ARC, PLAN_AXES
 from .stream import iter_plan
 
-__all__ = ['DEFAULT_ORDER', 'NodeChunk', 'gauss_legendre', 'iter_nodes', 'WindowMotion']
+__all__ = ['DEFAULT_ORDER', 'NodeChunk', 'gauss_legendre', 'iter_nodes', 'iter_window_motions',
+           'WindowMotion']
 
 DEFAULT_ORDER = 5
 """Gauss-Legendre nodes per piece: exact for polynomials of degree 9 in time."""
@@ -75,11 +81,6 @@ class NodeChunk:
         ``(n,)`` index of the node's piece, counted from the program start.
     t_begin, t_end
         The time the pieces cover [s].
-    corner_t, corner_dv
-        The velocity steps of the non-tangent block junctions passed at speed in this
-        window: their times ``(h,)`` [s] and per-axis steps ``(h, k)`` [m/s]. The pieces'
-        motion is continuous up to them: the integral of an axis's acceleration over the
-        nodes plus the sum of its steps is its speed change.
     """
 
     motion: Motion
@@ -87,8 +88,6 @@ class NodeChunk:
     piece: np.ndarray
     t_begin: float
     t_end: float
-    corner_t: np.ndarray
-    corner_dv: np.ndarray
 
 
 class WindowMotion:
@@ -97,6 +96,11 @@ class WindowMotion:
     The grid sampler's per-window setup (:class:`.chunks.WindowSampler`: block lines, block
     locator, directions) and the window's junctions, arc turns and corners are made once and
     reused by every evaluation (probes, root finding, rules of several orders).
+
+    ``corner_t``, ``corner_dv``: the window's own non-tangent junctions passed at speed (the
+    one with the previous window at its start included), their times ``(h,)`` [s] and
+    per-axis velocity steps ``(h, k)`` [m/s]. Until :meth:`spread` is called the motion
+    shows each as a jump at its time.
     """
 
     def __init__(self, win: PlannedWindow, axes: tuple[str, ...], *, file: str = '') -> None:
@@ -112,10 +116,30 @@ class WindowMotion:
         self._edges = np.concatenate((t0, t0 + dur, self._junctions[0],
                                       _arc_turns(win, self.cols),
                                       np.array([win.t_begin, win.t_end])))
+        t_j, v_j, tan_in, tan_out = window_corners(win, *self._junctions)
+        _, self.corner_t, self.corner_dv = corner_terms(t_j, v_j, tan_in, tan_out, self.cols,
+                                                        1.0)
+        self._ramp_start = np.zeros(0)
+        self._ramp_t = np.zeros(0)
+        self._ramp_dv = np.zeros((0, len(self.cols)))
+        self._cycle_s = 0.0
+
+    def spread(self, tc: np.ndarray, dv: np.ndarray, cycle_s: float) -> None:
+        """Spread the velocity steps ``dv`` at ``tc`` (this window's and its neighbours')
+        over one interpolation cycle ``cycle_s`` each (see the module docstring); the
+        pieces are cut where a ramp starts and ends."""
+        half = 0.5 * cycle_s
+        near = (tc + half > self.win.t_begin) & (tc - half < self.win.t_end)
+        tc, dv = tc[near], dv[near]
+        order = np.argsort(tc - half, kind='stable')
+        self._ramp_start = tc[order] - half
+        self._ramp_t, self._ramp_dv = tc[order], dv[order]
+        self._cycle_s = float(cycle_s)
+        self._edges = np.concatenate((self._edges, tc - half, tc + half))
 
     def at(self, t: np.ndarray) -> Motion:
         """The motion at the times ``t`` (inside the window), evaluated as the sample grid is
-        (:func:`.phases.sample_phases`)."""
+        (:func:`.phases.sample_phases`), the velocity steps as ramps (:meth:`spread`)."""
         sampler, win = self._sampler, self.win
         t = np.asarray(t, dtype=float)
         t0 = sampler.t0
@@ -127,13 +151,34 @@ class WindowMotion:
         acc = np.empty((n, len(self.cols)), order='F')
         mi = sample_phases(t, k, win.phases, sampler.locate, win.seg, win.geo, self.cols,
                            sampler.p0c, sampler.uc, out=(pos, vel, acc))
+        if self._ramp_t.size:
+            self._add_ramps(t, vel, acc)
         return Motion(t=t, axes=self.axes, pos=pos, vel=vel, acc=acc, line=sampler.lines[mi],
                       source=self.file)
 
+    def _add_ramps(self, t: np.ndarray, vel: np.ndarray, acc: np.ndarray) -> None:
+        """Velocity and acceleration of the ramps covering each time (ramps of one width,
+        sorted by start: those covering ``t`` are the last ones starting at or before it)."""
+        start, tc, dv, cycle = self._ramp_start, self._ramp_t, self._ramp_dv, self._cycle_s
+        last = np.searchsorted(start, t, side='right') - 1
+        back = 0
+        while True:
+            i = last - back
+            inside = (i >= 0) & (t < start[np.maximum(i, 0)] + cycle)
+            if not np.any(inside):
+                break
+            rows = np.nonzero(inside)[0]
+            r = i[rows]
+            frac = (t[rows] - start[r]) / cycle
+            share = np.where(t[rows] >= tc[r], frac - 1.0, frac)
+            vel[rows] += dv[r] * share[:, None]
+            acc[rows] += dv[r] * (1.0 / cycle)
+            back += 1
+
     def pieces(self, cuts: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Start and end times [s] of the pieces: the phases cut at the block junctions,
-        where an axis turns on an arc, and at the times ``cuts`` (the caller's own, e.g.
-        where a force changes sign)."""
+        where an axis turns on an arc, where a ramp starts and ends, and at the times
+        ``cuts`` (the caller's own, e.g. where a force changes sign)."""
         win = self.win
         edges = (self._edges if cuts is None else
                  np.concatenate((self._edges, np.asarray(cuts, dtype=float))))
@@ -153,11 +198,43 @@ class WindowMotion:
         t = (a[:, None] + h[:, None] * x[None, :]).ravel()
         weight = (h[:, None] * w[None, :]).ravel()
         piece = np.repeat(np.arange(first_piece, first_piece + a.size), order)
-        t_j, v_j, tan_in, tan_out = window_corners(self.win, *self._junctions)
-        _, corner_t, corner_dv = corner_terms(t_j, v_j, tan_in, tan_out, self.cols, 1.0)
         return NodeChunk(motion=self.at(t), weight_s=weight, piece=piece,
-                         t_begin=self.win.t_begin, t_end=self.win.t_end, corner_t=corner_t,
-                         corner_dv=corner_dv)
+                         t_begin=self.win.t_begin, t_end=self.win.t_end)
+
+
+def iter_window_motions(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
+                        options: PlannerOptions = PlannerOptions(),
+                        file: str = '') -> Iterator[WindowMotion]:
+    """Plan ``moves`` (:func:`.stream.iter_plan`) and yield each window's
+    :class:`WindowMotion` with the velocity steps of its own corners and of its neighbours'
+    spread over the interpolation cycle (``options.cycle_s``). A window is yielded once the
+    next one is planned (a corner at its end belongs to the next); memory is two windows.
+
+    Raises
+    ------
+    PlanningError
+        As :func:`.stream.iter_plan`.
+    """
+    axes = tuple(limits)
+    cycle = options.cycle_s
+    prev: WindowMotion | None = None
+    held: WindowMotion | None = None
+    for win in iter_plan(moves, limits, options=options, file=file):
+        now = WindowMotion(win, axes, file=file)
+        if held is not None:
+            _spread_around(held, prev, now, cycle)
+            yield held
+        prev, held = held, now
+    if held is not None:
+        _spread_around(held, prev, None, cycle)
+        yield held
+
+
+def _spread_around(at: WindowMotion, prev: WindowMotion | None, after: WindowMotion | None,
+                   cycle_s: float) -> None:
+    near = [w for w in (prev, at, after) if w is not None]
+    at.spread(np.concatenate([w.corner_t for w in near]),
+              np.concatenate([w.corner_dv for w in near]), cycle_s)
 
 
 def _arc_turns(win: PlannedWindow, cols: list[int]) -> np.ndarray:
@@ -210,18 +287,18 @@ def _arc_turns(win: PlannedWindow, cols: list[int]) -> np.ndarray:
 def iter_nodes(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
                options: PlannerOptions = PlannerOptions(), file: str = '',
                order: int = DEFAULT_ORDER) -> Iterator[NodeChunk]:
-    """Plan ``moves`` (:func:`.stream.iter_plan`, window by window) and yield the quadrature
-    nodes of every window; memory is one window's pieces, whatever the program's length.
+    """Plan ``moves`` (:func:`iter_window_motions`, window by window) and yield the
+    quadrature nodes of every window; memory is two windows' pieces, whatever the program's
+    length.
 
     Raises
     ------
     PlanningError
         As :func:`.stream.iter_plan`.
     """
-    axes = tuple(limits)
     pieces = 0
-    for win in iter_plan(moves, limits, options=options, file=file):
-        chunk = WindowMotion(win, axes, file=file).nodes(order, first_piece=pieces)
+    for at in iter_window_motions(moves, limits, options=options, file=file):
+        chunk = at.nodes(order, first_piece=pieces)
         if chunk.piece.size:
             pieces = int(chunk.piece[-1]) + 1
         yield chunk

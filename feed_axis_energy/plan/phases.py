@@ -4,7 +4,8 @@ Steps 5 and 6 of the method in :mod:`.trajectory`: :func:`phase_table` integrate
 groups' profiles into one table of phases, :func:`sample_phases` evaluates it at uniform times and
 maps the path length to axis motion per block (lines here, arcs and helices in
 :func:`_sample_arcs`), :func:`junction_times` times the block junctions and
-:func:`corner_steps` puts the corners' velocity steps into the samples. Used by
+:func:`corner_steps` puts the corners' velocity steps into the samples (:func:`step_rows`,
+:func:`apply_steps`). Used by
 :func:`.trajectory.plan`, the streaming planner (:mod:`.stream`) and its window sampler
 (:mod:`.chunks`).
 """
@@ -159,30 +160,70 @@ def corner_terms(t_junction: np.ndarray, v_junction: np.ndarray, tan_in: np.ndar
     return np.rint(tc / sample_s).astype(np.int64), tc, dv[hit]
 
 
-def apply_steps(t: np.ndarray, idx: np.ndarray, tc: np.ndarray, dv: np.ndarray,
-                sample_s: float, *, vel: np.ndarray, acc: np.ndarray) -> None:
-    """Add the steps ``dv`` at samples ``idx`` (indices into ``t``) to ``vel`` and ``acc``."""
-    # the sample already shows the whole step if it lies at or after the junction
-    # (phases own the samples from the first one at or after their start)
-    half = np.where(t[idx] >= tc, -0.5, 0.5)
-    np.add.at(vel, idx, dv * half[:, None])
-    np.add.at(acc, idx, dv * (1.0 / sample_s))
+def step_rows(tc: np.ndarray, sample_s: float,
+              cycle_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """First and last grid index ``(lo, hi)`` of the samples that carry each velocity step.
+
+    A step happens within one interpolation cycle ``cycle_s`` centred on its junction time
+    ``tc`` (see :mod:`.trajectory`, *Corners*): the grid samples in ``[tc - T/2, tc + T/2)``
+    carry it. Where that holds fewer than two samples (the sample period at least the cycle,
+    the default) the sample nearest to the junction carries it alone (``lo == hi``).
+    """
+    half = 0.5 * cycle_s
+    lo = np.ceil((tc - half) / sample_s).astype(np.int64)
+    hi = np.ceil((tc + half) / sample_s).astype(np.int64) - 1
+    near = np.rint(tc / sample_s).astype(np.int64)
+    single = hi <= lo
+    return np.where(single, near, lo), np.where(single, near, hi)
+
+
+def step_index(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every grid index of the ranges ``[lo, hi]`` and the range it belongs to:
+    ``(step, index)``."""
+    count = np.maximum(hi - lo + 1, 0)
+    step = np.repeat(np.arange(lo.size), count)
+    first = np.cumsum(count) - count
+    index = np.repeat(lo, count) + (np.arange(step.size) - np.repeat(first, count))
+    return step, index
+
+
+def apply_steps(t: np.ndarray, rows: np.ndarray, index: np.ndarray, lo: np.ndarray,
+                hi: np.ndarray, tc: np.ndarray, dv: np.ndarray, sample_s: float, *,
+                vel: np.ndarray, acc: np.ndarray) -> None:
+    """Add the velocity steps to ``vel`` and ``acc`` at ``rows`` (one row per carrying sample,
+    given per row: its grid ``index``, its step's range ``lo..hi``, time ``tc`` and ``dv``).
+
+    The ``n = hi - lo + 1`` samples of a step carry it as a ramp: the ``j``-th has the share
+    ``(j + 1/2) / n`` of the step in its velocity (less the whole step where the path itself
+    shows it: at or after the junction, phases own the samples from the first one at or
+    after their start) and ``dv / (n T_s)`` in its acceleration, so that the acceleration
+    integrates to the velocity by the trapezoid rule across them. One sample (``n = 1``):
+    half the step and ``dv / T_s``.
+    """
+    n = hi - lo + 1
+    frac = (index - lo + 0.5) / n
+    jump = np.where(t[rows] >= tc, frac - 1.0, frac)
+    np.add.at(vel, rows, dv * jump[:, None])
+    np.add.at(acc, rows, dv * (1.0 / (n * sample_s))[:, None])
 
 
 def corner_steps(t: np.ndarray, t_junction: np.ndarray, v_junction: np.ndarray,
-                 geo: SegmentGeometry, cols: list[int], sample_s: float, *, vel: np.ndarray,
-                 acc: np.ndarray) -> None:
-    """Put the velocity steps of non-tangent junctions into ``vel`` and ``acc`` (in place).
-
-    The sample nearest to a junction gets ``+dv / T`` acceleration (``T`` the sample period,
-    so that acceleration integrates to velocity on the samples) and half the step in its
-    velocity (see the module docstring, *Corners*).
+                 geo: SegmentGeometry, cols: list[int], sample_s: float, cycle_s: float, *,
+                 vel: np.ndarray, acc: np.ndarray) -> None:
+    """Put the velocity steps of non-tangent junctions into ``vel`` and ``acc`` (in place),
+    on the whole grid ``t`` (sample ``i`` at grid index ``i``): :func:`step_rows`,
+    :func:`apply_steps`.
     """
-    idx, tc, dv = corner_terms(t_junction, v_junction, geo.tan1[:-1], geo.tan0[1:], cols,
-                               sample_s)
-    if idx.size == 0:
+    _idx, tc, dv = corner_terms(t_junction, v_junction, geo.tan1[:-1], geo.tan0[1:], cols,
+                                sample_s)
+    if tc.size == 0:
         return
-    apply_steps(t, np.clip(idx, 0, t.size - 1), tc, dv, sample_s, vel=vel, acc=acc)
+    top = t.size - 1
+    lo, hi = step_rows(tc, sample_s, cycle_s)
+    lo, hi = np.clip(lo, 0, top), np.clip(hi, 0, top)
+    step, index = step_index(lo, hi)
+    apply_steps(t, index, index, lo[step], hi[step], tc[step], dv[step], sample_s, vel=vel,
+                acc=acc)
 
 
 def sample_phases(t: np.ndarray, k: np.ndarray, phases: tuple[np.ndarray, ...],

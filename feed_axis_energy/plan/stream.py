@@ -39,11 +39,11 @@ import numpy as np
 
 from .lookahead import BlockGroups, group_blocks, path_cumsum, through_acceleration
 from .motion import Motion
-from .phases import (corner_terms, junction_times, phase_table, PlannedWindow,
+from .phases import (corner_terms, junction_times, phase_table, PlannedWindow, step_rows,
                      window_corners)
 from .profiles import plan_profiles, reach_speed
 from ..gcode import Move
-from .chunks import Chunk, GridCursor, WindowSampler
+from .chunks import Chunk, GridCursor, PendingSteps, WindowSampler
 from .segments import (Collector, segment_geometry, junction_speeds, path_limits, PLAN_AXES,
                        REST)
 from .standstill import first_grid_index, standstill_runs
@@ -274,7 +274,8 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         return motion
 
     chunk = Chunk(k, chunk_samples)
-    steps = (np.zeros(0, np.int64), np.zeros(0), np.zeros((0, k)))   # not yet applied
+    steps = PendingSteps.none(k)                     # not yet wholly in the rows
+    cycle_s = options.cycle_s
     next_index = 0
     any_window = False
     for win in iter_plan(source, limits, options=options, file=file,
@@ -282,9 +283,8 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         any_window = True
         t_j, v_j, tan_in, tan_out = window_corners(
             win, *junction_times(win.groups, win.t_start, win.groups.v_junction, win.phases))
-        idx, tc, dv = corner_terms(t_j, v_j, tan_in, tan_out, cols, sample_s)
-        steps = (np.concatenate((steps[0], idx)), np.concatenate((steps[1], tc)),
-                 np.concatenate((steps[2], dv)))
+        _idx, tc, dv = corner_terms(t_j, v_j, tan_in, tan_out, cols, sample_s)
+        steps = steps.join(*step_rows(tc, sample_s, cycle_s), tc, dv)
         t_end = win.t_end
         t_last = None
         if win.final:
@@ -295,12 +295,16 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
             else:
                 stop_index += 1              # one more sample at the program end
                 t_last = t_end
-            steps = (np.minimum(steps[0], stop_index - 1), steps[1], steps[2])
+            steps = steps.clip(stop_index - 1)
             final_until = stop_index         # samples below this have all their steps
         else:
             stop_index = first_grid_index(t_end, rate)
             # later junctions (at or after the window end) reach back to these samples
             final_until = int(np.rint(t_end / sample_s))
+            if cycle_s > sample_s:
+                # a step spread over the samples of its cycle reaches back half a cycle
+                final_until = min(final_until,
+                                  int(np.ceil((t_end - 0.5 * cycle_s) / sample_s)))
         # rows held from the previous window may now be complete
         steps = chunk.apply(steps, sample_s)
         if chunk.fill == chunk.capacity:
@@ -311,11 +315,9 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
             limit = stop_index - 2 if win.final else min(stop_index, final_until) - 1
             runs = standstill_runs(win.phases, rate_hz=rate, lo=next_index, hi=limit,
                                    min_samples=compact_min_samples)
-            if runs and steps[0].size:
+            if runs and steps.lo.size:
                 # a run keeps no sample a pending velocity step would land on
-                order = np.sort(steps[0])
-                runs = [r for r in runs
-                        if np.searchsorted(order, r[1] + 1) == np.searchsorted(order, r[0] - 1)]
+                runs = [r for r in runs if not steps.touch(r[0] - 1, r[1])]
         cursor = GridCursor([next_index] + [b for _a, b, _p in runs],
                             [a for a, _b, _p in runs] + [stop_index])
         while not cursor.done:

@@ -49,15 +49,23 @@ Method
 6. *Corners.* A non-tangent junction passed at speed ``v`` changes the axis velocities by
    ``dv = v (tangent_out - tangent_in)`` within one interpolation cycle ``T``, as on a control
    that limits the per-axis velocity step per cycle (the blend itself is not sampled). The
-   look-ahead keeps ``|dv_k| <= a_k T``. In the samples (period ``T_s = 1 / rate_hz``; the
-   bounds below are stated for ``T_s = T``, the default) the step is put so that the
-   dynamics sees the force that changes the kinetic energy: the sample nearest to the
-   junction carries half the step in its velocity (the mean of the velocities just before and
-   just after the junction, plus the path's own change) and ``dv / T_s`` in addition to its path
-   acceleration. Read with the piecewise-linear (trapezoid) convention, the acceleration is a
-   triangle of area ``dv`` and ``vel[i+1] - vel[i] = (acc[i] + acc[i+1]) T / 2`` holds on
-   both intervals next to the junction, so ``integral F v dt`` by the trapezoid rule gets the
-   kinetic energy change ``m dv (v_in + v_out) / 2`` of the step exactly.
+   look-ahead keeps ``|dv_k| <= a_k T``. The truth is a ramp: over ``[t_c - T/2, t_c + T/2]``
+   the velocity goes linearly from before to after and ``dv / T`` is added to the path
+   acceleration (the position's bump, at most ``|dv| T / 8``, is left out); the energy by
+   phase (:mod:`.nodes`) integrates it exactly. In the samples (period ``T_s = 1 / rate_hz``)
+   the ``n`` grid samples in that cycle carry the step (:func:`.phases.step_rows`,
+   :func:`.phases.apply_steps`): the ``j``-th the share ``(j + 1/2) / n`` of it in its
+   velocity and ``dv / (n T_s)`` in its acceleration. Where the cycle holds fewer than two
+   samples (``T_s >= T``, the default ``T_s = T``) the sample nearest to the junction carries
+   it alone: half the step in its velocity (the mean of the velocities just before and just
+   after the junction, plus the path's own change) and ``dv / T_s`` in addition to its path
+   acceleration. Read with the piecewise-linear (trapezoid) convention, the acceleration
+   integrates to the velocity across the carrying samples (at ``n = 1`` a triangle of area
+   ``dv``), so ``integral F v dt`` by the trapezoid rule gets the kinetic energy change
+   ``m dv (v_in + v_out) / 2`` of the step exactly; at rates above ``1 / T`` the sampled sums
+   converge to the ramp's energy (friction, screw efficiency and braking during the step
+   included), at ``T_s >= T`` they differ from it by a discretization error of the order of
+   the step's power times ``T_s``.
 
 Where the steps live: 1 to 3 up to the look-ahead (segments, geometry, path limits,
 junction caps) in :mod:`.segments`, the look-ahead in :mod:`.lookahead`, the profiles in
@@ -81,7 +89,9 @@ trapezoid profile (infinite jerk) the step and a full path acceleration can fall
 same cycle: up to ``2 a_k`` (sampled) or ``1.5 a_k``
 (finite difference). Junctions less than a cycle apart put their steps into the same or
 neighbouring samples; the sums are still consistent, but the per-cycle bound then holds per
-junction, not per sample.
+junction, not per sample. These corner bounds are for one sample carrying the step
+(``T_s >= T``); spread over ``n >= 2`` samples (``T_s < T``) the step adds ``dv / (n T_s)``,
+about ``dv / T <= a_k``, to each of them.
 """
 from __future__ import annotations
 
@@ -207,8 +217,8 @@ def plan(program: Program, limits: Mapping[str, AxisLimits], *,
         line[lo:hi] = lines[mi]
         _report(progress, 0.25 + 0.75 * hi / t.size)
     t_junction, v_junction = junction_times(grp, t_start, gv, phases)
-    corner_steps(t, t_junction, v_junction, geo, cols, 1.0 / options.rate_hz, vel=vel,
-                 acc=acc)
+    corner_steps(t, t_junction, v_junction, geo, cols, 1.0 / options.rate_hz, cycle_s,
+                 vel=vel, acc=acc)
     return Motion(t=t, axes=axes, pos=pos, vel=vel, acc=acc, line=line, source=program.file)
 
 

@@ -18,10 +18,11 @@ The cost grows with the pieces (a handful per move), not with duration x sample 
 
 Covered so far: the model of :func:`~feed_axis_energy.physics.compute_dynamics` (rigid-body
 dynamics, passive resistances, screw efficiency, gravity) and the braking rule, per axis and
-per source line and per cause (net). Not yet (the sampled pipeline, :mod:`.stream`, gives
-them): declared effects, the electrical side, the velocity steps of corners passed at speed
-(G64), the gross energy per cause. A machine that declares effects or drives is refused
-with a :class:`ConfigError`.
+per source line and per cause (net), the velocity steps of corners passed at speed (G64) as
+ramps over one interpolation cycle (:mod:`feed_axis_energy.plan.nodes`). Not yet (the sampled
+pipeline, :mod:`.stream`, gives them): declared effects, the electrical side, the gross
+energy per cause. A machine that declares effects or drives is refused with a
+:class:`ConfigError`.
 """
 from __future__ import annotations
 
@@ -35,7 +36,7 @@ from ..gcode import Move
 from ..machine import Machine, PlannerOptions
 from ..physics import (apply_braking, cause_names, cause_powers, compute_dynamics,
                        LineEnergy)
-from ..plan import gauss_legendre, iter_plan, WindowMotion
+from ..plan import gauss_legendre, iter_window_motions, WindowMotion
 
 __all__ = ['PhaseEnergy', 'phase_energy', 'PHASE_ORDER']
 
@@ -122,8 +123,8 @@ def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.
     # not 1 (divided or multiplied by it), M omega where braking power is cut at zero
     eta = np.array([machine.axis(a).screw.efficiency for a in axes])
     watch = np.concatenate((eta != 1.0, np.full(k, machine.braking == 'dissipated')))
-    for win in iter_plan(moves, limits, options=options, file=file):
-        at = WindowMotion(win, axes, file=file)
+    for at in iter_window_motions(moves, limits, options=options, file=file):
+        win = at.win
         cut = at.pieces()
         cuts = _sign_cuts(at, cut, watch, machine, load_kg, order)
         if cuts.size:

@@ -105,6 +105,31 @@ def test_chunks_equal_whole_plan(profile, window, chunk):
         assert {53, 51, 54, 55} <= inside
 
 
+@pytest.mark.parametrize('window,chunk', [(2, 37), (3, 250), (256, 4096)])
+def test_steps_spread_over_the_cycle_equal_whole_plan(window, chunk):
+    """At 20 kHz a corner's velocity step is spread over the 20 samples of its 1 ms cycle;
+    windows of two blocks and chunks of 37 samples cut through those ramps, and the rows
+    are still those of the whole plan."""
+    prog = _program()
+    opts = PlannerOptions(rate_hz=20_000.0)
+    ref = plan(prog, LIM_XYZ, options=opts)
+    chunks = list(iter_motion(prog.moves, LIM_XYZ, options=opts, file=prog.file,
+                              chunk_samples=chunk, window_blocks=window))
+    _assert_same(ref, concat_motion(chunks))
+    # the ramps are there: the trapezoid rule of the acceleration gives the velocity on
+    # every interval up to the jerk switches (no single-sample spikes of dv / T_s)
+    T = 1.0 / opts.rate_hz
+    trap = 0.5 * (ref.acc[1:] + ref.acc[:-1]) * T
+    jmax = np.array([a.jerk_m_s3 for a in LIM_XYZ.values()])
+    amax = np.array([a.acceleration_m_s2 for a in LIM_XYZ.values()])
+    step = np.abs(np.diff(ref.vel, axis=0) - trap)
+    assert np.all(step <= jmax * T * T + 1e-15 + (np.abs(ref.acc[1:] - ref.acc[:-1]) * T))
+    # a step within its cycle asks at most a_k (the look-ahead's rule); with the path's own
+    # acceleration beside it at most 1.5 a_k; all of it in one sample (the rule before the
+    # steps were spread) is up to 20 a_k here
+    assert np.max(np.abs(ref.acc) / amax) <= 1.5
+
+
 def test_window_boundaries_fall_inside_the_program():
     prog = _program()
     windows = list(iter_plan(prog.moves, LIM_XYZ, window_blocks=2))
