@@ -273,8 +273,14 @@ def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
     print(f'program   {summary["program"]}')
     print(f'machine   {summary["machine"]} (braking: {summary["braking"]})')
     print(f'load      {summary["load_kg"]:.3f} kg')
-    print(f'duration  {summary["duration_s"]:.3f} s   '
-          f'({summary["samples"]} samples at {summary["rate_hz"]:g} Hz)')
+    if summary.get('method') == 'phases':
+        error = summary.get('quadrature_error_j', {}).get('total', 0.0)
+        print(f'duration  {summary["duration_s"]:.3f} s   (integrated by phase, estimated '
+              f'quadrature error {error:.2g} J; a recording at {summary["rate_hz"]:g} Hz '
+              f'holds {summary["samples"]} samples)')
+    else:
+        print(f'duration  {summary["duration_s"]:.3f} s   '
+              f'({summary["samples"]} samples at {summary["rate_hz"]:g} Hz)')
     print()
     axes = [k for k in summary['energy_j'] if k != 'total']
     rows = [[axis, f'{summary["energy_j"][axis]:.2f}', f'{summary["peak_power_w"][axis]:.1f}']

@@ -84,6 +84,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='print one JSON object instead of the table (keys in README)')
     p.add_argument('--top', type=int, default=5, metavar='N',
                    help='number of most energetic blocks to list (default: 5)')
+    p.add_argument('--method', choices=('phases', 'samples'), default='phases',
+                   help='how the summary\'s figures are integrated: "phases" (default) by '
+                        'quadrature on the planned motion phases, the exact figures of the '
+                        'model, cost by moves (machines with declared effects or drives, '
+                        'trajectory CSVs: samples); "samples" by the trapezoid rule over the '
+                        'samples at the machine\'s rate (what the recording holds; differs by '
+                        'its discretization error). Recordings, exports and the report\'s '
+                        'curves are samples either way')
     p.add_argument('--max-samples', type=int, default=0, metavar='N',
                    help='refuse programs that need more than N samples (default 0: no limit); '
                         'the count is known from the plan before any sample is computed')
@@ -243,10 +251,12 @@ def _run_stream(args, machine, options, progress, *, trace=None,
 def _run_stream_gc(args, machine, options, progress, *, trace=None,
                    export=None) -> tuple[dict, list[str], object]:
     from feed_axis_energy.plan import estimate_plan
-    from feed_axis_energy.sim import simulate_stream
+    from feed_axis_energy.sim import phase_covered, simulate_stream
     limits = machine.limits()
     duration = None
     warnings = None
+    if args.method == 'phases' and phase_covered(machine):
+        return _run_phases(args, machine, options, progress, trace=trace, export=export)
     if args.max_samples or args.out is not None:
         first = _Moves(args, machine, check=True)
         estimate = estimate_plan(first, limits, options=options, file=first.file)
@@ -261,14 +271,9 @@ def _run_stream_gc(args, machine, options, progress, *, trace=None,
                        n_lines=_count_lines(args.program))
     top = args.top
     n_lines = moves.n_lines or _count_lines(args.program)
-    columns = len(limits) + 8 + len(machine.effects)
-    if machine.electrical:
-        # the electrical side's own per-line table: axes and causes with the drives' four
-        columns *= 2
-        columns += 4
     kw = dict(file=moves.file, load_kg=args.load_kg, options=options, top_blocks=top,
               duration_s=duration, progress=progress if duration else None, limits=limits,
-              block_breakdown=bool(export) or 8 * columns * n_lines <= BLOCK_BREAKDOWN_BYTES,
+              block_breakdown=_breakdown_per_block(args, machine, export, n_lines),
               rollup=True, context=moves.stream.context)
     if args.out is None:
         # chunk_gaps: the report's trace takes the chunks as computed (dwells left out: their
@@ -297,6 +302,67 @@ def _run_stream_gc(args, machine, options, progress, *, trace=None,
     progress.done()
     if warnings is None:
         warnings = moves.warnings(args)
+    summary['method'] = 'samples'
+    return summary, warnings, blocks
+
+
+def _breakdown_per_block(args, machine, export, n_lines: int) -> bool:
+    """Keep the per-block breakdown: when an export needs it or it fits the byte budget."""
+    columns = len(machine.limits()) + 8 + len(machine.effects)
+    if machine.electrical:
+        # the electrical side's own per-line table: axes and causes with the drives' four
+        columns *= 2
+        columns += 4
+    return bool(export) or 8 * columns * n_lines <= BLOCK_BREAKDOWN_BYTES
+
+
+def _run_phases(args, machine, options, progress, *, trace=None,
+                export=None) -> tuple[dict, list[str], object]:
+    """The summary by phase (:func:`feed_axis_energy.sim.summarize_phases`: no samples);
+    samples only for the recording, the exports and the report's curves, in a second pass
+    that reads the program again."""
+    from types import SimpleNamespace
+    from feed_axis_energy.sim import grid_samples, simulate_stream, summarize_phases
+    n_lines = _count_lines(args.program)
+    outputs = args.out is not None or trace is not None or bool(export)
+    moves = _Moves(args, machine, check=True, progress=progress, n_lines=n_lines)
+    summary, blocks = summarize_phases(
+        moves, machine, file=moves.file, load_kg=args.load_kg, options=options,
+        top_blocks=args.top, block_breakdown=_breakdown_per_block(args, machine, export, n_lines),
+        rollup=True, context=moves.stream.context)
+    progress.done()
+    warnings = moves.warnings(args)
+    duration = summary['duration_s']
+    estimate = SimpleNamespace(duration_s=duration,
+                               samples=grid_samples(duration, options.rate_hz))
+    check_cost(args, estimate, n_axes=len(machine.limits()), rate_hz=options.rate_hz,
+               file=moves.file)
+    if not outputs:
+        return summary, warnings, blocks
+    check_start(args, duration)
+    from feed_axis_energy.cli.progress import Progress
+    progress = Progress('simulate samples', enabled=progress.enabled)
+    again = _Moves(args, machine, check=False)
+    kw = dict(file=again.file, load_kg=args.load_kg, options=options, top_blocks=0,
+              duration_s=duration, progress=progress, chunk_gaps=True)
+    if args.out is None:
+        simulate_stream(again, machine, on_chunk=consumers(None, trace, export, options.rate_hz),
+                        **kw)
+        if export:
+            export.write_blocks(blocks)
+    else:
+        from feed_axis_energy.record import SimulationBagWriter
+        with staged_out(args) as staged, \
+                SimulationBagWriter(staged, compression=args.compression,
+                                    rate_hz=options.rate_hz,
+                                    plot_rate_hz=args.plot_rate_hz,
+                                    start_ns=args.start_time or 0) as writer:
+            simulate_stream(again, machine,
+                            on_chunk=consumers(writer, trace, export, options.rate_hz), **kw)
+            writer.finish(blocks, summary=summary, stamp_s=duration)
+            if export:
+                export.write_blocks(blocks)
+    progress.done()
     return summary, warnings, blocks
 
 
@@ -330,6 +396,8 @@ def _run_whole(args, machine, options, progress, *, trajectory: bool,
     progress.done()
     # A trajectory has no source lines to attribute energy to.
     summary = summarize(result, top_blocks=0 if trajectory else args.top)
+    summary['method'] = 'samples'
+
     if export:
         from feed_axis_energy.sim import line_table
         export.series.write(result)

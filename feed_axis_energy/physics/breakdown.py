@@ -240,8 +240,13 @@ class BreakdownAccumulator:
     def add(self, dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
             effects: Sequence[tuple[str, np.ndarray]] = (),
             extra: Sequence[tuple[str, np.ndarray]] = (),
-            burned: np.ndarray | None = None) -> None:
-        """Take one chunk (in time order); arguments as :func:`cause_powers`."""
+            burned: np.ndarray | None = None, weights: np.ndarray | None = None) -> None:
+        """Take one chunk (in time order); arguments as :func:`cause_powers`.
+
+        ``weights``: the rows are quadrature nodes (:mod:`feed_axis_energy.plan.nodes`), the
+        integral of a power is its sum times these weights [s] (instead of the trapezoid
+        rule over the samples, continued from the previous chunk); each node's energy goes
+        to its own source line."""
         t = dyn.t
         m = int(t.shape[0])
         if m == 0:
@@ -264,6 +269,10 @@ class BreakdownAccumulator:
             msg = 'BreakdownAccumulator: a chunk with other axes or effects than the first'
             raise ValueError(msg)
         gross = cast(np.ndarray, self.gross)        # set with self.energy (above)
+        if weights is not None:
+            self._add_weighted(dyn, np.asarray(mechanical_w), braking, effects, extra, burned,
+                               np.asarray(weights, dtype=float))
+            return
         dt = np.diff(t)
         # trapezoid sum as one weighted sum over the samples: w_i = (dt_{i-1} + dt_i) / 2
         w = np.zeros(m)
@@ -295,6 +304,35 @@ class BreakdownAccumulator:
         self._add_lines(rows, k, c, dyn.line, dt, d0, first, m)
         self._last = last
         self._t_last = float(t[-1])
+
+    def _add_weighted(self, dyn: AxisDynamics, mech: np.ndarray, braking: str,
+                      effects: Sequence[tuple[str, np.ndarray]],
+                      extra: Sequence[tuple[str, np.ndarray]], burned: np.ndarray | None,
+                      w: np.ndarray) -> None:
+        """Quadrature nodes with weights ``w``: no interval to the previous chunk."""
+        if not self.per_line:
+            self._add_sums(dyn, mech, braking, list(effects) + list(extra), burned, w)
+            return
+        energy, gross = cast(np.ndarray, self.energy), cast(np.ndarray, self.gross)
+        k = energy.shape[1]
+        rows = cause_rows(dyn, mech, braking=braking, effects=effects, buffers=self._buffers,
+                          extra=extra, burned=burned)
+        line = np.asarray(dyn.line, dtype=np.int64)
+        top = int(line.max()) + 1 if line.size else 0
+        if top > self._lines.shape[0]:
+            grown = np.zeros((max(2 * self._lines.shape[0], top), self._lines.shape[1]))
+            grown[:self._lines.shape[0]] = self._lines
+            self._lines = grown
+        signed = range(4, energy.shape[0] - 1)
+        size = self._lines.shape[0]
+        for ci, j, row in rows:
+            rw = row * w
+            energy[ci, j] += float(rw.sum())
+            if ci in signed:
+                gross[ci, j] += float(np.maximum(row, 0.0) @ w)
+            per = np.bincount(line, weights=rw, minlength=size)
+            self._lines[:, j] += per
+            self._lines[:, k + ci] += per
 
     def _add_sums(self, dyn: AxisDynamics, mech: np.ndarray, braking: str,
                   effects: Sequence[tuple[str, np.ndarray]], burned: np.ndarray | None,

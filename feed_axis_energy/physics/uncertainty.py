@@ -95,7 +95,8 @@ class UncertaintyAccumulator:
             w = np.where(np.asarray(mechanical_w)[:, j] < 0.0, 0.0, w)
         return w
 
-    def add(self, dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str) -> None:
+    def add(self, dyn: AxisDynamics, mechanical_w: np.ndarray, *, braking: str,
+            weights: np.ndarray | None = None) -> None:
         """Take one chunk (in time order; the interval from the previous chunk included).
 
         Parameters
@@ -106,9 +107,15 @@ class UncertaintyAccumulator:
             ``M·omega`` per axis before the braking rule [W], ``(n, k)``.
         braking
             ``'regenerative'`` or ``'dissipated'``.
+        weights
+            The rows are quadrature nodes: the integral of ``f`` is ``f @ weights`` [s]
+            (instead of the trapezoid rule continued from the previous chunk).
         """
         t = np.asarray(dyn.t, dtype=float)
         if t.shape[0] == 0:
+            return
+        if weights is not None:
+            self._add(dyn, mechanical_w, braking, np.asarray(weights, dtype=float), None)
             return
         # trapezoid weights of the samples: the integral of f is f @ c, plus the interval
         # from the previous chunk's last sample (its half is added with the carried value)
@@ -119,6 +126,14 @@ class UncertaintyAccumulator:
         d0 = None if self._t_last is None else float(t[0] - self._t_last)
         if d0 is not None:
             c[0] += 0.5 * d0
+        self._add(dyn, mechanical_w, braking, c, d0)
+        self._t_last = float(t[-1])
+
+    def _add(self, dyn: AxisDynamics, mechanical_w: np.ndarray, braking: str, c: np.ndarray,
+             d0: float | None) -> None:
+        """Add ``gradient @ c`` per axis (``d0``: the interval from the previous chunk's
+        last row, whose value is carried)."""
+        t = dyn.t
         for j, name in enumerate(dyn.axes):
             cov = self.covariances.get(name)
             if cov is None:
@@ -142,7 +157,6 @@ class UncertaintyAccumulator:
             if d0 is not None:
                 g += 0.5 * d0 * self._last[name]
             self._last[name] = last
-        self._t_last = float(t[-1])
 
     def standard_uncertainty_j(self) -> dict[str, float]:
         """``u(E)`` per simulated axis with a covariance and ``'total'`` [J]."""

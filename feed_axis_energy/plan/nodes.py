@@ -31,7 +31,7 @@ cycle (:func:`.phases.apply_steps`) and converges to this.
 """
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -41,8 +41,8 @@ from ..gcode import Move
 from ..machine import AxisLimits, PlannerOptions
 from .chunks import WindowSampler
 from .motion import Motion
-from .phases import (corner_terms, junction_times, path_times, PlannedWindow, sample_phases,
-                     window_corners)
+from .phases import (apply_steps, corner_terms, junction_times, path_times, PlannedWindow,
+                     sample_phases, step_index, step_rows, window_corners)
 from .segments import ARC, PLAN_AXES
 from .stream import iter_plan
 
@@ -129,17 +129,22 @@ class WindowMotion:
         over one interpolation cycle ``cycle_s`` each (see the module docstring); the
         pieces are cut where a ramp starts and ends."""
         half = 0.5 * cycle_s
-        near = (tc + half > self.win.t_begin) & (tc - half < self.win.t_end)
-        tc, dv = tc[near], dv[near]
         order = np.argsort(tc - half, kind='stable')
         self._ramp_start = tc[order] - half
         self._ramp_t, self._ramp_dv = tc[order], dv[order]
         self._cycle_s = float(cycle_s)
         self._edges = np.concatenate((self._edges, tc - half, tc + half))
 
-    def at(self, t: np.ndarray) -> Motion:
+    @property
+    def ramps(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """The velocity steps spread here (:meth:`spread`): junction times ``(h,)`` [s],
+        per-axis steps ``(h, k)`` [m/s] and the cycle [s]."""
+        return self._ramp_t, self._ramp_dv, self._cycle_s
+
+    def at(self, t: np.ndarray, *, ramps: bool = True) -> Motion:
         """The motion at the times ``t`` (inside the window), evaluated as the sample grid is
-        (:func:`.phases.sample_phases`), the velocity steps as ramps (:meth:`spread`)."""
+        (:func:`.phases.sample_phases`), the velocity steps as ramps (:meth:`spread`;
+        ``ramps=False``: the path's own motion, each step a jump at its junction)."""
         sampler, win = self._sampler, self.win
         t = np.asarray(t, dtype=float)
         t0 = sampler.t0
@@ -151,10 +156,30 @@ class WindowMotion:
         acc = np.empty((n, len(self.cols)), order='F')
         mi = sample_phases(t, k, win.phases, sampler.locate, win.seg, win.geo, self.cols,
                            sampler.p0c, sampler.uc, out=(pos, vel, acc))
-        if self._ramp_t.size:
+        if ramps and self._ramp_t.size:
             self._add_ramps(t, vel, acc)
         return Motion(t=t, axes=self.axes, pos=pos, vel=vel, acc=acc, line=sampler.lines[mi],
                       source=self.file)
+
+    def sampled(self, index: np.ndarray, rate_hz: float) -> Motion:
+        """Grid samples ``index`` (sorted; times ``index / rate_hz``, inside the window) as
+        the sample grid holds them: the path's motion with the velocity steps the samples
+        carry (:func:`.phases.step_rows`, :func:`.phases.apply_steps`; the steps of the
+        corners given to :meth:`spread`)."""
+        index = np.asarray(index, dtype=np.int64)
+        t = index / rate_hz
+        motion = self.at(t, ramps=False)
+        tc, dv, cycle = self.ramps
+        if tc.size and index.size:
+            sample_s = 1.0 / rate_hz
+            lo, hi = step_rows(tc, sample_s, cycle)
+            step, idx = step_index(lo, hi)
+            rows = np.minimum(np.searchsorted(index, idx), index.size - 1)
+            ok = index[rows] == idx
+            s = step[ok]
+            apply_steps(t, rows[ok], idx[ok], lo[s], hi[s], tc[s], dv[s], sample_s,
+                        vel=motion.vel, acc=motion.acc)
+        return motion
 
     def _add_ramps(self, t: np.ndarray, vel: np.ndarray, acc: np.ndarray) -> None:
         """Velocity and acceleration of the ramps covering each time (ramps of one width,
@@ -203,12 +228,14 @@ class WindowMotion:
 
 
 def iter_window_motions(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
-                        options: PlannerOptions = PlannerOptions(),
-                        file: str = '') -> Iterator[WindowMotion]:
+                        options: PlannerOptions = PlannerOptions(), file: str = '',
+                        on_move: Callable[[int], None] | None = None
+                        ) -> Iterator[WindowMotion]:
     """Plan ``moves`` (:func:`.stream.iter_plan`) and yield each window's
     :class:`WindowMotion` with the velocity steps of its own corners and of its neighbours'
     spread over the interpolation cycle (``options.cycle_s``). A window is yielded once the
     next one is planned (a corner at its end belongs to the next); memory is two windows.
+    ``on_move``: as :func:`.stream.iter_plan` (moves read so far, once per window).
 
     Raises
     ------
@@ -219,7 +246,7 @@ def iter_window_motions(moves: Iterable[Move], limits: Mapping[str, AxisLimits],
     cycle = options.cycle_s
     prev: WindowMotion | None = None
     held: WindowMotion | None = None
-    for win in iter_plan(moves, limits, options=options, file=file):
+    for win in iter_plan(moves, limits, options=options, file=file, on_move=on_move):
         now = WindowMotion(win, axes, file=file)
         if held is not None:
             _spread_around(held, prev, now, cycle)

@@ -52,7 +52,8 @@ details { margin: 1em 0; } summary { cursor: pointer; font-weight: 600; }
 }
 """
 
-_PREFIXES = ((1e9, 'G'), (1e6, 'M'), (1e3, 'k'), (1.0, ''), (1e-3, 'm'), (1e-6, 'µ'))
+_PREFIXES = ((1e9, 'G'), (1e6, 'M'), (1e3, 'k'), (1.0, ''), (1e-3, 'm'), (1e-6, 'µ'),
+             (1e-9, 'n'))
 
 
 def fmt_si(value: float | None, unit: str, *, digits: int = 3, signed: bool = False) -> str:
@@ -62,6 +63,9 @@ def fmt_si(value: float | None, unit: str, *, digits: int = 3, signed: bool = Fa
         return '–'
     mag = abs(value)
     scale, prefix = 1.0, ''
+    if 0 < mag < _PREFIXES[-1][0] * 0.9995:
+        # below the smallest prefix (rounding noise of a zero, mostly): in powers of ten
+        return f'{value:{"+" if signed else ""}.{max(digits - 1, 0)}e} {unit}'
     if mag > 0:
         for s, pre in _PREFIXES:
             if mag >= s * 0.9995:

@@ -6,11 +6,14 @@ operation, tool and axis (:mod:`.rollup`); :func:`simulate_program` (:mod:`.simu
 whole-record form for small programs and tests. Tables out (:mod:`.exports`), what-if sweeps
 (:mod:`.sweep`) and campaigns of many runs (:mod:`.batch`, :mod:`.batchspec`) are built on it.
 :func:`phase_energy` (:mod:`.quadrature`) integrates the energy on the planned phases
-instead of on samples (issue 23: so far per axis, without declared effects or drives).
+instead of on samples, and :func:`summarize_phases` (:mod:`.phasesum`) makes the whole
+summary that way (issue 23: so far without declared effects or drives, see
+:func:`phase_covered`).
 """
 from .batch import BatchJob, JobResult, MAX_JOBS, run_batch
 from .batchspec import expand_programs, load_batch_file, make_jobs
 from .exports import EXPORT_MARKER, require_pyarrow, SeriesExporter, write_blocks, write_rollups
+from .phasesum import grid_samples, phase_covered, summarize_phases
 from .quadrature import phase_energy, PhaseEnergy
 from .simulate import (declared_effects_power_w, line_table, simulate_motion, simulate_program,
                        SimulationResult, summarize)
@@ -21,10 +24,10 @@ from .trajcsv import load_trajectory_csv
 
 __all__ = [
     'ALIASES', 'BatchJob', 'declared_effects_power_w', 'expand_gaps', 'expand_programs',
-    'EXPORT_MARKER', 'JobResult', 'line_table', 'load_batch_file', 'load_trajectory_csv',
-    'make_jobs', 'MAX_JOBS', 'parse_vary', 'phase_energy', 'PhaseEnergy', 'require_pyarrow',
-    'resolve_paths', 'run_batch',
+    'EXPORT_MARKER', 'grid_samples', 'JobResult', 'line_table', 'load_batch_file',
+    'load_trajectory_csv', 'make_jobs', 'MAX_JOBS', 'parse_vary', 'phase_covered',
+    'phase_energy', 'PhaseEnergy', 'require_pyarrow', 'resolve_paths', 'run_batch',
     'SeriesExporter', 'simulate_motion', 'simulate_program', 'simulate_stream', 'SimulationResult',
-    'streamable', 'summarize', 'sweep_rows', 'SweepRow', 'variant_machine', 'variants',
-    'write_blocks', 'write_rollups',
+    'streamable', 'summarize', 'summarize_phases', 'sweep_rows', 'SweepRow', 'variant_machine',
+    'variants', 'write_blocks', 'write_rollups',
 ]

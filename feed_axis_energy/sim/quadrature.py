@@ -26,24 +26,28 @@ energy per cause. A machine that declares effects or drives is refused with a
 """
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from ..errors import ConfigError
 from ..gcode import Move
 from ..machine import Machine, PlannerOptions
-from ..physics import (apply_braking, cause_names, cause_powers, compute_dynamics,
-                       LineEnergy)
-from ..plan import gauss_legendre, iter_window_motions, WindowMotion
+from ..physics import (apply_braking, AxisDynamics, cause_names, cause_powers,
+                       compute_dynamics, LineEnergy)
+from ..plan import gauss_legendre, iter_window_motions, Motion, WindowMotion
 
-__all__ = ['PhaseEnergy', 'phase_energy', 'PHASE_ORDER']
+__all__ = ['PhaseEnergy', 'phase_energy', 'PHASE_ORDER', 'WindowNodes', 'iter_window_nodes',
+           'check_covered', 'LineSums']
 
 PHASE_ORDER = 8
 """Gauss-Legendre nodes per piece (exact for polynomials of degree 15 in time)."""
 
 _ROOT_STEPS = 60        # at most, to find where a sign changes (usually about ten)
+_ROOT_TOL_S = 1e-10     # a sign change is found to this [s]
+_HAIR = 1e-9            # the pieces' ends are evaluated this fraction inside them
 
 
 @dataclass(frozen=True)
@@ -87,6 +91,149 @@ class PhaseEnergy:
     sign_cuts: int
 
 
+@dataclass(frozen=True)
+class WindowNodes:
+    """One planned window evaluated on its pieces (:func:`iter_window_nodes`).
+
+    Every piece has ``points`` rows, consecutive: its start (a hair inside), its ``order``
+    Gauss-Legendre nodes, its end (a hair inside). The pieces are not in time order
+    (those cut where a sign changes come last); each lies in one block.
+
+    Attributes
+    ----------
+    at
+        The window's motion (:class:`~feed_axis_energy.plan.WindowMotion`).
+    piece_a, piece_b
+        Start and end time of every piece [s], ``(p,)``.
+    motion, dyn, mechanical_w, drawn_w
+        Motion, dynamics, ``M omega`` before and power drawn after the braking rule [W] at
+        the rows, ``(p points, ...)``.
+    weight_s
+        Quadrature weight of every row [s] (0 at the pieces' ends): ``weight_s @ f`` is
+        the integral of ``f`` over the window.
+    low_j
+        Energy drawn per axis by the rule of ``order - 2`` nodes on the same pieces [J],
+        ``(k,)``: its difference from ``weight_s @ drawn_w`` estimates the error.
+    points, sign_cuts
+        Rows per piece (``order + 2``) and cuts added where a sign changes.
+    """
+
+    at: WindowMotion
+    piece_a: np.ndarray
+    piece_b: np.ndarray
+    motion: Motion
+    dyn: AxisDynamics
+    mechanical_w: np.ndarray
+    drawn_w: np.ndarray
+    weight_s: np.ndarray
+    low_j: np.ndarray
+    points: int
+    sign_cuts: int
+
+
+def check_covered(machine: Machine) -> None:
+    """Raise :class:`ConfigError` for a machine the energy by phase does not cover yet
+    (declared effects, drives or a supply: the sampled pipeline computes them)."""
+    if (machine.effects or machine.supply is not None
+            or any(a.drive is not None for a in machine.axes)):
+        raise ConfigError('energy by phase covers the machine without declared effects or '
+                          'drives so far; simulate samples them', key='effects')
+
+
+@lru_cache(maxsize=8)
+def _rule(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Row positions in ``[0, 1]`` (the ends a hair inside) and row weights (0 at the
+    ends)."""
+    x, w = gauss_legendre(order)
+    return (np.concatenate(([_HAIR], x, [1.0 - _HAIR])), np.concatenate(([0.0], w, [0.0])))
+
+
+def iter_window_nodes(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.0,
+                      options: PlannerOptions | None = None, file: str = '',
+                      order: int = PHASE_ORDER, every_sign: bool = False,
+                      on_move: Callable[[int], None] | None = None) -> Iterator[WindowNodes]:
+    """Plan ``moves`` and evaluate every window on its pieces (memory: two windows).
+
+    The pieces are cut where ``F v`` changes sign on an axis whose screw efficiency is not
+    1 and where ``M omega`` changes sign under dissipated braking (the kinks of the energy);
+    with ``every_sign`` also where ``M omega`` changes sign under any braking (the returned
+    power) and where ``v a`` does (the inertia's power: its gross share). The signs are
+    read at the rows themselves; only the pieces that are cut are evaluated again.
+
+    Raises
+    ------
+    ConfigError
+        ``order < 3``, or a machine :func:`check_covered` refuses.
+    PlanningError
+        As the planner.
+    """
+    if order < 3:
+        raise ConfigError(f'the quadrature needs at least 3 nodes per piece, got {order}',
+                          key='order')
+    check_covered(machine)
+    if options is None:
+        options = machine.planner.options()
+    limits = machine.limits()
+    axes = tuple(limits)
+    k = len(axes)
+    # only a sign that switches something is a kink: F v where the screw's efficiency is
+    # not 1 (divided or multiplied by it), M omega where braking power is cut at zero
+    eta = np.array([machine.axis(a).screw.efficiency for a in axes])
+    watch = np.concatenate((eta != 1.0,
+                            np.full(k, every_sign or machine.braking == 'dissipated'),
+                            np.full(k, every_sign)))
+    frac, wrow = _rule(order)
+    x_low, w_low = gauss_legendre(order - 2)
+    npt = order + 2
+    for at in iter_window_motions(moves, limits, options=options, file=file,
+                                  on_move=on_move):
+        a, b = at.pieces()
+        motion = at.at((a[:, None] + (b - a)[:, None] * frac).ravel())
+        dyn = compute_dynamics(motion, machine, load_kg=load_kg)
+        cuts = np.zeros(0)
+        if np.any(watch) and a.size:
+            cuts = _sign_cuts(at, motion.t.reshape(a.size, npt),
+                              _signs(dyn).reshape(a.size, npt, -1), watch, machine, load_kg)
+        if cuts.size:
+            a, b, motion = _split(at, a, b, motion, cuts, frac)
+            dyn = compute_dynamics(motion, machine, load_kg=load_kg)
+        h = b - a
+        m = dyn.torque_nm * dyn.omega_rad_s
+        low = compute_dynamics(at.at((a[:, None] + h[:, None] * x_low).ravel()), machine,
+                               load_kg=load_kg)
+        low_j = (h[:, None] * w_low).ravel() @ apply_braking(
+            low.torque_nm * low.omega_rad_s, braking=machine.braking)
+        yield WindowNodes(at=at, piece_a=a, piece_b=b, motion=motion, dyn=dyn,
+                          mechanical_w=m, drawn_w=apply_braking(m, braking=machine.braking),
+                          weight_s=(h[:, None] * wrow[None, :]).ravel(), low_j=low_j,
+                          points=npt, sign_cuts=int(cuts.size))
+
+
+def _split(at: WindowMotion, a: np.ndarray, b: np.ndarray, motion: Motion, cuts: np.ndarray,
+           frac: np.ndarray) -> tuple[np.ndarray, np.ndarray, Motion]:
+    """Cut the pieces at ``cuts`` (times inside them): the pieces not cut keep their rows,
+    the parts of those cut are evaluated and appended."""
+    npt = frac.size
+    which = np.searchsorted(a, cuts, side='right') - 1
+    hit = np.unique(which)
+    keep = np.ones(a.size, dtype=bool)
+    keep[hit] = False
+    edges = np.unique(np.concatenate((a[hit], b[hit], cuts)))
+    lo, hi = edges[:-1], edges[1:]
+    owner = np.searchsorted(a[hit], lo, side='right') - 1
+    inside = (hi > lo) & (owner >= 0) & (hi <= b[hit][np.maximum(owner, 0)])
+    lo, hi = lo[inside], hi[inside]
+    part = at.at((lo[:, None] + (hi - lo)[:, None] * frac).ravel())
+    rows = np.repeat(keep, npt)
+    joined = Motion(t=np.concatenate((motion.t[rows], part.t)), axes=motion.axes,
+                    pos=np.concatenate((motion.pos[rows], part.pos)),
+                    vel=np.concatenate((motion.vel[rows], part.vel)),
+                    acc=np.concatenate((motion.acc[rows], part.acc)),
+                    line=np.concatenate((motion.line[rows], part.line)),
+                    source=motion.source)
+    return np.concatenate((a[keep], lo)), np.concatenate((b[keep], hi)), joined
+
+
 def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.0,
                  options: PlannerOptions | None = None, file: str = '',
                  order: int = PHASE_ORDER) -> PhaseEnergy:
@@ -99,58 +246,38 @@ def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.
     PlanningError
         As the planner.
     """
-    if order < 3:
-        raise ConfigError(f'the quadrature needs at least 3 nodes per piece, got {order}',
-                          key='order')
-    if (machine.effects or machine.supply is not None
-            or any(a.drive is not None for a in machine.axes)):
-        raise ConfigError('energy by phase covers the machine without declared effects or '
-                          'drives so far; simulate samples them', key='effects')
-    if options is None:
-        options = machine.planner.options()
-    limits = machine.limits()
-    axes = tuple(limits)
+    axes = tuple(machine.limits())
     k = len(axes)
     energy = np.zeros(k)
     low = np.zeros(k)
     mech = np.zeros(k)
     duration = 0.0
     pieces = nodes = cuts_added = 0
-    lines = _ByLine(k)
+    lines = LineSums(k)
     causes = cause_names()
     by_cause = np.zeros((len(causes), k))
-    # only a sign that switches something is a kink: F v where the screw's efficiency is
-    # not 1 (divided or multiplied by it), M omega where braking power is cut at zero
-    eta = np.array([machine.axis(a).screw.efficiency for a in axes])
-    watch = np.concatenate((eta != 1.0, np.full(k, machine.braking == 'dissipated')))
-    for at in iter_window_motions(moves, limits, options=options, file=file):
-        win = at.win
-        cut = at.pieces()
-        cuts = _sign_cuts(at, cut, watch, machine, load_kg, order)
-        if cuts.size:
-            cut = at.pieces(cuts)
-        cuts_added += cuts.size
-        for rule, into in ((order, energy), (order - 2, low)):
-            chunk = at.nodes(rule, pieces=cut)
-            dyn = compute_dynamics(chunk.motion, machine, load_kg=load_kg)
-            m = dyn.torque_nm * dyn.omega_rad_s
-            drawn = apply_braking(m, braking=machine.braking)
-            into += chunk.weight_s @ drawn
-            nodes += chunk.weight_s.size
-            if rule == order:
-                mech += chunk.weight_s @ m
-                pieces += cut[0].size
-                lines.add(chunk.motion.line, chunk.weight_s, drawn)
-                by_cause += cause_powers(dyn, m, braking=machine.braking) @ chunk.weight_s
-        duration += win.t_end - win.t_begin
+    for w in iter_window_nodes(moves, machine, load_kg=load_kg, options=options, file=file,
+                               order=order):
+        weight = w.weight_s
+        energy += weight @ w.drawn_w
+        low += w.low_j
+        mech += weight @ w.mechanical_w
+        lines.add(w.motion.line, weight, w.drawn_w)
+        by_cause += cause_powers(w.dyn, w.mechanical_w, braking=machine.braking) @ weight
+        pieces += w.piece_a.size
+        nodes += weight.size
+        cuts_added += w.sign_cuts
+        duration += w.at.win.t_end - w.at.win.t_begin
     return PhaseEnergy(axes=axes, energy_j=energy, mechanical_j=mech,
-                       error_j=np.abs(energy - low), duration_s=duration, causes=causes,
-                       by_cause_j=by_cause, by_line=lines.result(axes), pieces=pieces,
-                       nodes=nodes, sign_cuts=cuts_added)
+                       error_j=np.abs(energy - low),
+                       duration_s=duration, causes=causes, by_cause_j=by_cause,
+                       by_line=lines.result(axes), pieces=pieces, nodes=nodes,
+                       sign_cuts=cuts_added)
 
 
-class _ByLine:
-    """Time and energy per axis summed by source line number (arrays grown as lines come)."""
+class LineSums:
+    """Time and energy per axis summed by source line number (arrays grown as lines come:
+    ``8 (k + 1)`` bytes per line up to the largest line number)."""
 
     def __init__(self, k: int) -> None:
         self.time = np.zeros(1024)
@@ -176,30 +303,23 @@ class _ByLine:
                           axes=axes, by_axis_j=by_axis)
 
 
-def _values(machine: Machine, load_kg: float, motion) -> np.ndarray:
-    """``F v`` and ``M omega`` per axis at the rows of ``motion``: ``(n, 2 k)`` [W]."""
-    dyn = compute_dynamics(motion, machine, load_kg=load_kg)
-    return np.hstack((dyn.force_n * dyn.velocity_m_s, dyn.torque_nm * dyn.omega_rad_s))
+def _signs(dyn: AxisDynamics) -> np.ndarray:
+    """``F v``, ``M omega`` [W] and ``v a`` [m²/s³] per axis at the rows: ``(n, 3 k)``."""
+    return np.hstack((dyn.force_n * dyn.velocity_m_s, dyn.torque_nm * dyn.omega_rad_s,
+                      dyn.velocity_m_s * dyn.acceleration_m_s2))
 
 
-def _sign_cuts(at: WindowMotion, pieces: tuple[np.ndarray, np.ndarray], watch: np.ndarray,
-               machine: Machine, load_kg: float, order: int) -> np.ndarray:
-    """Times inside ``pieces`` where ``F v`` or ``M omega`` of an axis changes sign, for the
-    columns ``watch`` (``F v`` of each axis, then ``M omega``).
+def _sign_cuts(at: WindowMotion, t: np.ndarray, g: np.ndarray, watch: np.ndarray,
+               machine: Machine, load_kg: float) -> np.ndarray:
+    """Times inside the pieces where ``F v``, ``M omega`` or ``v a`` of an axis changes sign,
+    for the columns ``watch`` (``F v`` of each axis, then ``M omega``, then ``v a``), from
+    their values ``g`` ``(p, points, 3 k)`` at the pieces' rows ``t`` ``(p, points)``.
 
-    Both are continuous inside a piece (the efficiency switches where ``F v`` is zero, so
-    ``M omega`` is zero on both sides of the switch): the bracket between two probes of
+    Each is continuous inside a piece (the efficiency switches where ``F v`` is zero, so
+    ``M omega`` is zero on both sides of the switch): the bracket between two rows of
     opposite sign is narrowed by regula falsi with the Illinois modification (superlinear;
-    a bisection step where it stalls) to the rounding of the time."""
-    a, b = pieces
-    if a.size == 0 or not np.any(watch):
-        return np.zeros(0)
-    x, _ = gauss_legendre(order)
-    # probes: each piece's ends and nodes (the ends a hair inside, on the piece's own side)
-    frac = np.concatenate(([1e-9], x, [1.0 - 1e-9]))
-    t = (a[:, None] + (b - a)[:, None] * frac[None, :])
-    g = _values(machine, load_kg, at.at(t.ravel()))
-    g = g.reshape(a.size, frac.size, -1)
+    a bisection step where it stalls) to :data:`_ROOT_TOL_S` (a cut that far off the kink
+    changes the integral by about the kink's change of slope times its square)."""
     change = (g[:, :-1, :] * g[:, 1:, :] < 0.0) & watch    # a strict change between probes
     piece, step, col = np.nonzero(change)
     if piece.size == 0:
@@ -213,13 +333,14 @@ def _sign_cuts(at: WindowMotion, pieces: tuple[np.ndarray, np.ndarray], watch: n
     side = np.zeros(lo.size, dtype=np.int8)      # which end moved last (Illinois)
     for i in range(_ROOT_STEPS):
         width = hi - lo
-        open_ = width > 4.0 * np.finfo(float).eps * np.maximum(np.abs(hi), 1.0)
+        open_ = width > np.maximum(_ROOT_TOL_S,
+                                   4.0 * np.finfo(float).eps * np.maximum(np.abs(hi), 1.0))
         if not np.any(open_):
             break
         falsi = hi - g_hi * width / (g_hi - g_lo)
         mid = np.where((i % 8 == 7) | ~np.isfinite(falsi) | (falsi <= lo) | (falsi >= hi),
                        0.5 * (lo + hi), falsi)
-        gm = _values(machine, load_kg, at.at(mid))[rows, col]
+        gm = _signs(compute_dynamics(at.at(mid), machine, load_kg=load_kg))[rows, col]
         left = gm * g_lo > 0.0                        # the root is in (mid, hi)
         hit = gm == 0.0
         lo = np.where(hit, mid, np.where(left, mid, lo))

@@ -229,6 +229,40 @@ class RollupAccumulator:
                 np.add.at(cast(np.ndarray, self.electrical)[:, c], ctxs,
                           np.add.reduceat(steps[:, c], starts))
 
+    def add_pieces(self, axes: tuple[str, ...], line: np.ndarray, energy_j: np.ndarray,
+                   duration_s: np.ndarray, axis_moving_s: np.ndarray) -> None:
+        """Take the pieces of the energy by phase (:mod:`.quadrature`), in time order: the
+        source line, energy [J] and duration [s] of each (a piece lies in one block, so
+        each goes wholly to its move's context), and the time ``(k,)`` [s] each axis
+        moved in them."""
+        if self.axis_time is None:
+            self.axes = tuple(axes)
+            self.axis_time = np.zeros(len(self.axes))
+        self.axis_time += axis_moving_s
+        line = np.asarray(line, dtype=np.int64)
+        if line.size == 0:
+            return
+        starts = np.concatenate(([0], np.nonzero(line[1:] != line[:-1])[0] + 1))
+        keys = line[starts]
+        e = np.add.reduceat(energy_j, starts)
+        d = np.add.reduceat(duration_s, starts)
+        if self._last_change <= self._popped:
+            # every note ahead has the current context (see add)
+            if self._at < len(self._lines):
+                self._ctx = self._ctx_at(self._popped)
+            self._advance_to(int(keys[-1]))
+            self._grow(self._ctx + 1)
+            self.energy[self._ctx] += float(e.sum())
+            self.duration[self._ctx] += float(d.sum())
+            return
+        ctxs = np.empty(keys.shape[0], dtype=np.int64)
+        for i, key in enumerate(keys.tolist()):
+            self._advance_to(key)
+            ctxs[i] = self._ctx
+        self._grow(int(ctxs.max()) + 1)
+        np.add.at(self.energy, ctxs, e)
+        np.add.at(self.duration, ctxs, d)
+
     def _axis_time(self, t: np.ndarray, vel: np.ndarray, t0: float, v0: np.ndarray,
                    first: bool) -> None:
         """Add the time each axis moves: the intervals with a non-zero speed at either end

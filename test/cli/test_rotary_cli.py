@@ -57,7 +57,10 @@ def test_rotary_axes_appear_in_json_csv_and_bag(tmp_path, capsys):
     assert '<td class="num">90.000 °</td>' in html and '<td class="num">20.0 mm</td>' in html
     power = bagio.read_series(tmp_path / 'bag', bagio.TOPIC_POWER)
     assert power.names == ('X', 'Y', 'Z', 'B', 'C', 'total')
-    assert math.isclose(power.positions[-1, 4], summary['energy_j']['C'], rel_tol=1e-9)
+    # the summary is by phase (rotary axes included), the recording's samples at 200 Hz
+    # approach it as the rate rises: here within 1e-4 (observed 9e-6)
+    assert summary['method'] == 'phases'
+    assert math.isclose(power.positions[-1, 4], summary['energy_j']['C'], rel_tol=1e-4)
 
 
 def test_machine_without_the_axis_refuses_then_ignores(tmp_path, capsys):

@@ -19,7 +19,8 @@ from feed_axis_energy.report.sim_report import (CAUSE_KEY, causes_by_axis,
 @pytest.mark.parametrize('value, unit, text', [
     (14213.0, 'J', '14.2 kJ'), (830.4, 'W', '830 W'), (0.0412, 'm', '41.2 mm'),
     (0.0, 'J', '0 J'), (-88.37, 'J', '-88.4 J'), (2.5e6, 'J', '2.50 MJ'),
-    (float('nan'), 'J', '–'), (float('inf'), 'W', '–')])
+    (float('nan'), 'J', '–'), (float('inf'), 'W', '–'), (4.2e-7, 'J', '420 nJ'),
+    (1.73e-17, 'J', '1.73e-17 J'), (-6e-18, 'J', '-6.00e-18 J')])
 def test_si_numbers_have_three_significant_digits_and_a_prefix(value, unit, text) -> None:
     assert fmt_si(value, unit) == text
 
