@@ -329,7 +329,7 @@ class BreakdownAccumulator:
             rw = row * w
             energy[ci, j] += float(rw.sum())
             if ci in signed:
-                gross[ci, j] += float(np.maximum(row, 0.0) @ w)
+                gross[ci, j] += float(np.einsum('i,i', np.maximum(row, 0.0), w))
             per = np.bincount(line, weights=rw, minlength=size)
             self._lines[:, j] += per
             self._lines[:, k + ci] += per

@@ -14,6 +14,8 @@ from the phase representation itself, the trapezoid sum written as a sum over ce
   the force under a screw efficiency or of the braking power): a jump ``df`` inside a cell
   adds at most ``T |df| / 2``, a kink with a slope change ``df'`` at most ``T^2 |df'| / 8``;
   the same at the program's start and end (half cells).
+* **Pieces shorter than two samples** (a sign change close to an edge, the halves of a
+  corner's ramp at low rates): computed as the corners' cells are (next item).
 * **Corners passed at speed**: near a junction the samples do not hold the model's motion
   at their times (the velocity step sits in the samples of its cycle, or in one sample at
   ``T >= cycle``, :func:`feed_axis_energy.plan.phases.apply_steps`), so the cells around it
@@ -41,7 +43,7 @@ from ..gcode import Move
 from ..machine import Machine, PlannerOptions
 from ..physics import apply_braking, compute_dynamics
 from ..plan import gauss_legendre
-from .quadrature import iter_window_nodes, PHASE_ORDER, WindowNodes
+from .quadrature import iter_window_nodes, PHASE_ORDER, weighted_sum, WindowNodes
 
 __all__ = ['SamplingBound', 'sampling_bound']
 
@@ -113,7 +115,7 @@ class _State:
 class _Window:
     """One window's pieces in time order, the drawn power at their rows and its slopes."""
 
-    def __init__(self, w: WindowNodes, order: int) -> None:
+    def __init__(self, w: WindowNodes, order: int, T: float) -> None:
         self.w = w
         self.at = w.at
         self.t_begin, self.t_end = w.at.win.t_begin, w.at.win.t_end
@@ -128,7 +130,11 @@ class _Window:
         ends = np.einsum('ij,pjk->pik', d1, c) * scale[:, None, None]
         self.df0, self.df1 = ends[:, 0, :], ends[:, 1, :]
         curv = np.abs(np.einsum('ij,pjk->pik', d2, c)).max(axis=1)
-        self.h_curv = ((self.b - self.a) * scale ** 2) @ curv      # sum h max|f''|
+        # pieces shorter than two samples: their slopes and curvature from the nodes are
+        # not what the cells see (and blow up as 1/h); their cells are computed instead
+        self.short = (self.b - self.a) < 2.0 * T
+        self.h_curv = weighted_sum(np.where(self.short, 0.0, (self.b - self.a) * scale ** 2),
+                                   curv)                           # sum h max|f''|
 
 
 def sampling_bound(moves: Iterable[Move], machine: Machine, *, rate_hz: float,
@@ -157,7 +163,7 @@ def sampling_bound(moves: Iterable[Move], machine: Machine, *, rate_hz: float,
     held: list[_Window] = []
     for w in iter_window_nodes(moves, machine, load_kg=load_kg, options=options, file=file,
                                order=order):
-        held.append(_Window(w, order))
+        held.append(_Window(w, order, T))
         if len(held) >= 2:
             _account(held, len(held) - 2, T, half_cycle, rate_hz, machine, load_kg, order,
                      parts, state)
@@ -183,7 +189,7 @@ def _account(held: list[_Window], i: int, T: float, half_cycle: float, rate: flo
              state: '_State') -> None:
     """Add window ``held[i]`` (its neighbours in ``held``) to the parts."""
     win = held[i]
-    parts['energy'] += win.w.weight_s @ win.w.drawn_w
+    parts['energy'] += weighted_sum(win.w.weight_s, win.w.drawn_w)
     parts['low'] += win.w.low_j
     parts['smooth'] += T * T / 24.0 * win.h_curv
     near = held[max(i - 1, 0):i + 2]
@@ -219,13 +225,18 @@ def _account(held: list[_Window], i: int, T: float, half_cycle: float, rate: flo
 
 
 def _runs(near: list[_Window], T: float, half_cycle: float) -> list[tuple[int, int]]:
-    """Grid index ranges ``[lo, hi]`` of the cells around the corners of ``near``, those
-    that overlap merged (one sample more on both sides than the samples that carry a step)."""
-    tc = np.sort(np.concatenate([x.at.corner_t for x in near]))
-    if tc.size == 0:
+    """Grid index ranges ``[lo, hi]`` of the cells around the corners and the pieces
+    shorter than two samples of ``near``, those that overlap merged (one sample more on both
+    sides than the samples that carry a step or touch the piece)."""
+    tc = np.concatenate([x.at.corner_t for x in near])
+    start = np.concatenate([tc - half_cycle] + [x.a[x.short] for x in near])
+    end = np.concatenate([tc + half_cycle] + [x.b[x.short] for x in near])
+    if start.size == 0:
         return []
-    lo = np.maximum(np.floor((tc - half_cycle) / T).astype(np.int64) - 1, 0)
-    hi = np.ceil((tc + half_cycle) / T).astype(np.int64) + 1
+    order = np.argsort(start, kind='stable')
+    start, end = start[order], end[order]
+    lo = np.maximum(np.floor(start / T).astype(np.int64) - 1, 0)
+    hi = np.ceil(end / T).astype(np.int64) + 1
     runs: list[tuple[int, int]] = []
     for a, b in zip(lo.tolist(), hi.tolist()):
         if runs and a <= runs[-1][1] + 1:
@@ -265,5 +276,5 @@ def _run_error(near: list[_Window], lo: int, hi: int, T: float, rate: float,
         motion = x.at.at((pa[:, None] + h[:, None] * xg).ravel())
         dyn = compute_dynamics(motion, machine, load_kg=load_kg)
         drawn = apply_braking(dyn.torque_nm * dyn.omega_rad_s, braking=machine.braking)
-        exact += (h[:, None] * wg).ravel() @ drawn
+        exact += weighted_sum((h[:, None] * wg).ravel(), drawn)
     return sampled - exact

@@ -29,7 +29,7 @@ from ..machine import Machine, PlannerOptions
 from ..physics import (add_breakdown, add_uncertainty, BreakdownAccumulator, LineEnergy,
                        UncertaintyAccumulator)
 from ..units import rate_from_interval
-from .quadrature import iter_window_nodes, LineSums, PHASE_ORDER, WindowNodes
+from .quadrature import iter_window_nodes, LineSums, PHASE_ORDER, weighted_sum, WindowNodes
 from .summary import row_sum
 
 __all__ = ['summarize_phases', 'phase_covered', 'grid_samples']
@@ -107,10 +107,10 @@ def summarize_phases(moves: Iterable[Move], machine: Machine, *, file: str = '',
     for w in iter_window_nodes(moves, machine, load_kg=load_kg, options=options, file=file,
                                order=order, every_sign=True):
         weight, dyn, mech, drawn = w.weight_s, w.dyn, w.mechanical_w, w.drawn_w
-        energy += weight @ drawn
+        energy += weighted_sum(weight, drawn)
         low += w.low_j
-        loss += float(weight @ row_sum(dyn.loss_power_w))
-        returned += float(weight @ row_sum(np.minimum(mech, 0.0)))
+        loss += float(np.einsum('n,n->', weight, row_sum(dyn.loss_power_w)))
+        returned += float(np.einsum('n,n->', weight, row_sum(np.minimum(mech, 0.0))))
         lines.add(w.motion.line, weight, drawn)
         causes.add(dyn, mech, braking=braking, weights=weight)
         if spread is not None:
@@ -167,4 +167,5 @@ def _roll(rolls: Any, w: WindowNodes, axes: tuple[str, ...], drawn: np.ndarray) 
     moving = np.any(w.motion.vel.reshape(p, npt, len(axes)) != 0.0, axis=1)
     order = np.argsort(a, kind='stable')
     h = b - a
-    rolls.add_pieces(axes, line[order], piece_e[order], h[order], h @ moving)
+    rolls.add_pieces(axes, line[order], piece_e[order], h[order],
+                     weighted_sum(h, moving.astype(float)))

@@ -40,7 +40,7 @@ from ..physics import (apply_braking, AxisDynamics, cause_names, cause_powers,
 from ..plan import gauss_legendre, iter_window_motions, Motion, WindowMotion
 
 __all__ = ['PhaseEnergy', 'phase_energy', 'PHASE_ORDER', 'WindowNodes', 'iter_window_nodes',
-           'check_covered', 'LineSums']
+           'check_covered', 'LineSums', 'weighted_sum']
 
 PHASE_ORDER = 8
 """Gauss-Legendre nodes per piece (exact for polynomials of degree 15 in time)."""
@@ -131,6 +131,12 @@ class WindowNodes:
     sign_cuts: int
 
 
+def weighted_sum(weight: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``weight @ values`` over the rows, by einsum's own loop: a threaded BLAS burns a
+    second core for nothing on these shapes (one vector against a few columns)."""
+    return np.einsum('n,nk->k', weight, values)
+
+
 def check_covered(machine: Machine) -> None:
     """Raise :class:`ConfigError` for a machine the energy by phase does not cover yet
     (declared effects, drives or a supply: the sampled pipeline computes them)."""
@@ -201,8 +207,8 @@ def iter_window_nodes(moves: Iterable[Move], machine: Machine, *, load_kg: float
         m = dyn.torque_nm * dyn.omega_rad_s
         low = compute_dynamics(at.at((a[:, None] + h[:, None] * x_low).ravel()), machine,
                                load_kg=load_kg)
-        low_j = (h[:, None] * w_low).ravel() @ apply_braking(
-            low.torque_nm * low.omega_rad_s, braking=machine.braking)
+        low_j = weighted_sum((h[:, None] * w_low).ravel(), apply_braking(
+            low.torque_nm * low.omega_rad_s, braking=machine.braking))
         yield WindowNodes(at=at, piece_a=a, piece_b=b, motion=motion, dyn=dyn,
                           mechanical_w=m, drawn_w=apply_braking(m, braking=machine.braking),
                           weight_s=(h[:, None] * wrow[None, :]).ravel(), low_j=low_j,
@@ -259,11 +265,13 @@ def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.
     for w in iter_window_nodes(moves, machine, load_kg=load_kg, options=options, file=file,
                                order=order):
         weight = w.weight_s
-        energy += weight @ w.drawn_w
+        energy += weighted_sum(weight, w.drawn_w)
         low += w.low_j
-        mech += weight @ w.mechanical_w
+        mech += weighted_sum(weight, w.mechanical_w)
         lines.add(w.motion.line, weight, w.drawn_w)
-        by_cause += cause_powers(w.dyn, w.mechanical_w, braking=machine.braking) @ weight
+        by_cause += np.einsum('ckn,n->ck',
+                              cause_powers(w.dyn, w.mechanical_w, braking=machine.braking),
+                              weight)
         pieces += w.piece_a.size
         nodes += weight.size
         cuts_added += w.sign_cuts
