@@ -38,6 +38,7 @@ sys.path.insert(0, str(ROOT))
 from feed_axis_energy.errors import FeedAxisError  # noqa: E402
 from feed_axis_energy.gcode.load import load_gcode  # noqa: E402
 from feed_axis_energy.machine.file import load_machine  # noqa: E402
+from feed_axis_energy.plan import estimate_plan  # noqa: E402
 from feed_axis_energy.sim import simulate_stream  # noqa: E402
 from feed_axis_energy.sim.bound import sampling_bound  # noqa: E402
 
@@ -46,16 +47,16 @@ def check(name: str, moves: list, machine, rates: list[float], max_seconds: floa
           tally: dict) -> bool:
     """Print one program's line per rate; return False when a difference exceeds its bound."""
     ok = True
-    duration = None
+    duration = estimate_plan(moves, machine.limits(), options=machine.planner.options(),
+                             file=name).duration_s
     for rate in rates:
+        if rate > 1000.0 and duration > max_seconds:
+            print(f'  {rate:>8.0f} Hz  skipped ({duration:.0f} s of program time)')
+            continue
         t0 = time.perf_counter()
         bound = sampling_bound(moves, machine, rate_hz=rate, file=name)
         summary, _ = simulate_stream(moves, replace(machine, planner=replace(
             machine.planner, rate_hz=rate)), file=name)
-        duration = summary['duration_s']
-        if rate > 1000.0 and duration > max_seconds:
-            print(f'  {rate:>8.0f} Hz  skipped ({duration:.0f} s of program time)')
-            continue
         sampled = np.array([summary['energy_j'][a] for a in bound.axes])
         diff = sampled - bound.energy_j
         ratio = np.max(np.abs(diff) / np.maximum(bound.bound_j, 1e-300))

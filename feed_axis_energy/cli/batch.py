@@ -16,8 +16,8 @@ import re
 import sys
 import time
 
-from feed_axis_energy.cli.common import (add_program_options, add_quiet_option, non_negative_int,
-                                         program_options)
+from feed_axis_energy.cli.common import (add_method_option, add_program_options, add_quiet_option,
+                                         non_negative_int, program_options)
 
 __all__ = ['add_parser', 'run', 'parse_loads', 'check_address', 'add_executor_options',
            'check_executor_options']
@@ -113,6 +113,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='a job needing more samples fails before it is simulated '
                         '(default 0: no limit)')
     add_program_options(p)
+    add_method_option(p)
     add_quiet_option(p)
     p.set_defaults(run=run)
 
@@ -155,7 +156,7 @@ def _jobs(args: argparse.Namespace) -> list:
         load_machine(path)
     return make_jobs(programs, machines, loads, rate_hz=rate, profile=profile,
                      top_blocks=args.top, max_samples=args.max_samples, out_dir=args.out,
-                     force=args.force, compression=args.compression,
+                     force=args.force, compression=args.compression, method=args.method,
                      **program_options(args))
 
 

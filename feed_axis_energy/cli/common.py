@@ -163,6 +163,19 @@ def apply_program_options(machine: Machine, args: argparse.Namespace) -> Machine
     return replace(machine, gcode=with_program_options(machine.gcode, **program_options(args)))
 
 
+METHOD_HELP = ('how the summary\'s figures are integrated: "phases" (default) by quadrature on '
+               'the planned motion phases, the exact figures of the model, cost by moves '
+               '(machines with declared effects or drives, trajectory CSVs: samples); '
+               '"samples" by the trapezoid rule over the samples at the machine\'s rate (what a '
+               'recording holds; differs by its discretization error)')
+
+
+def add_method_option(p: argparse.ArgumentParser) -> None:
+    """``--method phases|samples`` (the summary's ``method``)."""
+    p.add_argument('--method', choices=('phases', 'samples'), default='phases',
+                   help=METHOD_HELP)
+
+
 def add_quiet_option(p: argparse.ArgumentParser, *,
                      help_text: str = 'no progress indication') -> None:
     """``--quiet``: no progress on stderr."""

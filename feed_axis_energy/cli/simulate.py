@@ -10,8 +10,9 @@ import os
 import sys
 from pathlib import Path
 
-from feed_axis_energy.cli.common import (add_machine_options, add_quiet_option, plot_rate_option,
-                                         positive_float, positive_int, start_time_option)
+from feed_axis_energy.cli.common import (add_machine_options, add_quiet_option, METHOD_HELP,
+                                         plot_rate_option, positive_float, positive_int,
+                                         start_time_option)
 from feed_axis_energy.cli.simulate_out import (check_cost, check_start, consumers, export_targets,
                                                Exports, report_trace, staged_out, write_report)
 from feed_axis_energy.errors import ConfigError, shorten
@@ -85,13 +86,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument('--top', type=int, default=5, metavar='N',
                    help='number of most energetic blocks to list (default: 5)')
     p.add_argument('--method', choices=('phases', 'samples'), default='phases',
-                   help='how the summary\'s figures are integrated: "phases" (default) by '
-                        'quadrature on the planned motion phases, the exact figures of the '
-                        'model, cost by moves (machines with declared effects or drives, '
-                        'trajectory CSVs: samples); "samples" by the trapezoid rule over the '
-                        'samples at the machine\'s rate (what the recording holds; differs by '
-                        'its discretization error). Recordings, exports and the report\'s '
-                        'curves are samples either way')
+                   help=(METHOD_HELP + '. Recordings, exports and the report\'s curves '
+                         'are samples either way'))
     p.add_argument('--max-samples', type=int, default=0, metavar='N',
                    help='refuse programs that need more than N samples (default 0: no limit); '
                         'the count is known from the plan before any sample is computed')

@@ -15,7 +15,7 @@ from pathlib import Path
 import sys
 import time
 
-from feed_axis_energy.cli.common import add_quiet_option
+from feed_axis_energy.cli.common import add_method_option, add_quiet_option
 
 __all__ = ['add_parser', 'run']
 
@@ -78,6 +78,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         'per program with the Pareto front, and the table)')
     p.add_argument('--force', action='store_true',
                    help='replace an existing --csv file or an earlier --report')
+    add_method_option(p)
     add_quiet_option(p)
     p.set_defaults(run=run)
 
@@ -136,7 +137,8 @@ def _plan(args: argparse.Namespace):
                                  machine=machine_file, machine_path=machine_path,
                                  load_kg=run['load_kg'], rate_hz=args.rate_hz,
                                  overrides=overrides, feed_override=run['feed_override'],
-                                 rapid_override=run['rapid_override'], **reading))
+                                 rapid_override=run['rapid_override'], method=args.method,
+                                 **reading))
             labels.append((shown, values))
     return params, names, jobs, labels
 

@@ -72,6 +72,9 @@ class BatchJob:
         :func:`.sweep.apply_overrides` (a what-if variant); empty: the file as it is.
     feed_override, rapid_override
         Factors on the programmed feed and on the rapid speed (:func:`.sweep.override_moves`).
+    method
+        ``'phases'`` (default): the summary by phase (:func:`.phasesum.summarize_phases`)
+        where the machine is covered, as ``simulate``; ``'samples'``: over the samples.
     strict_tools, allow_no_feed, subroutine_path
         How the program is read, on top of the machine config's ``gcode`` settings
         (:func:`..gcode.with_program_options`; ``--strict-tools``, ``--allow-no-feed``,
@@ -98,9 +101,13 @@ class BatchJob:
     strict_tools: bool = False
     allow_no_feed: bool = False
     subroutine_path: tuple[str, ...] = ()
+    method: str = 'phases'
 
     def __post_init__(self) -> None:
         where = f'job {self.index + 1}'
+        if self.method not in ('phases', 'samples'):
+            msg = f'method must be phases or samples, got {shorten(str(self.method))!r}'
+            raise ConfigError(msg, file=where, key='method')
         if not 0.0 <= self.load_kg <= 1.0e6:      # also refuses nan and inf
             msg = f'load must be a number of 0 to 1e6 kg, got {self.load_kg!r}'
             raise ConfigError(msg, file=where, key='load_kg')
@@ -215,6 +222,7 @@ def _simulate(job: BatchJob) -> tuple[dict[str, Any], list[str]]:
 
 def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
     """Simulate one job; write its recording to the new directory ``bag`` unless None."""
+    from .phasesum import phase_covered, summarize_phases
     from .stream import simulate_stream, streamable
     machine = _machine(job)
     options = _options(job, machine)
@@ -232,6 +240,7 @@ def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
             raise PlanningError(msg, file=job.program_path)
         result = simulate_motion(motion, machine, load_kg=job.load_kg)
         summary = summarize(result, top_blocks=0)
+        summary['method'] = 'samples'
         _record_whole(job, bag, result, summary)
         return summary, []
     from ..gcode import iter_moves, Program
@@ -256,25 +265,41 @@ def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
                    f'{options.rate_hz:g} Hz), more than max_samples {job.max_samples:,}; '
                    f'a rate of {max(rate, 1e-3):.3g} Hz fits')
             raise PlanningError(msg, file=program.file)
-    if streamable(machine):
+    phased = None
+    if job.method == 'phases' and phase_covered(machine):
+        # the figures by phase (as simulate); samples only for the recording
+        phased, blocks = summarize_phases(program.moves, machine, file=program.file,
+                                          load_kg=job.load_kg, options=options,
+                                          top_blocks=job.top_blocks, rollup=True,
+                                          context=stream.context)
+    if phased is not None and bag is None:
+        summary = phased
+    elif streamable(machine):
         kw = dict(file=program.file, load_kg=job.load_kg, options=options,
                   top_blocks=job.top_blocks, total_moves=len(program.moves), limits=limits,
                   rollup=True, context=stream.context)
         if bag is None:
             summary, _ = simulate_stream(program.moves, machine, **kw)
+            summary['method'] = 'samples'
         else:
             from ..record import SimulationBagWriter
             with SimulationBagWriter(bag, compression=job.compression,
                                      rate_hz=options.rate_hz) as writer:
-                summary, blocks = simulate_stream(program.moves, machine,
-                                                  on_chunk=writer.write, chunk_gaps=True,
-                                                  **kw)
+                summary, sampled_blocks = simulate_stream(program.moves, machine,
+                                                          on_chunk=writer.write,
+                                                          chunk_gaps=True, **kw)
+                if phased is not None:
+                    summary = phased
+                else:
+                    summary['method'] = 'samples'
+                    blocks = sampled_blocks
                 summary['program'] = job.program
                 writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
     else:
         from .simulate import simulate_program, summarize
         result = simulate_program(program, machine, load_kg=job.load_kg, options=options)
         summary = summarize(result, top_blocks=job.top_blocks)
+        summary['method'] = 'samples'
         _record_whole(job, bag, result, summary)
     return summary, warnings
 

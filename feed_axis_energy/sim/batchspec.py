@@ -135,7 +135,7 @@ def make_jobs(programs: Sequence[tuple[str, str]], machines: Sequence[tuple[str,
               max_samples: int = 0, out_dir: str | os.PathLike[str] | None = None,
               force: bool = False, compression: str = 'zstd', strict_tools: bool = False,
               allow_no_feed: bool = False,
-              subroutine_path: Sequence[str] = ()) -> list[BatchJob]:
+              subroutine_path: Sequence[str] = (), method: str = 'phases') -> list[BatchJob]:
     """Every program x machine x load, program-major (program 1 on every machine first).
 
     Parameters
@@ -148,7 +148,7 @@ def make_jobs(programs: Sequence[tuple[str, str]], machines: Sequence[tuple[str,
         As :class:`.batch.BatchJob`.
     out_dir
         Directory for one recording per job, named by :func:`bag_name`; ``None``: none.
-    force, compression, strict_tools, allow_no_feed, subroutine_path
+    force, compression, strict_tools, allow_no_feed, subroutine_path, method
         As :class:`.batch.BatchJob`.
 
     Returns
@@ -183,7 +183,7 @@ def make_jobs(programs: Sequence[tuple[str, str]], machines: Sequence[tuple[str,
                              max_samples=max_samples, out=out, force=force,
                              compression=compression, strict_tools=bool(strict_tools),
                              allow_no_feed=bool(allow_no_feed),
-                             subroutine_path=tuple(subroutine_path)))
+                             subroutine_path=tuple(subroutine_path), method=method))
     return jobs
 
 

@@ -17,6 +17,7 @@ from feed_axis_energy.sim.batchspec import expand_programs, load_batch_file, mak
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.gcode.load import iter_moves
 from feed_axis_energy.machine.file import load_machine
+from feed_axis_energy.sim.phasesum import summarize_phases
 from feed_axis_energy.sim.stream import simulate_stream
 
 REPO = Path(__file__).resolve().parents[2]
@@ -73,7 +74,7 @@ def test_results_follow_job_order_not_completion_order():
 
 def test_job_equals_direct_streaming_simulation():
     path = PROGRAMS / 'three_axis_contour.nc'
-    result = run_job(_job(0, path, MILL, load_kg=50.0, top_blocks=3))
+    result = run_job(_job(0, path, MILL, load_kg=50.0, top_blocks=3, method='samples'))
     machine = load_machine(MILL)
     # as simulate's streamed path runs it: the moves read with the machine's G-code settings,
     # the roll-ups from their operation context
@@ -81,7 +82,15 @@ def test_job_equals_direct_streaming_simulation():
     ref, _ = simulate_stream(stream, machine, file=stream.file, load_kg=50.0, top_blocks=3,
                              rollup=True, context=stream.context)
     ref['program'] = 'three_axis_contour.nc'
+    ref['method'] = 'samples'
     assert result.ok and result.summary == ref
+    # by default by phase, as simulate
+    phased = run_job(_job(0, path, MILL, load_kg=50.0, top_blocks=3))
+    stream = iter_moves(path, **machine.gcode_keywords())
+    by_phase, _ = summarize_phases(stream, machine, file=stream.file, load_kg=50.0,
+                                   top_blocks=3, rollup=True, context=stream.context)
+    by_phase['program'] = 'three_axis_contour.nc'
+    assert phased.ok and phased.summary == by_phase
     # the roll-ups add up to the program's energy
     for group in ('operation', 'tool', 'subroutine'):
         items = result.summary['rollups'][group]

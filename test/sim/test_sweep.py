@@ -132,7 +132,13 @@ def test_machine_variant_equals_the_edited_file(tmp_path):
     var = _energy(tmp_path, body, overrides=(('axes.*.table_mass_kg', 2.0, True),))
     base = _energy(tmp_path, body)
     assert var['energy_j']['total'] == pytest.approx(ref['energy_j']['total'], rel=1e-12)
-    assert var['energy_j']['total'] > base['energy_j']['total']
+    assert var['peak_power_w']['total'] == pytest.approx(ref['peak_power_w']['total'],
+                                                         rel=1e-12)
+    # the heavier table asks more power to accelerate; its energy is the same (the paper's
+    # loss depends on the feed only, regenerative braking returns the kinetic energy: by
+    # phase exactly, the samples differ from it at 1e-10)
+    assert var['peak_power_w']['total'] > base['peak_power_w']['total']
+    assert var['energy_j']['total'] == pytest.approx(base['energy_j']['total'], rel=1e-12)
 
 
 def test_rapid_override_slows_rapids_only(tmp_path):
