@@ -23,7 +23,8 @@ import sys
 
 import must_run
 
-__all__ = ['REPO', 'SKIP_REASON', 'shared_candidates', 'shared_path', 'need_shared']
+__all__ = ['REPO', 'SKIP_REASON', 'shared_candidates', 'shared_path', 'need_shared',
+           'bench_corpus']
 
 REPO = Path(__file__).resolve().parents[1]
 SKIP_REASON = 'shared data not found (set FAE_SHARED to the shared directory)'
@@ -39,6 +40,19 @@ def _bench_lookup():
             name, REPO / 'bench' / 'shared_lookup.py')
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return module
+
+
+def bench_corpus():
+    """``bench/corpus.py`` (the corpus reader the benchmarks use), loaded once by path as
+    ``fae_bench_corpus``."""
+    name = 'fae_bench_corpus'
+    module = sys.modules.get(name)
+    if module is None:
+        spec = importlib.util.spec_from_file_location(name, REPO / 'bench' / 'corpus.py')
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module   # dataclasses look their module up by name
         spec.loader.exec_module(module)
     return module
 

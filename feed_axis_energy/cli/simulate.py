@@ -278,12 +278,7 @@ def _run_stream_gc(args, machine, options, progress, *, trace=None,
             moves, machine, chunk_gaps=True,
             on_chunk=consumers(None, trace, export, options.rate_hz), **kw)
     else:
-        from feed_axis_energy.record import SimulationBagWriter
-        with staged_out(args) as staged, \
-                SimulationBagWriter(staged, compression=args.compression,
-                                    rate_hz=options.rate_hz,
-                                    plot_rate_hz=args.plot_rate_hz,
-                                    start_ns=args.start_time or 0) as writer:
+        with staged_out(args) as staged, _bag_writer(args, staged, options) as writer:
             # chunk_gaps: the writer takes the left-out dwell samples as they are (record.thinning)
             summary, blocks = simulate_stream(moves, machine,
                                               on_chunk=consumers(writer, trace, export,
@@ -300,6 +295,14 @@ def _run_stream_gc(args, machine, options, progress, *, trace=None,
         warnings = moves.warnings(args)
     summary['method'] = 'samples'
     return summary, warnings, blocks
+
+
+def _bag_writer(args, staged, options):
+    """The ``--out`` recording's writer into the staged directory."""
+    from feed_axis_energy.record import SimulationBagWriter
+    return SimulationBagWriter(staged, compression=args.compression, rate_hz=options.rate_hz,
+                               plot_rate_hz=args.plot_rate_hz,
+                               start_ns=args.start_time or 0)
 
 
 def _breakdown_per_block(args, machine, export, n_lines: int) -> bool:
@@ -347,12 +350,7 @@ def _run_phases(args, machine, options, progress, *, trace=None,
         if export:
             export.write_blocks(blocks)
     else:
-        from feed_axis_energy.record import SimulationBagWriter
-        with staged_out(args) as staged, \
-                SimulationBagWriter(staged, compression=args.compression,
-                                    rate_hz=options.rate_hz,
-                                    plot_rate_hz=args.plot_rate_hz,
-                                    start_ns=args.start_time or 0) as writer:
+        with staged_out(args) as staged, _bag_writer(args, staged, options) as writer:
             simulate_stream(again, machine,
                             on_chunk=consumers(writer, trace, export, options.rate_hz), **kw)
             writer.finish(blocks, summary=summary, stamp_s=duration)

@@ -23,7 +23,7 @@ from typing import Any, cast
 import numpy as np
 
 from ..gcode import Move
-from .summary import row_sum
+from .summary import line_runs, row_sum
 
 __all__ = ['RollupAccumulator', 'NO_TOOL']
 
@@ -242,10 +242,7 @@ class RollupAccumulator:
         line = np.asarray(line, dtype=np.int64)
         if line.size == 0:
             return
-        starts = np.concatenate(([0], np.nonzero(line[1:] != line[:-1])[0] + 1))
-        keys = line[starts]
-        e = np.add.reduceat(energy_j, starts)
-        d = np.add.reduceat(duration_s, starts)
+        keys, e, d = line_runs(line, energy_j, duration_s)
         if self._last_change <= self._popped:
             # every note ahead has the current context (see add)
             if self._at < len(self._lines):

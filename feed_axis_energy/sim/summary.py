@@ -18,7 +18,7 @@ from .simulate import SimulationResult
 from ..plan import grid_interval_counts
 from ..units import rate_from_interval
 
-__all__ = ['SummaryAccumulator', 'row_sum']
+__all__ = ['SummaryAccumulator', 'row_sum', 'line_runs']
 
 
 def row_sum(a: np.ndarray) -> np.ndarray:
@@ -27,6 +27,14 @@ def row_sum(a: np.ndarray) -> np.ndarray:
     for j in range(1, a.shape[1]):
         out += a[:, j]
     return out
+
+
+def line_runs(lines: np.ndarray, *values: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Sums of ``values`` over the runs of equal consecutive ``lines``: ``(the run's line,
+    sum of each value...)``; rows come in runs of one line, so no sort is needed. ``lines``
+    must not be empty."""
+    starts = np.concatenate(([0], np.nonzero(lines[1:] != lines[:-1])[0] + 1))
+    return (lines[starts],) + tuple(np.add.reduceat(v, starts) for v in values)
 
 
 class SummaryAccumulator:
@@ -159,10 +167,7 @@ class SummaryAccumulator:
         if lines.size == 0:
             return
         # samples come in runs of one line: sum per run (no sort), then add per line
-        starts = np.concatenate(([0], np.nonzero(lines[1:] != lines[:-1])[0] + 1))
-        keys = lines[starts]
-        e = np.add.reduceat(de, starts)
-        d = np.add.reduceat(dt, starts)
+        keys, e, d = line_runs(lines, de, dt)
         top = int(keys.max())
         if top >= self._line_e.shape[0]:
             size = max(2 * self._line_e.shape[0], top + 1)

@@ -12,7 +12,6 @@ reproduces (``bench/oracle_quirks.py``); an acceptance rate of at least
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 from pathlib import Path
@@ -22,20 +21,11 @@ import textwrap
 
 import must_run
 import pytest
-from shared_data import SKIP_REASON
+from shared_data import bench_corpus, SKIP_REASON
 
 ROOT = Path(__file__).resolve().parents[2]
 
-
-def _load_bench():
-    spec = importlib.util.spec_from_file_location('fae_bench_corpus', ROOT / 'bench' / 'corpus.py')
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module   # dataclasses look their module up by name
-    spec.loader.exec_module(module)
-    return module
-
-
-corpus = _load_bench()
+corpus = bench_corpus()
 CORPUS = corpus.find_corpus()
 needs_corpus = must_run.skipif('shared', CORPUS is None,
                                f'shared corpus (corpus/gcode): {SKIP_REASON}')

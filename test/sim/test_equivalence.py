@@ -5,14 +5,12 @@ and programs of our own."""
 from __future__ import annotations
 
 from dataclasses import replace
-import importlib.util
 from pathlib import Path
-import sys
 
 import must_run
 import numpy as np
 import pytest
-from shared_data import SKIP_REASON
+from shared_data import bench_corpus, SKIP_REASON
 
 from feed_axis_energy.gcode.load import load_gcode, parse_gcode
 from feed_axis_energy.machine.file import load_machine
@@ -24,16 +22,7 @@ MILL = ROOT / 'config' / 'three_axis_mill.yaml'
 RATES = (1e3, 1e4, 1e5)
 
 
-def _load_bench():
-    spec = importlib.util.spec_from_file_location('fae_bench_corpus_eq',
-                                                  ROOT / 'bench' / 'corpus.py')
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-corpus = _load_bench()
+corpus = bench_corpus()
 CORPUS = corpus.find_corpus()
 needs_corpus = must_run.skipif('shared', CORPUS is None,
                                f'shared corpus (corpus/gcode): {SKIP_REASON}')
