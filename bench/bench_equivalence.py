@@ -122,6 +122,9 @@ def main() -> int:
                         bad.append(entry.file)
                 except FeedAxisError as err:
                     print(f'{entry.file}: refused ({err})')
+                except Exception as err:  # noqa: B902 - a crash is a finding: go on, count it
+                    print(f'{entry.file}: CRASHED ({type(err).__name__}: {err})')
+                    bad.append(entry.file)
         finally:
             links.close()
     print(f'\n{time.perf_counter() - t_start:.0f} s')

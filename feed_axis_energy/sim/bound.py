@@ -122,7 +122,7 @@ class _Window:
         idx = np.argsort(w.piece_a, kind='stable')
         self.a, self.b = w.piece_a[idx], w.piece_b[idx]
         p, npt = self.a.size, w.points
-        f = w.drawn_w.reshape(p, npt, -1)[idx]
+        f = w.drawn_w.reshape(p, npt, w.drawn_w.shape[1])[idx]
         self.f0, self.f1 = f[:, 0, :], f[:, -1, :]
         coeff, d1, d2 = _maps(order)
         c = np.einsum('ij,pjk->pik', coeff, f[:, 1:-1, :])
@@ -172,10 +172,10 @@ def sampling_bound(moves: Iterable[Move], machine: Machine, *, rate_hz: float,
     if held:
         _account(held, len(held) - 1, T, half_cycle, rate_hz, machine, load_kg, order, parts,
                  state)
-        last = held[-1]
-        # the program's end: the last sample is the end, less than T after the one before
-        # (an uneven cell: a first-order term; at rest the slope is zero)
-        parts['edges'] += T * T / 4.0 * np.abs(last.df1[-1])
+        if state.last is not None:
+            # the program's end: the last sample is the end, less than T after the one
+            # before (an uneven cell: a first-order term; at rest the slope is zero)
+            parts['edges'] += T * T / 4.0 * np.abs(state.last[1])
     quadrature = np.abs(parts['energy'] - parts['low'])
     bound = parts['smooth'] + parts['edges'] + parts['corners'] + quadrature
     return SamplingBound(axes=tuple(machine.limits()), rate_hz=float(rate_hz),
@@ -199,6 +199,8 @@ def _account(held: list[_Window], i: int, T: float, half_cycle: float, rate: flo
     for lo, hi in mine:
         parts['corners'] += np.abs(_run_error(near, lo, hi, T, rate, machine, load_kg, order))
         state.runs += 1
+    if win.a.size == 0:             # a window of no duration: no piece, no edge
+        return
     # the edges: between this window's pieces and with the previous window's last piece
     f_prev, df_prev = state.last if state.last is not None else (None, None)
     t_edge = win.a

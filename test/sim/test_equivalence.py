@@ -89,3 +89,11 @@ def test_a_bound_that_left_out_the_corners_would_not_hold() -> None:
                                               machine)[2:]]
     without = bound.bound_j - bound.corners_j
     assert np.any(np.abs(diff) > without)
+
+
+def test_a_program_that_never_moves_has_a_zero_bound() -> None:
+    """A window of zero duration (moves of zero length: nothing to cut into pieces)."""
+    bound = sampling_bound(list(parse_gcode('G21 G90\nG0 X0\nG1 X0 F100\nM2\n',
+                                            file='z.nc').moves),
+                           load_machine(MILL), rate_hz=1e3)
+    assert np.all(bound.bound_j == 0.0) and np.all(bound.energy_j == 0.0)
