@@ -25,7 +25,8 @@ from the phase representation itself, the trapezoid sum written as a sum over ce
   of overlapping cells counts.
 
 Added to it: the estimated error of the energy by phase itself (its quadrature error), so
-that the bound is of the distance to the model's exact energy.
+that the bound is of the distance to the model's exact energy, and the sums' rounding
+(:data:`ROUNDING` of the integral of ``|f|``).
 
 The bound holds for the sampled pipeline's own sums (:func:`.stream.simulate_stream`) at
 rate ``1 / T``; it is worst-case: the errors at the many edges of a program have both signs
@@ -45,7 +46,10 @@ from ..physics import apply_braking, compute_dynamics
 from ..plan import gauss_legendre
 from .quadrature import iter_window_nodes, PHASE_ORDER, weighted_sum, WindowNodes
 
-__all__ = ['SamplingBound', 'sampling_bound']
+__all__ = ['SamplingBound', 'sampling_bound', 'ROUNDING']
+
+ROUNDING = 1e-11
+"""Relative rounding allowed for the sums (of the integral of ``|f|``)."""
 
 
 @dataclass(frozen=True)
@@ -62,13 +66,17 @@ class SamplingBound:
         Energy drawn per axis by phase [J], ``(k,)``.
     bound_j
         The bound per axis [J], ``(k,)``: ``smooth_j + edges_j + corners_j +
-        quadrature_j``.
+        quadrature_j + rounding_j``.
     smooth_j, edges_j, corners_j
         The sampled sums' parts [J], ``(k,)`` (see the module docstring).
     quadrature_j
         The estimated error of the energy by phase itself [J], ``(k,)`` (difference from
         the rule with two nodes fewer): the sums converge to the model's exact energy, which
         lies within this of ``energy_j``.
+    rounding_j
+        ``1e-11`` of the integral of ``|f|`` per axis [J]: the floating-point rounding of
+        the sums (where the corners' cells are the whole difference, both sides are the same
+        number up to it).
     corners
         Runs of cells around corners computed exactly.
     """
@@ -81,6 +89,7 @@ class SamplingBound:
     edges_j: np.ndarray
     corners_j: np.ndarray
     quadrature_j: np.ndarray
+    rounding_j: np.ndarray
     corners: int
 
 
@@ -157,8 +166,8 @@ def sampling_bound(moves: Iterable[Move], machine: Machine, *, rate_hz: float,
     T = 1.0 / float(rate_hz)
     half_cycle = 0.5 * options.cycle_s
     k = len(machine.limits())
-    parts = {'energy': np.zeros(k), 'low': np.zeros(k), 'smooth': np.zeros(k),
-             'edges': np.zeros(k), 'corners': np.zeros(k)}
+    parts = {'energy': np.zeros(k), 'low': np.zeros(k), 'abs': np.zeros(k),
+             'smooth': np.zeros(k), 'edges': np.zeros(k), 'corners': np.zeros(k)}
     state = _State()
     held: list[_Window] = []
     for w in iter_window_nodes(moves, machine, load_kg=load_kg, options=options, file=file,
@@ -177,11 +186,12 @@ def sampling_bound(moves: Iterable[Move], machine: Machine, *, rate_hz: float,
             # before (an uneven cell: a first-order term; at rest the slope is zero)
             parts['edges'] += T * T / 4.0 * np.abs(state.last[1])
     quadrature = np.abs(parts['energy'] - parts['low'])
-    bound = parts['smooth'] + parts['edges'] + parts['corners'] + quadrature
+    rounding = ROUNDING * parts['abs']
+    bound = parts['smooth'] + parts['edges'] + parts['corners'] + quadrature + rounding
     return SamplingBound(axes=tuple(machine.limits()), rate_hz=float(rate_hz),
                          energy_j=parts['energy'], bound_j=bound, smooth_j=parts['smooth'],
                          edges_j=parts['edges'], corners_j=parts['corners'],
-                         quadrature_j=quadrature, corners=state.runs)
+                         quadrature_j=quadrature, rounding_j=rounding, corners=state.runs)
 
 
 def _account(held: list[_Window], i: int, T: float, half_cycle: float, rate: float,
@@ -191,6 +201,7 @@ def _account(held: list[_Window], i: int, T: float, half_cycle: float, rate: flo
     win = held[i]
     parts['energy'] += weighted_sum(win.w.weight_s, win.w.drawn_w)
     parts['low'] += win.w.low_j
+    parts['abs'] += weighted_sum(win.w.weight_s, np.abs(win.w.drawn_w))
     parts['smooth'] += T * T / 24.0 * win.h_curv
     near = held[max(i - 1, 0):i + 2]
     runs = _runs(near, T, half_cycle)
