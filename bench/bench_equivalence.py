@@ -107,14 +107,16 @@ def main() -> int:
         print('no corpus (../shared/corpus/gcode)', file=sys.stderr)
     else:
         links = corpus_tools.SubroutineLinks()
+        known = corpus_tools.known_dialects()
         try:
             for entry in corpus_tools.load_corpus(root):
                 if (not entry.reference_accepts or entry.rotary
                         or args.only not in entry.file):
                     continue
                 path = root / entry.file
-                kw = corpus_tools._parse_keywords(entry.dialect,
-                                                  [links.for_folder(path.parent)])
+                # as bench/corpus.py reads it: the program's dialect where we know it
+                kw = corpus_tools._parse_keywords(corpus_tools._dialect_for(entry, known),
+                                                  [links.for_folder(path.parent), path.parent])
                 try:
                     moves = list(load_gcode(path, **kw).moves)
                     print(entry.file)

@@ -281,15 +281,25 @@ def format_table(header: list[str], rows: list[list[str]]) -> str:
     return '\n'.join(line.rstrip() for line in lines)
 
 
+def _quadrature_words(summary: dict) -> str:
+    """The quadrature's estimated error as the power of ten above it, relative to the energy
+    (its own digits are rounding noise)."""
+    error = float(summary.get('quadrature_error_j', {}).get('total', 0.0))
+    energy = abs(float(summary['energy_j'].get('total', 0.0)))
+    if energy <= 0.0:
+        return f'estimated quadrature error {error:.1g} J'
+    exponent = max(math.ceil(math.log10(max(error / energy, 1e-16))), -16)
+    return f'estimated quadrature error below 1e{exponent} of the energy'
+
+
 def print_summary(summary: dict, *, source_lines: Mapping[int, str]) -> None:
     """Print a simulation summary (see README for the keys) as readable tables."""
     print(f'program   {summary["program"]}')
     print(f'machine   {summary["machine"]} (braking: {summary["braking"]})')
     print(f'load      {summary["load_kg"]:.3f} kg')
     if summary.get('method') == 'phases':
-        error = summary.get('quadrature_error_j', {}).get('total', 0.0)
-        print(f'duration  {summary["duration_s"]:.3f} s   (integrated by phase, estimated '
-              f'quadrature error {error:.2g} J; a recording at {summary["rate_hz"]:g} Hz '
+        print(f'duration  {summary["duration_s"]:.3f} s   (integrated by phase, '
+              f'{_quadrature_words(summary)}; a recording at {summary["rate_hz"]:g} Hz '
               f'holds {summary["samples"]} samples)')
     else:
         print(f'duration  {summary["duration_s"]:.3f} s   '

@@ -61,7 +61,8 @@ def test_corpus_programs_sampled_within_the_bound_of_the_energy_by_phase(name) -
     path = CORPUS / name
     links = corpus.SubroutineLinks()
     try:
-        kw = corpus._parse_keywords(entry.dialect, [links.for_folder(path.parent)])
+        kw = corpus._parse_keywords(corpus._dialect_for(entry, corpus.known_dialects()),
+                                    [links.for_folder(path.parent), path.parent])
         moves = list(load_gcode(path, **kw).moves)
     finally:
         links.close()
