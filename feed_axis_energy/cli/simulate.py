@@ -321,7 +321,8 @@ def _run_phases(args, machine, options, progress, *, trace=None,
     samples only for the recording, the exports and the report's curves, in a second pass
     that reads the program again."""
     from types import SimpleNamespace
-    from feed_axis_energy.sim import grid_samples, simulate_stream, summarize_phases
+    from feed_axis_energy.plan import grid_samples
+    from feed_axis_energy.sim import simulate_stream, summarize_phases
     n_lines = _count_lines(args.program)
     outputs = args.out is not None or trace is not None or bool(export)
     moves = _Moves(args, machine, check=True, progress=progress, n_lines=n_lines)

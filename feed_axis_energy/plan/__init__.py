@@ -13,11 +13,12 @@ from .motion import Motion
 from .nodes import gauss_legendre, iter_nodes, iter_window_motions, NodeChunk, WindowMotion
 from .segments import line_speed_limits
 from .standstill import grid_interval_counts
-from .stream import DEFAULT_CHUNK_SAMPLES, estimate_plan, iter_motion, iter_plan
+from .stream import DEFAULT_CHUNK_SAMPLES, estimate_plan, grid_samples, iter_motion, iter_plan
 from .trajectory import plan
 
 __all__ = [
     'DEFAULT_CHUNK_SAMPLES', 'estimate_plan', 'gauss_legendre', 'grid_interval_counts',
+    'grid_samples',
     'iter_motion', 'iter_nodes', 'iter_plan', 'iter_window_motions', 'line_speed_limits', 'Motion',
     'motion_from_samples', 'NodeChunk', 'plan', 'WindowMotion',
 ]

@@ -8,12 +8,12 @@ them; the cursor skips the interior of standstill phases, which become ``Motion.
 """
 from __future__ import annotations
 
-import numpy as np
-
 from typing import NamedTuple
 
+import numpy as np
+
 from .motion import Motion
-from .phases import apply_steps, BlockLocator, PlannedWindow, sample_phases, step_index
+from .phases import BlockLocator, give_steps, PlannedWindow, sample_phases
 
 __all__ = ['Chunk', 'GridCursor', 'PendingSteps', 'WindowSampler']
 
@@ -102,14 +102,10 @@ class Chunk:
             return steps
         sel = np.nonzero(ready)[0]
         upto = np.minimum(steps.hi[sel], last)
-        part, index = step_index(steps.next[sel], upto)
-        rows = np.minimum(np.searchsorted(held, index), self.fill - 1)
-        here = held[rows] == index            # a sample left out (standstill) carries nothing
-        s = sel[part[here]]
         fill = self.fill
-        apply_steps(self.t[:fill], rows[here], index[here], steps.lo[s], steps.hi[s],
-                    steps.tc[s], steps.dv[s], sample_s, vel=self.vel[:fill],
-                    acc=self.acc[:fill])
+        give_steps(self.t[:fill], held, steps.lo[sel], steps.hi[sel], steps.tc[sel],
+                   steps.dv[sel], sample_s, vel=self.vel[:fill], acc=self.acc[:fill],
+                   first=steps.next[sel], last=upto)
         moved = steps.next.copy()
         moved[sel] = upto + 1
         left = PendingSteps(steps.lo, steps.hi, steps.tc, steps.dv, moved)

@@ -41,8 +41,8 @@ from ..gcode import Move
 from ..machine import AxisLimits, PlannerOptions
 from .chunks import WindowSampler
 from .motion import Motion
-from .phases import (apply_steps, corner_terms, junction_times, path_times, PlannedWindow,
-                     sample_phases, step_index, step_rows, window_corners)
+from .phases import (corner_terms, give_steps, junction_times, path_times, PlannedWindow,
+                     sample_phases, step_rows, window_corners)
 from .segments import ARC, PLAN_AXES
 from .stream import iter_plan
 
@@ -117,8 +117,7 @@ class WindowMotion:
                                       _arc_turns(win, self.cols),
                                       np.array([win.t_begin, win.t_end])))
         t_j, v_j, tan_in, tan_out = window_corners(win, *self._junctions)
-        _, self.corner_t, self.corner_dv = corner_terms(t_j, v_j, tan_in, tan_out, self.cols,
-                                                        1.0)
+        self.corner_t, self.corner_dv = corner_terms(t_j, v_j, tan_in, tan_out, self.cols)
         self._ramp_start = np.zeros(0)
         self._ramp_t = np.zeros(0)
         self._ramp_dv = np.zeros((0, len(self.cols)))
@@ -170,15 +169,10 @@ class WindowMotion:
         t = index / rate_hz
         motion = self.at(t, ramps=False)
         tc, dv, cycle = self.ramps
-        if tc.size and index.size:
+        if tc.size:
             sample_s = 1.0 / rate_hz
-            lo, hi = step_rows(tc, sample_s, cycle)
-            step, idx = step_index(lo, hi)
-            rows = np.minimum(np.searchsorted(index, idx), index.size - 1)
-            ok = index[rows] == idx
-            s = step[ok]
-            apply_steps(t, rows[ok], idx[ok], lo[s], hi[s], tc[s], dv[s], sample_s,
-                        vel=motion.vel, acc=motion.acc)
+            give_steps(t, index, *step_rows(tc, sample_s, cycle), tc, dv, sample_s,
+                       vel=motion.vel, acc=motion.acc)
         return motion
 
     def _add_ramps(self, t: np.ndarray, vel: np.ndarray, acc: np.ndarray) -> None:

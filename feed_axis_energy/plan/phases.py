@@ -147,17 +147,13 @@ def path_times(group: np.ndarray, target: np.ndarray,
 
 
 def corner_terms(t_junction: np.ndarray, v_junction: np.ndarray, tan_in: np.ndarray,
-                 tan_out: np.ndarray, cols: list[int],
-                 sample_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Velocity steps of the non-tangent junctions passed at speed: ``(index, time, dv)``.
-
-    ``index`` is the sample nearest to the junction (``rint(t / T)``, not yet clipped to the
-    last sample), ``dv`` the per-axis step ``(h, len(cols))``.
+                 tan_out: np.ndarray, cols: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Velocity steps of the non-tangent junctions passed at speed: ``(time, dv)``, ``dv``
+    the per-axis step ``(h, len(cols))``; the samples that carry them: :func:`step_rows`.
     """
     dv = v_junction[:, None] * (tan_out - tan_in)[:, cols]
     hit = np.nonzero((v_junction > 0.0) & np.any(dv != 0.0, axis=1))[0]
-    tc = t_junction[hit]
-    return np.rint(tc / sample_s).astype(np.int64), tc, dv[hit]
+    return t_junction[hit], dv[hit]
 
 
 def step_rows(tc: np.ndarray, sample_s: float,
@@ -207,6 +203,24 @@ def apply_steps(t: np.ndarray, rows: np.ndarray, index: np.ndarray, lo: np.ndarr
     np.add.at(acc, rows, dv * (1.0 / (n * sample_s))[:, None])
 
 
+def give_steps(t: np.ndarray, index: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+               tc: np.ndarray, dv: np.ndarray, sample_s: float, *, vel: np.ndarray,
+               acc: np.ndarray, first: np.ndarray | None = None,
+               last: np.ndarray | None = None) -> None:
+    """Give the steps (carried by the grid samples ``lo..hi`` each, :func:`step_rows`) their
+    shares in the rows of ``t``, ``vel``, ``acc`` whose grid indices are ``index`` (sorted):
+    for the grid indices ``first..last`` of each step (default ``lo..hi``); a grid index
+    without a row (a standstill sample left out) gets nothing (:func:`apply_steps`)."""
+    step, grid = step_index(lo if first is None else first, hi if last is None else last)
+    if grid.size == 0 or index.size == 0:
+        return
+    rows = np.minimum(np.searchsorted(index, grid), index.size - 1)
+    here = index[rows] == grid
+    s = step[here]
+    apply_steps(t, rows[here], grid[here], lo[s], hi[s], tc[s], dv[s], sample_s, vel=vel,
+                acc=acc)
+
+
 def corner_steps(t: np.ndarray, t_junction: np.ndarray, v_junction: np.ndarray,
                  geo: SegmentGeometry, cols: list[int], sample_s: float, cycle_s: float, *,
                  vel: np.ndarray, acc: np.ndarray) -> None:
@@ -214,16 +228,13 @@ def corner_steps(t: np.ndarray, t_junction: np.ndarray, v_junction: np.ndarray,
     on the whole grid ``t`` (sample ``i`` at grid index ``i``): :func:`step_rows`,
     :func:`apply_steps`.
     """
-    _idx, tc, dv = corner_terms(t_junction, v_junction, geo.tan1[:-1], geo.tan0[1:], cols,
-                                sample_s)
+    tc, dv = corner_terms(t_junction, v_junction, geo.tan1[:-1], geo.tan0[1:], cols)
     if tc.size == 0:
         return
     top = t.size - 1
     lo, hi = step_rows(tc, sample_s, cycle_s)
-    lo, hi = np.clip(lo, 0, top), np.clip(hi, 0, top)
-    step, index = step_index(lo, hi)
-    apply_steps(t, index, index, lo[step], hi[step], tc[step], dv[step], sample_s, vel=vel,
-                acc=acc)
+    give_steps(t, np.arange(t.size), np.clip(lo, 0, top), np.clip(hi, 0, top), tc, dv,
+               sample_s, vel=vel, acc=acc)
 
 
 def sample_phases(t: np.ndarray, k: np.ndarray, phases: tuple[np.ndarray, ...],

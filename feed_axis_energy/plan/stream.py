@@ -51,7 +51,7 @@ from .trajectory import limits_array, rest_rotary
 from ..machine import AxisLimits, PlannerOptions
 
 __all__ = ['DEFAULT_CHUNK_SAMPLES', 'WINDOW_BLOCKS', 'iter_plan',
-           'iter_motion', 'concat_motion', 'PlanEstimate', 'estimate_plan']
+           'iter_motion', 'concat_motion', 'PlanEstimate', 'estimate_plan', 'grid_samples']
 
 DEFAULT_CHUNK_SAMPLES = 1 << 16   # samples per Motion chunk (65 536: 65.5 s at 1 kHz)
 WINDOW_BLOCKS = 4096              # blocks read before the first commit attempt of a window
@@ -283,7 +283,7 @@ def iter_motion(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
         any_window = True
         t_j, v_j, tan_in, tan_out = window_corners(
             win, *junction_times(win.groups, win.t_start, win.groups.v_junction, win.phases))
-        _idx, tc, dv = corner_terms(t_j, v_j, tan_in, tan_out, cols, sample_s)
+        tc, dv = corner_terms(t_j, v_j, tan_in, tan_out, cols)
         steps = steps.join(*step_rows(tc, sample_s, cycle_s), tc, dv)
         t_end = win.t_end
         t_last = None
@@ -408,7 +408,13 @@ def estimate_plan(moves: Iterable[Move], limits: Mapping[str, AxisLimits], *,
     t_end = 0.0
     for win in iter_plan(moves, limits, options=options, file=file, on_move=on_move):
         t_end = win.t_end
-    rate = options.rate_hz
-    n_last = int(math.floor(t_end * rate + 1e-9))
-    samples = n_last + 1 + (1 if t_end - n_last / rate > 1e-9 else 0)
-    return PlanEstimate(duration_s=t_end, samples=samples, moves=count[0])
+    return PlanEstimate(duration_s=t_end, samples=grid_samples(t_end, options.rate_hz),
+                        moves=count[0])
+
+
+def grid_samples(duration_s: float, rate_hz: float) -> int:
+    """Samples of the uniform grid of ``rate_hz`` over ``duration_s`` with the program end
+    as the last sample, as :func:`iter_motion` makes them (one more where the end is not on
+    the grid)."""
+    n_last = int(math.floor(duration_s * rate_hz + 1e-9))
+    return n_last + 1 + (1 if duration_s - n_last / rate_hz > 1e-9 else 0)

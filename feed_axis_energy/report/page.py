@@ -67,12 +67,8 @@ def fmt_si(value: float | None, unit: str, *, digits: int = 3, signed: bool = Fa
         # below the smallest prefix (rounding noise of a zero, mostly): in powers of ten
         return f'{value:{"+" if signed else ""}.{max(digits - 1, 0)}e} {unit}'
     if mag > 0:
-        for s, pre in _PREFIXES:
-            if mag >= s * 0.9995:
-                scale, prefix = s, pre
-                break
-        else:
-            scale, prefix = _PREFIXES[-1]
+        # the first that fits: the smallest fits every magnitude left here
+        scale, prefix = next((s, pre) for s, pre in _PREFIXES if mag >= s * 0.9995)
     x = value / scale
     decimals = max(0, digits - 1 - int(math.floor(math.log10(abs(x))))) if x else 0
     sign = '+' if signed and value > 0 else ''

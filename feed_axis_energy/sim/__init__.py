@@ -13,8 +13,8 @@ summary that way (issue 23: so far without declared effects or drives, see
 from .batch import BatchJob, JobResult, MAX_JOBS, run_batch
 from .batchspec import expand_programs, load_batch_file, make_jobs
 from .exports import EXPORT_MARKER, require_pyarrow, SeriesExporter, write_blocks, write_rollups
-from .phasesum import grid_samples, phase_covered, summarize_phases
-from .quadrature import phase_energy, PhaseEnergy
+from .phasesum import summarize_phases
+from .quadrature import phase_covered, phase_energy, PhaseEnergy
 from .simulate import (declared_effects_power_w, line_table, simulate_motion, simulate_program,
                        SimulationResult, summarize)
 from .stream import expand_gaps, simulate_stream, streamable
@@ -24,7 +24,7 @@ from .trajcsv import load_trajectory_csv
 
 __all__ = [
     'ALIASES', 'BatchJob', 'declared_effects_power_w', 'expand_gaps', 'expand_programs',
-    'EXPORT_MARKER', 'grid_samples', 'JobResult', 'line_table', 'load_batch_file',
+    'EXPORT_MARKER', 'JobResult', 'line_table', 'load_batch_file',
     'load_trajectory_csv', 'make_jobs', 'MAX_JOBS', 'parse_vary', 'phase_covered',
     'phase_energy', 'PhaseEnergy', 'require_pyarrow', 'resolve_paths', 'run_batch',
     'SeriesExporter', 'simulate_motion', 'simulate_program', 'simulate_stream', 'SimulationResult',

@@ -222,7 +222,8 @@ def _simulate(job: BatchJob) -> tuple[dict[str, Any], list[str]]:
 
 def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
     """Simulate one job; write its recording to the new directory ``bag`` unless None."""
-    from .phasesum import phase_covered, summarize_phases
+    from .phasesum import summarize_phases
+    from .quadrature import phase_covered
     from .stream import simulate_stream, streamable
     machine = _machine(job)
     options = _options(job, machine)

@@ -28,25 +28,12 @@ from ..gcode import Move
 from ..machine import Machine, PlannerOptions
 from ..physics import (add_breakdown, add_uncertainty, BreakdownAccumulator, LineEnergy,
                        UncertaintyAccumulator)
+from ..plan import grid_samples
 from ..units import rate_from_interval
 from .quadrature import iter_window_nodes, LineSums, PHASE_ORDER, weighted_sum, WindowNodes
 from .summary import row_sum
 
-__all__ = ['summarize_phases', 'phase_covered', 'grid_samples']
-
-
-def phase_covered(machine: Machine) -> bool:
-    """True when the summary by phase covers ``machine`` (no declared effects, drives or
-    supply: those are sampled)."""
-    return not (machine.effects or machine.supply is not None
-                or any(a.drive is not None for a in machine.axes))
-
-
-def grid_samples(duration_s: float, rate_hz: float) -> int:
-    """Samples of the uniform grid of ``rate_hz`` over ``duration_s`` with the program end
-    as the last sample (as the sampled pipeline makes them)."""
-    n_last = int(np.floor(duration_s * rate_hz + 1e-9))
-    return n_last + 1 + (1 if duration_s - n_last / rate_hz > 1e-9 else 0)
+__all__ = ['summarize_phases']
 
 
 class _Peaks:
@@ -83,7 +70,7 @@ def summarize_phases(moves: Iterable[Move], machine: Machine, *, file: str = '',
     Raises
     ------
     ConfigError
-        A machine :func:`phase_covered` refuses.
+        A machine :func:`.quadrature.phase_covered` refuses.
     PlanningError
         As the planner.
     """

@@ -40,7 +40,7 @@ from ..physics import (apply_braking, AxisDynamics, cause_names, cause_powers,
 from ..plan import gauss_legendre, iter_window_motions, Motion, WindowMotion
 
 __all__ = ['PhaseEnergy', 'phase_energy', 'PHASE_ORDER', 'WindowNodes', 'iter_window_nodes',
-           'check_covered', 'LineSums', 'weighted_sum']
+           'phase_covered', 'LineSums', 'weighted_sum']
 
 PHASE_ORDER = 8
 """Gauss-Legendre nodes per piece (exact for polynomials of degree 15 in time)."""
@@ -137,11 +137,16 @@ def weighted_sum(weight: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.einsum('n,nk->k', weight, values)
 
 
-def check_covered(machine: Machine) -> None:
-    """Raise :class:`ConfigError` for a machine the energy by phase does not cover yet
-    (declared effects, drives or a supply: the sampled pipeline computes them)."""
-    if (machine.effects or machine.supply is not None
-            or any(a.drive is not None for a in machine.axes)):
+def phase_covered(machine: Machine) -> bool:
+    """True when the energy by phase covers ``machine``: no declared effects, drives or
+    supply (the sampled pipeline computes those)."""
+    return not (machine.effects or machine.supply is not None
+                or any(a.drive is not None for a in machine.axes))
+
+
+def _check_covered(machine: Machine) -> None:
+    """Raise :class:`ConfigError` for a machine :func:`phase_covered` refuses."""
+    if not phase_covered(machine):
         raise ConfigError('energy by phase covers the machine without declared effects or '
                           'drives so far; simulate samples them', key='effects')
 
@@ -169,14 +174,14 @@ def iter_window_nodes(moves: Iterable[Move], machine: Machine, *, load_kg: float
     Raises
     ------
     ConfigError
-        ``order < 3``, or a machine :func:`check_covered` refuses.
+        ``order < 3``, or a machine :func:`phase_covered` refuses.
     PlanningError
         As the planner.
     """
     if order < 3:
         raise ConfigError(f'the quadrature needs at least 3 nodes per piece, got {order}',
                           key='order')
-    check_covered(machine)
+    _check_covered(machine)
     if options is None:
         options = machine.planner.options()
     limits = machine.limits()
