@@ -322,7 +322,7 @@ def _run_phases(args, machine, options, progress, *, trace=None,
     that reads the program again."""
     from types import SimpleNamespace
     from feed_axis_energy.plan import grid_samples
-    from feed_axis_energy.sim import simulate_stream, summarize_phases
+    from feed_axis_energy.sim import sample_chunks, summarize_phases
     n_lines = _count_lines(args.program)
     outputs = args.out is not None or trace is not None or bool(export)
     moves = _Moves(args, machine, check=True, progress=progress, n_lines=n_lines)
@@ -343,17 +343,20 @@ def _run_phases(args, machine, options, progress, *, trace=None,
     from feed_axis_energy.cli.progress import Progress
     progress = Progress('simulate samples', enabled=progress.enabled)
     again = _Moves(args, machine, check=False)
-    kw = dict(file=again.file, load_kg=args.load_kg, options=options, top_blocks=0,
-              duration_s=duration, progress=progress, chunk_gaps=True)
+    # the chunks as computed (dwells left out; the exporter expands them, see consumers)
+    chunks = sample_chunks(again, machine, file=again.file, load_kg=args.load_kg,
+                           options=options, duration_s=duration, progress=progress)
     if args.out is None:
-        simulate_stream(again, machine, on_chunk=consumers(None, trace, export, options.rate_hz),
-                        **kw)
+        take = consumers(None, trace, export, options.rate_hz)
+        for chunk in chunks:
+            take(chunk)
         if export:
             export.write_blocks(blocks)
     else:
         with staged_out(args) as staged, _bag_writer(args, staged, options) as writer:
-            simulate_stream(again, machine,
-                            on_chunk=consumers(writer, trace, export, options.rate_hz), **kw)
+            take = consumers(writer, trace, export, options.rate_hz)
+            for chunk in chunks:
+                take(chunk)
             writer.finish(blocks, summary=summary, stamp_s=duration)
             if export:
                 export.write_blocks(blocks)

@@ -17,7 +17,7 @@ from .phasesum import summarize_phases
 from .quadrature import phase_covered, phase_energy, PhaseEnergy
 from .simulate import (declared_effects_power_w, line_table, simulate_motion, simulate_program,
                        SimulationResult, summarize)
-from .stream import expand_gaps, simulate_stream, streamable
+from .stream import expand_gaps, sample_chunks, simulate_stream, streamable
 from .sweep import (ALIASES, parse_vary, resolve_paths, sweep_rows, SweepRow, variant_machine,
                     variants)
 from .trajcsv import load_trajectory_csv
@@ -27,6 +27,7 @@ __all__ = [
     'EXPORT_MARKER', 'JobResult', 'line_table', 'load_batch_file',
     'load_trajectory_csv', 'make_jobs', 'MAX_JOBS', 'parse_vary', 'phase_covered',
     'phase_energy', 'PhaseEnergy', 'require_pyarrow', 'resolve_paths', 'run_batch',
+    'sample_chunks',
     'SeriesExporter', 'simulate_motion', 'simulate_program', 'simulate_stream', 'SimulationResult',
     'streamable', 'summarize', 'summarize_phases', 'sweep_rows', 'SweepRow', 'variant_machine',
     'variants', 'write_blocks', 'write_rollups',

@@ -224,7 +224,7 @@ def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
     """Simulate one job; write its recording to the new directory ``bag`` unless None."""
     from .phasesum import summarize_phases
     from .quadrature import phase_covered
-    from .stream import simulate_stream, streamable
+    from .stream import sample_chunks, simulate_stream, streamable
     machine = _machine(job)
     options = _options(job, machine)
     if job.program_path.lower().endswith('.csv'):
@@ -266,15 +266,22 @@ def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
                    f'{options.rate_hz:g} Hz), more than max_samples {job.max_samples:,}; '
                    f'a rate of {max(rate, 1e-3):.3g} Hz fits')
             raise PlanningError(msg, file=program.file)
-    phased = None
     if job.method == 'phases' and phase_covered(machine):
         # the figures by phase (as simulate); samples only for the recording
-        phased, blocks = summarize_phases(program.moves, machine, file=program.file,
-                                          load_kg=job.load_kg, options=options,
-                                          top_blocks=job.top_blocks, rollup=True,
-                                          context=stream.context)
-    if phased is not None and bag is None:
-        summary = phased
+        summary, blocks = summarize_phases(program.moves, machine, file=program.file,
+                                           load_kg=job.load_kg, options=options,
+                                           top_blocks=job.top_blocks, rollup=True,
+                                           context=stream.context)
+        if bag is not None:
+            from ..record import SimulationBagWriter
+            with SimulationBagWriter(bag, compression=job.compression,
+                                     rate_hz=options.rate_hz) as writer:
+                for chunk in sample_chunks(program.moves, machine, file=program.file,
+                                           load_kg=job.load_kg, options=options,
+                                           total_moves=len(program.moves), limits=limits):
+                    writer.write(chunk)
+                summary['program'] = job.program
+                writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
     elif streamable(machine):
         kw = dict(file=program.file, load_kg=job.load_kg, options=options,
                   top_blocks=job.top_blocks, total_moves=len(program.moves), limits=limits,
@@ -286,14 +293,10 @@ def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
             from ..record import SimulationBagWriter
             with SimulationBagWriter(bag, compression=job.compression,
                                      rate_hz=options.rate_hz) as writer:
-                summary, sampled_blocks = simulate_stream(program.moves, machine,
-                                                          on_chunk=writer.write,
-                                                          chunk_gaps=True, **kw)
-                if phased is not None:
-                    summary = phased
-                else:
-                    summary['method'] = 'samples'
-                    blocks = sampled_blocks
+                summary, blocks = simulate_stream(program.moves, machine,
+                                                  on_chunk=writer.write, chunk_gaps=True,
+                                                  **kw)
+                summary['method'] = 'samples'
                 summary['program'] = job.program
                 writer.finish(blocks, summary=summary, stamp_s=summary['duration_s'])
     else:

@@ -25,8 +25,8 @@ from ..gcode import Move
 from .summary import row_sum, SummaryAccumulator
 from .simulate import declared_effects_parts, SimulationResult, sum_effect_parts
 
-__all__ = ['streamable', 'compactable', 'iter_simulation', 'expand_gaps', 'simulate_stream',
-           'COMPACT_MIN_SAMPLES']
+__all__ = ['streamable', 'compactable', 'iter_simulation', 'expand_gaps', 'sample_chunks',
+           'simulate_stream', 'COMPACT_MIN_SAMPLES']
 
 COMPACT_MIN_SAMPLES = 64    # standstill phases with more samples are left out of the rows
 
@@ -197,6 +197,27 @@ def expand_gaps(chunk: SimulationResult, *, rate_hz: float,
         yield replace(chunk, motion=motion, dynamics=dynamics, power=replace(pw, **rows))
 
 
+def sample_chunks(moves: Iterable[Move], machine: Machine, *, file: str = '',
+                  load_kg: float = 0.0, options: PlannerOptions | None = None,
+                  chunk_samples: int = DEFAULT_CHUNK_SAMPLES, total_moves: int | None = None,
+                  duration_s: float | None = None,
+                  progress: Callable[[float], None] | None = None,
+                  limits: Mapping | None = None,
+                  compact: bool = True) -> Iterator[SimulationResult]:
+    """The sampled simulation's chunks as computed (standstill interiors left out where
+    :func:`compactable` allows and ``compact``; ``Motion.gaps``), without a summary: for a
+    recording or an export beside the summary by phase. Parameters as
+    :func:`simulate_stream`."""
+    if options is None:
+        options = machine.planner.options()
+    compact_min = COMPACT_MIN_SAMPLES if compact and compactable(machine) else 0
+    motions = iter_motion(moves, machine.limits() if limits is None else limits,
+                          options=options, file=file, chunk_samples=chunk_samples,
+                          total_moves=total_moves, duration_s=duration_s,
+                          progress=progress, compact_min_samples=compact_min)
+    return iter_simulation(motions, machine, load_kg=load_kg, program=file)
+
+
 def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
                     load_kg: float = 0.0, options: PlannerOptions | None = None,
                     top_blocks: int = 5, chunk_samples: int = DEFAULT_CHUNK_SAMPLES,
@@ -267,7 +288,6 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
     """
     if options is None:
         options = machine.planner.options()
-    compact_min = COMPACT_MIN_SAMPLES if compact and compactable(machine) else 0
     rate = options.rate_hz
     acc = SummaryAccumulator(rate_hz=rate, block_breakdown=block_breakdown)
     rolls = None
@@ -275,11 +295,10 @@ def simulate_stream(moves: Iterable[Move], machine: Machine, *, file: str = '',
         from .rollup import RollupAccumulator
         rolls = RollupAccumulator(context)
         moves = rolls.wrap(moves)
-    motions = iter_motion(moves, machine.limits() if limits is None else limits,
-                          options=options, file=file, chunk_samples=chunk_samples,
-                          total_moves=total_moves, duration_s=duration_s,
-                          progress=progress, compact_min_samples=compact_min)
-    for chunk in iter_simulation(motions, machine, load_kg=load_kg, program=file):
+    for chunk in sample_chunks(moves, machine, file=file, load_kg=load_kg, options=options,
+                               chunk_samples=chunk_samples, total_moves=total_moves,
+                               duration_s=duration_s, progress=progress, limits=limits,
+                               compact=compact):
         acc.add(chunk)
         if rolls is not None:
             rolls.add(chunk)
