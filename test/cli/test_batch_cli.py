@@ -49,6 +49,21 @@ def test_help():
         assert option in proc.stdout
 
 
+def test_method_phases_by_default_samples_when_asked(progs, capsys):
+    """The summaries are by phase unless --method samples (then as simulate --method
+    samples); both within the 1 kHz samples' discretization of each other."""
+    prog = str(progs / 'demonstrator_f200.nc')
+    rc1, phases = _json(capsys, ['batch', prog, '--json', '--quiet'])
+    rc2, samples = _json(capsys, ['batch', prog, '--json', '--quiet', '--method', 'samples'])
+    assert rc1 == rc2 == 0
+    by_phase, sampled = phases['results'][0]['summary'], samples['results'][0]['summary']
+    assert by_phase['method'] == 'phases' and 'quadrature_error_j' in by_phase
+    assert sampled['method'] == 'samples' and 'quadrature_error_j' not in sampled
+    assert by_phase['energy_j']['total'] == pytest.approx(sampled['energy_j']['total'],
+                                                          rel=1e-8)
+    assert by_phase['energy_j']['total'] != sampled['energy_j']['total']
+
+
 def test_serial_equals_two_processes(progs, capsys):
     argv = ['batch', str(progs), '--load-kg', '0,17.336', '--rate-hz', '400', '--json',
             '--quiet', '--top', '2']
@@ -179,6 +194,8 @@ def test_csv_written_safely(progs, tmp_path, capsys):
      "expected masses [kg] separated by commas, got 'abc'"),
     (['batch', 'config/programs/demonstrator_f100.nc', '--load-kg', '-1'], 2, '0 to 1e6 kg'),
     (['batch', 'config/programs/demonstrator_f100.nc', '--jobs', '-2'], 2, '>= 0'),
+    (['batch', 'config/programs/demonstrator_f100.nc', '--method', 'trapezoid'], 2,
+     "argument --method: invalid choice: 'trapezoid'"),
     (['batch', 'config/programs/demonstrator_f100.nc', '--jobs', '2', '--scheduler',
       'tcp://127.0.0.1:8786'], 2, 'not allowed with argument'),
 ])

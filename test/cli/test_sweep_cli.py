@@ -61,6 +61,19 @@ def test_rows_baseline_and_front(capsys):
     assert rows[1]['cycle_time_s'] > rows[3]['cycle_time_s']
 
 
+def test_method_reaches_every_run(capsys):
+    """--method samples: the runs are summed over samples (within 1e-8 of the default by
+    phase here, not equal to it)."""
+    prog = str(PROGRAMS / 'demonstrator_f200.nc')
+    argv = ['sweep', prog, '--vary', 'load_kg=0,20', '--json', '--quiet']
+    rc1, phases = _json(capsys, argv)
+    rc2, samples = _json(capsys, argv + ['--method', 'samples'])
+    assert rc1 == rc2 == 0
+    for a, b in zip(phases['rows'], samples['rows']):
+        assert a['energy_j'] == pytest.approx(b['energy_j'], rel=1e-8)
+        assert a['energy_j'] != b['energy_j']
+
+
 def test_table_csv_and_report(tmp_path, capsys):
     prog = str(PROGRAMS / 'three_axis_contour.nc')
     out_csv, rep = tmp_path / 's.csv', tmp_path / 'rep'
