@@ -215,23 +215,27 @@ class JobProgress:
 
 
 def execute_jobs(args: argparse.Namespace, jobs: list, progress: JobProgress) -> tuple[list, str]:
-    """Run the jobs where asked; returns the results and a description of the workers."""
+    """Run the jobs where asked; returns the results and a description of the workers.
+
+    The jobs of one program that can share its read run in bundles, one per worker
+    (:func:`feed_axis_energy.sim.run_batch` ``share``)."""
     from feed_axis_energy.sim import run_batch
     if args.scheduler is not None:
         client = _connect(args.scheduler, timeout_s=args.connect_timeout)
         try:
+            threads = sum(client.nthreads().values()) or 1
             results = run_batch(jobs, executor=client.get_executor(pure=False),
-                                progress=progress)
+                                progress=progress, share=threads)
         finally:
             client.close()
         return results, f'Dask scheduler {args.scheduler}'
     workers = args.jobs or os.cpu_count() or 1
     workers = min(workers, len(jobs))
     if workers <= 1:
-        return run_batch(jobs, progress=progress), '1 process'
+        return run_batch(jobs, progress=progress, share=1), '1 process'
     from concurrent.futures import ProcessPoolExecutor
     with ProcessPoolExecutor(max_workers=workers, mp_context=_mp_context()) as pool:
-        results = run_batch(jobs, executor=pool, progress=progress)
+        results = run_batch(jobs, executor=pool, progress=progress, share=workers)
     return results, f'{workers} worker processes'
 
 

@@ -10,7 +10,8 @@ instead of on samples, and :func:`summarize_phases` (:mod:`.phasesum`) makes the
 summary that way (issue 23: so far without declared effects or drives, see
 :func:`phase_covered`).
 """
-from .batch import BatchJob, JobResult, MAX_JOBS, run_batch
+from .batch import BatchJob, JobResult, MAX_JOBS
+from .bundle import run_batch
 from .batchspec import expand_programs, load_batch_file, make_jobs
 from .exports import EXPORT_MARKER, require_pyarrow, SeriesExporter, write_blocks, write_rollups
 from .phasesum import summarize_phases

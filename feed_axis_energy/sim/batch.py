@@ -1,4 +1,4 @@
-"""Campaigns: many independent simulations (programs x machines x loads), run by any executor.
+"""Campaigns: many independent simulations (programs x machines x loads) as plain jobs.
 
 A job (:class:`BatchJob`) is plain, picklable data: paths as text and numbers, never a
 machine object, so that it crosses process and host boundaries unchanged. :func:`run_job` is
@@ -8,22 +8,18 @@ declared effects that need the whole record, as ``simulate`` does). A job that f
 program the parser or planner refuses, a missing file) returns a :class:`JobResult` with the
 error instead of raising, so one bad program does not end a campaign.
 
-:func:`run_batch` runs the jobs in this process or on any ``concurrent.futures``-style
-executor (``ProcessPoolExecutor``, ``ThreadPoolExecutor``, ``distributed.Client(...)
-.get_executor()``) and returns the results in job order, whatever order they complete in:
-the same jobs give the same results, serially or in parallel.
+:func:`.bundle.run_batch` runs many of them on any executor.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
-import concurrent.futures as cf
 from dataclasses import dataclass, field, replace
 import math
-from typing import Any, cast
+from typing import Any
 
 from ..errors import ConfigError, FeedAxisError, PlanningError, shorten
 
-__all__ = ['MAX_JOBS', 'PROFILES', 'COMPRESSIONS', 'BatchJob', 'JobResult', 'run_job', 'run_batch']
+__all__ = ['MAX_JOBS', 'PROFILES', 'COMPRESSIONS', 'BatchJob', 'JobResult', 'run_job',
+           'job_machine', 'job_options', 'failed_result', 'finish_result']
 
 MAX_JOBS = 100_000
 """Most jobs one batch may hold (the results are kept in memory: about 2 kB each)."""
@@ -177,7 +173,7 @@ class JobResult:
         return out
 
 
-def _machine(job: BatchJob):
+def job_machine(job: BatchJob):
     """The job's machine (each file and variant loaded once per process)."""
     from .sweep import variant_machine
     machine = variant_machine(job.machine_path, job.overrides)
@@ -189,7 +185,8 @@ def _machine(job: BatchJob):
     return machine
 
 
-def _options(job: BatchJob, machine):
+def job_options(job: BatchJob, machine):
+    """The job's planner options: the machine's, with the job's rate and profile."""
     options = machine.planner.options()
     if job.rate_hz is not None:
         options = replace(options, rate_hz=float(job.rate_hz))
@@ -225,8 +222,8 @@ def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
     from .phasesum import summarize_phases
     from .quadrature import phase_covered
     from .stream import sample_chunks, simulate_stream, streamable
-    machine = _machine(job)
-    options = _options(job, machine)
+    machine = job_machine(job)
+    options = job_options(job, machine)
     if job.program_path.lower().endswith('.csv'):
         if job.feed_override != 1.0 or job.rapid_override != 1.0:
             msg = ('feed and rapid overrides apply to NC programs, not to a trajectory CSV '
@@ -324,7 +321,7 @@ def _kept_warnings(warnings: list[str]) -> tuple[str, ...]:
     return tuple(kept)
 
 
-def _failed(job: BatchJob, err: BaseException, *, kind: str = '') -> JobResult:
+def failed_result(job: BatchJob, err: BaseException, *, kind: str = '') -> JobResult:
     """The result row of a job that ended in ``err``."""
     if isinstance(err, FeedAxisError):
         return JobResult(job, None, error=str(err), error_type=type(err).__name__)
@@ -356,69 +353,20 @@ def run_job(job: BatchJob) -> JobResult:
     JobResult
         The summary, or the error (message naming the file and line/column where known).
     """
+    from ..heap import keep_freed_memory
+    keep_freed_memory()
     try:
         summary, warnings = _simulate(job)
     except Exception as err:  # noqa: B902 - one bad job must not end the campaign
-        return _failed(job, err)
+        return failed_result(job, err)
+    return finish_result(job, summary, warnings)
+
+
+def finish_result(job: BatchJob, summary: dict[str, Any], warnings: list[str]) -> JobResult:
+    """The result of a job that produced ``summary``: failed if a value is not finite;
+    the summary's ``program`` is the job's, the first warnings kept."""
     if not _all_finite(summary):
         msg = f'{job.program}: the simulation gave a value that is not finite'
         return JobResult(job, None, error=msg, error_type='PlanningError')
     summary['program'] = job.program
     return JobResult(job, summary, warnings=_kept_warnings(warnings))
-
-
-def run_batch(jobs: Iterable[BatchJob], *, executor: cf.Executor | None = None,
-              progress: Callable[[int, int, JobResult], None] | None = None
-              ) -> list[JobResult]:
-    """Run every job; return the results in job order.
-
-    Parameters
-    ----------
-    jobs
-        The jobs, at most :data:`MAX_JOBS`.
-    executor
-        Anything with the ``concurrent.futures.Executor.submit`` interface whose futures
-        ``concurrent.futures.as_completed`` accepts: a ``ProcessPoolExecutor``, or a Dask
-        ``Client.get_executor()``. ``None`` runs the jobs one after the other in this process.
-        The executor is not shut down here.
-    progress
-        Called after each job with ``(jobs done, jobs in all, that job's result)``.
-
-    Returns
-    -------
-    list of JobResult
-        ``results[i]`` belongs to ``jobs[i]``; a job the executor lost (a worker that died)
-        is a failed result with ``error_type`` ``'WorkerError'``.
-
-    Raises
-    ------
-    ConfigError
-        More than :data:`MAX_JOBS` jobs.
-    """
-    jobs = list(jobs)
-    total = len(jobs)
-    if total > MAX_JOBS:
-        msg = f'{total:,} jobs are more than the {MAX_JOBS:,} a batch may hold; split it'
-        raise ConfigError(msg, file='batch')
-    results: list[JobResult | None] = [None] * total
-    if executor is None:
-        for i, job in enumerate(jobs):
-            results[i] = run_job(job)
-            if progress is not None:
-                progress(i + 1, total, cast(JobResult, results[i]))     # set just above
-        return results  # type: ignore[return-value]
-    pending = {executor.submit(run_job, job): i for i, job in enumerate(jobs)}
-    try:
-        for done, future in enumerate(cf.as_completed(pending), start=1):
-            i = pending[future]
-            try:
-                results[i] = future.result()
-            except Exception as err:  # noqa: B902 - a worker died or the executor failed
-                results[i] = _failed(jobs[i], err, kind='WorkerError')
-            if progress is not None:
-                progress(done, total, cast(JobResult, results[i]))      # set just above
-    except BaseException:
-        for future in pending:
-            future.cancel()
-        raise
-    return results  # type: ignore[return-value]

@@ -71,8 +71,8 @@ class SamplingBound:
         The sampled sums' parts [J], ``(k,)`` (see the module docstring).
     quadrature_j
         The estimated error of the energy by phase itself [J], ``(k,)`` (difference from
-        the rule with two nodes fewer): the sums converge to the model's exact energy, which
-        lies within this of ``energy_j``.
+        a lower rule on the same rows, :class:`.quadrature.WindowNodes` ``low_j``): the
+        sums converge to the model's exact energy, which lies within this of ``energy_j``.
     rounding_j
         ``1e-11`` of the integral of ``|f|`` per axis [J]: the floating-point rounding of
         the sums (where the corners' cells are the whole difference, both sides are the same
@@ -129,8 +129,9 @@ class _Window:
         self.at = w.at
         self.t_begin, self.t_end = w.at.win.t_begin, w.at.win.t_end
         idx = np.argsort(w.piece_a, kind='stable')
+        idx = idx[w.piece_b[idx] > w.piece_a[idx]]     # not the pieces cut (no length)
         self.a, self.b = w.piece_a[idx], w.piece_b[idx]
-        p, npt = self.a.size, w.points
+        p, npt = w.piece_a.size, w.points
         f = w.drawn_w.reshape(p, npt, w.drawn_w.shape[1])[idx]
         self.f0, self.f1 = f[:, 0, :], f[:, -1, :]
         coeff, d1, d2 = _maps(order)

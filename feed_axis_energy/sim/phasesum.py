@@ -12,7 +12,8 @@ the samples' discretization error. Besides, ``method`` (``'phases'``) and
 ``samples`` and ``rate_hz`` are those of the grid a recording of the run would have;
 ``peak_power_w`` is the largest drawn power at the pieces' ends and quadrature nodes (a
 sampled peak is the largest at the samples: either can miss a maximum between its points).
-``quadrature_error_j`` is the difference from the rule with two nodes fewer.
+``quadrature_error_j`` is the difference from a lower rule on the same rows
+(:class:`.quadrature.WindowNodes` ``low_j``).
 
 Memory: two planned windows, plus ``8 (k + 1)`` bytes per source line up to the largest line
 number (``8 (2 k + c)`` with ``block_breakdown``).
@@ -33,7 +34,7 @@ from ..units import rate_from_interval
 from .quadrature import iter_window_nodes, LineSums, PHASE_ORDER, weighted_sum, WindowNodes
 from .summary import row_sum
 
-__all__ = ['summarize_phases']
+__all__ = ['summarize_phases', 'PhaseSummary']
 
 
 class _Peaks:
@@ -44,8 +45,10 @@ class _Peaks:
 
     def add(self, drawn: np.ndarray) -> None:
         if drawn.shape[0]:
-            self.peak = np.maximum(self.peak, np.append(drawn.max(axis=0),
-                                                        row_sum(drawn).max()))
+            # column by column: numpy reduces a few columns of many rows (axis 0) 20 times
+            # slower than one column
+            top = [drawn[:, j].max() for j in range(drawn.shape[1])]
+            self.peak = np.maximum(self.peak, np.array(top + [row_sum(drawn).max()]))
 
     def result(self) -> np.ndarray:
         return np.where(np.isfinite(self.peak), self.peak, 0.0)
@@ -76,69 +79,117 @@ def summarize_phases(moves: Iterable[Move], machine: Machine, *, file: str = '',
     """
     if options is None:
         options = machine.planner.options()
-    axes = tuple(machine.limits())
-    k = len(axes)
-    braking = machine.braking
-    causes = BreakdownAccumulator(per_line=block_breakdown)
-    spread = UncertaintyAccumulator.of(machine)
-    lines = LineSums(k)
-    peaks = _Peaks(k)
-    rolls = None
-    if rollup:
-        from .rollup import RollupAccumulator
-        rolls = RollupAccumulator(context)
-        moves = rolls.wrap(moves)
-    energy, low = np.zeros(k), np.zeros(k)
-    loss = returned = 0.0
-    t_end = 0.0
-    for w in iter_window_nodes(moves, machine, load_kg=load_kg, options=options, file=file,
-                               order=order, every_sign=True):
+    acc = PhaseSummary(machine, file=file, load_kg=load_kg, options=options,
+                       top_blocks=top_blocks, block_breakdown=block_breakdown,
+                       rollup=rollup, context=context)
+    for w in iter_window_nodes(acc.wrap(moves), machine, load_kg=load_kg, options=options,
+                               file=file, order=order, every_sign=True):
+        acc.add(w)
+    return acc.result()
+
+
+class PhaseSummary:
+    """The summary of one run by phase, window by window (:func:`summarize_phases`; the
+    variants of a sweep feed one each from shared windows, :mod:`.bundle`).
+
+    Parameters are those of :func:`summarize_phases`; ``lines=False`` keeps no per-line
+    sums (``top_blocks`` must then be 0 and the energy per line is empty): a run whose
+    blocks nobody reads needs no memory per source line.
+
+    The windows given to :meth:`add` come from :func:`.quadrature.iter_window_nodes` (or a
+    :class:`.quadrature.WindowEvaluator` of this machine and load) with ``every_sign``.
+    """
+
+    def __init__(self, machine: Machine, *, file: str = '', load_kg: float = 0.0,
+                 options: PlannerOptions, top_blocks: int = 5, block_breakdown: bool = False,
+                 rollup: bool = False, context: Any = None, lines: bool = True) -> None:
+        if not lines and (top_blocks or block_breakdown):
+            raise ValueError('top_blocks and block_breakdown need the per-line sums')
+        self.machine = machine
+        self.file = file
+        self.load_kg = load_kg
+        self.options = options
+        self.top_blocks = top_blocks
+        self.axes = axes = tuple(machine.limits())
+        self.k = k = len(axes)
+        self.causes = BreakdownAccumulator(per_line=block_breakdown)
+        self.spread = UncertaintyAccumulator.of(machine)
+        self.lines = LineSums(k) if lines else None
+        self.peaks = _Peaks(k)
+        self.rolls = None
+        if rollup:
+            from .rollup import RollupAccumulator
+            self.rolls = RollupAccumulator(context)
+        self.energy, self.low = np.zeros(k), np.zeros(k)
+        self.loss = self.returned = 0.0
+        self.t_end = 0.0
+
+    def wrap(self, moves: Iterable[Move]) -> Iterable[Move]:
+        """The moves as the planner should take them (noted for the roll-ups)."""
+        return moves if self.rolls is None else self.rolls.wrap(moves)
+
+    def add(self, w: WindowNodes) -> None:
+        """Take the next window."""
         weight, dyn, mech, drawn = w.weight_s, w.dyn, w.mechanical_w, w.drawn_w
-        energy += weighted_sum(weight, drawn)
-        low += w.low_j
-        loss += float(np.einsum('n,n->', weight, row_sum(dyn.loss_power_w)))
-        returned += float(np.einsum('n,n->', weight, row_sum(np.minimum(mech, 0.0))))
-        lines.add(w.motion.line, weight, drawn)
-        causes.add(dyn, mech, braking=braking, weights=weight)
-        if spread is not None:
-            spread.add(dyn, mech, braking=braking, weights=weight)
-        peaks.add(drawn)                  # the nodes and the pieces' ends
-        if rolls is not None:
-            _roll(rolls, w, axes, drawn)
-        t_end = w.at.win.t_end
-    n = grid_samples(t_end, options.rate_hz)
-    by_line = lines.result(axes)
-    order_ = np.argsort(-np.abs(by_line.energy_j), kind='stable')[:max(0, int(top_blocks))]
-    peak = peaks.result()
-    error = np.abs(energy - low)
-    energy_d = {a: float(energy[j]) for j, a in enumerate(axes)}
-    energy_d['total'] = float(energy.sum())
-    summary = add_breakdown({
-        'program': file,
-        'machine': machine.name,
-        'load_kg': float(load_kg),
-        'duration_s': float(t_end),
-        'samples': n,
-        'rate_hz': rate_from_interval(1.0 / options.rate_hz) if n >= 2 else 0.0,
-        'braking': braking,
-        'energy_j': energy_d,
-        'peak_power_w': {**{a: float(peak[j]) for j, a in enumerate(axes)},
-                         'total': float(peak[k])},
-        'regenerated_energy_j': max(0.0, -returned),
-        'loss_energy_j': loss,
-        'top_blocks': [{'line': int(by_line.lines[i]), 'energy_j': float(by_line.energy_j[i]),
-                        'duration_s': float(by_line.duration_s[i])} for i in order_],
-    }, causes)
-    summary['method'] = 'phases'
-    summary['quadrature_error_j'] = {**{a: float(error[j]) for j, a in enumerate(axes)},
-                                     'total': float(error.sum())}
-    summary = add_uncertainty(summary, spread)
-    if rolls is not None:
-        summary['rollups'] = rolls.rollups(summary['energy_j'], None)
-    table = causes.lines_table(by_line.lines)
-    by_axis, by_cause = (by_line.by_axis_j, None) if table is None else table
-    return summary, LineEnergy(by_line.lines, by_line.energy_j, by_line.duration_s, axes=axes,
-                               causes=causes.causes, by_axis_j=by_axis, by_cause_j=by_cause)
+        braking = self.machine.braking
+        self.energy += weighted_sum(weight, drawn)
+        self.low += w.low_j
+        self.loss += float(np.einsum('n,n->', weight, row_sum(dyn.loss_power_w)))
+        self.returned += float(np.einsum('n,n->', weight, row_sum(np.minimum(mech, 0.0))))
+        if self.lines is not None:
+            self.lines.add(w.motion.line, weight, drawn)
+        self.causes.add(dyn, mech, braking=braking, weights=weight)
+        if self.spread is not None:
+            self.spread.add(dyn, mech, braking=braking, weights=weight)
+        self.peaks.add(drawn)                  # the nodes and the pieces' ends
+        if self.rolls is not None:
+            _roll(self.rolls, w, self.axes, drawn)
+        self.t_end = w.at.win.t_end
+
+    def result(self) -> tuple[dict[str, Any], LineEnergy]:
+        """The summary and the energy per source line (empty without ``lines``)."""
+        axes, k, energy, t_end = self.axes, self.k, self.energy, self.t_end
+        options = self.options
+        n = grid_samples(t_end, options.rate_hz)
+        if self.lines is not None:
+            by_line = self.lines.result(axes)
+        else:
+            by_line = LineEnergy(np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0),
+                                 axes=axes, by_axis_j=np.zeros((0, k)))
+        order_ = np.argsort(-np.abs(by_line.energy_j),
+                            kind='stable')[:max(0, int(self.top_blocks))]
+        peak = self.peaks.result()
+        error = np.abs(energy - self.low)
+        energy_d = {a: float(energy[j]) for j, a in enumerate(axes)}
+        energy_d['total'] = float(energy.sum())
+        summary = add_breakdown({
+            'program': self.file,
+            'machine': self.machine.name,
+            'load_kg': float(self.load_kg),
+            'duration_s': float(t_end),
+            'samples': n,
+            'rate_hz': rate_from_interval(1.0 / options.rate_hz) if n >= 2 else 0.0,
+            'braking': self.machine.braking,
+            'energy_j': energy_d,
+            'peak_power_w': {**{a: float(peak[j]) for j, a in enumerate(axes)},
+                             'total': float(peak[k])},
+            'regenerated_energy_j': max(0.0, -self.returned),
+            'loss_energy_j': self.loss,
+            'top_blocks': [{'line': int(by_line.lines[i]),
+                            'energy_j': float(by_line.energy_j[i]),
+                            'duration_s': float(by_line.duration_s[i])} for i in order_],
+        }, self.causes)
+        summary['method'] = 'phases'
+        summary['quadrature_error_j'] = {**{a: float(error[j]) for j, a in enumerate(axes)},
+                                         'total': float(error.sum())}
+        summary = add_uncertainty(summary, self.spread)
+        if self.rolls is not None:
+            summary['rollups'] = self.rolls.rollups(summary['energy_j'], None)
+        table = self.causes.lines_table(by_line.lines)
+        by_axis, by_cause = (by_line.by_axis_j, None) if table is None else table
+        return summary, LineEnergy(by_line.lines, by_line.energy_j, by_line.duration_s,
+                                   axes=axes, causes=self.causes.causes, by_axis_j=by_axis,
+                                   by_cause_j=by_cause)
 
 
 def _roll(rolls: Any, w: WindowNodes, axes: tuple[str, ...], drawn: np.ndarray) -> None:

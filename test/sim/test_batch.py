@@ -12,7 +12,8 @@ from hypothesis import given, settings, strategies as st
 import pytest
 import yaml
 
-from feed_axis_energy.sim.batch import BatchJob, JobResult, MAX_JOBS, run_batch, run_job
+from feed_axis_energy.sim.batch import BatchJob, JobResult, MAX_JOBS, run_job
+from feed_axis_energy.sim.bundle import run_batch
 from feed_axis_energy.sim.batchspec import expand_programs, load_batch_file, make_jobs
 from feed_axis_energy.errors import ConfigError
 from feed_axis_energy.gcode.load import iter_moves
