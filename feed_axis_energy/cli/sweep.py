@@ -138,7 +138,7 @@ def _plan(args: argparse.Namespace):
                                  load_kg=run['load_kg'], rate_hz=args.rate_hz,
                                  overrides=overrides, feed_override=run['feed_override'],
                                  rapid_override=run['rapid_override'], method=args.method,
-                                 **reading))
+                                 figures='energy', **reading))
             labels.append((shown, values))
     return params, names, jobs, labels
 

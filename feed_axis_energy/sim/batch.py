@@ -71,6 +71,9 @@ class BatchJob:
     method
         ``'phases'`` (default): the summary by phase (:func:`.phasesum.summarize_phases`)
         where the machine is covered, as ``simulate``; ``'samples'``: over the samples.
+    figures
+        With the summary by phase: ``'all'`` (default) or ``'energy'``, the figures a
+        sweep compares only (:data:`.phasesum.FIGURES`; cheaper).
     strict_tools, allow_no_feed, subroutine_path
         How the program is read, on top of the machine config's ``gcode`` settings
         (:func:`..gcode.with_program_options`; ``--strict-tools``, ``--allow-no-feed``,
@@ -98,12 +101,16 @@ class BatchJob:
     allow_no_feed: bool = False
     subroutine_path: tuple[str, ...] = ()
     method: str = 'phases'
+    figures: str = 'all'
 
     def __post_init__(self) -> None:
         where = f'job {self.index + 1}'
         if self.method not in ('phases', 'samples'):
             msg = f'method must be phases or samples, got {shorten(str(self.method))!r}'
             raise ConfigError(msg, file=where, key='method')
+        if self.figures not in ('all', 'energy'):
+            msg = f'figures must be all or energy, got {shorten(str(self.figures))!r}'
+            raise ConfigError(msg, file=where, key='figures')
         if not 0.0 <= self.load_kg <= 1.0e6:      # also refuses nan and inf
             msg = f'load must be a number of 0 to 1e6 kg, got {self.load_kg!r}'
             raise ConfigError(msg, file=where, key='load_kg')
@@ -268,7 +275,7 @@ def _run(job: BatchJob, bag) -> tuple[dict[str, Any], list[str]]:
         summary, blocks = summarize_phases(program.moves, machine, file=program.file,
                                            load_kg=job.load_kg, options=options,
                                            top_blocks=job.top_blocks, rollup=True,
-                                           context=stream.context)
+                                           context=stream.context, figures=job.figures)
         if bag is not None:
             from ..record import SimulationBagWriter
             with SimulationBagWriter(bag, compression=job.compression,

@@ -180,7 +180,7 @@ def _run(jobs: list[Any], results: list[Any]) -> None:
         accs.append(PhaseSummary(machines[i], file=stream.file, load_kg=job.load_kg,
                                  options=options[i], top_blocks=job.top_blocks,
                                  rollup=True, context=stream.context,
-                                 lines=job.top_blocks > 0))
+                                 lines=job.top_blocks > 0, figures=job.figures))
         evals.append(None)
     for plan, branch in zip(plans.values(), branches):
         lead = plan.members[0]
@@ -192,7 +192,7 @@ def _run(jobs: list[Any], results: list[Any]) -> None:
             moves = accs[i].wrap(moves)
             try:
                 evals[i] = WindowEvaluator(machines[i], load_kg=jobs[i].load_kg,
-                                           order=PHASE_ORDER, every_sign=True)
+                                           order=PHASE_ORDER, every_sign=accs[i].every_sign)
             except FeedAxisError as err:
                 results[i] = failed_result(jobs[i], err)
         plan.windows = iter_window_motions(moves, limits, options=options[lead],

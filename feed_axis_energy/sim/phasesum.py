@@ -34,7 +34,13 @@ from ..units import rate_from_interval
 from .quadrature import iter_window_nodes, LineSums, PHASE_ORDER, weighted_sum, WindowNodes
 from .summary import row_sum
 
-__all__ = ['summarize_phases', 'PhaseSummary']
+__all__ = ['summarize_phases', 'PhaseSummary', 'FIGURES']
+
+FIGURES = ('all', 'energy')
+"""What a summary by phase holds: ``'all'`` (every key of the sampled summary), or
+``'energy'`` (what a sweep compares: ``energy_j``, ``duration_s``, ``samples``,
+``rate_hz``, ``quadrature_error_j``, the uncertainty, and ``figures`` itself; cut only
+where the drawn power kinks, no per-line or per-cause sums)."""
 
 
 class _Peaks:
@@ -58,11 +64,12 @@ def summarize_phases(moves: Iterable[Move], machine: Machine, *, file: str = '',
                      load_kg: float = 0.0, options: PlannerOptions | None = None,
                      top_blocks: int = 5, block_breakdown: bool = False,
                      rollup: bool = False, context: Any = None,
-                     order: int = PHASE_ORDER) -> tuple[dict[str, Any], LineEnergy]:
+                     order: int = PHASE_ORDER,
+                     figures: str = 'all') -> tuple[dict[str, Any], LineEnergy]:
     """Summary and energy per block of ``moves`` on ``machine``, by phase.
 
     Parameters are those of :func:`.stream.simulate_stream` (without the sample
-    consumers); ``order``: quadrature nodes per piece.
+    consumers); ``order``: quadrature nodes per piece; ``figures``: :data:`FIGURES`.
 
     Returns
     -------
@@ -81,9 +88,9 @@ def summarize_phases(moves: Iterable[Move], machine: Machine, *, file: str = '',
         options = machine.planner.options()
     acc = PhaseSummary(machine, file=file, load_kg=load_kg, options=options,
                        top_blocks=top_blocks, block_breakdown=block_breakdown,
-                       rollup=rollup, context=context)
+                       rollup=rollup, context=context, figures=figures)
     for w in iter_window_nodes(acc.wrap(moves), machine, load_kg=load_kg, options=options,
-                               file=file, order=order, every_sign=True):
+                               file=file, order=order, every_sign=acc.every_sign):
         acc.add(w)
     return acc.result()
 
@@ -97,12 +104,21 @@ class PhaseSummary:
     blocks nobody reads needs no memory per source line.
 
     The windows given to :meth:`add` come from :func:`.quadrature.iter_window_nodes` (or a
-    :class:`.quadrature.WindowEvaluator` of this machine and load) with ``every_sign``.
+    :class:`.quadrature.WindowEvaluator` of this machine and load) with ``every_sign`` as
+    :attr:`every_sign` says (``True`` for all figures: the returned power and the inertia's
+    share have their own sign changes).
     """
 
     def __init__(self, machine: Machine, *, file: str = '', load_kg: float = 0.0,
                  options: PlannerOptions, top_blocks: int = 5, block_breakdown: bool = False,
-                 rollup: bool = False, context: Any = None, lines: bool = True) -> None:
+                 rollup: bool = False, context: Any = None, lines: bool = True,
+                 figures: str = 'all') -> None:
+        if figures not in FIGURES:
+            raise ValueError(f'figures must be one of {", ".join(FIGURES)}, got {figures!r}')
+        self.figures = figures
+        self.every_sign = figures == 'all'
+        if figures == 'energy':
+            top_blocks, block_breakdown, rollup, lines = 0, False, False, False
         if not lines and (top_blocks or block_breakdown):
             raise ValueError('top_blocks and block_breakdown need the per-line sums')
         self.machine = machine
@@ -134,6 +150,11 @@ class PhaseSummary:
         braking = self.machine.braking
         self.energy += weighted_sum(weight, drawn)
         self.low += w.low_j
+        self.t_end = w.at.win.t_end
+        if self.figures == 'energy':
+            if self.spread is not None:
+                self.spread.add(dyn, mech, braking=braking, weights=weight)
+            return
         self.loss += float(np.einsum('n,n->', weight, row_sum(dyn.loss_power_w)))
         self.returned += float(np.einsum('n,n->', weight, row_sum(np.minimum(mech, 0.0))))
         if self.lines is not None:
@@ -144,7 +165,6 @@ class PhaseSummary:
         self.peaks.add(drawn)                  # the nodes and the pieces' ends
         if self.rolls is not None:
             _roll(self.rolls, w, self.axes, drawn)
-        self.t_end = w.at.win.t_end
 
     def result(self) -> tuple[dict[str, Any], LineEnergy]:
         """The summary and the energy per source line (empty without ``lines``)."""
@@ -162,6 +182,15 @@ class PhaseSummary:
         error = np.abs(energy - self.low)
         energy_d = {a: float(energy[j]) for j, a in enumerate(axes)}
         energy_d['total'] = float(energy.sum())
+        errors = {**{a: float(error[j]) for j, a in enumerate(axes)}, 'total': float(error.sum())}
+        if self.figures == 'energy':
+            summary = add_uncertainty({
+                'program': self.file, 'machine': self.machine.name,
+                'load_kg': float(self.load_kg), 'duration_s': float(t_end), 'samples': n,
+                'rate_hz': rate_from_interval(1.0 / options.rate_hz) if n >= 2 else 0.0,
+                'braking': self.machine.braking, 'energy_j': energy_d, 'method': 'phases',
+                'figures': 'energy', 'quadrature_error_j': errors}, self.spread)
+            return summary, by_line
         summary = add_breakdown({
             'program': self.file,
             'machine': self.machine.name,
@@ -180,8 +209,7 @@ class PhaseSummary:
                             'duration_s': float(by_line.duration_s[i])} for i in order_],
         }, self.causes)
         summary['method'] = 'phases'
-        summary['quadrature_error_j'] = {**{a: float(error[j]) for j, a in enumerate(axes)},
-                                         'total': float(error.sum())}
+        summary['quadrature_error_j'] = errors
         summary = add_uncertainty(summary, self.spread)
         if self.rolls is not None:
             summary['rollups'] = self.rolls.rollups(summary['energy_j'], None)

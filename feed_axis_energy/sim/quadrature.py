@@ -427,9 +427,10 @@ class LineSums:
 
 
 def _signs(dyn: AxisDynamics) -> np.ndarray:
-    """``F v``, ``M omega`` [W] and ``v a`` [m²/s³] per axis at the rows: ``(n, 3 k)``."""
+    """``F v``, ``M omega`` [W], ``v a`` [m²/s³] and ``v`` [m/s] per axis at the rows:
+    ``(n, 4 k)``."""
     return np.hstack((dyn.force_n * dyn.velocity_m_s, dyn.torque_nm * dyn.omega_rad_s,
-                      dyn.velocity_m_s * dyn.acceleration_m_s2))
+                      dyn.velocity_m_s * dyn.acceleration_m_s2, dyn.velocity_m_s))
 
 
 def _sign_cuts(at: WindowMotion, t: np.ndarray, g: np.ndarray, watch: np.ndarray,
@@ -439,7 +440,9 @@ def _sign_cuts(at: WindowMotion, t: np.ndarray, g: np.ndarray, watch: np.ndarray
     their values ``g`` ``(p, points, 3 k)`` at the pieces' rows ``t`` ``(p, points)``.
 
     Each is continuous inside a piece (the efficiency switches where ``F v`` is zero, so
-    ``M omega`` is zero on both sides of the switch): the bracket between two rows of
+    ``M omega`` is zero on both sides of the switch); where ``v`` changes sign between the
+    same rows, the root of ``v`` is the product's (``g`` carries ``v`` as its last ``k``
+    columns, :func:`_signs`). The bracket between two rows of
     opposite sign is narrowed by regula falsi with the Illinois modification (superlinear;
     a bisection step where it stalls) to :data:`_ROOT_TOL_S` or :data:`_ROOT_REL` of the
     piece (a cut that far off the kink changes the integral by about half the kink's change
@@ -449,20 +452,39 @@ def _sign_cuts(at: WindowMotion, t: np.ndarray, g: np.ndarray, watch: np.ndarray
     # stops at a piece's end, the row a hair inside reads F v of about 1e-14 W of either
     # sign against watts elsewhere; no kink there is worth a cut, and such a bracket would
     # hold the root finding for dozens of steps
-    size = np.abs(g)
-    top = size[:, 0, :].copy()
-    for j in range(1, size.shape[1]):                # 3x faster than max(axis=1)
-        np.maximum(top, size[:, j, :], out=top)
-    noise = _NOISE * top[:, None, :]
-    live = size > noise
+    k = g.shape[2] // 4
+    watch = np.concatenate((watch, np.zeros(k, dtype=bool)))   # v alone is no kink
+    # the few pieces where a watched column takes both signs, from its least and largest
+    # value on each piece (row by row: 3x faster than min/max over axis 1)
+    high, low = g[:, 0, :].copy(), g[:, 0, :].copy()
+    for j in range(1, g.shape[1]):
+        np.maximum(high, g[:, j, :], out=high)
+        np.minimum(low, g[:, j, :], out=low)
+    noise = _NOISE * np.maximum(high, -low)
+    both = np.flatnonzero((low < -noise) & (high > noise) & watch) // g.shape[2]
+    if both.size == 0:
+        return np.zeros(0)
+    pieces = np.unique(both)
+    g = g[pieces]
+    t = t[pieces]
+    noise = noise[pieces]
+    live = np.abs(g) > noise[:, None, :]
     change = (g[:, :-1, :] * g[:, 1:, :] < 0.0) & live[:, :-1, :] & live[:, 1:, :] & watch
     piece, step, col = np.nonzero(change)
     if piece.size == 0:
         return np.zeros(0)
+    # where the axis's speed changes sign in the bracket too, the product changes sign
+    # there (its other factor keeps its sign): find the root of v, smooth, instead of the
+    # product's kink (Coulomb friction flips F with v: regula falsi crawls on a kink)
+    v_col = 3 * k + col % k
+    on_v = live[piece, step, v_col] & live[piece, step + 1, v_col] & (
+        g[piece, step, v_col] * g[piece, step + 1, v_col] < 0.0)
+    col = np.where(on_v, v_col, col)
+    piece, step, col = np.unique(np.stack((piece, step, col)), axis=1)   # one bracket each
     lo, hi = t[piece, step], t[piece, step + 1]
     g_lo, g_hi = g[piece, step, col], g[piece, step + 1, col]
     tol = np.maximum(_ROOT_TOL_S, _ROOT_REL * (t[piece, -1] - t[piece, 0]))
-    small = noise[piece, 0, col]
+    small = noise[piece, col]
     order_rows = np.argsort(lo, kind='stable')
     lo, hi, g_lo, g_hi, col, tol, small = (
         lo[order_rows], hi[order_rows], g_lo[order_rows], g_hi[order_rows], col[order_rows],

@@ -147,3 +147,19 @@ def test_every_index_once_whatever_the_share(share):
     bundles = bundle_jobs(jobs, share)
     assert sorted(i for b in bundles for i in b) == list(range(len(jobs)))
     assert len(bundles) == min(share, len(jobs)) or len(bundles) > share
+
+
+def test_energy_figures_are_the_full_summary_s_energy_within_its_error():
+    jobs = [_job(i, figures='energy', **kw) for i, kw in enumerate(
+        [dict(), dict(load_kg=40.0), dict(feed_override=0.6)])]
+    full = run_batch([_job(j.index, load_kg=j.load_kg, feed_override=j.feed_override)
+                      for j in jobs])
+    lean = run_batch(jobs, share=1)
+    assert _dicts(lean) == _dicts(run_batch(jobs))       # bundled = alone here too
+    for a, b in zip(lean, full):
+        s, f = a.summary, b.summary
+        assert s['figures'] == 'energy' and 'figures' not in f
+        assert 'energy_by_cause_j' not in s and 'rollups' not in s and 'top_blocks' not in s
+        assert s['duration_s'] == f['duration_s'] and s['samples'] == f['samples']
+        tol = s['quadrature_error_j']['total'] + f['quadrature_error_j']['total']
+        assert abs(s['energy_j']['total'] - f['energy_j']['total']) <= tol
