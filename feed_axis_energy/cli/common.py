@@ -165,7 +165,7 @@ def apply_program_options(machine: Machine, args: argparse.Namespace) -> Machine
 
 METHOD_HELP = ('how the summary\'s figures are integrated: "phases" (default) by quadrature on '
                'the planned motion phases, the exact figures of the model, cost by moves '
-               '(machines with declared effects or drives, trajectory CSVs: samples); '
+               '(machines with declared effects, trajectory CSVs: samples); '
                '"samples" by the trapezoid rule over the samples at the machine\'s rate (what a '
                'recording holds; differs by its discretization error)')
 

@@ -164,6 +164,25 @@ class _Trapezoid:
         self._last = power[-1].copy()
         self._t_last = float(t[-1])
 
+    def add_weighted(self, w: np.ndarray, power: np.ndarray, offset: float = 0.0) -> None:
+        """Quadrature nodes with weights ``w`` [s] (:mod:`feed_axis_energy.plan.nodes`): the
+        integral is the weighted sum, no interval to the previous rows."""
+        k = power.shape[1]
+        if self.energy is None:
+            self.energy = np.zeros(k)
+            self.peak = np.full(k + 1, -np.inf)
+        peak = cast(np.ndarray, self.peak)          # set with self.energy (above)
+        if power.shape[0] == 0:
+            return
+        total = power[:, 0].copy()
+        for j in range(k):
+            column = power[:, j]
+            self.energy[j] += np.einsum('i,i', w, column)
+            peak[j] = max(peak[j], float(column.max()))
+            if j:
+                total += column
+        peak[k] = max(peak[k], float(total.max()) + offset)
+
 
 class ElectricalAccumulator:
     """Electrical energy, peaks and breakdown by cause, chunk by chunk (bounded memory).
@@ -186,26 +205,41 @@ class ElectricalAccumulator:
         self._t_last: float | None = None
 
     def add(self, dyn: AxisDynamics, mechanical_w: np.ndarray, elec: ElectricalPower, *,
-            braking: str, effects: Sequence[tuple[str, np.ndarray]] = ()) -> None:
+            braking: str, effects: Sequence[tuple[str, np.ndarray]] = (),
+            weights: np.ndarray | None = None, span_s: tuple[float, float] | None = None
+            ) -> None:
         """Take one chunk (in time order): its dynamics, ``M·omega``, electrical power and
-        the declared effects' parts (:func:`.simulate.declared_effects_parts`)."""
+        the declared effects' parts (:func:`.simulate.declared_effects_parts`).
+
+        ``weights`` and ``span_s``: the rows are quadrature nodes with these weights [s]
+        covering the time ``(begin, end)`` [s] (the energy by phase,
+        :mod:`feed_axis_energy.sim.quadrature`) instead of samples in time order."""
         t = dyn.t
-        if t.shape[0] == 0:
+        if weights is not None and span_s is None:
+            raise ValueError('quadrature weights need the span_s they cover')
+        if t.shape[0] == 0 and weights is None:
             return
         if self._t_first is None:
             self.axes = tuple(dyn.axes)
             self.measured_at = elec.measured_at
             self.cabinet_w = elec.cabinet_w
-            self._t_first = float(t[0])
+            self._t_first = float(t[0]) if span_s is None else float(span_s[0])
         # the mechanical causes with regenerative braking: the rule acts in the drive here
         self.causes.add(dyn, mechanical_w, braking=braking, effects=effects,
-                        extra=elec.parts, burned=elec.burned_w)
-        self._motor.add(t, elec.motor_w)
-        self._supply.add(t, elec.supply_w, elec.cabinet_w)
+                        extra=elec.parts, burned=elec.burned_w, weights=weights)
         standby = elec.parts[ELECTRICAL_CAUSES.index('standby')][1]
         # what the drives return to the supply: the negative part without their standby
-        self._returned.add(t, np.maximum(standby - elec.supply_w, 0.0))
-        self._t_last = float(t[-1])
+        returned = np.maximum(standby - elec.supply_w, 0.0)
+        if weights is None:
+            self._motor.add(t, elec.motor_w)
+            self._supply.add(t, elec.supply_w, elec.cabinet_w)
+            self._returned.add(t, returned)
+            self._t_last = float(t[-1])
+            return
+        self._motor.add_weighted(weights, elec.motor_w)
+        self._supply.add_weighted(weights, elec.supply_w, elec.cabinet_w)
+        self._returned.add_weighted(weights, returned)
+        self._t_last = float(cast(tuple, span_s)[1])
 
     def lines_energy(self, lines: np.ndarray,
                      duration_s: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:

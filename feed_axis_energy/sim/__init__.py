@@ -7,7 +7,7 @@ whole-record form for small programs and tests. Tables out (:mod:`.exports`), wh
 (:mod:`.sweep`) and campaigns of many runs (:mod:`.batch`, :mod:`.batchspec`) are built on it.
 :func:`phase_energy` (:mod:`.quadrature`) integrates the energy on the planned phases
 instead of on samples, and :func:`summarize_phases` (:mod:`.phasesum`) makes the whole
-summary that way (issue 23: so far without declared effects or drives, see
+summary that way (issue 23: so far without declared effects, see
 :func:`phase_covered`).
 """
 from .batch import BatchJob, JobResult, MAX_JOBS

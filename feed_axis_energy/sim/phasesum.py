@@ -21,13 +21,14 @@ number (``8 (2 k + c)`` with ``block_breakdown``).
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from ..gcode import Move
 from ..machine import Machine, PlannerOptions
-from ..physics import (add_breakdown, add_uncertainty, BreakdownAccumulator, LineEnergy,
+from ..physics import (add_block_electrical, add_breakdown, add_uncertainty,
+                       BreakdownAccumulator, ElectricalAccumulator, LineEnergy,
                        UncertaintyAccumulator)
 from ..plan import grid_samples
 from ..units import rate_from_interval
@@ -129,6 +130,8 @@ class PhaseSummary:
         self.axes = axes = tuple(machine.limits())
         self.k = k = len(axes)
         self.causes = BreakdownAccumulator(per_line=block_breakdown)
+        self.elec = (ElectricalAccumulator(per_line=block_breakdown) if machine.electrical
+                     else None)
         self.spread = UncertaintyAccumulator.of(machine)
         self.lines = LineSums(k) if lines else None
         self.peaks = _Peaks(k)
@@ -150,6 +153,9 @@ class PhaseSummary:
         braking = self.machine.braking
         self.energy += weighted_sum(weight, drawn)
         self.low += w.low_j
+        if self.elec is not None and w.elec is not None:
+            self.elec.add(dyn, mech, w.elec, braking=braking, weights=weight,
+                          span_s=(w.at.win.t_begin, w.at.win.t_end))
         self.t_end = w.at.win.t_end
         if self.figures == 'energy':
             if self.spread is not None:
@@ -164,7 +170,7 @@ class PhaseSummary:
             self.spread.add(dyn, mech, braking=braking, weights=weight)
         self.peaks.add(drawn)                  # the nodes and the pieces' ends
         if self.rolls is not None:
-            _roll(self.rolls, w, self.axes, drawn)
+            _roll(self.rolls, w, self.axes, drawn, self.elec is not None)
 
     def result(self) -> tuple[dict[str, Any], LineEnergy]:
         """The summary and the energy per source line (empty without ``lines``)."""
@@ -190,6 +196,8 @@ class PhaseSummary:
                 'rate_hz': rate_from_interval(1.0 / options.rate_hz) if n >= 2 else 0.0,
                 'braking': self.machine.braking, 'energy_j': energy_d, 'method': 'phases',
                 'figures': 'energy', 'quadrature_error_j': errors}, self.spread)
+            if self.elec is not None and self.elec.summary():
+                summary['electrical'] = self.elec.summary()
             return summary, by_line
         summary = add_breakdown({
             'program': self.file,
@@ -211,18 +219,28 @@ class PhaseSummary:
         summary['method'] = 'phases'
         summary['quadrature_error_j'] = errors
         summary = add_uncertainty(summary, self.spread)
+        electrical = self.elec.summary() if self.elec is not None else {}
+        if electrical:
+            summary['electrical'] = electrical
+            add_block_electrical(summary['top_blocks'], cast(ElectricalAccumulator, self.elec))
         if self.rolls is not None:
-            summary['rollups'] = self.rolls.rollups(summary['energy_j'], None)
+            summary['rollups'] = self.rolls.rollups(summary['energy_j'], electrical or None)
         table = self.causes.lines_table(by_line.lines)
         by_axis, by_cause = (by_line.by_axis_j, None) if table is None else table
+        lines_elec = (self.elec.lines_energy(by_line.lines, by_line.duration_s)
+                      if self.elec is not None else None)
+        motor, supply = (None, None) if lines_elec is None else lines_elec
         return summary, LineEnergy(by_line.lines, by_line.energy_j, by_line.duration_s,
                                    axes=axes, causes=self.causes.causes, by_axis_j=by_axis,
-                                   by_cause_j=by_cause)
+                                   by_cause_j=by_cause, motor_j=motor, supply_j=supply)
 
 
-def _roll(rolls: Any, w: WindowNodes, axes: tuple[str, ...], drawn: np.ndarray) -> None:
+def _roll(rolls: Any, w: WindowNodes, axes: tuple[str, ...], drawn: np.ndarray,
+          electrical: bool = False) -> None:
     """The window's pieces, in time order, to the roll-ups: each piece's line, energy,
-    duration, and the time each axis moved (a piece where its speed is not zero at a row)."""
+    duration, and the time each axis moved (a piece where its speed is not zero at a row);
+    with drives also its energy at the motor terminals and at the supply side (the
+    cabinet's standby for its duration included)."""
     a, b = w.piece_a, w.piece_b
     p = a.size
     if p == 0:
@@ -233,5 +251,12 @@ def _roll(rolls: Any, w: WindowNodes, axes: tuple[str, ...], drawn: np.ndarray) 
     moving = np.any(w.motion.vel.reshape(p, npt, len(axes)) != 0.0, axis=1)
     order = np.argsort(a, kind='stable')
     h = b - a
+    elec = None
+    if electrical and w.elec is not None:
+        elec = np.empty((p, 2))
+        elec[:, 0] = (w.weight_s * row_sum(w.elec.motor_w)).reshape(p, npt).sum(axis=1)
+        elec[:, 1] = ((w.weight_s * row_sum(w.elec.supply_w)).reshape(p, npt).sum(axis=1)
+                      + w.elec.cabinet_w * h)
+        elec = elec[order]
     rolls.add_pieces(axes, line[order], piece_e[order], h[order],
-                     weighted_sum(h, moving.astype(float)))
+                     weighted_sum(h, moving.astype(float)), electrical_j=elec)

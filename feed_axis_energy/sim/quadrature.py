@@ -25,17 +25,18 @@ The cost grows with the pieces (a handful per move), not with duration x sample 
 Covered so far: the model of :func:`~feed_axis_energy.physics.compute_dynamics` (rigid-body
 dynamics, passive resistances, screw efficiency, gravity) and the braking rule, per axis and
 per source line and per cause (net), the velocity steps of corners passed at speed (G64) as
-ramps over one interpolation cycle (:mod:`feed_axis_energy.plan.nodes`). Not yet (the sampled
-pipeline, :mod:`.stream`, gives them): declared effects, the electrical side, the gross
-energy per cause. A machine that declares effects or drives is refused with a
-:class:`ConfigError`.
+ramps over one interpolation cycle (:mod:`feed_axis_energy.plan.nodes`), and with motors and
+drives the electrical side (:func:`~feed_axis_energy.physics.electrical_power` at the same
+rows; the pieces also cut where the motor power and what the chopper would burn change sign,
+and where ``v`` does). Not yet (the sampled pipeline, :mod:`.stream`, gives them): declared
+effects. A machine that declares effects is refused with a :class:`ConfigError`.
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -43,7 +44,7 @@ from ..errors import ConfigError
 from ..gcode import Move
 from ..machine import Machine, PlannerOptions
 from ..physics import (apply_braking, AxisDynamics, cause_names, cause_powers,
-                       compute_dynamics, LineEnergy)
+                       compute_dynamics, electrical_power, ElectricalPower, LineEnergy)
 from ..plan import gauss_legendre, iter_window_motions, Motion, WindowMotion
 
 __all__ = ['PhaseEnergy', 'phase_energy', 'PHASE_ORDER', 'WindowNodes', 'iter_window_nodes',
@@ -128,6 +129,9 @@ class WindowNodes:
         ``weight_s @ drawn_w`` estimates the error.
     points, sign_cuts
         Rows per piece (``order + 2``) and cuts added where a sign changes.
+    elec
+        The electrical power at the rows (:func:`~feed_axis_energy.physics.electrical_power`)
+        when the machine declares drives, else ``None``.
     """
 
     at: WindowMotion
@@ -141,6 +145,7 @@ class WindowNodes:
     low_j: np.ndarray
     points: int
     sign_cuts: int
+    elec: ElectricalPower | None = None
 
 
 def weighted_sum(weight: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -150,17 +155,16 @@ def weighted_sum(weight: np.ndarray, values: np.ndarray) -> np.ndarray:
 
 
 def phase_covered(machine: Machine) -> bool:
-    """True when the energy by phase covers ``machine``: no declared effects, drives or
-    supply (the sampled pipeline computes those)."""
-    return not (machine.effects or machine.supply is not None
-                or any(a.drive is not None for a in machine.axes))
+    """True when the energy by phase covers ``machine``: no declared effects (the sampled
+    pipeline computes those); drives and supply are covered."""
+    return not machine.effects
 
 
 def _check_covered(machine: Machine) -> None:
     """Raise :class:`ConfigError` for a machine :func:`phase_covered` refuses."""
     if not phase_covered(machine):
-        raise ConfigError('energy by phase covers the machine without declared effects or '
-                          'drives so far; simulate samples them', key='effects')
+        raise ConfigError('energy by phase covers the machine without declared effects so '
+                          'far; simulate samples them', key='effects')
 
 
 @lru_cache(maxsize=8)
@@ -278,9 +282,29 @@ class WindowEvaluator:
         # only a sign that switches something is a kink: F v where the screw's efficiency is
         # not 1 (divided or multiplied by it), M omega where braking power is cut at zero
         eta = np.array([machine.axis(a).screw.efficiency for a in axes])
-        self.watch = np.concatenate((eta != 1.0,
-                                     np.full(k, every_sign or machine.braking == 'dissipated'),
-                                     np.full(k, every_sign)))
+        self.k = k
+        self.electrical = bool(machine.electrical)
+        watch = [eta != 1.0, np.full(k, every_sign or machine.braking == 'dissipated'),
+                 np.full(k, every_sign),
+                 # v itself with drives: copper (k M²) jumps where Coulomb friction flips
+                 # with v, iron (k_h |omega|) kinks there
+                 np.full(k, self.electrical)]
+        if self.electrical:
+            drives = []
+            for a in axes:
+                drive = machine.axis(a).drive
+                if drive is None:       # machine_from_dict refuses this; code may build it
+                    raise ConfigError('the electrical model needs a drive on every axis',
+                                      key=f'axes.{a}.drive')
+                drives.append(drive)
+            # the converter takes P/eta_c motoring and returns P eta_c braking: a kink where
+            # P_motor changes sign; the chopper burns what exceeds the regeneration limit
+            eta_c = np.array([d.converter_efficiency for d in drives])
+            self.limit = np.array([0.0 if machine.braking == 'dissipated' else
+                                   (np.inf if d.regeneration_limit_w is None
+                                    else d.regeneration_limit_w) for d in drives])
+            watch += [eta_c != 1.0, np.isfinite(self.limit)]
+        self.watch = np.concatenate(watch)
         self.frac, self.wrow = _rule(order)
         self.wlow = _rows_rule(order)
 
@@ -294,9 +318,11 @@ class WindowEvaluator:
         dyn = compute_dynamics(motion, machine, load_kg=load_kg)
         cuts = np.zeros(0)
         if np.any(self.watch) and a.size:
-            cuts = _sign_cuts(at, motion.t.reshape(a.size, npt),
-                              _signs(dyn).reshape(a.size, npt, -1), self.watch, machine,
-                              load_kg)
+            def signs_at(times: np.ndarray) -> np.ndarray:
+                return self._signs(compute_dynamics(at.at(times), machine, load_kg=load_kg))
+            cuts = _sign_cuts(motion.t.reshape(a.size, npt),
+                              self._signs(dyn).reshape(a.size, npt, -1), self.watch, self.k,
+                              signs_at)
         if cuts.size:
             a, b, part = _split(at, a, b, cuts, self.frac)
             motion = _append(motion, part)
@@ -305,10 +331,26 @@ class WindowEvaluator:
         m = dyn.torque_nm * dyn.omega_rad_s
         drawn = apply_braking(m, braking=machine.braking)
         low_j = weighted_sum((h[:, None] * self.wlow[None, :]).ravel(), drawn)
+        elec = electrical_power(dyn, m, machine) if self.electrical else None
         return WindowNodes(at=at, piece_a=a, piece_b=b, motion=motion, dyn=dyn,
                            mechanical_w=m, drawn_w=drawn,
                            weight_s=(h[:, None] * self.wrow[None, :]).ravel(), low_j=low_j,
-                           points=npt, sign_cuts=int(cuts.size))
+                           points=npt, sign_cuts=int(cuts.size), elec=elec)
+
+    def _signs(self, dyn: AxisDynamics) -> np.ndarray:
+        """The functions whose sign changes are kinks, per axis at the rows: ``F v``,
+        ``M omega`` [W], ``v a`` [m²/s³], ``v`` [m/s], and with drives ``P_motor`` [W] and
+        what the chopper would burn, ``-(P_motor + P_converter) - limit`` [W] (1 where
+        nothing is burned ever): ``(n, 4 k)`` or ``(n, 6 k)``."""
+        v = dyn.velocity_m_s
+        m = dyn.torque_nm * dyn.omega_rad_s
+        cols = [dyn.force_n * v, m, v * dyn.acceleration_m_s2, v]
+        if self.electrical:
+            elec = cast(ElectricalPower, electrical_power(dyn, m, self.machine))
+            conv = dict(elec.parts)['converter']
+            burn = -(elec.motor_w + conv) - np.where(np.isfinite(self.limit), self.limit, 0.0)
+            cols += [elec.motor_w, np.where(np.isfinite(self.limit), burn, 1.0)]
+        return np.hstack(cols)
 
 
 def _split(at: WindowMotion, a: np.ndarray, b: np.ndarray, cuts: np.ndarray,
@@ -363,7 +405,7 @@ def phase_energy(moves: Iterable[Move], machine: Machine, *, load_kg: float = 0.
     Raises
     ------
     ConfigError
-        ``order < 3``, or a machine with declared effects or drives (not covered yet).
+        ``order < 3``, or a machine with declared effects (not covered yet).
     PlanningError
         As the planner.
     """
@@ -426,23 +468,18 @@ class LineSums:
                           axes=axes, by_axis_j=by_axis)
 
 
-def _signs(dyn: AxisDynamics) -> np.ndarray:
-    """``F v``, ``M omega`` [W], ``v a`` [m²/s³] and ``v`` [m/s] per axis at the rows:
-    ``(n, 4 k)``."""
-    return np.hstack((dyn.force_n * dyn.velocity_m_s, dyn.torque_nm * dyn.omega_rad_s,
-                      dyn.velocity_m_s * dyn.acceleration_m_s2, dyn.velocity_m_s))
-
-
-def _sign_cuts(at: WindowMotion, t: np.ndarray, g: np.ndarray, watch: np.ndarray,
-               machine: Machine, load_kg: float) -> np.ndarray:
-    """Times inside the pieces where ``F v``, ``M omega`` or ``v a`` of an axis changes sign,
-    for the columns ``watch`` (``F v`` of each axis, then ``M omega``, then ``v a``), from
-    their values ``g`` ``(p, points, 3 k)`` at the pieces' rows ``t`` ``(p, points)``.
+def _sign_cuts(t: np.ndarray, g: np.ndarray, watch: np.ndarray, k: int,
+               signs_at: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """Times inside the pieces where a watched column of ``g`` changes sign: ``g``
+    ``(p, points, c k)`` holds the columns of :meth:`WindowEvaluator._signs` (``F v``,
+    ``M omega``, ``v a``, ``v`` of each axis, ...) at the pieces' rows ``t``
+    ``(p, points)``; ``watch`` ``(c k,)`` says which; ``signs_at(times)`` evaluates the
+    columns at other times (the root finding).
 
     Each is continuous inside a piece (the efficiency switches where ``F v`` is zero, so
     ``M omega`` is zero on both sides of the switch); where ``v`` changes sign between the
-    same rows, the root of ``v`` is the product's (``g`` carries ``v`` as its last ``k``
-    columns, :func:`_signs`). The bracket between two rows of
+    same rows, the root of ``v`` is the product's (``g`` carries ``v`` in its columns
+    ``3 k`` to ``4 k``, :meth:`WindowEvaluator._signs`). The bracket between two rows of
     opposite sign is narrowed by regula falsi with the Illinois modification (superlinear;
     a bisection step where it stalls) to :data:`_ROOT_TOL_S` or :data:`_ROOT_REL` of the
     piece (a cut that far off the kink changes the integral by about half the kink's change
@@ -452,8 +489,6 @@ def _sign_cuts(at: WindowMotion, t: np.ndarray, g: np.ndarray, watch: np.ndarray
     # stops at a piece's end, the row a hair inside reads F v of about 1e-14 W of either
     # sign against watts elsewhere; no kink there is worth a cut, and such a bracket would
     # hold the root finding for dozens of steps
-    k = g.shape[2] // 4
-    watch = np.concatenate((watch, np.zeros(k, dtype=bool)))   # v alone is no kink
     # the few pieces where a watched column takes both signs, from its least and largest
     # value on each piece (row by row: 3x faster than min/max over axis 1)
     high, low = g[:, 0, :].copy(), g[:, 0, :].copy()
@@ -477,7 +512,7 @@ def _sign_cuts(at: WindowMotion, t: np.ndarray, g: np.ndarray, watch: np.ndarray
     # there (its other factor keeps its sign): find the root of v, smooth, instead of the
     # product's kink (Coulomb friction flips F with v: regula falsi crawls on a kink)
     v_col = 3 * k + col % k
-    on_v = live[piece, step, v_col] & live[piece, step + 1, v_col] & (
+    on_v = (col < 3 * k) & live[piece, step, v_col] & live[piece, step + 1, v_col] & (
         g[piece, step, v_col] * g[piece, step + 1, v_col] < 0.0)
     col = np.where(on_v, v_col, col)
     piece, step, col = np.unique(np.stack((piece, step, col)), axis=1)   # one bracket each
@@ -500,7 +535,7 @@ def _sign_cuts(at: WindowMotion, t: np.ndarray, g: np.ndarray, watch: np.ndarray
         falsi = hi - g_hi * width / (g_hi - g_lo)
         mid = np.where((i % 8 == 7) | ~np.isfinite(falsi) | (falsi <= lo) | (falsi >= hi),
                        0.5 * (lo + hi), falsi)
-        gm = _signs(compute_dynamics(at.at(mid), machine, load_kg=load_kg))[rows, col]
+        gm = signs_at(mid)[rows, col]
         left = gm * g_lo > 0.0                        # the root is in (mid, hi)
         hit = np.abs(gm) <= small        # at the noise: the sign changes here
         lo = np.where(hit, mid, np.where(left, mid, lo))

@@ -230,11 +230,13 @@ class RollupAccumulator:
                           np.add.reduceat(steps[:, c], starts))
 
     def add_pieces(self, axes: tuple[str, ...], line: np.ndarray, energy_j: np.ndarray,
-                   duration_s: np.ndarray, axis_moving_s: np.ndarray) -> None:
+                   duration_s: np.ndarray, axis_moving_s: np.ndarray,
+                   electrical_j: np.ndarray | None = None) -> None:
         """Take the pieces of the energy by phase (:mod:`.quadrature`), in time order: the
         source line, energy [J] and duration [s] of each (a piece lies in one block, so
         each goes wholly to its move's context), and the time ``(k,)`` [s] each axis
-        moved in them."""
+        moved in them; with drives ``electrical_j`` ``(p, 2)``: each piece's energy at the
+        motor terminals and at the supply side (the cabinet's standby included) [J]."""
         if self.axis_time is None:
             self.axes = tuple(axes)
             self.axis_time = np.zeros(len(self.axes))
@@ -243,6 +245,12 @@ class RollupAccumulator:
         if line.size == 0:
             return
         keys, e, d = line_runs(line, energy_j, duration_s)
+        elec = None
+        if electrical_j is not None:
+            _, motor, supply = line_runs(line, electrical_j[:, 0], electrical_j[:, 1])
+            elec = np.stack((motor, supply), axis=1)
+            if self.electrical is None:
+                self.electrical = np.zeros((self.energy.shape[0], 2))
         if self._last_change <= self._popped:
             # every note ahead has the current context (see add)
             if self._at < len(self._lines):
@@ -251,6 +259,8 @@ class RollupAccumulator:
             self._grow(self._ctx + 1)
             self.energy[self._ctx] += float(e.sum())
             self.duration[self._ctx] += float(d.sum())
+            if elec is not None:
+                cast(np.ndarray, self.electrical)[self._ctx] += elec.sum(axis=0)
             return
         ctxs = np.empty(keys.shape[0], dtype=np.int64)
         for i, key in enumerate(keys.tolist()):
@@ -259,6 +269,9 @@ class RollupAccumulator:
         self._grow(int(ctxs.max()) + 1)
         np.add.at(self.energy, ctxs, e)
         np.add.at(self.duration, ctxs, d)
+        if elec is not None:
+            for c in range(2):
+                np.add.at(cast(np.ndarray, self.electrical)[:, c], ctxs, elec[:, c])
 
     def _axis_time(self, t: np.ndarray, vel: np.ndarray, t0: float, v0: np.ndarray,
                    first: bool) -> None:

@@ -52,9 +52,15 @@ def test_table_names_the_point_and_adds_up(program, capsys):
 def test_json_export_and_report_agree(program, tmp_path, capsys):
     out = tmp_path / 'csv'
     report = tmp_path / 'report'
+    # --method samples: the summary integrated over the exported samples themselves
     s = _json(capsys, str(program), '--machine', str(DRIVES), '--csv', str(out),
-              '--report', str(report))
+              '--report', str(report), '--method', 'samples')
     e = s['electrical']
+    # by phase (the default): the same figures within the samples' discretization error
+    phases = _json(capsys, str(program), '--machine', str(DRIVES))['electrical']
+    for key in ('motor_energy_j', 'supply_energy_j'):
+        assert math.isclose(phases[key]['total'], e[key]['total'], rel_tol=1e-4)
+        assert phases[key]['total'] != e[key]['total']
     assert e['measured_at'] == 'supply' and e['energy_j'] == e['supply_energy_j']
     with open(out / 'timeseries.csv', newline='', encoding='utf-8') as fh:
         rows = list(csv.reader(fh))
@@ -94,13 +100,21 @@ def test_drives_leave_the_mechanical_result_alone(program, tmp_path, capsys):
     data['braking'] = 'dissipated'
     path = tmp_path / 'm.yaml'
     path.write_text(yaml.safe_dump(data), encoding='utf-8')
-    with_drives = _json(capsys, str(program), '--machine', str(path))
-    # with drives the figures are integrated over samples (not yet by phase): the same here
-    assert with_drives['method'] == 'samples'
+    # over samples: the same numbers
+    with_drives = _json(capsys, str(program), '--machine', str(path), '--method', 'samples')
     plain = _json(capsys, str(program), '--machine', str(MILL), '--method', 'samples')
     assert 'electrical' not in plain
     for key in ('energy_j', 'peak_power_w', 'energy_by_cause_j', 'loss_energy_j'):
         assert with_drives[key] == plain[key], key
+    # by phase (the default): the drives cut the pieces at more points (where the motor
+    # power and v change sign), so the mechanical sums agree to the quadrature's error
+    with_drives = _json(capsys, str(program), '--machine', str(path))
+    plain = _json(capsys, str(program), '--machine', str(MILL))
+    assert with_drives['method'] == plain['method'] == 'phases'
+    assert 'electrical' in with_drives and 'electrical' not in plain
+    for axis, value in plain['energy_j'].items():
+        assert math.isclose(with_drives['energy_j'][axis], value, rel_tol=1e-9, abs_tol=1e-9)
+    assert math.isclose(with_drives['loss_energy_j'], plain['loss_energy_j'], rel_tol=1e-9)
 
 
 def test_bad_drive_value_exits_1_naming_the_key(program, tmp_path, capsys):
