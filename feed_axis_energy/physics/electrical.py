@@ -138,11 +138,7 @@ class _Trapezoid:
         self._t_last: float | None = None
 
     def add(self, t: np.ndarray, power: np.ndarray, offset: float = 0.0) -> None:
-        k = power.shape[1]
-        if self.energy is None:
-            self.energy = np.zeros(k)
-            self.peak = np.full(k + 1, -np.inf)
-        peak = cast(np.ndarray, self.peak)          # set with self.energy (above)
+        self._start(power.shape[1])
         # one weighted sum over the samples (w_i = (dt_{i-1} + dt_i) / 2): no temporaries
         dt = np.diff(t)
         w = np.zeros(t.shape[0])
@@ -151,33 +147,32 @@ class _Trapezoid:
         if self._last is not None:
             d0 = float(t[0]) - cast(float, self._t_last)     # set with self._last
             w[0] += 0.5 * d0
-            self.energy += 0.5 * d0 * self._last
-        # column by column: reductions across a narrow array are slow in numpy
-        total = power[:, 0].copy()
-        for j in range(k):
-            column = power[:, j]
-            self.energy[j] += np.einsum('i,i', w, column)
-            peak[j] = max(peak[j], float(column.max()))
-            if j:
-                total += column
-        peak[k] = max(peak[k], float(total.max()) + offset)
+            cast(np.ndarray, self.energy)[:] += 0.5 * d0 * self._last
+        self._columns(w, power, offset)
         self._last = power[-1].copy()
         self._t_last = float(t[-1])
 
     def add_weighted(self, w: np.ndarray, power: np.ndarray, offset: float = 0.0) -> None:
         """Quadrature nodes with weights ``w`` [s] (:mod:`feed_axis_energy.plan.nodes`): the
         integral is the weighted sum, no interval to the previous rows."""
-        k = power.shape[1]
+        self._start(power.shape[1])
+        if power.shape[0]:
+            self._columns(w, power, offset)
+
+    def _start(self, k: int) -> None:
         if self.energy is None:
             self.energy = np.zeros(k)
             self.peak = np.full(k + 1, -np.inf)
-        peak = cast(np.ndarray, self.peak)          # set with self.energy (above)
-        if power.shape[0] == 0:
-            return
+
+    def _columns(self, w: np.ndarray, power: np.ndarray, offset: float) -> None:
+        """``w @ power`` into the energy, the largest values into the peaks: column by
+        column (reductions across a narrow array are slow in numpy)."""
+        energy, peak = cast(np.ndarray, self.energy), cast(np.ndarray, self.peak)
+        k = power.shape[1]
         total = power[:, 0].copy()
         for j in range(k):
             column = power[:, j]
-            self.energy[j] += np.einsum('i,i', w, column)
+            energy[j] += np.einsum('i,i', w, column)
             peak[j] = max(peak[j], float(column.max()))
             if j:
                 total += column
