@@ -1,5 +1,5 @@
 """RSS of ``gcode_trajectory``'s setpoint source over a long job, glibc's mmap threshold dynamic
-or fixed (``nodes/heap.py``).
+or fixed (``heap.py``).
 
     PYTHONPATH=. .venv/bin/python bench/bench_source_rss.py [--pairs 150]
 
@@ -8,7 +8,7 @@ forth at 3 m/min on ``three_axis_mill_drives.yaml``; 150: 619 s), then, in one c
 per mode, plans it with :class:`~feed_axis_energy.graph.SetpointSource` as the node does
 (survey, then every batch of 100 samples) and prints the RSS and Python's traced memory
 (tracemalloc) at 10 %, 50 % and the end of the batches: ``dynamic`` (glibc's default) and
-``fixed`` (:func:`feed_axis_energy.nodes.heap.fix_mmap_threshold`, what the node calls).
+``fixed`` (:func:`feed_axis_energy.heap.fix_mmap_threshold`, what the node calls).
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ CHILD = r'''
 import json, sys, tracemalloc
 mode, program = sys.argv[1], sys.argv[2]
 if mode == 'fixed':
-    from feed_axis_energy.nodes.heap import fix_mmap_threshold
+    from feed_axis_energy.heap import fix_mmap_threshold
     assert fix_mmap_threshold(), 'mallopt refused (not glibc?)'
 from feed_axis_energy.gcode import iter_moves
 from feed_axis_energy.graph import SetpointSource

@@ -9,7 +9,7 @@ def test_glibc_takes_the_setting_once_per_process():
     code = ('from feed_axis_energy.heap import keep_freed_memory as k\n'
             'import feed_axis_energy.heap as h\n'
             'first = k(); again = k(mmap_bytes=1)\n'
-            'print(first, again, h._applied)\n')
+            'print(first, again, h._kept)\n')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
                          check=True).stdout.split()
     try:

@@ -38,7 +38,7 @@ from feed_axis_energy.graph import (FlowWindow, header_frame_id, header_stamp_ns
 from feed_axis_energy.machine import load_machine
 from feed_axis_energy.plan import iter_motion
 from feed_axis_energy.nodes import convert
-from feed_axis_energy.nodes.heap import fix_mmap_threshold
+from feed_axis_energy.heap import fix_mmap_threshold
 from feed_axis_energy.nodes.qos import (clock_qos, command_qos, job_qos, latched_qos, report_qos,
                                         stream_qos)
 from feed_axis_energy.nodes.runner import (check_positive, declare, guard_parameters,

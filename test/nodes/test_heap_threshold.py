@@ -15,7 +15,7 @@ glibc = pytest.mark.skipif(platform.system() != 'Linux' or platform.libc_ver()[0
 CHILD = r'''
 import ctypes, sys
 import numpy as np
-from feed_axis_energy.nodes.heap import fix_mmap_threshold
+from feed_axis_energy.heap import fix_mmap_threshold
 
 class MallInfo2(ctypes.Structure):
     _fields_ = [(n, ctypes.c_size_t) for n in ('arena', 'ordblks', 'smblks', 'hblks', 'hblkhd',
