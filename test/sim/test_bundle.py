@@ -163,3 +163,19 @@ def test_energy_figures_are_the_full_summary_s_energy_within_its_error():
         assert s['duration_s'] == f['duration_s'] and s['samples'] == f['samples']
         tol = s['quadrature_error_j']['total'] + f['quadrature_error_j']['total']
         assert abs(s['energy_j']['total'] - f['energy_j']['total']) <= tol
+
+
+def test_with_drives_bundled_results_equal_each_job_alone():
+    drives = str(REPO / 'config' / 'three_axis_mill_drives.yaml')
+    jobs = [_job(0, machine=drives), _job(1, machine=drives, load_kg=30.0),
+            _job(2, machine=drives, feed_override=0.7),
+            _job(3, machine=drives, overrides=(('axes.*.drive.resistance_ohm', 2.0, True),)),
+            _job(4, machine=drives, load_kg=30.0, figures='energy')]
+    (only,) = bundle_jobs(jobs, 1)
+    assert sorted(only) == list(range(len(jobs)))
+    bundled = run_batch(jobs, share=1)
+    assert all(r.ok for r in bundled)
+    assert _dicts(bundled) == _dicts(run_batch(jobs, share=0))
+    supply = [r.summary['electrical']['supply_energy_j']['total'] for r in bundled]
+    assert len(set(supply[:4])) == 4                     # each variant its own drives
+    assert supply[4] == pytest.approx(supply[1], rel=1e-9)   # the lean figures: the same
