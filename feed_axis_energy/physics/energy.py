@@ -52,6 +52,16 @@ class ElectricalPower:
     cabinet_w: float = 0.0
     measured_at: str = 'motor'
 
+    def append(self, other: 'ElectricalPower') -> 'ElectricalPower':
+        """The rows of this one followed by those of ``other`` (same axes and causes)."""
+        return ElectricalPower(
+            motor_w=np.concatenate((self.motor_w, other.motor_w)),
+            supply_w=np.concatenate((self.supply_w, other.supply_w)),
+            parts=tuple((n, np.concatenate((p, q)))
+                        for (n, p), (_, q) in zip(self.parts, other.parts)),
+            burned_w=np.concatenate((self.burned_w, other.burned_w)),
+            cabinet_w=self.cabinet_w, measured_at=self.measured_at)
+
     def take(self, rows: np.ndarray) -> 'ElectricalPower':
         """The samples ``rows`` (e.g. a chunk expanded to the full rate)."""
         return ElectricalPower(motor_w=self.motor_w[rows], supply_w=self.supply_w[rows],

@@ -114,7 +114,6 @@ class _Plan:
 
     members: list[int]                 # indices into the bundle's jobs
     windows: Iterator[Any] | None = None
-    error: BaseException | None = None
 
 
 class _Source:
@@ -164,7 +163,7 @@ def _run(jobs: list[Any], results: list[Any]) -> None:
     machines: list[Any] = []
     options: list[Any] = []
     accs: list[Any] = []
-    evals: list[Any] = []
+    evals: list[Any] = [None] * len(jobs)
     for job in jobs:
         machine = job_machine(job)
         machines.append(machine)
@@ -181,7 +180,6 @@ def _run(jobs: list[Any], results: list[Any]) -> None:
                                  options=options[i], top_blocks=job.top_blocks,
                                  rollup=True, context=stream.context,
                                  lines=job.top_blocks > 0, figures=job.figures))
-        evals.append(None)
     for plan, branch in zip(plans.values(), branches):
         lead = plan.members[0]
         job, machine = jobs[lead], machines[lead]
@@ -280,14 +278,14 @@ def run_batch(jobs: Iterable[BatchJob], *, executor: cf.Executor | None = None,
                 progress(done, total, result)
 
     def task(members: list[int]) -> tuple[Callable[..., Any], Any]:
+        # a job alone is submitted as itself (run_job, as executors have always seen it)
         if len(members) == 1:
             return run_job, jobs[members[0]]
         return run_bundle, tuple(jobs[i] for i in members)
 
     if executor is None:
         for members in bundles:
-            fn, arg = task(members)
-            take(members, [fn(arg)] if fn is run_job else fn(arg))
+            take(members, run_bundle(tuple(jobs[i] for i in members)))
         return results  # type: ignore[return-value]
     pending = {}
     for members in bundles:

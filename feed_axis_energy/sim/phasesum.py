@@ -170,7 +170,7 @@ class PhaseSummary:
             self.spread.add(dyn, mech, braking=braking, weights=weight)
         self.peaks.add(drawn)                  # the nodes and the pieces' ends
         if self.rolls is not None:
-            _roll(self.rolls, w, self.axes, drawn, self.elec is not None)
+            _roll(self.rolls, w, self.axes, drawn)
 
     def result(self) -> tuple[dict[str, Any], LineEnergy]:
         """The summary and the energy per source line (empty without ``lines``)."""
@@ -189,17 +189,7 @@ class PhaseSummary:
         energy_d = {a: float(energy[j]) for j, a in enumerate(axes)}
         energy_d['total'] = float(energy.sum())
         errors = {**{a: float(error[j]) for j, a in enumerate(axes)}, 'total': float(error.sum())}
-        if self.figures == 'energy':
-            summary = add_uncertainty({
-                'program': self.file, 'machine': self.machine.name,
-                'load_kg': float(self.load_kg), 'duration_s': float(t_end), 'samples': n,
-                'rate_hz': rate_from_interval(1.0 / options.rate_hz) if n >= 2 else 0.0,
-                'braking': self.machine.braking, 'energy_j': energy_d, 'method': 'phases',
-                'figures': 'energy', 'quadrature_error_j': errors}, self.spread)
-            if self.elec is not None and self.elec.summary():
-                summary['electrical'] = self.elec.summary()
-            return summary, by_line
-        summary = add_breakdown({
+        summary: dict[str, Any] = {
             'program': self.file,
             'machine': self.machine.name,
             'load_kg': float(self.load_kg),
@@ -208,6 +198,15 @@ class PhaseSummary:
             'rate_hz': rate_from_interval(1.0 / options.rate_hz) if n >= 2 else 0.0,
             'braking': self.machine.braking,
             'energy_j': energy_d,
+        }
+        electrical = self.elec.summary() if self.elec is not None else {}
+        if self.figures == 'energy':
+            summary.update(method='phases', figures='energy', quadrature_error_j=errors)
+            summary = add_uncertainty(summary, self.spread)
+            if electrical:
+                summary['electrical'] = electrical
+            return summary, by_line
+        summary.update({
             'peak_power_w': {**{a: float(peak[j]) for j, a in enumerate(axes)},
                              'total': float(peak[k])},
             'regenerated_energy_j': max(0.0, -self.returned),
@@ -215,11 +214,11 @@ class PhaseSummary:
             'top_blocks': [{'line': int(by_line.lines[i]),
                             'energy_j': float(by_line.energy_j[i]),
                             'duration_s': float(by_line.duration_s[i])} for i in order_],
-        }, self.causes)
+        })
+        summary = add_breakdown(summary, self.causes)
         summary['method'] = 'phases'
         summary['quadrature_error_j'] = errors
         summary = add_uncertainty(summary, self.spread)
-        electrical = self.elec.summary() if self.elec is not None else {}
         if electrical:
             summary['electrical'] = electrical
             add_block_electrical(summary['top_blocks'], cast(ElectricalAccumulator, self.elec))
@@ -235,8 +234,7 @@ class PhaseSummary:
                                    by_cause_j=by_cause, motor_j=motor, supply_j=supply)
 
 
-def _roll(rolls: Any, w: WindowNodes, axes: tuple[str, ...], drawn: np.ndarray,
-          electrical: bool = False) -> None:
+def _roll(rolls: Any, w: WindowNodes, axes: tuple[str, ...], drawn: np.ndarray) -> None:
     """The window's pieces, in time order, to the roll-ups: each piece's line, energy,
     duration, and the time each axis moved (a piece where its speed is not zero at a row);
     with drives also its energy at the motor terminals and at the supply side (the
@@ -252,7 +250,7 @@ def _roll(rolls: Any, w: WindowNodes, axes: tuple[str, ...], drawn: np.ndarray,
     order = np.argsort(a, kind='stable')
     h = b - a
     elec = None
-    if electrical and w.elec is not None:
+    if w.elec is not None:
         elec = np.empty((p, 2))
         elec[:, 0] = (w.weight_s * row_sum(w.elec.motor_w)).reshape(p, npt).sum(axis=1)
         elec[:, 1] = ((w.weight_s * row_sum(w.elec.supply_w)).reshape(p, npt).sum(axis=1)

@@ -316,37 +316,47 @@ class WindowEvaluator:
         npt = self.order + 2
         a, b, motion = rows.piece_a, rows.piece_b, rows.motion
         dyn = compute_dynamics(motion, machine, load_kg=load_kg)
+        elec = self._electrical(dyn)
         cuts = np.zeros(0)
         if np.any(self.watch) and a.size:
             def signs_at(times: np.ndarray) -> np.ndarray:
-                return self._signs(compute_dynamics(at.at(times), machine, load_kg=load_kg))
+                d = compute_dynamics(at.at(times), machine, load_kg=load_kg)
+                return self._signs(d, self._electrical(d))
             cuts = _sign_cuts(motion.t.reshape(a.size, npt),
-                              self._signs(dyn).reshape(a.size, npt, -1), self.watch, self.k,
-                              signs_at)
+                              self._signs(dyn, elec).reshape(a.size, npt, -1), self.watch,
+                              self.k, signs_at)
         if cuts.size:
             a, b, part = _split(at, a, b, cuts, self.frac)
             motion = _append(motion, part)
-            dyn = _append_dynamics(dyn, compute_dynamics(part, machine, load_kg=load_kg))
+            part_dyn = compute_dynamics(part, machine, load_kg=load_kg)
+            dyn = _append_dynamics(dyn, part_dyn)
+            if elec is not None:      # row by row too: the bits of the joined rows at once
+                elec = elec.append(cast(ElectricalPower, self._electrical(part_dyn)))
         h = b - a
         m = dyn.torque_nm * dyn.omega_rad_s
         drawn = apply_braking(m, braking=machine.braking)
         low_j = weighted_sum((h[:, None] * self.wlow[None, :]).ravel(), drawn)
-        elec = electrical_power(dyn, m, machine) if self.electrical else None
         return WindowNodes(at=at, piece_a=a, piece_b=b, motion=motion, dyn=dyn,
                            mechanical_w=m, drawn_w=drawn,
                            weight_s=(h[:, None] * self.wrow[None, :]).ravel(), low_j=low_j,
                            points=npt, sign_cuts=int(cuts.size), elec=elec)
 
-    def _signs(self, dyn: AxisDynamics) -> np.ndarray:
+    def _electrical(self, dyn: AxisDynamics) -> ElectricalPower | None:
+        """The electrical power at the rows of ``dyn`` (``None`` without drives)."""
+        if not self.electrical:
+            return None
+        return electrical_power(dyn, dyn.torque_nm * dyn.omega_rad_s, self.machine)
+
+    def _signs(self, dyn: AxisDynamics, elec: ElectricalPower | None) -> np.ndarray:
         """The functions whose sign changes are kinks, per axis at the rows: ``F v``,
-        ``M omega`` [W], ``v a`` [m²/s³], ``v`` [m/s], and with drives ``P_motor`` [W] and
-        what the chopper would burn, ``-(P_motor + P_converter) - limit`` [W] (1 where
-        nothing is burned ever): ``(n, 4 k)`` or ``(n, 6 k)``."""
+        ``M omega`` [W], ``v a`` [m²/s³], ``v`` [m/s], and with drives (``elec``, the
+        electrical power at the same rows) ``P_motor`` [W] and what the chopper would burn,
+        ``-(P_motor + P_converter) - limit`` [W] (1 where nothing is burned ever):
+        ``(n, 4 k)`` or ``(n, 6 k)``."""
         v = dyn.velocity_m_s
         m = dyn.torque_nm * dyn.omega_rad_s
         cols = [dyn.force_n * v, m, v * dyn.acceleration_m_s2, v]
-        if self.electrical:
-            elec = cast(ElectricalPower, electrical_power(dyn, m, self.machine))
+        if elec is not None:
             conv = dict(elec.parts)['converter']
             burn = -(elec.motor_w + conv) - np.where(np.isfinite(self.limit), self.limit, 0.0)
             cols += [elec.motor_w, np.where(np.isfinite(self.limit), burn, 1.0)]
@@ -485,10 +495,6 @@ def _sign_cuts(t: np.ndarray, g: np.ndarray, watch: np.ndarray, k: int,
     piece (a cut that far off the kink changes the integral by about half the kink's change
     of slope times its square: 5e-15 of the piece's energy). A value below
     :data:`_NOISE` of the largest on the piece is a zero: the bracket closes there."""
-    # a strict change between probes, both above the rounding noise: where the motion
-    # stops at a piece's end, the row a hair inside reads F v of about 1e-14 W of either
-    # sign against watts elsewhere; no kink there is worth a cut, and such a bracket would
-    # hold the root finding for dozens of steps
     # the few pieces where a watched column takes both signs, from its least and largest
     # value on each piece (row by row: 3x faster than min/max over axis 1)
     high, low = g[:, 0, :].copy(), g[:, 0, :].copy()
@@ -503,6 +509,10 @@ def _sign_cuts(t: np.ndarray, g: np.ndarray, watch: np.ndarray, k: int,
     g = g[pieces]
     t = t[pieces]
     noise = noise[pieces]
+    # a strict change between probes, both above the rounding noise: where the motion
+    # stops at a piece's end, the row a hair inside reads F v of about 1e-14 W of either
+    # sign against watts elsewhere; no kink there is worth a cut, and such a bracket would
+    # hold the root finding for dozens of steps
     live = np.abs(g) > noise[:, None, :]
     change = (g[:, :-1, :] * g[:, 1:, :] < 0.0) & live[:, :-1, :] & live[:, 1:, :] & watch
     piece, step, col = np.nonzero(change)
